@@ -1,0 +1,5 @@
+import sys
+
+from mesh2tex.cli import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""Geometry: loading and cleaning meshes, quad remeshing, hierarchies, neighbourhoods, features."""

@@ -1,0 +1,106 @@
+"""The prepared-shape record: a quad-mesh hierarchy with neighbourhoods, pooling maps and features.
+
+One ``<name>.npz`` per shape (see docs/prepared_shape_format.md), loadable with
+``np.load(path, allow_pickle=False)``. Level 0 is the finest.
+
+Arrays, for every level ``l`` in ``0 .. L-1``:
+    vertices_{l}   float32 (V_l, 3)  positions in the normalised frame (bbox centre 0, diagonal 1)
+    quads_{l}      int64   (F_l, 4)  vertex indices of each quad, in cyclic order
+    neighbors_{l}  int64   (F_l, 9)  column 0 the face itself, then its 8 ring faces in rotational
+                                    order, edge and corner neighbours alternating; -1 where missing
+    pool_{l}       int64   (F_l,)    index of the coarser face (level l+1) each face maps to (not for l = L-1)
+Plus:
+    face_features  float32 (F_0, C)  geometric features of the finest faces
+    feature_names  str     (C,)      name of each feature column
+    noc_0          float32 (V_0, 3)  NOC coordinates of the finest vertices, in [0, 1]^3
+    metadata       str     ()        JSON: schema_version, source, transform, seconds, seeds, ...
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mesh2tex.errors import UserError
+from mesh2tex.io.atomic import atomic_path
+
+SCHEMA_VERSION = 1
+
+
+@dataclass
+class PreparedShape:
+    """Plain arrays of a prepared shape; see the module docstring for shapes and meaning."""
+
+    vertices: list[np.ndarray]  # per level, (V_l, 3) float32
+    quads: list[np.ndarray]  # per level, (F_l, 4) int64
+    neighbors: list[np.ndarray]  # per level, (F_l, 9) int64
+    pool: list[np.ndarray]  # per level but the coarsest, (F_l,) int64
+    face_features: np.ndarray  # (F_0, C) float32
+    feature_names: list[str]
+    noc: np.ndarray  # (V_0, 3) float32
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def num_levels(self) -> int:
+        return len(self.quads)
+
+    @property
+    def face_counts(self) -> list[int]:
+        return [int(q.shape[0]) for q in self.quads]
+
+    def triangles(self, level: int = 0) -> np.ndarray:
+        """(2 F_l, 3) int64: each quad (a, b, c, d) split into (a, b, c) and (a, c, d).
+
+        Triangle ``2 f`` and ``2 f + 1`` belong to quad ``f``.
+        """
+        q = self.quads[level]
+        return np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the record atomically as an uncompressed-pickle-free .npz."""
+        arrays: dict[str, np.ndarray] = {}
+        for level in range(self.num_levels):
+            arrays[f"vertices_{level}"] = np.asarray(self.vertices[level], dtype=np.float32)
+            arrays[f"quads_{level}"] = np.asarray(self.quads[level], dtype=np.int64)
+            arrays[f"neighbors_{level}"] = np.asarray(self.neighbors[level], dtype=np.int64)
+        for level, pool in enumerate(self.pool):
+            arrays[f"pool_{level}"] = np.asarray(pool, dtype=np.int64)
+        arrays["face_features"] = np.asarray(self.face_features, dtype=np.float32)
+        arrays["feature_names"] = np.asarray(self.feature_names, dtype=np.str_)
+        arrays["noc_0"] = np.asarray(self.noc, dtype=np.float32)
+        metadata = {"schema_version": SCHEMA_VERSION, "num_levels": self.num_levels, **self.metadata}
+        arrays["metadata"] = np.asarray(json.dumps(metadata), dtype=np.str_)
+        with atomic_path(path, suffix=".npz") as tmp:
+            np.savez_compressed(tmp, **arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "PreparedShape":
+        """Read a record written by :meth:`save`; a damaged or foreign file is a :class:`UserError`."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                metadata = json.loads(str(data["metadata"]))
+                if metadata.get("schema_version") != SCHEMA_VERSION:
+                    raise UserError(f"{path}: prepared-shape schema {metadata.get('schema_version')} is not supported (expected {SCHEMA_VERSION}); re-run 'mesh2tex prepare shapes'")
+                levels = int(metadata["num_levels"])
+                return cls(
+                    vertices=[data[f"vertices_{l}"] for l in range(levels)],
+                    quads=[data[f"quads_{l}"] for l in range(levels)],
+                    neighbors=[data[f"neighbors_{l}"] for l in range(levels)],
+                    pool=[data[f"pool_{l}"] for l in range(levels - 1)],
+                    face_features=data["face_features"],
+                    feature_names=[str(n) for n in data["feature_names"]],
+                    noc=data["noc_0"],
+                    metadata=metadata,
+                )
+        except UserError:
+            raise
+        except FileNotFoundError:
+            raise UserError(f"{path}: prepared shape not found") from None
+        except (OSError, ValueError, KeyError, json.JSONDecodeError) as error:
+            raise UserError(f"{path}: not a valid prepared shape ({error.__class__.__name__}: {error})") from None

@@ -1,0 +1,1 @@
+"""File boundary helpers: atomic writes, checkpoints, images, textured assets."""

@@ -1,0 +1,90 @@
+"""Checkpoints without pickle: tensors in safetensors, everything else as JSON in its metadata.
+
+A checkpoint is one ``.safetensors`` file. Tensor names are ``<group>/<name>`` (for example
+``generator/mapping.fc0.weight`` or ``optim_g/state.3.exp_avg``); the JSON metadata holds the
+format version, the kind of checkpoint (``gan``, ``pose``, ``noc`` ...), the resolved config and
+any plain-JSON state (iteration, optimizer hyperparameters, RNG states encoded as tensors).
+Writes are atomic, so a kill during a save never spoils the previous checkpoint.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+
+from mesh2tex.errors import UserError
+from mesh2tex.io.atomic import atomic_path
+
+CHECKPOINT_FORMAT = 1
+_META_KEY = "mesh2tex"
+
+
+def flatten_state(groups: dict[str, dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
+    """{group: {name: tensor}} -> {"group/name": contiguous CPU tensor}."""
+    flat = {}
+    for group, tensors in groups.items():
+        for name, tensor in tensors.items():
+            flat[f"{group}/{name}"] = tensor.detach().to("cpu").contiguous()
+    return flat
+
+
+def unflatten_state(flat: dict[str, torch.Tensor]) -> dict[str, dict[str, torch.Tensor]]:
+    """Inverse of :func:`flatten_state`."""
+    groups: dict[str, dict[str, torch.Tensor]] = {}
+    for key, tensor in flat.items():
+        group, _, name = key.partition("/")
+        groups.setdefault(group, {})[name] = tensor
+    return groups
+
+
+def save_checkpoint(path: str | os.PathLike, groups: dict[str, dict[str, torch.Tensor]], kind: str, meta: dict[str, Any]) -> None:
+    """Atomically write tensor ``groups`` and JSON-serialisable ``meta`` to ``path`` (.safetensors)."""
+    header = {"format": CHECKPOINT_FORMAT, "kind": kind, "meta": meta}
+    flat = flatten_state(groups)
+    # safetensors refuses tensors that share memory; clone those that do.
+    seen: dict[int, str] = {}
+    for key, tensor in flat.items():
+        ptr = tensor.untyped_storage().data_ptr() if tensor.numel() else -1
+        if ptr in seen:
+            flat[key] = tensor.clone()
+        elif ptr != -1:
+            seen[ptr] = key
+    with atomic_path(path, suffix=".safetensors") as tmp:
+        save_file(flat, str(tmp), metadata={_META_KEY: json.dumps(header)})
+
+
+def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:
+    """The JSON header ({format, kind, meta}) of a checkpoint, without loading its tensors."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: checkpoint not found")
+    try:
+        with open(path, "rb") as handle:
+            size = int.from_bytes(handle.read(8), "little")
+            if size <= 0 or size > 100_000_000:
+                raise ValueError("bad header size")
+            header = json.loads(handle.read(size))
+        meta = header.get("__metadata__", {})
+        return json.loads(meta[_META_KEY])
+    except (ValueError, KeyError, json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise UserError(f"{path}: not a mesh2tex checkpoint ({error.__class__.__name__})") from None
+
+
+def load_checkpoint(path: str | os.PathLike, kind: str | None = None, map_location: str = "cpu") -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
+    """Load a checkpoint; returns (tensor groups, meta). ``kind`` checks the checkpoint's kind."""
+    header = read_checkpoint_meta(path)
+    if header.get("format") != CHECKPOINT_FORMAT:
+        raise UserError(f"{path}: checkpoint format {header.get('format')} is not supported (expected {CHECKPOINT_FORMAT})")
+    if kind is not None and header.get("kind") != kind:
+        raise UserError(f"{path}: this is a '{header.get('kind')}' checkpoint, expected a '{kind}' checkpoint")
+    try:
+        flat = load_file(str(path), device=map_location)
+    except (SafetensorError, OSError) as error:
+        raise UserError(f"{path}: damaged checkpoint ({error})") from None
+    return unflatten_state(flat), header["meta"]

@@ -1,0 +1,73 @@
+"""The plumbing every stage relies on: the CLI routes, errors are one line, writes are atomic, checkpoints carry no pickle."""
+
+import json
+
+import pytest
+import torch
+
+from mesh2tex.cli import main
+from mesh2tex.config import load_config, save_config
+from mesh2tex.errors import UserError
+from mesh2tex.io.atomic import atomic_path, write_json
+from mesh2tex.io.checkpoint import load_checkpoint, read_checkpoint_meta, save_checkpoint
+
+
+def test_help_lists_every_command(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    for command in ("prepare", "train", "infer", "evaluate", "demo"):
+        assert command in out
+
+
+def test_atomic_write_leaves_old_file_on_failure(tmp_path):
+    target = tmp_path / "a.json"
+    write_json(target, {"v": 1})
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("killed")
+    assert json.loads(target.read_text()) == {"v": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["a.json"]
+
+
+def test_checkpoint_round_trip_and_kind_check(tmp_path):
+    path = tmp_path / "ckpt.safetensors"
+    weights = {"w": torch.randn(3, 4), "b": torch.zeros(4)}
+    save_checkpoint(path, {"model": weights}, kind="gan", meta={"iteration": 7})
+    groups, meta = load_checkpoint(path, kind="gan")
+    assert meta == {"iteration": 7}
+    assert torch.equal(groups["model"]["w"], weights["w"])
+    with pytest.raises(UserError, match="expected a 'pose' checkpoint"):
+        load_checkpoint(path, kind="pose")
+
+
+def test_garbage_checkpoint_is_a_user_error(tmp_path):
+    path = tmp_path / "junk.safetensors"
+    path.write_bytes(b"\x00" * 64)
+    with pytest.raises(UserError, match="junk.safetensors"):
+        read_checkpoint_meta(path)
+
+
+def test_config_yaml_overrides_and_unknown_keys(tmp_path):
+    from dataclasses import dataclass, field
+
+    @dataclass
+    class Inner:
+        lr: float = 1e-3
+
+    @dataclass
+    class Outer:
+        iters: int = 5
+        optim: Inner = field(default_factory=Inner)
+
+    yaml_path = tmp_path / "c.yaml"
+    yaml_path.write_text("iters: 9\noptim:\n  lr: 2\n")
+    cfg = load_config(Outer, yaml_path, overrides={"optim.lr": 0.5, "iters": None})
+    assert cfg.iters == 9 and cfg.optim.lr == 0.5
+    save_config(cfg, tmp_path / "resolved.yaml")
+    assert load_config(Outer, tmp_path / "resolved.yaml") == cfg
+    yaml_path.write_text("itres: 9\n")
+    with pytest.raises(UserError, match="itres"):
+        load_config(Outer, yaml_path)

@@ -1,0 +1,28 @@
+"""Rendering in pure PyTorch: orbit cameras, a rasterizer, interpolation, shading, UV-space baking.
+
+Four primitives in the spirit of nvdiffrast, composed by the caller::
+
+    cam = orbit_camera(azimuth, elevation)              # view / proj / mvp (B,4,4)
+    pos = transform_points(vertices, cam.mvp)           # (B,V,4) clip space
+    raster = rasterize(pos, faces, (H, W))              # face_id, bary, depth
+    colour = interpolate(vertex_colours, raster, faces) # (B,H,W,C), differentiable
+
+Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in docs/rendering.md.
+"""
+
+from .cameras import Camera, orbit_camera, perspective, transform_points
+from .interpolate import face_attribute, interpolate, texture
+from .rasterize import Raster, pixel_centers, rasterize
+
+__all__ = [
+    "Camera",
+    "Raster",
+    "face_attribute",
+    "interpolate",
+    "orbit_camera",
+    "perspective",
+    "pixel_centers",
+    "rasterize",
+    "texture",
+    "transform_points",
+]

@@ -1,0 +1,144 @@
+"""Orbit cameras: the one camera model used by training, rendering, pose bins and evaluation.
+
+Convention (documented in docs/rendering.md):
+  * World space is right-handed with **y up**; the object sits at the origin.
+  * A camera at azimuth ``az`` and elevation ``el`` (both in **degrees**) and distance ``d`` sits at
+    ``d * (cos(el) sin(az), sin(el), cos(el) cos(az))`` and looks at the origin. Azimuth 0, elevation 0
+    looks down the -z axis from +z; azimuth 90 sits on +x; elevation 90 looks straight down.
+  * Camera (eye) space is OpenGL's: x right, y up, the camera looks down -z. The camera's right axis is
+    ``(cos az, 0, -sin az)``, which stays defined at the poles (elevation +-90).
+  * ``proj`` is the OpenGL perspective matrix with a vertical field of view ``fov`` (degrees), so clip
+    space is OpenGL's: after division by w, x, y, z in [-1, 1] are visible, z = -1 on the near plane.
+  * Row-vector-free: points are columns, ``clip = mvp @ [x, y, z, 1]``; ``mvp = proj @ view`` (the model
+    matrix is the identity: meshes are placed in world space by the caller).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+DEFAULT_DISTANCE = 2.5  # world units; a unit-sized object fills most of the frame at the default fov
+DEFAULT_FOV = 40.0  # vertical field of view in degrees
+DEFAULT_NEAR = 0.1
+DEFAULT_FAR = 100.0
+
+
+@dataclass
+class Camera:
+    """A batch of B cameras.
+
+    Attributes:
+        view: (B,4,4) float32, world -> eye space.
+        proj: (B,4,4) float32, eye -> OpenGL clip space.
+        mvp: (B,4,4) float32, ``proj @ view``.
+        position: (B,3) float32, camera centre in world space.
+    """
+
+    view: torch.Tensor
+    proj: torch.Tensor
+    mvp: torch.Tensor
+    position: torch.Tensor
+
+    def __len__(self) -> int:
+        return self.mvp.shape[0]
+
+    def to(self, device) -> "Camera":
+        return Camera(*(t.to(device) for t in (self.view, self.proj, self.mvp, self.position)))
+
+
+def _as_batch(value, device, dtype=torch.float32) -> torch.Tensor:
+    """A Python float, 0-d or (B,) tensor -> (B,) tensor."""
+    t = torch.as_tensor(value, dtype=dtype, device=device)
+    return t.reshape(-1)
+
+
+def perspective(fov, near=DEFAULT_NEAR, far=DEFAULT_FAR, aspect=1.0, device=None) -> torch.Tensor:
+    """OpenGL perspective projection(s).
+
+    Args:
+        fov: vertical field of view in degrees, float or (B,) tensor.
+        near, far: positive clip distances (floats or (B,) tensors).
+        aspect: width / height of the image.
+    Returns:
+        (B,4,4) float32.
+    """
+    fov = _as_batch(fov, device)
+    near = _as_batch(near, fov.device)
+    far = _as_batch(far, fov.device)
+    aspect = _as_batch(aspect, fov.device)
+    B = max(fov.numel(), near.numel(), far.numel(), aspect.numel())
+    fov, near, far, aspect = (t.expand(B) for t in (fov, near, far, aspect))
+    focal = 1.0 / torch.tan(torch.deg2rad(fov) * 0.5)
+    proj = torch.zeros(B, 4, 4, dtype=torch.float32, device=fov.device)
+    proj[:, 0, 0] = focal / aspect
+    proj[:, 1, 1] = focal
+    proj[:, 2, 2] = (far + near) / (near - far)
+    proj[:, 2, 3] = 2.0 * far * near / (near - far)
+    proj[:, 3, 2] = -1.0
+    return proj
+
+
+def orbit_camera(
+    azimuth,
+    elevation,
+    distance=DEFAULT_DISTANCE,
+    fov=DEFAULT_FOV,
+    near=DEFAULT_NEAR,
+    far=DEFAULT_FAR,
+    aspect=1.0,
+) -> Camera:
+    """Batched orbit cameras looking at the origin (see the module docstring for the convention).
+
+    Args:
+        azimuth: degrees, float or (B,) tensor.
+        elevation: degrees, float or (B,) tensor, in [-90, 90].
+        distance: float or (B,) tensor, distance from the origin.
+        fov: vertical field of view in degrees, float or (B,) tensor.
+        near, far: clip distances, floats or (B,) tensors.
+        aspect: image width / height.
+    Returns:
+        Camera with (B,4,4) ``view``, ``proj``, ``mvp`` and (B,3) ``position``, float32, on the device
+        of ``azimuth`` when it is a tensor (else CPU). Scalars broadcast against (B,) tensors.
+    """
+    device = next((t.device for t in (azimuth, elevation, distance, fov) if torch.is_tensor(t)), None)
+    az = torch.deg2rad(_as_batch(azimuth, device))
+    el = torch.deg2rad(_as_batch(elevation, device))
+    dist = _as_batch(distance, device)
+    B = max(az.numel(), el.numel(), dist.numel(), _as_batch(fov, device).numel())
+    az, el, dist = az.expand(B), el.expand(B), dist.expand(B)
+
+    back = torch.stack([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()], dim=-1)  # eye +z axis
+    position = dist[:, None] * back
+    right = torch.stack([az.cos(), torch.zeros_like(az), -az.sin()], dim=-1)
+    up = torch.linalg.cross(back, right)
+
+    view = torch.zeros(B, 4, 4, dtype=torch.float32, device=az.device)
+    view[:, 0, :3], view[:, 1, :3], view[:, 2, :3] = right, up, back
+    view[:, 0, 3] = -(right * position).sum(-1)
+    view[:, 1, 3] = -(up * position).sum(-1)
+    view[:, 2, 3] = -(back * position).sum(-1)
+    view[:, 3, 3] = 1.0
+
+    proj = perspective(fov, near, far, aspect, device=az.device).expand(B, 4, 4).contiguous()
+    return Camera(view=view, proj=proj, mvp=proj @ view, position=position)
+
+
+def transform_points(vertices: torch.Tensor, mvp: torch.Tensor) -> torch.Tensor:
+    """Project world-space points to homogeneous clip space.
+
+    Args:
+        vertices: (V,3) shared by all views, or (B,V,3), float.
+        mvp: (B,4,4) or (4,4) float.
+    Returns:
+        (B,V,4) clip-space positions, the ``pos`` input of :func:`mesh2tex.render.rasterize`.
+        Differentiable with respect to both inputs.
+    """
+    if mvp.dim() == 2:
+        mvp = mvp[None]
+    homogeneous = torch.cat([vertices, torch.ones_like(vertices[..., :1])], dim=-1)
+    if homogeneous.dim() == 2:
+        return torch.einsum("bij,vj->bvi", mvp.to(homogeneous.dtype), homogeneous)
+    return torch.einsum("bij,bvj->bvi", mvp.to(homogeneous.dtype), homogeneous)
+

@@ -1,0 +1,179 @@
+"""The mesh-field texture generator: geometry encoder, mapping network, face-convolution synthesis U-Net
+and the neural field psi.
+
+    face features ─► encoder (FaceResNet per level, max-pool to the next) ─► E_0 ... E_{L-1}
+    z (512) ─► mapping ─► w ─► ws (B, num_ws, 512)
+    synthesis, coarsest level first: block_l(unpool(x_{l+1}) ‖ E_l, ws) ─► x_l, rgb_l = unpool(rgb_{l+1}) + toRGB(x_l)
+    F_c = x_0 (per finest face), face colours = rgb_0 (the proxy texture)
+    psi(barycentrics, blend of vertex means of [F_c ‖ E_0]) ─► colour at any surface point
+
+Each synthesis block uses three ws (conv0, conv1, toRGB), so num_ws = 3 * num_levels. Texture
+transfer optimises ws and then the parameters of the last (finest) synthesis blocks:
+:meth:`TextureGenerator.last_synthesis_parameters`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+from torch import nn
+
+from mesh2tex.nn.batch import MeshBatch
+from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, FullyConnected, ModulatedFaceConv, face_pool, face_unpool
+from mesh2tex.nn.field import NeuralField
+
+
+@dataclass
+class GeneratorConfig:
+    z_dim: int = 512  # latent texture code size
+    w_dim: int = 512  # intermediate latent size
+    mapping_layers: int = 8  # fully connected layers of the mapping network
+    mapping_lr_multiplier: float = 0.01  # StyleGAN2's reduced learning rate of the mapping network
+    input_features: int = 0  # face-feature columns of the prepared shapes (0: taken from the data)
+    encoder_channels: list[int] = field(default_factory=lambda: [32, 64, 64, 96, 96])  # per level, finest first
+    synthesis_channels: list[int] = field(default_factory=lambda: [32, 64, 64, 96, 96])  # per level, finest first
+    pool_mode: str = "max"  # encoder pooling: max or mean
+    field_hidden: int = 128  # width of the neural field MLP
+    aux_latent_dim: int = 512  # size of the learnt auxiliary latent of psi
+    field_coords: str = "raw"  # local coordinates of psi: raw (barycentrics) or sorted_cdf
+    conv_clamp: float = 256.0  # clamp of synthesis activations (keeps mixed precision finite)
+
+    @property
+    def num_levels(self) -> int:
+        return len(self.synthesis_channels)
+
+
+class MappingNetwork(nn.Module):
+    """z (B, z_dim) -> ws (B, num_ws, w_dim), tracking the mean w for the truncation trick."""
+
+    def __init__(self, z_dim: int, w_dim: int, num_ws: int, layers: int = 8, lr_multiplier: float = 0.01, w_avg_beta: float = 0.995):
+        super().__init__()
+        self.num_ws, self.w_avg_beta = num_ws, w_avg_beta
+        dims = [z_dim] + [w_dim] * layers
+        self.net = nn.Sequential(*[FullyConnected(a, b, activation="lrelu", lr_multiplier=lr_multiplier) for a, b in zip(dims[:-1], dims[1:])])
+        self.register_buffer("w_avg", torch.zeros(w_dim))
+
+    def forward(self, z: torch.Tensor, truncation_psi: float = 1.0, update_w_avg: bool = False) -> torch.Tensor:
+        z = z * (z.square().mean(dim=1, keepdim=True) + 1e-8).rsqrt()  # normalise the second moment
+        w = self.net(z)
+        if update_w_avg:
+            self.w_avg.copy_(w.detach().mean(0).lerp(self.w_avg, self.w_avg_beta))
+        if truncation_psi != 1.0:
+            w = self.w_avg.lerp(w, truncation_psi)
+        return w.unsqueeze(1).repeat(1, self.num_ws, 1)
+
+
+class GeometryEncoder(nn.Module):
+    """Face features (F_0, C_in) -> per-level geometry features [E_0 (F_0, c_0), ..., E_{L-1}]."""
+
+    def __init__(self, in_features: int, channels: list[int], pool_mode: str = "max"):
+        super().__init__()
+        self.pool_mode = pool_mode
+        self.stem = FaceConv(in_features, channels[0])
+        self.blocks = nn.ModuleList(FaceResNetBlock(channels[max(l - 1, 0)], channels[l]) for l in range(len(channels)))
+
+    def forward(self, batch: MeshBatch) -> list[torch.Tensor]:
+        x = self.stem(batch.face_features, batch.neighbors[0])
+        features = []
+        for level, block in enumerate(self.blocks):
+            if level > 0:
+                x = face_pool(x, batch.pool[level - 1], batch.num_faces(level), self.pool_mode)
+            x = block(x, batch.neighbors[level])
+            features.append(x)
+        return features
+
+
+class SynthesisBlock(nn.Module):
+    """One level of the synthesis U-Net: two modulated face convolutions and a per-face toRGB."""
+
+    def __init__(self, in_channels: int, skip_channels: int, out_channels: int, w_dim: int, conv_clamp: float | None):
+        super().__init__()
+        self.conv0 = ModulatedFaceConv(in_channels + skip_channels, out_channels, w_dim, clamp=conv_clamp)
+        self.conv1 = ModulatedFaceConv(out_channels, out_channels, w_dim, clamp=conv_clamp)
+        self.torgb = ModulatedFaceConv(out_channels, 3, w_dim, kernel_size=1, demodulate=False, activation="linear", use_noise=False, clamp=conv_clamp)
+
+    def forward(self, x, skip, neighbors, ws, sample_index, noise_mode):
+        """x: (F, in) or None, skip: (F, skip), ws: (B, 3, w_dim) -> (features (F, out), rgb (F, 3))."""
+        x = skip if x is None else torch.cat([x, skip.to(x.dtype)], dim=1)
+        x = self.conv0(x, neighbors, ws[:, 0], sample_index, noise_mode)
+        x = self.conv1(x, neighbors, ws[:, 1], sample_index, noise_mode)
+        rgb = self.torgb(x, neighbors, ws[:, 2], sample_index, noise_mode)
+        return x, rgb
+
+
+@dataclass
+class FaceTexture:
+    """The generator's output on a batch: per finest face.
+
+    field_features (F_0, C_field) float  the features psi blends ([F_c ‖ E_0])
+    face_rgb       (F_0, 3) float        the per-face colours (proxy texture), nominally in [-1, 1]
+    """
+
+    field_features: torch.Tensor
+    face_rgb: torch.Tensor
+
+
+class TextureGenerator(nn.Module):
+    """The whole generator; submodules ``encoder``, ``mapping``, ``synthesis``, ``field`` take their own
+    learning rates (see :meth:`parameter_groups`)."""
+
+    def __init__(self, cfg: GeneratorConfig):
+        super().__init__()
+        if cfg.input_features <= 0:
+            raise ValueError("GeneratorConfig.input_features must be set to the face-feature count of the shapes")
+        if len(cfg.encoder_channels) != len(cfg.synthesis_channels):
+            raise ValueError("encoder_channels and synthesis_channels need one entry per level")
+        self.cfg = cfg
+        levels = cfg.num_levels
+        self.num_ws = 3 * levels
+        self.encoder = GeometryEncoder(cfg.input_features, cfg.encoder_channels, cfg.pool_mode)
+        self.mapping = MappingNetwork(cfg.z_dim, cfg.w_dim, self.num_ws, cfg.mapping_layers, cfg.mapping_lr_multiplier)
+        # synthesis[i] works on level L-1-i (coarsest first).
+        blocks = []
+        for level in reversed(range(levels)):
+            in_ch = 0 if level == levels - 1 else cfg.synthesis_channels[level + 1]
+            blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
+        self.synthesis = nn.ModuleList(blocks)
+        self.field_dim = cfg.synthesis_channels[0] + cfg.encoder_channels[0]
+        self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords)
+
+    def synthesize(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random") -> FaceTexture:
+        """Per-face texture for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim), one row per shape.
+
+        ``encoded``: the encoder's output for this batch, if already computed (it does not depend on ws).
+        """
+        if ws.dim() == 2:
+            ws = ws.unsqueeze(1).expand(-1, self.num_ws, -1)
+        if ws.shape[0] != batch.num_shapes or ws.shape[1] != self.num_ws:
+            raise ValueError(f"ws must be ({batch.num_shapes}, {self.num_ws}, w_dim), got {tuple(ws.shape)}")
+        if encoded is None:
+            encoded = self.encoder(batch)
+        levels = self.cfg.num_levels
+        x = rgb = None
+        for i, block in enumerate(self.synthesis):
+            level = levels - 1 - i
+            neighbors = batch.neighbors[level]
+            if x is not None:
+                x = face_unpool(x, batch.pool[level], neighbors)
+                rgb = face_unpool(rgb, batch.pool[level], neighbors)
+            x, y = block(x, encoded[level], neighbors, ws[:, 3 * i : 3 * i + 3], batch.shape_index[level], noise_mode)
+            rgb = y if rgb is None else rgb + y
+        return FaceTexture(field_features=torch.cat([x, encoded[0].to(x.dtype)], dim=1), face_rgb=rgb)
+
+    def forward(self, batch: MeshBatch, z: torch.Tensor, truncation_psi: float = 1.0, noise_mode: str = "random", update_w_avg: bool = False):
+        """z: (B, z_dim), one per shape -> (FaceTexture, ws (B, num_ws, w_dim))."""
+        ws = self.mapping(z, truncation_psi, update_w_avg)
+        return self.synthesize(batch, ws, noise_mode=noise_mode), ws
+
+    def last_synthesis_parameters(self, num_blocks: int = 2) -> list[nn.Parameter]:
+        """Parameters of the last ``num_blocks`` synthesis blocks (the finest levels), for texture transfer."""
+        return [p for block in self.synthesis[-num_blocks:] for p in block.parameters()]
+
+    def parameter_groups(self) -> dict[str, list[nn.Parameter]]:
+        """{"encoder", "generator" (mapping + synthesis), "field"}: the groups that get the paper's learning rates."""
+        return {
+            "encoder": list(self.encoder.parameters()),
+            "generator": list(self.mapping.parameters()) + list(self.synthesis.parameters()),
+            "field": list(self.field.parameters()),
+        }

@@ -1,0 +1,107 @@
+"""Rendering generated textures: the one function that training, ``infer generate`` and texture
+transfer use to turn (generator, shapes, ws, cameras) into images.
+
+Each shape of the batch is seen by K cameras: views ``s*K .. s*K+K-1`` belong to shape ``s``. The
+finest level is rasterized; psi is evaluated only at covered pixels (one flat list of points over all
+views), and the proxy path colours each covered pixel with its quad's per-face colour.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from mesh2tex.nn.batch import MeshBatch
+from mesh2tex.nn.field import blend_vertex_features, vertex_features
+from mesh2tex.nn.generator import FaceTexture, TextureGenerator
+from mesh2tex.render import rasterize, transform_points
+
+
+@dataclass
+class SurfaceSamples:
+    """Covered pixels of N rendered views: where psi is evaluated.
+
+    triangle_id (N, H, W) int64  batch triangle index (``MeshBatch.triangles()``), -1 on background
+    bary        (N, H, W, 3)     perspective-correct barycentrics
+    """
+
+    triangle_id: torch.Tensor
+    bary: torch.Tensor
+
+    @property
+    def mask(self) -> torch.Tensor:
+        """(N, H, W) bool."""
+        return self.triangle_id >= 0
+
+
+@dataclass
+class RenderedViews:
+    """images (N, 3, H, W) psi renders over the background, in [-1, 1] nominally;
+    proxy (N, 3, H, W) per-face colour renders (None unless asked); mask (N, 1, H, W) float 0/1."""
+
+    images: torch.Tensor
+    proxy: torch.Tensor | None
+    mask: torch.Tensor
+
+
+def rasterize_batch(batch: MeshBatch, mvp: torch.Tensor, resolution: tuple[int, int]) -> SurfaceSamples:
+    """Rasterize the finest level of every shape of ``batch`` with K = N / num_shapes views each.
+
+    mvp: (N, 4, 4) float32, N a multiple of ``batch.num_shapes``.
+    """
+    n = mvp.shape[0]
+    if n % batch.num_shapes:
+        raise ValueError(f"{n} cameras cannot be split evenly over {batch.num_shapes} shapes")
+    k = n // batch.num_shapes
+    ids, barys = [], []
+    for s in range(batch.num_shapes):
+        pos = transform_points(batch.shape_vertices(s), mvp[s * k : (s + 1) * k])
+        raster = rasterize(pos, batch.shape_triangles(s), resolution)
+        first = 2 * int(batch.face_offsets[0][s])
+        ids.append(torch.where(raster.face_id >= 0, raster.face_id + first, raster.face_id))
+        barys.append(raster.bary)
+    return SurfaceSamples(torch.cat(ids), torch.cat(barys))
+
+
+def field_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+    """psi at surface points: triangle_id (P,) batch triangle indices, bary (P, 3) -> RGB (P, 3)."""
+    vfeat = vertex_features(texture.field_features, batch.quads, batch.num_vertices)
+    blended = blend_vertex_features(vfeat, batch.triangles(), triangle_id, bary)
+    return generator.field(blended, bary)
+
+
+def _paint(background: torch.Tensor, flat_index: torch.Tensor, colors: torch.Tensor) -> torch.Tensor:
+    """background (N, 3, H, W); colours (P, 3) at flat pixel indices into N*H*W -> (N, 3, H, W)."""
+    n, _, h, w = background.shape
+    flat = background.permute(0, 2, 3, 1).reshape(-1, 3).to(colors.dtype)
+    flat = flat.index_put((flat_index,), colors)
+    return flat.reshape(n, h, w, 3).permute(0, 3, 1, 2)
+
+
+def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.Tensor, mvp: torch.Tensor,
+                       resolution: tuple[int, int], background: torch.Tensor, proxy: bool = False,
+                       texture: FaceTexture | None = None, encoded: list[torch.Tensor] | None = None,
+                       noise_mode: str = "random", samples: SurfaceSamples | None = None) -> RenderedViews:
+    """Render the texture that ``generator`` makes for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim).
+
+    mvp: (N, 4, 4) camera matrices (``orbit_camera(...).mvp``), K = N / B views per shape;
+    background: (N, 3) solid colours or (N, 3, H, W) images in [-1, 1];
+    proxy: also render the per-face colours; texture / encoded / samples: reuse what was computed.
+    Differentiable with respect to ws and every generator parameter.
+    """
+    h, w = int(resolution[0]), int(resolution[1])
+    if texture is None:
+        texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode)
+    if samples is None:
+        samples = rasterize_batch(batch, mvp, (h, w))
+    n = mvp.shape[0]
+    if background.dim() == 2:
+        background = background[:, :, None, None].expand(n, 3, h, w)
+    mask = samples.mask
+    flat_index = mask.reshape(-1).nonzero().squeeze(1)
+    triangle_id = samples.triangle_id.reshape(-1)[flat_index]
+    bary = samples.bary.reshape(-1, 3)[flat_index]
+    images = _paint(background, flat_index, field_colors(generator, texture, batch, triangle_id, bary))
+    proxy_images = _paint(background, flat_index, texture.face_rgb[triangle_id // 2]) if proxy else None
+    return RenderedViews(images=images, proxy=proxy_images, mask=mask.unsqueeze(1).to(images.dtype))

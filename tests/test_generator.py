@@ -1,0 +1,128 @@
+"""The generator, the neural field psi, the discriminator and the texture renderer."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+import torch
+
+from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
+from mesh2tex.nn.field import NeuralField, blend_vertex_features, local_coordinates, sorted_cdf_coordinates, vertex_features
+from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
+from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
+from mesh2tex.render import orbit_camera
+from test_faceconv import cube_shape
+
+
+def tiny_generator(coords: str = "raw", levels: int = 3) -> TextureGenerator:
+    cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * levels,
+                          synthesis_channels=[8] * levels, field_hidden=16, aux_latent_dim=8, field_coords=coords)
+    return TextureGenerator(cfg)
+
+
+def tiny_batch():
+    return collate_shapes([cube_shape(3, seed=0), cube_shape(3, seed=1)])
+
+
+def views(n_shapes=2, k=2):
+    az = torch.arange(n_shapes * k, dtype=torch.float32) * 70.0 + 20.0
+    return orbit_camera(az, torch.full_like(az, 25.0), distance=1.6).mvp
+
+
+def test_generator_shapes_and_accepts_single_or_per_layer_ws():
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(), tiny_batch()
+    texture, ws = gen(batch, torch.randn(2, 16))
+    assert ws.shape == (2, gen.num_ws, 16)
+    assert texture.field_features.shape == (192, gen.field_dim) and texture.face_rgb.shape == (192, 3)
+    a = gen.synthesize(batch, ws[:, 0], noise_mode="none")
+    b = gen.synthesize(batch, ws, noise_mode="none")
+    torch.testing.assert_close(a.face_rgb, b.face_rgb)
+    with pytest.raises(ValueError):
+        gen.synthesize(batch, ws[:1])
+    last = gen.last_synthesis_parameters(2)
+    assert last and all(any(p is q for q in gen.synthesis[-2:].parameters()) for p in last)
+    assert sum(p.numel() for p in last) == sum(p.numel() for p in gen.synthesis[-2:].parameters())
+
+
+def test_latent_changes_texture_and_shapes_get_their_own_style():
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(), tiny_batch()
+    z = torch.randn(2, 16)
+    t1, _ = gen(batch, z, noise_mode="none")
+    t2, _ = gen(batch, torch.stack([z[0], torch.randn(16)]), noise_mode="none")
+    # Shape 0 keeps its latent: same texture; shape 1 changed latent: different texture.
+    torch.testing.assert_close(t1.face_rgb[:96], t2.face_rgb[:96])
+    assert (t1.face_rgb[96:] - t2.face_rgb[96:]).abs().max() > 1e-4
+
+
+def test_sorted_cdf_coordinates_are_order_free_balanced_and_in_range():
+    torch.manual_seed(0)
+    bary = torch.distributions.Dirichlet(torch.ones(3)).sample((20000,))
+    u = sorted_cdf_coordinates(bary)
+    assert u.min() >= -1 and u.max() <= 1
+    # Uniform points in a triangle map to (nearly) uniform coordinates: mean 0, variance 1/3 each.
+    assert u.mean(0).abs().max() < 0.03 and (u.var(0) - 1 / 3).abs().max() < 0.03
+    for perm in itertools.permutations(range(3)):
+        torch.testing.assert_close(sorted_cdf_coordinates(bary[:, list(perm)]), u)
+    raw = local_coordinates(bary, "raw")
+    assert not torch.allclose(local_coordinates(bary[:, [1, 0, 2]], "raw"), raw)
+
+
+def test_field_blends_mean_vertex_features():
+    faces = torch.tensor([[0, 1, 2, 3], [1, 4, 5, 2]])
+    feats = torch.tensor([[1.0, 0.0], [3.0, 2.0]])
+    vf = vertex_features(feats, faces, 6)
+    torch.testing.assert_close(vf[1], torch.tensor([2.0, 1.0]))  # shared by both faces
+    torch.testing.assert_close(vf[4], torch.tensor([3.0, 2.0]))
+    tri = torch.tensor([[0, 1, 2], [1, 4, 5]])
+    blended = blend_vertex_features(vf, tri, torch.tensor([0]), torch.tensor([[0.5, 0.5, 0.0]]))
+    torch.testing.assert_close(blended, torch.tensor([[1.5, 0.5]]))
+    field = NeuralField(2, hidden=8, aux_dim=4)
+    assert field(blended, torch.tensor([[0.5, 0.5, 0.0]])).shape == (1, 3)
+
+
+@pytest.mark.parametrize("coords", ["raw", "sorted_cdf"])
+def test_render_and_gradients_reach_every_parameter(coords):
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(coords), tiny_batch()
+    mvp = views()
+    d_field = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16))
+    d_proxy = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16))
+    background = torch.rand(4, 3) * 2 - 1
+    _, ws = gen(batch, torch.randn(2, 16))
+    out = render_field_views(gen, batch, ws, mvp, (16, 16), background, proxy=True)
+    assert out.images.shape == (4, 3, 16, 16) and out.proxy.shape == (4, 3, 16, 16) and out.mask.shape == (4, 1, 16, 16)
+    cover = out.mask[:, 0] > 0
+    assert 0 < cover.float().mean() < 1
+    # Background pixels keep the background colour exactly.
+    bg = background[:, :, None, None].expand(4, 3, 16, 16)
+    assert torch.equal(out.images.permute(0, 2, 3, 1)[~cover], bg.permute(0, 2, 3, 1)[~cover])
+    loss = d_field(out.images).sum() + d_proxy(out.proxy).sum()
+    loss.backward()
+    for name, p in itertools.chain(gen.named_parameters(), d_field.named_parameters(prefix="d")):
+        assert p.grad is not None and torch.isfinite(p.grad).all() and p.grad.abs().sum() > 0, name
+
+
+def test_field_is_evaluated_only_at_covered_pixels(monkeypatch):
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(), tiny_batch()
+    seen = []
+    original = gen.field.forward
+    monkeypatch.setattr(gen.field, "forward", lambda f, b: seen.append(f.shape[0]) or original(f, b))
+    mvp = views()
+    samples = rasterize_batch(batch, mvp, (16, 16))
+    _, ws = gen(batch, torch.randn(2, 16))
+    render_field_views(gen, batch, ws, mvp, (16, 16), torch.zeros(4, 3), samples=samples)
+    assert seen == [int(samples.mask.sum())]
+    # Views of shape 1 point at shape 1's triangles.
+    assert samples.triangle_id[2:][samples.mask[2:]].min() >= 192
+
+
+def test_discriminator_resolutions():
+    d = Discriminator(32, DiscriminatorConfig(channel_base=128, channel_max=16))
+    assert d(torch.randn(3, 3, 32, 32)).shape == (3,)
+    with pytest.raises(ValueError):
+        Discriminator(48)

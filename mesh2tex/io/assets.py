@@ -1,0 +1,154 @@
+"""Writers for textured assets: GLB with an embedded PNG base-colour texture, PLY with vertex colours.
+
+Both write atomically (``mesh2tex.io.atomic``) and take numpy arrays or torch tensors.
+UV convention at this boundary is the trimesh / OpenGL one: u to the right, v up, (0, 0) the
+bottom-left corner of the image (``mesh2tex.render.texture`` uses the same). glTF stores v down,
+so ``save_glb`` writes (u, 1 - v); trimesh, Blender and three.js undo that when they load.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import struct
+
+import numpy as np
+from PIL import Image
+
+from mesh2tex.io.atomic import write_bytes
+
+_FLOAT, _UINT32 = 5126, 5125  # glTF component types
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+_LINEAR, _LINEAR_MIPMAP_LINEAR, _CLAMP_TO_EDGE = 9729, 9987, 33071
+
+
+def _array(value, dtype, name: str, columns: int | None = None) -> np.ndarray:
+    if hasattr(value, "detach"):  # a torch tensor
+        value = value.detach().cpu().numpy()
+    array = np.ascontiguousarray(np.asarray(value), dtype=dtype)
+    if columns is not None and (array.ndim != 2 or array.shape[1] != columns):
+        raise ValueError(f"{name} must have shape (N, {columns}), got {array.shape}")
+    return array
+
+
+def _check_faces(faces: np.ndarray, vertex_count: int) -> None:
+    if len(faces) and (faces.min() < 0 or faces.max() >= vertex_count):
+        raise ValueError(f"faces index vertices outside 0..{vertex_count - 1}")
+
+
+def png_bytes(image_rgb_uint8) -> bytes:
+    """(H, W, 3) or (H, W, 4) uint8 -> PNG file bytes."""
+    image = _array(image_rgb_uint8, np.uint8, "texture")
+    if image.ndim != 3 or image.shape[2] not in (3, 4):
+        raise ValueError(f"texture must have shape (H, W, 3) or (H, W, 4), got {image.shape}")
+    buffer = io.BytesIO()
+    Image.fromarray(image).save(buffer, format="PNG", compress_level=6)
+    return buffer.getvalue()
+
+
+def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh") -> bytes:
+    """A binary glTF 2.0 file holding one textured triangle mesh; see :func:`save_glb`."""
+    positions = _array(vertices, np.float32, "vertices", 3)
+    triangles = _array(faces, np.int64, "faces", 3)
+    texcoords = _array(uv, np.float32, "uv", 2).copy()
+    if len(texcoords) != len(positions):
+        raise ValueError(f"uv has {len(texcoords)} rows but there are {len(positions)} vertices (one uv per vertex)")
+    _check_faces(triangles, len(positions))
+    texcoords[:, 1] = 1.0 - texcoords[:, 1]  # glTF's v points down the image
+    image = png_bytes(texture_rgb_uint8)
+
+    blobs = [positions.tobytes(), texcoords.tobytes(), triangles.astype(np.uint32).tobytes()]
+    attributes = {"POSITION": 0, "TEXCOORD_0": 1}
+    accessors = [
+        {"bufferView": 0, "componentType": _FLOAT, "count": len(positions), "type": "VEC3",
+         "min": positions.min(axis=0).tolist() if len(positions) else [0, 0, 0],
+         "max": positions.max(axis=0).tolist() if len(positions) else [0, 0, 0]},
+        {"bufferView": 1, "componentType": _FLOAT, "count": len(texcoords), "type": "VEC2"},
+        {"bufferView": 2, "componentType": _UINT32, "count": triangles.size, "type": "SCALAR"},
+    ]
+    targets = [_ARRAY_BUFFER, _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER]
+    if vertex_normals is not None:
+        normals = _array(vertex_normals, np.float32, "vertex_normals", 3)
+        if len(normals) != len(positions):
+            raise ValueError("vertex_normals must have one row per vertex")
+        normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        blobs.append(normals.astype(np.float32).tobytes())
+        targets.append(_ARRAY_BUFFER)
+        attributes["NORMAL"] = len(accessors)
+        accessors.append({"bufferView": len(blobs) - 1, "componentType": _FLOAT, "count": len(normals), "type": "VEC3"})
+    blobs.append(image)
+    targets.append(None)
+
+    buffer_views, binary = [], bytearray()
+    for blob, target in zip(blobs, targets):
+        view = {"buffer": 0, "byteOffset": len(binary), "byteLength": len(blob)}
+        if target is not None:
+            view["target"] = target
+        buffer_views.append(view)
+        binary += blob
+        binary += b"\x00" * (-len(binary) % 4)  # every view starts 4-byte aligned
+
+    document = {
+        "asset": {"version": "2.0", "generator": "mesh2tex"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": name}],
+        "meshes": [{"name": name, "primitives": [{"attributes": attributes, "indices": 2, "material": 0, "mode": 4}]}],
+        "materials": [{"name": f"{name}_material", "doubleSided": True,
+                       "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0}}],
+        "textures": [{"sampler": 0, "source": 0}],
+        "samplers": [{"magFilter": _LINEAR, "minFilter": _LINEAR_MIPMAP_LINEAR, "wrapS": _CLAMP_TO_EDGE, "wrapT": _CLAMP_TO_EDGE}],
+        "images": [{"bufferView": len(buffer_views) - 1, "mimeType": "image/png"}],
+        "accessors": accessors,
+        "bufferViews": buffer_views,
+        "buffers": [{"byteLength": len(binary)}],
+    }
+    text = json.dumps(document, separators=(",", ":")).encode("utf-8")
+    text += b" " * (-len(text) % 4)
+    total = 12 + 8 + len(text) + 8 + len(binary)
+    return b"".join([
+        struct.pack("<4sII", b"glTF", 2, total),
+        struct.pack("<I4s", len(text), b"JSON"), text,
+        struct.pack("<I4s", len(binary), b"BIN\x00"), bytes(binary),
+    ])
+
+
+def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh") -> None:
+    """Write a textured triangle mesh as GLB (glTF 2.0 binary) with the texture embedded as PNG.
+
+    vertices: (V, 3) float, faces: (T, 3) int (counter-clockwise seen from outside), uv: (V, 2) float
+    in [0, 1], v up (one uv per vertex: split vertices on UV seams, as ``unwrap_uv`` returns them),
+    texture_rgb_uint8: (H, W, 3) uint8, row 0 the top of the image; vertex_normals: optional (V, 3)
+    for smooth shading (without them viewers shade flat). Loads in trimesh, Blender and three.js.
+    """
+    write_bytes(path, glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals, name))
+
+
+def ply_bytes(vertices, faces, vertex_colors_uint8) -> bytes:
+    """A binary little-endian PLY with per-vertex RGB colours; see :func:`save_ply`."""
+    positions = _array(vertices, np.float32, "vertices", 3)
+    triangles = _array(faces, np.int64, "faces", 3)
+    colors = _array(vertex_colors_uint8, np.uint8, "vertex_colors_uint8")
+    if colors.ndim != 2 or colors.shape[1] not in (3, 4) or len(colors) != len(positions):
+        raise ValueError(f"vertex_colors_uint8 must have shape ({len(positions)}, 3), got {colors.shape}")
+    _check_faces(triangles, len(positions))
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment written by mesh2tex\n"
+        f"element vertex {len(positions)}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        f"element face {len(triangles)}\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode("ascii")
+    vertex_records = np.empty(len(positions), dtype=[("p", "<f4", 3), ("c", "u1", 3)])
+    vertex_records["p"], vertex_records["c"] = positions, colors[:, :3]
+    face_records = np.empty(len(triangles), dtype=[("n", "u1"), ("i", "<i4", 3)])
+    face_records["n"], face_records["i"] = 3, triangles
+    return header + vertex_records.tobytes() + face_records.tobytes()
+
+
+def save_ply(path: str | os.PathLike, vertices, faces, vertex_colors_uint8) -> None:
+    """Write a triangle mesh with per-vertex colours as binary PLY.
+
+    vertices: (V, 3) float, faces: (T, 3) int, vertex_colors_uint8: (V, 3) uint8 (or (V, 4); alpha dropped).
+    """
+    write_bytes(path, ply_bytes(vertices, faces, vertex_colors_uint8))

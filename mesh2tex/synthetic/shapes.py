@@ -1,0 +1,430 @@
+"""Procedural chairs and cars: watertight triangle meshes whose faces remember which part they belong to.
+
+Every shape is the boolean union (manifold3d) of simple solids (rounded slabs, boxes, tapered
+cylinders, revolved profiles, convex hulls of extruded side profiles). A union of closed solids is
+closed, so every result is watertight and two-manifold, which is what ``prepare shapes`` needs.
+manifold3d tracks each input solid through the union (``original_id``), so each output triangle
+keeps the label of the part it came from (``seat``, ``leg``, ``body``, ``wheel``...); the material
+library (:mod:`mesh2tex.synthetic.materials`) colours the shape part by part.
+
+Frame of every result: y up, the object's front faces +z, bounding-box centre at the origin and
+bounding-box diagonal 1 (the normalised frame of prepared shapes), so NOC = position + 0.5.
+A chair stands on y = min y; a car's wheels touch y = min y.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import manifold3d as mf
+import numpy as np
+
+# One integer id per part name for every category, so face labels mean the same everywhere.
+PART_NAMES: tuple[str, ...] = (
+    "seat", "back", "leg", "arm", "base",  # chairs
+    "body", "cabin", "wheel", "hub", "headlight", "taillight",  # cars
+)
+PART_ID: dict[str, int] = {name: index for index, name in enumerate(PART_NAMES)}
+CATEGORIES: tuple[str, ...] = ("chair", "car")
+
+
+@dataclass
+class SyntheticShape:
+    """A watertight triangle mesh with a part label per face.
+
+    vertices:   (V, 3) float64, normalised frame (bbox centre 0, diagonal 1), y up, front +z
+    faces:      (T, 3) int64, counter-clockwise seen from outside; sorted by part
+    face_parts: (T,) int64, index into PART_NAMES
+    params:     the sampled design choices (JSON-serialisable), e.g. {"legs": "pedestal", ...}
+    """
+
+    category: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_parts: np.ndarray
+    params: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def part_names(self) -> list[str]:
+        """Names of the parts present, in PART_NAMES order."""
+        return [PART_NAMES[i] for i in np.unique(self.face_parts)]
+
+    def face_normals(self) -> np.ndarray:
+        """(T, 3) float64 unit outward normals."""
+        a, b, c = (self.vertices[self.faces[:, k]] for k in range(3))
+        n = np.cross(b - a, c - a)
+        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+
+def generate_shape(category: str, rng: np.random.Generator) -> SyntheticShape:
+    """One random shape of ``category`` ('chair' or 'car'), drawn from ``rng`` only (deterministic)."""
+    if category not in _GENERATORS:
+        raise ValueError(f"unknown category {category!r}; choose one of {', '.join(CATEGORIES)}")
+    builder = _PartBuilder()
+    params = _GENERATORS[category](builder, rng)
+    vertices, faces, face_parts = builder.union()
+    vertices = normalise(vertices)
+    return SyntheticShape(category, vertices, faces, face_parts, params)
+
+
+def normalise(vertices: np.ndarray) -> np.ndarray:
+    """(V, 3) -> (V, 3): bounding-box centre to the origin, bounding-box diagonal to 1."""
+    low, high = vertices.min(axis=0), vertices.max(axis=0)
+    return (vertices - (low + high) / 2) / np.linalg.norm(high - low)
+
+
+# ----------------------------------------------------------------------------------------------
+# Solids
+
+
+class _PartBuilder:
+    """Collects labelled solids and unions them, keeping each output triangle's part label."""
+
+    def __init__(self):
+        self.solids: list[tuple[mf.Manifold, int]] = []
+        self.cuts: list[mf.Manifold] = []
+
+    def add(self, part: str, solid: mf.Manifold) -> None:
+        self.solids.append((solid, PART_ID[part]))
+
+    def cut(self, solid: mf.Manifold) -> None:
+        """Subtract ``solid`` from everything added so far (and from what is added later)."""
+        self.cuts.append(solid)
+
+    def union(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        originals = [solid.as_original() for solid, _ in self.solids]
+        label_of = {m.original_id(): part for m, (_, part) in zip(originals, self.solids)}
+        result = mf.Manifold.batch_boolean(originals, mf.OpType.Add)
+        if self.cuts:
+            result = result - mf.Manifold.batch_boolean(self.cuts, mf.OpType.Add)
+        mesh = result.to_mesh()
+        vertices = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
+        faces = np.asarray(mesh.tri_verts, dtype=np.int64)
+        run_index = np.asarray(mesh.run_index) // 3  # triangle ranges of each input solid
+        face_parts = np.empty(len(faces), dtype=np.int64)
+        for k, original in enumerate(mesh.run_original_id):
+            # A cutter's faces become the walls of the hole: they take the label of the nearest part
+            # below, which the caller arranges by cutting only the body.
+            face_parts[run_index[k] : run_index[k + 1]] = label_of.get(original, PART_ID["body"])
+        # Only positions are stored, so manifold3d shares every vertex: the mesh is closed as is.
+        used = np.unique(faces)
+        remap = np.full(len(vertices), -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        vertices, faces = vertices[used], remap[faces]
+        order = np.argsort(face_parts, kind="stable")
+        return vertices, faces[order], face_parts[order]
+
+
+def _place(solid: mf.Manifold, rotation: np.ndarray, offset) -> mf.Manifold:
+    """Apply x -> rotation @ x + offset (rotation a proper 3x3 rotation)."""
+    matrix = np.hstack([np.asarray(rotation, dtype=np.float64), np.asarray(offset, dtype=np.float64)[:, None]])
+    return solid.transform(matrix)
+
+
+# Extrusions run along +z; these rotations send the extrusion axis elsewhere.
+_Z_TO_Y = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # cross-section (x, y) -> world (x, -z); extrude along +y
+_Z_TO_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # cross-section (x, y) -> world (-z, y); extrude along +x
+
+
+def _rounded_rect(width: float, height: float, radius: float, segments: int = 24) -> mf.CrossSection:
+    radius = min(radius, 0.49 * min(width, height))
+    if radius <= 1e-4:
+        return mf.CrossSection.square((width, height), True)
+    inner = mf.CrossSection.square((width - 2 * radius, height - 2 * radius), True)
+    return inner.offset(radius, mf.JoinType.Round, circular_segments=segments)
+
+
+def box(size, center) -> mf.Manifold:
+    """Axis-aligned box of ``size`` (x, y, z) centred at ``center``."""
+    return mf.Manifold.cube(tuple(float(s) for s in size), True).translate(tuple(float(c) for c in center))
+
+
+def slab(width: float, depth: float, thickness: float, radius: float, center) -> mf.Manifold:
+    """A horizontal plate (x width, z depth, y thickness) with rounded vertical edges."""
+    solid = mf.Manifold.extrude(_rounded_rect(width, depth, radius), thickness)
+    return _place(solid, _Z_TO_Y, np.asarray(center, dtype=np.float64) - [0, thickness / 2, 0])
+
+
+def panel(width: float, height: float, thickness: float, radius: float) -> mf.Manifold:
+    """An upright plate in the x-y plane, bottom edge centred at the origin, thickness along z."""
+    solid = mf.Manifold.extrude(_rounded_rect(width, height, radius), thickness)
+    return solid.translate((0.0, height / 2, -thickness / 2))
+
+
+def rod(start, end, radius_start: float, radius_end: float | None = None, segments: int = 16, square: bool = False) -> mf.Manifold:
+    """A (tapered) cylinder, or a square bar when ``square``, from ``start`` to ``end``."""
+    start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
+    axis = end - start
+    length = float(np.linalg.norm(axis))
+    radius_end = radius_start if radius_end is None else radius_end
+    if square:
+        solid = mf.Manifold.extrude(mf.CrossSection.square((2 * radius_start, 2 * radius_start), True), length,
+                                    scale_top=(radius_end / radius_start, radius_end / radius_start))
+    else:
+        solid = mf.Manifold.cylinder(length, radius_start, radius_end, segments)
+    return _place(solid, _rotation_from_z(axis / length), start)
+
+
+def _rotation_from_z(direction: np.ndarray) -> np.ndarray:
+    """A rotation matrix that maps +z onto the unit vector ``direction``."""
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, direction)
+    c = float(np.dot(z, direction))
+    if np.linalg.norm(v) < 1e-9:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1 + c)
+
+
+def _rotation_x(degrees: float) -> np.ndarray:
+    a = math.radians(degrees)
+    return np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+
+
+def _rotation_y(degrees: float) -> np.ndarray:
+    a = math.radians(degrees)
+    return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+
+
+def _hull(points) -> mf.Manifold:
+    return mf.Manifold.hull_points(np.asarray(points, dtype=np.float64))
+
+
+def _prism_hull(profile_zy: np.ndarray, half_width: float, bevel: float) -> mf.Manifold:
+    """Convex solid from a side profile (K, 2) of (z, y) points, across x in [-half_width, half_width].
+
+    The edges are chamfered by ``bevel``: the full profile spans the narrower width and a profile
+    shrunk towards its centroid by ``bevel`` spans the full width.
+    """
+    centre = profile_zy.mean(axis=0)
+    shrink = centre + (profile_zy - centre) * (1 - bevel / np.maximum(np.abs(profile_zy - centre).max(), 1e-9))
+    points = []
+    for zy, half in ((profile_zy, half_width - bevel), (shrink, half_width)):
+        for sign in (-1.0, 1.0):
+            points.extend((sign * half, y, z) for z, y in zy)
+    return _hull(points)
+
+
+# ----------------------------------------------------------------------------------------------
+# Chairs (units: metres before normalisation)
+
+
+def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
+    u = rng.uniform
+    legs = str(rng.choice(["four", "four", "pedestal", "sled"], p=[0.35, 0.2, 0.3, 0.15]))
+    back = str(rng.choice(["solid", "slats_vertical", "slats_horizontal", "frame"]))
+    arms = str(rng.choice(["none", "posts", "panels"], p=[0.5, 0.3, 0.2]))
+    width, depth = u(0.40, 0.62), u(0.38, 0.56)
+    if arms == "panels":
+        width += 0.1  # arm panels sit on the seat's sides
+    seat_height, seat_thick = u(0.38, 0.50), u(0.035, 0.11)
+    seat_radius = u(0.0, 0.12) if rng.random() < 0.6 else 0.0
+    seat_top = seat_height
+    seat_bottom = seat_height - seat_thick
+    builder.add("seat", slab(width, depth, seat_thick, seat_radius, (0, seat_height - seat_thick / 2, 0)))
+
+    leg_radius = u(0.015, 0.03)
+    square_legs = bool(rng.random() < 0.4)
+    if legs == "four":
+        inset = u(0.0, 0.05) + leg_radius + seat_radius * 0.3
+        splay = u(0.0, 0.05)
+        taper = u(0.55, 1.0)
+        xs, zs = width / 2 - inset, depth / 2 - inset
+        corners = [(sx, sz) for sx in (-1, 1) for sz in (-1, 1)]
+        for sx, sz in corners:
+            top = (sx * xs, seat_bottom + 0.01, sz * zs)
+            foot = (sx * (xs + splay), 0.0, sz * (zs + splay))
+            builder.add("leg", rod(foot, top, leg_radius * taper, leg_radius, square=square_legs))
+        if rng.random() < 0.5:  # an H of stretchers between the legs
+            y = u(0.1, 0.22)
+            spread = splay * (1 - y / (seat_bottom + 0.01))  # the legs' outward offset at height y
+            x, z, r = xs + spread, zs + spread, leg_radius * 0.6
+            for sx in (-1, 1):
+                builder.add("leg", rod((sx * x, y, -z), (sx * x, y, z), r, square=square_legs))
+            builder.add("leg", rod((-x, y, 0), (x, y, 0), r, square=square_legs))
+    elif legs == "pedestal":
+        column = u(0.025, 0.05)
+        base_style = str(rng.choice(["star", "disc"]))
+        builder.add("leg", rod((0, 0.03, 0), (0, seat_bottom + 0.01, 0), column, segments=20))
+        if base_style == "star":
+            spokes = int(rng.integers(4, 6))
+            reach = u(0.24, 0.32)
+            phase = u(0, 360 / spokes)
+            for k in range(spokes):
+                a = math.radians(phase + 360 * k / spokes)
+                tip = (reach * math.sin(a), 0.035, reach * math.cos(a))
+                builder.add("base", rod((0, 0.05, 0), tip, 0.022, 0.016, square=True))
+                builder.add("base", rod((tip[0], 0.0, tip[2]), (tip[0], 0.05, tip[2]), 0.022, segments=12))
+        else:
+            radius = u(0.2, 0.28)
+            profile = mf.CrossSection([np.array([[0, 0], [radius, 0], [radius * 0.9, 0.03], [column * 1.6, 0.09], [0, 0.09]])])
+            disc = mf.Manifold.revolve(profile, 32)  # revolved around y, then y became z
+            builder.add("base", _place(disc, np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]), (0, 0, 0)))
+        builder.add("leg", slab(width * 0.5, depth * 0.5, 0.03, 0.02, (0, seat_bottom - 0.01, 0)))
+        params_extra = {"base": base_style}
+    else:  # sled: two floor runners joined to the seat by uprights
+        r = leg_radius * 0.8
+        xs = width / 2 - u(0.02, 0.06)
+        zf, zb = depth / 2 - 0.02, -depth / 2 + 0.02
+        for sx in (-1, 1):
+            x = sx * xs
+            builder.add("leg", rod((x, r, zf + 0.04), (x, r, zb - 0.04), r, segments=12))
+            builder.add("leg", rod((x, r, zf), (x, seat_bottom + 0.01, zf - 0.02), r, segments=12))
+            builder.add("leg", rod((x, r, zb), (x, seat_bottom + 0.01, zb + 0.02), r, segments=12))
+    params = {"legs": legs, "back": back, "arms": arms, "width": round(width, 3), "depth": round(depth, 3),
+              "seat_height": round(seat_height, 3)}
+    if legs == "pedestal":
+        params.update(params_extra)
+
+    # The back, built upright at the origin, then tilted and moved to the seat's rear edge.
+    back_width = width * u(0.8, 1.0) - (0.1 if arms == "panels" else 0.0)
+    back_height, back_thick = u(0.32, 0.58), u(0.025, 0.06)
+    tilt = u(0.0, 16.0)
+    pieces: list[mf.Manifold] = []
+    if back == "solid":
+        pieces.append(panel(back_width, back_height + 0.02, back_thick, u(0.0, 0.15)))
+    else:
+        post = u(0.018, 0.03)
+        rail = u(0.04, 0.1)
+        for sx in (-1, 1):
+            pieces.append(box((2 * post, back_height, back_thick), (sx * (back_width / 2 - post), back_height / 2, 0)))
+        pieces.append(box((back_width, rail, back_thick), (0, back_height - rail / 2, 0)))
+        inner_width = back_width - 4 * post
+        if back == "slats_vertical":
+            count = int(rng.integers(2, 7))
+            slat = min(u(0.02, 0.06), inner_width / (count + 1) * 0.9)
+            for k in range(count):
+                x = -inner_width / 2 + inner_width * (k + 1) / (count + 1)
+                pieces.append(box((slat, back_height - rail + 0.02, back_thick * 0.6), (x, (back_height - rail) / 2, 0)))
+        elif back == "slats_horizontal":
+            count = int(rng.integers(1, 4))
+            for k in range(count):
+                y = (back_height - rail) * (k + 1) / (count + 1)
+                pieces.append(box((inner_width + 0.01, u(0.03, 0.07), back_thick * 0.6), (0, y, 0)))
+        else:  # frame holding an upholstered pad
+            pad_height = (back_height - rail) * u(0.5, 0.85)
+            pieces.append(box((inner_width + 0.01, pad_height, back_thick * 1.3), (0, (back_height - rail) / 2 + 0.02, 0)))
+        params["back_pieces"] = len(pieces) - 3  # slats, or the pad of a frame back
+    back_solid = mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
+    back_z = -depth / 2 + back_thick / 2
+    builder.add("back", _place(back_solid, _rotation_x(-tilt), (0, seat_top - 0.015, back_z)))
+    params["back_tilt_degrees"] = round(tilt, 1)
+
+    if arms != "none":
+        arm_height = seat_top + u(0.17, 0.26)
+        arm_width, arm_thick = u(0.035, 0.08), u(0.025, 0.045)
+        front = depth / 2 - u(0.0, 0.08)
+        back_at_arm = back_z - math.tan(math.radians(tilt)) * (arm_height - seat_top)
+        length = front - back_at_arm
+        for sx in (-1, 1):
+            x = sx * (width / 2 - arm_width / 2)
+            if arms == "posts":
+                builder.add("arm", box((arm_width, arm_thick, length), (x, arm_height, back_at_arm + length / 2)))
+                builder.add("arm", rod((x, seat_top - 0.01, front - 0.05), (x, arm_height, front - 0.04), arm_width * 0.35, segments=12))
+            else:
+                panel_height = arm_height - seat_bottom + 0.02
+                builder.add("arm", box((0.1, panel_height, length), (sx * (width / 2 - 0.05), seat_bottom - 0.02 + panel_height / 2, back_at_arm + length / 2)))
+    return params
+
+
+# ----------------------------------------------------------------------------------------------
+# Cars (units: metres before normalisation; length along z, front at +z)
+
+_CAR_STYLES = ("sedan", "hatchback", "suv", "pickup", "sports", "van")
+
+
+def _car(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
+    u = rng.uniform
+    style = str(rng.choice(_CAR_STYLES))
+    length = u(3.6, 4.9)
+    width = u(1.6, 1.95)
+    clearance = {"suv": u(0.28, 0.38), "pickup": u(0.3, 0.4), "sports": u(0.1, 0.15)}.get(style, u(0.15, 0.24))
+    body_height = {"suv": u(0.65, 0.85), "pickup": u(0.65, 0.8), "sports": u(0.38, 0.48), "van": u(0.6, 0.8)}.get(style, u(0.5, 0.65))
+    cabin_height = {"sports": u(0.3, 0.4), "van": u(0.75, 1.0), "suv": u(0.5, 0.65)}.get(style, u(0.4, 0.55))
+    hood = {"sports": u(0.34, 0.42), "van": u(0.08, 0.15), "pickup": u(0.26, 0.32)}.get(style, u(0.24, 0.32))
+    trunk = {"sedan": u(0.16, 0.24), "sports": u(0.12, 0.2), "pickup": u(0.3, 0.38)}.get(style, u(0.0, 0.04))
+    windshield = {"sports": u(1.6, 2.2), "van": u(0.3, 0.6), "suv": u(0.5, 0.8)}.get(style, u(0.9, 1.5))  # run / rise
+    rear_window = {"sedan": u(0.7, 1.2), "sports": u(1.2, 1.8), "hatchback": u(0.25, 0.5)}.get(style, u(0.0, 0.15))
+    wheel_radius = u(0.29, 0.4) if style in ("suv", "pickup") else u(0.26, 0.34)
+    wheel_width = u(0.18, 0.28)
+
+    z0, z1 = -length / 2, length / 2
+    y0, y1 = clearance, clearance + body_height
+    nose, tail = u(0.1, 0.35) * body_height, u(0.05, 0.2) * body_height
+    body_profile = np.array([
+        (z0 + 0.12, y0), (z1 - 0.18, y0),  # bottom, the ends lifted a little
+        (z1, y0 + body_height * u(0.25, 0.45)), (z1 - nose * 2.2, y1),  # front bumper and nose
+        (z0 + tail, y1), (z0, y1 - body_height * u(0.1, 0.3)), (z0, y0 + body_height * 0.2),
+    ])
+    bevel = u(0.04, 0.1)
+    body = _prism_hull(body_profile, width / 2, bevel)
+
+    cabin_rear = z0 + trunk * length
+    cabin_front = z1 - hood * length
+    top = y1 + cabin_height
+    run_front = windshield * cabin_height
+    run_rear = rear_window * cabin_height
+    if cabin_front - run_front - (cabin_rear + run_rear) < 0.4:  # keep a roof at least 0.4 m long
+        scale = max(cabin_front - cabin_rear - 0.4, 0.1) / max(run_front + run_rear, 1e-6)
+        run_front, run_rear = run_front * scale, run_rear * scale
+    cabin_profile = np.array([
+        (cabin_rear, y1 - 0.05), (cabin_front, y1 - 0.05), (cabin_front - run_front, top), (cabin_rear + run_rear, top),
+    ])
+    inset_bottom, inset_top = u(0.02, 0.08), u(0.1, 0.2)
+    cabin_points = []
+    for (z, y), inset in zip(cabin_profile, (inset_bottom, inset_bottom, inset_top, inset_top)):
+        for sign in (-1.0, 1.0):
+            cabin_points.append((sign * (width / 2 - inset), y, z))
+    builder.add("cabin", _hull(cabin_points))
+
+    if style == "pickup":  # an open cargo bed behind the cabin
+        wall = 0.06
+        bed = box((width - 2 * wall - 2 * bevel, body_height * 0.7, cabin_rear - z0 - 2 * wall),
+                  (0, y1 - body_height * 0.35 + 0.01, (z0 + cabin_rear) / 2))
+        body = body - bed
+
+    # Wheel wells cut from the body, then the wheels, joined by axles so the shape stays one piece.
+    wheelbase = length * u(0.56, 0.66)
+    overhang = u(-0.04, 0.04) * length
+    wheel_x = width / 2 - wheel_width / 2 + u(-0.02, 0.04)
+    for z in (-wheelbase / 2 + overhang, wheelbase / 2 + overhang):
+        well = rod((-width, wheel_radius, z), (width, wheel_radius, z), wheel_radius * 1.1, segments=28)
+        body = body - (well - box((2 * (wheel_x - wheel_width / 2 - 0.04), 4, 4), (0, 0, z)))
+    builder.add("body", body)
+    for z in (-wheelbase / 2 + overhang, wheelbase / 2 + overhang):
+        builder.add("wheel", rod((-wheel_x, wheel_radius, z), (wheel_x, wheel_radius, z), wheel_radius * 0.25, segments=12))
+        for sx in (-1, 1):
+            outer = sx * (wheel_x + wheel_width / 2)
+            inner = sx * (wheel_x - wheel_width / 2)
+            builder.add("wheel", rod((inner, wheel_radius, z), (outer, wheel_radius, z), wheel_radius, segments=28))
+            hub_radius = wheel_radius * u(0.5, 0.7)
+            builder.add("hub", rod((inner, wheel_radius, z), (outer + sx * 0.012, wheel_radius, z), hub_radius, segments=20))
+
+    # Head and tail lights: flattened spheres half sunk into the front and rear faces.
+    light_y = y0 + body_height * u(0.45, 0.7)
+    light_size = (u(0.16, 0.3), u(0.05, 0.1), 0.08)
+    front_z = _profile_z_at(body_profile, light_y, front=True)
+    rear_z = _profile_z_at(body_profile, y0 + body_height * u(0.55, 0.75), front=False)
+    for sx in (-1, 1):
+        x = sx * (width / 2 - bevel - light_size[0] * 0.7)
+        builder.add("headlight", mf.Manifold.sphere(1.0, 16).scale(light_size).translate((x, light_y, front_z - 0.01)))
+        builder.add("taillight", mf.Manifold.sphere(1.0, 16).scale(light_size).translate((x, y0 + body_height * 0.65, rear_z + 0.01)))
+    return {"style": style, "length": round(length, 3), "width": round(width, 3),
+            "height": round(top, 3), "wheel_radius": round(wheel_radius, 3)}
+
+
+def _profile_z_at(profile_zy: np.ndarray, y: float, front: bool) -> float:
+    """The z where a horizontal line at height ``y`` leaves the convex side profile (front or rear end)."""
+    best = None
+    closed = np.vstack([profile_zy, profile_zy[:1]])
+    for (za, ya), (zb, yb) in zip(closed[:-1], closed[1:]):
+        if (ya - y) * (yb - y) <= 0 and ya != yb:
+            z = za + (y - ya) / (yb - ya) * (zb - za)
+            if best is None or (z > best if front else z < best):
+                best = z
+    return float(best if best is not None else (profile_zy[:, 0].max() if front else profile_zy[:, 0].min()))
+
+
+_GENERATORS: dict[str, Callable[[_PartBuilder, np.random.Generator], dict[str, Any]]] = {"chair": _chair, "car": _car}

@@ -1,0 +1,182 @@
+"""``mesh2tex prepare shapes``: turn mesh files and folders into prepared quad-mesh hierarchies (.npz).
+
+Inputs are mesh files (.obj .ply .off .stl .glb .gltf) and folders searched recursively, the
+ShapeNetCore v2 layout ``<synset>/<id>/models/model_normalized.obj`` included (such a shape is named
+``<synset>_<id>``). One ``<name>.npz`` per shape goes to ``--output`` with ``index.json`` listing every
+input, its status (ok or failed), the reason of a failure, face counts per level and seconds.
+Finished shapes are skipped on a re-run, so an interrupted run resumes. Exit status 0 when every
+input succeeded, 2 when any failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+from mesh2tex.errors import UserError
+from mesh2tex.io.atomic import write_json
+from mesh2tex.progress import JsonLines, progress_bar
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--input", nargs="+", required=True, metavar="PATH", help="mesh files and/or folders (searched recursively)")
+    parser.add_argument("--output", required=True, metavar="DIR", help="folder for <name>.npz files and index.json")
+    parser.add_argument("--faces", type=int, default=6144, help="quads of the finest level (default 6144)")
+    parser.add_argument("--levels", type=int, default=5, help="levels, each with a quarter of the faces of the finer one (default 5)")
+    parser.add_argument("--workers", type=int, default=1, help="shapes prepared in parallel processes (default 1)")
+    parser.add_argument("--seed", type=int, default=0, help="QuadriFlow seed (default 0)")
+
+
+def find_meshes(inputs: list[str]) -> list[Path]:
+    """Mesh files named directly or found under folders (sorted, duplicates removed).
+
+    In a ShapeNetCore v2 folder only ``models/model_normalized.obj`` of each shape is taken.
+    Raises UserError for an input path that does not exist.
+    """
+    from mesh2tex.geometry.mesh_io import is_mesh_file
+
+    found: list[Path] = []
+    for item in inputs:
+        path = Path(item)
+        if not path.exists():
+            raise UserError(f"{path}: no such file or folder")
+        if path.is_file():
+            found.append(path)
+            continue
+        for root, dirs, files in os.walk(path):
+            dirs.sort()
+            root_path = Path(root)
+            if root_path.name == "models" and "model_normalized.obj" in files:
+                found.append(root_path / "model_normalized.obj")  # ShapeNet: ignore the other files beside it
+                continue
+            found.extend(root_path / name for name in sorted(files) if is_mesh_file(name))
+    unique, seen = [], set()
+    for path in found:
+        key = path.resolve()
+        if key not in seen:
+            seen.add(key)
+            unique.append(path)
+    return unique
+
+
+def shape_name(path: Path) -> str:
+    """Output name of a mesh: its stem, or ``<synset>_<id>`` for ShapeNet's model_normalized.obj."""
+    if path.name == "model_normalized.obj" and path.parent.name == "models" and len(path.parents) >= 3:
+        stem = f"{path.parents[2].name}_{path.parents[1].name}"
+    else:
+        stem = path.stem
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", stem) or "shape"
+
+
+def assign_names(paths: list[Path]) -> dict[Path, str]:
+    """Unique output names: a repeated name gets its parent folder's name, then a counter."""
+    names: dict[Path, str] = {}
+    used: set[str] = set()
+    for path in paths:
+        name = shape_name(path)
+        if name in used:
+            name = f"{re.sub(r'[^A-Za-z0-9_.-]', '_', path.parent.name)}_{name}"
+        base, counter = name, 1
+        while name in used:
+            counter += 1
+            name = f"{base}_{counter}"
+        used.add(name)
+        names[path] = name
+    return names
+
+
+def prepare_one(path: str, output: str, faces: int, levels: int, seed: int) -> dict:
+    """Load, prepare and save one shape; returns its index record (never raises for a bad input)."""
+    from mesh2tex.geometry.mesh_io import load_mesh
+    from mesh2tex.geometry.prepare import prepare_shape
+
+    start = time.perf_counter()
+    record = {"source": path, "file": Path(output).name}
+    try:
+        vertices, triangles = load_mesh(path)
+        shape = prepare_shape(vertices, triangles, face_count=faces, levels=levels, seed=seed, source=path)
+        shape.save(output)
+        record.update(status="ok", reason="", face_counts=shape.face_counts,
+                      methods=[level["method"] for level in shape.metadata["levels"]])
+    except UserError as error:
+        message = str(error)
+        record.update(status="failed", reason=message if message.startswith(path) else f"{path}: {message}", face_counts=[])
+    except Exception as error:  # a bug or an unforeseen input: reported, the batch goes on
+        record.update(status="failed", reason=f"{path}: unexpected {error.__class__.__name__}: {error}", face_counts=[])
+    record["seconds"] = round(time.perf_counter() - start, 3)
+    return record
+
+
+def _settings(args) -> dict:
+    return {"faces": int(args.faces), "levels": int(args.levels), "seed": int(args.seed)}
+
+
+def run(args) -> int:
+    from mesh2tex.geometry.prepare import level_face_counts
+
+    level_face_counts(args.faces, args.levels)  # validates the options before any work
+    if args.workers < 1:
+        raise UserError(f"--workers must be at least 1 (got {args.workers})")
+    output = Path(args.output)
+    output.mkdir(parents=True, exist_ok=True)
+    paths = find_meshes(args.input)
+    if not paths:
+        raise UserError(f"no mesh files (.obj .ply .off .stl .glb .gltf) under {' '.join(args.input)}")
+    names = assign_names(paths)
+    index_path = output / "index.json"
+    settings = _settings(args)
+    previous: dict[str, dict] = {}
+    if index_path.exists():
+        try:
+            old = json.loads(index_path.read_text())
+            if old.get("settings") == settings:
+                previous = {entry["source"]: entry for entry in old.get("shapes", [])}
+        except (json.JSONDecodeError, KeyError, TypeError, AttributeError):
+            previous = {}
+
+    records: dict[str, dict] = {}
+    todo: list[Path] = []
+    for path in paths:
+        entry = previous.get(str(path))
+        npz = output / f"{names[path]}.npz"
+        if entry is not None and entry.get("status") == "ok" and npz.exists():
+            records[str(path)] = entry  # finished in an earlier run
+        else:
+            todo.append(path)
+
+    log = JsonLines(output / "progress.jsonl")
+
+    def write_index() -> None:
+        ordered = [records[str(p)] for p in paths if str(p) in records]
+        write_json(index_path, {"settings": settings, "shapes": ordered,
+                                "ok": sum(r["status"] == "ok" for r in ordered),
+                                "failed": sum(r["status"] == "failed" for r in ordered)})
+
+    def finish(record: dict, bar) -> None:
+        records[record["source"]] = record
+        log.write({"event": "shape", **{k: record[k] for k in ("source", "status", "reason", "face_counts", "seconds")}})
+        write_index()  # after every shape, so an interruption loses at most the shapes in flight
+        if record["status"] == "failed":
+            bar.write(f"mesh2tex: failed: {record['reason']}")
+        bar.update(1)
+
+    jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed) for p in todo]
+    with progress_bar(total=len(paths), initial=len(paths) - len(todo), desc="prepare shapes", unit="shape") as bar:
+        if args.workers == 1 or len(jobs) <= 1:
+            for job in jobs:
+                finish(prepare_one(*job), bar)
+        else:
+            with ProcessPoolExecutor(max_workers=args.workers) as pool:
+                futures = [pool.submit(prepare_one, *job) for job in jobs]
+                for future in as_completed(futures):
+                    finish(future.result(), bar)
+    write_index()
+    failed = [r for r in records.values() if r["status"] == "failed"]
+    print(f"prepared {len(records) - len(failed)} of {len(records)} shapes into {output} "
+          f"({len(paths) - len(todo)} already done){'; failed: ' + str(len(failed)) if failed else ''}")
+    return 2 if failed else 0

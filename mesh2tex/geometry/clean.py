@@ -1,0 +1,188 @@
+"""Repairing triangle meshes (pymeshlab) and normalising them to the ShapeNet frame.
+
+QuadriFlow needs an edge-manifold, coherently oriented surface without degenerate faces; raw
+meshes (ShapeNet, scans, CAD exports) often have duplicated vertices, zero-area faces, non-manifold
+edges and small holes. :func:`clean_mesh` fixes what can be fixed; :func:`normalize` maps the mesh
+to a bounding-box centre of 0 and a bounding-box diagonal of 1, as ShapeNet's normalised models.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mesh2tex.errors import UserError
+
+
+@dataclass
+class Normalization:
+    """The similarity ``normalized = (original - center) * scale``."""
+
+    center: np.ndarray  # (3,) float64, bounding-box centre of the original mesh
+    scale: float  # 1 / bounding-box diagonal of the original mesh
+
+    def apply(self, vertices: np.ndarray) -> np.ndarray:
+        """(V, 3) original coordinates -> (V, 3) normalised coordinates."""
+        return (np.asarray(vertices, dtype=np.float64) - self.center) * self.scale
+
+    def invert(self, vertices: np.ndarray) -> np.ndarray:
+        """(V, 3) normalised coordinates -> (V, 3) original coordinates."""
+        return np.asarray(vertices, dtype=np.float64) / self.scale + self.center
+
+    def matrix(self) -> np.ndarray:
+        """(4, 4) float64 homogeneous matrix of :meth:`apply`."""
+        m = np.eye(4) * self.scale
+        m[3, 3] = 1.0
+        m[:3, 3] = -self.center * self.scale
+        return m
+
+    def to_json(self) -> dict:
+        return {"center": [float(c) for c in self.center], "scale": float(self.scale), "matrix": self.matrix().tolist(),
+                "meaning": "normalized = (original - center) * scale"}
+
+
+def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
+    """Centre the bounding box at the origin and scale its diagonal to 1.
+
+    Args:
+        vertices: (V, 3) float.
+    Returns:
+        (V, 3) float64 normalised vertices and the :class:`Normalization` that made them.
+    Raises:
+        UserError: all vertices coincide (zero-size bounding box).
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    low, high = vertices.min(axis=0), vertices.max(axis=0)
+    diagonal = float(np.linalg.norm(high - low))
+    if not np.isfinite(diagonal) or diagonal <= 1e-12:
+        raise UserError("the mesh has a zero-size bounding box")
+    transform = Normalization(center=(low + high) / 2.0, scale=1.0 / diagonal)
+    return transform.apply(vertices), transform
+
+
+def _apply_filter(ms, name: str, **kwargs) -> bool:
+    """Run one pymeshlab filter; a filter that refuses this mesh is skipped (False), not fatal."""
+    import pymeshlab
+
+    try:
+        getattr(ms, name)(**kwargs)
+        return True
+    except pymeshlab.PyMeshLabException:
+        return False
+
+
+def clean_mesh(vertices: np.ndarray, faces: np.ndarray, max_hole_edges: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """Repair a triangle mesh for quad remeshing.
+
+    Merges duplicate vertices, removes duplicate, zero-area and unreferenced elements, repairs
+    non-manifold edges (by removing the fewest faces) and vertices (by splitting them), closes
+    holes of at most ``max_hole_edges`` boundary edges and orients faces coherently.
+
+    Args:
+        vertices: (V, 3) float; faces: (T, 3) int.
+    Returns:
+        (V', 3) float64 vertices and (T', 3) int64 faces.
+    Raises:
+        UserError: nothing with area is left.
+    """
+    import pymeshlab
+
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    # faces with a repeated index have no area and would confuse pymeshlab's topology filters
+    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
+    if len(faces) == 0:
+        raise UserError("every face is degenerate (repeated vertex)")
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=vertices, face_matrix=faces.astype(np.int32)))
+    _apply_filter(ms, "meshing_remove_duplicate_vertices")
+    _apply_filter(ms, "meshing_remove_duplicate_faces")
+    _apply_filter(ms, "meshing_remove_null_faces")
+    _apply_filter(ms, "meshing_remove_unreferenced_vertices")
+    _apply_filter(ms, "meshing_repair_non_manifold_edges", method=0)  # 0: remove faces
+    _apply_filter(ms, "meshing_repair_non_manifold_vertices")
+    _apply_filter(ms, "meshing_remove_unreferenced_vertices")
+    if max_hole_edges > 0:
+        _apply_filter(ms, "meshing_close_holes", maxholesize=int(max_hole_edges), newfaceselected=False)
+    _apply_filter(ms, "meshing_re_orient_faces_coherently")
+    _apply_filter(ms, "meshing_remove_null_faces")
+    _apply_filter(ms, "meshing_remove_unreferenced_vertices")
+    mesh = ms.current_mesh()
+    out_vertices = np.asarray(mesh.vertex_matrix(), dtype=np.float64)
+    out_faces = np.asarray(mesh.face_matrix(), dtype=np.int64)
+    if len(out_faces) == 0 or triangle_areas(out_vertices, out_faces).sum() <= 0:
+        raise UserError("no faces with area are left after repair")
+    return out_vertices, out_faces
+
+
+def triangle_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(T,) float64 area of each triangle of (V, 3) ``vertices`` and (T, 3) ``faces``."""
+    v = np.asarray(vertices, dtype=np.float64)[faces]
+    return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+
+
+def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric edge-collapse decimation to about ``target_faces`` triangles (pymeshlab).
+
+    Returns (V', 3) float64 and (T', 3) int64; the input when it already has few enough faces.
+    """
+    import pymeshlab
+
+    if len(faces) <= target_faces:
+        return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
+    _apply_filter(ms, "meshing_decimation_quadric_edge_collapse", targetfacenum=int(max(target_faces, 4)),
+                  preservetopology=True, preserveboundary=True, planarquadric=True, optimalplacement=True)
+    _apply_filter(ms, "meshing_remove_unreferenced_vertices")
+    mesh = ms.current_mesh()
+    return np.asarray(mesh.vertex_matrix(), dtype=np.float64), np.asarray(mesh.face_matrix(), dtype=np.int64)
+
+
+def resample_watertight(vertices: np.ndarray, faces: np.ndarray, cell_percent: float = 1.5, max_faces: int = 30_000) -> tuple[np.ndarray, np.ndarray]:
+    """A closed, manifold re-make of the surface: a signed-distance volume and marching cubes.
+
+    Used as the pre-remeshed input when QuadriFlow fails on the repaired mesh (triangle soups,
+    self-intersections, open shells). ``cell_percent`` is the voxel size as a percentage of the
+    bounding-box diagonal. Open surfaces become a thin closed shell around them; the result is
+    decimated to at most ``max_faces`` triangles.
+
+    Returns (V', 3) float64 and (T', 3) int64.
+    """
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
+    # offset is a percentage of a symmetric range where 50 % means zero; 51 % thickens by about 0.4 % of
+    # the diagonal so that open sheets become thin closed shells
+    ok = _apply_filter(ms, "generate_resampled_uniform_mesh", cellsize=pymeshlab.PercentageValue(cell_percent),
+                       offset=pymeshlab.PercentageValue(51.0), absdist=True, mergeclosevert=True)
+    if not ok or ms.current_mesh().face_number() == 0:
+        return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+    _apply_filter(ms, "meshing_remove_null_faces")
+    _apply_filter(ms, "meshing_remove_unreferenced_vertices")
+    _apply_filter(ms, "meshing_repair_non_manifold_edges", method=0)
+    _apply_filter(ms, "meshing_repair_non_manifold_vertices")
+    mesh = ms.current_mesh()
+    out_v = np.asarray(mesh.vertex_matrix(), dtype=np.float64)
+    out_f = np.asarray(mesh.face_matrix(), dtype=np.int64)
+    out_v, out_f = _drop_inner_shells(out_v, out_f)
+    return decimate(out_v, out_f, max_faces)
+
+
+def _drop_inner_shells(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Remove connected components that enclose negative volume (the inner side of a distance shell)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(faces))
+    v = vertices[faces]
+    volume = np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])) / 6.0
+    component_volume = np.bincount(labels, weights=volume)
+    keep = component_volume[labels] > 0
+    if not keep.any():
+        return vertices, faces
+    kept = faces[keep]
+    used, inverse = np.unique(kept.reshape(-1), return_inverse=True)
+    return vertices[used], inverse.reshape(kept.shape).astype(np.int64)

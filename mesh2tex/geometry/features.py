@@ -1,0 +1,80 @@
+"""Geometric input features of quad faces (the encoder input of Mesh2Tex/Texturify) and NOC coordinates.
+
+Each quad ``(v0, v1, v2, v3)`` is read as a bilinear patch ``X(s, t)`` over the unit square with
+``X(0,0)=v0, X(1,0)=v1, X(1,1)=v2, X(0,1)=v3``; its normal field ``n(s, t)`` interpolates the
+vertex normals the same way. At the patch centre:
+
+    X_s = (v1 - v0 + v2 - v3) / 2,  X_t = (v3 - v0 + v2 - v1) / 2        (tangent vectors)
+    first fundamental form   E = X_s.X_s,  F = X_s.X_t,  G = X_t.X_t
+    second fundamental form  L = X_s.n_s,  M = (X_s.n_t + X_t.n_s) / 2,  N = X_t.n_t
+    shape operator S = I^-1 II,  mean curvature H = trace(S) / 2,  Gaussian curvature K = det(S)
+
+With outward normals a sphere of radius r has H = 1/r and K = 1/r^2 (convex is positive).
+Lengths are those of the normalised frame (bounding-box diagonal 1).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FEATURE_NAMES = ["normal_x", "normal_y", "normal_z", "fff_E", "fff_F", "fff_G", "sff_L", "sff_M", "sff_N",
+                 "mean_curvature", "gaussian_curvature"]
+
+
+def _normalize_rows(x: np.ndarray) -> np.ndarray:
+    length = np.linalg.norm(x, axis=-1, keepdims=True)
+    return np.where(length > 1e-20, x / np.maximum(length, 1e-20), 0.0)
+
+
+def quad_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """(F, 3) float64 unit normal of each quad: the cross product of its diagonals (v2-v0) x (v3-v1)."""
+    v = np.asarray(vertices, dtype=np.float64)[np.asarray(quads)]
+    return _normalize_rows(np.cross(v[:, 2] - v[:, 0], v[:, 3] - v[:, 1]))
+
+
+def vertex_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """(V, 3) float64 unit vertex normals: the area-weighted sum of the quads around each vertex."""
+    v = np.asarray(vertices, dtype=np.float64)
+    q = np.asarray(quads, dtype=np.int64)
+    weighted = np.cross(v[q[:, 2]] - v[q[:, 0]], v[q[:, 3]] - v[q[:, 1]]) / 2.0  # normal x area
+    sums = np.zeros_like(v)
+    for corner in range(4):
+        np.add.at(sums, q[:, corner], weighted)
+    return _normalize_rows(sums)
+
+
+def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Per-face geometric features (see the module docstring for definitions).
+
+    Args:
+        vertices: (V, 3) float, normalised frame; quads: (F, 4) int, oriented outwards.
+    Returns:
+        (F, 11) float32 features, all finite, and their names (:data:`FEATURE_NAMES`).
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    q = np.asarray(quads, dtype=np.int64)
+    p0, p1, p2, p3 = (v[q[:, i]] for i in range(4))
+    vn = vertex_normals(v, q)
+    n0, n1, n2, n3 = (vn[q[:, i]] for i in range(4))
+    x_s, x_t = (p1 - p0 + p2 - p3) / 2.0, (p3 - p0 + p2 - p1) / 2.0
+    n_s, n_t = (n1 - n0 + n2 - n3) / 2.0, (n3 - n0 + n2 - n1) / 2.0
+    dot = lambda a, b: np.einsum("ij,ij->i", a, b)  # noqa: E731
+    e, f, g = dot(x_s, x_s), dot(x_s, x_t), dot(x_t, x_t)
+    l_, m, n = dot(x_s, n_s), (dot(x_s, n_t) + dot(x_t, n_s)) / 2.0, dot(x_t, n_t)
+    det_first = e * g - f * f
+    ok = det_first > 1e-14 * np.maximum(e * g, 1e-30)
+    safe = np.where(ok, det_first, 1.0)
+    mean_curvature = np.where(ok, (e * n - 2.0 * f * m + g * l_) / (2.0 * safe), 0.0)
+    gaussian_curvature = np.where(ok, (l_ * n - m * m) / safe, 0.0)
+    features = np.stack([*quad_normals(v, q).T, e, f, g, l_, m, n, mean_curvature, gaussian_curvature], axis=1)
+    features = np.nan_to_num(features, nan=0.0, posinf=0.0, neginf=0.0)
+    return features.astype(np.float32), list(FEATURE_NAMES)
+
+
+def noc_coordinates(vertices: np.ndarray) -> np.ndarray:
+    """(V, 3) float32 normalised object coordinates in [0, 1]^3: ``v + 0.5`` in the normalised frame.
+
+    The normalised frame has its bounding-box centre at 0 and diagonal 1, so every coordinate
+    lies in [-0.5, 0.5]; the same map for every shape keeps NOC comparable across a category.
+    """
+    return np.clip(np.asarray(vertices, dtype=np.float64) + 0.5, 0.0, 1.0).astype(np.float32)

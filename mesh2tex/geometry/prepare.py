@@ -1,0 +1,91 @@
+"""One function that turns a triangle mesh into a :class:`PreparedShape` (in memory, no files)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.clean import clean_mesh, decimate, normalize
+from mesh2tex.geometry.features import face_features, noc_coordinates
+from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.geometry.quadremesh import QuadRemeshError, remesh_hierarchy
+
+# QuadriFlow's run time grows with the input; more triangles than this add nothing at 6144 quads
+MAX_INPUT_TRIANGLES = 100_000
+
+
+def level_face_counts(face_count: int, levels: int) -> list[int]:
+    """Target quad counts, finest first, divided by 4 per level: 6144, 5 -> [6144, 1536, 384, 96, 24]."""
+    if face_count < 1 or levels < 1:
+        raise UserError(f"face count ({face_count}) and levels ({levels}) must be positive")
+    counts = [int(round(face_count / 4**level)) for level in range(levels)]
+    if counts[-1] < 4:
+        raise UserError(f"{levels} levels from {face_count} faces leave fewer than 4 faces at the coarsest level")
+    return counts
+
+
+def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 6144, levels: int = 5, seed: int = 0,
+                  source: str = "", timeout: float | None = 300.0) -> PreparedShape:
+    """Repair, normalise and quad-remesh a mesh into a hierarchy with neighbourhoods, pooling and features.
+
+    Args:
+        vertices: (V, 3) float, any frame; faces: (T, 3) int (e.g. from ``mesh_io.load_mesh``).
+        face_count: quads of the finest level; each coarser level has a quarter as many.
+        levels: number of levels (level 0 the finest).
+        seed: QuadriFlow seed (other seeds are tried on failure).
+        source: recorded in the metadata (e.g. the input path).
+        timeout: seconds per QuadriFlow attempt.
+    Returns:
+        a :class:`PreparedShape` in the normalised frame (bbox centre 0, diagonal 1); its metadata
+        holds the transform from the input frame, the method used per level, seconds and seeds.
+    Raises:
+        UserError: the mesh is unusable (no area, no quad mesh possible), with the reason.
+    """
+    start = time.perf_counter()
+    targets = level_face_counts(face_count, levels)
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise UserError("the mesh has no triangles")
+    used = np.unique(faces)
+    normalized, transform = normalize(vertices[used])
+    remapped = np.searchsorted(used, faces)
+    clean_v, clean_f = clean_mesh(normalized, remapped)
+    if len(clean_f) > MAX_INPUT_TRIANGLES:
+        clean_v, clean_f = decimate(clean_v, clean_f, MAX_INPUT_TRIANGLES)
+    seconds_clean = time.perf_counter() - start
+    try:
+        results = remesh_hierarchy(clean_v, clean_f, targets, seed=seed, timeout=timeout)
+    except QuadRemeshError as error:
+        raise UserError(str(error)) from None
+    seconds_remesh = time.perf_counter() - start - seconds_clean
+
+    level_vertices = [r.vertices for r in results]
+    level_quads = [r.quads for r in results]
+    neighbors = [face_neighborhoods(v, q) for v, q in zip(level_vertices, level_quads)]
+    pool = [pooling_map(level_vertices[l], level_quads[l], level_vertices[l + 1], level_quads[l + 1]) for l in range(levels - 1)]
+    features, names = face_features(level_vertices[0], level_quads[0])
+    metadata = {
+        "source": str(source),
+        "transform": transform.to_json(),
+        "input": {"vertices": int(len(vertices)), "triangles": int(len(faces)), "cleaned_triangles": int(len(clean_f))},
+        "targets": targets,
+        "face_counts": [int(len(q)) for q in level_quads],
+        "levels": [{"target": r.target, "faces": int(len(r.quads)), "method": r.method, "attempts": r.attempts} for r in results],
+        "seed": int(seed),
+        "seeds": sorted({int(a["method"].split("seed=")[1].rstrip(")")) for r in results for a in r.attempts if "seed=" in a["method"]}),
+        "seconds": {"clean": round(seconds_clean, 3), "remesh": round(seconds_remesh, 3), "total": round(time.perf_counter() - start, 3)},
+    }
+    return PreparedShape(
+        vertices=[v.astype(np.float32) for v in level_vertices],
+        quads=[q.astype(np.int64) for q in level_quads],
+        neighbors=neighbors,
+        pool=pool,
+        face_features=features,
+        feature_names=names,
+        noc=noc_coordinates(level_vertices[0]),
+        metadata=metadata,
+    )

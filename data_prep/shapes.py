@@ -14,6 +14,7 @@ import argparse
 import json
 import os
 import re
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -162,7 +163,7 @@ def run(args) -> int:
         log.write({"event": "shape", **{k: record[k] for k in ("source", "status", "reason", "face_counts", "seconds")}})
         write_index()  # after every shape, so an interruption loses at most the shapes in flight
         if record["status"] == "failed":
-            bar.write(f"mesh2tex: failed: {record['reason']}")
+            bar.write(f"mesh2tex: failed: {record['reason']}", file=sys.stderr)
         bar.update(1)
 
     jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed) for p in todo]

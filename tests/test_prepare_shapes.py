@@ -1,0 +1,81 @@
+"""`mesh2tex prepare shapes`: folders, ShapeNet layout, bad inputs, index.json, resume, exit status."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import trimesh
+
+from mesh2tex.cli import main
+from mesh2tex.geometry.prepared import PreparedShape
+
+
+def make_inputs(root):
+    """A small mixed folder: plain files in sub-folders, a ShapeNet-style shape, a scene and bad files."""
+    (root / "misc" / "deeper").mkdir(parents=True)
+    trimesh.creation.icosphere(2).export(root / "misc" / "ball.ply")
+    trimesh.creation.torus(1.0, 0.4, major_sections=32, minor_sections=12).export(root / "misc" / "deeper" / "ring.off")
+    shapenet = root / "03001627" / "1a2b3c" / "models"
+    shapenet.mkdir(parents=True)
+    trimesh.creation.box((1.0, 0.5, 0.8)).export(shapenet / "model_normalized.obj")
+    trimesh.creation.box().export(shapenet / "model_normalized_extra.stl")  # ShapeNet side files are not shapes
+    trimesh.Scene([trimesh.creation.box(), trimesh.creation.box().apply_translation((2, 0, 0))]).export(root / "pair.glb")
+    (root / "empty.obj").write_text("")
+    (root / "garbage.ply").write_bytes(b"\x89 definitely not a ply file \x00\xff" * 8)
+    (root / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n")
+    (root / "notes.txt").write_text("not a mesh suffix, ignored")
+
+
+def test_prepare_shapes_folder_reports_failures_and_resumes(tmp_path, capsys):
+    make_inputs(tmp_path / "in")
+    out = tmp_path / "out"
+    argv = ["prepare", "shapes", "--input", str(tmp_path / "in"), "--output", str(out), "--faces", "96", "--levels", "2", "--workers", "2"]
+    assert main(argv) == 2, "a failed input gives exit status 2"
+
+    index = json.loads((out / "index.json").read_text())
+    by_name = {entry["file"]: entry for entry in index["shapes"]}
+    assert set(by_name) == {"ball.npz", "ring.npz", "03001627_1a2b3c.npz", "pair.npz", "empty.npz", "garbage.npz", "points.npz"}
+    for name in ("ball.npz", "ring.npz", "03001627_1a2b3c.npz", "pair.npz"):
+        entry = by_name[name]
+        assert entry["status"] == "ok" and len(entry["face_counts"]) == 2 and entry["seconds"] > 0
+        with np.load(out / name, allow_pickle=False) as data:  # loads without pickle
+            assert {"vertices_0", "quads_0", "neighbors_0", "pool_0", "vertices_1", "quads_1", "neighbors_1",
+                    "face_features", "feature_names", "metadata"} <= set(data.files)
+            assert "pool_1" not in data.files
+            assert json.loads(str(data["metadata"]))["schema_version"] == 1
+        shape = PreparedShape.load(out / name)
+        assert shape.face_counts == entry["face_counts"]
+        assert shape.metadata["source"] == entry["source"] and "transform" in shape.metadata
+    assert "empty file" in by_name["empty.npz"]["reason"]
+    assert "point cloud" in by_name["points.npz"]["reason"]
+    assert by_name["garbage.npz"]["reason"].startswith(str(tmp_path / "in" / "garbage.ply"))
+    for name in ("empty.npz", "garbage.npz", "points.npz"):
+        assert by_name[name]["status"] == "failed" and not (out / name).exists()
+    assert not list(out.glob(".*partial*")), "no half-written files left"
+    assert "failed" in capsys.readouterr().err
+
+    # re-run: finished shapes are skipped (their files untouched), the bad ones are tried again
+    before = {p.name: p.stat().st_mtime_ns for p in out.glob("*.npz")}
+    assert main(argv) == 2
+    after = {p.name: p.stat().st_mtime_ns for p in out.glob("*.npz")}
+    assert before == after
+    assert "4 already done" in capsys.readouterr().out
+
+
+def test_prepare_shapes_all_good_exits_zero_and_files_are_named_after_inputs(tmp_path):
+    trimesh.creation.box().export(tmp_path / "cube.stl")
+    trimesh.creation.icosphere(2).export(tmp_path / "ball.obj")
+    out = tmp_path / "out"
+    code = main(["prepare", "shapes", "--input", str(tmp_path / "cube.stl"), str(tmp_path / "ball.obj"),
+                 "--output", str(out), "--faces", "96", "--levels", "2", "--seed", "3"])
+    assert code == 0
+    assert sorted(p.name for p in out.glob("*.npz")) == ["ball.npz", "cube.npz"]
+    assert PreparedShape.load(out / "cube.npz").metadata["seed"] == 3
+
+
+def test_prepare_shapes_missing_input_is_one_line_error(tmp_path, capsys):
+    code = main(["prepare", "shapes", "--input", str(tmp_path / "nowhere"), "--output", str(tmp_path / "out")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("mesh2tex: error:") and "nowhere" in err

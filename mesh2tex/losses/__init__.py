@@ -1,0 +1,5 @@
+"""Losses: adversarial (``gan``)."""
+
+from mesh2tex.losses.gan import GanLoss, GanLossConfig
+
+__all__ = ["GanLoss", "GanLossConfig"]

@@ -1,0 +1,401 @@
+"""``mesh2tex train gan``: train the mesh-field texture GAN on prepared shapes and a folder of photos.
+
+    mesh2tex train gan --shapes DIR --images DIR --out RUN [--config YAML] [--iters N] [--batch B]
+                       [--views K] [--resolution R] [--device auto|cpu|cuda] [--seed S] [--resume]
+
+Each iteration: B shapes, K random views each (azimuth uniform, elevation in a range, camera
+jitter), one rasterization of the finest level shared by the phases; G main (+ path-length reg
+every 4), D main (+ R1 every 16) through :class:`mesh2tex.losses.GanLoss`; an EMA of the generator.
+Several processes: ``torchrun --nproc_per_node N -m mesh2tex train gan ...`` (gloo on CPU, nccl on
+CUDA); each process renders its own B shapes and gradients are averaged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from PIL import Image
+
+from mesh2tex.config import load_config
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.atomic import atomic_path
+from mesh2tex.losses.gan import GanLoss, GanLossConfig
+from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
+from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
+from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
+from mesh2tex.progress import progress_bar
+from mesh2tex.render import orbit_camera
+from train import runs
+
+KIND = "gan"
+
+
+@dataclass
+class CameraConfig:
+    distance: float = 2.5  # camera distance from the origin (shapes have a bounding-box diagonal of 1)
+    fov: float = 40.0  # vertical field of view, degrees
+    elevation_min: float = 0.0  # lowest elevation of the random views, degrees
+    elevation_max: float = 30.0  # highest elevation of the random views, degrees
+    jitter_degrees: float = 2.0  # std of the Gaussian noise added to azimuth and elevation
+    distance_jitter: float = 0.03  # relative std of the Gaussian noise on the distance
+
+
+@dataclass
+class OptimConfig:
+    lr_encoder: float = 1e-4  # Adam learning rate of the geometry encoder (paper: 1e-4)
+    lr_generator: float = 12e-4  # mapping network and synthesis (paper: 12e-4)
+    lr_field: float = 1e-4  # neural field psi (paper: 1e-4)
+    lr_discriminator: float = 14e-4  # both discriminators (paper: 14e-4)
+    beta1: float = 0.0  # Adam beta1 (paper: 0)
+    beta2: float = 0.99  # Adam beta2 (paper: 0.99)
+
+
+@dataclass
+class TrainGanConfig:
+    seed: int = 0  # seed of every random choice of the run
+    iters: int = 20000  # training iterations
+    batch: int = 2  # shapes per iteration and process (paper: 2)
+    views: int = 4  # random views per shape (paper: 8)
+    resolution: int = 128  # render and image resolution (a power of two)
+    device: str = "auto"  # auto, cpu or cuda
+    mixed_precision: bool = True  # bfloat16 autocast for the main phases on CUDA (ignored on a CPU)
+    ema_halflife_images: float = 5000.0  # EMA of the generator: half-life in rendered images
+    log_every: int = 10  # iterations between metrics.jsonl records
+    sample_every: int = 500  # iterations between sample grids under RUN/samples (0: only at the end)
+    checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
+    sample_shapes: int = 4  # shapes in a sample grid
+    generator: GeneratorConfig = field(default_factory=GeneratorConfig)
+    discriminator: DiscriminatorConfig = field(default_factory=DiscriminatorConfig)
+    loss: GanLossConfig = field(default_factory=GanLossConfig)
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--shapes", required=True, help="folder of prepared shapes (.npz from 'mesh2tex prepare shapes')")
+    parser.add_argument("--images", required=True, help="photo folder: images/*.png with masks/*.png, or RGBA *.png")
+    parser.add_argument("--out", required=True, help="run directory (config, checkpoint, metrics, samples)")
+    parser.add_argument("--config", help="YAML file with any fields of the training config")
+    parser.add_argument("--iters", type=int, help="training iterations (total, also when resuming)")
+    parser.add_argument("--batch", type=int, help="shapes per iteration and process")
+    parser.add_argument("--views", type=int, help="random views per shape")
+    parser.add_argument("--resolution", type=int, help="render resolution (power of two)")
+    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to train")
+    parser.add_argument("--seed", type=int, help="random seed")
+    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+
+
+# ------------------------------------------------------------------------------------------ data
+def load_shapes(folder: str | Path) -> tuple[list[PreparedShape], list[str]]:
+    """All prepared shapes (*.npz) of ``folder``; they must share levels and feature columns."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"{folder}: shapes folder not found")
+    paths = sorted(folder.glob("*.npz"))
+    if not paths:
+        raise UserError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
+    shapes = [PreparedShape.load(p) for p in paths]
+    first = shapes[0]
+    for path, shape in zip(paths, shapes):
+        if shape.num_levels != first.num_levels or list(shape.feature_names) != list(first.feature_names):
+            raise UserError(f"{path}: levels or face features differ from {paths[0].name}; prepare all shapes with the same settings")
+    return shapes, [p.stem for p in paths]
+
+
+def load_images(folder: str | Path, resolution: int) -> torch.Tensor:
+    """The photo collection as uint8 (N, 4, R, R): RGB plus mask.
+
+    Layouts: ``folder/images/*.png`` with same-named ``folder/masks/*.png`` (white = object), or
+    ``folder/*.png`` whose alpha channel is the mask (no alpha: the whole image is the object).
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"{folder}: images folder not found")
+    image_dir = folder / "images" if (folder / "images").is_dir() else folder
+    mask_dir = folder / "masks" if (folder / "masks").is_dir() else None
+    paths = sorted(p for p in image_dir.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
+    if not paths:
+        raise UserError(f"{image_dir}: no images (*.png, *.jpg)")
+    out = np.empty((len(paths), resolution, resolution, 4), dtype=np.uint8)
+    for i, path in enumerate(paths):
+        try:
+            with Image.open(path) as img:
+                img.load()
+                rgba = img.convert("RGBA")
+            if mask_dir is not None:
+                mask_path = mask_dir / (path.stem + ".png")
+                if not mask_path.is_file():
+                    raise UserError(f"{mask_path}: mask missing for {path.name}")
+                with Image.open(mask_path) as m:
+                    rgba.putalpha(m.convert("L"))
+        except (OSError, ValueError) as error:
+            raise UserError(f"{path}: cannot read image ({error})") from None
+        out[i] = np.asarray(rgba.resize((resolution, resolution), Image.LANCZOS))
+    return torch.from_numpy(out).permute(0, 3, 1, 2).contiguous()
+
+
+def composite_real(images: torch.Tensor, background: torch.Tensor) -> torch.Tensor:
+    """uint8 (N, 4, R, R) photos over solid (N, 3) backgrounds in [-1, 1] -> float (N, 3, R, R) in [-1, 1]."""
+    rgb = images[:, :3].float() / 127.5 - 1.0
+    alpha = images[:, 3:].float() / 255.0
+    return rgb * alpha + background[:, :, None, None] * (1.0 - alpha)
+
+
+def random_cameras(n: int, cfg: CameraConfig, device: torch.device) -> torch.Tensor:
+    """(n, 4, 4) MVP matrices of random orbit views (azimuth uniform, elevation in range, jitter)."""
+    azimuth = torch.rand(n) * 360.0 + torch.randn(n) * cfg.jitter_degrees
+    elevation = cfg.elevation_min + torch.rand(n) * (cfg.elevation_max - cfg.elevation_min) + torch.randn(n) * cfg.jitter_degrees
+    distance = cfg.distance * (1.0 + torch.randn(n) * cfg.distance_jitter)
+    return orbit_camera(azimuth, elevation.clamp(-89.0, 89.0), distance=distance, fov=cfg.fov).mvp.to(device)
+
+
+def sample_views(k: int, elevation: float = 20.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Azimuths evenly spaced over the circle (k,) and a fixed elevation (k,), in degrees."""
+    return torch.arange(k, dtype=torch.float32) * (360.0 / k), torch.full((k,), float(elevation))
+
+
+def to_uint8(images: torch.Tensor) -> np.ndarray:
+    """float (N, 3, H, W) in [-1, 1] -> uint8 (N, H, W, 3)."""
+    return ((images.detach().float().clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
+
+
+def save_png(path: Path, image: np.ndarray) -> None:
+    with atomic_path(path) as tmp:
+        Image.fromarray(image).save(tmp)
+
+
+# ---------------------------------------------------------------------------------------- trainer
+class GanTrainer:
+    """Everything one process of a run holds; :meth:`train` is the loop."""
+
+    def __init__(self, cfg: TrainGanConfig, shapes: list[PreparedShape], images: torch.Tensor, run: runs.RunDirectory,
+                 device: torch.device, distributed: runs.Distributed):
+        self.cfg, self.shapes, self.images, self.run, self.device, self.dist = cfg, shapes, images, run, device, distributed
+        levels = shapes[0].num_levels
+        gcfg = cfg.generator
+        if len(gcfg.synthesis_channels) != levels or len(gcfg.encoder_channels) != levels:
+            raise UserError(f"generator.synthesis_channels and generator.encoder_channels need one entry per level: the shapes have {levels} levels")
+        runs.seed_everything(cfg.seed)  # identical initial weights on every process
+        self.generator = TextureGenerator(gcfg).to(device)
+        self.d_field = Discriminator(cfg.resolution, cfg.discriminator).to(device)
+        self.d_proxy = Discriminator(cfg.resolution, cfg.discriminator).to(device)
+        for module in (self.generator, self.d_field, self.d_proxy):
+            distributed.broadcast_module(module)
+        self.ema = runs.make_ema(self.generator)
+        o = cfg.optim
+        groups = self.generator.parameter_groups()
+        self.opt_g = torch.optim.Adam(
+            [{"params": groups["encoder"], "lr": o.lr_encoder}, {"params": groups["generator"], "lr": o.lr_generator},
+             {"params": groups["field"], "lr": o.lr_field}], betas=(o.beta1, o.beta2), eps=1e-8)
+        self.opt_d = torch.optim.Adam(list(self.d_field.parameters()) + list(self.d_proxy.parameters()), lr=o.lr_discriminator,
+                                      betas=(o.beta1, o.beta2), eps=1e-8)
+        use_amp = cfg.mixed_precision and device.type == "cuda"
+        autocast = (lambda: torch.autocast("cuda", dtype=torch.bfloat16)) if use_amp else contextlib.nullcontext
+        self.loss = GanLoss(cfg.loss, self.d_field, self.d_proxy, autocast=autocast)
+        images_per_step = cfg.batch * cfg.views * distributed.world_size
+        self.ema_beta = 0.5 ** (images_per_step / max(cfg.ema_halflife_images, 1e-8))
+        self.iteration = 0
+        self.sample_batch = collate_shapes(shapes[: cfg.sample_shapes]).to(device)
+        self.sample_z = torch.randn(self.sample_batch.num_shapes, gcfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed + 12345)).to(device)
+        runs.seed_everything(cfg.seed + 1000003 * distributed.rank)  # each process draws its own data
+
+    # ----------------------------------------------------------------------------- checkpoints
+    def modules(self) -> dict:
+        return {"generator": self.generator, "generator_ema": self.ema, "d_field": self.d_field, "d_proxy": self.d_proxy}
+
+    def save(self, path: Path) -> None:
+        """Collective: every process contributes its RNG state; the main process writes."""
+        rng_states = self.dist.gather_objects(runs.rng_to_state())
+        if self.dist.is_main:
+            meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
+                    "generator_config": runs.dumps_config(self.cfg.generator)}
+            runs.save_training_state(path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d},
+                                     {"loss": self.loss.state_dict()}, meta, rng_states)
+        self.dist.barrier()
+
+    def resume(self) -> None:
+        groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d}, self.device)
+        self.loss.load_state_dict(groups["loss"])
+        self.iteration = int(meta["iteration"])
+        states = meta["rng"]
+        if len(states) == self.dist.world_size:
+            runs.rng_from_state(states[self.dist.rank])
+        else:  # another number of processes: fresh, distinct streams per process
+            print(f"mesh2tex: note: the checkpoint was written by {len(states)} process(es), this run has {self.dist.world_size}; random streams restart", file=sys.stderr)
+            runs.seed_everything(self.cfg.seed + 7919 * self.iteration + 1000003 * self.dist.rank)
+        if self.dist.is_main:
+            self.run.metrics.truncate_after("iteration", self.iteration)
+
+    # ---------------------------------------------------------------------------------- steps
+    def draw_real(self, n: int) -> torch.Tensor:
+        index = torch.randint(len(self.images), (n,))
+        background = torch.rand(n, 3) * 2 - 1
+        return composite_real(self.images[index], background).to(self.device)
+
+    def step(self) -> dict[str, float]:
+        """One iteration of all due phases; returns the logged scalars. Raises NonFiniteLoss before any
+        optimizer step of an iteration whose losses are not finite."""
+        cfg = self.cfg
+        n = cfg.batch * cfg.views
+        shape_index = torch.randint(len(self.shapes), (cfg.batch,)).tolist()
+        batch = collate_shapes([self.shapes[i] for i in shape_index]).to(self.device)
+        mvp = random_cameras(n, cfg.camera, self.device)
+        samples = rasterize_batch(batch, mvp, (cfg.resolution, cfg.resolution))
+        fake_background = (torch.rand(n, 3) * 2 - 1).to(self.device)
+        real = self.draw_real(n)
+        z_g = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
+        z_d = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
+        g = self.generator
+
+        def generate(z, update_w_avg=False):
+            ws = g.mapping(z, update_w_avg=update_w_avg)
+            out = render_field_views(g, batch, ws, mvp, (cfg.resolution, cfg.resolution), fake_background, proxy=True, samples=samples)
+            return out.images, out.proxy, ws
+
+        logs: dict[str, torch.Tensor] = {}
+        phases = self.loss.phases(self.iteration)
+        g_params = list(g.parameters())
+        d_params = list(self.d_field.parameters()) + list(self.d_proxy.parameters())
+        for group, params, opt in (("G", g_params, self.opt_g), ("D", d_params, self.opt_d)):
+            opt.zero_grad(set_to_none=True)
+            self.generator.requires_grad_(group == "G")
+            self.d_field.requires_grad_(group == "D")
+            self.d_proxy.requires_grad_(group == "D")
+            for phase, gain in phases:
+                if not phase.startswith(group):
+                    continue
+                z = z_g if group == "G" else z_d
+                fn = (lambda z_: generate(z_, update_w_avg=True)) if phase == "Gmain" else generate
+                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain))
+            bad = None
+            try:
+                runs.check_finite(logs, self.iteration)
+            except runs.NonFiniteLoss as error:
+                bad = str(error)
+            if self.dist.any(bad is not None, self.device):
+                raise runs.NonFiniteLoss(bad or f"a non-finite loss on another process at iteration {self.iteration}")
+            self.dist.average_gradients(params)
+            for p in params:
+                if p.grad is not None:
+                    torch.nan_to_num_(p.grad, nan=0.0, posinf=1e5, neginf=-1e5)
+            opt.step()
+            if group == "G":
+                runs.ema_update(self.ema, self.generator, self.ema_beta)
+        self.generator.requires_grad_(True)
+        self.d_field.requires_grad_(True)
+        self.d_proxy.requires_grad_(True)
+        self.iteration += 1
+        return runs.scalars(logs)
+
+    @torch.no_grad()
+    def write_samples(self) -> Path:
+        """Grid of EMA renders: one row per sample shape, one column per view (white background)."""
+        k = 4
+        b = self.sample_batch
+        azimuth, elevation = sample_views(k)
+        mvp = orbit_camera(azimuth.repeat(b.num_shapes), elevation.repeat(b.num_shapes), distance=self.cfg.camera.distance,
+                           fov=self.cfg.camera.fov).mvp.to(self.device)
+        ws = self.ema.mapping(self.sample_z)
+        res = self.cfg.resolution
+        out = render_field_views(self.ema, b, ws, mvp, (res, res), torch.ones(b.num_shapes * k, 3, device=self.device), noise_mode="none")
+        tiles = to_uint8(out.images).reshape(b.num_shapes, k, res, res, 3)
+        grid = tiles.transpose(0, 2, 1, 3, 4).reshape(b.num_shapes * res, k * res, 3)
+        path = self.run.samples_dir / f"iter{self.iteration:07d}.png"
+        save_png(path, grid)
+        return path
+
+    def train(self) -> None:
+        cfg = self.cfg
+        main = self.dist.is_main
+        bar = progress_bar(total=cfg.iters, initial=self.iteration, desc="train gan") if main else None
+        last_time, last_iter = time.perf_counter(), self.iteration
+        try:
+            while self.iteration < cfg.iters:
+                try:
+                    logs = self.step()
+                except runs.NonFiniteLoss as error:
+                    self.save(self.run.nonfinite_path)
+                    kept = f"; the last good checkpoint is {self.run.checkpoint_path}" if self.run.has_checkpoint() else ""
+                    raise UserError(f"{self.run.root}: training stopped, non-finite loss ({error}); state saved to {self.run.nonfinite_path}{kept}. "
+                                    "Lower the learning rates or raise loss.r1_gamma and --resume", exit_code=4) from None
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix({k: f"{v:.3f}" for k, v in logs.items() if k.startswith("loss_g_field") or k.startswith("loss_d_field")})
+                it = self.iteration
+                if main and (it % cfg.log_every == 0 or it == cfg.iters):
+                    now = time.perf_counter()
+                    record = {"iteration": it, **logs, "iters_per_second": round((it - last_iter) / max(now - last_time, 1e-9), 4),
+                              "peak_memory_gb": round(runs.peak_memory_gb(self.device), 3), "world_size": self.dist.world_size}
+                    self.run.metrics.write(record)
+                    last_time, last_iter = now, it
+                if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
+                    self.save(self.run.checkpoint_path)
+                if main and cfg.sample_every and it % cfg.sample_every == 0 and it < cfg.iters:
+                    self.write_samples()
+        except KeyboardInterrupt:
+            self.save(self.run.checkpoint_path)
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
+        self.save(self.run.checkpoint_path)
+        if main:
+            self.write_samples()
+
+
+def build_config(args) -> TrainGanConfig:
+    overrides = {"iters": args.iters, "batch": args.batch, "views": args.views, "resolution": args.resolution,
+                 "device": args.device, "seed": args.seed}
+    run_config = Path(args.out) / "config.yaml"
+    if args.resume and run_config.is_file():
+        if args.config:
+            print(f"mesh2tex: note: resuming uses {run_config}; --config {args.config} is ignored", file=sys.stderr)
+        cfg = load_config(TrainGanConfig, run_config, overrides)
+    else:
+        cfg = load_config(TrainGanConfig, args.config, overrides)
+    r = cfg.resolution
+    if r < 8 or r & (r - 1):
+        raise UserError(f"--resolution {r}: must be a power of two >= 8")
+    for name in ("iters", "batch", "views"):
+        if getattr(cfg, name) < 1:
+            raise UserError(f"--{name} must be at least 1")
+    return cfg
+
+
+def run(args) -> int:
+    cfg = build_config(args)
+    distributed = runs.Distributed(cfg.device)
+    try:
+        device = runs.select_device(cfg.device)
+        shapes, _ = load_shapes(args.shapes)
+        images = load_images(args.images, cfg.resolution)
+        features = shapes[0].face_features.shape[1]
+        if cfg.generator.input_features not in (0, features):
+            raise UserError(f"generator.input_features is {cfg.generator.input_features} but the shapes in {args.shapes} have {features} face features")
+        cfg.generator.input_features = features
+        run_dir = runs.RunDirectory(args.out)
+        resume = args.resume and run_dir.has_checkpoint()
+        if args.resume and not resume and distributed.is_main:
+            print(f"mesh2tex: note: {run_dir.checkpoint_path} not found; starting a new run", file=sys.stderr)
+        if distributed.is_main:
+            run_dir.start(cfg, resume=resume)
+        distributed.barrier()
+        trainer = GanTrainer(cfg, shapes, images, run_dir, device, distributed)
+        if resume:
+            trainer.resume()
+        trainer.train()
+        if distributed.is_main:
+            print(f"trained {trainer.iteration} iterations; checkpoint {run_dir.checkpoint_path}")
+    finally:
+        distributed.close()
+    return 0

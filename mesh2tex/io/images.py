@@ -1,0 +1,96 @@
+"""Reading photos of any common kind into RGB uint8 arrays, and writing PNGs atomically."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from mesh2tex.errors import UserError
+from mesh2tex.io.atomic import atomic_path
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".gif")
+
+
+def is_image_file(path: str | os.PathLike) -> bool:
+    """True when ``path`` has a suffix :func:`load_image` reads (case-insensitive)."""
+    return Path(path).suffix.lower() in IMAGE_SUFFIXES
+
+
+def _to_uint8(array: np.ndarray) -> np.ndarray:
+    """Scale any integer or float image to uint8 (16-bit by its range, floats assumed in [0, 1])."""
+    if array.dtype == np.uint8:
+        return array
+    if array.dtype == np.bool_:
+        return array.astype(np.uint8) * 255
+    if np.issubdtype(array.dtype, np.integer):
+        top = 65535.0 if array.max(initial=0) > 255 else 255.0
+        return np.clip(np.round(array.astype(np.float64) / top * 255.0), 0, 255).astype(np.uint8)
+    return np.clip(np.round(np.nan_to_num(array.astype(np.float64)) * 255.0), 0, 255).astype(np.uint8)
+
+
+def load_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read an image as RGB.
+
+    Grayscale, 16-bit, palette, CMYK and RGBA/LA inputs are normalised; EXIF orientation is applied.
+
+    Returns:
+        rgb: (H, W, 3) uint8; alpha: (H, W) uint8, or None when the file has no alpha channel
+        (a palette with a transparent entry counts as alpha).
+    Raises:
+        UserError: missing, empty, corrupt or not an image.
+    """
+    from PIL import Image, ImageOps, UnidentifiedImageError
+
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: image not found")
+    if path.stat().st_size == 0:
+        raise UserError(f"{path}: empty file")
+    try:
+        with Image.open(path) as image:
+            image.load()
+            image = ImageOps.exif_transpose(image)
+            mode = image.mode
+            if mode == "P":
+                image = image.convert("RGBA" if "transparency" in image.info else "RGB")
+            elif mode in ("I;16", "I;16B", "I;16L", "I", "F"):
+                gray = _to_uint8(np.asarray(image))
+                return np.repeat(gray[..., None], 3, axis=2), None
+            elif mode == "LA" or mode == "PA":
+                image = image.convert("RGBA")
+            elif mode not in ("RGB", "RGBA"):
+                image = image.convert("RGB")
+            array = np.asarray(image)
+    except UnidentifiedImageError:
+        raise UserError(f"{path}: not an image or an unsupported format") from None
+    except (OSError, ValueError, SyntaxError) as error:
+        raise UserError(f"{path}: corrupt image ({error})") from None
+    if array.ndim != 3 or array.shape[0] == 0 or array.shape[1] == 0:
+        raise UserError(f"{path}: image has no pixels")
+    array = _to_uint8(array)
+    if array.shape[2] == 4:
+        return np.ascontiguousarray(array[..., :3]), np.ascontiguousarray(array[..., 3])
+    return np.ascontiguousarray(array[..., :3]), None
+
+
+def load_mask(path: str | os.PathLike) -> np.ndarray:
+    """Read a mask image as (H, W) bool: alpha where present, otherwise gray level above half."""
+    rgb, alpha = load_image(path)
+    if alpha is not None and alpha.min() < 255:
+        return alpha >= 128
+    return rgb.mean(axis=2) >= 128
+
+
+def save_png(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write (H, W), (H, W, 3) or (H, W, 4) uint8 (bool is saved as 0/255) to a PNG atomically."""
+    from PIL import Image
+
+    image = np.asarray(image)
+    if image.dtype == np.bool_:
+        image = image.astype(np.uint8) * 255
+    if image.dtype != np.uint8:
+        raise ValueError(f"save_png expects uint8 or bool, got {image.dtype}")
+    with atomic_path(path, suffix=".png") as tmp:
+        Image.fromarray(image).save(tmp, format="PNG")

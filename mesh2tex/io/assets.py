@@ -152,3 +152,27 @@ def save_ply(path: str | os.PathLike, vertices, faces, vertex_colors_uint8) -> N
     vertices: (V, 3) float, faces: (T, 3) int, vertex_colors_uint8: (V, 3) uint8 (or (V, 4); alpha dropped).
     """
     write_bytes(path, ply_bytes(vertices, faces, vertex_colors_uint8))
+
+
+def obj_text(vertices, faces, face_groups=None) -> str:
+    """Wavefront OBJ text of a triangle mesh; ``face_groups`` (T,) names put runs of faces into ``g`` groups."""
+    positions = _array(vertices, np.float64, "vertices", 3)
+    triangles = _array(faces, np.int64, "faces", 3)
+    _check_faces(triangles, len(positions))
+    lines = ["# written by mesh2tex"]
+    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in positions]
+    current = None
+    for index, (a, b, c) in enumerate(triangles + 1):  # OBJ indices start at 1
+        if face_groups is not None and face_groups[index] != current:
+            current = face_groups[index]
+            lines.append(f"g {current}")
+        lines.append(f"f {a} {b} {c}")
+    return "\n".join(lines) + "\n"
+
+
+def save_obj(path: str | os.PathLike, vertices, faces, face_groups=None) -> None:
+    """Write a triangle mesh as OBJ (positions and faces only; vertices shared, so a closed mesh stays closed).
+
+    vertices: (V, 3) float, faces: (T, 3) int, face_groups: optional (T,) group name per face.
+    """
+    write_bytes(path, obj_text(vertices, faces, face_groups).encode("utf-8"))

@@ -75,11 +75,12 @@ def style_grams(vgg, images: torch.Tensor, masks: torch.Tensor | None = None, sc
     if min(images.shape[-2:]) // 2 ** (scales - 1) < 16:
         raise ValueError(f"images of {tuple(images.shape[-2:])} are too small for {scales} style scales (coarsest < 16 px)")
     grams: Grams = []
+    # Composite once at full resolution: averaging then mixes object pixels with the constant grey only.
+    images = composite_background(images, masks)
     for scale in range(scales):
         if scale:
             images, masks = downsample(images, masks)
-        features = vgg(composite_background(images, masks))
-        grams.append([masked_gram(f, masks) for f in features])
+        grams.append([masked_gram(f, masks) for f in vgg(images)])
     return grams
 
 

@@ -24,7 +24,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from mesh2tex.errors import UserError
-from mesh2tex.nn.vgg import read_state_dict, torch_hub_checkpoint_dir
+from mesh2tex.nn.vgg import find_weight_file, read_state_dict
 
 INCEPTION_FILE_NAMES = ("pt_inception-2015-12-05-6726825d.pth", "inception_v3_google-0cc3c7bd.pth", "inception_v3_google-1a9a5a14.pth")
 FID_INCEPTION_URL = "https://github.com/mseitzer/pytorch-fid/releases/download/fid_weights/pt_inception-2015-12-05-6726825d.pth"
@@ -204,17 +204,7 @@ class InceptionV3Features(nn.Module):
 def find_inception_weights(path: str | os.PathLike | None = None) -> Path | None:
     """The Inception weight file: ``path``, else $MESH2TEX_INCEPTION_WEIGHTS, else a known file name in
     ``$TORCH_HOME/hub/checkpoints``; None if none exists. A given path that does not exist is a UserError."""
-    explicit = path if path is not None else os.environ.get("MESH2TEX_INCEPTION_WEIGHTS") or None
-    if explicit is not None:
-        explicit = Path(explicit)
-        if not explicit.is_file():
-            raise UserError(f"{explicit}: Inception weight file not found")
-        return explicit
-    for name in INCEPTION_FILE_NAMES:
-        candidate = torch_hub_checkpoint_dir() / name
-        if candidate.is_file():
-            return candidate
-    return None
+    return find_weight_file(path, "MESH2TEX_INCEPTION_WEIGHTS", INCEPTION_FILE_NAMES, "Inception-v3")
 
 
 def load_inception(path: str | os.PathLike, device: str | torch.device = "cpu") -> InceptionV3Features:

@@ -153,19 +153,28 @@ class VGG19Features(nn.Module):
         self.source = str(path)
 
 
-def find_vgg19_weights(path: str | os.PathLike | None = None) -> Path | None:
-    """The VGG19 weight file to use: ``path``, else $MESH2TEX_VGG_WEIGHTS, else torchvision's cache file; None if none exists.
+def find_weight_file(path: str | os.PathLike | None, env_var: str, file_names: tuple[str, ...], what: str) -> Path | None:
+    """A local weight file: ``path``, else ``$env_var``, else the first of ``file_names`` present in
+    torchvision's cache ``$TORCH_HOME/hub/checkpoints``; None if there is none.
 
-    An explicit ``path`` (or environment variable) that does not exist is a UserError.
+    A path given explicitly (argument or environment variable) that does not exist is a UserError.
     """
-    explicit = path if path is not None else os.environ.get("MESH2TEX_VGG_WEIGHTS") or None
+    explicit = path if path is not None else os.environ.get(env_var) or None
     if explicit is not None:
         explicit = Path(explicit)
         if not explicit.is_file():
-            raise UserError(f"{explicit}: VGG19 weight file not found")
+            raise UserError(f"{explicit}: {what} weight file not found")
         return explicit
-    cached = torch_hub_checkpoint_dir() / VGG19_FILE_NAME
-    return cached if cached.is_file() else None
+    for name in file_names:
+        candidate = torch_hub_checkpoint_dir() / name
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def find_vgg19_weights(path: str | os.PathLike | None = None) -> Path | None:
+    """The VGG19 weight file to use: ``path``, else $MESH2TEX_VGG_WEIGHTS, else torchvision's cache file; None if none exists."""
+    return find_weight_file(path, "MESH2TEX_VGG_WEIGHTS", (VGG19_FILE_NAME,), "VGG19")
 
 
 def fallback_warning_text() -> str:

@@ -1,0 +1,101 @@
+"""Pose and NOC networks: bins agree with the orbit camera, shapes, gradients, masked NOC loss."""
+
+import pytest
+import torch
+
+from mesh2tex.nn.noc import NocUNet, noc_error, noc_loss
+from mesh2tex.nn.pose import PoseBins, PoseNet, angle_to_bin, azimuth_error, bin_to_angle, pose_accuracy, pose_loss
+
+
+def test_bin_centres_map_back_to_their_bins():
+    bins = PoseBins()
+    az_bins, el_bins = torch.arange(12), torch.arange(5)
+    azimuth, _ = bin_to_angle(az_bins, torch.zeros(12, dtype=torch.long), bins)
+    _, elevation = bin_to_angle(torch.zeros(5, dtype=torch.long), el_bins, bins)
+    assert torch.equal(bins.azimuth_to_bin(azimuth), az_bins)
+    assert torch.equal(bins.elevation_to_bin(elevation), el_bins)
+    assert torch.allclose(azimuth, torch.arange(12) * 30.0)
+    assert torch.allclose(elevation, torch.tensor([5.0, 15.0, 25.0, 35.0, 45.0]))
+
+
+def test_bin_edges_wrap_and_clamp():
+    az_bin, el_bin = angle_to_bin(torch.tensor([14.9, 15.0, -15.1, 359.0, 720.0 + 31.0]), torch.tensor([-30.0, 0.0, 9.99, 10.0, 89.0]))
+    assert az_bin.tolist() == [0, 1, 11, 0, 1]
+    assert el_bin.tolist() == [0, 0, 0, 1, 4]
+    assert azimuth_error(torch.tensor([350.0]), torch.tensor([10.0])).item() == pytest.approx(20.0)
+
+
+def test_azimuth_bins_follow_the_orbit_camera_convention():
+    """Bin k's centre puts the camera at the azimuth angle_to_bin reads back from its position."""
+    render = pytest.importorskip("mesh2tex.render")
+    bins = PoseBins()
+    azimuth, elevation = bin_to_angle(torch.arange(12), torch.full((12,), 2), bins)
+    position = render.orbit_camera(azimuth, elevation, distance=2.0).position
+    read_azimuth = torch.rad2deg(torch.atan2(position[:, 0], position[:, 2]))
+    read_elevation = torch.rad2deg(torch.asin(position[:, 1] / position.norm(dim=1)))
+    az_bin, el_bin = angle_to_bin(read_azimuth, read_elevation, bins)
+    assert az_bin.tolist() == list(range(12))
+    assert el_bin.tolist() == [2] * 12
+    # azimuth 90 looks from +x
+    assert position[3, 0] > 1.0 and abs(float(position[3, 2])) < 1e-4
+
+
+def test_pose_net_shapes_gradients_and_learning():
+    torch.manual_seed(0)
+    net = PoseNet(width=8)
+    images = torch.rand(4, 3, 64, 64) * 2 - 1
+    azimuth = torch.tensor([0.0, 90.0, 180.0, 270.0])
+    elevation = torch.tensor([5.0, 15.0, 25.0, 45.0])
+    az_logits, el_logits = net(images)
+    assert az_logits.shape == (4, 12) and el_logits.shape == (4, 5)
+    loss = pose_loss(az_logits, el_logits, azimuth, elevation, net.bins)
+    loss.backward()
+    assert net.backbone.stem[0].weight.grad.abs().sum() > 0
+    optimizer = torch.optim.Adam(net.parameters(), lr=1e-3)
+    first = loss.item()
+    for _ in range(15):
+        optimizer.zero_grad()
+        loss = pose_loss(*net(images), azimuth, elevation, net.bins)
+        loss.backward()
+        optimizer.step()
+    assert loss.item() < 0.5 * first
+    net.eval()
+    prediction = net.predict(images)
+    assert prediction["azimuth"].shape == (4,) and set(prediction) >= {"azimuth", "elevation", "azimuth_prob"}
+    accuracy = pose_accuracy(*net(images), azimuth, elevation, net.bins)
+    assert 0.0 <= accuracy["azimuth_accuracy"] <= 1.0
+
+
+def test_paper_heads_at_full_width():
+    net = PoseNet()
+    assert net.backbone.out_features == 512
+    assert [m.out_features for m in net.refine if isinstance(m, torch.nn.Linear)] == [256, 256]
+    assert [m.out_features for m in net.azimuth_head if isinstance(m, torch.nn.Linear)] == [128, 12]
+    assert [m.out_features for m in net.elevation_head if isinstance(m, torch.nn.Linear)] == [128, 5]
+
+
+def test_noc_unet_shapes_range_and_gradients():
+    torch.manual_seed(0)
+    net = NocUNet(width=8, depth=3)
+    images = torch.rand(2, 3, 50, 70) * 2 - 1
+    masks = torch.zeros(2, 1, 50, 70)
+    masks[:, :, 10:40, 20:60] = 1
+    noc = net(images, masks)
+    assert noc.shape == (2, 3, 50, 70)
+    assert float(noc.min()) >= 0.0 and float(noc.max()) <= 1.0
+    target = torch.rand(2, 3, 50, 70)
+    loss = noc_loss(noc, target, masks)
+    loss.backward()
+    assert net.encoders[0][0].weight.grad.abs().sum() > 0
+    assert noc_error(noc.detach(), target, masks) > 0
+
+
+def test_noc_loss_ignores_background():
+    target = torch.rand(1, 3, 16, 16)
+    masks = torch.zeros(1, 1, 16, 16)
+    masks[..., 4:12, 4:12] = 1
+    predicted = target.clone()
+    predicted[..., :4, :] = 0.0  # wrong only on the background
+    assert float(noc_loss(predicted, target, masks)) == 0.0
+    predicted[..., 6, 6] += 0.5  # wrong on the object
+    assert float(noc_loss(predicted, target, masks)) == pytest.approx(1.5 / (3 * 64))

@@ -160,7 +160,7 @@ def obj_text(vertices, faces, face_groups=None) -> str:
     triangles = _array(faces, np.int64, "faces", 3)
     _check_faces(triangles, len(positions))
     lines = ["# written by mesh2tex"]
-    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in positions]
+    lines += [f"v {x:.8f} {y:.8f} {z:.8f}" for x, y, z in positions]
     current = None
     for index, (a, b, c) in enumerate(triangles + 1):  # OBJ indices start at 1
         if face_groups is not None and face_groups[index] != current:

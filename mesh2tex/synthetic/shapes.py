@@ -62,11 +62,32 @@ def generate_shape(category: str, rng: np.random.Generator) -> SyntheticShape:
     """One random shape of ``category`` ('chair' or 'car'), drawn from ``rng`` only (deterministic)."""
     if category not in _GENERATORS:
         raise ValueError(f"unknown category {category!r}; choose one of {', '.join(CATEGORIES)}")
-    builder = _PartBuilder()
-    params = _GENERATORS[category](builder, rng)
-    vertices, faces, face_parts = builder.union()
-    vertices = normalise(vertices)
-    return SyntheticShape(category, vertices, faces, face_parts, params)
+    # A random design can rarely leave a sliver edge (two parts nearly touching) or a part that
+    # floats free; such a draw is replaced by the next one, so the result stays deterministic.
+    for _ in range(_MAX_DRAWS):
+        builder = _PartBuilder()
+        params = _GENERATORS[category](builder, rng)
+        vertices, faces, face_parts = builder.union()
+        vertices = normalise(vertices)
+        if _is_usable(vertices, faces):
+            return SyntheticShape(category, vertices, faces, face_parts, params)
+    raise RuntimeError(f"no usable {category} in {_MAX_DRAWS} draws")  # a bug in a generator, not bad luck
+
+
+_MAX_DRAWS = 20
+MIN_EDGE = 1e-5  # in the normalised frame; mesh files keep 8 decimals, so such edges survive
+
+
+def _is_usable(vertices: np.ndarray, faces: np.ndarray) -> bool:
+    """One connected piece with no edge shorter than MIN_EDGE."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    if np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1).min() < MIN_EDGE:
+        return False
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(vertices),) * 2)
+    return connected_components(graph, directed=False)[0] == 1
 
 
 def normalise(vertices: np.ndarray) -> np.ndarray:
@@ -99,6 +120,9 @@ class _PartBuilder:
         result = mf.Manifold.batch_boolean(originals, mf.OpType.Add)
         if self.cuts:
             result = result - mf.Manifold.batch_boolean(self.cuts, mf.OpType.Add)
+        # Nearly coincident faces of two parts leave slivers; collapsing edges under 0.5 mm removes
+        # them (a mesh file rounding its coordinates would otherwise pinch them shut).
+        result = result.simplify(5e-4)
         mesh = result.to_mesh()
         vertices = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
         faces = np.asarray(mesh.tri_verts, dtype=np.int64)
@@ -325,7 +349,8 @@ def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
                 builder.add("arm", rod((x, seat_top - 0.01, front - 0.05), (x, arm_height, front - 0.04), arm_width * 0.35, segments=12))
             else:
                 panel_height = arm_height - seat_bottom + 0.02
-                builder.add("arm", box((0.1, panel_height, length), (sx * (width / 2 - 0.05), seat_bottom - 0.02 + panel_height / 2, back_at_arm + length / 2)))
+                # Slightly wider than the seat: flush faces would leave slivers in the union.
+                builder.add("arm", box((0.1, panel_height, length), (sx * (width / 2 - 0.045), seat_bottom - 0.02 + panel_height / 2, back_at_arm + length / 2)))
     return params
 
 
@@ -349,6 +374,7 @@ def _car(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     rear_window = {"sedan": u(0.7, 1.2), "sports": u(1.2, 1.8), "hatchback": u(0.25, 0.5)}.get(style, u(0.0, 0.15))
     wheel_radius = u(0.29, 0.4) if style in ("suv", "pickup") else u(0.26, 0.34)
     wheel_width = u(0.18, 0.28)
+    clearance = min(clearance, 0.8 * wheel_radius)  # the axles (at wheel height) must run inside the body
 
     z0, z1 = -length / 2, length / 2
     y0, y1 = clearance, clearance + body_height

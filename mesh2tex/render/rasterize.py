@@ -29,7 +29,7 @@ import torch
 # Candidate (triangle, pixel) pairs handled at once; about 130 bytes of temporaries each.
 DEFAULT_MAX_PAIRS = 1 << 21
 # Bounding boxes grow by this fraction of a pixel so that pixel centres exactly on an edge are tested.
-_BOX_MARGIN = 1e-4
+_BOX_MARGIN = 1e-3
 
 
 @dataclass
@@ -67,65 +67,171 @@ def pixel_centers(resolution, device=None, dtype=torch.float32) -> torch.Tensor:
     return torch.stack(torch.meshgrid(x, y, indexing="xy"), dim=-1).to(dtype)
 
 
-def _triangle_setup(clip: torch.Tensor, resolution, cull_backfaces: bool):
-    """Per (view, triangle) edge-function coefficients and candidate pixel boxes.
+def _pixel_boxes(clip: torch.Tensor, resolution):
+    """Candidate pixel box of every (view, triangle): the box of its part in front of the near plane.
 
     Args:
-        clip: (B,T,3,4) float64 clip-space vertices of every triangle in every view.
+        clip: (B,T,3,4) float32 clip-space vertices.
     Returns:
-        lam_ref: (B,T,3) lambda at the reference pixel (the box's top-left pixel centre).
-        lam_dx, lam_dy: (B,T,3) lambda per NDC unit in x and y.
-        z_ref, z_dx, z_dy: (B,T) NDC depth plane, same parametrisation.
-        row0, col0, rows, cols: (B,T) int64 box origin and size in pixels (0 size: nothing to draw).
+        row0, col0, rows, cols: (B,T) int64 box origin and size in pixels; 0 rows where nothing can be
+        drawn (behind the near plane, off screen, or between pixel centres).
     """
     H, W = resolution
     x, y, z, w = clip.unbind(-1)  # each (B,T,3)
-    columns = torch.stack([x, y, w], dim=-1)  # (B,T,3 vertices,3)
-    edges = torch.linalg.cross(columns[:, :, [1, 2, 0]], columns[:, :, [2, 0, 1]])  # e_i = v_j x v_k
-    det = (columns[:, :, 0] * edges[:, :, 0]).sum(-1)  # (B,T), sign gives the facing
-    coeff = edges / det[..., None, None]  # lambda_i = coeff[i] . (x, y, 1)
-    z_coeff = (z[..., None] * coeff).sum(-2)  # (B,T,3): z_ndc = z_coeff . (x, y, 1)
-    usable = (det != 0) & torch.isfinite(coeff).all(-1).all(-1)
-    if cull_backfaces:
-        usable &= det > 0  # counter-clockwise in NDC (y up) faces the camera
+    in_front = z + w >= 0  # OpenGL near plane: z_ndc >= -1
+    all_front = in_front.all(-1)
+    ndc_x, ndc_y = x / w, y / w
+    x_min = torch.minimum(torch.minimum(ndc_x[..., 0], ndc_x[..., 1]), ndc_x[..., 2])
+    x_max = torch.maximum(torch.maximum(ndc_x[..., 0], ndc_x[..., 1]), ndc_x[..., 2])
+    y_min = torch.minimum(torch.minimum(ndc_y[..., 0], ndc_y[..., 1]), ndc_y[..., 2])
+    y_max = torch.maximum(torch.maximum(ndc_y[..., 0], ndc_y[..., 1]), ndc_y[..., 2])
+    usable = all_front.clone()
 
-    # Box of the part of the triangle in front of the near plane (z + w >= 0): the kept vertices plus
-    # the points where edges cross the plane.
-    dist = z + w  # (B,T,3) signed distance to the near plane (scaled)
-    nxt = [1, 2, 0]
-    d0, d1 = dist, dist[..., nxt]
-    crossing = (d0 * d1) < 0
-    t = (d0 / torch.where(crossing, d0 - d1, torch.ones_like(d0))).clamp(0, 1)
-    cut = clip + t[..., None] * (clip[:, :, nxt] - clip)  # (B,T,3,4) edge/near-plane intersections
-    points = torch.cat([clip, cut], dim=2)  # (B,T,6,4)
-    valid = torch.cat([dist >= 0, crossing], dim=2) & (points[..., 3] > 0)
-    safe_w = torch.where(valid, points[..., 3], torch.ones_like(points[..., 3]))
-    ndc_x = points[..., 0] / safe_w
-    ndc_y = points[..., 1] / safe_w
-    inf = torch.full_like(ndc_x, float("inf"))
-    x_min = torch.where(valid, ndc_x, inf).amin(-1)
-    x_max = torch.where(valid, ndc_x, -inf).amax(-1)
-    y_min = torch.where(valid, ndc_y, inf).amin(-1)
-    y_max = torch.where(valid, ndc_y, -inf).amax(-1)
-    usable &= valid.any(-1)
+    # Triangles crossing the near plane (rare): box of the kept vertices and the edge crossings.
+    crossing_tri = torch.nonzero((~all_front & in_front.any(-1)).reshape(-1)).squeeze(1)
+    if crossing_tri.numel():
+        c = clip.reshape(-1, 3, 4)[crossing_tri].double()
+        dist = c[..., 2] + c[..., 3]  # (N,3) scaled signed distance to the near plane
+        nxt = [1, 2, 0]
+        d0, d1 = dist, dist[:, nxt]
+        crosses = (d0 * d1) < 0
+        t = (d0 / torch.where(crosses, d0 - d1, torch.ones_like(d0))).clamp(0, 1)
+        cut = c + t[..., None] * (c[:, nxt] - c)
+        points = torch.cat([c, cut], dim=1)  # (N,6,4)
+        valid = torch.cat([dist >= 0, crosses], dim=1) & (points[..., 3] > 0)
+        safe_w = torch.where(valid, points[..., 3], torch.ones_like(points[..., 3]))
+        px, py = points[..., 0] / safe_w, points[..., 1] / safe_w
+        inf = torch.full_like(px, float("inf"))
+        for bound, value in (
+            (x_min, torch.where(valid, px, inf).amin(1)), (x_max, torch.where(valid, px, -inf).amax(1)),
+            (y_min, torch.where(valid, py, inf).amin(1)), (y_max, torch.where(valid, py, -inf).amax(1)),
+        ):
+            bound.view(-1)[crossing_tri] = value.float()
+        usable.view(-1)[crossing_tri] = valid.any(1)
 
-    # NDC -> continuous pixel index whose integers are pixel centres, then the covered integer range.
+    # NDC -> continuous pixel coordinates whose integers are pixel centres; the integer range inside.
     col_lo = torch.ceil(((x_min + 1) * W - 1) * 0.5 - _BOX_MARGIN).clamp(0, W)
     col_hi = torch.floor(((x_max + 1) * W - 1) * 0.5 + _BOX_MARGIN).clamp(-1, W - 1)
     row_lo = torch.ceil(((1 - y_max) * H - 1) * 0.5 - _BOX_MARGIN).clamp(0, H)
     row_hi = torch.floor(((1 - y_min) * H - 1) * 0.5 + _BOX_MARGIN).clamp(-1, H - 1)
-    usable &= torch.isfinite(x_min) & torch.isfinite(y_min)
-    col0, row0 = col_lo.nan_to_num(0).long(), row_lo.nan_to_num(0).long()
+    usable &= torch.isfinite(x_min + x_max + y_min + y_max)
+    col0 = col_lo.nan_to_num(0).long()
+    row0 = row_lo.nan_to_num(0).long()
     cols = (col_hi.nan_to_num(-1).long() - col0 + 1).clamp(min=0)
-    rows = (row_hi.nan_to_num(-1).long() - row0 + 1).clamp(min=0)
-    rows = torch.where(usable, rows, torch.zeros_like(rows))
+    rows = (row_hi.nan_to_num(-1).long() - row0 + 1).clamp(min=0) * usable
+    return row0, col0, rows, cols
 
+
+def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
+    """Edge-function and depth-plane coefficients of N triangles, relative to their box origin.
+
+    Args:
+        clip: (N,3,4) float64 clip-space vertices.
+        row0, col0: (N,) int64 box origin (the reference pixel).
+    Returns:
+        params: (12,N) float64, rows: lambda_0..2 at the reference pixel, their change per pixel
+            step right, their change per step down, then NDC z at the reference pixel, per step right,
+            per step down. Rows (not columns) keep the per-pair arithmetic on contiguous memory.
+        det: (N,) float64 determinant of the (x, y, w) vertex columns; > 0 for counter-clockwise faces.
+    """
+    H, W = resolution
+    (x0, y0, z0, w0), (x1, y1, z1, w1), (x2, y2, z2, w2) = (clip[:, k].unbind(-1) for k in range(3))
+    # e_i = v_j x v_k over (x, y, w) columns: rows of the adjugate of [v0 v1 v2].
+    e0 = (y1 * w2 - w1 * y2, w1 * x2 - x1 * w2, x1 * y2 - y1 * x2)
+    e1 = (y2 * w0 - w2 * y0, w2 * x0 - x2 * w0, x2 * y0 - y2 * x0)
+    e2 = (y0 * w1 - w0 * y1, w0 * x1 - x0 * w1, x0 * y1 - y0 * x1)
+    det = x0 * e0[0] + y0 * e0[1] + w0 * e0[2]
+    inv_det = 1.0 / det
     ref_x = (2 * col0 + 1).double() / W - 1
     ref_y = 1 - (2 * row0 + 1).double() / H
-    lam_ref = coeff[..., 0] * ref_x[..., None] + coeff[..., 1] * ref_y[..., None] + coeff[..., 2]
-    z_ref = z_coeff[..., 0] * ref_x + z_coeff[..., 1] * ref_y + z_coeff[..., 2]
-    return (lam_ref, coeff[..., 0], coeff[..., 1], z_ref, z_coeff[..., 0], z_coeff[..., 1],
-            row0, col0, rows, cols)
+    step_x, step_y = 2.0 / W, -2.0 / H
+    columns = []
+    for k in range(3):  # a (per NDC x), b (per NDC y), c (constant) of lambda and z
+        lam = [e[k] * inv_det for e in (e0, e1, e2)]
+        columns.append(lam + [z0 * lam[0] + z1 * lam[1] + z2 * lam[2]])
+    a, b, c = columns
+    params = torch.stack(
+        [a[i] * ref_x + b[i] * ref_y + c[i] for i in range(3)]
+        + [a[i] * step_x for i in range(3)]
+        + [b[i] * step_y for i in range(3)]
+        + [a[3] * ref_x + b[3] * ref_y + c[3], a[3] * step_x, b[3] * step_y],
+        dim=0,
+    )
+    return params, det
+
+
+# Boxes are split into tiles of at most _TILE x _TILE pixels (a power of two) before binning.
+_TILE = 64
+
+
+def _select_columns(table: torch.Tensor, index: torch.Tensor) -> list[torch.Tensor]:
+    """Columns ``index`` of a (K,N) table as K tensors (n,); row by row is much faster on CPU than
+    ``index_select`` along dim 1."""
+    return [row.index_select(0, index) for row in table]
+
+
+def _tile_entries(params, view, row0, col0, rows, cols, resolution):
+    """Split every live triangle's pixel box into tiles of at most _TILE x _TILE pixels.
+
+    Args:
+        params: (12,N) float64 from :func:`_edge_setup`, relative to each box origin.
+        view: (N,) int64 view index; row0, col0, rows, cols: (N,) int64 boxes.
+    Returns:
+        dict of per-entry tensors: owner (E,) index into N; base_pixel (E,) flat index into B*H*W of
+        the entry's origin; rows, cols (E,) its size; params (12,E) float32 rebased to its origin.
+    """
+    H, W = resolution
+    device = rows.device
+    tiles_r = (rows + _TILE - 1) // _TILE
+    tiles_c = (cols + _TILE - 1) // _TILE
+    n_tiles = tiles_r * tiles_c
+    if bool((n_tiles == 1).all()):
+        owner = torch.arange(rows.numel(), device=device)
+        off_r = off_c = torch.zeros_like(rows)
+    else:
+        owner = torch.repeat_interleave(torch.arange(rows.numel(), device=device), n_tiles)
+        k = torch.arange(owner.numel(), device=device) - (torch.cumsum(n_tiles, 0) - n_tiles)[owner]
+        per_row = tiles_c[owner]
+        off_r = torch.div(k, per_row, rounding_mode="floor") * _TILE
+        off_c = (k % per_row) * _TILE
+    entry_params = params[:, owner]
+    if bool(off_r.any() | off_c.any()):
+        dc, dr = off_c.double(), off_r.double()
+        for ref, step_c, step_r in ((0, 3, 6), (1, 4, 7), (2, 5, 8), (9, 10, 11)):
+            entry_params[ref] += entry_params[step_c] * dc + entry_params[step_r] * dr
+    r0, c0 = row0[owner] + off_r, col0[owner] + off_c
+    return {
+        "owner": owner,
+        "base_pixel": view[owner] * (H * W) + r0 * W + c0,
+        "rows": (rows[owner] - off_r).clamp(max=_TILE),
+        "cols": (cols[owner] - off_c).clamp(max=_TILE),
+        "params": entry_params.float(),
+    }
+
+
+def _binned(entries, max_pairs):
+    """Group entries by their box size rounded up to powers of two, in chunks of bounded size.
+
+    Yields:
+        (cap_rows, cap_cols, index) with index (n,) int64 into the entries, n * cap_rows * cap_cols
+        at most max_pairs (at least one entry per chunk).
+    """
+    # ceil(log2(size)) is the binary length of size - 1.
+    row_bits = torch.frexp((entries["rows"] - 1).float()).exponent.long()
+    col_bits = torch.frexp((entries["cols"] - 1).float()).exponent.long()
+    n_bits = _TILE.bit_length()
+    bin_id = row_bits * n_bits + col_bits
+    order = torch.argsort(bin_id, stable=True)
+    sizes = torch.bincount(bin_id, minlength=n_bits * n_bits).tolist()
+    start = 0
+    for b, size in enumerate(sizes):
+        if size == 0:
+            continue
+        cap_rows, cap_cols = 1 << (b // n_bits), 1 << (b % n_bits)
+        step = max(1, max_pairs // (cap_rows * cap_cols))
+        for lo in range(start, start + size, step):
+            yield cap_rows, cap_cols, order[lo:min(start + size, lo + step)]
+        start += size
 
 
 def rasterize(
@@ -139,6 +245,9 @@ def rasterize(
 
     Args:
         pos: (B,V,4) or (V,4) float, OpenGL clip-space vertex positions (see ``transform_points``).
+            The set-up runs in float64 from these values: float64 positions give barycentrics exact
+            to ~1e-6 even on nearly edge-on triangles, where float32 rounding of ``pos`` itself
+            limits them to ~1e-3.
         tri: (T,3) int, vertex indices; shared by all B views.
         resolution: (H, W). Pixel (row i, column j) has its centre at NDC
             x = (2j+1)/W - 1, y = 1 - (2i+1)/H: row 0 is the top of the image.
@@ -154,87 +263,76 @@ def rasterize(
     with torch.no_grad():
         if pos.dim() == 2:
             pos = pos[None]
-        B, device = pos.shape[0], pos.device
+        B, V, device = pos.shape[0], pos.shape[1], pos.device
         tri = tri.to(device=device, dtype=torch.long)
         T = tri.shape[0]
-        clip = pos.detach().double()[:, tri]  # (B,T,3,4)
-        (lam_ref, lam_dx, lam_dy, z_ref, z_dx, z_dy, row0, col0, rows, cols) = _triangle_setup(
-            clip, (H, W), cull_backfaces
-        )
-
-        # Keep the (view, triangle) entries that have candidate pixels.
-        counts = (rows * cols).reshape(-1)
-        live = torch.nonzero(counts > 0).squeeze(1)  # index into B*T
-        counts = counts[live]
-        n_live = live.numel()
         face_id = torch.full((B, H, W), -1, dtype=torch.long, device=device)
         bary = torch.zeros((B, H, W, 3), dtype=torch.float32, device=device)
         depth = torch.ones((B, H, W), dtype=torch.float32, device=device)
-        if n_live == 0:
+        if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
 
-        def flat(t):
-            return t.reshape(B * T, *t.shape[2:])[live]
-
-        # Per live entry: [lam_ref(3), lam_dx(3), lam_dy(3), z_ref, z_dx, z_dy] in float32, with the
-        # NDC step of one pixel folded in so pairs need only integer offsets.
-        step_x, step_y = 2.0 / W, -2.0 / H
-        params = torch.cat(
-            [flat(lam_ref), flat(lam_dx) * step_x, flat(lam_dy) * step_y,
-             flat(z_ref)[:, None], flat(z_dx)[:, None] * step_x, flat(z_dy)[:, None] * step_y], dim=1
-        )
-        params32 = params.float()
-        view = live // T
-        box_cols = flat(cols)
-        base_pixel = view * (H * W) + flat(row0) * W + flat(col0)  # flat pixel index of the box origin
-
+        clip = torch.index_select(pos.detach(), 1, tri.reshape(-1)).view(B, T, 3, 4)
+        row0, col0, rows, cols = _pixel_boxes(clip.float(), (H, W))
+        live = torch.nonzero((rows * cols).reshape(-1)).squeeze(1)  # index into B*T
+        row0, col0, rows, cols = (t.reshape(-1)[live] for t in (row0, col0, rows, cols))
+        params, det = _edge_setup(clip.view(B * T, 3, 4)[live].double(), (H, W), row0, col0)
+        keep = (det > 0) if cull_backfaces else (det != 0)
+        keep &= torch.isfinite(params).all(0)
+        if not bool(keep.all()):
+            live, row0, col0, rows, cols = (t[keep] for t in (live, row0, col0, rows, cols))
+            params = params[:, keep]
+        n_live = live.numel()
+        if n_live == 0:
+            return Raster(face_id, bary, depth)
         # Visibility key: quantised depth (high bits) | live index (low bits).
         id_bits = max(1, int(n_live).bit_length())
-        depth_levels = float((1 << min(62 - id_bits, 40)) - 1)
+        depth_scale = 0.5 * float((1 << min(62 - id_bits, 40)) - 1)
         empty = torch.iinfo(torch.long).max
         best = torch.full((B * H * W,), empty, dtype=torch.long, device=device)
 
-        ends = torch.cumsum(counts, 0)
-        starts = ends - counts
-        total = int(ends[-1])
-        for lo in range(0, total, max_pairs):
-            hi = min(total, lo + max_pairs)
-            pair = torch.arange(lo, hi, device=device)
-            if lo == 0 and hi == total:
-                owner = torch.repeat_interleave(torch.arange(n_live, device=device), counts,
-                                                output_size=total)
-            else:
-                owner = torch.searchsorted(ends, pair, right=True)
-            local = pair - starts[owner]
-            width = box_cols[owner]
-            dr = torch.div(local, width, rounding_mode="floor")
-            dc = local - dr * width
-            p = params32[owner]  # (n,12)
-            dcf, drf = dc.float()[:, None], dr.float()[:, None]
-            lam = p[:, 0:3] + p[:, 3:6] * dcf + p[:, 6:9] * drf
-            z = p[:, 9] + p[:, 10] * dcf[:, 0] + p[:, 11] * drf[:, 0]
-            inside = (lam >= 0).all(1) & (lam.sum(1) > 0) & (z >= -1) & (z <= 1)
-            hit = torch.nonzero(inside).squeeze(1)
+        entries = _tile_entries(params, live // T, row0, col0, rows, cols, (H, W))
+        for cap_rows, cap_cols, chunk in _binned(entries, max_pairs):
+            owner, base_pixel, box_rows, box_cols = (entries[k].index_select(0, chunk) for k in (
+                "owner", "base_pixel", "rows", "cols"))
+            p = _select_columns(entries["params"], chunk)
+            row_steps = torch.arange(cap_rows, device=device, dtype=torch.float32)
+            col_steps = torch.arange(cap_cols, device=device, dtype=torch.float32)
+
+            def plane(ref, step_c, step_r):  # an affine function over the (n, rows, cols) grid
+                per_row = torch.addcmul(p[ref][:, None], p[step_r][:, None], row_steps)
+                return torch.addcmul(per_row[:, :, None], p[step_c][:, None, None], col_steps)
+
+            lam_min = torch.minimum(torch.minimum(plane(0, 3, 6), plane(1, 4, 7)), plane(2, 5, 8))
+            inside = lam_min >= 0
+            z = plane(9, 10, 11)
+            inside &= z.abs() <= 1  # between the near and far planes
+            inside &= (row_steps[:, None] < box_rows[:, None, None]) & (col_steps < box_cols[:, None, None])
+            hit = torch.nonzero(inside.view(-1)).squeeze(1)
             if hit.numel() == 0:
                 continue
-            owner_hit = owner[hit]
-            pixel = base_pixel[owner_hit] + dr[hit] * W + dc[hit]
-            quantised = ((z[hit].double() + 1) * (0.5 * depth_levels)).long()
-            key = (quantised << id_bits) | owner_hit
+            row_bits, col_bits = cap_rows.bit_length() - 1, cap_cols.bit_length() - 1
+            entry = hit >> (row_bits + col_bits)
+            dr = (hit >> col_bits) & (cap_rows - 1)
+            dc = hit & (cap_cols - 1)
+            pixel = base_pixel.index_select(0, entry) + dr * W + dc
+            quantised = ((z.view(-1).index_select(0, hit).double() + 1) * depth_scale).long()
+            key = (quantised << id_bits) | owner.index_select(0, entry)
             best.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
 
         covered = torch.nonzero(best != empty).squeeze(1)
         if covered.numel() == 0:
             return Raster(face_id, bary, depth)
-        winner = best[covered] & ((1 << id_bits) - 1)
+        winner = best.index_select(0, covered) & ((1 << id_bits) - 1)
         # Exact barycentrics and depth of the winner only, from the float64 set-up.
-        pixel_in_view = covered % (H * W)
-        dr = (pixel_in_view // W - flat(row0)[winner]).double()[:, None]
-        dc = (pixel_in_view % W - flat(col0)[winner]).double()[:, None]
-        p = params[winner]
-        lam = p[:, 0:3] + p[:, 3:6] * dc + p[:, 6:9] * dr
-        z = p[:, 9] + p[:, 10] * dc[:, 0] + p[:, 11] * dr[:, 0]
-        face_id.view(-1)[covered] = live[winner] % T
-        bary.view(-1, 3)[covered] = (lam / lam.sum(1, keepdim=True)).float()
-        depth.view(-1)[covered] = z.float()
+        in_view = covered % (H * W)
+        dr = (torch.div(in_view, W, rounding_mode="floor") - row0.index_select(0, winner)).double()
+        dc = (in_view % W - col0.index_select(0, winner)).double()
+        p = _select_columns(params, winner)  # 12 x (n,) float64
+        lam = [torch.addcmul(torch.addcmul(p[k], p[k + 3], dc), p[k + 6], dr) for k in range(3)]
+        z = torch.addcmul(torch.addcmul(p[9], p[10], dc), p[11], dr)
+        inv_sum = 1.0 / (lam[0] + lam[1] + lam[2])
+        face_id.view(-1).index_copy_(0, covered, live.index_select(0, winner) % T)
+        bary.view(-1, 3).index_copy_(0, covered, (torch.stack(lam, dim=1) * inv_sum[:, None]).float())
+        depth.view(-1).index_copy_(0, covered, z.float())
         return Raster(face_id, bary, depth)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import re
 import sys
@@ -172,7 +173,8 @@ def run(args) -> int:
             for job in jobs:
                 finish(prepare_one(*job), bar)
         else:
-            with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            # spawn, not fork: a forked child of a process that already ran pymeshlab's OpenMP code hangs in libgomp
+            with ProcessPoolExecutor(max_workers=args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
                 futures = [pool.submit(prepare_one, *job) for job in jobs]
                 for future in as_completed(futures):
                     finish(future.result(), bar)

@@ -13,16 +13,38 @@ Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in do
 from .cameras import Camera, orbit_camera, perspective, transform_points
 from .interpolate import face_attribute, interpolate, texture
 from .rasterize import Raster, pixel_centers, rasterize
+from .shading import (
+    composite,
+    face_normals,
+    normalized_coordinates,
+    render_mask,
+    render_noc,
+    render_normals,
+    shade_lambert,
+    vertex_normals,
+)
+from .uv import dilate_texture, unwrap_uv, uv_rasterize
 
 __all__ = [
     "Camera",
     "Raster",
+    "composite",
+    "dilate_texture",
     "face_attribute",
+    "face_normals",
     "interpolate",
+    "normalized_coordinates",
     "orbit_camera",
     "perspective",
     "pixel_centers",
     "rasterize",
+    "render_mask",
+    "render_noc",
+    "render_normals",
+    "shade_lambert",
     "texture",
     "transform_points",
+    "unwrap_uv",
+    "uv_rasterize",
+    "vertex_normals",
 ]

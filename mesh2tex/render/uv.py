@@ -1,0 +1,84 @@
+"""UV space: the mesh drawn at its texture coordinates (for baking), seam padding, UV unwrapping."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from .rasterize import Raster, rasterize
+
+
+def uv_rasterize(uv: torch.Tensor, tri: torch.Tensor, resolution) -> Raster:
+    """Rasterize a mesh at its UV coordinates: texel (row r, column k) of an (H,W) texture image.
+
+    Args:
+        uv: (V,2) float in [0,1]; u to the right, v UP (v = 0 is the bottom row of the image, the
+            convention of :func:`mesh2tex.render.texture`), so the texel centre of row r, column k is
+            at u = (k + 0.5) / W, v = 1 - (r + 0.5) / H.
+        tri: (T,3) int64 triangles indexing ``uv``.
+        resolution: (H, W) of the texture image.
+    Returns:
+        Raster of batch 1: for every texel the triangle under its centre and the barycentrics there,
+        so ``interpolate(vertex_positions, raster, tri)`` gives the surface point of each texel.
+    """
+    uv = torch.as_tensor(uv)
+    pos = torch.cat([uv * 2 - 1, torch.zeros_like(uv[:, :1]), torch.ones_like(uv[:, :1])], dim=1)
+    return rasterize(pos[None], torch.as_tensor(tri), resolution)
+
+
+def dilate_texture(image: torch.Tensor, mask: torch.Tensor, pixels: int) -> torch.Tensor:
+    """Pad a texture's charts outwards so that bilinear lookups near seams do not read background.
+
+    Each step gives every empty texel next to a filled one the mean of its filled 3x3 neighbours.
+
+    Args:
+        image: (C,H,W) or (B,C,H,W) float texture.
+        mask: (H,W) or (B,1,H,W), bool or float, True/1 where the texture is defined.
+        pixels: number of texels to grow by.
+    Returns:
+        Tensor shaped like ``image``: defined texels unchanged, up to ``pixels`` texels around them
+        filled, the rest as in ``image``.
+    """
+    squeeze = image.dim() == 3
+    images = image[None] if squeeze else image
+    filled = mask.to(images.dtype).reshape(-1, 1, *images.shape[-2:])
+    result = images * filled
+    kernel = torch.ones(1, 1, 3, 3, dtype=images.dtype, device=images.device)
+    channels = images.shape[1]
+    for _ in range(int(pixels)):
+        weight = F.conv2d(filled, kernel, padding=1)
+        total = F.conv2d(result.reshape(-1, 1, *result.shape[-2:]), kernel, padding=1)
+        total = total.reshape(result.shape)
+        grow = (filled == 0) & (weight > 0)
+        if not bool(grow.any()):
+            break
+        mean = total / weight.clamp(min=1)
+        result = torch.where(grow, mean, result)
+        filled = torch.where(grow, torch.ones_like(filled), filled)
+    result = torch.where(filled.expand(-1, channels, -1, -1) > 0, result, images)
+    return result[0] if squeeze else result
+
+
+def unwrap_uv(vertices, faces):
+    """Compute a UV atlas with xatlas; vertices on chart seams are split.
+
+    Args:
+        vertices: (V,3) float array or tensor.
+        faces: (T,3) int array or tensor.
+    Returns:
+        (new_vertices (V',3) float32, new_faces (T,3) int64, uv (V',2) float32 in [0,1] with v up,
+        vertex_map (V',) int64 index of each new vertex in ``vertices``), as torch tensors when
+        ``vertices`` is a tensor, else as numpy arrays.
+    """
+    import xatlas
+
+    as_torch = torch.is_tensor(vertices)
+    v = vertices.detach().cpu().numpy() if as_torch else np.asarray(vertices)
+    f = faces.detach().cpu().numpy() if torch.is_tensor(faces) else np.asarray(faces)
+    vertex_map, new_faces, uv = xatlas.parametrize(v.astype(np.float32), f.astype(np.uint32))
+    result = (v[vertex_map].astype(np.float32), new_faces.astype(np.int64), uv.astype(np.float32),
+              vertex_map.astype(np.int64))
+    if as_torch:
+        return tuple(torch.from_numpy(a).to(vertices.device) for a in result)
+    return result

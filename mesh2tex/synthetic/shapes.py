@@ -51,12 +51,6 @@ class SyntheticShape:
         """Names of the parts present, in PART_NAMES order."""
         return [PART_NAMES[i] for i in np.unique(self.face_parts)]
 
-    def face_normals(self) -> np.ndarray:
-        """(T, 3) float64 unit outward normals."""
-        a, b, c = (self.vertices[self.faces[:, k]] for k in range(3))
-        n = np.cross(b - a, c - a)
-        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-
 
 def generate_shape(category: str, rng: np.random.Generator) -> SyntheticShape:
     """One random shape of ``category`` ('chair' or 'car'), drawn from ``rng`` only (deterministic)."""

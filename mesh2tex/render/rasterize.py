@@ -126,38 +126,34 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
     """Edge-function and depth-plane coefficients of N triangles, relative to their box origin.
 
     Args:
-        clip: (N,3,4) float64 clip-space vertices.
+        clip: (12,N) float64 clip-space vertices, rows x0, y0, z0, w0, x1, ..., w2.
         row0, col0: (N,) int64 box origin (the reference pixel).
     Returns:
-        params: (12,N) float64, rows: lambda_0..2 at the reference pixel, their change per pixel
-            step right, their change per step down, then NDC z at the reference pixel, per step right,
-            per step down. Rows (not columns) keep the per-pair arithmetic on contiguous memory.
+        params: (12,N) float64, rows 0-3: lambda_0, lambda_1, lambda_2 and NDC z at the reference
+            pixel; rows 4-7: their change per pixel step right; rows 8-11: per pixel step down. Rows
+            (not columns) keep the per-pixel arithmetic on contiguous memory.
         det: (N,) float64 determinant of the (x, y, w) vertex columns; > 0 for counter-clockwise faces.
     """
     H, W = resolution
-    (x0, y0, z0, w0), (x1, y1, z1, w1), (x2, y2, z2, w2) = (clip[:, k].unbind(-1) for k in range(3))
-    # e_i = v_j x v_k over (x, y, w) columns: rows of the adjugate of [v0 v1 v2].
-    e0 = (y1 * w2 - w1 * y2, w1 * x2 - x1 * w2, x1 * y2 - y1 * x2)
-    e1 = (y2 * w0 - w2 * y0, w2 * x0 - x2 * w0, x2 * y0 - y2 * x0)
-    e2 = (y0 * w1 - w0 * y1, w0 * x1 - x0 * w1, x0 * y1 - y0 * x1)
-    det = x0 * e0[0] + y0 * e0[1] + w0 * e0[2]
-    inv_det = 1.0 / det
-    ref_x = (2 * col0 + 1).double() / W - 1
-    ref_y = 1 - (2 * row0 + 1).double() / H
-    step_x, step_y = 2.0 / W, -2.0 / H
-    columns = []
-    for k in range(3):  # a (per NDC x), b (per NDC y), c (constant) of lambda and z
-        lam = [e[k] * inv_det for e in (e0, e1, e2)]
-        columns.append(lam + [z0 * lam[0] + z1 * lam[1] + z2 * lam[2]])
-    a, b, c = columns
-    params = torch.stack(
-        [a[i] * ref_x + b[i] * ref_y + c[i] for i in range(3)]
-        + [a[i] * step_x for i in range(3)]
-        + [b[i] * step_y for i in range(3)]
-        + [a[3] * ref_x + b[3] * ref_y + c[3], a[3] * step_x, b[3] * step_y],
-        dim=0,
-    )
-    return params, det
+    x, y, z, w = clip[0::4], clip[1::4], clip[2::4], clip[3::4]  # (3,N): one row per vertex
+    xj, yj, wj = (t.roll(-1, 0) for t in (x, y, w))  # vertex i+1
+    xk, yk, wk = (t.roll(-2, 0) for t in (x, y, w))  # vertex i+2
+    # coeff[c, i]: lambda_i = coeff[0, i] * x_ndc + coeff[1, i] * y_ndc + coeff[2, i]; row 3 is z_ndc.
+    # Unnormalised, lambda_i's coefficients are e_i = v_j x v_k over (x, y, w): the adjugate of [v0 v1 v2].
+    coeff = torch.empty(3, 4, clip.shape[1], dtype=clip.dtype, device=clip.device)
+    torch.sub(yj * wk, wj * yk, out=coeff[0, :3])
+    torch.sub(wj * xk, xj * wk, out=coeff[1, :3])
+    torch.sub(xj * yk, yj * xk, out=coeff[2, :3])
+    det = x[0] * coeff[0, 0] + y[0] * coeff[1, 0] + w[0] * coeff[2, 0]
+    coeff[:, :3] /= det
+    torch.sum(coeff[:, :3] * z, dim=1, out=coeff[:, 3])
+    ref_x = (2 * col0 + 1).to(clip.dtype) / W - 1
+    ref_y = 1 - (2 * row0 + 1).to(clip.dtype) / H
+    params = torch.empty(3, 4, clip.shape[1], dtype=clip.dtype, device=clip.device)
+    torch.addcmul(torch.addcmul(coeff[2], coeff[0], ref_x), coeff[1], ref_y, out=params[0])
+    torch.mul(coeff[0], 2.0 / W, out=params[1])
+    torch.mul(coeff[1], -2.0 / H, out=params[2])
+    return params.view(12, -1), det
 
 
 # Boxes are split into tiles of at most _TILE x _TILE pixels (a power of two) before binning.
@@ -186,19 +182,21 @@ def _tile_entries(params, view, row0, col0, rows, cols, resolution):
     tiles_c = (cols + _TILE - 1) // _TILE
     n_tiles = tiles_r * tiles_c
     if bool((n_tiles == 1).all()):
-        owner = torch.arange(rows.numel(), device=device)
-        off_r = off_c = torch.zeros_like(rows)
-    else:
-        owner = torch.repeat_interleave(torch.arange(rows.numel(), device=device), n_tiles)
-        k = torch.arange(owner.numel(), device=device) - (torch.cumsum(n_tiles, 0) - n_tiles)[owner]
-        per_row = tiles_c[owner]
-        off_r = torch.div(k, per_row, rounding_mode="floor") * _TILE
-        off_c = (k % per_row) * _TILE
-    entry_params = params[:, owner]
+        return {
+            "owner": torch.arange(rows.numel(), device=device),
+            "base_pixel": view * (H * W) + row0 * W + col0,
+            "rows": rows,
+            "cols": cols,
+            "params": params.float(),
+        }
+    owner = torch.repeat_interleave(torch.arange(rows.numel(), device=device), n_tiles)
+    k = torch.arange(owner.numel(), device=device) - (torch.cumsum(n_tiles, 0) - n_tiles)[owner]
+    per_row = tiles_c[owner]
+    off_r = torch.div(k, per_row, rounding_mode="floor") * _TILE
+    off_c = (k % per_row) * _TILE
+    entry_params = torch.stack(_select_columns(params, owner))
     if bool(off_r.any() | off_c.any()):
-        dc, dr = off_c.double(), off_r.double()
-        for ref, step_c, step_r in ((0, 3, 6), (1, 4, 7), (2, 5, 8), (9, 10, 11)):
-            entry_params[ref] += entry_params[step_c] * dc + entry_params[step_r] * dr
+        entry_params[0:4] += entry_params[4:8] * off_c.double() + entry_params[8:12] * off_r.double()
     r0, c0 = row0[owner] + off_r, col0[owner] + off_c
     return {
         "owner": owner,
@@ -275,13 +273,19 @@ def rasterize(
         clip = torch.index_select(pos.detach(), 1, tri.reshape(-1)).view(B, T, 3, 4)
         row0, col0, rows, cols = _pixel_boxes(clip.float(), (H, W))
         live = torch.nonzero((rows * cols).reshape(-1)).squeeze(1)  # index into B*T
-        row0, col0, rows, cols = (t.reshape(-1)[live] for t in (row0, col0, rows, cols))
-        params, det = _edge_setup(clip.view(B * T, 3, 4)[live].double(), (H, W), row0, col0)
-        keep = (det > 0) if cull_backfaces else (det != 0)
-        keep &= torch.isfinite(params).all(0)
-        if not bool(keep.all()):
-            live, row0, col0, rows, cols = (t[keep] for t in (live, row0, col0, rows, cols))
-            params = params[:, keep]
+        row0, col0, rows, cols = (t.reshape(-1).index_select(0, live) for t in (row0, col0, rows, cols))
+        live_clip = clip.view(B * T, 12).index_select(0, live).double().T.contiguous()
+        params, det = _edge_setup(live_clip, (H, W), row0, col0)
+        keep = torch.isfinite(1.0 / det)  # degenerate triangles (seen edge-on, or through the eye)
+        if cull_backfaces:
+            keep &= det > 0
+        dropped = live.numel() - int(keep.sum())
+        if dropped > live.numel() // 8:  # worth compacting (culling): keep only the rest
+            kept = torch.nonzero(keep).squeeze(1)
+            live, row0, col0, rows, cols = (t.index_select(0, kept) for t in (live, row0, col0, rows, cols))
+            params = torch.stack(_select_columns(params, kept))
+        elif dropped:  # a few: NaN fails every coverage test
+            params[0] = torch.where(keep, params[0], torch.full_like(params[0], float("nan")))
         n_live = live.numel()
         if n_live == 0:
             return Raster(face_id, bary, depth)
@@ -303,9 +307,9 @@ def rasterize(
                 per_row = torch.addcmul(p[ref][:, None], p[step_r][:, None], row_steps)
                 return torch.addcmul(per_row[:, :, None], p[step_c][:, None, None], col_steps)
 
-            lam_min = torch.minimum(torch.minimum(plane(0, 3, 6), plane(1, 4, 7)), plane(2, 5, 8))
+            lam_min = torch.minimum(torch.minimum(plane(0, 4, 8), plane(1, 5, 9)), plane(2, 6, 10))
             inside = lam_min >= 0
-            z = plane(9, 10, 11)
+            z = plane(3, 7, 11)
             inside &= z.abs() <= 1  # between the near and far planes
             inside &= (row_steps[:, None] < box_rows[:, None, None]) & (col_steps < box_cols[:, None, None])
             hit = torch.nonzero(inside.view(-1)).squeeze(1)
@@ -329,8 +333,8 @@ def rasterize(
         dr = (torch.div(in_view, W, rounding_mode="floor") - row0.index_select(0, winner)).double()
         dc = (in_view % W - col0.index_select(0, winner)).double()
         p = _select_columns(params, winner)  # 12 x (n,) float64
-        lam = [torch.addcmul(torch.addcmul(p[k], p[k + 3], dc), p[k + 6], dr) for k in range(3)]
-        z = torch.addcmul(torch.addcmul(p[9], p[10], dc), p[11], dr)
+        lam = [torch.addcmul(torch.addcmul(p[k], p[k + 4], dc), p[k + 8], dr) for k in range(3)]
+        z = torch.addcmul(torch.addcmul(p[3], p[7], dc), p[11], dr)
         inv_sum = 1.0 / (lam[0] + lam[1] + lam[2])
         face_id.view(-1).index_copy_(0, covered, live.index_select(0, winner) % T)
         bary.view(-1, 3).index_copy_(0, covered, (torch.stack(lam, dim=1) * inv_sum[:, None]).float())

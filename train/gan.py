@@ -42,12 +42,12 @@ KIND = "gan"
 
 @dataclass
 class CameraConfig:
-    distance: float = 2.5  # camera distance from the origin (shapes have a bounding-box diagonal of 1)
+    distance: float = 1.7  # camera distance from the origin (shapes have a bounding-box diagonal of 1)
     fov: float = 40.0  # vertical field of view, degrees
-    elevation_min: float = 0.0  # lowest elevation of the random views, degrees
-    elevation_max: float = 30.0  # highest elevation of the random views, degrees
+    elevation_min: float = 5.0  # lowest elevation of the random views, degrees
+    elevation_max: float = 35.0  # highest elevation of the random views, degrees
     jitter_degrees: float = 2.0  # std of the Gaussian noise added to azimuth and elevation
-    distance_jitter: float = 0.03  # relative std of the Gaussian noise on the distance
+    distance_jitter: float = 0.06  # relative std of the Gaussian noise on the distance
 
 
 @dataclass

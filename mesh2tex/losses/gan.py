@@ -90,10 +90,10 @@ class GanLoss:
             with torch.no_grad(), self.autocast():
                 images, proxy, _ = generate(z)
             with self.autocast():
-                loss = F.softplus(self.d_field(images.detach())).mean() + F.softplus(-self.d_field(real)).mean()
+                loss = self._d_main(self.d_field, images, real)
                 logs["loss_d_field"] = loss.detach()
                 if proxy is not None and self.cfg.proxy_weight > 0:
-                    loss_proxy = F.softplus(self.d_proxy(proxy.detach())).mean() + F.softplus(-self.d_proxy(real)).mean()
+                    loss_proxy = self._d_main(self.d_proxy, proxy, real)
                     logs["loss_d_proxy"] = loss_proxy.detach()
                     loss = loss + loss_proxy
             (loss * gain).backward()
@@ -112,6 +112,13 @@ class GanLoss:
         else:
             raise ValueError(f"unknown phase {phase!r}; expected one of {PHASES}")
         return logs
+
+    @staticmethod
+    def _d_main(d: nn.Module, fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+        """softplus(D(fake)) + softplus(-D(real)), one discriminator call on both halves (faster)."""
+        logits = d(torch.cat([fake.detach(), real.to(fake.dtype)]))
+        n = fake.shape[0]
+        return F.softplus(logits[:n]).mean() + F.softplus(-logits[n:]).mean()
 
     def state_dict(self) -> dict[str, torch.Tensor]:
         return {"pl_mean": self.pl_mean.detach().cpu().reshape([])}

@@ -16,8 +16,8 @@ _BLUR_1D = torch.tensor([1.0, 3.0, 3.0, 1.0])
 
 @dataclass
 class DiscriminatorConfig:
-    channel_base: int = 4096  # channels at resolution r: min(channel_base // r, channel_max)
-    channel_max: int = 256  # widest layer
+    channel_base: int = 2048  # channels at resolution r: min(channel_base // r, channel_max) (sized for a CPU)
+    channel_max: int = 128  # widest layer
     mbstd_group: int = 4  # minibatch standard deviation group size
     conv_clamp: float = 256.0  # clamp of activations (keeps mixed precision finite)
 

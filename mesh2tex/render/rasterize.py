@@ -67,30 +67,32 @@ def pixel_centers(resolution, device=None, dtype=torch.float32) -> torch.Tensor:
     return torch.stack(torch.meshgrid(x, y, indexing="xy"), dim=-1).to(dtype)
 
 
-def _pixel_boxes(clip: torch.Tensor, resolution):
+def _pixel_boxes(corners: torch.Tensor, resolution):
     """Candidate pixel box of every (view, triangle): the box of its part in front of the near plane.
 
     Args:
-        clip: (B,T,3,4) float32 clip-space vertices.
+        corners: (4,B,3,T) float32 clip-space vertices: component (x, y, z, w), view, corner, triangle.
     Returns:
         row0, col0, rows, cols: (B,T) int64 box origin and size in pixels; 0 rows where nothing can be
         drawn (behind the near plane, off screen, or between pixel centres).
     """
     H, W = resolution
-    x, y, z, w = clip.unbind(-1)  # each (B,T,3)
+    x, y, z, w = corners  # each (B,3,T)
     in_front = z + w >= 0  # OpenGL near plane: z_ndc >= -1
-    all_front = in_front.all(-1)
+    all_front = in_front.all(1)
     ndc_x, ndc_y = x / w, y / w
-    x_min = torch.minimum(torch.minimum(ndc_x[..., 0], ndc_x[..., 1]), ndc_x[..., 2])
-    x_max = torch.maximum(torch.maximum(ndc_x[..., 0], ndc_x[..., 1]), ndc_x[..., 2])
-    y_min = torch.minimum(torch.minimum(ndc_y[..., 0], ndc_y[..., 1]), ndc_y[..., 2])
-    y_max = torch.maximum(torch.maximum(ndc_y[..., 0], ndc_y[..., 1]), ndc_y[..., 2])
+    x_min = torch.minimum(torch.minimum(ndc_x[:, 0], ndc_x[:, 1]), ndc_x[:, 2])
+    x_max = torch.maximum(torch.maximum(ndc_x[:, 0], ndc_x[:, 1]), ndc_x[:, 2])
+    y_min = torch.minimum(torch.minimum(ndc_y[:, 0], ndc_y[:, 1]), ndc_y[:, 2])
+    y_max = torch.maximum(torch.maximum(ndc_y[:, 0], ndc_y[:, 1]), ndc_y[:, 2])
     usable = all_front.clone()
 
     # Triangles crossing the near plane (rare): box of the kept vertices and the edge crossings.
-    crossing_tri = torch.nonzero((~all_front & in_front.any(-1)).reshape(-1)).squeeze(1)
+    crossing_tri = torch.nonzero((~all_front & in_front.any(1)).reshape(-1)).squeeze(1)
     if crossing_tri.numel():
-        c = clip.reshape(-1, 3, 4)[crossing_tri].double()
+        T = corners.shape[-1]
+        view, face = crossing_tri // T, crossing_tri % T
+        c = corners[:, view, :, face].permute(0, 2, 1).double()  # (N,3,4)
         dist = c[..., 2] + c[..., 3]  # (N,3) scaled signed distance to the near plane
         nxt = [1, 2, 0]
         d0, d1 = dist, dist[:, nxt]
@@ -126,7 +128,7 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
     """Edge-function and depth-plane coefficients of N triangles, relative to their box origin.
 
     Args:
-        clip: (12,N) float64 clip-space vertices, rows x0, y0, z0, w0, x1, ..., w2.
+        clip: (4,3,N) float64 clip-space vertices: component (x, y, z, w), corner, triangle.
         row0, col0: (N,) int64 box origin (the reference pixel).
     Returns:
         params: (12,N) float64, rows 0-3: lambda_0, lambda_1, lambda_2 and NDC z at the reference
@@ -135,12 +137,12 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
         det: (N,) float64 determinant of the (x, y, w) vertex columns; > 0 for counter-clockwise faces.
     """
     H, W = resolution
-    x, y, z, w = clip[0::4], clip[1::4], clip[2::4], clip[3::4]  # (3,N): one row per vertex
+    x, y, z, w = clip  # (3,N): one row per corner
     xj, yj, wj = (t.roll(-1, 0) for t in (x, y, w))  # vertex i+1
     xk, yk, wk = (t.roll(-2, 0) for t in (x, y, w))  # vertex i+2
     # coeff[c, i]: lambda_i = coeff[0, i] * x_ndc + coeff[1, i] * y_ndc + coeff[2, i]; row 3 is z_ndc.
     # Unnormalised, lambda_i's coefficients are e_i = v_j x v_k over (x, y, w): the adjugate of [v0 v1 v2].
-    coeff = torch.empty(3, 4, clip.shape[1], dtype=clip.dtype, device=clip.device)
+    coeff = torch.empty(3, 4, clip.shape[2], dtype=clip.dtype, device=clip.device)
     torch.sub(yj * wk, wj * yk, out=coeff[0, :3])
     torch.sub(wj * xk, xj * wk, out=coeff[1, :3])
     torch.sub(xj * yk, yj * xk, out=coeff[2, :3])
@@ -149,7 +151,7 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
     torch.sum(coeff[:, :3] * z, dim=1, out=coeff[:, 3])
     ref_x = (2 * col0 + 1).to(clip.dtype) / W - 1
     ref_y = 1 - (2 * row0 + 1).to(clip.dtype) / H
-    params = torch.empty(3, 4, clip.shape[1], dtype=clip.dtype, device=clip.device)
+    params = torch.empty(3, 4, clip.shape[2], dtype=clip.dtype, device=clip.device)
     torch.addcmul(torch.addcmul(coeff[2], coeff[0], ref_x), coeff[1], ref_y, out=params[0])
     torch.mul(coeff[0], 2.0 / W, out=params[1])
     torch.mul(coeff[1], -2.0 / H, out=params[2])
@@ -270,11 +272,18 @@ def rasterize(
         if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
 
-        clip = torch.index_select(pos.detach(), 1, tri.reshape(-1)).view(B, T, 3, 4)
-        row0, col0, rows, cols = _pixel_boxes(clip.float(), (H, W))
+        # Component-major layout (4,B,3,T) so that every per-triangle quantity is a contiguous row.
+        by_component = pos.detach().permute(2, 0, 1).reshape(-1)  # (4*B*V,)
+        row_start = torch.arange(4 * B, device=device)[:, None] * V
+        corners = by_component.index_select(0, (row_start + tri.T.reshape(1, -1)).reshape(-1))
+        corners = corners.view(4, B, 3, T)
+        row0, col0, rows, cols = _pixel_boxes(corners.float(), (H, W))
         live = torch.nonzero((rows * cols).reshape(-1)).squeeze(1)  # index into B*T
         row0, col0, rows, cols = (t.reshape(-1).index_select(0, live) for t in (row0, col0, rows, cols))
-        live_clip = clip.view(B * T, 12).index_select(0, live).double().T.contiguous()
+        view, face = live // T, live % T
+        slot = (torch.arange(4, device=device)[:, None] * (B * 3) + torch.arange(3, device=device)) * T
+        index = slot[:, :, None] + (view * (3 * T) + face)  # (4,3,N) into corners
+        live_clip = corners.reshape(-1).index_select(0, index.reshape(-1)).view(4, 3, -1).double()
         params, det = _edge_setup(live_clip, (H, W), row0, col0)
         keep = torch.isfinite(1.0 / det)  # degenerate triangles (seen edge-on, or through the eye)
         if cull_backfaces:
@@ -282,7 +291,8 @@ def rasterize(
         dropped = live.numel() - int(keep.sum())
         if dropped > live.numel() // 8:  # worth compacting (culling): keep only the rest
             kept = torch.nonzero(keep).squeeze(1)
-            live, row0, col0, rows, cols = (t.index_select(0, kept) for t in (live, row0, col0, rows, cols))
+            live, view, row0, col0, rows, cols = (
+                t.index_select(0, kept) for t in (live, view, row0, col0, rows, cols))
             params = torch.stack(_select_columns(params, kept))
         elif dropped:  # a few: NaN fails every coverage test
             params[0] = torch.where(keep, params[0], torch.full_like(params[0], float("nan")))
@@ -295,7 +305,7 @@ def rasterize(
         empty = torch.iinfo(torch.long).max
         best = torch.full((B * H * W,), empty, dtype=torch.long, device=device)
 
-        entries = _tile_entries(params, live // T, row0, col0, rows, cols, (H, W))
+        entries = _tile_entries(params, view, row0, col0, rows, cols, (H, W))
         for cap_rows, cap_cols, chunk in _binned(entries, max_pairs):
             owner, base_pixel, box_rows, box_cols = (entries[k].index_select(0, chunk) for k in (
                 "owner", "base_pixel", "rows", "cols"))

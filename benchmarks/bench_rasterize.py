@@ -20,39 +20,17 @@ import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 import trimesh
 from trimesh.ray.ray_pyembree import RayMeshIntersector
 
-from mesh2tex.render import orbit_camera, pixel_centers, rasterize, transform_points
+from mesh2tex.render import orbit_camera, rasterize, transform_points
 
-
-def bumpy_torus(major_sections: int, minor_sections: int) -> trimesh.Trimesh:
-    """A torus with a wavy tube: 2 * major * minor triangles, with silhouettes and self-occlusion."""
-    mesh = trimesh.creation.torus(1.0, 0.35, major_sections=major_sections, minor_sections=minor_sections)
-    v = mesh.vertices
-    angle = np.arctan2(v[:, 2], v[:, 0])
-    radial = np.c_[np.cos(angle), np.zeros_like(angle), np.sin(angle)]
-    bump = 1.0 + 0.15 * np.sin(5 * angle)[:, None]
-    return trimesh.Trimesh(radial + (v - radial) * bump, mesh.faces, process=False)
-
-
-def pixel_rays(camera, resolution):
-    """(B*H*W,3) origins on the near plane and unit directions through every pixel centre."""
-    centres = pixel_centers(resolution, dtype=torch.float64).reshape(-1, 2).numpy()
-    ones = np.ones((len(centres), 1))
-    origins, directions = [], []
-    for mvp in camera.mvp.double().numpy():
-        inverse = np.linalg.inv(mvp)
-        near = np.c_[centres, -ones, ones] @ inverse.T
-        far = np.c_[centres, ones, ones] @ inverse.T
-        near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
-        d = far - near
-        origins.append(near)
-        directions.append(d / np.linalg.norm(d, axis=1, keepdims=True))
-    return np.concatenate(origins), np.concatenate(directions)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402  the same meshes and rays
 
 
 def embree_cast(intersector, mesh, origins, directions):
@@ -86,7 +64,10 @@ def compare(name, mesh, azimuths, elevations, resolution, repeats, device):
             torch.cuda.synchronize()
         return raster
 
-    origins, directions = pixel_rays(camera, resolution)
+    rays = [pixel_rays(orbit_camera(a, e, distance=2.8, fov=45.0), resolution)
+            for a, e in zip(azimuths, elevations)]
+    origins = np.concatenate([o for o, _ in rays])
+    directions = np.concatenate([d for _, d in rays])
     intersector = RayMeshIntersector(mesh)
     embree_cast(intersector, mesh, origins[:16], directions[:16])  # builds the scene
 

@@ -11,9 +11,10 @@ pytest.importorskip("embreex")
 from trimesh.ray.ray_pyembree import RayMeshIntersector  # noqa: E402
 
 
-def bumpy_torus() -> "trimesh.Trimesh":
-    """A 49,152-triangle torus with a bumpy tube, so both silhouettes and self-occlusion occur."""
-    mesh = trimesh.creation.torus(1.0, 0.35, major_sections=192, minor_sections=128)
+def bumpy_torus(major_sections: int = 192, minor_sections: int = 128) -> "trimesh.Trimesh":
+    """A torus with a wavy tube (2 * major * minor triangles, 49,152 by default), so both silhouettes
+    and self-occlusion occur. Also used by benchmarks/bench_rasterize.py."""
+    mesh = trimesh.creation.torus(1.0, 0.35, major_sections=major_sections, minor_sections=minor_sections)
     v = mesh.vertices
     angle = np.arctan2(v[:, 2], v[:, 0])
     radial = np.c_[np.cos(angle), np.zeros_like(angle), np.sin(angle)]

@@ -13,7 +13,7 @@ Layout of ``--output`` (``<s>`` a shape name such as ``chair_0003``, ``<k>`` a t
     queries/<s>_<k>_mask.png   mask,
     queries/<s>_<k>_noc.png    ground-truth NOC map (NOC = position + 0.5, times 255; 0 on background),
     queries/<s>_<k>.json       sidecar: shape, mesh, pose (orbit_camera convention), light, files
-    preview.png                a contact sheet of photos and queries
+    preview.png                a contact sheet: photos, then queries beside their NOC maps
     log.jsonl                  one JSON line per shape built
 
 Deterministic for a seed. Every file is written atomically, so a re-run skips what is finished.
@@ -181,17 +181,18 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
 
 
 def write_preview(output: Path, index: dict, columns: int = 8, rows: int = 4) -> Path:
-    """``preview.png``: photos of different training shapes, then the queries, tiled."""
+    """``preview.png``: photos of different training shapes; the last row, queries beside their NOC maps."""
     from mesh2tex.synthetic.world import contact_sheet
 
     by_shape: dict[str, list[dict]] = {}
     for record in index["images"]:
         by_shape.setdefault(record["shape"], []).append(record)
-    picked = []
+    photos = []
     for round_ in range(max(len(r) for r in by_shape.values())):  # one view of each shape, then the next view
-        picked += [records[round_] for records in by_shape.values() if round_ < len(records)]
-    picked = picked[: columns * rows - min(len(index["queries"]), columns)] + index["queries"][:columns]
-    images = [np.asarray(Image.open(output / r["image"]).convert("RGB")) for r in picked]
+        photos += [records[round_] for records in by_shape.values() if round_ < len(records)]
+    queries = index["queries"][: columns // 2]
+    files = [r["image"] for r in photos[: columns * (rows - 1)]] + [f for q in queries for f in (q["image"], q["noc"])]
+    images = [np.asarray(Image.open(output / f).convert("RGB")) for f in files]
     path = output / "preview.png"
     _save_png(path, contact_sheet(images, columns))
     return path

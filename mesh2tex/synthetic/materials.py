@@ -188,7 +188,7 @@ class UpFacing(Pattern):
 
     top: Pattern
     sides: Pattern
-    threshold: float = 0.75
+    threshold: float = 0.97  # a flat roof, not a sloping windscreen
 
     def __call__(self, points, normals):
         up = normals[:, 1] > self.threshold

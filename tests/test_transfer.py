@@ -1,0 +1,111 @@
+"""``mesh2tex infer transfer``: a textured asset and a report from one photo; clear errors for bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+import yaml
+from PIL import Image
+
+from mesh2tex.cli import main
+from mesh2tex.geometry.prepare import prepare_shape
+from test_generate import TINY
+
+FAST = ["--resolution", "64", "--latent-iters", "6", "--refine-iters", "3", "--device", "cpu"]
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    """A tiny GAN (2 iterations), a NOC network (2 steps) and a photo with an alpha mask."""
+    root = tmp_path_factory.mktemp("transfer")
+    (root / "shapes").mkdir()
+    for i, extents in enumerate([(1.0, 0.6, 0.4), (0.5, 1.0, 0.5)]):
+        box = trimesh.creation.box(extents)
+        prepare_shape(box.vertices, box.faces, face_count=96, levels=3, seed=0).save(root / "shapes" / f"box{i}.npz")
+    photos = root / "photos"
+    photos.mkdir()
+    for i in range(2):
+        rgba = np.zeros((16, 16, 4), np.uint8)
+        rgba[4:12, 4:12] = (200, 60 * i, 30, 255)
+        Image.fromarray(rgba).save(photos / f"{i}.png")
+    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY))
+    assert main(["train", "gan", "--shapes", str(root / "shapes"), "--images", str(photos), "--out", str(root / "gan"),
+                 "--config", str(root / "tiny.yaml"), "--iters", "2", "--batch", "2", "--views", "1", "--resolution", "16",
+                 "--device", "cpu"]) == 0
+    (root / "noc.yaml").write_text("width: 4\n")
+    assert main(["train", "noc", "--shapes", str(root / "shapes"), "--out", str(root / "noc"), "--config", str(root / "noc.yaml"),
+                 "--iters", "2", "--samples", "8", "--resolution", "32", "--batch", "4", "--device", "cpu"]) == 0
+    # The query: a striped object on a transparent background (the alpha channel is its mask).
+    photo = np.zeros((48, 48, 4), np.uint8)
+    photo[10:40, 14:34, :3] = 40
+    photo[10:40:4, 14:34, :3] = (220, 180, 30)
+    photo[10:40, 14:34, 3] = 255
+    Image.fromarray(photo).save(root / "query.png")
+    return root
+
+
+def transfer_args(root, out, *extra):
+    return ["infer", "transfer", "--checkpoint", str(root / "gan" / "checkpoint.safetensors"), "--mesh", str(root / "shapes" / "box0.npz"),
+            "--image", str(root / "query.png"), "--noc-checkpoint", str(root / "noc" / "checkpoint.safetensors"),
+            "--pose", "30,20", "--out", str(out), *FAST, *extra]
+
+
+def test_transfer_writes_a_textured_asset_and_a_report(setup, tmp_path):
+    out = tmp_path / "out"
+    assert main(transfer_args(setup, out)) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["pose"] == {"azimuth": 30.0, "elevation": 20.0, "source": "given", "distance": report["pose"]["distance"],
+                              "fov": report["pose"]["fov"]}
+    assert report["mask_source"] == "alpha channel" and report["noc_guidance"] is True
+    assert set(report["losses"]) == {"latent", "refine"}
+    assert len(report["losses"]["latent"]["curve"]) == 6 and len(report["losses"]["refine"]["curve"]) == 3
+    assert all(np.isfinite(report["losses"]["latent"]["curve"]))
+    scene = trimesh.load(out / "textured.glb")
+    mesh = next(iter(scene.geometry.values())) if isinstance(scene, trimesh.Scene) else scene
+    assert mesh.visual.material.baseColorTexture is not None
+    assert Image.open(out / "turntable.gif").n_frames == 12
+    assert Image.open(out / "comparison.png").size == (4 * 64, 64)
+
+
+def test_latent_stage_lowers_the_style_loss(setup, tmp_path):
+    out = tmp_path / "out"
+    assert main(transfer_args(setup, out, "--no-refine", "--latent-iters", "12")) == 0
+    curve = json.loads((out / "report.json").read_text())["losses"]["latent"]["curve"]
+    assert min(curve[-3:]) < curve[0]
+
+
+def test_ablation_flags_change_the_run(setup, tmp_path):
+    out = tmp_path / "out"
+    assert main(transfer_args(setup, out, "--no-noc", "--no-patches", "--no-refine")) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["noc_guidance"] is False and set(report["losses"]) == {"latent"}
+    assert report["settings"]["use_patches"] is False and report["settings"]["refine"] is False
+
+
+def test_bad_inputs_are_one_line_errors_and_nothing_is_overwritten(setup, tmp_path, capsys):
+    junk = tmp_path / "junk.png"
+    junk.write_bytes(b"not an image")
+    assert main(transfer_args(setup, tmp_path / "a", "--image", str(junk))) == 2
+    assert "junk.png" in capsys.readouterr().err
+
+    empty = tmp_path / "empty_mask.png"
+    Image.fromarray(np.zeros((48, 48), np.uint8)).save(empty)
+    assert main(transfer_args(setup, tmp_path / "b", "--mask", str(empty))) == 2
+    assert "mask is empty" in capsys.readouterr().err
+
+    wrong = transfer_args(setup, tmp_path / "c")
+    wrong[wrong.index("--checkpoint") + 1] = str(setup / "noc" / "checkpoint.safetensors")
+    assert main(wrong) == 2
+    assert "expected a 'gan' checkpoint" in capsys.readouterr().err
+
+    assert main(transfer_args(setup, tmp_path / "d", "--pose", "auto")) == 2
+    assert "--pose-checkpoint" in capsys.readouterr().err
+
+    out = tmp_path / "e"
+    out.mkdir()
+    (out / "report.json").write_text("{}")
+    assert main(transfer_args(setup, out)) == 2
+    assert (out / "report.json").read_text() == "{}"

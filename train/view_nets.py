@@ -111,9 +111,10 @@ def load_or_render_views(run: runs.RunDirectory, shapes: list[PreparedShape], cf
 
 def views_to_tensors(views: dict[str, np.ndarray], index: np.ndarray, device: torch.device) -> dict[str, torch.Tensor]:
     """A mini-batch: ``image`` (B,3,R,R) in [-1,1], ``mask`` (B,1,R,R) {0,1}, ``noc`` (B,3,R,R) in [0,1], angles (B,)."""
-    rgb = torch.from_numpy(views["rgb"][index]).to(device).permute(0, 3, 1, 2).float() / 127.5 - 1.0
+    # contiguous(): a channels-last input trips a heap corruption in the CPU conv backward of small nets.
+    rgb = torch.from_numpy(views["rgb"][index]).to(device).permute(0, 3, 1, 2).contiguous().float() / 127.5 - 1.0
     mask = (torch.from_numpy(views["mask"][index]).to(device) > 127).float()[:, None]
-    noc = torch.from_numpy(views["noc"][index]).to(device).permute(0, 3, 1, 2).float() / 255.0
+    noc = torch.from_numpy(views["noc"][index]).to(device).permute(0, 3, 1, 2).contiguous().float() / 255.0
     return {"image": rgb, "mask": mask, "noc": noc,
             "azimuth": torch.from_numpy(views["azimuth"][index]).to(device),
             "elevation": torch.from_numpy(views["elevation"][index]).to(device)}

@@ -76,7 +76,8 @@ def _paint(background: torch.Tensor, flat_index: torch.Tensor, colors: torch.Ten
     n, _, h, w = background.shape
     flat = background.permute(0, 2, 3, 1).reshape(-1, 3).to(colors.dtype)
     flat = flat.index_put((flat_index,), colors)
-    return flat.reshape(n, h, w, 3).permute(0, 3, 1, 2)
+    # contiguous(): channels-last inputs to the CPU conv backward of small networks can corrupt the heap.
+    return flat.reshape(n, h, w, 3).permute(0, 3, 1, 2).contiguous()
 
 
 def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.Tensor, mvp: torch.Tensor,

@@ -1,0 +1,334 @@
+"""``mesh2tex demo [--out DIR]``: the whole pipeline on the embedded synthetic chair world.
+
+Stages (each one resumes: re-running the command after an interruption continues where it stopped):
+
+1. ``world/``       ``prepare synthetic``: procedural chairs, textured ground truth, photos, queries
+2. ``shapes/``      ``prepare shapes``: quad hierarchies of the training shapes (``train/``) and of
+                    the held-out query shapes (``query/``)
+3. ``gan/``         ``train gan`` on the training shapes and the photos
+4. ``pose/ noc/``   ``train pose`` and ``train noc`` on renders of the training shapes
+5. ``transfer/``    ``infer transfer``: a held-out mesh textured after a held-out query photo, pose
+                    and NOC predicted by the networks
+6. ``metrics.json`` the transferred asset (the GLB itself, rendered at the query's true pose)
+                    against the query photo; GAN renders against the photo collection, next to the
+                    same measure for the untrained generator
+7. ``report.html``  everything above on one page
+
+The defaults are a CPU budget (about 20 minutes on 2 cores), far below the paper's training
+(50k iterations on two GPUs): the figures show the pipeline working, not the method's ceiling.
+``--config YAML`` changes any field of :class:`DemoConfig`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import html
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+import yaml
+
+from mesh2tex.cli import main as cli_main
+from mesh2tex.config import load_config, save_config
+from mesh2tex.errors import UserError
+from mesh2tex.io.atomic import write_json, write_text
+from mesh2tex.progress import JsonLines
+
+
+@dataclass
+class DemoConfig:
+    seed: int = 0  # master seed of every stage
+    shapes: int = 12  # procedural chairs (a quarter held out for queries)
+    views: int = 8  # photos per training chair
+    photo_resolution: int = 128  # side of the photos and queries
+    faces: int = 1536  # finest quad count of the prepared shapes (the library default is 6144)
+    levels: int = 4  # levels of the quad hierarchy
+    workers: int = 2  # processes of 'prepare shapes'
+    gan_iters: int = 300  # GAN iterations
+    gan_resolution: int = 64  # GAN render resolution
+    gan_views: int = 4  # views per shape and GAN iteration
+    gan_channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first
+    view_samples: int = 384  # rendered views for the pose and NOC networks
+    view_resolution: int = 64  # their input size
+    view_width: int = 16  # their channel width
+    pose_iters: int = 300  # pose network steps
+    noc_iters: int = 200  # NOC network steps
+    transfer_resolution: int = 64  # side of the transfer renders
+    latent_iters: int = 60  # transfer stage 1 iterations (paper: 100)
+    refine_iters: int = 120  # transfer stage 2 iterations (paper: 300)
+    texture_size: int = 512  # baked UV texture of the GLB
+    query: int = 0  # which query photo of the world to texture (index into the sorted queries)
+    eval_views: int = 4  # views per shape of the GAN renders compared with the photos
+
+
+QUICK = {  # a smoke-test budget: every stage runs, nothing learns much
+    "shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1, "gan_iters": 2,
+    "gan_resolution": 32, "gan_views": 1, "gan_channels": [8, 8, 8], "view_samples": 16, "view_resolution": 32,
+    "view_width": 4, "pose_iters": 2, "noc_iters": 2, "latent_iters": 3, "refine_iters": 2, "texture_size": 64,
+    "eval_views": 1,
+}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", default="demo_out", help="output folder (default: demo_out)")
+    parser.add_argument("--config", help="YAML file with any fields of the demo config")
+    parser.add_argument("--quick", action="store_true", help="a smoke-test budget (a minute or two): every stage runs, nothing learns much")
+    parser.add_argument("--seed", type=int, help="master seed")
+
+
+def _stage(name: str, argv: list[str], log: JsonLines) -> float:
+    """Run one CLI stage in-process; a failure stops the demo with the stage's name."""
+    print(f"\n== demo: {name}: mesh2tex {' '.join(argv)}", flush=True)
+    start = time.perf_counter()
+    code = cli_main(argv)
+    seconds = round(time.perf_counter() - start, 1)
+    log.write({"stage": name, "exit_code": code, "seconds": seconds})
+    if code != 0:
+        raise UserError(f"demo stage '{name}' failed (exit code {code}); fix the cause above and re-run to resume")
+    return seconds
+
+
+def _gan_config(cfg: DemoConfig) -> dict:
+    channels = list(cfg.gan_channels)
+    if len(channels) != cfg.levels:
+        raise UserError(f"gan_channels has {len(channels)} entries, the demo's hierarchy has {cfg.levels} levels")
+    gan = {"sample_every": 0, "checkpoint_every": 50, "log_every": 10,
+           "generator": {"encoder_channels": channels, "synthesis_channels": channels}}
+    if cfg.gan_iters < 10:  # the quick budget: tiny networks
+        gan["generator"].update({"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "field_hidden": 16, "aux_latent_dim": 8})
+        gan["discriminator"] = {"channel_base": 64, "channel_max": 16}
+    return gan
+
+
+def run_pipeline(out: Path, cfg: DemoConfig) -> dict:
+    """Run (or resume) every stage into ``out``; returns {stage: seconds}."""
+    out.mkdir(parents=True, exist_ok=True)
+    log = JsonLines(out / "demo_log.jsonl")
+    seconds: dict[str, float] = {}
+    world = out / "world"
+    seconds["prepare synthetic"] = _stage("prepare synthetic", [
+        "prepare", "synthetic", "--output", str(world), "--category", "chair", "--shapes", str(cfg.shapes),
+        "--views", str(cfg.views), "--resolution", str(cfg.photo_resolution), "--seed", str(cfg.seed)], log)
+    split = json.loads((world / "index.json").read_text())["split"]
+    for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
+        meshes = [str(world / "meshes" / f"{n}.obj") for n in names]
+        seconds[f"prepare shapes ({part})"] = _stage(f"prepare shapes ({part})", [
+            "prepare", "shapes", "--input", *meshes, "--output", str(out / "shapes" / part), "--faces", str(cfg.faces),
+            "--levels", str(cfg.levels), "--workers", str(cfg.workers), "--seed", str(cfg.seed)], log)
+    gan_yaml = out / "gan_config.yaml"
+    write_text(gan_yaml, yaml.safe_dump(_gan_config(cfg), sort_keys=False))
+    seconds["train gan"] = _stage("train gan", [
+        "train", "gan", "--shapes", str(out / "shapes" / "train"), "--images", str(world), "--out", str(out / "gan"),
+        "--config", str(gan_yaml), "--iters", str(cfg.gan_iters), "--resolution", str(cfg.gan_resolution),
+        "--views", str(cfg.gan_views), "--seed", str(cfg.seed), "--resume"], log)
+    views_yaml = out / "view_nets_config.yaml"
+    write_text(views_yaml, yaml.safe_dump({"width": cfg.view_width, "log_every": 25, "checkpoint_every": 100}))
+    for kind, iters in (("pose", cfg.pose_iters), ("noc", cfg.noc_iters)):
+        seconds[f"train {kind}"] = _stage(f"train {kind}", [
+            "train", kind, "--shapes", str(out / "shapes" / "train"), "--out", str(out / kind), "--config", str(views_yaml),
+            "--iters", str(iters), "--samples", str(cfg.view_samples), "--resolution", str(cfg.view_resolution),
+            "--batch", "32", "--seed", str(cfg.seed), "--resume"], log)
+    query = pick_query(world, cfg.query)
+    transfer = out / "transfer"
+    if not (transfer / "report.json").is_file():
+        seconds["infer transfer"] = _stage("infer transfer", [
+            "infer", "transfer", "--checkpoint", str(out / "gan" / "checkpoint.safetensors"),
+            "--mesh", str(out / "shapes" / "query" / f"{query['shape']}.npz"), "--image", str(world / query["image"]),
+            "--mask", str(world / query["mask"]), "--pose", "auto", "--pose-checkpoint", str(out / "pose" / "checkpoint.safetensors"),
+            "--noc-checkpoint", str(out / "noc" / "checkpoint.safetensors"), "--out", str(transfer),
+            "--resolution", str(cfg.transfer_resolution), "--latent-iters", str(cfg.latent_iters),
+            "--refine-iters", str(cfg.refine_iters), "--seed", str(cfg.seed), "--overwrite"], log)
+    return seconds
+
+
+def pick_query(world: Path, index: int) -> dict:
+    """The sidecar of the ``index``-th query photo of the world (sorted by name)."""
+    sidecars = sorted((world / "queries").glob("*.json"))
+    if not sidecars:
+        raise UserError(f"{world / 'queries'}: no query photos")
+    return json.loads(sidecars[index % len(sidecars)].read_text())
+
+
+# ------------------------------------------------------------------------------------------- metrics
+def render_glb_at_pose(glb: Path, azimuth: float, elevation: float, distance: float, fov: float, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Render a textured GLB (as written by the pipeline) without lighting: (size,size,3) float [0,1], (size,size) bool."""
+    import trimesh
+
+    from mesh2tex.render import interpolate, orbit_camera, rasterize, texture, transform_points
+
+    scene = trimesh.load(glb, force="scene")
+    mesh = next(iter(scene.geometry.values()))
+    image = np.asarray(mesh.visual.material.baseColorTexture.convert("RGB"), dtype=np.float32) / 255.0
+    vertices = torch.as_tensor(np.asarray(mesh.vertices), dtype=torch.float32)
+    faces = torch.as_tensor(np.asarray(mesh.faces), dtype=torch.int64)
+    uv = torch.as_tensor(np.asarray(mesh.visual.uv), dtype=torch.float32)
+    camera = orbit_camera(torch.tensor([azimuth]), torch.tensor([elevation]), distance=distance, fov=fov)
+    raster = rasterize(transform_points(vertices, camera.mvp), faces, (size, size))
+    colors = texture(torch.from_numpy(image).permute(2, 0, 1), interpolate(uv, raster, faces))[0]
+    mask = (raster.face_id[0] >= 0).numpy()
+    return colors.numpy() * mask[..., None], mask
+
+
+def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int) -> dict:
+    """The GLB rendered at the query's true pose vs the query photo, both cropped around their objects."""
+    from infer.evaluate import evaluate_pairs
+    from infer.transfer import TransferConfig, crop_square, object_box
+    from mesh2tex.io.images import load_image, load_mask
+
+    cfg = TransferConfig(resolution=resolution)
+    size = 2 * resolution
+    colors, mask = render_glb_at_pose(transfer / "textured.glb", query["azimuth"], query["elevation"], query["distance"], query["fov"], size)
+    photo, _ = load_image(world / query["image"])
+    photo_mask = load_mask(world / query["mask"]).astype(bool)
+    if photo.shape[0] != size:  # bring the photo to the render's size so both crops see the same frame
+        photo_t = F.interpolate(torch.from_numpy(photo).permute(2, 0, 1)[None].float(), size=(size, size), mode="bilinear", align_corners=False)
+        photo = photo_t[0].permute(1, 2, 0).numpy()
+        photo_mask = F.interpolate(torch.from_numpy(photo_mask)[None, None].float(), size=(size, size)).numpy()[0, 0] > 0.5
+
+    def crop(image: np.ndarray, m: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        box = object_box(m, cfg.margin)
+        img = crop_square(torch.as_tensor(image, dtype=torch.float32).permute(2, 0, 1)[None], box, resolution)
+        msk = crop_square(torch.from_numpy(m)[None, None].float(), box, resolution) > 0.5
+        return img.clamp(0, 1), msk.float()
+
+    render_t, render_m = crop(colors, mask)
+    photo_t, photo_m = crop(np.asarray(photo, dtype=np.float32) / (255.0 if photo.dtype == np.uint8 else 1.0), photo_mask)
+    both = render_m * photo_m
+    from mesh2tex.io.images import save_png
+
+    save_png(transfer / "render_at_true_pose.png", (render_t[0].permute(1, 2, 0).numpy() * 255).round().astype(np.uint8))
+    result = evaluate_pairs(render_t, photo_t, both, names=[query["image"]])
+    # A reference point: the photo against a flat texture of the photo's own mean colour.
+    mean_colour = (photo_t * photo_m).sum((2, 3), keepdim=True) / photo_m.sum((2, 3), keepdim=True).clamp_min(1)
+    flat = evaluate_pairs(mean_colour.expand_as(photo_t).contiguous(), photo_t, both, names=["flat"])
+    return {"transfer": result["metrics"], "flat_mean_colour_texture": flat["metrics"]}
+
+
+@torch.no_grad()
+def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
+    """Sliced Wasserstein distance (and colour histograms) of GAN renders vs the photos, trained vs untrained generator."""
+    from infer.evaluate import EvaluateConfig, evaluate_sets
+    from infer.generate import load_generator
+    from mesh2tex.geometry.prepared import PreparedShape
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.generator import TextureGenerator
+    from mesh2tex.nn.render_texture import render_field_views
+    from mesh2tex.render import orbit_camera
+    from train.gan import load_images
+
+    trained, meta = load_generator(out / "gan" / "checkpoint.safetensors", torch.device("cpu"))
+    torch.manual_seed(cfg.seed)
+    untrained = TextureGenerator(trained.cfg).eval()
+    shapes = [PreparedShape.load(p) for p in sorted((out / "shapes" / "train").glob("*.npz"))]
+    batch = collate_shapes(shapes)
+    k = cfg.eval_views
+    rng = torch.Generator().manual_seed(cfg.seed + 1)
+    camera = meta["config"]["camera"]
+    azimuth = torch.rand(len(shapes) * k, generator=rng) * 360
+    elevation = camera["elevation_min"] + torch.rand(len(shapes) * k, generator=rng) * (camera["elevation_max"] - camera["elevation_min"])
+    mvp = orbit_camera(azimuth, elevation, distance=camera["distance"], fov=camera["fov"]).mvp
+    res = cfg.gan_resolution
+    photos = load_images(out / "world", res)  # (N, 4, R, R) uint8, RGB + mask
+    images = photos[:, :3].float() / 255
+    masks = photos[:, 3:].float() / 255
+    images = images * masks + (1 - masks)  # white background, as the renders below
+    z = torch.randn(len(shapes), trained.cfg.z_dim, generator=rng)
+    results = {}
+    for name, generator in (("trained", trained), ("untrained", untrained)):
+        ws = generator.mapping(z)
+        renders = render_field_views(generator, batch, ws, mvp, (res, res), torch.ones(len(shapes) * k, 3), noise_mode="none").images
+        renders = ((renders + 1) / 2).clamp(0, 1)
+        metrics = evaluate_sets(renders, images, config=EvaluateConfig(resolution=res, kid_subset_size=50))["metrics"]
+        results[name] = {k_: v for k_, v in metrics.items() if k_.startswith("swd") or k_ == "color_hist_tv"}
+    return results
+
+
+# -------------------------------------------------------------------------------------------- report
+def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics: dict) -> Path:
+    """DIR/report.html: the photo, predicted pose and NOC, renders, turntable, metrics and timings."""
+    transfer = json.loads((out / "transfer" / "report.json").read_text())
+    samples = sorted((out / "gan" / "samples").glob("*.png"))
+    esc = html.escape
+
+    def table(rows: list[tuple], header: tuple) -> str:
+        head = "".join(f"<th>{esc(str(h))}</th>" for h in header)
+        body = "".join("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in row) + "</tr>" for row in rows)
+        return f"<table><tr>{head}</tr>{body}</table>"
+
+    def fmt(value) -> str:
+        return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+    pose = transfer["pose"]
+    pose_rows = [("true (query sidecar)", fmt(query["azimuth"]), fmt(query["elevation"])),
+                 (f"used ({pose['source']})", fmt(pose["azimuth"]), fmt(pose["elevation"]))]
+    t = metrics["transfer"]
+    transfer_rows = [(name, fmt(t["transfer"][name]), fmt(t["flat_mean_colour_texture"][name])) for name in t["transfer"]]
+    g = metrics["generation"]
+    gen_rows = [(name, fmt(g["trained"][name]), fmt(g["untrained"][name])) for name in g["trained"]]
+    time_rows = [(stage, f"{s:.0f}") for stage, s in seconds.items()]
+    vgg = transfer.get("vgg", {})
+    vgg_note = "" if vgg.get("pretrained") else (
+        "<p class=note>Style losses used a random-weight VGG19 (no ImageNet weights on this machine): expect "
+        "less faithful detail. Pass <code>--vgg-weights</code> to <code>infer transfer</code> for the paper's features.</p>")
+    body = f"""<!doctype html><html><head><meta charset="utf-8"><title>mesh2tex demo</title>
+<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}} img{{image-rendering:pixelated;border:1px solid #ccc;margin:2px}}
+table{{border-collapse:collapse;margin:0.5em 0}} td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}} .note{{color:#a40}}</style></head><body>
+<h1>mesh2tex demo</h1>
+<p>A held-out chair mesh (<code>{esc(query['shape'])}</code>, never seen in training) textured after a held-out query photo
+(<code>{esc(query['image'])}</code>), with pose and NOC predicted by the networks trained here.
+Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} transfer iterations on the CPU
+(the paper: 50k GAN iterations on two GPUs, 100 + 300 transfer iterations).</p>
+<h2>Query and result</h2>
+<p>photo crop | render of the result at the used pose | predicted photo NOC | rendered mesh NOC</p>
+<img src="transfer/comparison.png" width="{4 * 192}">
+<p>the exported GLB rendered at the query's true pose, and the turntable</p>
+<img src="transfer/render_at_true_pose.png" width="192"> <img src="transfer/turntable.gif" width="256">
+<p>Files: <a href="transfer/textured.glb">textured.glb</a> (opens in Blender), <a href="transfer/textured.ply">textured.ply</a>,
+<a href="transfer/report.json">report.json</a>.</p>
+{vgg_note}
+<h2>Pose</h2>{table(pose_rows, ("", "azimuth", "elevation"))}
+<h2>Transfer metrics (exact geometry, predicted pose; the GLB at the true pose against the photo)</h2>
+{table(transfer_rows, ("metric", "mesh2tex transfer", "flat texture of the photo's mean colour"))}
+<h2>Generation (GAN renders of the training shapes against the photo collection)</h2>
+{table(gen_rows, ("metric", "trained generator", "untrained generator"))}
+<p>swd: sliced Wasserstein distance on Laplacian-pyramid patches (x1e3, lower is better);
+color_hist_tv: total-variation distance of colour histograms (lower is better).</p>
+{''.join(f'<img src="gan/samples/{esc(p.name)}" width="256">' for p in samples[-1:])}
+<h2>Timings (seconds)</h2>{table(time_rows, ("stage", "seconds"))}
+<p>Transfer stages: {esc(json.dumps(transfer['seconds']))}</p>
+</body></html>
+"""
+    path = out / "report.html"
+    write_text(path, body)
+    return path
+
+
+def run(args) -> int:
+    out = Path(args.out)
+    overrides = {"seed": args.seed}
+    if args.quick:
+        overrides.update(QUICK)
+    saved = out / "demo_config.yaml"
+    cfg = load_config(DemoConfig, args.config if args.config else (saved if saved.is_file() and not args.quick else None), overrides)
+    out.mkdir(parents=True, exist_ok=True)
+    save_config(cfg, saved)
+    start = time.perf_counter()
+    seconds = run_pipeline(out, cfg)
+    log = JsonLines(out / "demo_log.jsonl")
+    previous = {r["stage"]: r["seconds"] for r in log.read() if "stage" in r}
+    seconds = {stage: previous.get(stage, s) if s < 1 else s for stage, s in seconds.items()}
+    query = pick_query(out / "world", cfg.query)
+    t = time.perf_counter()
+    metrics = {"transfer": transfer_metrics(out / "world", out / "transfer", query, cfg.transfer_resolution),
+               "generation": generation_metrics(out, cfg)}
+    seconds["metrics"] = round(time.perf_counter() - t, 1)
+    seconds["demo total (this run)"] = round(time.perf_counter() - start, 1)
+    write_json(out / "metrics.json", {"query": query, **metrics, "seconds": seconds, "config": asdict(cfg)})
+    report = write_report(out, cfg, seconds, query, metrics)
+    print(f"\ndemo finished in {seconds['demo total (this run)']:.0f} s: open {report}")
+    return 0

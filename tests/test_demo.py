@@ -1,0 +1,26 @@
+"""``mesh2tex demo --quick``: every stage runs end to end, the report links files that exist, a re-run resumes."""
+
+import json
+import re
+
+import numpy as np
+
+from mesh2tex.cli import main
+from mesh2tex.io.checkpoint import read_checkpoint_meta
+
+
+def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--quick"]) == 0
+    report = (out / "report.html").read_text()
+    linked = re.findall(r'(?:src|href)="([^"]+)"', report)
+    assert linked and all((out / path).is_file() for path in linked), "every image and file the report links exists"
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert all(np.isfinite(v) for v in metrics["transfer"]["transfer"].values() if v != float("inf"))
+    assert set(metrics["generation"]) == {"trained", "untrained"}
+    stages = [json.loads(line)["stage"] for line in (out / "demo_log.jsonl").read_text().splitlines()]
+    assert stages[:2] == ["prepare synthetic", "prepare shapes (train)"]
+    iteration = read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"]
+
+    assert main(["demo", "--out", str(out), "--quick"]) == 0, "a second run resumes from what is there"
+    assert read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"] == iteration

@@ -11,8 +11,11 @@ Method (homogeneous rasterization, no geometric clipping):
      clipping into new triangles. The set-up runs in float64; the per-pixel tests in float32 relative to
      a reference pixel, so nothing cancels catastrophically.
   2. Per triangle and view, a pixel bounding box (of the triangle clipped to the near plane) gives the
-     candidate pixels. Candidate (triangle, pixel) pairs are enumerated with cumsum/repeat_interleave,
-     in chunks of at most ``max_pairs`` so memory stays bounded whatever the triangle sizes.
+     candidate pixels. Boxes are sorted into bins by their size rounded up to powers of two (boxes
+     over 64 pixels a side are first split into tiles), so each bin is a contiguous slice evaluated as
+     a dense (n, rows, cols) grid of edge functions, in chunks of at most ``max_pairs`` candidates so
+     memory stays bounded whatever the triangle sizes. The visibility buffer is padded by the largest
+     stencil, so stencil pixels past the image edge need no test; depth is computed at hits only.
   3. Visibility: one ``scatter_reduce('amin')`` per chunk over an int64 key per covered pair, the
      quantised depth in the high bits and the triangle's index in the low bits. Ties go to the lower
      triangle index, so results are deterministic.
@@ -158,80 +161,107 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
     return params.view(12, -1), det
 
 
-# Boxes are split into tiles of at most _TILE x _TILE pixels (a power of two) before binning.
+
+# Boxes larger than _TILE x _TILE pixels (rare: big triangles on screen) are split into tiles of at
+# most that size (a power of two); every other box is evaluated whole.
 _TILE = 64
+_N_BITS = _TILE.bit_length()  # log2 of a power-of-two cap is in [0, _N_BITS)
 
 
-def _select_columns(table: torch.Tensor, index: torch.Tensor) -> list[torch.Tensor]:
-    """Columns ``index`` of a (K,N) table as K tensors (n,); row by row is much faster on CPU than
-    ``index_select`` along dim 1."""
-    return [row.index_select(0, index) for row in table]
-
-
-def _tile_entries(params, view, row0, col0, rows, cols, resolution):
-    """Split every live triangle's pixel box into tiles of at most _TILE x _TILE pixels.
+def _size_bins(rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
+    """Bin of each box: its size rounded up to powers of two, ``row_bits * _N_BITS + col_bits``.
 
     Args:
-        params: (12,N) float64 from :func:`_edge_setup`, relative to each box origin.
-        view: (N,) int64 view index; row0, col0, rows, cols: (N,) int64 boxes.
+        rows, cols: (N,) int64 box sizes in [1, _TILE].
     Returns:
-        dict of per-entry tensors: owner (E,) index into N; base_pixel (E,) flat index into B*H*W of
-        the entry's origin; rows, cols (E,) its size; params (12,E) float32 rebased to its origin.
+        (N,) int64 bin ids in [0, _N_BITS**2).
     """
-    H, W = resolution
+    # ceil(log2(size)) is the binary length of size - 1.
+    row_bits = torch.frexp((rows - 1).float()).exponent.long()
+    col_bits = torch.frexp((cols - 1).float()).exponent.long()
+    return row_bits * _N_BITS + col_bits
+
+
+def _bin_slices(counts: list[int], max_pairs: int, first: int = 0):
+    """Chunks of entries sorted by bin: ``(cap_rows, cap_cols, lo, hi)`` with at most ``max_pairs``
+    candidate pixels each (at least one entry)."""
+    start = first
+    for b, size in enumerate(counts):
+        if size == 0:
+            continue
+        cap_rows, cap_cols = 1 << (b // _N_BITS), 1 << (b % _N_BITS)
+        step = max(1, max_pairs // (cap_rows * cap_cols))
+        for lo in range(start, start + size, step):
+            yield cap_rows, cap_cols, lo, min(start + size, lo + step)
+        start += size
+
+
+def _draw_bins(best, params, base_pixel, face, slices, row_stride, id_bits, depth_scale):
+    """Depth-test every candidate pixel of the entries in ``slices`` into ``best``.
+
+    Each chunk of entries shares a power-of-two stencil (cap_rows, cap_cols) and is evaluated as a
+    dense (n, cap_rows, cap_cols) grid of edge functions, with no per-pixel gathers. Stencil pixels
+    outside an entry's box need no test of their own: only pixels inside the triangle pass, and
+    ``best`` is padded so that stencils running past the image's right or bottom edge stay in it.
+
+    Args:
+        best: (B*Hp*Wp,) int64 visibility keys of the padded image, updated in place.
+        params: (E,12) float32 edge and depth planes of each entry, relative to its origin pixel.
+        base_pixel: (E,) int64 flat index into ``best`` of each entry's origin pixel.
+        face: (E,) int64 triangle index of each entry (the key's low bits).
+        slices: (cap_rows, cap_cols, lo, hi) chunks from :func:`_bin_slices`.
+        row_stride: Wp, the padded image width.
+    """
+    device = best.device
+    for cap_rows, cap_cols, lo, hi in slices:
+        p = params[lo:hi]
+        row_steps = torch.arange(cap_rows, device=device, dtype=torch.float32)
+        col_steps = torch.arange(cap_cols, device=device, dtype=torch.float32)
+
+        def plane(ref, step_c, step_r):  # an affine function over the (n, rows, cols) grid
+            per_row = torch.addcmul(p[:, ref, None], p[:, step_r, None], row_steps)
+            return torch.addcmul(per_row[:, :, None], p[:, step_c, None, None], col_steps)
+
+        lam_min = torch.minimum(torch.minimum(plane(0, 4, 8), plane(1, 5, 9)), plane(2, 6, 10))
+        hit = torch.nonzero(lam_min.view(-1) >= 0).squeeze(1)
+        if hit.numel() == 0:
+            continue
+        row_bits, col_bits = cap_rows.bit_length() - 1, cap_cols.bit_length() - 1
+        entry = (hit >> (row_bits + col_bits)) + lo
+        dr = (hit >> col_bits) & (cap_rows - 1)
+        dc = hit & (cap_cols - 1)
+        # Depth at the hits only, with the same arithmetic as a dense plane.
+        q = params.index_select(0, entry)
+        z = torch.addcmul(torch.addcmul(q[:, 3], q[:, 11], dr.float()), q[:, 7], dc.float())
+        pixel = base_pixel.index_select(0, entry) + dr * row_stride + dc
+        key = (((z.double() + 1) * depth_scale).long() << id_bits) | face.index_select(0, entry)
+        key = torch.where(z.abs() <= 1, key, torch.iinfo(torch.long).max)  # near and far planes
+        best.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
+
+
+def _tiles(params64, row0, col0, rows, cols):
+    """Split boxes into tiles of at most _TILE x _TILE pixels.
+
+    Args:
+        params64: (12,N) float64 from :func:`_edge_setup`, relative to each box origin.
+        row0, col0, rows, cols: (N,) int64 boxes.
+    Returns:
+        owner (E,) index into N; row0, col0, rows, cols (E,) of each tile; params (E,12) float32
+        rebased (in float64) to the tile's origin.
+    """
     device = rows.device
     tiles_r = (rows + _TILE - 1) // _TILE
     tiles_c = (cols + _TILE - 1) // _TILE
     n_tiles = tiles_r * tiles_c
-    if bool((n_tiles == 1).all()):
-        return {
-            "owner": torch.arange(rows.numel(), device=device),
-            "base_pixel": view * (H * W) + row0 * W + col0,
-            "rows": rows,
-            "cols": cols,
-            "params": params.float(),
-        }
     owner = torch.repeat_interleave(torch.arange(rows.numel(), device=device), n_tiles)
     k = torch.arange(owner.numel(), device=device) - (torch.cumsum(n_tiles, 0) - n_tiles)[owner]
     per_row = tiles_c[owner]
     off_r = torch.div(k, per_row, rounding_mode="floor") * _TILE
     off_c = (k % per_row) * _TILE
-    entry_params = torch.stack(_select_columns(params, owner))
-    if bool(off_r.any() | off_c.any()):
-        entry_params[0:4] += entry_params[4:8] * off_c.double() + entry_params[8:12] * off_r.double()
-    r0, c0 = row0[owner] + off_r, col0[owner] + off_c
-    return {
-        "owner": owner,
-        "base_pixel": view[owner] * (H * W) + r0 * W + c0,
-        "rows": (rows[owner] - off_r).clamp(max=_TILE),
-        "cols": (cols[owner] - off_c).clamp(max=_TILE),
-        "params": entry_params.float(),
-    }
-
-
-def _binned(entries, max_pairs):
-    """Group entries by their box size rounded up to powers of two, in chunks of bounded size.
-
-    Yields:
-        (cap_rows, cap_cols, index) with index (n,) int64 into the entries, n * cap_rows * cap_cols
-        at most max_pairs (at least one entry per chunk).
-    """
-    # ceil(log2(size)) is the binary length of size - 1.
-    row_bits = torch.frexp((entries["rows"] - 1).float()).exponent.long()
-    col_bits = torch.frexp((entries["cols"] - 1).float()).exponent.long()
-    n_bits = _TILE.bit_length()
-    bin_id = row_bits * n_bits + col_bits
-    order = torch.argsort(bin_id, stable=True)
-    sizes = torch.bincount(bin_id, minlength=n_bits * n_bits).tolist()
-    start = 0
-    for b, size in enumerate(sizes):
-        if size == 0:
-            continue
-        cap_rows, cap_cols = 1 << (b // n_bits), 1 << (b % n_bits)
-        step = max(1, max_pairs // (cap_rows * cap_cols))
-        for lo in range(start, start + size, step):
-            yield cap_rows, cap_cols, order[lo:min(start + size, lo + step)]
-        start += size
+    p = params64[:, owner]
+    p[0:4] += p[4:8] * off_c.double() + p[8:12] * off_r.double()
+    return (owner, row0[owner] + off_r, col0[owner] + off_c, (rows[owner] - off_r).clamp(max=_TILE),
+            (cols[owner] - off_c).clamp(max=_TILE), p.T.float().contiguous())
 
 
 def rasterize(
@@ -272,81 +302,74 @@ def rasterize(
         if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
 
-        # Component-major layout (4,B,3,T) so that every per-triangle quantity is a contiguous row.
+        # Component-major layout (4,3,B*T): every per-(view, triangle) quantity is a contiguous row.
         by_component = pos.detach().permute(2, 0, 1).reshape(-1)  # (4*B*V,)
-        row_start = torch.arange(4 * B, device=device)[:, None] * V
-        corners = by_component.index_select(0, (row_start + tri.T.reshape(1, -1)).reshape(-1))
-        corners = corners.view(4, B, 3, T)
-        row0, col0, rows, cols = _pixel_boxes(corners.float(), (H, W))
-        live = torch.nonzero((rows * cols).reshape(-1)).squeeze(1)  # index into B*T
-        row0, col0, rows, cols = (t.reshape(-1).index_select(0, live) for t in (row0, col0, rows, cols))
-        view, face = live // T, live % T
-        slot = (torch.arange(4, device=device)[:, None] * (B * 3) + torch.arange(3, device=device)) * T
-        index = slot[:, :, None] + (view * (3 * T) + face)  # (4,3,N) into corners
-        live_clip = corners.reshape(-1).index_select(0, index.reshape(-1)).view(4, 3, -1).double()
-        params, det = _edge_setup(live_clip, (H, W), row0, col0)
-        keep = torch.isfinite(1.0 / det)  # degenerate triangles (seen edge-on, or through the eye)
+        index = (torch.arange(4, device=device)[:, None, None, None] * (B * V)
+                 + torch.arange(B, device=device)[:, None] * V + tri.T[:, None, :])
+        corners = by_component.index_select(0, index.reshape(-1)).view(4, 3, B * T)
+        row0, col0, rows, cols = (t.view(-1) for t in _pixel_boxes(corners.float()[:, None], (H, W)))
+        params64, det = _edge_setup(corners.double(), (H, W), row0, col0)  # (12,B*T)
+        # Degenerate triangles (seen edge-on, or through the eye) and culled ones draw nothing.
+        live = (rows * cols > 0) & torch.isfinite(1.0 / det)
         if cull_backfaces:
-            keep &= det > 0
-        dropped = live.numel() - int(keep.sum())
-        if dropped > live.numel() // 8:  # worth compacting (culling): keep only the rest
-            kept = torch.nonzero(keep).squeeze(1)
-            live, view, row0, col0, rows, cols = (
-                t.index_select(0, kept) for t in (live, view, row0, col0, rows, cols))
-            params = torch.stack(_select_columns(params, kept))
-        elif dropped:  # a few: NaN fails every coverage test
-            params[0] = torch.where(keep, params[0], torch.full_like(params[0], float("nan")))
-        n_live = live.numel()
-        if n_live == 0:
+            live &= det > 0
+        big = (rows > _TILE) | (cols > _TILE)
+        # Sort the live boxes by size bin; the big ones (tiled below) and the rest go last.
+        n_bins = _N_BITS * _N_BITS
+        bin_id = torch.where(big, n_bins, _size_bins(rows.clamp(1, _TILE), cols.clamp(1, _TILE)))
+        bin_id = torch.where(live, bin_id, n_bins + 1)
+        order = torch.argsort(bin_id, stable=True)
+        counts = torch.bincount(bin_id, minlength=n_bins + 2).tolist()
+        n_small, n_big = sum(counts[:n_bins]), counts[n_bins]
+        if n_small + n_big == 0:
             return Raster(face_id, bary, depth)
-        # Visibility key: quantised depth (high bits) | live index (low bits).
-        id_bits = max(1, int(n_live).bit_length())
+        # Rows of (view, triangle) set-ups, for gathers of a few triangles' every parameter.
+        by_triangle = torch.stack(list(params64), dim=1)  # (B*T,12) float64
+        view = torch.arange(B, device=device).repeat_interleave(T)
+
+        # Visibility key: quantised depth (high bits) | triangle index (low bits), so that ties go
+        # to the lower index. ``best`` is padded by the largest stencil in use.
+        id_bits = max(1, int(T).bit_length())
         depth_scale = 0.5 * float((1 << min(62 - id_bits, 40)) - 1)
         empty = torch.iinfo(torch.long).max
-        best = torch.full((B * H * W,), empty, dtype=torch.long, device=device)
+        used = [b for b in range(n_bins) if counts[b]]
+        pad_r = _TILE if n_big else 1 << (max(b // _N_BITS for b in used) if used else 0)
+        pad_c = _TILE if n_big else 1 << (max(b % _N_BITS for b in used) if used else 0)
+        Hp, Wp = H + pad_r, W + pad_c
+        best = torch.full((B * Hp * Wp,), empty, dtype=torch.long, device=device)
 
-        entries = _tile_entries(params, view, row0, col0, rows, cols, (H, W))
-        for cap_rows, cap_cols, chunk in _binned(entries, max_pairs):
-            owner, base_pixel, box_rows, box_cols = (entries[k].index_select(0, chunk) for k in (
-                "owner", "base_pixel", "rows", "cols"))
-            p = _select_columns(entries["params"], chunk)
-            row_steps = torch.arange(cap_rows, device=device, dtype=torch.float32)
-            col_steps = torch.arange(cap_cols, device=device, dtype=torch.float32)
+        small = order[:n_small]
+        base_pixel = view * (Hp * Wp) + row0 * Wp + col0  # (B*T,)
+        _draw_bins(best, by_triangle.index_select(0, small).float(), base_pixel.index_select(0, small),
+                   small % T, _bin_slices(counts[:n_bins], max_pairs), Wp, id_bits, depth_scale)
+        if n_big:
+            large = order[n_small:n_small + n_big]
+            owner, t_row0, t_col0, t_rows, t_cols, t_params = _tiles(
+                params64[:, large], *(t.index_select(0, large) for t in (row0, col0, rows, cols)))
+            t_bin = _size_bins(t_rows, t_cols)
+            t_order = torch.argsort(t_bin, stable=True)
+            t_counts = torch.bincount(t_bin, minlength=n_bins).tolist()
+            t_large = large.index_select(0, owner.index_select(0, t_order))
+            t_base = (view.index_select(0, t_large) * (Hp * Wp) + t_row0.index_select(0, t_order) * Wp
+                      + t_col0.index_select(0, t_order))
+            _draw_bins(best, t_params.index_select(0, t_order), t_base, t_large % T,
+                       _bin_slices(t_counts, max_pairs), Wp, id_bits, depth_scale)
 
-            def plane(ref, step_c, step_r):  # an affine function over the (n, rows, cols) grid
-                per_row = torch.addcmul(p[ref][:, None], p[step_r][:, None], row_steps)
-                return torch.addcmul(per_row[:, :, None], p[step_c][:, None, None], col_steps)
-
-            lam_min = torch.minimum(torch.minimum(plane(0, 4, 8), plane(1, 5, 9)), plane(2, 6, 10))
-            inside = lam_min >= 0
-            z = plane(3, 7, 11)
-            inside &= z.abs() <= 1  # between the near and far planes
-            inside &= (row_steps[:, None] < box_rows[:, None, None]) & (col_steps < box_cols[:, None, None])
-            hit = torch.nonzero(inside.view(-1)).squeeze(1)
-            if hit.numel() == 0:
-                continue
-            row_bits, col_bits = cap_rows.bit_length() - 1, cap_cols.bit_length() - 1
-            entry = hit >> (row_bits + col_bits)
-            dr = (hit >> col_bits) & (cap_rows - 1)
-            dc = hit & (cap_cols - 1)
-            pixel = base_pixel.index_select(0, entry) + dr * W + dc
-            quantised = ((z.view(-1).index_select(0, hit).double() + 1) * depth_scale).long()
-            key = (quantised << id_bits) | owner.index_select(0, entry)
-            best.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
-
+        best = best.view(B, Hp, Wp)[:, :H, :W].reshape(-1)
         covered = torch.nonzero(best != empty).squeeze(1)
         if covered.numel() == 0:
             return Raster(face_id, bary, depth)
-        winner = best.index_select(0, covered) & ((1 << id_bits) - 1)
+        winner = (best.index_select(0, covered) & ((1 << id_bits) - 1))
+        winner += torch.div(covered, H * W, rounding_mode="floor") * T  # index into B*T
         # Exact barycentrics and depth of the winner only, from the float64 set-up.
         in_view = covered % (H * W)
         dr = (torch.div(in_view, W, rounding_mode="floor") - row0.index_select(0, winner)).double()
         dc = (in_view % W - col0.index_select(0, winner)).double()
-        p = _select_columns(params, winner)  # 12 x (n,) float64
-        lam = [torch.addcmul(torch.addcmul(p[k], p[k + 4], dc), p[k + 8], dr) for k in range(3)]
-        z = torch.addcmul(torch.addcmul(p[3], p[7], dc), p[11], dr)
+        p = by_triangle.index_select(0, winner)  # (n,12) float64
+        lam = [torch.addcmul(torch.addcmul(p[:, k], p[:, k + 4], dc), p[:, k + 8], dr) for k in range(3)]
+        z = torch.addcmul(torch.addcmul(p[:, 3], p[:, 7], dc), p[:, 11], dr)
         inv_sum = 1.0 / (lam[0] + lam[1] + lam[2])
-        face_id.view(-1).index_copy_(0, covered, live.index_select(0, winner) % T)
+        face_id.view(-1).index_copy_(0, covered, winner % T)
         bary.view(-1, 3).index_copy_(0, covered, (torch.stack(lam, dim=1) * inv_sum[:, None]).float())
         depth.view(-1).index_copy_(0, covered, z.float())
         return Raster(face_id, bary, depth)

@@ -16,7 +16,6 @@ from .rasterize import Raster, pixel_centers, rasterize
 from .shading import (
     composite,
     face_normals,
-    normalized_coordinates,
     render_mask,
     render_noc,
     render_normals,
@@ -33,7 +32,6 @@ __all__ = [
     "face_attribute",
     "face_normals",
     "interpolate",
-    "normalized_coordinates",
     "orbit_camera",
     "perspective",
     "pixel_centers",

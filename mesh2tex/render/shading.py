@@ -65,20 +65,12 @@ def render_noc(noc: torch.Tensor, raster: Raster, tri: torch.Tensor) -> torch.Te
 
     Args:
         noc: (V,3) or (B,V,3) per-vertex NOC in [0,1] (e.g. ``PreparedShape.noc``, or
-            :func:`normalized_coordinates` of the vertices).
+            ``mesh2tex.geometry.features.noc_coordinates`` of the vertices).
         raster, tri: as for :func:`interpolate`.
     Returns:
         (B,H,W,3) in [0,1], 0 on background (use :func:`render_mask` to tell background apart).
     """
     return interpolate(noc, raster, tri)
-
-
-def normalized_coordinates(vertices: torch.Tensor) -> torch.Tensor:
-    """Vertices (V,3) mapped into [0,1]^3 by their bounding box, keeping aspect ratios (the longest
-    side spans [0,1], the others are centred at 0.5)."""
-    low, high = vertices.amin(0), vertices.amax(0)
-    scale = (high - low).max().clamp(min=1e-12)
-    return (vertices - (low + high) * 0.5) / scale + 0.5
 
 
 def shade_lambert(albedo: torch.Tensor, normals: torch.Tensor, light_dir, ambient: float = 0.3,

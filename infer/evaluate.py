@@ -18,6 +18,10 @@ computed over the mask (the ``--masks`` file, else the intersection of the alpha
 
 The library entry points :func:`evaluate_sets` and :func:`evaluate_pairs` take tensors and return
 plain dicts; the command writes ``OUT/metrics.json`` and ``OUT/metrics.md``.
+
+``--protocols`` runs the paper's evaluation protocols on a synthetic world instead (unconditional
+generation; transfer with known pose, unknown pose, to another shape; each with the ablations of
+Table 8): see :mod:`infer.protocols`.
 """
 
 from __future__ import annotations
@@ -278,8 +282,10 @@ def markdown_table(result: dict) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--renders", required=True, help="folder of rendered images (PNG/JPEG; RGBA alpha is the mask)")
-    parser.add_argument("--images", required=True, help="folder of reference images (photos, or ground-truth renders with --pairs)")
+    from infer.protocols import add_protocol_arguments
+
+    parser.add_argument("--renders", help="folder of rendered images (PNG/JPEG; RGBA alpha is the mask); required unless --protocols")
+    parser.add_argument("--images", help="folder of reference images (photos, or ground-truth renders with --pairs); required unless --protocols")
     parser.add_argument("--masks", help="folder of masks named like the images (white = object)")
     parser.add_argument("--pairs", action="store_true", help="paired metrics (PSNR, SSIM, histogram) between files of the same name")
     parser.add_argument("--out", required=True, help="output folder for metrics.json and metrics.md")
@@ -293,11 +299,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
     parser.add_argument("--seed", type=int, help="seed for KID subsets and SWD sampling (default 0)")
     parser.add_argument("--overwrite", action="store_true", help="replace metrics already in --out")
+    add_protocol_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     from mesh2tex.config import load_config
 
+    if getattr(args, "protocols", False):
+        from infer.protocols import run_protocols_command
+
+        return run_protocols_command(args)
+    if not args.renders or not args.images:
+        raise UserError("evaluate needs --renders and --images (or --protocols with --world, --shapes and --gan)")
     config = load_config(EvaluateConfig, None, {
         "resolution": args.resolution, "features": args.features, "kid_subsets": args.kid_subsets,
         "kid_subset_size": args.kid_subset_size, "background": args.background, "seed": args.seed})

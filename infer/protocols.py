@@ -1,0 +1,586 @@
+"""The evaluation protocols of the Mesh2Tex paper, run on a synthetic world and trained checkpoints.
+
+    mesh2tex evaluate --protocols --world WORLD --shapes SHAPES --gan GAN --pose-checkpoint P
+                      --noc-checkpoint N --out DIR [--latent-iters N] [--refine-iters N] [--queries K]
+
+A world from ``mesh2tex prepare synthetic`` holds photos of training shapes (``images/``, ``masks/``)
+and held-out query photos (``queries/``) whose JSON sidecars give the true pose and source shape.
+``SHAPES`` holds the prepared shapes (``<name>.npz``, from ``mesh2tex prepare shapes``) of the query
+shapes and of any other shape used as a transfer target.
+
+Protocols (names as in ``protocols.json``):
+
+``unconditional`` (paper Table 1)
+    The GAN's textures for random latents on the held-out query shapes, ``views`` orbit views each
+    (elevations across the world's range), on white, against the world's photos (object on white):
+    KID/FID on named features, SWD, pooled colour-histogram distance.
+``known_pose`` (Tables 2-3): exact geometry, known pose
+    Each query photo textures its own shape, seen at the sidecar's pose, distance and field of view.
+``unknown_pose`` (Tables 4-5, 8): exact geometry, unknown pose
+    As ``known_pose``, but the pose comes from the pose network and the distance and field of view
+    from the GAN's camera, as ``infer transfer --pose auto`` does.
+``other_shape`` (Tables 6-7): transfer to another shape of the category
+    The query photo textures a different shape (the next prepared shape by name), at the pose the
+    pose network predicts.
+
+Each transfer protocol runs every ablation of Table 8 on the same queries with the same seeds:
+``full``, ``no_noc`` (patch pairs without NOC guidance), ``no_patches`` (global style loss only) and
+``no_refine`` (latent only, "w/o surface features"). Metrics per ablation:
+
+* per query, where the geometry is exact (``known_pose``, ``unknown_pose``): the transferred texture
+  rendered at the query's TRUE pose (also when it was optimised at a predicted one), both crops framed
+  by their own silhouettes, against the photo: masked PSNR and SSIM over the pixels both masks cover,
+  and the colour-histogram distance of the object pixels. ``other_shape`` has only the histogram
+  distance (the render is of another shape at the estimated pose).
+* over the set of queries: the renders (object on white) against the query photos (object on white):
+  KID/FID on named features, SWD and the pooled histogram distance. With a handful of queries these
+  are noisy; the per-query metrics are the sharper comparison.
+
+The paper measures CLIP similarity and LPIPS, which need downloaded weights; the metrics above need
+none (KID/FID use Inception only when its weights are on disk, else features named for what they are).
+Renders are the generator's albedo while the world's photos are shaded, so PSNR stays well below
+what a perfect texture would reach against unshaded references.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import math
+import sys
+import time
+import warnings
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.atomic import write_json, write_text
+from mesh2tex.io.images import save_png
+from mesh2tex.metrics import color_histogram_distance, masked_psnr, masked_ssim, to_unit
+
+PROTOCOLS = ("unconditional", "known_pose", "unknown_pose", "other_shape")
+TRANSFER_PROTOCOLS = PROTOCOLS[1:]
+# Ablation name -> the TransferConfig fields it changes (paper Table 8).
+ABLATIONS = {
+    "full": {},
+    "no_noc": {"use_noc": False},
+    "no_patches": {"use_patches": False},
+    "no_refine": {"refine": False},
+}
+ABLATION_TITLES = {"full": "full method", "no_noc": "w/o NOC", "no_patches": "w/o patches",
+                   "no_refine": "w/o surface features (no refine)"}
+LOWER_IS_BETTER = ("kid", "fid", "swd", "color_hist_tv")
+HIGHER_IS_BETTER = ("psnr_masked", "ssim_masked")
+
+
+@dataclass
+class ProtocolConfig:
+    protocols: list[str] = field(default_factory=lambda: list(PROTOCOLS))  # which protocols to run
+    ablations: list[str] = field(default_factory=lambda: list(ABLATIONS))  # which ablations of each transfer protocol
+    queries: int = 0  # query photos used (first K in the world's order; 0: all)
+    resolution: int = 64  # side of the photo crops, renders and set-metric images
+    latent_iters: int = 100  # transfer stage 1 iterations (paper: 100)
+    refine_iters: int = 300  # transfer stage 2 iterations (paper: 300)
+    patch_size: int = 32  # style patch side at ``resolution`` (paper: 64 px patches in larger crops)
+    scales: int = 2  # style-loss pyramid levels (paper: 3; 2 keeps a 16 px coarsest level for 32 px patches)
+    latents: int = 4  # unconditional: random latents per held-out shape
+    views: int = 6  # unconditional: orbit views per latent (paper: 6)
+    features: str = "auto"  # KID/FID features: auto, inception, tvinception, vgg or randvgg
+    kid_subsets: int = 100  # KID random subsets
+    seed: int = 0  # seed of the transfers, the unconditional latents and the set metrics
+    device: str = "auto"  # auto, cpu or cuda
+    vgg_weights: str = ""  # VGG19 ImageNet weights for the style losses ('' looks in $TORCH_HOME)
+    inception_weights: str = ""  # Inception-v3 weights for KID/FID ('' looks in $TORCH_HOME)
+
+
+@dataclass
+class Query:
+    """One held-out query photo of the world and its ground truth."""
+
+    name: str  # file stem, e.g. chair_0004_00
+    image: Path
+    mask: Path
+    shape: str  # the world shape it shows
+    azimuth: float
+    elevation: float
+    distance: float
+    fov: float
+
+
+@dataclass
+class World:
+    root: Path
+    index: dict
+    queries: list[Query]
+    query_shapes: list[str]
+
+
+# ------------------------------------------------------------------------------------------- inputs
+def load_world(root: str | Path, max_queries: int = 0) -> World:
+    """The world's index and its query photos (first ``max_queries``; 0: all) with their sidecar poses."""
+    root = Path(root)
+    index_path = root / "index.json"
+    if not index_path.is_file():
+        raise UserError(f"{root}: not a synthetic world (no index.json; make one with 'mesh2tex prepare synthetic')")
+    try:
+        index = json.loads(index_path.read_text())
+    except json.JSONDecodeError as error:
+        raise UserError(f"{index_path}: not valid JSON ({error.msg})") from None
+    if index.get("format") != "mesh2tex-synthetic-world":
+        raise UserError(f"{index_path}: not a mesh2tex synthetic world index (format {index.get('format')!r})")
+    if not index.get("complete", False):
+        raise UserError(f"{root}: the world is incomplete; finish it with 'mesh2tex prepare synthetic' (it resumes)")
+    entries = index.get("queries") or []
+    if not entries:
+        raise UserError(f"{index_path}: the world has no query photos (prepare it with --query-views above 0)")
+    queries = []
+    for entry in entries:
+        sidecar = root / entry["sidecar"] if "sidecar" in entry else None
+        truth = json.loads(sidecar.read_text()) if sidecar is not None and sidecar.is_file() else entry
+        image, mask = root / entry["image"], root / entry["mask"]
+        for path in (image, mask):
+            if not path.is_file():
+                raise UserError(f"{path}: query file missing (listed in {index_path})")
+        queries.append(Query(name=image.stem, image=image, mask=mask, shape=truth["shape"],
+                             azimuth=float(truth["azimuth"]), elevation=float(truth["elevation"]),
+                             distance=float(truth["distance"]), fov=float(truth["fov"])))
+    if max_queries > 0:
+        queries = queries[:max_queries]
+    query_shapes = list(dict.fromkeys(q.shape for q in queries))
+    return World(root=root, index=index, queries=queries, query_shapes=query_shapes)
+
+
+def shape_paths(folder: str | Path) -> dict[str, Path]:
+    """{name: path} of the prepared shapes (.npz) in ``folder``, sorted by name."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
+    found = {p.stem: p for p in sorted(folder.glob("*.npz"))}
+    if not found:
+        raise UserError(f"{folder}: no prepared shapes (.npz)")
+    return found
+
+
+def other_shape_name(name: str, available: list[str]) -> str:
+    """The transfer target for a query of shape ``name``: the next available shape by name (cyclic), never ``name``."""
+    others = sorted(set(available) - {name})
+    if not others:
+        raise UserError(f"transfer to another shape needs a second prepared shape besides {name}")
+    later = [n for n in others if n > name]
+    return later[0] if later else others[0]
+
+
+def on_white(images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
+    """images [N,3,H,W] in [0,1], masks [N,1,H,W] {0,1} -> the object on white."""
+    return images * masks + (1.0 - masks)
+
+
+# ---------------------------------------------------------------------------------- unconditional
+@torch.no_grad()
+def unconditional_renders(generator, shapes: list[PreparedShape], latents: int, views: int, resolution: int,
+                          distance: float, fov: float, elevations: tuple[float, float], seed: int,
+                          device: torch.device) -> torch.Tensor:
+    """Renders [len(shapes) * latents * views, 3, R, R] in [0, 1] on white of random latents.
+
+    Views of one latent: azimuths evenly spaced (offset by the latent), elevations evenly across
+    ``elevations`` (degrees); latent seeds ``seed * 1000 + k``.
+    """
+    from infer.generate import latent
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.render_texture import render_field_views
+    from mesh2tex.render import orbit_camera
+
+    renders = []
+    for s, shape in enumerate(shapes):
+        batch = collate_shapes([shape]).to(device)
+        encoded = generator.encoder(batch)
+        for k in range(latents):
+            ws = latent(generator, seed * 1000 + s * latents + k, device)
+            azimuth = (torch.arange(views, dtype=torch.float32) + k / max(latents, 1)) * (360.0 / views)
+            elevation = torch.linspace(elevations[0], elevations[1], views) if views > 1 else torch.tensor([sum(elevations) / 2])
+            mvp = orbit_camera(azimuth, elevation, distance=distance, fov=fov).mvp.to(device)
+            out = render_field_views(generator, batch, ws, mvp, (resolution, resolution), torch.ones(views, 3, device=device),
+                                     encoded=encoded, noise_mode="none")
+            renders.append(to_unit(out.images.float()).clamp(0, 1).cpu())
+    return torch.cat(renders)
+
+
+def run_unconditional(generator, world: World, shapes: dict[str, PreparedShape], cfg: ProtocolConfig, extractor,
+                      eval_cfg, distance: float, fov: float, device: torch.device, out: Path | None) -> dict:
+    """Protocol ``unconditional``: GAN renders on the held-out shapes against the world's photos."""
+    from infer.evaluate import evaluate_sets, list_images, load_set
+
+    start = time.perf_counter()
+    settings = world.index.get("settings", {})
+    elevations = (float(settings.get("elevation_min", 5.0)), float(settings.get("elevation_max", 35.0)))
+    held_out = [shapes[name] for name in world.query_shapes]
+    renders = unconditional_renders(generator, held_out, cfg.latents, cfg.views, cfg.resolution, distance, fov,
+                                    elevations, cfg.seed, device)
+    photos = load_set(world.root / "images", "image", cfg.resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+    result = evaluate_sets(renders, photos, extractor, eval_cfg)
+    if out is not None:
+        folder = out / "renders" / "unconditional"
+        folder.mkdir(parents=True, exist_ok=True)
+        for i, image in enumerate(renders[: cfg.views * cfg.latents]):
+            save_png(folder / f"{world.query_shapes[0]}_{i:02d}.png", _uint8(image))
+    return {"shapes": world.query_shapes, "reference": str(world.root / "images"), **result,
+            "seconds": round(time.perf_counter() - start, 2)}
+
+
+# -------------------------------------------------------------------------------------- transfers
+@torch.no_grad()
+def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin: float):
+    """The query's true camera, framed like its photo crop: an ``infer.transfer.View`` whose render,
+    cropped with the photo's own box, is pixel-aligned with the cropped photo (exact geometry).
+
+    Its ``mask`` (1,1,R,R) is where the shape covers the crop; its ``noc`` is left empty.
+    """
+    from infer.transfer import View, crop_square, object_box
+    from mesh2tex.io.images import load_mask
+    from mesh2tex.render import orbit_camera, rasterize, transform_points
+
+    photo_mask = np.asarray(load_mask(query.mask), dtype=bool)
+    side = photo_mask.shape[0]
+    if photo_mask.shape[1] != side:
+        raise UserError(f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}")
+    box = object_box(photo_mask, margin)
+    camera = orbit_camera(torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov)
+    vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
+    raster = rasterize(transform_points(vertices, camera.mvp), torch.as_tensor(shape.triangles(0)), (side, side))
+    covered = (raster.face_id[0] >= 0).float()[None, None]
+    mask = (crop_square(covered, box, resolution) > 0.5).float()
+    return View(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask)
+
+
+@torch.no_grad()
+def render_at_view(generator, shape: PreparedShape, ws: torch.Tensor, view, resolution: int, device: torch.device) -> torch.Tensor:
+    """The texture of ``ws`` on ``shape`` seen at ``view`` (infer.transfer.View), cropped by its box: [1,3,R,R] in [-1,1]."""
+    from infer.transfer import crop_square
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.render_texture import render_field_views
+
+    batch = collate_shapes([shape]).to(device)
+    size = (view.render_size, view.render_size)
+    full = render_field_views(generator, batch, ws.to(device), view.mvp.to(device), size, torch.zeros(1, 3, device=device),
+                              noise_mode="none").images
+    return crop_square(full.float(), view.box, resolution).cpu()
+
+
+def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[str, PreparedShape], targets: dict[str, str],
+                          vgg, cfg: ProtocolConfig,
+                          pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None, extractor, eval_cfg,
+                          distance: float, fov: float, device: torch.device, out: Path | None, log=print) -> dict:
+    """One transfer protocol (``known_pose``, ``unknown_pose`` or ``other_shape``) with every ablation of ``cfg``.
+
+    ``shapes``: the prepared shapes by name; ``targets``: query shape -> the shape ``other_shape`` textures.
+
+    Returns {"queries": [per-query setup], "ablations": {name: {"set": metrics, "query": mean metrics,
+    "per_query": [...], "seconds": s}}}.
+    """
+    from infer.evaluate import evaluate_sets
+    from infer.transfer import TransferConfig, load_photo, predict_noc, predict_pose, transfer_texture, view_at_pose
+
+    base = TransferConfig(resolution=cfg.resolution, latent_iters=cfg.latent_iters, refine_iters=cfg.refine_iters,
+                          patch_size=cfg.patch_size, scales=cfg.scales, seed=cfg.seed, device=str(device), vgg_weights=cfg.vgg_weights)
+    exact = protocol in ("known_pose", "unknown_pose")
+    setups, runs = [], {a: {"renders": [], "masks": [], "per_query": [], "seconds": 0.0} for a in cfg.ablations}
+    photos, photo_masks = [], []
+    for q, query in enumerate(world.queries):
+        photo, _ = load_photo(query.image, query.mask, base)
+        photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
+        target = query.shape if exact else targets[query.shape]
+        shape = shapes[target]
+        if protocol == "known_pose":
+            azimuth, elevation, dist, view_fov = query.azimuth, query.elevation, query.distance, query.fov
+        else:
+            azimuth, elevation = predict_pose(pose_checkpoint, photo, device)
+            dist, view_fov = distance, fov
+        view = view_at_pose(shape, azimuth, elevation, dist, view_fov, base)
+        # Exact geometry is judged at the true camera, pixel-aligned with the photo (also when the texture
+        # was optimised at a predicted pose); another shape only at the pose it was optimised for.
+        judge = photo_frame_view(shape, query, cfg.resolution, base.margin) if exact else view
+        azimuth_error = abs((azimuth - query.azimuth + 180.0) % 360.0 - 180.0)
+        setups.append({"query": query.name, "shape": target, "azimuth": round(azimuth, 3), "elevation": round(elevation, 3),
+                       "true_azimuth": query.azimuth, "true_elevation": query.elevation,
+                       "azimuth_error": round(azimuth_error, 3), "elevation_error": round(abs(elevation - query.elevation), 3)})
+        photo01, photo_mask = to_unit(photo.image).clamp(0, 1), photo.mask
+        photos.append(photo01)
+        photo_masks.append(photo_mask)
+        if out is not None:
+            (out / "renders" / protocol).mkdir(parents=True, exist_ok=True)
+            save_png(out / "renders" / protocol / f"{query.name}_photo.png", _uint8(on_white(photo01, photo_mask)[0]))
+        for ablation in cfg.ablations:
+            tcfg = replace(base, **ABLATIONS[ablation])
+            guided = tcfg.use_noc and tcfg.use_patches
+            if guided and photo_noc is None:
+                raise UserError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
+            torch.manual_seed(cfg.seed)
+            candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
+            result = transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
+                                      show_progress=False)
+            render = result.render if judge is view else render_at_view(candidate, shape, result.ws, judge, cfg.resolution, device)
+            render01 = to_unit(render.float()).clamp(0, 1)
+            record = runs[ablation]
+            record["renders"].append(render01)
+            record["masks"].append(judge.mask)
+            seconds = sum(result.seconds.values())
+            record["seconds"] += seconds
+            row = {"query": query.name, "loss_last": {k: v[-1] for k, v in result.losses.items() if v}, "seconds": round(seconds, 2)}
+            if exact:
+                # Pixels both silhouettes cover: the prepared (remeshed) shape may lose thin parts.
+                both = judge.mask * photo_mask
+                if both.sum() < 16:
+                    raise UserError(f"{query.image}: the shape at the true pose and the photo share almost no object pixels")
+                row["psnr_masked"] = float(masked_psnr(render01, photo01, both)[0])
+                row["ssim_masked"] = float(masked_ssim(render01, photo01, both)[0])
+                row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, both)[0])
+                row["silhouette_iou"] = round(float(both.sum() / ((judge.mask + photo_mask) > 0).sum()), 4)
+            else:
+                row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, judge.mask, photo_mask)[0])
+            record["per_query"].append(row)
+            if out is not None:
+                folder = out / "renders" / protocol / ablation
+                folder.mkdir(parents=True, exist_ok=True)
+                save_png(folder / f"{query.name}.png", _uint8(on_white(render01, judge.mask)[0]))
+            log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {target} {ablation}: "
+                + ", ".join(f"{k} {row[k]:.4g}" for k in ("psnr_masked", "ssim_masked", "color_hist_tv") if k in row)
+                + f" ({seconds:.0f} s)")
+    photo_set = on_white(torch.cat(photos), torch.cat(photo_masks))
+    ablations = {}
+    for ablation, record in runs.items():
+        render_set = on_white(torch.cat(record["renders"]), torch.cat(record["masks"]))
+        per_query = record["per_query"]
+        means = {k: sum(r[k] for r in per_query) / len(per_query) for k in ("psnr_masked", "ssim_masked", "color_hist_tv")
+                 if k in per_query[0]}
+        set_metrics = evaluate_sets(render_set, photo_set, extractor, eval_cfg)["metrics"] if len(per_query) >= 2 else {}
+        ablations[ablation] = {"set": set_metrics, "query": means, "per_query": per_query,
+                               "seconds": round(record["seconds"], 2)}
+    return {"queries": setups, "ablations": ablations}
+
+
+# ------------------------------------------------------------------------------------- comparison
+def metric_direction(name: str) -> int:
+    """+1 if higher is better, -1 if lower is better, 0 for values that are not scores (spreads, levels)."""
+    if name.endswith("_std") or (name.startswith("swd_") and name.endswith("px")):
+        return 0
+    if name in HIGHER_IS_BETTER:
+        return 1
+    base = name.split("_")[0]
+    return -1 if base in ("kid", "fid", "swd") or name == "color_hist_tv" else 0
+
+
+def scored_metrics(entry: dict) -> dict[str, float]:
+    """{"set <name>" | "query <name>": value} of the metrics of one ablation that rank methods."""
+    scores = {}
+    for group in ("set", "query"):
+        for name, value in entry.get(group, {}).items():
+            if metric_direction(name) != 0 and isinstance(value, (int, float)) and math.isfinite(value):
+                scores[f"{group} {name}"] = float(value)
+    return scores
+
+
+def compare_to_full(ablations: dict) -> dict:
+    """For each ablation: per metric whether the full method is better, and the count of wins."""
+    if "full" not in ablations:
+        return {}
+    full = scored_metrics(ablations["full"])
+    comparison = {}
+    for name, entry in ablations.items():
+        if name == "full":
+            continue
+        other = scored_metrics(entry)
+        margin = {m: (full[m] - other[m]) * metric_direction(m.split(" ", 1)[1]) for m in full if m in other}
+        comparison[name] = {"full_better": {m: d > 0 for m, d in margin.items()}, "wins": sum(d > 0 for d in margin.values()),
+                            "ties": sum(d == 0 for d in margin.values()), "metrics": len(margin)}
+    return comparison
+
+
+# ----------------------------------------------------------------------------------------- report
+def _fmt(value, name: str) -> str:
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        return "-" if value is None else str(value)
+    if name.startswith("kid"):
+        return f"{value * 100:.3g}"  # x1e2, as the paper's tables
+    return f"{value:.4g}"
+
+
+def protocols_markdown(result: dict) -> str:
+    """The results as markdown: one table per protocol (rows ablations, like the paper's Table 8)."""
+    lines = ["# mesh2tex evaluate --protocols", ""]
+    s = result["settings"]
+    lines.append(f"World `{result['world']}`, GAN `{result['gan']}`; {result['counts']['queries']} queries; "
+                 f"transfer {s['latent_iters']} + {s['refine_iters']} iterations at {s['resolution']} px, "
+                 f"patches {s['patch_size']} px. KID is shown x1e2. KID/FID features: {result['features']}.")
+    lines.append("")
+    if "unconditional" in result["protocols"]:
+        entry = result["protocols"]["unconditional"]
+        metrics = {k: v for k, v in entry["metrics"].items() if metric_direction(k) != 0}
+        lines += ["## unconditional generation (held-out shapes vs the world's photos)", "",
+                  "| " + " | ".join(metrics) + " |", "|" + " --- |" * len(metrics),
+                  "| " + " | ".join(_fmt(v, k) for k, v in metrics.items()) + " |", ""]
+    titles = {"known_pose": "exact geometry, known pose", "unknown_pose": "exact geometry, unknown pose (pose network)",
+              "other_shape": "transfer to another shape of the category"}
+    for protocol in TRANSFER_PROTOCOLS:
+        if protocol not in result["protocols"]:
+            continue
+        entry = result["protocols"][protocol]
+        ablations = entry["ablations"]
+        columns = list(scored_metrics(next(iter(ablations.values()))))
+        best = {}
+        for column in columns:
+            direction = metric_direction(column.split(" ", 1)[1])
+            values = [scored_metrics(a).get(column) for a in ablations.values()]
+            values = [v for v in values if v is not None]
+            best[column] = max(values) if direction > 0 else min(values)
+        lines += [f"## {titles[protocol]} (`{protocol}`)", "",
+                  "| method | " + " | ".join(c + (" ↑" if metric_direction(c.split(' ', 1)[1]) > 0 else " ↓") for c in columns) + " | seconds |",
+                  "| --- |" + " --- |" * (len(columns) + 1)]
+        order = [a for a in ("no_noc", "no_patches", "no_refine", "full") if a in ablations]
+        for ablation in order:
+            scores = scored_metrics(ablations[ablation])
+            cells = []
+            for column in columns:
+                text = _fmt(scores.get(column), column.split(" ", 1)[1])
+                cells.append(f"**{text}**" if scores.get(column) == best[column] else text)
+            lines.append(f"| {ABLATION_TITLES[ablation]} | " + " | ".join(cells) + f" | {ablations[ablation]['seconds']:.0f} |")
+        errors = [q["azimuth_error"] for q in entry["queries"]]
+        if protocol != "known_pose":
+            lines += ["", f"Pose network: mean azimuth error {sum(errors) / len(errors):.1f} deg, "
+                          f"mean elevation error {sum(q['elevation_error'] for q in entry['queries']) / len(errors):.1f} deg."]
+        for ablation, c in result["comparison"].get(protocol, {}).items():
+            lost = [m for m, better in c["full_better"].items() if not better]
+            lines.append("")
+            lines.append(f"Full method better than {ABLATION_TITLES[ablation]} on {c['wins']} of {c['metrics']} metrics"
+                         + (f", {c['ties']} tied" if c["ties"] else "")
+                         + (f" (not better on: {', '.join(lost)})." if lost else "."))
+        lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+def _uint8(image01: torch.Tensor):
+    """[3,H,W] in [0,1] -> (H,W,3) uint8."""
+    return (image01.clamp(0, 1) * 255).round().to(torch.uint8).permute(1, 2, 0).cpu().numpy()
+
+
+# ------------------------------------------------------------------------------------------- entry
+def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint: str | Path,
+                  pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None, cfg: ProtocolConfig,
+                  out: Path | None = None, log=print) -> dict:
+    """Run the protocols of ``cfg`` and return the result dict (also written as ``protocols.json`` /
+    ``protocols.md`` when ``out`` is given, with the renders under ``out/renders``)."""
+    from infer.evaluate import EvaluateConfig, _json_value
+    from infer.generate import load_generator, load_shape
+    from mesh2tex.metrics import get_feature_extractor
+    from mesh2tex.nn.vgg import load_vgg19
+    from train.runs import select_device
+
+    unknown = [p for p in cfg.protocols if p not in PROTOCOLS] + [a for a in cfg.ablations if a not in ABLATIONS]
+    if unknown:
+        raise UserError(f"unknown protocol or ablation {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
+                        f"ablations: {', '.join(ABLATIONS)}")
+    if cfg.resolution < 32:
+        raise UserError(f"--resolution {cfg.resolution}: must be at least 32")
+    if cfg.latent_iters < 0 or cfg.refine_iters < 0:
+        raise UserError("--latent-iters and --refine-iters must not be negative")
+    transfers = [p for p in cfg.protocols if p in TRANSFER_PROTOCOLS]
+    if any(p != "known_pose" for p in transfers) and not pose_checkpoint:
+        raise UserError("the unknown_pose and other_shape protocols need --pose-checkpoint (from 'mesh2tex train pose')")
+    if transfers and any(ABLATIONS[a].get("use_noc", True) and ABLATIONS[a].get("use_patches", True) for a in cfg.ablations) \
+            and not noc_checkpoint:
+        raise UserError("NOC-guided ablations (full, no_refine) need --noc-checkpoint (from 'mesh2tex train noc')")
+    device = select_device(cfg.device)
+    started = time.perf_counter()
+    world = load_world(world_dir, cfg.queries)
+    generator, meta = load_generator(gan_checkpoint, device)
+    camera = meta.get("config", {}).get("camera", {})
+    distance, fov = float(camera.get("distance", 1.7)), float(camera.get("fov", 40.0))
+    paths = shape_paths(shapes_dir)
+    needed, targets = set(world.query_shapes), {}
+    if "other_shape" in cfg.protocols:
+        targets = {name: other_shape_name(name, list(paths)) for name in world.query_shapes}
+        needed |= set(targets.values())
+    missing = sorted(needed - set(paths))
+    if missing:
+        raise UserError(f"{shapes_dir}: no prepared shape for {', '.join(missing)} (prepare the world's meshes with 'mesh2tex prepare shapes')")
+    shapes = {name: load_shape(paths[name], generator, 0, cfg.seed) for name in sorted(needed)}
+    eval_cfg = EvaluateConfig(resolution=cfg.resolution, features=cfg.features, kid_subsets=cfg.kid_subsets, seed=cfg.seed)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        extractor = get_feature_extractor(cfg.features, cfg.inception_weights or None, cfg.vgg_weights or None, device)
+        vgg = load_vgg19(cfg.vgg_weights or None, device=device) if transfers else None
+    notes = sorted({str(w.message) for w in caught})
+    for note in notes:
+        print(f"mesh2tex: warning: {note}", file=sys.stderr)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
+              "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
+              "noc_checkpoint": str(noc_checkpoint) if noc_checkpoint else None,
+              "features": extractor.description, "style_features": getattr(vgg, "source", None),
+              "counts": {"queries": len(world.queries), "query_shapes": len(world.query_shapes)},
+              "settings": asdict(cfg), "protocols": {}, "comparison": {}, "warnings": notes}
+    for protocol in cfg.protocols:
+        t = time.perf_counter()
+        if protocol == "unconditional":
+            entry = run_unconditional(generator, world, shapes, cfg, extractor, eval_cfg, distance, fov, device, out)
+        else:
+            entry = run_transfer_protocol(protocol, generator, world, shapes, targets, vgg, cfg, pose_checkpoint,
+                                          noc_checkpoint, extractor, eval_cfg, distance, fov, device, out, log)
+            result["comparison"][protocol] = compare_to_full(entry["ablations"])
+        entry["seconds"] = round(time.perf_counter() - t, 2)
+        result["protocols"][protocol] = entry
+        log(f"{protocol}: done in {entry['seconds']:.0f} s")
+    result["seconds"] = round(time.perf_counter() - started, 2)
+    if out is not None:
+        write_json(out / "protocols.json", _json_value(result))
+        write_text(out / "protocols.md", protocols_markdown(result))
+    return result
+
+
+def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``mesh2tex evaluate --protocols`` (added to the evaluate command's parser)."""
+    group = parser.add_argument_group("protocols (--protocols: the paper's synthetic evaluation)")
+    group.add_argument("--protocols", action="store_true", help="run the evaluation protocols on a synthetic world")
+    group.add_argument("--world", help="synthetic world folder (from 'mesh2tex prepare synthetic')")
+    group.add_argument("--shapes", help="prepared shapes of the world's meshes (from 'mesh2tex prepare shapes')")
+    group.add_argument("--gan", help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan')")
+    group.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose')")
+    group.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc')")
+    group.add_argument("--latent-iters", type=int, help="transfer stage 1 iterations (default 100)")
+    group.add_argument("--refine-iters", type=int, help="transfer stage 2 iterations (default 300)")
+    group.add_argument("--queries", type=int, help="query photos used, the first K (default all)")
+    group.add_argument("--only", help=f"comma-separated protocols to run (default all: {','.join(PROTOCOLS)})")
+    group.add_argument("--ablations", help=f"comma-separated ablations (default all: {','.join(ABLATIONS)})")
+    group.add_argument("--protocol-config", help="YAML file with any fields of the protocol config")
+
+
+def _split(text: str | None) -> list[str] | None:
+    return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
+
+
+def run_protocols_command(args: argparse.Namespace) -> int:
+    """``mesh2tex evaluate --protocols ...``: writes OUT/protocols.json, OUT/protocols.md and OUT/renders/."""
+    from mesh2tex.config import load_config
+
+    for flag in ("world", "shapes", "gan"):
+        if not getattr(args, flag):
+            raise UserError(f"--protocols needs --{flag}")
+    cfg = load_config(ProtocolConfig, args.protocol_config, {
+        "latent_iters": args.latent_iters, "refine_iters": args.refine_iters, "queries": args.queries,
+        "protocols": _split(args.only), "ablations": _split(args.ablations), "resolution": args.resolution,
+        "features": args.features, "kid_subsets": args.kid_subsets, "seed": args.seed,
+        "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
+        "inception_weights": args.inception_weights})
+    out = Path(args.out)
+    if (out / "protocols.json").exists() and not args.overwrite:
+        raise UserError(f"{out}: already holds protocol results (protocols.json); pass --overwrite to replace them")
+    result = run_protocols(args.world, args.shapes, args.gan, args.pose_checkpoint, args.noc_checkpoint, cfg, out,
+                           log=lambda line: print(line, flush=True))
+    print(protocols_markdown(result), end="")
+    print(f"wrote {out / 'protocols.json'} and {out / 'protocols.md'} ({result['seconds']:.0f} s)")
+    return 0

@@ -41,7 +41,7 @@ def setup(tmp_path_factory):
     for kind in ("pose", "noc"):
         assert main(["train", kind, "--shapes", str(shapes), "--out", str(root / kind), "--config", str(root / "view.yaml"),
                      "--iters", "2", "--samples", "8", "--resolution", "32", "--batch", "4", "--device", "cpu"]) == 0
-    (root / "protocols.yaml").write_text("latents: 1\nviews: 2\n")
+    (root / "protocols.yaml").write_text("latents: 1\nviews: 2\nresolution: 32\npatch_size: 16\nscales: 1\n")
     return root, index
 
 

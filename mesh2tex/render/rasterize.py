@@ -182,27 +182,49 @@ def _size_bins(rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
     return row_bits * _N_BITS + col_bits
 
 
-def _bin_slices(counts: list[int], max_pairs: int, first: int = 0):
+# Launch overhead of one bin, in candidate pixels of work: consecutive bins are merged into one
+# stencil (the largest of their caps) while the padding this adds costs less than that.
+_BIN_OVERHEAD_PAIRS = 16384
+
+
+def _bin_slices(counts: list[int], max_pairs: int):
     """Chunks of entries sorted by bin: ``(cap_rows, cap_cols, lo, hi)`` with at most ``max_pairs``
-    candidate pixels each (at least one entry)."""
-    start = first
+    candidate pixels each (at least one entry).
+
+    Consecutive non-empty bins share one stencil when that is cheaper than a launch of their own;
+    any stencil at least as large as an entry's box gives the same result.
+    """
+    groups = []  # [row_bits, col_bits, lo, hi, own_pairs]
+    start = 0
     for b, size in enumerate(counts):
         if size == 0:
             continue
-        cap_rows, cap_cols = 1 << (b // _N_BITS), 1 << (b % _N_BITS)
-        step = max(1, max_pairs // (cap_rows * cap_cols))
-        for lo in range(start, start + size, step):
-            yield cap_rows, cap_cols, lo, min(start + size, lo + step)
+        rb, cb = b // _N_BITS, b % _N_BITS
+        own = size << (rb + cb)
+        if groups:
+            g = groups[-1]
+            merged_rb, merged_cb = max(g[0], rb), max(g[1], cb)
+            waste = ((g[3] - g[2] + size) << (merged_rb + merged_cb)) - g[4] - own
+            if waste < _BIN_OVERHEAD_PAIRS:
+                g[0], g[1], g[3], g[4] = merged_rb, merged_cb, start + size, g[4] + own
+                start += size
+                continue
+        groups.append([rb, cb, start, start + size, own])
         start += size
+    for rb, cb, lo, hi, _ in groups:
+        step = max(1, max_pairs >> (rb + cb))
+        for chunk_lo in range(lo, hi, step):
+            yield 1 << rb, 1 << cb, chunk_lo, min(hi, chunk_lo + step)
 
 
-def _draw_bins(best, params, base_pixel, face, slices, row_stride, id_bits, depth_scale):
+def _draw_bins(best, params, base_pixel, face, slices, row_stride, id_bits, depth_scale, max_pairs):
     """Depth-test every candidate pixel of the entries in ``slices`` into ``best``.
 
     Each chunk of entries shares a power-of-two stencil (cap_rows, cap_cols) and is evaluated as a
     dense (n, cap_rows, cap_cols) grid of edge functions, with no per-pixel gathers. Stencil pixels
     outside an entry's box need no test of their own: only pixels inside the triangle pass, and
     ``best`` is padded so that stencils running past the image's right or bottom edge stay in it.
+    The hits of several chunks (at most about ``max_pairs``) are depth-tested together.
 
     Args:
         best: (B*Hp*Wp,) int64 visibility keys of the padded image, updated in place.
@@ -213,6 +235,20 @@ def _draw_bins(best, params, base_pixel, face, slices, row_stride, id_bits, dept
         row_stride: Wp, the padded image width.
     """
     device = best.device
+    hits = []  # (entry, row offset, column offset) per chunk
+
+    def depth_test():
+        entry, dr, dc = (torch.cat(t) for t in zip(*hits))
+        hits.clear()
+        # Depth at the hits only, with the same arithmetic as a dense plane.
+        q = params.index_select(0, entry)
+        z = torch.addcmul(torch.addcmul(q[:, 3], q[:, 11], dr.float()), q[:, 7], dc.float())
+        pixel = base_pixel.index_select(0, entry) + dr * row_stride + dc
+        key = (((z.double() + 1) * depth_scale).long() << id_bits) | face.index_select(0, entry)
+        key = torch.where(z.abs() <= 1, key, torch.iinfo(torch.long).max)  # near and far planes
+        best.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
+
+    pending = 0
     for cap_rows, cap_cols, lo, hi in slices:
         p = params[lo:hi]
         row_steps = torch.arange(cap_rows, device=device, dtype=torch.float32)
@@ -224,19 +260,15 @@ def _draw_bins(best, params, base_pixel, face, slices, row_stride, id_bits, dept
 
         lam_min = torch.minimum(torch.minimum(plane(0, 4, 8), plane(1, 5, 9)), plane(2, 6, 10))
         hit = torch.nonzero(lam_min.view(-1) >= 0).squeeze(1)
-        if hit.numel() == 0:
-            continue
         row_bits, col_bits = cap_rows.bit_length() - 1, cap_cols.bit_length() - 1
-        entry = (hit >> (row_bits + col_bits)) + lo
-        dr = (hit >> col_bits) & (cap_rows - 1)
-        dc = hit & (cap_cols - 1)
-        # Depth at the hits only, with the same arithmetic as a dense plane.
-        q = params.index_select(0, entry)
-        z = torch.addcmul(torch.addcmul(q[:, 3], q[:, 11], dr.float()), q[:, 7], dc.float())
-        pixel = base_pixel.index_select(0, entry) + dr * row_stride + dc
-        key = (((z.double() + 1) * depth_scale).long() << id_bits) | face.index_select(0, entry)
-        key = torch.where(z.abs() <= 1, key, torch.iinfo(torch.long).max)  # near and far planes
-        best.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
+        hits.append(((hit >> (row_bits + col_bits)) + lo, (hit >> col_bits) & (cap_rows - 1),
+                     hit & (cap_cols - 1)))
+        pending += (hi - lo) * cap_rows * cap_cols
+        if pending >= max_pairs:
+            depth_test()
+            pending = 0
+    if hits:
+        depth_test()
 
 
 def _tiles(params64, row0, col0, rows, cols):
@@ -341,7 +373,7 @@ def rasterize(
         small = order[:n_small]
         base_pixel = view * (Hp * Wp) + row0 * Wp + col0  # (B*T,)
         _draw_bins(best, by_triangle.index_select(0, small).float(), base_pixel.index_select(0, small),
-                   small % T, _bin_slices(counts[:n_bins], max_pairs), Wp, id_bits, depth_scale)
+                   small % T, _bin_slices(counts[:n_bins], max_pairs), Wp, id_bits, depth_scale, max_pairs)
         if n_big:
             large = order[n_small:n_small + n_big]
             owner, t_row0, t_col0, t_rows, t_cols, t_params = _tiles(
@@ -353,7 +385,7 @@ def rasterize(
             t_base = (view.index_select(0, t_large) * (Hp * Wp) + t_row0.index_select(0, t_order) * Wp
                       + t_col0.index_select(0, t_order))
             _draw_bins(best, t_params.index_select(0, t_order), t_base, t_large % T,
-                       _bin_slices(t_counts, max_pairs), Wp, id_bits, depth_scale)
+                       _bin_slices(t_counts, max_pairs), Wp, id_bits, depth_scale, max_pairs)
 
         best = best.view(B, Hp, Wp)[:, :H, :W].reshape(-1)
         covered = torch.nonzero(best != empty).squeeze(1)

@@ -1,7 +1,7 @@
 """Seconds per training iteration and peak memory of ``train gan`` at its default configuration.
 
     python benchmarks/bench_gan_step.py [--iters 8] [--device auto|cpu|cuda] [--faces 6144]
-                                        [--batch 2] [--views 4] [--resolution 128] [--config YAML]
+                                        [--batch 2] [--views 4] [--resolution 128] [--config YAML] [--threads N]
 
 Two procedural chairs are prepared (quad hierarchy of --faces faces), the trainer is built with the
 default config (or --config) and a random photo set, one warm-up iteration runs, then --iters timed
@@ -42,7 +42,10 @@ def main() -> None:
     parser.add_argument("--views", type=int, default=4)
     parser.add_argument("--resolution", type=int, default=128)
     parser.add_argument("--config")
+    parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
 
     t0 = time.perf_counter()
     shapes = []

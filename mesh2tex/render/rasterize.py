@@ -141,23 +141,26 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
     """
     H, W = resolution
     x, y, z, w = clip  # (3,N): one row per corner
-    xj, yj, wj = (t.roll(-1, 0) for t in (x, y, w))  # vertex i+1
-    xk, yk, wk = (t.roll(-2, 0) for t in (x, y, w))  # vertex i+2
-    # coeff[c, i]: lambda_i = coeff[0, i] * x_ndc + coeff[1, i] * y_ndc + coeff[2, i]; row 3 is z_ndc.
-    # Unnormalised, lambda_i's coefficients are e_i = v_j x v_k over (x, y, w): the adjugate of [v0 v1 v2].
-    coeff = torch.empty(3, 4, clip.shape[2], dtype=clip.dtype, device=clip.device)
-    torch.sub(yj * wk, wj * yk, out=coeff[0, :3])
-    torch.sub(wj * xk, xj * wk, out=coeff[1, :3])
-    torch.sub(xj * yk, yj * xk, out=coeff[2, :3])
-    det = x[0] * coeff[0, 0] + y[0] * coeff[1, 0] + w[0] * coeff[2, 0]
-    coeff[:, :3] /= det
-    torch.sum(coeff[:, :3] * z, dim=1, out=coeff[:, 3])
+    # params[c, i]: lambda_i = params[1, i] * x_ndc + params[2, i] * y_ndc + params[0, i]; column 3 is
+    # z_ndc. Unnormalised, lambda_i's coefficients are e_i = v_j x v_k over (x, y, w): the adjugate of
+    # [v0 v1 v2]. Written in place, row by row: large temporaries cost page faults on the CPU.
+    params = torch.empty(3, 4, clip.shape[2], dtype=clip.dtype, device=clip.device)
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        for row, (a, b) in ((1, (y, w)), (2, (w, x)), (0, (x, y))):
+            torch.mul(a[j], b[k], out=params[row, i])
+            params[row, i].sub_(b[j] * a[k])
+    det = x[0] * params[1, 0] + y[0] * params[2, 0] + w[0] * params[0, 0]
+    params[:, :3] /= det
+    torch.mul(params[:, 0], z[0], out=params[:, 3])
+    params[:, 3] += params[:, 1] * z[1]
+    params[:, 3] += params[:, 2] * z[2]
+    # Rebase to the reference pixel; per-pixel steps right and down.
     ref_x = (2 * col0 + 1).to(clip.dtype) / W - 1
     ref_y = 1 - (2 * row0 + 1).to(clip.dtype) / H
-    params = torch.empty(3, 4, clip.shape[2], dtype=clip.dtype, device=clip.device)
-    torch.addcmul(torch.addcmul(coeff[2], coeff[0], ref_x), coeff[1], ref_y, out=params[0])
-    torch.mul(coeff[0], 2.0 / W, out=params[1])
-    torch.mul(coeff[1], -2.0 / H, out=params[2])
+    params[0].addcmul_(params[1], ref_x).addcmul_(params[2], ref_y)
+    params[1] *= 2.0 / W
+    params[2] *= -2.0 / H
     return params.view(12, -1), det
 
 

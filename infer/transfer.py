@@ -251,7 +251,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
             pairs = sample_patch_pairs(photo_mask[0, 0], render_mask[0, 0], cfg.patches, photo_noc, render_noc, guided=guided, generator=pick)
             parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, cfg.scales)
         total = sum(parts.values())
-        return total, {k: float(v) for k, v in parts.items()}
+        return total, {k: float(v.detach()) for k, v in parts.items()}
 
     with torch.no_grad():
         ws = generator.mapping.w_avg.reshape(1, 1, -1).expand(1, generator.num_ws, -1).clone()

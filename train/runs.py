@@ -267,7 +267,7 @@ class NonFiniteLoss(Exception):
 def check_finite(logs: dict[str, torch.Tensor | float], iteration: int) -> None:
     """Raise :class:`NonFiniteLoss` naming the first non-finite value of ``logs``."""
     for name, value in logs.items():
-        v = float(value)
+        v = float(value.detach()) if isinstance(value, torch.Tensor) else float(value)
         if not np.isfinite(v):
             raise NonFiniteLoss(f"{name} = {v} at iteration {iteration}")
 

@@ -5,3 +5,45 @@ import torch
 # The tests run many tiny tensor operations; one thread avoids thread start-up and, on a shared
 # machine, the large slow-down of threads that wait for a busy core.
 torch.set_num_threads(1)
+
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+import trimesh  # noqa: E402
+import yaml  # noqa: E402
+from PIL import Image  # noqa: E402
+
+# The smallest GAN config the tests train (every network a few channels wide).
+TINY_GAN = {
+    "sample_every": 0, "checkpoint_every": 0,
+    "generator": {"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "encoder_channels": [8, 8, 8], "synthesis_channels": [8, 8, 8],
+                  "field_hidden": 16, "aux_latent_dim": 8},
+    "discriminator": {"channel_base": 64, "channel_max": 16},
+}
+
+
+@pytest.fixture(scope="session")
+def tiny_gan(tmp_path_factory):
+    """A GAN checkpoint (``run/checkpoint.safetensors``) after 2 iterations on two prepared boxes
+    (``shapes/box0.npz``, ``shapes/box1.npz``: real preparation, 96 quads, 3 levels), its photos,
+    and a raw mesh ``slab.obj`` for on-the-fly preparation. Returns the folder."""
+    from mesh2tex.cli import main
+    from mesh2tex.geometry.prepare import prepare_shape
+
+    root = tmp_path_factory.mktemp("tiny_gan")
+    (root / "shapes").mkdir()
+    for i, extents in enumerate([(1.0, 0.6, 0.4), (0.5, 1.0, 0.5)]):
+        box = trimesh.creation.box(extents)
+        prepare_shape(box.vertices, box.faces, face_count=96, levels=3, seed=0).save(root / "shapes" / f"box{i}.npz")
+    photos = root / "photos"
+    photos.mkdir()
+    for i in range(4):
+        rgba = np.zeros((16, 16, 4), np.uint8)
+        rgba[4:12, 4:12] = (200, 40 * i, 30, 255)
+        Image.fromarray(rgba).save(photos / f"{i}.png")
+    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
+    code = main(["train", "gan", "--shapes", str(root / "shapes"), "--images", str(photos), "--out", str(root / "run"),
+                 "--config", str(root / "tiny.yaml"), "--iters", "2", "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"])
+    assert code == 0
+    trimesh.creation.box((0.8, 0.8, 0.3)).export(root / "slab.obj")
+    return root

@@ -6,45 +6,17 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-import yaml
 from PIL import Image
 
 from mesh2tex.cli import main
-from mesh2tex.geometry.prepare import prepare_shape
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import field_colors
 from infer.generate import latent, load_generator
 
-TINY = {
-    "sample_every": 0, "checkpoint_every": 0,
-    "generator": {"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "encoder_channels": [8, 8, 8], "synthesis_channels": [8, 8, 8],
-                  "field_hidden": 16, "aux_latent_dim": 8},
-    "discriminator": {"channel_base": 64, "channel_max": 16},
-}
-
-
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory):
-    """A GAN checkpoint after 2 iterations on two prepared boxes (real preparation, 96 quads, 3 levels)."""
-    root = tmp_path_factory.mktemp("generate")
-    (root / "shapes").mkdir()
-    for i, extents in enumerate([(1.0, 0.6, 0.4), (0.5, 1.0, 0.5)]):
-        box = trimesh.creation.box(extents)
-        prepare_shape(box.vertices, box.faces, face_count=96, levels=3, seed=0).save(root / "shapes" / f"box{i}.npz")
-    photos = root / "photos"
-    photos.mkdir()
-    for i in range(4):
-        rgba = np.zeros((16, 16, 4), np.uint8)
-        rgba[4:12, 4:12] = (200, 40 * i, 30, 255)
-        Image.fromarray(rgba).save(photos / f"{i}.png")
-    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY))
-    code = main(["train", "gan", "--shapes", str(root / "shapes"), "--images", str(photos), "--out", str(root / "run"),
-                 "--config", str(root / "tiny.yaml"), "--iters", "2", "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"])
-    assert code == 0
-    # A raw mesh for on-the-fly preparation.
-    trimesh.creation.box((0.8, 0.8, 0.3)).export(root / "slab.obj")
-    return root
+def trained(tiny_gan):
+    return tiny_gan
 
 
 def test_generate_writes_renders_glb_and_ply(trained, tmp_path):

@@ -16,7 +16,7 @@ from mesh2tex.geometry.prepare import prepare_shape
 from infer.protocols import (ABLATIONS, PROTOCOLS, compare_to_full, load_world, other_shape_name, photo_frame_view,
                              protocols_markdown)
 from mesh2tex.io.images import load_mask
-from test_generate import TINY
+from conftest import TINY_GAN as TINY
 
 
 @pytest.fixture(scope="module")

@@ -16,16 +16,14 @@ from PIL import Image
 
 from mesh2tex.cli import main
 from mesh2tex.io.checkpoint import load_checkpoint
+from conftest import TINY_GAN
 from test_faceconv import cube_shape
 
 TINY = {
+    **TINY_GAN,
     "log_every": 1,
-    "sample_every": 0,
     "checkpoint_every": 2,
     "sample_shapes": 2,
-    "generator": {"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "encoder_channels": [8, 8, 8], "synthesis_channels": [8, 8, 8],
-                  "field_hidden": 16, "aux_latent_dim": 8},
-    "discriminator": {"channel_base": 64, "channel_max": 16},
     "loss": {"r1_interval": 2, "pl_interval": 2},
     "camera": {"distance": 1.6},
 }

@@ -11,30 +11,16 @@ import yaml
 from PIL import Image
 
 from mesh2tex.cli import main
-from mesh2tex.geometry.prepare import prepare_shape
-from test_generate import TINY
 
 FAST = ["--resolution", "64", "--latent-iters", "6", "--refine-iters", "3", "--device", "cpu"]
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory):
-    """A tiny GAN (2 iterations), a NOC network (2 steps) and a photo with an alpha mask."""
+def setup(tiny_gan, tmp_path_factory):
+    """The tiny GAN, a NOC network (2 steps) and a photo with an alpha mask."""
     root = tmp_path_factory.mktemp("transfer")
-    (root / "shapes").mkdir()
-    for i, extents in enumerate([(1.0, 0.6, 0.4), (0.5, 1.0, 0.5)]):
-        box = trimesh.creation.box(extents)
-        prepare_shape(box.vertices, box.faces, face_count=96, levels=3, seed=0).save(root / "shapes" / f"box{i}.npz")
-    photos = root / "photos"
-    photos.mkdir()
-    for i in range(2):
-        rgba = np.zeros((16, 16, 4), np.uint8)
-        rgba[4:12, 4:12] = (200, 60 * i, 30, 255)
-        Image.fromarray(rgba).save(photos / f"{i}.png")
-    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY))
-    assert main(["train", "gan", "--shapes", str(root / "shapes"), "--images", str(photos), "--out", str(root / "gan"),
-                 "--config", str(root / "tiny.yaml"), "--iters", "2", "--batch", "2", "--views", "1", "--resolution", "16",
-                 "--device", "cpu"]) == 0
+    (root / "gan").symlink_to(tiny_gan / "run")
+    (root / "shapes").symlink_to(tiny_gan / "shapes")
     (root / "noc.yaml").write_text("width: 4\n")
     assert main(["train", "noc", "--shapes", str(root / "shapes"), "--out", str(root / "noc"), "--config", str(root / "noc.yaml"),
                  "--iters", "2", "--samples", "8", "--resolution", "32", "--batch", "4", "--device", "cpu"]) == 0

@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 import trimesh
-import yaml
 from PIL import Image
 
 from mesh2tex.cli import main

@@ -8,7 +8,7 @@ import trimesh
 
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.clean import clean_mesh, normalize
-from mesh2tex.geometry.features import face_features, noc_coordinates
+from mesh2tex.geometry.features import face_features, fundamental_forms, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
@@ -114,14 +114,25 @@ def test_features_match_the_sphere_curvature(prepared):
     shape = prepared["sphere"]
     names = shape.feature_names
     radius = np.linalg.norm(shape.vertices[0], axis=1).mean()
-    mean_curvature = shape.face_features[:, names.index("mean_curvature")]
-    gaussian = shape.face_features[:, names.index("gaussian_curvature")]
-    assert np.median(mean_curvature) == pytest.approx(1 / radius, rel=0.1)
-    assert np.median(gaussian) == pytest.approx(1 / radius**2, rel=0.15)
+    forms = fundamental_forms(shape.vertices[0], shape.quads[0])
+    assert np.median(forms["H"]) == pytest.approx(1 / radius, rel=0.1)
+    assert np.median(forms["K"]) == pytest.approx(1 / radius**2, rel=0.15)
+    size = np.sqrt((forms["E"] + forms["G"]) / 2)
+    stored = shape.face_features[:, names.index("mean_curvature")]
+    assert np.allclose(stored, np.arcsinh(forms["H"] * size), atol=1e-5), "stored curvature is asinh(H s)"
     centers = shape.vertices[0][shape.quads[0]].mean(axis=1)
     normals = shape.face_features[:, [names.index(n) for n in ("normal_x", "normal_y", "normal_z")]]
     outward = np.einsum("ij,ij->i", normals, centers / np.linalg.norm(centers, axis=1, keepdims=True))
     assert (outward > 0.9).mean() > 0.95, "normals face outwards"
+
+
+def test_features_are_scale_free_and_bounded(prepared):
+    """The network input does not depend on the mesh's size or face count, and sharp creases stay bounded."""
+    shape = prepared["chair"]
+    features, _ = face_features(shape.vertices[0], shape.quads[0])
+    scaled, _ = face_features(shape.vertices[0] * 7.0, shape.quads[0])
+    assert np.allclose(features, scaled, atol=1e-4)
+    assert np.abs(features).max() < 20
 
 
 def test_neighbourhood_order_is_rotational_and_starts_deterministically():

@@ -10,7 +10,16 @@ vertex normals the same way. At the patch centre:
     shape operator S = I^-1 II,  mean curvature H = trace(S) / 2,  Gaussian curvature K = det(S)
 
 With outward normals a sphere of radius r has H = 1/r and K = 1/r^2 (convex is positive).
-Lengths are those of the normalised frame (bounding-box diagonal 1).
+
+The stored features are made dimensionless with the quad's own size ``s = sqrt((E + G) / 2)`` (about
+its edge length), so that they do not depend on the face count of the hierarchy, and the
+curvature-like ones are compressed with ``asinh`` so that sharp creases (where K of a small quad
+reaches 1e4 and more) do not swamp the network's input:
+
+    fff_E, fff_F, fff_G        = E / s^2, F / s^2, G / s^2                    (about [0, 2])
+    sff_L, sff_M, sff_N        = asinh(L / s), asinh(M / s), asinh(N / s)     (normal curvature x s)
+    mean_curvature             = asinh(H s)
+    gaussian_curvature         = asinh(K s^2)
 """
 
 from __future__ import annotations
@@ -43,13 +52,14 @@ def vertex_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     return _normalize_rows(sums)
 
 
-def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """Per-face geometric features (see the module docstring for definitions).
+def fundamental_forms(vertices: np.ndarray, quads: np.ndarray) -> dict[str, np.ndarray]:
+    """Raw per-face differential quantities at each quad's centre (see the module docstring).
 
     Args:
-        vertices: (V, 3) float, normalised frame; quads: (F, 4) int, oriented outwards.
+        vertices: (V, 3) float; quads: (F, 4) int, oriented outwards.
     Returns:
-        (F, 11) float32 features, all finite, and their names (:data:`FEATURE_NAMES`).
+        dict of (F,) float64 arrays: E, F, G, L, M, N, H (mean curvature), K (Gaussian curvature);
+        H and K are 0 on degenerate quads.
     """
     v = np.asarray(vertices, dtype=np.float64)
     q = np.asarray(quads, dtype=np.int64)
@@ -64,9 +74,27 @@ def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, 
     det_first = e * g - f * f
     ok = det_first > 1e-14 * np.maximum(e * g, 1e-30)
     safe = np.where(ok, det_first, 1.0)
-    mean_curvature = np.where(ok, (e * n - 2.0 * f * m + g * l_) / (2.0 * safe), 0.0)
-    gaussian_curvature = np.where(ok, (l_ * n - m * m) / safe, 0.0)
-    features = np.stack([*quad_normals(v, q).T, e, f, g, l_, m, n, mean_curvature, gaussian_curvature], axis=1)
+    return {"E": e, "F": f, "G": g, "L": l_, "M": m, "N": n,
+            "H": np.where(ok, (e * n - 2.0 * f * m + g * l_) / (2.0 * safe), 0.0),
+            "K": np.where(ok, (l_ * n - m * m) / safe, 0.0)}
+
+
+def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Per-face geometric features: normals and the dimensionless, compressed fundamental forms and
+    curvatures of the module docstring.
+
+    Args:
+        vertices: (V, 3) float, normalised frame; quads: (F, 4) int, oriented outwards.
+    Returns:
+        (F, 11) float32 features, all finite, and their names (:data:`FEATURE_NAMES`).
+    """
+    forms = fundamental_forms(vertices, quads)
+    size_sq = np.maximum((forms["E"] + forms["G"]) / 2.0, 1e-30)
+    size = np.sqrt(size_sq)
+    features = np.stack([*quad_normals(vertices, quads).T,
+                         forms["E"] / size_sq, forms["F"] / size_sq, forms["G"] / size_sq,
+                         np.arcsinh(forms["L"] / size), np.arcsinh(forms["M"] / size), np.arcsinh(forms["N"] / size),
+                         np.arcsinh(forms["H"] * size), np.arcsinh(forms["K"] * size_sq)], axis=1)
     features = np.nan_to_num(features, nan=0.0, posinf=0.0, neginf=0.0)
     return features.astype(np.float32), list(FEATURE_NAMES)
 

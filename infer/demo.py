@@ -49,14 +49,14 @@ class DemoConfig:
     faces: int = 1536  # finest quad count of the prepared shapes (the library default is 6144)
     levels: int = 4  # levels of the quad hierarchy
     workers: int = 2  # processes of 'prepare shapes'
-    gan_iters: int = 300  # GAN iterations
+    gan_iters: int = 600  # GAN iterations
     gan_resolution: int = 64  # GAN render resolution
     gan_views: int = 4  # views per shape and GAN iteration
     gan_channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first
     view_samples: int = 384  # rendered views for the pose and NOC networks
     view_resolution: int = 64  # their input size
     view_width: int = 16  # their channel width
-    pose_iters: int = 300  # pose network steps
+    pose_iters: int = 1500  # pose network steps
     noc_iters: int = 200  # NOC network steps
     transfer_resolution: int = 64  # side of the transfer renders
     latent_iters: int = 60  # transfer stage 1 iterations (paper: 100)

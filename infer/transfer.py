@@ -146,7 +146,7 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
     if mask.sum() < 16:
         raise UserError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")
     box = object_box(mask, cfg.margin)
-    image = torch.from_numpy(rgb).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
+    image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
     image = crop_square(image, box, cfg.resolution, fill=1.0)
     mask_t = (crop_square(torch.from_numpy(mask)[None, None].float(), box, cfg.resolution) > 0.5).float()
     return Photo(image=image, mask=mask_t), source

@@ -250,10 +250,10 @@ def run_view_training(args, kind: str) -> int:
             opt.step()
             iteration += 1
             bar.update(1)
-            bar.set_postfix(loss=f"{float(loss):.4f}")
+            bar.set_postfix(loss=f"{float(loss.detach()):.4f}")
             if iteration % cfg.log_every == 0 or iteration == cfg.iters:
                 now = time.perf_counter()
-                run.metrics.write({"iteration": iteration, "loss": round(float(loss), 6),
+                run.metrics.write({"iteration": iteration, "loss": round(float(loss.detach()), 6),
                                    **validate(kind, net, views, val_index, cfg, device),
                                    "iters_per_second": round((iteration - last_iter) / max(now - last_time, 1e-9), 3),
                                    "peak_memory_gb": round(runs.peak_memory_gb(device), 3)})

@@ -196,6 +196,8 @@ def load_vgg19(weights: str | os.PathLike | None = None, device: str | torch.dev
     UserWarning explains the quality to expect. Models are cached per (file, device).
     """
     found = find_vgg19_weights(weights)
+    if found is None and warn:  # every call that falls back says so, cached model or not
+        warnings.warn(fallback_warning_text(), UserWarning, stacklevel=2)
     key = (str(found) if found is not None else "random", str(torch.device(device)))
     if key in _CACHE:
         return _CACHE[key]
@@ -203,8 +205,6 @@ def load_vgg19(weights: str | os.PathLike | None = None, device: str | torch.dev
     if found is not None:
         model.load_imagenet(found)
     else:
-        if warn:
-            warnings.warn(fallback_warning_text(), UserWarning, stacklevel=2)
         model.init_random()
     model = model.to(device).eval()
     for parameter in model.parameters():

@@ -270,9 +270,10 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
             opt.zero_grad(set_to_none=True)
             total.backward()
             opt.step()
-            history.append(round(float(total), 6))
+            value = float(total.detach())
+            history.append(round(value, 6))
             if show_progress:
-                iterator.set_postfix(loss=f"{float(total):.4f}")
+                iterator.set_postfix(loss=f"{value:.4f}")
         result.losses[stage] = history
         result.seconds[stage] = round(time.perf_counter() - start, 2)
 

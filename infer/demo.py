@@ -64,13 +64,14 @@ class DemoConfig:
     texture_size: int = 512  # baked UV texture of the GLB
     query: int = 0  # which query photo of the world to texture (index into the sorted queries)
     eval_views: int = 4  # views per shape of the GAN renders compared with the photos
+    tiny_networks: bool = False  # GAN networks a few channels wide (the --quick smoke test)
 
 
 QUICK = {  # a smoke-test budget: every stage runs, nothing learns much
     "shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1, "gan_iters": 2,
     "gan_resolution": 32, "gan_views": 1, "gan_channels": [8, 8, 8], "view_samples": 16, "view_resolution": 32,
     "view_width": 4, "pose_iters": 2, "noc_iters": 2, "latent_iters": 3, "refine_iters": 2, "texture_size": 64,
-    "eval_views": 1,
+    "eval_views": 1, "tiny_networks": True,
 }
 
 
@@ -99,7 +100,7 @@ def _gan_config(cfg: DemoConfig) -> dict:
         raise UserError(f"gan_channels has {len(channels)} entries, the demo's hierarchy has {cfg.levels} levels")
     gan = {"sample_every": 0, "checkpoint_every": 50, "log_every": 10,
            "generator": {"encoder_channels": channels, "synthesis_channels": channels}}
-    if cfg.gan_iters < 10:  # the quick budget: tiny networks
+    if cfg.tiny_networks:
         gan["generator"].update({"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "field_hidden": 16, "aux_latent_dim": 8})
         gan["discriminator"] = {"channel_base": 64, "channel_max": 16}
     return gan
@@ -314,7 +315,9 @@ def run(args) -> int:
     if args.quick:
         overrides.update(QUICK)
     saved = out / "demo_config.yaml"
-    cfg = load_config(DemoConfig, args.config if args.config else (saved if saved.is_file() and not args.quick else None), overrides)
+    cfg = load_config(DemoConfig, args.config, overrides)
+    if saved.is_file() and load_config(DemoConfig, saved) != cfg:
+        raise UserError(f"{out}: holds a demo run with other settings ({saved}); resume it with the same options or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     save_config(cfg, saved)
     start = time.perf_counter()

@@ -24,3 +24,4 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
 
     assert main(["demo", "--out", str(out), "--quick"]) == 0, "a second run resumes from what is there"
     assert read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"] == iteration
+    assert main(["demo", "--out", str(out)]) == 2, "a run with other settings does not mix into this folder"

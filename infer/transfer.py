@@ -26,7 +26,6 @@ Ablations of the paper's Table 8: ``--no-noc`` (patch pairs without NOC guidance
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field

@@ -133,7 +133,7 @@ def run_pipeline(out: Path, cfg: DemoConfig) -> dict:
         seconds[f"train {kind}"] = _stage(f"train {kind}", [
             "train", kind, "--shapes", str(out / "shapes" / "train"), "--out", str(out / kind), "--config", str(views_yaml),
             "--iters", str(iters), "--samples", str(cfg.view_samples), "--resolution", str(cfg.view_resolution),
-            "--batch", "32", "--seed", str(cfg.seed), "--resume"], log)
+            "--batch", "32", "--seed", str(cfg.seed), "--gan", str(out / "gan" / "checkpoint.safetensors"), "--resume"], log)
     query = pick_query(world, cfg.query)
     transfer = out / "transfer"
     if not (transfer / "report.json").is_file():

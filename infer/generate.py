@@ -69,11 +69,20 @@ def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, s
 
         vertices, faces = load_mesh(path)
         shape = prepare_shape(vertices, faces, face_count=face_count, levels=levels, seed=seed, source=str(path))
-    if shape.num_levels != levels:
-        raise UserError(f"{path}: has {shape.num_levels} levels, the generator needs {levels}")
-    if shape.face_features.shape[1] != generator.cfg.input_features:
-        raise UserError(f"{path}: has {shape.face_features.shape[1]} face features, the generator needs {generator.cfg.input_features}")
+    problem = shape_mismatch(shape, generator)
+    if problem:
+        raise UserError(f"{path}: has {problem}")
     return shape
+
+
+def shape_mismatch(shape: PreparedShape, generator: TextureGenerator) -> str:
+    """'' when the generator can texture ``shape``, else what differs, e.g. '2 levels, the generator needs 3'."""
+    levels = generator.cfg.num_levels
+    if shape.num_levels != levels:
+        return f"{shape.num_levels} levels, the generator needs {levels}"
+    if shape.face_features.shape[1] != generator.cfg.input_features:
+        return f"{shape.face_features.shape[1]} face features, the generator needs {generator.cfg.input_features}"
+    return ""
 
 
 def parse_seeds(text: str) -> list[int]:

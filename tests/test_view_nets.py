@@ -57,3 +57,87 @@ def test_train_resume_and_load(kind, shapes_dir, tmp_path):
     other = "noc" if kind == "pose" else "pose"
     with pytest.raises(UserError, match=f"expected a '{other}' checkpoint"):
         load_view_network(run / "checkpoint.safetensors", other)
+
+
+# ---------------------------------------------------------------------------- GAN-textured views
+def _tiny_shapes(tiny_gan):
+    from train.gan import load_shapes
+
+    return load_shapes(tiny_gan / "shapes")[0]
+
+
+def test_gan_colours_follow_the_rendered_vertex_order(tiny_gan):
+    from mesh2tex.nn.batch import collate_shapes
+    from train.view_nets import _GanTextures
+
+    shapes = _tiny_shapes(tiny_gan)
+    gan = _GanTextures(str(tiny_gan / "run" / "checkpoint.safetensors"), shapes)
+    for index, shape in enumerate(shapes):
+        batch = collate_shapes([shape])
+        assert np.array_equal(batch.shape_vertices(0).numpy(), shape.vertices[0])
+        assert np.array_equal(batch.shape_triangles(0).numpy(), shape.triangles(0))
+        colours = gan.vertex_colours(index, 3)
+        assert colours.shape == (len(shape.vertices[0]), 3) and colours.dtype == np.float32
+        assert 0 <= colours.min() and colours.max() <= 1
+        assert np.array_equal(colours, gan.vertex_colours(index, 3)), "deterministic for a latent seed"
+
+
+def test_train_with_gan_mixes_gan_and_procedural_views(tiny_gan, tmp_path, capsys):
+    run = tmp_path / "pose"
+    config = tmp_path / "c.yaml"
+    config.write_text("width: 4\ndata:\n  views_per_material: 2\n  gan_share: 0.5\n")
+    assert main(["train", "pose", "--shapes", str(tiny_gan / "shapes"), "--out", str(run), "--config", str(config),
+                 "--samples", "16", "--resolution", "16", "--batch", "4", "--iters", "1", "--device", "cpu",
+                 "--gan", str(tiny_gan / "run" / "checkpoint.safetensors")]) == 0
+    assert (run / "checkpoint.safetensors").is_file()
+    with np.load(run / "views.npz", allow_pickle=False) as views:
+        gan_textured = views["gan_textured"]
+        assert gan_textured.dtype == np.uint8 and gan_textured.shape == (16,) and set(gan_textured) == {0, 1}
+        assert (views["mask"] > 127).any(axis=(1, 2)).all()
+        # a group (2 views) shares its texture source
+        assert (gan_textured[0::2] == gan_textured[1::2]).all()
+    assert main(["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--out", str(tmp_path / "noc"),
+                 "--gan", str(run / "checkpoint.safetensors")]) == 2, "a pose checkpoint is no GAN"
+    assert f"{run / 'checkpoint.safetensors'}: this is a 'pose' checkpoint, --gan needs a 'gan' checkpoint" in capsys.readouterr().err
+
+
+def test_bad_gan_checkpoint_is_a_one_line_error(tiny_gan, shapes_dir, tmp_path, capsys):
+    base = ["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--samples", "4", "--resolution", "16", "--iters", "1",
+            "--device", "cpu"]
+    missing = tmp_path / "missing.safetensors"
+    assert main(base + ["--out", str(tmp_path / "a"), "--gan", str(missing)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"mesh2tex: error: {missing}: checkpoint not found"
+    assert not (tmp_path / "a").exists(), "nothing is written before the checkpoint is checked"
+    not_a_checkpoint = tiny_gan / "shapes" / "box0.npz"
+    assert main(base + ["--out", str(tmp_path / "b"), "--gan", str(not_a_checkpoint)]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{not_a_checkpoint}: not a mesh2tex checkpoint" in err
+    # a GAN whose hierarchy differs from the shapes' (2 levels here, 3 in the GAN)
+    gan = tiny_gan / "run" / "checkpoint.safetensors"
+    base[base.index("--shapes") + 1] = str(shapes_dir)
+    assert main(base + ["--out", str(tmp_path / "c"), "--gan", str(gan)]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{gan}: the prepared shapes have 2 levels, the generator needs 3" in err
+
+
+def test_cached_views_are_rendered_again_when_the_data_settings_change(tiny_gan, tmp_path, monkeypatch):
+    from train import view_nets
+    from train.runs import RunDirectory
+
+    calls = []
+    render = view_nets.render_view_dataset
+    monkeypatch.setattr(view_nets, "render_view_dataset", lambda *a: calls.append(1) or render(*a))
+    run = RunDirectory(tmp_path / "run")
+    shapes = _tiny_shapes(tiny_gan)
+    cfg = view_nets.ViewTrainConfig(data=ViewDataConfig(samples=8, views_per_material=2, resolution=16, gan_share=0.5,
+                                                        gan_checkpoint=str(tiny_gan / "run" / "checkpoint.safetensors")))
+    first = view_nets.load_or_render_views(run, shapes, cfg)
+    again = view_nets.load_or_render_views(run, shapes, cfg)
+    assert len(calls) == 1 and all(np.array_equal(first[k], again[k]) for k in first), "the same settings reuse the cache"
+    cfg.data.gan_share = 1.0
+    assert view_nets.load_or_render_views(run, shapes, cfg)["gan_textured"].all() and len(calls) == 2
+    cfg.data.gan_checkpoint = ""
+    assert not view_nets.load_or_render_views(run, shapes, cfg)["gan_textured"].any() and len(calls) == 3
+    with np.load(run.root / "views.npz", allow_pickle=False) as cached:
+        assert not cached["gan_textured"].any()

@@ -134,13 +134,23 @@ def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -
 # Rendering
 
 
-def render_views(shape: SyntheticShape, material: Material, views: list[View], resolution: int, supersample: int = 2) -> dict[str, np.ndarray]:
+def render_views(shape: SyntheticShape, material: Material | None, views: list[View], resolution: int, supersample: int = 2,
+                 *, vertex_colours: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Render ``views`` of the textured shape over their backgrounds.
+
+    The albedo is ``material`` evaluated at each covered pixel's surface point or, when
+    ``vertex_colours`` (V, 3) float in [0, 1], one per vertex of ``shape.vertices``, is given, those
+    colours interpolated with the raster's barycentrics (``material`` may then be None). Shading,
+    backgrounds, NOC and mask do not depend on the albedo's source.
 
     Returns uint8 arrays: ``rgb`` (B, R, R, 3), ``mask`` (B, R, R) 0/255, ``noc`` (B, R, R, 3) (NOC * 255,
     0 on background), with R = ``resolution``. Rendering happens at ``resolution * supersample`` and
     is box-filtered down; the mask is coverage >= 1/2.
     """
+    if material is None and vertex_colours is None:
+        raise ValueError("render_views needs a material or vertex_colours")
+    if vertex_colours is not None and np.shape(vertex_colours) != (len(shape.vertices), 3):
+        raise ValueError(f"vertex_colours must be ({len(shape.vertices)}, 3), one per vertex, got {np.shape(vertex_colours)}")
     big = resolution * supersample
     vertices = torch.as_tensor(shape.vertices, dtype=torch.float32)
     faces = torch.as_tensor(shape.faces, dtype=torch.int64)
@@ -156,7 +166,9 @@ def render_views(shape: SyntheticShape, material: Material, views: list[View], r
     normals = face_attribute(normals_per_face, raster)  # (B, H, W, 3), flat: the shapes are faceted
 
     albedo = torch.zeros(covered.shape + (3,), dtype=torch.float32)
-    if covered.any():
+    if vertex_colours is not None:
+        albedo = interpolate(torch.as_tensor(vertex_colours, dtype=torch.float32), raster, faces)  # 0 on background
+    elif covered.any():
         colours = material(points[covered].double().numpy(), normals[covered].double().numpy(), parts[raster.face_id[covered]].numpy())
         albedo[covered] = torch.as_tensor(colours, dtype=torch.float32)
     light = torch.tensor([v.light for v in views], dtype=torch.float32)

@@ -178,8 +178,9 @@ def render_glb_at_pose(glb: Path, azimuth: float, elevation: float, distance: fl
 def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int) -> dict:
     """The GLB rendered at the query's true pose vs the query photo, both cropped around their objects."""
     from infer.evaluate import evaluate_pairs
-    from infer.transfer import TransferConfig, crop_square, object_box
+    from infer.transfer import TransferConfig
     from mesh2tex.io.images import load_image, load_mask
+    from mesh2tex.render import crop_square, object_box
 
     cfg = TransferConfig(resolution=resolution)
     size = 2 * resolution

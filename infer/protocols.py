@@ -240,7 +240,8 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
 
     Its ``mask`` (1,1,R,R) is where the shape covers the crop; its ``noc`` is left empty.
     """
-    from infer.transfer import View, crop_square, object_box
+    from infer.transfer import View
+    from mesh2tex.render import crop_square, object_box
     from mesh2tex.io.images import load_mask
     from mesh2tex.render import orbit_camera, rasterize, transform_points
 
@@ -260,7 +261,7 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
 @torch.no_grad()
 def render_at_view(generator, shape: PreparedShape, ws: torch.Tensor, view, resolution: int, device: torch.device) -> torch.Tensor:
     """The texture of ``ws`` on ``shape`` seen at ``view`` (infer.transfer.View), cropped by its box: [1,3,R,R] in [-1,1]."""
-    from infer.transfer import crop_square
+    from mesh2tex.render import crop_square
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.render_texture import render_field_views
 

@@ -26,7 +26,6 @@ Ablations of the paper's Table 8: ``--no-noc`` (patch pairs without NOC guidance
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -45,7 +44,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import interpolate, orbit_camera, rasterize, transform_points
+from mesh2tex.render import crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
 
 
 @dataclass
@@ -105,27 +104,6 @@ class TransferResult:
 
 
 # ------------------------------------------------------------------------------------- the photo
-def object_box(mask: np.ndarray, margin: float) -> tuple[int, int, int]:
-    """(top, left, side) of the square around ``mask`` (H,W bool) with ``margin`` on each side."""
-    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    if rows.size == 0:
-        raise UserError("the object mask is empty")
-    top, bottom, left, right = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    side = int(math.ceil(max(bottom - top, right - left) * (1 + 2 * margin)))
-    return int(round((top + bottom - side) / 2)), int(round((left + right - side) / 2)), side
-
-
-def crop_square(images: torch.Tensor, box: tuple[int, int, int], size: int, fill: float = 0.0) -> torch.Tensor:
-    """images (N,C,H,W) -> (N,C,size,size): the square ``box`` (padded with ``fill`` outside), resized. Differentiable."""
-    top, left, side = box
-    h, w = images.shape[-2:]
-    pad = (max(0, -left), max(0, left + side - w), max(0, -top), max(0, top + side - h))
-    padded = F.pad(images, pad, value=fill)
-    crop = padded[..., top + pad[2] : top + pad[2] + side, left + pad[0] : left + pad[0] + side]
-    mode = "area" if side > size else "bilinear"
-    return F.interpolate(crop, size=(size, size), mode=mode, **({} if mode == "area" else {"align_corners": False}))
-
-
 def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig) -> tuple[Photo, str]:
     """The query photo cropped around its object; also says where the mask came from."""
     rgb, alpha = load_image(image_path)

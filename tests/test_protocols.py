@@ -104,7 +104,7 @@ def test_true_pose_frame_lines_up_with_the_photo(setup):
         exact = SimpleNamespace(vertices=[np.asarray(vertices, np.float32)], triangles=lambda level: faces)
         view = photo_frame_view(exact, query, 48, 0.1)
         photo_mask = torch.from_numpy(np.asarray(load_mask(query.mask))).float()
-        from infer.transfer import crop_square
+        from mesh2tex.render import crop_square
 
         photo_crop = crop_square(photo_mask[None, None], view.box, 48) > 0.5
         covered = view.mask > 0.5

@@ -36,6 +36,26 @@ def test_rendered_views_carry_consistent_ground_truth(shapes_dir):
     assert np.array_equal(views["rgb"], again["rgb"]), "deterministic for a seed"
 
 
+def test_views_are_framed_like_the_query_photo(shapes_dir):
+    """Training views are cropped around the object as 'infer transfer' crops a photo: the object's
+    larger side spans 1 / (1 + 2 margin) of the view, centred, whatever the camera distance."""
+    from mesh2tex.geometry.prepared import PreparedShape
+
+    shape = PreparedShape.load(shapes_dir / "box.npz")
+    margin, size = 0.1, 40
+    cfg = ViewDataConfig(samples=8, views_per_material=4, resolution=size, frame_margin=margin, distance_min=1.2, distance_max=3.0)
+    views = render_view_dataset([shape], cfg, seed=2)
+    for mask, noc in zip(views["mask"] > 127, views["noc"]):
+        rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+        extent = max(rows[-1] + 1 - rows[0], cols[-1] + 1 - cols[0])
+        assert abs(extent - size / (1 + 2 * margin)) <= 2
+        assert abs((rows[0] + rows[-1] + 1) / 2 - size / 2) <= 2 and abs((cols[0] + cols[-1] + 1) / 2 - size / 2) <= 2
+        assert (noc[~mask] == 0).all() and (noc[mask] > 0).any(axis=-1).all(), "NOC on the object only, not darkened to 0"
+    whole = render_view_dataset([shape], ViewDataConfig(samples=4, views_per_material=4, resolution=size, frame_margin=-1.0,
+                                                        distance_min=3.0, distance_max=3.0), seed=2)
+    assert ((whole["mask"] > 127).sum(axis=(1, 2)) < (views["mask"][:4] > 127).sum(axis=(1, 2))).all(), "frame_margin < 0 keeps the far view small"
+
+
 @pytest.mark.parametrize("kind", ["pose", "noc"])
 def test_train_resume_and_load(kind, shapes_dir, tmp_path):
     run = tmp_path / kind

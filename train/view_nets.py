@@ -8,7 +8,9 @@
    (``data.gan_checkpoint``), for a ``data.gan_share`` of the groups, by the trained GAN from a
    random latent (its per-vertex colours of the finest level). Cameras, lights and backgrounds are
    drawn exactly as the synthetic photos are (:func:`mesh2tex.synthetic.world.sample_views`), and
-   the ground truth (azimuth, elevation, NOC map, mask) comes from the rasterizer. The last
+   the ground truth (azimuth, elevation, NOC map, mask) comes from the rasterizer. Each view is
+   cropped to the square around its object (``data.frame_margin``), exactly as ``infer transfer``
+   crops a query photo, so the networks see the same framing in training and at query time. The last
    ``holdout`` share of the groups is never trained on and gives the validation figures in
    ``metrics.jsonl``. The cache is reused only when the data settings, seed and GAN checkpoint
    are those it was rendered with.
@@ -34,9 +36,10 @@ from mesh2tex.io.atomic import atomic_path
 from mesh2tex.nn.noc import NocUNet, noc_error, noc_loss
 from mesh2tex.nn.pose import PoseBins, PoseNet, pose_accuracy, pose_loss
 from mesh2tex.progress import progress_bar
+from mesh2tex.render import crop_square, object_box
 from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.shapes import SyntheticShape
-from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views
+from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views, unit_to_uint8
 from train import runs
 
 VIEWS_NAME = "views.npz"
@@ -55,6 +58,8 @@ class ViewDataConfig:
     distance_min: float = 1.5  # camera distance range (shapes have bbox diagonal 1)
     distance_max: float = 1.9
     fov: float = 40.0  # vertical field of view, degrees
+    frame_margin: float = 0.1  # crop each view to the square around its object with this margin, as 'infer transfer' crops the photo (< 0: keep the whole frame)
+    frame_oversample: int = 2  # render framed views at this multiple of ``resolution`` before cropping
     gan_checkpoint: str = ""  # a 'train gan' checkpoint that textures a share of the groups; '' = procedural materials only
     gan_share: float = 0.5  # share of the view groups textured by the GAN when gan_checkpoint is given
 
@@ -92,6 +97,8 @@ def render_view_dataset(shapes: list[PreparedShape], cfg: ViewDataConfig, seed: 
     meshes = [SyntheticShape(cfg.category, s.vertices[0].astype(np.float64), s.triangles(0),
                              np.zeros(2 * s.face_counts[0], dtype=np.int64)) for s in shapes]
     gan = _GanTextures(cfg.gan_checkpoint, shapes) if cfg.gan_checkpoint else None
+    framed = cfg.frame_margin >= 0
+    size = cfg.resolution * (cfg.frame_oversample if framed else 1)  # rendered side before framing
     groups = -(-cfg.samples // cfg.views_per_material)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("rgb", "mask", "noc", "gan_textured", "azimuth", "elevation")}
     for group in progress_bar(range(groups), desc="render views"):
@@ -101,16 +108,43 @@ def render_view_dataset(shapes: list[PreparedShape], cfg: ViewDataConfig, seed: 
         use_gan = gan is not None and choice.random() < cfg.gan_share
         if use_gan:
             colours = gan.vertex_colours(index, int(choice.integers(1 << 31)))
-            rendered = render_views(meshes[index], None, views, cfg.resolution, cfg.supersample, vertex_colours=colours)
+            rendered = render_views(meshes[index], None, views, size, cfg.supersample, vertex_colours=colours)
         else:
             material = random_material(cfg.category, spec.rng(group, 1))
-            rendered = render_views(meshes[index], material, views, cfg.resolution, cfg.supersample)
+            rendered = render_views(meshes[index], material, views, size, cfg.supersample)
+        if framed:
+            rendered = frame_views(rendered, cfg.frame_margin, cfg.resolution)
         for key in ("rgb", "mask", "noc"):
             parts[key].append(rendered[key])
         parts["gan_textured"].append(np.full(len(views), use_gan, dtype=np.uint8))
         parts["azimuth"].append(np.array([v.azimuth for v in views], dtype=np.float32))
         parts["elevation"].append(np.array([v.elevation for v in views], dtype=np.float32))
     return {k: np.concatenate(v)[: cfg.samples] for k, v in parts.items()}
+
+
+def frame_views(rendered: dict[str, np.ndarray], margin: float, size: int) -> dict[str, np.ndarray]:
+    """Crop rendered views to the square around each object, as a query photo is cropped.
+
+    ``rendered``: uint8 ``rgb`` (B, S, S, 3), ``mask`` (B, S, S) 0/255, ``noc`` (B, S, S, 3) from
+    :func:`mesh2tex.synthetic.world.render_views`. Returns the same keys at side ``size``. The square
+    is :func:`mesh2tex.render.object_box` with ``margin``; outside the image it is white, like the
+    photo crop of ``infer transfer``. NOC is averaged over object pixels only, so the background
+    does not darken it at the silhouette.
+    """
+    out: dict[str, list[np.ndarray]] = {"rgb": [], "mask": [], "noc": []}
+    for rgb, mask, noc in zip(rendered["rgb"], rendered["mask"], rendered["noc"]):
+        covered = mask > 127
+        box = object_box(covered, margin) if covered.any() else (0, 0, mask.shape[0])
+        m = torch.from_numpy(covered)[None, None].float()
+        image = crop_square(torch.from_numpy(rgb).permute(2, 0, 1)[None].float() / 255.0, box, size, fill=1.0)
+        coverage = crop_square(m, box, size)
+        noc_sum = crop_square(torch.from_numpy(noc).permute(2, 0, 1)[None].float() / 255.0 * m, box, size)
+        keep = coverage >= 0.5
+        noc_mean = noc_sum / coverage.clamp_min(1e-6) * keep
+        out["rgb"].append(unit_to_uint8(image[0].permute(1, 2, 0)))
+        out["mask"].append(keep[0, 0].numpy().astype(np.uint8) * 255)
+        out["noc"].append(unit_to_uint8(noc_mean[0].permute(1, 2, 0)))
+    return {k: np.stack(v) for k, v in out.items()}
 
 
 class _GanTextures:

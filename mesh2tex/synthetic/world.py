@@ -183,9 +183,9 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[V
     noc = noc / coverage.clamp_min(1e-6)  # the mean NOC of the covered sub-pixels
     keep = coverage >= 0.5
     return {
-        "rgb": _to_uint8(rgb),
+        "rgb": unit_to_uint8(rgb),
         "mask": (keep[..., 0].numpy().astype(np.uint8) * 255),
-        "noc": _to_uint8(noc * keep),
+        "noc": unit_to_uint8(noc * keep),
     }
 
 
@@ -196,7 +196,8 @@ def _box_down(image: torch.Tensor, factor: int) -> torch.Tensor:
     return torch.nn.functional.avg_pool2d(image.permute(0, 3, 1, 2), factor).permute(0, 2, 3, 1)
 
 
-def _to_uint8(image: torch.Tensor) -> np.ndarray:
+def unit_to_uint8(image: torch.Tensor) -> np.ndarray:
+    """Colours in [0, 1] (any shape) -> uint8 numpy, rounded."""
     return (image.clamp(0, 1) * 255 + 0.5).to(torch.uint8).numpy()
 
 
@@ -285,7 +286,7 @@ def bake_texture(shape: SyntheticShape, material: Material, size: int = 512, pad
         colours = material(points[covered].double().numpy(), normals_per_face[ids].double().numpy(), shape.face_parts[ids.numpy()])
         image[covered] = torch.as_tensor(colours, dtype=torch.float32)
     image = dilate_texture(image.permute(2, 0, 1), covered, padding).permute(1, 2, 0)
-    return BakedMesh(vertices_t.numpy(), faces_t.numpy(), uv_t.numpy(), _to_uint8(image))
+    return BakedMesh(vertices_t.numpy(), faces_t.numpy(), uv_t.numpy(), unit_to_uint8(image))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import html
 import json
+import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -36,8 +37,9 @@ import yaml
 from mesh2tex.cli import main as cli_main
 from mesh2tex.config import load_config, save_config
 from mesh2tex.errors import UserError
-from mesh2tex.io.atomic import write_json, write_text
+from mesh2tex.io.atomic import atomic_path, write_json, write_text
 from mesh2tex.progress import JsonLines
+from train.view_nets import VIEWS_NAME
 
 
 @dataclass
@@ -53,11 +55,11 @@ class DemoConfig:
     gan_resolution: int = 64  # GAN render resolution
     gan_views: int = 4  # views per shape and GAN iteration
     gan_channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first
-    view_samples: int = 384  # rendered views for the pose and NOC networks
+    view_samples: int = 1536  # rendered views for the pose and NOC networks (rendered once, shared by both)
     view_resolution: int = 64  # their input size
     view_width: int = 16  # their channel width
-    pose_iters: int = 1500  # pose network steps
-    noc_iters: int = 200  # NOC network steps
+    pose_iters: int = 2500  # pose network steps
+    noc_iters: int = 400  # NOC network steps
     transfer_resolution: int = 64  # side of the transfer renders
     latent_iters: int = 60  # transfer stage 1 iterations (paper: 100)
     refine_iters: int = 120  # transfer stage 2 iterations (paper: 300)
@@ -130,6 +132,7 @@ def run_pipeline(out: Path, cfg: DemoConfig) -> dict:
     views_yaml = out / "view_nets_config.yaml"
     write_text(views_yaml, yaml.safe_dump({"width": cfg.view_width, "log_every": 25, "checkpoint_every": 100}))
     for kind, iters in (("pose", cfg.pose_iters), ("noc", cfg.noc_iters)):
+        share_views(out / "pose" / VIEWS_NAME, out / kind / VIEWS_NAME)
         seconds[f"train {kind}"] = _stage(f"train {kind}", [
             "train", kind, "--shapes", str(out / "shapes" / "train"), "--out", str(out / kind), "--config", str(views_yaml),
             "--iters", str(iters), "--samples", str(cfg.view_samples), "--resolution", str(cfg.view_resolution),
@@ -145,6 +148,14 @@ def run_pipeline(out: Path, cfg: DemoConfig) -> dict:
             "--resolution", str(cfg.transfer_resolution), "--latent-iters", str(cfg.latent_iters),
             "--refine-iters", str(cfg.refine_iters), "--seed", str(cfg.seed), "--overwrite"], log)
     return seconds
+
+
+def share_views(source: Path, target: Path) -> None:
+    """Let the NOC run start from the pose run's rendered views: both use the same data settings, so
+    'train noc' accepts the cache (it checks the settings fingerprint) instead of rendering again."""
+    if source != target and source.is_file() and not target.exists():
+        with atomic_path(target) as tmp:
+            shutil.copyfile(source, tmp)
 
 
 def pick_query(world: Path, index: int) -> dict:

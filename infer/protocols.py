@@ -48,6 +48,7 @@ import argparse
 import copy
 import json
 import math
+import shutil
 import sys
 import time
 import warnings
@@ -275,10 +276,12 @@ def render_at_view(generator, shape: PreparedShape, ws: torch.Tensor, view, reso
 def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[str, PreparedShape], targets: dict[str, str],
                           vgg, cfg: ProtocolConfig,
                           pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None, extractor, eval_cfg,
-                          distance: float, fov: float, device: torch.device, out: Path | None, log=print) -> dict:
+                          distance: float, fov: float, device: torch.device, out: Path | None, log=print,
+                          cache: "TransferCache | None" = None) -> dict:
     """One transfer protocol (``known_pose``, ``unknown_pose`` or ``other_shape``) with every ablation of ``cfg``.
 
     ``shapes``: the prepared shapes by name; ``targets``: query shape -> the shape ``other_shape`` textures.
+    ``cache``: finished (query, ablation) transfers are stored there and taken from there on a re-run.
 
     Returns {"queries": [per-query setup], "ablations": {name: {"set": metrics, "query": mean metrics,
     "per_query": [...], "seconds": s}}}.
@@ -320,13 +323,22 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             guided = tcfg.use_noc and tcfg.use_patches
             if guided and photo_noc is None:
                 raise UserError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
+            record = runs[ablation]
+            cached = cache.load(protocol, ablation, query.name) if cache is not None else None
+            if cached is not None:  # done by an earlier, interrupted run with the same settings
+                render01, row = cached
+                record["renders"].append(render01)
+                record["masks"].append(judge.mask)
+                record["seconds"] += row["seconds"]
+                record["per_query"].append(row)
+                log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} {ablation}: done earlier (resumed)")
+                continue
             torch.manual_seed(cfg.seed)
             candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
             result = transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
                                       show_progress=False)
             render = result.render if judge is view else render_at_view(candidate, shape, result.ws, judge, cfg.resolution, device)
             render01 = to_unit(render.float()).clamp(0, 1)
-            record = runs[ablation]
             record["renders"].append(render01)
             record["masks"].append(judge.mask)
             seconds = sum(result.seconds.values())
@@ -344,6 +356,8 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             else:
                 row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, judge.mask, photo_mask)[0])
             record["per_query"].append(row)
+            if cache is not None:
+                cache.save(protocol, ablation, query.name, render01, row)
             if out is not None:
                 folder = out / "renders" / protocol / ablation
                 folder.mkdir(parents=True, exist_ok=True)
@@ -362,6 +376,48 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
         ablations[ablation] = {"set": set_metrics, "query": means, "per_query": per_query,
                                "seconds": round(record["seconds"], 2)}
     return {"queries": setups, "ablations": ablations}
+
+
+# ------------------------------------------------------------------------------------------ resume
+class TransferCache:
+    """Finished transfers of a protocol run, so that an interrupted run resumes where it stopped.
+
+    ``DIR/partial/<protocol>/<ablation>/<query>.npz`` holds the render [1,3,R,R] in [0,1] (float32) and
+    the per-query row (JSON) of one transfer; ``DIR/partial/settings.json`` the settings and inputs they
+    were made with. A folder made with other settings is refused rather than mixed; ``--overwrite``
+    starts afresh. The folder is removed once ``protocols.json`` is written.
+    """
+
+    def __init__(self, out: Path, fingerprint: dict, overwrite: bool = False):
+        self.root = out / "partial"
+        settings = self.root / "settings.json"
+        if overwrite and self.root.exists():
+            shutil.rmtree(self.root)
+        if settings.is_file():
+            if json.loads(settings.read_text()) != fingerprint:
+                raise UserError(f"{out}: holds an unfinished protocol run with other settings or inputs ({settings}); "
+                                "use the same command to resume it, or pass --overwrite to start afresh")
+        else:
+            write_json(settings, fingerprint)
+
+    def _path(self, protocol: str, ablation: str, query: str) -> Path:
+        return self.root / protocol / ablation / f"{query}.npz"
+
+    def load(self, protocol: str, ablation: str, query: str) -> tuple[torch.Tensor, dict] | None:
+        path = self._path(protocol, ablation, query)
+        if not path.is_file():
+            return None
+        with np.load(path, allow_pickle=False) as data:
+            return torch.from_numpy(data["render"]), json.loads(str(data["row"]))
+
+    def save(self, protocol: str, ablation: str, query: str, render01: torch.Tensor, row: dict) -> None:
+        from mesh2tex.io.atomic import atomic_path
+
+        with atomic_path(self._path(protocol, ablation, query)) as tmp:
+            np.savez(tmp, render=render01.float().numpy(), row=np.array(json.dumps(row)))
+
+    def remove(self) -> None:
+        shutil.rmtree(self.root, ignore_errors=True)
 
 
 # ------------------------------------------------------------------------------------- comparison
@@ -397,8 +453,27 @@ def compare_to_full(ablations: dict) -> dict:
         other = scored_metrics(entry)
         margin = {m: (full[m] - other[m]) * metric_direction(m.split(" ", 1)[1]) for m in full if m in other}
         comparison[name] = {"full_better": {m: d > 0 for m, d in margin.items()}, "wins": sum(d > 0 for d in margin.values()),
-                            "ties": sum(d == 0 for d in margin.values()), "metrics": len(margin)}
+                            "ties": sum(d == 0 for d in margin.values()), "metrics": len(margin),
+                            "query_wins": paired_query_wins(ablations["full"].get("per_query", []), entry.get("per_query", []))}
     return comparison
+
+
+def paired_query_wins(full_rows: list[dict], other_rows: list[dict]) -> dict[str, list[int]]:
+    """Per metric, [queries where the full method is strictly better, queries compared]: the paired view
+    of the same queries, less sensitive than a mean to one query's large margin."""
+    others = {row["query"]: row for row in other_rows}
+    wins: dict[str, list[int]] = {}
+    for row in full_rows:
+        other = others.get(row["query"])
+        if other is None:
+            continue
+        for metric in (*HIGHER_IS_BETTER, "color_hist_tv"):
+            if metric in row and metric in other:
+                direction = metric_direction(metric)
+                count = wins.setdefault(metric, [0, 0])
+                count[0] += int((row[metric] - other[metric]) * direction > 0)
+                count[1] += 1
+    return wins
 
 
 # ----------------------------------------------------------------------------------------- report
@@ -458,7 +533,9 @@ def protocols_markdown(result: dict) -> str:
             lines.append("")
             lines.append(f"Full method better than {ABLATION_TITLES[ablation]} on {c['wins']} of {c['metrics']} metrics"
                          + (f", {c['ties']} tied" if c["ties"] else "")
-                         + (f" (not better on: {', '.join(lost)})." if lost else "."))
+                         + (f" (not better on: {', '.join(lost)})." if lost else ".")
+                         + ("" if not c.get("query_wins") else " Per query, full better on "
+                            + ", ".join(f"{m} in {w} of {n}" for m, (w, n) in c["query_wins"].items()) + "."))
         lines.append("")
     return "\n".join(lines) + "\n"
 
@@ -471,9 +548,12 @@ def _uint8(image01: torch.Tensor):
 # ------------------------------------------------------------------------------------------- entry
 def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint: str | Path,
                   pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None, cfg: ProtocolConfig,
-                  out: Path | None = None, log=print) -> dict:
+                  out: Path | None = None, log=print, overwrite: bool = False) -> dict:
     """Run the protocols of ``cfg`` and return the result dict (also written as ``protocols.json`` /
-    ``protocols.md`` when ``out`` is given, with the renders under ``out/renders``)."""
+    ``protocols.md`` when ``out`` is given, with the renders under ``out/renders``).
+
+    With ``out``, finished transfers are kept in ``out/partial`` until the end, so re-running the same
+    command after an interruption resumes (:class:`TransferCache`); ``overwrite`` discards them."""
     from infer.evaluate import EvaluateConfig, _json_value
     from infer.generate import load_generator, load_shape
     from mesh2tex.metrics import get_feature_extractor
@@ -517,8 +597,12 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     notes = sorted({str(w.message) for w in caught})
     for note in notes:
         print(f"mesh2tex: warning: {note}", file=sys.stderr)
+    cache = None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+        inputs = {"world": str(Path(world_dir).resolve()), "shapes": str(Path(shapes_dir).resolve()),
+                  "gan": _file_digest(gan_checkpoint), "pose": _file_digest(pose_checkpoint), "noc": _file_digest(noc_checkpoint)}
+        cache = TransferCache(out, {"settings": _json_safe(asdict(cfg)), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
               "noc_checkpoint": str(noc_checkpoint) if noc_checkpoint else None,
@@ -531,7 +615,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
             entry = run_unconditional(generator, world, shapes, cfg, extractor, eval_cfg, distance, fov, device, out)
         else:
             entry = run_transfer_protocol(protocol, generator, world, shapes, targets, vgg, cfg, pose_checkpoint,
-                                          noc_checkpoint, extractor, eval_cfg, distance, fov, device, out, log)
+                                          noc_checkpoint, extractor, eval_cfg, distance, fov, device, out, log, cache)
             result["comparison"][protocol] = compare_to_full(entry["ablations"])
         entry["seconds"] = round(time.perf_counter() - t, 2)
         result["protocols"][protocol] = entry
@@ -540,7 +624,24 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     if out is not None:
         write_json(out / "protocols.json", _json_value(result))
         write_text(out / "protocols.md", protocols_markdown(result))
+    if cache is not None:
+        cache.remove()
     return result
+
+
+def _file_digest(path: str | Path | None) -> str | None:
+    """SHA-256 prefix of a file's bytes (None for None): the identity of a checkpoint, wherever it lies."""
+    import hashlib
+
+    if path is None:
+        return None
+    if not Path(path).is_file():
+        raise UserError(f"{path}: checkpoint not found")
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
+def _json_safe(value):
+    return json.loads(json.dumps(value))
 
 
 def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
@@ -581,7 +682,7 @@ def run_protocols_command(args: argparse.Namespace) -> int:
     if (out / "protocols.json").exists() and not args.overwrite:
         raise UserError(f"{out}: already holds protocol results (protocols.json); pass --overwrite to replace them")
     result = run_protocols(args.world, args.shapes, args.gan, args.pose_checkpoint, args.noc_checkpoint, cfg, out,
-                           log=lambda line: print(line, flush=True))
+                           log=lambda line: print(line, flush=True), overwrite=args.overwrite)
     print(protocols_markdown(result), end="")
     print(f"wrote {out / 'protocols.json'} and {out / 'protocols.md'} ({result['seconds']:.0f} s)")
     return 0

@@ -21,6 +21,9 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     stages = [json.loads(line)["stage"] for line in (out / "demo_log.jsonl").read_text().splitlines()]
     assert stages[:2] == ["prepare synthetic", "prepare shapes (train)"]
     iteration = read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"]
+    pose_views, noc_views = np.load(out / "pose" / "views.npz"), np.load(out / "noc" / "views.npz")
+    assert str(noc_views["fingerprint"]) == str(pose_views["fingerprint"]), "the NOC run trains on the pose run's views"
+    assert pose_views["gan_textured"].any(), "some training views are textured by the demo's GAN"
 
     assert main(["demo", "--out", str(out), "--quick"]) == 0, "a second run resumes from what is there"
     assert read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"] == iteration

@@ -13,8 +13,8 @@ import yaml
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
-from infer.protocols import (ABLATIONS, PROTOCOLS, compare_to_full, load_world, other_shape_name, photo_frame_view,
-                             protocols_markdown)
+from infer.protocols import (ABLATIONS, PROTOCOLS, compare_to_full, load_world, other_shape_name, paired_query_wins,
+                             photo_frame_view, protocols_markdown)
 from mesh2tex.io.images import load_mask
 from conftest import TINY_GAN as TINY
 
@@ -123,6 +123,42 @@ def test_comparison_counts_wins_by_each_metrics_direction():
     assert c["full_better"] == {"set kid_randvgg": True, "set swd": False, "query psnr_masked": False,
                                 "query ssim_masked": True, "query color_hist_tv": True}
     assert (c["wins"], c["ties"], c["metrics"]) == (3, 1, 5)
+
+
+def test_paired_query_wins_compare_the_same_queries():
+    full = [{"query": "a", "psnr_masked": 20.0, "color_hist_tv": 0.2}, {"query": "b", "psnr_masked": 18.0, "color_hist_tv": 0.5}]
+    other = [{"query": "b", "psnr_masked": 17.0, "color_hist_tv": 0.5}, {"query": "a", "psnr_masked": 21.0, "color_hist_tv": 0.3}]
+    assert paired_query_wins(full, other) == {"psnr_masked": [1, 2], "color_hist_tv": [1, 2]}
+
+
+def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tmp_path, monkeypatch):
+    import infer.transfer
+
+    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "no_weights"))
+    root, _ = setup
+    out = tmp_path / "eval"
+    args = protocol_args(root, out, "--only", "known_pose", "--ablations", "full,no_refine")
+    real, calls = infer.transfer.transfer_texture, []
+
+    def interrupted(*a, **k):
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(infer.transfer, "transfer_texture", interrupted)
+    assert main(args) == 130, "Ctrl-C stops the run with the shell's interrupt status"
+    assert len(list((out / "partial").rglob("*.npz"))) == 3 and not (out / "protocols.json").exists()
+    changed = protocol_args(root, out, "--only", "known_pose", "--ablations", "full,no_refine", "--seed", "5")
+    assert main(changed) == 2, "a partial run with other settings is not mixed with a new one"
+
+    counted = []
+    monkeypatch.setattr(infer.transfer, "transfer_texture", lambda *a, **k: counted.append(1) or real(*a, **k))
+    assert main(args) == 0
+    assert len(counted) == 1, "only the transfer that had not finished runs again (2 queries x 2 ablations - 3)"
+    result = json.loads((out / "protocols.json").read_text())
+    assert all(len(a["per_query"]) == 2 for a in result["protocols"]["known_pose"]["ablations"].values())
+    assert not (out / "partial").exists(), "the partial results are removed once the run is written"
 
 
 def test_other_shape_is_never_the_query_shape():

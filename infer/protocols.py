@@ -380,24 +380,28 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
 
 # ------------------------------------------------------------------------------------------ resume
 class TransferCache:
-    """Finished transfers of a protocol run, so that an interrupted run resumes where it stopped.
+    """Finished transfers of protocol runs into one folder: an interrupted run resumes where it stopped,
+    and a run with more queries or ablations redoes none of the transfers already made.
 
-    ``DIR/partial/<protocol>/<ablation>/<query>.npz`` holds the render [1,3,R,R] in [0,1] (float32) and
-    the per-query row (JSON) of one transfer; ``DIR/partial/settings.json`` the settings and inputs they
-    were made with. A folder made with other settings is refused rather than mixed; ``--overwrite``
-    starts afresh. The folder is removed once ``protocols.json`` is written.
+    ``DIR/transfers/<protocol>/<ablation>/<query>.npz`` holds the render [1,3,R,R] in [0,1] (float32)
+    and the per-query row (JSON) of one transfer; ``DIR/transfers/settings.json`` what they were made
+    with: every setting that changes a transfer (not the choice of protocols, ablations or number of
+    queries) and the digests of the checkpoints. Transfers made with other settings are never mixed
+    in: the run is refused, or with ``--overwrite`` they are discarded. Because each transfer is its
+    own file, a long run can be split across processes into the same folder (``--ablations full``
+    in one, ``--ablations no_noc`` in another...); one more run with every ablation then only builds
+    the tables.
     """
 
     def __init__(self, out: Path, fingerprint: dict, overwrite: bool = False):
-        self.root = out / "partial"
+        self.root = out / "transfers"
         settings = self.root / "settings.json"
-        if overwrite and self.root.exists():
+        if settings.is_file() and json.loads(settings.read_text()) != fingerprint:
+            if not overwrite:
+                raise UserError(f"{out}: holds transfers made with other settings or checkpoints ({settings}); "
+                                "use the same settings to reuse them, or pass --overwrite to discard them")
             shutil.rmtree(self.root)
-        if settings.is_file():
-            if json.loads(settings.read_text()) != fingerprint:
-                raise UserError(f"{out}: holds an unfinished protocol run with other settings or inputs ({settings}); "
-                                "use the same command to resume it, or pass --overwrite to start afresh")
-        else:
+        if not settings.is_file():
             write_json(settings, fingerprint)
 
     def _path(self, protocol: str, ablation: str, query: str) -> Path:
@@ -415,9 +419,6 @@ class TransferCache:
 
         with atomic_path(self._path(protocol, ablation, query)) as tmp:
             np.savez(tmp, render=render01.float().numpy(), row=np.array(json.dumps(row)))
-
-    def remove(self) -> None:
-        shutil.rmtree(self.root, ignore_errors=True)
 
 
 # ------------------------------------------------------------------------------------- comparison
@@ -552,8 +553,9 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     """Run the protocols of ``cfg`` and return the result dict (also written as ``protocols.json`` /
     ``protocols.md`` when ``out`` is given, with the renders under ``out/renders``).
 
-    With ``out``, finished transfers are kept in ``out/partial`` until the end, so re-running the same
-    command after an interruption resumes (:class:`TransferCache`); ``overwrite`` discards them."""
+    With ``out``, every finished transfer is kept in ``out/transfers`` (:class:`TransferCache`), so
+    re-running after an interruption resumes and a wider run reuses them; ``overwrite`` discards
+    transfers made with other settings instead of refusing the run."""
     from infer.evaluate import EvaluateConfig, _json_value
     from infer.generate import load_generator, load_shape
     from mesh2tex.metrics import get_feature_extractor
@@ -602,7 +604,9 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         out.mkdir(parents=True, exist_ok=True)
         inputs = {"world": str(Path(world_dir).resolve()), "shapes": str(Path(shapes_dir).resolve()),
                   "gan": _file_digest(gan_checkpoint), "pose": _file_digest(pose_checkpoint), "noc": _file_digest(noc_checkpoint)}
-        cache = TransferCache(out, {"settings": _json_safe(asdict(cfg)), "inputs": inputs}, overwrite)
+        selection = ("protocols", "ablations", "queries")  # which transfers run, not how each one runs
+        settings = {k: v for k, v in asdict(cfg).items() if k not in selection}
+        cache = TransferCache(out, {"settings": _json_safe(settings), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
               "noc_checkpoint": str(noc_checkpoint) if noc_checkpoint else None,
@@ -624,8 +628,6 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     if out is not None:
         write_json(out / "protocols.json", _json_value(result))
         write_text(out / "protocols.md", protocols_markdown(result))
-    if cache is not None:
-        cache.remove()
     return result
 
 

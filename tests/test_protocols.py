@@ -148,9 +148,9 @@ def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tm
 
     monkeypatch.setattr(infer.transfer, "transfer_texture", interrupted)
     assert main(args) == 130, "Ctrl-C stops the run with the shell's interrupt status"
-    assert len(list((out / "partial").rglob("*.npz"))) == 3 and not (out / "protocols.json").exists()
+    assert len(list((out / "transfers").rglob("*.npz"))) == 3 and not (out / "protocols.json").exists()
     changed = protocol_args(root, out, "--only", "known_pose", "--ablations", "full,no_refine", "--seed", "5")
-    assert main(changed) == 2, "a partial run with other settings is not mixed with a new one"
+    assert main(changed) == 2, "transfers made with other settings are not mixed with new ones"
 
     counted = []
     monkeypatch.setattr(infer.transfer, "transfer_texture", lambda *a, **k: counted.append(1) or real(*a, **k))
@@ -158,7 +158,12 @@ def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tm
     assert len(counted) == 1, "only the transfer that had not finished runs again (2 queries x 2 ablations - 3)"
     result = json.loads((out / "protocols.json").read_text())
     assert all(len(a["per_query"]) == 2 for a in result["protocols"]["known_pose"]["ablations"].values())
-    assert not (out / "partial").exists(), "the partial results are removed once the run is written"
+
+    wider = protocol_args(root, out, "--only", "known_pose", "--ablations", "full,no_refine,no_noc", "--overwrite")
+    assert main(wider) == 0
+    assert len(counted) == 3, "a run with one more ablation makes only that ablation's transfers"
+    result = json.loads((out / "protocols.json").read_text())
+    assert set(result["comparison"]["known_pose"]) == {"no_refine", "no_noc"}
 
 
 def test_other_shape_is_never_the_query_shape():

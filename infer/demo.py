@@ -6,7 +6,8 @@ Stages (each one resumes: re-running the command after an interruption continues
 2. ``shapes/``      ``prepare shapes``: quad hierarchies of the training shapes (``train/``) and of
                     the held-out query shapes (``query/``)
 3. ``gan/``         ``train gan`` on the training shapes and the photos
-4. ``pose/ noc/``   ``train pose`` and ``train noc`` on renders of the training shapes
+4. ``pose/ noc/``   ``train pose`` and ``train noc`` on one set of rendered views of the training
+                    shapes (half textured by the GAN of step 3, half by procedural materials)
 5. ``transfer/``    ``infer transfer``: a held-out mesh textured after a held-out query photo, pose
                     and NOC predicted by the networks
 6. ``metrics.json`` the transferred asset (the GLB itself, rendered at the query's true pose)

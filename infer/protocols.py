@@ -325,46 +325,41 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                 raise UserError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
             record = runs[ablation]
             cached = cache.load(protocol, ablation, query.name) if cache is not None else None
-            if cached is not None:  # done by an earlier, interrupted run with the same settings
+            if cached is not None:  # made by an earlier run into this folder with the same settings
                 render01, row = cached
-                record["renders"].append(render01)
-                record["masks"].append(judge.mask)
-                record["seconds"] += row["seconds"]
-                record["per_query"].append(row)
-                log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} {ablation}: done earlier (resumed)")
-                continue
-            torch.manual_seed(cfg.seed)
-            candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
-            result = transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
-                                      show_progress=False)
-            render = result.render if judge is view else render_at_view(candidate, shape, result.ws, judge, cfg.resolution, device)
-            render01 = to_unit(render.float()).clamp(0, 1)
+            else:
+                torch.manual_seed(cfg.seed)
+                candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
+                result = transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
+                                          show_progress=False)
+                render = result.render if judge is view else render_at_view(candidate, shape, result.ws, judge, cfg.resolution, device)
+                render01 = to_unit(render.float()).clamp(0, 1)
+                row = {"query": query.name, "loss_last": {k: v[-1] for k, v in result.losses.items() if v},
+                       "seconds": round(sum(result.seconds.values()), 2)}
+                if exact:
+                    # Pixels both silhouettes cover: the prepared (remeshed) shape may lose thin parts.
+                    both = judge.mask * photo_mask
+                    if both.sum() < 16:
+                        raise UserError(f"{query.image}: the shape at the true pose and the photo share almost no object pixels")
+                    row["psnr_masked"] = float(masked_psnr(render01, photo01, both)[0])
+                    row["ssim_masked"] = float(masked_ssim(render01, photo01, both)[0])
+                    row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, both)[0])
+                    row["silhouette_iou"] = round(float(both.sum() / ((judge.mask + photo_mask) > 0).sum()), 4)
+                else:
+                    row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, judge.mask, photo_mask)[0])
+                if cache is not None:
+                    cache.save(protocol, ablation, query.name, render01, row)
             record["renders"].append(render01)
             record["masks"].append(judge.mask)
-            seconds = sum(result.seconds.values())
-            record["seconds"] += seconds
-            row = {"query": query.name, "loss_last": {k: v[-1] for k, v in result.losses.items() if v}, "seconds": round(seconds, 2)}
-            if exact:
-                # Pixels both silhouettes cover: the prepared (remeshed) shape may lose thin parts.
-                both = judge.mask * photo_mask
-                if both.sum() < 16:
-                    raise UserError(f"{query.image}: the shape at the true pose and the photo share almost no object pixels")
-                row["psnr_masked"] = float(masked_psnr(render01, photo01, both)[0])
-                row["ssim_masked"] = float(masked_ssim(render01, photo01, both)[0])
-                row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, both)[0])
-                row["silhouette_iou"] = round(float(both.sum() / ((judge.mask + photo_mask) > 0).sum()), 4)
-            else:
-                row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, judge.mask, photo_mask)[0])
+            record["seconds"] += row["seconds"]
             record["per_query"].append(row)
-            if cache is not None:
-                cache.save(protocol, ablation, query.name, render01, row)
             if out is not None:
                 folder = out / "renders" / protocol / ablation
                 folder.mkdir(parents=True, exist_ok=True)
                 save_png(folder / f"{query.name}.png", _uint8(on_white(render01, judge.mask)[0]))
             log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {target} {ablation}: "
                 + ", ".join(f"{k} {row[k]:.4g}" for k in ("psnr_masked", "ssim_masked", "color_hist_tv") if k in row)
-                + f" ({seconds:.0f} s)")
+                + (" (made earlier, reused)" if cached is not None else f" ({row['seconds']:.0f} s)"))
     photo_set = on_white(torch.cat(photos), torch.cat(photo_masks))
     ablations = {}
     for ablation, record in runs.items():

@@ -56,6 +56,8 @@ class DemoConfig:
     gan_resolution: int = 64  # GAN render resolution
     gan_views: int = 4  # views per shape and GAN iteration
     gan_channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first
+    gan_discriminator_base: int = 1024  # discriminator width: min(base / resolution, 128) channels (library default 2048)
+    gan_lr_field: float = 0.0012  # psi's learning rate (library default and paper 1e-4, over 50k iterations)
     view_samples: int = 1536  # rendered views for the pose and NOC networks (rendered once, shared by both)
     view_resolution: int = 64  # their input size
     view_width: int = 16  # their channel width
@@ -102,7 +104,8 @@ def _gan_config(cfg: DemoConfig) -> dict:
     if len(channels) != cfg.levels:
         raise UserError(f"gan_channels has {len(channels)} entries, the demo's hierarchy has {cfg.levels} levels")
     gan = {"sample_every": 0, "checkpoint_every": 50, "log_every": 10,
-           "generator": {"encoder_channels": channels, "synthesis_channels": channels}}
+           "generator": {"encoder_channels": channels, "synthesis_channels": channels},
+           "discriminator": {"channel_base": cfg.gan_discriminator_base}, "optim": {"lr_field": cfg.gan_lr_field}}
     if cfg.tiny_networks:
         gan["generator"].update({"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "field_hidden": 16, "aux_latent_dim": 8})
         gan["discriminator"] = {"channel_base": 64, "channel_max": 16}
@@ -255,10 +258,10 @@ def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
     results = {}
     for name, generator in (("trained", trained), ("untrained", untrained)):
         ws = generator.mapping(z)
-        renders = render_field_views(generator, batch, ws, mvp, (res, res), torch.ones(len(shapes) * k, 3), noise_mode="none").images
-        renders = ((renders + 1) / 2).clamp(0, 1)
-        metrics = evaluate_sets(renders, images, config=EvaluateConfig(resolution=res, kid_subset_size=50))["metrics"]
-        results[name] = {k_: v for k_, v in metrics.items() if k_.startswith("swd") or k_ == "color_hist_tv"}
+        rendered = render_field_views(generator, batch, ws, mvp, (res, res), torch.ones(len(shapes) * k, 3), noise_mode="none")
+        renders = ((rendered.images + 1) / 2).clamp(0, 1)
+        results[name] = evaluate_sets(renders, images, config=EvaluateConfig(resolution=res), render_masks=rendered.mask.float(),
+                                      image_masks=(masks > 0.5).float(), kid_fid=False)["metrics"]
     return results
 
 
@@ -311,7 +314,7 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
 <h2>Generation (GAN renders of the training shapes against the photo collection)</h2>
 {table(gen_rows, ("metric", "trained generator", "untrained generator"))}
 <p>swd: sliced Wasserstein distance on Laplacian-pyramid patches (x1e3, lower is better);
-color_hist_tv: total-variation distance of colour histograms (lower is better).</p>
+color_hist_tv: total-variation distance of the colour histograms of object pixels (lower is better).</p>
 {''.join(f'<img src="gan/samples/{esc(p.name)}" width="256">' for p in samples[-1:])}
 <h2>Timings (seconds, each stage summed over every run of the demo in this folder)</h2>{table(time_rows, ("stage", "seconds"))}
 <p>Transfer stages: {esc(json.dumps(transfer['seconds']))}</p>

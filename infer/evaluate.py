@@ -67,33 +67,59 @@ class EvaluateConfig:
 
 
 def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: FeatureExtractor | None = None,
-                  config: EvaluateConfig | None = None) -> dict:
+                  config: EvaluateConfig | None = None, render_masks: torch.Tensor | None = None,
+                  image_masks: torch.Tensor | None = None, kid_fid: bool = True) -> dict:
     """Unpaired metrics between renders [N, 3, H, W] and images [M, 3, H, W], both float in [0, 1], same H, W.
 
     ``extractor``: KID/FID features (default: ``get_feature_extractor(config.features)``; metric
-    names carry its suffix, e.g. ``kid_randvgg``). Returns {"metrics": {name: value},
-    "features": description, "counts": {"renders": N, "images": M}}. KID has a ``<name>_std`` entry
-    (spread over subsets); SWD has one entry per pyramid level (``swd_<side>px``).
+    names carry its suffix, e.g. ``kid_randvgg``). ``render_masks`` [N, 1, H, W] and ``image_masks``
+    [M, 1, H, W] (1 on the object): with both, the colour histograms pool object pixels only
+    (``color_hist_tv``); without, every pixel, background included, and the metric is named
+    ``color_hist_tv_whole_image`` (it then also measures how much of each image the object covers).
+    KID, FID and SWD always see the whole images (objects on their background, as in the paper).
+    ``kid_fid=False`` skips KID and FID (and the feature network, most of the cost; ``features`` is None).
+    Returns {"metrics": {name: value}, "features": description, "counts": {"renders": N, "images": M}}.
+    KID has a ``<name>_std`` entry (spread over subsets); SWD has one entry per pyramid level (``swd_<side>px``).
     """
     config = config or EvaluateConfig()
     if renders.shape[0] < 2 or images.shape[0] < 2:
         raise UserError(f"set metrics need at least 2 renders and 2 images (got {renders.shape[0]} and {images.shape[0]})")
-    extractor = extractor or get_feature_extractor(config.features)
-    features_renders = extractor(renders * 2 - 1)
-    features_images = extractor(images * 2 - 1)
-    kid_mean, kid_std = kid(features_images, features_renders, config.kid_subsets, config.kid_subset_size, config.seed)
-    metrics = {
-        extractor.metric_name("kid"): kid_mean,
-        extractor.metric_name("kid") + "_std": kid_std,
-        extractor.metric_name("fid"): fid(features_images, features_renders),
-    }
+    metrics: dict[str, float] = {}
+    if kid_fid:
+        extractor = extractor or get_feature_extractor(config.features)
+        features_renders = extractor(renders * 2 - 1)
+        features_images = extractor(images * 2 - 1)
+        kid_mean, kid_std = kid(features_images, features_renders, config.kid_subsets, config.kid_subset_size, config.seed)
+        metrics[extractor.metric_name("kid")] = kid_mean
+        metrics[extractor.metric_name("kid") + "_std"] = kid_std
+        metrics[extractor.metric_name("fid")] = fid(features_images, features_renders)
     metrics.update(swd_per_level(images, renders, config.swd_patches_per_image, num_projections=config.swd_projections,
                                  repeats=config.swd_repeats, seed=config.seed))
-    pooled_renders = color_histograms(renders, bins=config.histogram_bins).mean(0)
-    pooled_images = color_histograms(images, bins=config.histogram_bins).mean(0)
-    metrics["color_hist_tv"] = float(0.5 * (pooled_renders - pooled_images).abs().sum())
-    return {"metrics": metrics, "features": extractor.description,
+    metrics.update(pooled_histogram_distance(renders, images, render_masks, image_masks, config.histogram_bins))
+    return {"metrics": metrics, "features": extractor.description if kid_fid else None,
             "counts": {"renders": int(renders.shape[0]), "images": int(images.shape[0])}}
+
+
+def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, render_masks: torch.Tensor | None,
+                              image_masks: torch.Tensor | None, bins: int) -> dict[str, float]:
+    """TV distance between the colour histograms of two sets, each pooled as one distribution of pixels:
+    {"color_hist_tv": d} over object pixels when both sets have masks, else {"color_hist_tv_whole_image": d}.
+
+    Pooling counts every object pixel once (a large object weighs more than a small one), so the
+    distance compares the colours of the two sets, not of single images."""
+    if render_masks is None or image_masks is None:
+        name, render_masks, image_masks = "color_hist_tv_whole_image", None, None
+    else:
+        name = "color_hist_tv"
+        if render_masks.sum() == 0 or image_masks.sum() == 0:
+            raise UserError("set colour histograms: one of the sets has no object pixel (all masks empty)")
+
+    def pooled(x: torch.Tensor, masks: torch.Tensor | None) -> torch.Tensor:
+        weights = torch.ones_like(x[:, :1]) if masks is None else masks.to(x.dtype)
+        counts = color_histograms(x, weights, bins) * weights.sum(dim=(1, 2, 3)).double()[:, None]
+        return counts.sum(0) / counts.sum()
+
+    return {name: float(0.5 * (pooled(renders, render_masks) - pooled(images, image_masks)).abs().sum())}
 
 
 def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Tensor | None = None,
@@ -124,7 +150,8 @@ METRIC_MEANINGS = {
     "kid": "Kernel Inception Distance (FID Inception-v3 features), lower is better",
     "fid": "Frechet Inception Distance (FID Inception-v3 features), lower is better",
     "swd": "sliced Wasserstein distance x1e3 on Laplacian-pyramid 7x7 patches, mean over levels, lower is better",
-    "color_hist_tv": "total-variation distance of joint RGB histograms, 0 (same colours) to 1, lower is better",
+    "color_hist_tv": "total-variation distance of joint RGB histograms of object pixels, 0 (same colours) to 1, lower is better",
+    "color_hist_tv_whole_image": "the same over every pixel, background included (no masks given), lower is better",
     "psnr_masked": "PSNR in dB over the mask, higher is better",
     "ssim_masked": "SSIM over the mask, 1 is identical",
 }
@@ -206,9 +233,12 @@ def _mask_for(stem: str, alpha: torch.Tensor | None, masks: dict[str, Path] | No
     return None if alpha is None else (alpha > 0.5).float()
 
 
-def load_set(folder: str | Path, what: str, resolution: int, background: float, masks: dict[str, Path] | None = None) -> torch.Tensor:
-    """All images of ``folder`` as [N, 3, R, R] in [0, 1], masked-out pixels set to ``background``."""
-    images = []
+def load_set(folder: str | Path, what: str, resolution: int, background: float,
+             masks: dict[str, Path] | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """All images of ``folder`` as [N, 3, R, R] in [0, 1], masked-out pixels set to ``background``, and
+    their object masks [N, 1, R, R] (0/1) when every image has one (a ``masks`` file or an alpha
+    channel), else None."""
+    images, object_masks = [], []
     for stem, path in list_images(folder, what).items():
         rgb, alpha = load_image(path)
         mask = _mask_for(stem, alpha, masks)
@@ -216,8 +246,9 @@ def load_set(folder: str | Path, what: str, resolution: int, background: float, 
             if mask.shape[-2:] != rgb.shape[-2:]:
                 raise UserError(f"{masks[stem] if masks and stem in masks else path}: mask size {tuple(mask.shape[-2:])} differs from the image's {tuple(rgb.shape[-2:])}")
             rgb = rgb * mask + background * (1 - mask)
+            object_masks.append((square_resize(mask.reshape(1, *mask.shape[-2:]), resolution) > 0.5).float())
         images.append(square_resize(rgb, resolution))
-    return torch.stack(images)
+    return torch.stack(images), (torch.stack(object_masks) if len(object_masks) == len(images) else None)
 
 
 def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str, Path] | None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, list[str]]:
@@ -329,14 +360,14 @@ def run(args: argparse.Namespace) -> int:
         mode = "pairs"
     else:
         background = BACKGROUNDS[config.background]
-        renders = load_set(args.renders, "render", config.resolution, background)
-        images = load_set(args.images, "image", config.resolution, background, masks)
+        renders, render_masks = load_set(args.renders, "render", config.resolution, background)
+        images, image_masks = load_set(args.images, "image", config.resolution, background, masks)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             extractor = get_feature_extractor(config.features, args.inception_weights, args.vgg_weights, device)
         for warning in caught:
             print(f"mesh2tex: warning: {warning.message}", file=sys.stderr)
-        result = evaluate_sets(renders, images, extractor, config)
+        result = evaluate_sets(renders, images, extractor, config, render_masks, image_masks)
         mode = "sets"
     result = {"mode": mode, "renders": str(args.renders), "images": str(args.images), "masks": args.masks,
               **result, "seconds": round(time.perf_counter() - start, 2), "settings": asdict(config)}

@@ -185,8 +185,9 @@ def on_white(images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
 @torch.no_grad()
 def unconditional_renders(generator, shapes: list[PreparedShape], latents: int, views: int, resolution: int,
                           distance: float, fov: float, elevations: tuple[float, float], seed: int,
-                          device: torch.device) -> torch.Tensor:
-    """Renders [len(shapes) * latents * views, 3, R, R] in [0, 1] on white of random latents.
+                          device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """Renders [len(shapes) * latents * views, 3, R, R] in [0, 1] on white of random latents, and
+    their object masks [same N, 1, R, R] (0/1).
 
     Views of one latent: azimuths evenly spaced (offset by the latent), elevations evenly across
     ``elevations`` (degrees); latent seeds ``seed * 1000 + k``.
@@ -196,7 +197,7 @@ def unconditional_renders(generator, shapes: list[PreparedShape], latents: int, 
     from mesh2tex.nn.render_texture import render_field_views
     from mesh2tex.render import orbit_camera
 
-    renders = []
+    renders, masks = [], []
     for s, shape in enumerate(shapes):
         batch = collate_shapes([shape]).to(device)
         encoded = generator.encoder(batch)
@@ -208,7 +209,8 @@ def unconditional_renders(generator, shapes: list[PreparedShape], latents: int, 
             out = render_field_views(generator, batch, ws, mvp, (resolution, resolution), torch.ones(views, 3, device=device),
                                      encoded=encoded, noise_mode="none")
             renders.append(to_unit(out.images.float()).clamp(0, 1).cpu())
-    return torch.cat(renders)
+            masks.append(out.mask.float().cpu())
+    return torch.cat(renders), torch.cat(masks)
 
 
 def run_unconditional(generator, world: World, shapes: dict[str, PreparedShape], cfg: ProtocolConfig, extractor,
@@ -220,10 +222,10 @@ def run_unconditional(generator, world: World, shapes: dict[str, PreparedShape],
     settings = world.index.get("settings", {})
     elevations = (float(settings.get("elevation_min", 5.0)), float(settings.get("elevation_max", 35.0)))
     held_out = [shapes[name] for name in world.query_shapes]
-    renders = unconditional_renders(generator, held_out, cfg.latents, cfg.views, cfg.resolution, distance, fov,
-                                    elevations, cfg.seed, device)
-    photos = load_set(world.root / "images", "image", cfg.resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
-    result = evaluate_sets(renders, photos, extractor, eval_cfg)
+    renders, render_masks = unconditional_renders(generator, held_out, cfg.latents, cfg.views, cfg.resolution, distance, fov,
+                                                  elevations, cfg.seed, device)
+    photos, photo_masks = load_set(world.root / "images", "image", cfg.resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+    result = evaluate_sets(renders, photos, extractor, eval_cfg, render_masks, photo_masks)
     if out is not None:
         folder = out / "renders" / "unconditional"
         folder.mkdir(parents=True, exist_ok=True)
@@ -367,7 +369,8 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
         per_query = record["per_query"]
         means = {k: sum(r[k] for r in per_query) / len(per_query) for k in ("psnr_masked", "ssim_masked", "color_hist_tv")
                  if k in per_query[0]}
-        set_metrics = evaluate_sets(render_set, photo_set, extractor, eval_cfg)["metrics"] if len(per_query) >= 2 else {}
+        set_metrics = (evaluate_sets(render_set, photo_set, extractor, eval_cfg, torch.cat(record["masks"]), torch.cat(photo_masks))["metrics"]
+                       if len(per_query) >= 2 else {})
         ablations[ablation] = {"set": set_metrics, "query": means, "per_query": per_query,
                                "seconds": round(record["seconds"], 2)}
     return {"queries": setups, "ablations": ablations}

@@ -155,7 +155,9 @@ def test_evaluate_command_sets_and_pairs(tmp_path, monkeypatch, capsys):
     assert "mesh2tex: warning: no Inception-v3 weights found" in capsys.readouterr().err
     result = json.loads((out / "metrics.json").read_text())
     assert result["mode"] == "sets" and result["counts"] == {"renders": 6, "images": 6}
-    assert {"kid_randvgg", "fid_randvgg", "swd", "color_hist_tv"} <= set(result["metrics"])
+    # The photos have neither alpha nor --masks: their histogram can only pool whole images, and says so.
+    assert {"kid_randvgg", "fid_randvgg", "swd", "color_hist_tv_whole_image"} <= set(result["metrics"])
+    assert "color_hist_tv" not in result["metrics"]
     assert "kid" not in result["metrics"] and "fid" not in result["metrics"]
     assert "| kid_randvgg |" in (out / "metrics.md").read_text()
     assert main(args) == 2  # refuses to overwrite
@@ -166,6 +168,47 @@ def test_evaluate_command_sets_and_pairs(tmp_path, monkeypatch, capsys):
     result = json.loads((pairs_out / "metrics.json").read_text())
     assert result["metrics"]["psnr_masked"] == "inf" and result["metrics"]["ssim_masked"] == pytest.approx(1.0)
     assert len(result["per_pair"]) == 6
+
+
+def test_set_colour_histograms_compare_object_pixels_not_backgrounds():
+    from infer.evaluate import pooled_histogram_distance
+
+    def objects(colour, side, n=3):
+        """n white 32x32 images with a centred square of ``colour`` and ``side`` pixels, and its masks."""
+        images, masks = torch.ones(n, 3, 32, 32), torch.zeros(n, 1, 32, 32)
+        lo = (32 - side) // 2
+        images[:, :, lo:lo + side, lo:lo + side] = torch.tensor(colour).reshape(1, 3, 1, 1)
+        masks[:, :, lo:lo + side, lo:lo + side] = 1
+        return images, masks
+
+    small_red, small_mask = objects([0.8, 0.1, 0.1], 8)
+    large_red, large_mask = objects([0.8, 0.1, 0.1], 24)
+    large_blue, blue_mask = objects([0.1, 0.1, 0.8], 24)
+    # Same object colour, different object sizes: only the whole-image variant sees a difference.
+    assert pooled_histogram_distance(small_red, large_red, small_mask, large_mask, 8) == {"color_hist_tv": pytest.approx(0.0)}
+    assert pooled_histogram_distance(small_red, large_red, None, large_mask, 8)["color_hist_tv_whole_image"] > 0.4
+    # Disjoint object colours are as far apart as histograms get, however much white surrounds them.
+    assert pooled_histogram_distance(large_red, large_blue, large_mask, blue_mask, 8) == {"color_hist_tv": pytest.approx(1.0)}
+    assert pooled_histogram_distance(small_red, large_blue, small_mask, blue_mask, 8) == {"color_hist_tv": pytest.approx(1.0)}
+    with pytest.raises(UserError, match="no object pixel"):
+        pooled_histogram_distance(large_red, large_blue, torch.zeros_like(large_mask), blue_mask, 8)
+
+
+def test_evaluate_sets_without_kid_fid_skips_the_feature_network(monkeypatch):
+    import infer.evaluate as evaluate
+
+    def no_network(*args, **kwargs):
+        raise AssertionError("the feature network was built")
+
+    monkeypatch.setattr(evaluate, "get_feature_extractor", no_network)
+    generator = torch.Generator().manual_seed(0)
+    renders, images = torch.rand(4, 3, 32, 32, generator=generator), torch.rand(5, 3, 32, 32, generator=generator)
+    masks = torch.ones(4, 1, 32, 32), torch.ones(5, 1, 32, 32)
+    result = evaluate.evaluate_sets(renders, images, config=evaluate.EvaluateConfig(resolution=32), render_masks=masks[0],
+                                    image_masks=masks[1], kid_fid=False)
+    assert result["features"] is None
+    assert not any(name.startswith(("kid", "fid")) for name in result["metrics"])
+    assert {"swd", "color_hist_tv"} <= set(result["metrics"])
 
 
 def test_evaluate_names_a_bad_file(tmp_path, capsys):

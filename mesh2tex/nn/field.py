@@ -76,10 +76,12 @@ class NeuralField(nn.Module):
     """psi: (blended feature (P, C), barycentrics (P, 3)) -> colour (P, 3), nominally in [-1, 1].
 
     The output layer is linear (as StyleGAN's toRGB): values may leave [-1, 1] slightly during
-    training; files clamp them.
+    training; files clamp them. ``output_init`` scales that layer's initial weights: at 1 the fresh
+    MLP maps every point to one saturated colour (mean +-1.9 per channel over seeds), which a
+    short run at the paper's small psi learning rate cannot undo; at 0.1 training starts from grey.
     """
 
-    def __init__(self, feature_dim: int, hidden: int = 128, aux_dim: int = 512, coords: str = "raw"):
+    def __init__(self, feature_dim: int, hidden: int = 128, aux_dim: int = 512, coords: str = "raw", output_init: float = 1.0):
         super().__init__()
         if coords not in COORDINATE_MODES:
             raise ValueError(f"unknown coordinate mode {coords!r}; expected one of {COORDINATE_MODES}")
@@ -95,6 +97,8 @@ class NeuralField(nn.Module):
             FullyConnected(hidden, hidden, activation="lrelu"),
             FullyConnected(hidden, 3),
         )
+        with torch.no_grad():
+            self.head[-1].weight.mul_(output_init)
 
     def forward(self, features: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
         """features: (P, C) blended vertex features, bary: (P, 3) -> (P, 3) RGB."""

@@ -37,6 +37,7 @@ class GeneratorConfig:
     field_hidden: int = 128  # width of the neural field MLP
     aux_latent_dim: int = 512  # size of the learnt auxiliary latent of psi
     field_coords: str = "raw"  # local coordinates of psi: raw (barycentrics) or sorted_cdf
+    field_output_init: float = 0.1  # initial weight scale of psi's output layer (1 starts from saturated colours)
     conv_clamp: float = 256.0  # clamp of synthesis activations (keeps mixed precision finite)
 
     @property
@@ -136,7 +137,7 @@ class TextureGenerator(nn.Module):
             blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
         self.synthesis = nn.ModuleList(blocks)
         self.field_dim = cfg.synthesis_channels[0] + cfg.encoder_channels[0]
-        self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords)
+        self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords, cfg.field_output_init)
 
     def synthesize(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random") -> FaceTexture:
         """Per-face texture for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim), one row per shape.

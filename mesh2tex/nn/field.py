@@ -77,8 +77,9 @@ class NeuralField(nn.Module):
 
     The output layer is linear (as StyleGAN's toRGB): values may leave [-1, 1] slightly during
     training; files clamp them. ``output_init`` scales that layer's initial weights: at 1 the fresh
-    MLP maps every point to one saturated colour (mean +-1.9 per channel over seeds), which a
-    short run at the paper's small psi learning rate cannot undo; at 0.1 training starts from grey.
+    MLP maps every point to one saturated colour (its mean reaches +-1.9 per channel for some
+    seeds), which a short run at the paper's small psi learning rate cannot undo; at 0.1 training
+    starts from grey.
     """
 
     def __init__(self, feature_dim: int, hidden: int = 128, aux_dim: int = 512, coords: str = "raw", output_init: float = 1.0):

@@ -253,6 +253,7 @@ def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
     photos = load_images(out / "world", res)  # (N, 4, R, R) uint8, RGB + mask
     images = photos[:, :3].float() / 255
     masks = photos[:, 3:].float() / 255
+    object_masks = (masks > 0.5).float()
     images = images * masks + (1 - masks)  # white background, as the renders below
     z = torch.randn(len(shapes), trained.cfg.z_dim, generator=rng)
     results = {}
@@ -261,7 +262,7 @@ def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
         rendered = render_field_views(generator, batch, ws, mvp, (res, res), torch.ones(len(shapes) * k, 3), noise_mode="none")
         renders = ((rendered.images + 1) / 2).clamp(0, 1)
         results[name] = evaluate_sets(renders, images, config=EvaluateConfig(resolution=res), render_masks=rendered.mask.float(),
-                                      image_masks=(masks > 0.5).float(), kid_fid=False)["metrics"]
+                                      image_masks=object_masks, kid_fid=False)["metrics"]
     return results
 
 

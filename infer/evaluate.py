@@ -115,9 +115,10 @@ def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, rende
             raise UserError("set colour histograms: one of the sets has no object pixel (all masks empty)")
 
     def pooled(x: torch.Tensor, masks: torch.Tensor | None) -> torch.Tensor:
-        weights = torch.ones_like(x[:, :1]) if masks is None else masks.to(x.dtype)
-        counts = color_histograms(x, weights, bins) * weights.sum(dim=(1, 2, 3)).double()[:, None]
-        return counts.sum(0) / counts.sum()
+        def stacked(t: torch.Tensor) -> torch.Tensor:  # [N, C, H, W] -> one [1, C, N*H, W] image
+            return t.transpose(0, 1).reshape(1, t.shape[1], -1, t.shape[-1])
+
+        return color_histograms(stacked(x), None if masks is None else stacked(masks), bins)[0]
 
     return {name: float(0.5 * (pooled(renders, render_masks) - pooled(images, image_masks)).abs().sum())}
 

@@ -362,14 +362,16 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {target} {ablation}: "
                 + ", ".join(f"{k} {row[k]:.4g}" for k in ("psnr_masked", "ssim_masked", "color_hist_tv") if k in row)
                 + (" (made earlier, reused)" if cached is not None else f" ({row['seconds']:.0f} s)"))
-    photo_set = on_white(torch.cat(photos), torch.cat(photo_masks))
+    photo_mask_set = torch.cat(photo_masks)
+    photo_set = on_white(torch.cat(photos), photo_mask_set)
     ablations = {}
     for ablation, record in runs.items():
-        render_set = on_white(torch.cat(record["renders"]), torch.cat(record["masks"]))
+        render_mask_set = torch.cat(record["masks"])
+        render_set = on_white(torch.cat(record["renders"]), render_mask_set)
         per_query = record["per_query"]
         means = {k: sum(r[k] for r in per_query) / len(per_query) for k in ("psnr_masked", "ssim_masked", "color_hist_tv")
                  if k in per_query[0]}
-        set_metrics = (evaluate_sets(render_set, photo_set, extractor, eval_cfg, torch.cat(record["masks"]), torch.cat(photo_masks))["metrics"]
+        set_metrics = (evaluate_sets(render_set, photo_set, extractor, eval_cfg, render_mask_set, photo_mask_set)["metrics"]
                        if len(per_query) >= 2 else {})
         ablations[ablation] = {"set": set_metrics, "query": means, "per_query": per_query,
                                "seconds": round(record["seconds"], 2)}

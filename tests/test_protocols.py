@@ -13,7 +13,7 @@ import yaml
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
-from infer.protocols import (ABLATIONS, PROTOCOLS, compare_to_full, load_world, other_shape_name, paired_query_wins,
+from infer.protocols import (ABLATIONS, PROTOCOLS, compare_to_full, load_world, other_shape_name, paired_query_tests, paired_query_wins,
                              photo_frame_view, protocols_markdown)
 from mesh2tex.io.images import load_mask
 from conftest import TINY_GAN as TINY
@@ -129,6 +129,21 @@ def test_paired_query_wins_compare_the_same_queries():
     full = [{"query": "a", "psnr_masked": 20.0, "color_hist_tv": 0.2}, {"query": "b", "psnr_masked": 18.0, "color_hist_tv": 0.5}]
     other = [{"query": "b", "psnr_masked": 17.0, "color_hist_tv": 0.5}, {"query": "a", "psnr_masked": 21.0, "color_hist_tv": 0.3}]
     assert paired_query_wins(full, other) == {"psnr_masked": [1, 2], "color_hist_tv": [1, 2]}
+
+
+def test_paired_tests_separate_a_consistent_advantage_from_noise():
+    names = [f"q{i}" for i in range(8)]
+    other = [{"query": n, "psnr_masked": 15.0 + i, "color_hist_tv": 0.5} for i, n in enumerate(names)]
+    # Better on every query (higher PSNR, lower histogram distance): the smallest exact p of 8 pairs, 2/256.
+    better = [{"query": n, "psnr_masked": 15.5 + i + 0.1 * i, "color_hist_tv": 0.4} for i, n in enumerate(names)]
+    tests = paired_query_tests(better, other)
+    assert tests["psnr_masked"]["p_wilcoxon"] < 0.01 and tests["psnr_masked"]["mean_difference"] > 0
+    assert tests["color_hist_tv"]["p_wilcoxon"] < 0.01 and abs(tests["color_hist_tv"]["mean_difference"] - 0.1) < 1e-9
+    # Wins and losses of matched sizes: no evidence either way.
+    mixed = [{"query": n, "psnr_masked": 15.0 + i + (1.0 if i % 2 else -1.0), "color_hist_tv": 0.5} for i, n in enumerate(names)]
+    tests = paired_query_tests(mixed, other)
+    assert tests["psnr_masked"]["p_wilcoxon"] > 0.5 and tests["psnr_masked"]["mean_difference"] == 0
+    assert tests["color_hist_tv"]["p_wilcoxon"] is None  # every difference is 0
 
 
 def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tmp_path, monkeypatch):

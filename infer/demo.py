@@ -15,7 +15,7 @@ Stages (each one resumes: re-running the command after an interruption continues
                     same measure for the untrained generator
 7. ``report.html``  everything above on one page
 
-The defaults are a CPU budget (about 20 minutes on 2 cores), far below the paper's training
+The defaults are a CPU budget (about 18 minutes on 2 cores), far below the paper's training
 (50k iterations on two GPUs): the figures show the pipeline working, not the method's ceiling.
 ``--config YAML`` changes any field of :class:`DemoConfig`.
 """

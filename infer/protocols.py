@@ -448,16 +448,17 @@ def compare_to_full(ablations: dict) -> dict:
     if "full" not in ablations:
         return {}
     full = scored_metrics(ablations["full"])
+    full_rows = ablations["full"].get("per_query", [])
     comparison = {}
     for name, entry in ablations.items():
         if name == "full":
             continue
         other = scored_metrics(entry)
+        other_rows = entry.get("per_query", [])
         margin = {m: (full[m] - other[m]) * metric_direction(m.split(" ", 1)[1]) for m in full if m in other}
         comparison[name] = {"full_better": {m: d > 0 for m, d in margin.items()}, "wins": sum(d > 0 for d in margin.values()),
                             "ties": sum(d == 0 for d in margin.values()), "metrics": len(margin),
-                            "query_wins": paired_query_wins(ablations["full"].get("per_query", []), entry.get("per_query", [])),
-                            "query_tests": paired_query_tests(ablations["full"].get("per_query", []), entry.get("per_query", []))}
+                            "query_wins": paired_query_wins(full_rows, other_rows), "query_tests": paired_query_tests(full_rows, other_rows)}
     return comparison
 
 

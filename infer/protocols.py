@@ -89,6 +89,7 @@ class ProtocolConfig:
     refine_iters: int = 300  # transfer stage 2 iterations (paper: 300)
     patch_size: int = 32  # style patch side at ``resolution`` (paper: 64 px patches in larger crops)
     scales: int = 2  # style-loss pyramid levels (paper: 3; 2 keeps a 16 px coarsest level for 32 px patches)
+    patch_scales: int = 0  # pyramid levels of the patch loss alone (0: ``scales``)
     latents: int = 4  # unconditional: random latents per held-out shape
     views: int = 6  # unconditional: orbit views per latent (paper: 6)
     features: str = "auto"  # KID/FID features: auto, inception, tvinception, vgg or randvgg
@@ -292,7 +293,8 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     from infer.transfer import TransferConfig, load_photo, predict_noc, predict_pose, transfer_texture, view_at_pose
 
     base = TransferConfig(resolution=cfg.resolution, latent_iters=cfg.latent_iters, refine_iters=cfg.refine_iters,
-                          patch_size=cfg.patch_size, scales=cfg.scales, seed=cfg.seed, device=str(device), vgg_weights=cfg.vgg_weights)
+                          patch_size=cfg.patch_size, scales=cfg.scales, patch_scales=cfg.patch_scales, seed=cfg.seed,
+                          device=str(device), vgg_weights=cfg.vgg_weights)
     exact = protocol in ("known_pose", "unknown_pose")
     setups, runs = [], {a: {"renders": [], "masks": [], "per_query": [], "seconds": 0.0} for a in cfg.ablations}
     photos, photo_masks = [], []
@@ -527,7 +529,8 @@ def protocols_markdown(result: dict) -> str:
     s = result["settings"]
     lines.append(f"World `{result['world']}`, GAN `{result['gan']}`; {result['counts']['queries']} queries; "
                  f"transfer {s['latent_iters']} + {s['refine_iters']} iterations at {s['resolution']} px, "
-                 f"patches {s['patch_size']} px. KID is shown x1e2. KID/FID features: {result['features']}.")
+                 f"style scales {s.get('scales', '?')}, patches {s['patch_size']} px at {s.get('patch_scales') or s.get('scales', '?')} "
+                 f"scales. KID is shown x1e2. KID/FID features: {result['features']}.")
     lines.append("")
     if "unconditional" in result["protocols"]:
         entry = result["protocols"]["unconditional"]
@@ -607,6 +610,11 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     if cfg.latent_iters < 0 or cfg.refine_iters < 0:
         raise UserError("--latent-iters and --refine-iters must not be negative")
     transfers = [p for p in cfg.protocols if p in TRANSFER_PROTOCOLS]
+    if transfers:
+        from infer.transfer import TransferConfig, check_style_sizes
+
+        check_style_sizes(TransferConfig(resolution=cfg.resolution, patch_size=cfg.patch_size, scales=cfg.scales,
+                                         patch_scales=cfg.patch_scales))
     if any(p != "known_pose" for p in transfers) and not pose_checkpoint:
         raise UserError("the unknown_pose and other_shape protocols need --pose-checkpoint (from 'mesh2tex train pose')")
     if transfers and any(ABLATIONS[a].get("use_noc", True) and ABLATIONS[a].get("use_patches", True) for a in cfg.ablations) \
@@ -642,6 +650,8 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
                   "gan": _file_digest(gan_checkpoint), "pose": _file_digest(pose_checkpoint), "noc": _file_digest(noc_checkpoint)}
         selection = ("protocols", "ablations", "queries")  # which transfers run, not how each one runs
         settings = {k: v for k, v in asdict(cfg).items() if k not in selection}
+        if not settings["patch_scales"]:  # 0 means "as scales": folders made before the field existed still match
+            del settings["patch_scales"]
         cache = TransferCache(out, {"settings": _json_safe(settings), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,

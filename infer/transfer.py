@@ -57,6 +57,7 @@ class TransferConfig:
     w_glob: float = 1.0  # weight of the global style loss
     w_patch: float = 1.0  # weight of the patch style loss
     scales: int = 3  # resolution levels of both style losses (paper: 3)
+    patch_scales: int = 0  # resolution levels of the patch loss alone (0: ``scales``; 2 lets 32 px patches keep a 16 px coarsest level)
     patches: int = 2  # patch pairs per iteration (paper: 2)
     patch_size: int = 64  # side of a patch in pixels (paper: 64)
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
@@ -213,6 +214,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         photo_grams = style_grams(vgg, photo_image, photo_mask, cfg.scales)
     grey = torch.zeros(1, 3, device=device)
     pick = torch.Generator().manual_seed(cfg.seed)
+    patch_scales = cfg.patch_scales or cfg.scales
 
     def render(ws: torch.Tensor) -> torch.Tensor:
         full = render_field_views(generator, batch, ws, view.mvp.to(device), (view.render_size,) * 2, grey,
@@ -225,7 +227,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
             parts["global"] = cfg.w_glob * global_style_loss(vgg, image, render_mask, target_grams=photo_grams, scales=cfg.scales)
         if cfg.use_patches:
             pairs = sample_patch_pairs(photo_mask[0, 0], render_mask[0, 0], cfg.patches, photo_noc, render_noc, guided=guided, generator=pick)
-            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, cfg.scales)
+            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, patch_scales)
         total = sum(parts.values())
         return total, {k: float(v.detach()) for k, v in parts.items()}
 
@@ -347,15 +349,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace the results already in --out")
 
 
+def check_style_sizes(cfg: TransferConfig) -> None:
+    """UserError unless the crop and the patches keep 16 pixels at the coarsest level of their style losses."""
+    if cfg.scales < 1 or cfg.patch_scales < 0:
+        raise UserError(f"scales {cfg.scales}, patch_scales {cfg.patch_scales}: scales must be at least 1, patch_scales at least 0")
+    smallest = 16 * 2 ** (cfg.scales - 1)
+    if cfg.resolution < smallest:
+        raise UserError(f"--resolution {cfg.resolution}: must be at least {smallest} for {cfg.scales} style scales")
+    patch_scales = cfg.patch_scales or cfg.scales
+    patch = min(cfg.patch_size, cfg.resolution)  # a patch is clipped to the crop
+    if cfg.use_patches and patch < 16 * 2 ** (patch_scales - 1):
+        raise UserError(f"patch_size {cfg.patch_size}: a patch of {patch} px keeps fewer than 16 px at its "
+                        f"{patch_scales} style scales; use larger patches or fewer patch_scales")
+
+
 def build_config(args) -> TransferConfig:
     overrides = {"resolution": args.resolution, "latent_iters": args.latent_iters, "refine_iters": args.refine_iters,
                  "device": args.device, "seed": args.seed, "vgg_weights": args.vgg_weights,
                  "use_noc": False if args.no_noc else None, "use_patches": False if args.no_patches else None,
                  "refine": False if args.no_refine else None}
     cfg = load_config(TransferConfig, args.config, overrides)
-    smallest = 16 * 2 ** (cfg.scales - 1)  # the coarsest style scale must keep 16 pixels
-    if cfg.resolution < smallest:
-        raise UserError(f"--resolution {cfg.resolution}: must be at least {smallest} for {cfg.scales} style scales")
+    check_style_sizes(cfg)
     if cfg.latent_iters < 0 or cfg.refine_iters < 0:
         raise UserError("--latent-iters and --refine-iters must not be negative")
     return cfg

@@ -284,6 +284,10 @@ def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics
     pose = transfer["pose"]
     pose_rows = [("true (query sidecar)", fmt(query["azimuth"]), fmt(query["elevation"])),
                  (f"used ({pose['source']})", fmt(pose["azimuth"]), fmt(pose["elevation"]))]
+    if "network" in pose:  # the silhouette search ran: show what the network alone said, and both silhouette IoUs
+        pose_rows.append(("pose network alone", fmt(pose["network"][0]), fmt(pose["network"][1])))
+    pose_note = (f"<p>Silhouette IoU with the photo's mask: {fmt(pose['silhouette_iou'])} at the used pose, "
+                 f"{fmt(pose['network_silhouette_iou'])} at the network's.</p>" if "network" in pose else "")
     t = metrics["transfer"]
     transfer_rows = [(name, fmt(t["transfer"][name]), fmt(t["flat_mean_colour_texture"][name])) for name in t["transfer"]]
     g = metrics["generation"]
@@ -309,7 +313,7 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
 <p>Files: <a href="transfer/textured.glb">textured.glb</a> (opens in Blender), <a href="transfer/textured.ply">textured.ply</a>,
 <a href="transfer/report.json">report.json</a>.</p>
 {vgg_note}
-<h2>Pose</h2>{table(pose_rows, ("", "azimuth", "elevation"))}
+<h2>Pose</h2>{table(pose_rows, ("", "azimuth", "elevation"))}{pose_note}
 <h2>Transfer metrics (exact geometry, predicted pose; the GLB at the true pose against the photo)</h2>
 {table(transfer_rows, ("metric", "mesh2tex transfer", "flat texture of the photo's mean colour"))}
 <h2>Generation (GAN renders of the training shapes against the photo collection)</h2>

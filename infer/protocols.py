@@ -90,6 +90,7 @@ class ProtocolConfig:
     patch_size: int = 32  # style patch side at ``resolution`` (paper: 64 px patches in larger crops)
     scales: int = 2  # style-loss pyramid levels (paper: 3; 2 keeps a 16 px coarsest level for 32 px patches)
     patch_scales: int = 0  # pyramid levels of the patch loss alone (0: ``scales``)
+    pose_search: bool = True  # unknown_pose, other_shape: silhouette search around the pose network's answer (as infer transfer)
     latents: int = 4  # unconditional: random latents per held-out shape
     views: int = 6  # unconditional: orbit views per latent (paper: 6)
     features: str = "auto"  # KID/FID features: auto, inception, tvinception, vgg or randvgg
@@ -290,11 +291,11 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     "per_query": [...], "seconds": s}}}.
     """
     from infer.evaluate import evaluate_sets
-    from infer.transfer import TransferConfig, load_photo, predict_noc, predict_pose, transfer_texture, view_at_pose
+    from infer.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, transfer_texture, view_at_pose
 
     base = TransferConfig(resolution=cfg.resolution, latent_iters=cfg.latent_iters, refine_iters=cfg.refine_iters,
                           patch_size=cfg.patch_size, scales=cfg.scales, patch_scales=cfg.patch_scales, seed=cfg.seed,
-                          device=str(device), vgg_weights=cfg.vgg_weights)
+                          pose_search=cfg.pose_search, device=str(device), vgg_weights=cfg.vgg_weights)
     exact = protocol in ("known_pose", "unknown_pose")
     setups, runs = [], {a: {"renders": [], "masks": [], "per_query": [], "seconds": 0.0} for a in cfg.ablations}
     photos, photo_masks = [], []
@@ -303,10 +304,12 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
         photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
         target = query.shape if exact else targets[query.shape]
         shape = shapes[target]
+        network_pose = None
         if protocol == "known_pose":
             azimuth, elevation, dist, view_fov = query.azimuth, query.elevation, query.distance, query.fov
         else:
-            azimuth, elevation = predict_pose(pose_checkpoint, photo, device)
+            estimate = estimate_pose(pose_checkpoint, shape, photo, distance, fov, base, device)
+            azimuth, elevation, network_pose = estimate.azimuth, estimate.elevation, estimate.network
             dist, view_fov = distance, fov
         view = view_at_pose(shape, azimuth, elevation, dist, view_fov, base)
         # Exact geometry is judged at the true camera, pixel-aligned with the photo (also when the texture
@@ -316,6 +319,8 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
         setups.append({"query": query.name, "shape": target, "azimuth": round(azimuth, 3), "elevation": round(elevation, 3),
                        "true_azimuth": query.azimuth, "true_elevation": query.elevation,
                        "azimuth_error": round(azimuth_error, 3), "elevation_error": round(abs(elevation - query.elevation), 3)})
+        if network_pose is not None and cfg.pose_search:
+            setups[-1]["network_azimuth_error"] = round(abs((network_pose[0] - query.azimuth + 180.0) % 360.0 - 180.0), 3)
         photo01, photo_mask = to_unit(photo.image).clamp(0, 1), photo.mask
         photos.append(photo01)
         photo_masks.append(photo_mask)
@@ -565,8 +570,11 @@ def protocols_markdown(result: dict) -> str:
             lines.append(f"| {ABLATION_TITLES[ablation]} | " + " | ".join(cells) + f" | {ablations[ablation]['seconds']:.0f} |")
         errors = [q["azimuth_error"] for q in entry["queries"]]
         if protocol != "known_pose":
-            lines += ["", f"Pose network: mean azimuth error {sum(errors) / len(errors):.1f} deg, "
-                          f"mean elevation error {sum(q['elevation_error'] for q in entry['queries']) / len(errors):.1f} deg."]
+            searched = [q["network_azimuth_error"] for q in entry["queries"] if "network_azimuth_error" in q]
+            how = "Pose network + silhouette search" if searched else "Pose network"
+            lines += ["", f"{how}: mean azimuth error {sum(errors) / len(errors):.1f} deg, "
+                          f"mean elevation error {sum(q['elevation_error'] for q in entry['queries']) / len(errors):.1f} deg"
+                          + (f" (the network's bins alone: mean azimuth error {sum(searched) / len(searched):.1f} deg)." if searched else ".")]
         for ablation, c in result["comparison"].get(protocol, {}).items():
             lost = [m for m, better in c["full_better"].items() if not better]
             lines.append("")
@@ -650,8 +658,10 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
                   "gan": _file_digest(gan_checkpoint), "pose": _file_digest(pose_checkpoint), "noc": _file_digest(noc_checkpoint)}
         selection = ("protocols", "ablations", "queries")  # which transfers run, not how each one runs
         settings = {k: v for k, v in asdict(cfg).items() if k not in selection}
-        if not settings["patch_scales"]:  # 0 means "as scales": folders made before the field existed still match
-            del settings["patch_scales"]
+        # Settings that do what the runs before these fields did are left out: their folders still match.
+        for key, default in (("patch_scales", 0), ("pose_search", False)):
+            if settings[key] == default:
+                del settings[key]
         cache = TransferCache(out, {"settings": _json_safe(settings), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,

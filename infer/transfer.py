@@ -42,6 +42,7 @@ from mesh2tex.io.images import load_image, load_mask, save_png
 from mesh2tex.losses.style import global_style_loss, patch_style_loss, sample_patch_pairs, style_grams
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
+from mesh2tex.nn.pose import PoseBins
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
@@ -64,6 +65,9 @@ class TransferConfig:
     use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
     refine: bool = True  # stage 2 (False: the "w/o surface features" ablation)
     margin: float = 0.1  # crop margin around the object, as a share of its larger side
+    pose_search: bool = True  # --pose auto: pick the pose whose silhouette best matches the photo's mask (False: the network's bin centres, as the paper)
+    pose_search_step: float = 10.0  # azimuth spacing of the silhouette search in degrees (then one finer pass at half of it)
+    pose_search_elevations: int = 2  # elevation bins searched: the network's most likely ones
     render_oversample: float = 1.5  # render at this multiple of ``resolution`` before cropping to the object
     turntable_frames: int = 12  # frames of turntable.gif
     texture_size: int = 1024  # side of the baked UV texture in textured.glb
@@ -144,12 +148,109 @@ def parse_pose(text: str) -> tuple[float, float] | None:
 @torch.no_grad()
 def predict_pose(checkpoint: str | Path, photo: Photo, device: torch.device) -> tuple[float, float]:
     """Azimuth and elevation (degrees, bin centres) of the photo by the pose network."""
+    return pose_network_beliefs(checkpoint, photo, device).most_likely()
+
+
+@dataclass
+class PoseBeliefs:
+    """The pose network's softmax over its bins for one photo: azimuth [A], elevation [E] float32 (CPU)."""
+
+    bins: PoseBins
+    azimuth: torch.Tensor
+    elevation: torch.Tensor
+
+    def most_likely(self) -> tuple[float, float]:
+        """Centres (degrees) of the most likely azimuth and elevation bins."""
+        return (float(self.bins.bin_to_azimuth(int(self.azimuth.argmax()))),
+                float(self.bins.bin_to_elevation(int(self.elevation.argmax()))))
+
+
+@torch.no_grad()
+def pose_network_beliefs(checkpoint: str | Path, photo: Photo, device: torch.device) -> PoseBeliefs:
+    """The pose network's bin probabilities for the photo."""
     from train.view_nets import load_view_network
 
     net, cfg = load_view_network(checkpoint, "pose", device)
-    image = _network_input(photo, cfg.data.resolution, device)
-    prediction = net.predict(image)
-    return float(prediction["azimuth"][0]), float(prediction["elevation"][0])
+    azimuth_logits, elevation_logits = net(_network_input(photo, cfg.data.resolution, device))
+    return PoseBeliefs(net.bins, F.softmax(azimuth_logits, 1)[0].float().cpu(), F.softmax(elevation_logits, 1)[0].float().cpu())
+
+
+@torch.no_grad()
+def silhouette_iou(shape: PreparedShape, photo_mask: torch.Tensor, azimuths: torch.Tensor, elevations: torch.Tensor,
+                   distance: float, fov: float, margin: float, size: int = 64, batch: int = 24) -> torch.Tensor:
+    """IoU of the photo's object mask with the mesh's silhouette at each pose, both cropped alike.
+
+    photo_mask (1,1,R,R) {0,1}, already cropped around the object with ``margin``; azimuths,
+    elevations [N] degrees. Each silhouette is rasterized, cropped around itself with the same
+    margin (so the camera distance does not matter) and compared at ``size`` x ``size``. Returns [N].
+    """
+    target = (F.interpolate(photo_mask.float().cpu(), size=(size, size), mode="area")[0, 0] > 0.5)
+    vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
+    triangles = torch.as_tensor(shape.triangles(0))
+    render = int(round(size * 1.5))
+    scores = []
+    for start in range(0, azimuths.shape[0], batch):
+        camera = orbit_camera(azimuths[start:start + batch].float(), elevations[start:start + batch].float(), distance=distance, fov=fov)
+        covered = (rasterize(transform_points(vertices, camera.mvp), triangles, (render, render)).face_id >= 0).numpy()
+        for view in covered:
+            if view.sum() < 4:
+                scores.append(0.0)
+                continue
+            crop = crop_square(torch.from_numpy(view)[None, None].float(), object_box(view, margin), size)[0, 0] > 0.5
+            scores.append(float((crop & target).sum()) / max(float((crop | target).sum()), 1.0))
+    return torch.tensor(scores)
+
+
+@dataclass
+class PoseEstimate:
+    """Where the camera is (degrees) and how it was found; ``network``: the pose network's own bin centres."""
+
+    azimuth: float
+    elevation: float
+    source: str
+    network: tuple[float, float] | None = None
+    silhouette_iou: float | None = None  # of the chosen pose
+    network_silhouette_iou: float | None = None  # of the network's own pose
+
+
+def search_pose(shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distance: float, fov: float,
+                cfg: TransferConfig) -> PoseEstimate:
+    """The pose whose silhouette best matches the photo's mask (render and compare).
+
+    The pose network proposes the elevations (the centres of its ``pose_search_elevations`` most
+    likely bins); every azimuth ``pose_search_step`` degrees apart is tried with each, then the
+    best one's neighbours at half the step in both angles. Silhouettes tell a chair's front from its
+    back where the network, trained on few shapes, often does not (docs/transfer.md has figures);
+    on ties the network's more likely bin wins.
+    """
+    bins, step = beliefs.bins, float(cfg.pose_search_step)
+
+    def best_of(azimuths: torch.Tensor, elevations: torch.Tensor) -> tuple[float, float, float]:
+        iou = silhouette_iou(shape, photo.mask, azimuths, elevations, distance, fov, cfg.margin)
+        prior = beliefs.azimuth[bins.azimuth_to_bin(azimuths)] * beliefs.elevation[bins.elevation_to_bin(elevations)]
+        best = int(torch.argmax(iou + 1e-6 * prior))  # the prior only breaks ties
+        return float(azimuths[best]), float(elevations[best]), float(iou[best])
+
+    order = beliefs.elevation.argsort(descending=True)[:max(1, cfg.pose_search_elevations)]
+    elevations = bins.bin_to_elevation(order).float()
+    azimuths = torch.arange(0.0, 360.0, step)
+    best_az, best_el, _ = best_of(azimuths.repeat(len(elevations)), elevations.repeat_interleave(len(azimuths)))
+    offsets = torch.tensor([-0.5, 0.0, 0.5]) * step
+    best_az, best_el, best_iou = best_of((best_az + offsets).repeat(3) % 360.0, (best_el + offsets).repeat_interleave(3))
+    network = beliefs.most_likely()
+    network_iou = float(silhouette_iou(shape, photo.mask, torch.tensor([network[0]]), torch.tensor([network[1]]),
+                                       distance, fov, cfg.margin)[0])
+    return PoseEstimate(best_az, best_el, "pose network + silhouette search", network, round(best_iou, 4), round(network_iou, 4))
+
+
+def estimate_pose(checkpoint: str | Path, shape: PreparedShape, photo: Photo, distance: float, fov: float,
+                  cfg: TransferConfig, device: torch.device) -> PoseEstimate:
+    """``--pose auto``: the pose network's bins, refined by :func:`search_pose` unless ``cfg.pose_search`` is off."""
+    beliefs = pose_network_beliefs(checkpoint, photo, device)
+    if cfg.pose_search:
+        return search_pose(shape, photo, beliefs, distance, fov, cfg)
+    azimuth, elevation = beliefs.most_likely()
+    return PoseEstimate(azimuth, elevation, "pose network", (azimuth, elevation))
 
 
 @torch.no_grad()
@@ -343,6 +444,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-noc", action="store_true", help="ablation: patch pairs without NOC guidance")
     parser.add_argument("--no-patches", action="store_true", help="ablation: global style loss only")
     parser.add_argument("--no-refine", action="store_true", help="ablation: optimise the latent only")
+    parser.add_argument("--no-pose-search", action="store_true",
+                        help="--pose auto takes the pose network's bin centres as they are (the paper), without the silhouette search")
     parser.add_argument("--vgg-weights", help="VGG19 ImageNet weights (torchvision's vgg19-dcbb9e9d.pth)")
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to run")
     parser.add_argument("--seed", type=int, help="random seed")
@@ -367,7 +470,7 @@ def build_config(args) -> TransferConfig:
     overrides = {"resolution": args.resolution, "latent_iters": args.latent_iters, "refine_iters": args.refine_iters,
                  "device": args.device, "seed": args.seed, "vgg_weights": args.vgg_weights,
                  "use_noc": False if args.no_noc else None, "use_patches": False if args.no_patches else None,
-                 "refine": False if args.no_refine else None}
+                 "refine": False if args.no_refine else None, "pose_search": False if args.no_pose_search else None}
     cfg = load_config(TransferConfig, args.config, overrides)
     check_style_sizes(cfg)
     if cfg.latent_iters < 0 or cfg.refine_iters < 0:
@@ -402,10 +505,11 @@ def run(args) -> int:
     seconds["load"] = round(time.perf_counter() - started, 2)
 
     t = time.perf_counter()
-    pose_source = "given"
     if pose is None:
-        pose, pose_source = predict_pose(args.pose_checkpoint, photo, device), "pose network"
-    azimuth, elevation = pose
+        estimate = estimate_pose(args.pose_checkpoint, shape, photo, distance, fov, cfg, device)
+    else:
+        estimate = PoseEstimate(pose[0], pose[1], "given")
+    azimuth, elevation, pose_source = estimate.azimuth, estimate.elevation, estimate.source
     photo_noc = predict_noc(args.noc_checkpoint, photo, device) if args.noc_checkpoint else None
     view = view_at_pose(shape, azimuth, elevation, distance, fov, cfg)
     seconds["pose_and_noc"] = round(time.perf_counter() - t, 2)
@@ -424,7 +528,9 @@ def run(args) -> int:
     report = {
         "image": str(args.image), "mesh": str(args.mesh), "checkpoint": str(args.checkpoint),
         "mask_source": mask_source,
-        "pose": {"azimuth": azimuth, "elevation": elevation, "source": pose_source, "distance": distance, "fov": fov},
+        "pose": {"azimuth": azimuth, "elevation": elevation, "source": pose_source, "distance": distance, "fov": fov,
+                 **({"network": list(estimate.network), "silhouette_iou": estimate.silhouette_iou,
+                     "network_silhouette_iou": estimate.network_silhouette_iou} if estimate.silhouette_iou is not None else {})},
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
         "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in result.losses.items()},
         "seconds": seconds,

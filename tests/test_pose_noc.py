@@ -99,3 +99,32 @@ def test_noc_loss_ignores_background():
     assert float(noc_loss(predicted, target, masks)) == 0.0
     predicted[..., 6, 6] += 0.5  # wrong on the object
     assert float(noc_loss(predicted, target, masks)) == pytest.approx(1.5 / (3 * 64))
+
+
+@pytest.fixture(scope="module")
+def chair():
+    """A procedural chair of the synthetic world, really prepared (384 quads): its silhouette changes with azimuth."""
+    from mesh2tex.geometry.prepare import prepare_shape
+    from mesh2tex.synthetic.world import WorldSpec, make_shape
+
+    shape = make_shape(WorldSpec(), 0)
+    return prepare_shape(shape.vertices, shape.faces, face_count=384, levels=2, seed=0)
+
+
+def test_silhouette_search_finds_the_pose_the_network_gets_backwards(chair):
+    from infer.transfer import Photo, PoseBeliefs, TransferConfig, search_pose, view_at_pose
+
+    cfg = TransferConfig(resolution=64)
+    # The "photo": the chair's silhouette from farther away than the search's camera (crops remove the scale).
+    truth = view_at_pose(chair, 133.0, 22.0, 2.1, 40.0, cfg)
+    photo = Photo(image=torch.zeros(1, 3, 64, 64), mask=truth.mask)
+    bins = PoseBins()
+    # A confident network that sees the chair from behind (azimuth bin 310 -> 300) at the right elevation.
+    azimuth = torch.full((bins.azimuth_bins,), 0.01)
+    azimuth[int(bins.azimuth_to_bin(310.0))] = 0.9
+    elevation = torch.full((bins.elevation_bins,), 0.05)
+    elevation[int(bins.elevation_to_bin(22.0))] = 0.8
+    estimate = search_pose(chair, photo, PoseBeliefs(bins, azimuth, elevation), 1.7, 40.0, cfg)
+    assert estimate.network == (300.0, 25.0)
+    assert float(azimuth_error(estimate.azimuth, 133.0)) <= 5.0 and abs(estimate.elevation - 22.0) <= 5.0
+    assert estimate.silhouette_iou > estimate.network_silhouette_iou + 0.2

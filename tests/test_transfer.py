@@ -16,13 +16,14 @@ FAST = ["--resolution", "64", "--latent-iters", "6", "--refine-iters", "3", "--d
 
 @pytest.fixture(scope="module")
 def setup(tiny_gan, tmp_path_factory):
-    """The tiny GAN, a NOC network (2 steps) and a photo with an alpha mask."""
+    """The tiny GAN, NOC and pose networks (2 steps each) and a photo with an alpha mask."""
     root = tmp_path_factory.mktemp("transfer")
     (root / "gan").symlink_to(tiny_gan / "run")
     (root / "shapes").symlink_to(tiny_gan / "shapes")
     (root / "noc.yaml").write_text("width: 4\n")
-    assert main(["train", "noc", "--shapes", str(root / "shapes"), "--out", str(root / "noc"), "--config", str(root / "noc.yaml"),
-                 "--iters", "2", "--samples", "8", "--resolution", "32", "--batch", "4", "--device", "cpu"]) == 0
+    for kind in ("noc", "pose"):
+        assert main(["train", kind, "--shapes", str(root / "shapes"), "--out", str(root / kind), "--config", str(root / "noc.yaml"),
+                     "--iters", "2", "--samples", "8", "--resolution", "32", "--batch", "4", "--device", "cpu"]) == 0
     # The query: a striped object on a transparent background (the alpha channel is its mask).
     photo = np.zeros((48, 48, 4), np.uint8)
     photo[10:40, 14:34, :3] = 40
@@ -53,6 +54,18 @@ def test_transfer_writes_a_textured_asset_and_a_report(setup, tmp_path):
     assert mesh.visual.material.baseColorTexture is not None
     assert Image.open(out / "turntable.gif").n_frames == 12
     assert Image.open(out / "comparison.png").size == (4 * 64, 64)
+
+
+def test_pose_auto_searches_silhouettes_unless_told_not_to(setup, tmp_path):
+    auto = ["--pose", "auto", "--pose-checkpoint", str(setup / "pose" / "checkpoint.safetensors"), "--no-refine", "--latent-iters", "1"]
+    assert main(transfer_args(setup, tmp_path / "search", *auto)) == 0
+    pose = json.loads((tmp_path / "search" / "report.json").read_text())["pose"]
+    assert pose["source"] == "pose network + silhouette search" and len(pose["network"]) == 2
+    assert 0.0 <= pose["network_silhouette_iou"] <= pose["silhouette_iou"] <= 1.0
+    assert main(transfer_args(setup, tmp_path / "plain", *auto, "--no-pose-search")) == 0
+    pose = json.loads((tmp_path / "plain" / "report.json").read_text())["pose"]
+    assert pose["source"] == "pose network" and "network" not in pose
+    assert pose["azimuth"] % 30 == 0  # a bin centre
 
 
 def test_latent_stage_lowers_the_style_loss(setup, tmp_path):
@@ -96,7 +109,7 @@ def test_bad_inputs_are_one_line_errors_and_nothing_is_overwritten(setup, tmp_pa
     assert (out / "report.json").read_text() == "{}"
 
 
-def test_patch_pyramid_is_checked_against_the_patch_size(setup, tmp_path, capsys):
+def test_style_and_pose_search_settings_are_checked_before_any_work(setup, tmp_path, capsys):
     # 32 px patches keep 16 px at 2 patch scales while the global loss keeps its 3 (64, 32, 16 px).
     small = tmp_path / "small.yaml"
     small.write_text("patch_size: 32\npatch_scales: 2\n")
@@ -108,4 +121,7 @@ def test_patch_pyramid_is_checked_against_the_patch_size(setup, tmp_path, capsys
     small.write_text("patch_size: 32\n")
     assert main(transfer_args(setup, tmp_path / "bad", "--config", str(small))) == 2
     assert "patch_size 32" in capsys.readouterr().err
+    small.write_text("pose_search_step: 0\n")
+    assert main(transfer_args(setup, tmp_path / "bad", "--config", str(small))) == 2
+    assert "pose_search_step 0" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()

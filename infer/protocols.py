@@ -292,6 +292,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     """
     from infer.evaluate import evaluate_sets
     from infer.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, transfer_texture, view_at_pose
+    from mesh2tex.nn.pose import azimuth_error
 
     base = TransferConfig(resolution=cfg.resolution, latent_iters=cfg.latent_iters, refine_iters=cfg.refine_iters,
                           patch_size=cfg.patch_size, scales=cfg.scales, patch_scales=cfg.patch_scales, seed=cfg.seed,
@@ -315,12 +316,12 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
         # Exact geometry is judged at the true camera, pixel-aligned with the photo (also when the texture
         # was optimised at a predicted pose); another shape only at the pose it was optimised for.
         judge = photo_frame_view(shape, query, cfg.resolution, base.margin) if exact else view
-        azimuth_error = abs((azimuth - query.azimuth + 180.0) % 360.0 - 180.0)
         setups.append({"query": query.name, "shape": target, "azimuth": round(azimuth, 3), "elevation": round(elevation, 3),
                        "true_azimuth": query.azimuth, "true_elevation": query.elevation,
-                       "azimuth_error": round(azimuth_error, 3), "elevation_error": round(abs(elevation - query.elevation), 3)})
+                       "azimuth_error": round(float(azimuth_error(azimuth, query.azimuth)), 3),
+                       "elevation_error": round(abs(elevation - query.elevation), 3)})
         if network_pose is not None and cfg.pose_search:
-            setups[-1]["network_azimuth_error"] = round(abs((network_pose[0] - query.azimuth + 180.0) % 360.0 - 180.0), 3)
+            setups[-1]["network_azimuth_error"] = round(float(azimuth_error(network_pose[0], query.azimuth)), 3)
         photo01, photo_mask = to_unit(photo.image).clamp(0, 1), photo.mask
         photos.append(photo01)
         photo_masks.append(photo_mask)

@@ -1,6 +1,7 @@
 """Seconds per stage of texture transfer (``infer transfer``) at the default configuration.
 
     python benchmarks/bench_transfer.py [--resolution 128] [--latent-iters 100] [--refine-iters 300]
+                                        [--patch-size 32] [--patch-scales 2]
                                         [--faces 6144] [--device auto|cpu|cuda] [--threads N]
 
 A procedural chair is prepared (quad hierarchy of --faces faces), a generator of the default
@@ -38,6 +39,8 @@ def main() -> None:
     parser.add_argument("--latent-iters", type=int, default=100)
     parser.add_argument("--refine-iters", type=int, default=300)
     parser.add_argument("--faces", type=int, default=6144)
+    parser.add_argument("--patch-size", type=int, default=TransferConfig.patch_size, help="the paper's: 64 (with --patch-scales 3)")
+    parser.add_argument("--patch-scales", type=int, default=TransferConfig.patch_scales)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     args = parser.parse_args()
@@ -57,7 +60,8 @@ def main() -> None:
     photo = Photo(image=image, mask=mask)
     photo_noc = torch.from_numpy(query["noc"][0]).float() / 255
 
-    cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters)
+    cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
+                         patch_size=args.patch_size, patch_scales=args.patch_scales)
     generator = TextureGenerator(GeneratorConfig(input_features=shape.face_features.shape[1])).eval()
     view = view_at_pose(shape, query_view.azimuth, query_view.elevation, 1.7, 40.0, cfg)
     vgg = load_vgg19(None, device=device, warn=False)
@@ -65,7 +69,8 @@ def main() -> None:
 
     total = sum(result.seconds.values())
     print(f"device {device}, torch threads {torch.get_num_threads()}, resolution {args.resolution}, "
-          f"{shape.face_counts[0]} finest quads, VGG19 {'ImageNet' if vgg.pretrained else 'random-weight'} (same cost)")
+          f"{shape.face_counts[0]} finest quads, {cfg.patches} patches of {cfg.patch_size} px at {cfg.patch_scales or cfg.scales} scales, "
+          f"VGG19 {'ImageNet' if vgg.pretrained else 'random-weight'} (same cost)")
     for stage, seconds in result.seconds.items():
         iters = len(result.losses[stage])
         print(f"  stage {stage:7s}: {iters:4d} iterations, {seconds:7.1f} s, {seconds / max(iters, 1):.3f} s/iteration")

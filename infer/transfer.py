@@ -57,10 +57,10 @@ class TransferConfig:
     lr: float = 1e-2  # Adam learning rate of both stages (paper: 1e-2)
     w_glob: float = 1.0  # weight of the global style loss
     w_patch: float = 1.0  # weight of the patch style loss
-    scales: int = 3  # resolution levels of both style losses (paper: 3)
-    patch_scales: int = 0  # resolution levels of the patch loss alone (0: ``scales``; 2 lets 32 px patches keep a 16 px coarsest level)
+    scales: int = 3  # resolution levels of the global style loss, and of the patch loss when patch_scales is 0 (paper: 3)
     patches: int = 2  # patch pairs per iteration (paper: 2)
-    patch_size: int = 64  # side of a patch in pixels (paper: 64)
+    patch_size: int = 32  # side of a patch in pixels (paper: 64; at 128 px crops 32 beats it, docs/protocols.md)
+    patch_scales: int = 2  # resolution levels of the patch loss alone (0: ``scales``; 2 keeps 32 px patches at a 16 px coarsest level)
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
     use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
     refine: bool = True  # stage 2 (False: the "w/o surface features" ablation)

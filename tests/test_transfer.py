@@ -110,15 +110,15 @@ def test_bad_inputs_are_one_line_errors_and_nothing_is_overwritten(setup, tmp_pa
 
 
 def test_style_and_pose_search_settings_are_checked_before_any_work(setup, tmp_path, capsys):
-    # 32 px patches keep 16 px at 2 patch scales while the global loss keeps its 3 (64, 32, 16 px).
+    # The paper's 64 px patches at 3 scales (64, 32, 16 px), beside the default 32 px patches at 2.
     small = tmp_path / "small.yaml"
-    small.write_text("patch_size: 32\npatch_scales: 2\n")
+    small.write_text("patch_size: 64\npatch_scales: 3\n")
     out = tmp_path / "ok"
     assert main(transfer_args(setup, out, "--config", str(small), "--refine-iters", "1")) == 0
     settings = json.loads((out / "report.json").read_text())["settings"]
-    assert (settings["patch_size"], settings["patch_scales"], settings["scales"]) == (32, 2, 3)
-    # At the global loss's 3 scales a 32 px patch would shrink to 8 px: refused before any work.
-    small.write_text("patch_size: 32\n")
+    assert (settings["patch_size"], settings["patch_scales"], settings["scales"]) == (64, 3, 3)
+    # At 3 patch scales a 32 px patch would shrink to 8 px: refused before any work.
+    small.write_text("patch_size: 32\npatch_scales: 3\n")
     assert main(transfer_args(setup, tmp_path / "bad", "--config", str(small))) == 2
     assert "patch_size 32" in capsys.readouterr().err
     small.write_text("pose_search_step: 0\n")

@@ -16,9 +16,10 @@ VGG the Gram matrix only sums feature positions inside the mask (area-resampled 
 resolution) and divides by that area. Changing the background of an image therefore changes
 neither loss.
 
-Scales. The global loss sees the image at full, half and quarter resolution. A patch is seen at the
-same three resolutions (64, 32 and 16 pixels for the default size): a local patch at coarser
-resolution, rather than a larger crop of the coarser image, keeps the patch loss local and cheap.
+Scales. The global loss sees the image at full, half and quarter resolution. A patch is seen at
+resolutions of its own, halving from its full size (64, 32 and 16 pixels for the paper's 64 px
+patches at 3 scales; ``infer transfer`` uses 32 px patches at 2, 32 and 16 pixels): a local patch at
+coarser resolution, rather than a larger crop of the coarser image, keeps the patch loss local and cheap.
 
 Conventions: images [B, 3, H, W] float in [-1, 1]; masks [B, 1, H, W] float in [0, 1]; NOC maps
 [H, W, 3] float in [0, 1]; pixel centres are (row, column) int64. Gram lists are indexed

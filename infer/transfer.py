@@ -2,13 +2,15 @@
 
     mesh2tex infer transfer --checkpoint GAN --mesh MESH --image IMG [--mask M] [--pose auto|AZ,EL]
                             [--pose-checkpoint P] [--noc-checkpoint N] --out DIR
-                            [--no-noc] [--no-patches] [--no-refine] [--config YAML] [--overwrite]
+                            [--no-noc] [--no-patches] [--no-refine] [--no-pose-search] [--config YAML] [--overwrite]
 
 Steps:
 1. The photo: mask from its alpha channel, from ``--mask``, or estimated (GrabCut); a square crop
    around the object, resized to ``resolution``.
-2. The pose: given as ``--pose AZ,EL`` (degrees, the orbit-camera convention), or predicted by the
-   pose network (``--pose auto``, the default, needs ``--pose-checkpoint``).
+2. The pose: given as ``--pose AZ,EL`` (degrees, the orbit-camera convention), or ``--pose auto``
+   (the default, needs ``--pose-checkpoint``): the pose network's bin probabilities, then a search
+   for the pose whose silhouette best matches the photo's mask (``--no-pose-search``: the network's
+   bin centres, as the paper).
 3. Correspondences: the NOC network predicts the photo's NOC map; the mesh's NOC map is rendered at
    the pose. Renders are cropped around the object the same way as the photo, so both images show
    the object at the same scale.
@@ -220,7 +222,7 @@ def search_pose(shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distan
     The pose network proposes the elevations (the centres of its ``pose_search_elevations`` most
     likely bins); every azimuth ``pose_search_step`` degrees apart is tried with each, then the
     best one's neighbours at half the step in both angles. Silhouettes tell a chair's front from its
-    back where the network, trained on few shapes, often does not (docs/transfer.md has figures);
+    back where the network, trained on few shapes, often does not (docs/style_and_pose.md has figures);
     on ties the network's more likely bin wins.
     """
     bins, step = beliefs.bins, float(cfg.pose_search_step)

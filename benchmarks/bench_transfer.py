@@ -69,7 +69,7 @@ def main() -> None:
 
     total = sum(result.seconds.values())
     print(f"device {device}, torch threads {torch.get_num_threads()}, resolution {args.resolution}, "
-          f"{shape.face_counts[0]} finest quads, {cfg.patches} patches of {cfg.patch_size} px at {cfg.patch_scales or cfg.scales} scales, "
+          f"{shape.face_counts[0]} finest quads, {cfg.patches} patches of {cfg.patch_size} px at {cfg.patch_levels} scales, "
           f"VGG19 {'ImageNet' if vgg.pretrained else 'random-weight'} (same cost)")
     for stage, seconds in result.seconds.items():
         iters = len(result.losses[stage])

@@ -195,7 +195,7 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int) 
     from infer.evaluate import evaluate_pairs
     from infer.transfer import TransferConfig
     from mesh2tex.io.images import load_image, load_mask
-    from mesh2tex.render import crop_square, object_box
+    from mesh2tex.render import crop_mask, crop_square, object_box
 
     cfg = TransferConfig(resolution=resolution)
     size = 2 * resolution
@@ -210,8 +210,7 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int) 
     def crop(image: np.ndarray, m: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         box = object_box(m, cfg.margin)
         img = crop_square(torch.as_tensor(image, dtype=torch.float32).permute(2, 0, 1)[None], box, resolution)
-        msk = crop_square(torch.from_numpy(m)[None, None].float(), box, resolution) > 0.5
-        return img.clamp(0, 1), msk.float()
+        return img.clamp(0, 1), crop_mask(m, box, resolution)
 
     render_t, render_m = crop(colors, mask)
     photo_t, photo_m = crop(np.asarray(photo, dtype=np.float32) / (255.0 if photo.dtype == np.uint8 else 1.0), photo_mask)
@@ -284,10 +283,11 @@ def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics
     pose = transfer["pose"]
     pose_rows = [("true (query sidecar)", fmt(query["azimuth"]), fmt(query["elevation"])),
                  (f"used ({pose['source']})", fmt(pose["azimuth"]), fmt(pose["elevation"]))]
+    pose_note = ""
     if "network" in pose:  # the silhouette search ran: show what the network alone said, and both silhouette IoUs
         pose_rows.append(("pose network alone", fmt(pose["network"][0]), fmt(pose["network"][1])))
-    pose_note = (f"<p>Silhouette IoU with the photo's mask: {fmt(pose['silhouette_iou'])} at the used pose, "
-                 f"{fmt(pose['network_silhouette_iou'])} at the network's.</p>" if "network" in pose else "")
+        pose_note = (f"<p>Silhouette IoU with the photo's mask: {fmt(pose['silhouette_iou'])} at the used pose, "
+                     f"{fmt(pose['network_silhouette_iou'])} at the network's.</p>")
     t = metrics["transfer"]
     transfer_rows = [(name, fmt(t["transfer"][name]), fmt(t["flat_mean_colour_texture"][name])) for name in t["transfer"]]
     g = metrics["generation"]

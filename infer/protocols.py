@@ -246,9 +246,8 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
     Its ``mask`` (1,1,R,R) is where the shape covers the crop; its ``noc`` is left empty.
     """
     from infer.transfer import View
-    from mesh2tex.render import crop_square, object_box
     from mesh2tex.io.images import load_mask
-    from mesh2tex.render import orbit_camera, rasterize, transform_points
+    from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
 
     photo_mask = np.asarray(load_mask(query.mask), dtype=bool)
     side = photo_mask.shape[0]
@@ -258,8 +257,7 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
     camera = orbit_camera(torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
     raster = rasterize(transform_points(vertices, camera.mvp), torch.as_tensor(shape.triangles(0)), (side, side))
-    covered = (raster.face_id[0] >= 0).float()[None, None]
-    mask = (crop_square(covered, box, resolution) > 0.5).float()
+    mask = crop_mask(raster.face_id[0] >= 0, box, resolution)
     return View(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask)
 
 

@@ -47,7 +47,7 @@ from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.pose import PoseBins
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
+from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
 
 
 @dataclass
@@ -77,6 +77,11 @@ class TransferConfig:
     seed: int = 0  # seed of the initial latent and the patch sampling
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
+
+    @property
+    def patch_levels(self) -> int:
+        """Resolution levels the patch loss uses: ``patch_scales``, or ``scales`` when that is 0."""
+        return self.patch_scales or self.scales
 
 
 @dataclass
@@ -131,8 +136,7 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
     box = object_box(mask, cfg.margin)
     image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
     image = crop_square(image, box, cfg.resolution, fill=1.0)
-    mask_t = (crop_square(torch.from_numpy(mask)[None, None].float(), box, cfg.resolution) > 0.5).float()
-    return Photo(image=image, mask=mask_t), source
+    return Photo(image=image, mask=crop_mask(mask, box, cfg.resolution)), source
 
 
 # -------------------------------------------------------------------------------------- the pose
@@ -198,7 +202,7 @@ def silhouette_iou(shape: PreparedShape, photo_mask: torch.Tensor, azimuths: tor
             if view.sum() < 4:
                 scores.append(0.0)
                 continue
-            crop = crop_square(torch.from_numpy(view)[None, None].float(), object_box(view, margin), size)[0, 0] > 0.5
+            crop = crop_mask(view, object_box(view, margin), size)[0, 0] > 0.5
             scores.append(float((crop & target).sum()) / max(float((crop | target).sum()), 1.0))
     return torch.tensor(scores)
 
@@ -288,8 +292,7 @@ def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distanc
     box = object_box(covered, cfg.margin)
     noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
     noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)
-    mask = (crop_square(torch.from_numpy(covered)[None, None].float(), box, cfg.resolution) > 0.5).float()
-    return View(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=mask)
+    return View(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution))
 
 
 # ------------------------------------------------------------------------------- the optimisation
@@ -317,7 +320,6 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         photo_grams = style_grams(vgg, photo_image, photo_mask, cfg.scales)
     grey = torch.zeros(1, 3, device=device)
     pick = torch.Generator().manual_seed(cfg.seed)
-    patch_scales = cfg.patch_scales or cfg.scales
 
     def render(ws: torch.Tensor) -> torch.Tensor:
         full = render_field_views(generator, batch, ws, view.mvp.to(device), (view.render_size,) * 2, grey,
@@ -330,7 +332,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
             parts["global"] = cfg.w_glob * global_style_loss(vgg, image, render_mask, target_grams=photo_grams, scales=cfg.scales)
         if cfg.use_patches:
             pairs = sample_patch_pairs(photo_mask[0, 0], render_mask[0, 0], cfg.patches, photo_noc, render_noc, guided=guided, generator=pick)
-            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, patch_scales)
+            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, cfg.patch_levels)
         total = sum(parts.values())
         return total, {k: float(v.detach()) for k, v in parts.items()}
 
@@ -461,11 +463,10 @@ def check_style_sizes(cfg: TransferConfig) -> None:
     smallest = 16 * 2 ** (cfg.scales - 1)
     if cfg.resolution < smallest:
         raise UserError(f"--resolution {cfg.resolution}: must be at least {smallest} for {cfg.scales} style scales")
-    patch_scales = cfg.patch_scales or cfg.scales
     patch = min(cfg.patch_size, cfg.resolution)  # a patch is clipped to the crop
-    if cfg.use_patches and patch < 16 * 2 ** (patch_scales - 1):
+    if cfg.use_patches and patch < 16 * 2 ** (cfg.patch_levels - 1):
         raise UserError(f"patch_size {cfg.patch_size}: a patch of {patch} px keeps fewer than 16 px at its "
-                        f"{patch_scales} style scales; use larger patches or fewer patch_scales")
+                        f"{cfg.patch_levels} style scales; use larger patches or fewer patch_scales")
 
 
 def build_config(args) -> TransferConfig:

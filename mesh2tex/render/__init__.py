@@ -11,7 +11,7 @@ Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in do
 """
 
 from .cameras import Camera, orbit_camera, perspective, transform_points
-from .crop import crop_square, object_box
+from .crop import crop_mask, crop_square, object_box
 from .interpolate import face_attribute, interpolate, texture
 from .rasterize import Raster, pixel_centers, rasterize
 from .shading import (
@@ -29,6 +29,7 @@ __all__ = [
     "Camera",
     "Raster",
     "composite",
+    "crop_mask",
     "crop_square",
     "dilate_texture",
     "face_attribute",

@@ -38,3 +38,12 @@ def crop_square(images: torch.Tensor, box: tuple[int, int, int], size: int, fill
     crop = padded[..., top + pad[2] : top + pad[2] + side, left + pad[0] : left + pad[0] + side]
     mode = "area" if side > size else "bilinear"
     return F.interpolate(crop, size=(size, size), mode=mode, **({} if mode == "area" else {"align_corners": False}))
+
+
+def crop_mask(mask: np.ndarray | torch.Tensor, box: tuple[int, int, int], size: int) -> torch.Tensor:
+    """An object mask (H,W) bool/{0,1} cut like an image with :func:`crop_square`: (1,1,size,size) float {0,1}.
+
+    Resampling blends the mask's edge; a pixel is object where at least half of it was.
+    """
+    mask = mask.float() if isinstance(mask, torch.Tensor) else torch.from_numpy(np.asarray(mask)).float()
+    return (crop_square(mask.reshape(1, 1, *mask.shape[-2:]), box, size) > 0.5).float()

@@ -1,7 +1,7 @@
 """How well the pose and NOC networks read the synthetic world's photos (they never train on them).
 
     python benchmarks/view_nets_on_world.py --world WORLD --pose-checkpoint P [--noc-checkpoint N]
-                                            [--shapes DIR ...] [--resolution 64] [--queries-only]
+                                            [--shapes DIR ...] [--show-misses DEG] [--resolution 64] [--queries-only]
 
 Every photo of the world with a known camera (``images/`` of the training shapes and ``queries/`` of
 the held-out shapes; their poses are in ``index.json``) goes through exactly the path of
@@ -60,6 +60,8 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=64, help="side of the photo crop (as infer transfer --resolution)")
     parser.add_argument("--queries-only", action="store_true", help="only the held-out query photos")
     parser.add_argument("--shapes", nargs="+", default=[], help="folders of the world's prepared shapes: also time and score the silhouette search")
+    parser.add_argument("--show-misses", type=float, metavar="DEG",
+                        help="with --shapes: list each photo the search puts more than DEG degrees off, with both poses and IoUs")
     args = parser.parse_args()
 
     world = Path(args.world)
@@ -92,6 +94,10 @@ def main() -> None:
                 estimate = estimate_pose(args.pose_checkpoint, shape, photo, 1.7, 40.0, cfg, device)
                 search_seconds.append(time.perf_counter() - start)
                 search_errors.append(azimuth_error(estimate.azimuth, entry["azimuth"]))
+                if args.show_misses is not None and search_errors[-1] > args.show_misses:
+                    print(f"miss: {entry['image']} true az {entry['azimuth']:.0f} el {entry['elevation']:.0f}; search "
+                          f"{estimate.azimuth:.0f}, {estimate.elevation:.0f} (IoU {estimate.silhouette_iou}); network "
+                          f"{estimate.network[0]:.0f}, {estimate.network[1]:.0f} (IoU {estimate.network_silhouette_iou})")
                 search_elevation_errors.append(abs(estimate.elevation - entry["elevation"]))
         e = np.array(errors)
         rows.append((name, len(entries), np.mean(hits), np.mean(e <= 30), np.mean(e <= 45), e.mean(), np.mean(elevation_errors),

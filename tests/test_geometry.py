@@ -227,3 +227,19 @@ def test_features_are_finite_on_degenerate_quads():
     features, names = face_features(vertices, np.array([[0, 1, 2, 3]]))
     assert np.isfinite(features).all() and len(names) == features.shape[1]
     assert noc_coordinates(np.array([[-0.5, 0.0, 0.5]])).tolist() == [[0.0, 0.5, 1.0]]
+
+
+def test_features_do_not_depend_on_where_a_quad_list_starts(prepared):
+    """The remesher's choice of first corner is arbitrary: shifting every quad's vertex list changes
+    no feature; reversing it flips only the orientation-carrying ones (normal, sff_sum, H)."""
+    shape = prepared["chair"]
+    v, q = shape.vertices[0], shape.quads[0]
+    base, names = face_features(v, q)
+    rng = np.random.default_rng(0)
+    shifts = rng.integers(0, 4, len(q))
+    shifted = np.stack([np.roll(row, -k) for row, k in zip(q, shifts)])
+    assert np.allclose(face_features(v, shifted)[0], base, atol=1e-4)
+    reversed_quads = q[:, ::-1]
+    flipped = face_features(v, reversed_quads)[0]
+    sign = np.array([-1.0 if n in ("normal_x", "normal_y", "normal_z", "sff_sum", "mean_curvature") else 1.0 for n in names])
+    assert np.allclose(flipped, base * sign, atol=1e-4)

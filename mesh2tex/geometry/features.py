@@ -14,19 +14,31 @@ With outward normals a sphere of radius r has H = 1/r and K = 1/r^2 (convex is p
 The stored features are made dimensionless with the quad's own size ``s = sqrt((E + G) / 2)`` (about
 its edge length), so that they do not depend on the face count of the hierarchy, and the
 curvature-like ones are compressed with ``asinh`` so that sharp creases (where K of a small quad
-reaches 1e4 and more) do not swamp the network's input:
+reaches 1e4 and more) do not swamp the network's input.
 
-    fff_E, fff_F, fff_G        = E / s^2, F / s^2, G / s^2                    (about [0, 2])
-    sff_L, sff_M, sff_N        = asinh(L / s), asinh(M / s), asinh(N / s)     (normal curvature x s)
+Which corner a quad's vertex list starts at, and its direction, is an accident of the remesher. A
+cyclic shift of the list turns (X_s, X_t) into (X_t, -X_s), so E and G swap and F, M change sign
+(L and N swap); the raw forms would make the input noisy from face to face. The stored features are
+therefore invariants of that relabelling:
+
+    fff_stretch                = |E - G| / (E + G)                             ([0, 1], 0: square-like)
+    fff_shear                  = 2 |F| / (E + G)                               ([0, 1], 0: right angles)
+    sff_sum                    = asinh((L + N) / (2 s))                        (normal curvature x s, mean)
+    sff_diff                   = asinh(|L - N| / (2 s))
+    sff_twist                  = asinh(|M| / s)
     mean_curvature             = asinh(H s)
     gaussian_curvature         = asinh(K s^2)
+
+All of them, and the normal, are unchanged by a cyclic shift. Listing a quad in reverse flips its
+orientation: the normal, sff_sum and the mean curvature change sign (they carry the orientation,
+which the prepared meshes fix outwards), the others are unchanged.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-FEATURE_NAMES = ["normal_x", "normal_y", "normal_z", "fff_E", "fff_F", "fff_G", "sff_L", "sff_M", "sff_N",
+FEATURE_NAMES = ["normal_x", "normal_y", "normal_z", "fff_stretch", "fff_shear", "sff_sum", "sff_diff", "sff_twist",
                  "mean_curvature", "gaussian_curvature"]
 
 
@@ -80,20 +92,22 @@ def fundamental_forms(vertices: np.ndarray, quads: np.ndarray) -> dict[str, np.n
 
 
 def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """Per-face geometric features: normals and the dimensionless, compressed fundamental forms and
-    curvatures of the module docstring.
+    """Per-face geometric features: normals and the dimensionless, compressed, relabelling-invariant
+    fundamental-form quantities and curvatures of the module docstring.
 
     Args:
         vertices: (V, 3) float, normalised frame; quads: (F, 4) int, oriented outwards.
     Returns:
-        (F, 11) float32 features, all finite, and their names (:data:`FEATURE_NAMES`).
+        (F, 10) float32 features, all finite, and their names (:data:`FEATURE_NAMES`).
     """
     forms = fundamental_forms(vertices, quads)
     size_sq = np.maximum((forms["E"] + forms["G"]) / 2.0, 1e-30)
     size = np.sqrt(size_sq)
+    trace_first = 2.0 * size_sq  # E + G
     features = np.stack([*quad_normals(vertices, quads).T,
-                         forms["E"] / size_sq, forms["F"] / size_sq, forms["G"] / size_sq,
-                         np.arcsinh(forms["L"] / size), np.arcsinh(forms["M"] / size), np.arcsinh(forms["N"] / size),
+                         np.abs(forms["E"] - forms["G"]) / trace_first, 2.0 * np.abs(forms["F"]) / trace_first,
+                         np.arcsinh((forms["L"] + forms["N"]) / (2.0 * size)), np.arcsinh(np.abs(forms["L"] - forms["N"]) / (2.0 * size)),
+                         np.arcsinh(np.abs(forms["M"]) / size),
                          np.arcsinh(forms["H"] * size), np.arcsinh(forms["K"] * size_sq)], axis=1)
     features = np.nan_to_num(features, nan=0.0, posinf=0.0, neginf=0.0)
     return features.astype(np.float32), list(FEATURE_NAMES)

@@ -116,7 +116,8 @@ def test_render_and_gradients_reach_every_parameter(coords):
     assert torch.equal(out.images.permute(0, 2, 3, 1)[~cover], bg.permute(0, 2, 3, 1)[~cover])
     loss = d_field(out.images).sum() + d_proxy(out.proxy).sum()
     loss.backward()
-    for name, p in itertools.chain(gen.named_parameters(), d_field.named_parameters(prefix="d")):
+    for name, p in itertools.chain(gen.named_parameters(), d_field.named_parameters(prefix="d_field"),
+                                   d_proxy.named_parameters(prefix="d_proxy")):
         assert p.grad is not None and torch.isfinite(p.grad).all() and p.grad.abs().sum() > 0, name
 
 
@@ -140,3 +141,39 @@ def test_discriminator_resolutions():
     assert d(torch.randn(3, 3, 32, 32)).shape == (3,)
     with pytest.raises(ValueError):
         Discriminator(48)
+
+
+def test_discriminator_judges_fakes_apart_from_reals():
+    """The minibatch standard deviation is the discriminator's one view of diversity: the fakes'
+    logits in the D loss must not depend on which reals share the step."""
+    from mesh2tex.losses.gan import GanLoss, GanLossConfig
+    import torch.nn.functional as F
+
+    torch.manual_seed(0)
+    d = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16, mbstd_group=4))
+    loss = GanLoss(GanLossConfig(), d, d)
+    fake = torch.randn(1, 3, 16, 16).repeat(4, 1, 1, 1)  # a collapsed generator: four identical fakes
+    real = torch.randn(4, 3, 16, 16)
+    with torch.no_grad():
+        combined = loss._d_main(d, fake, real)
+        apart = F.softplus(d(fake)).mean() + F.softplus(-d(real)).mean()
+    torch.testing.assert_close(combined, apart)
+
+
+def test_psi_reads_the_latent_not_only_the_geometry():
+    """psi's input is F_c (latent-dependent) by default: two latents give different psi colours at
+    the same surface points, and with no geometry channels the field features are exactly F_c."""
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(), tiny_batch()
+    assert gen.field_dim == gen.cfg.synthesis_channels[0]
+    mvp = views()
+    out = [render_field_views(gen, batch, gen.mapping(torch.randn(2, 16)), mvp, (16, 16), torch.zeros(4, 3), noise_mode="none")
+           for _ in range(2)]
+    cover = out[0].mask > 0
+    assert (out[0].images - out[1].images).abs()[cover.expand_as(out[0].images)].mean() > 1e-3
+    cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * 3,
+                          synthesis_channels=[8] * 3, field_hidden=16, aux_latent_dim=8, field_geometry_channels=2)
+    with_geometry = TextureGenerator(cfg)
+    texture, _ = with_geometry(batch, torch.randn(2, 16))
+    assert texture.field_features.shape == (192, 10)
+    assert any(p is q for p in with_geometry.parameter_groups()["field"] for q in with_geometry.field_geometry.parameters())

@@ -28,6 +28,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import atomic_path
+from mesh2tex.losses.augment import AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
@@ -70,6 +71,7 @@ class TrainGanConfig:
     device: str = "auto"  # auto, cpu or cuda
     mixed_precision: bool = True  # bfloat16 autocast for the main phases on CUDA (ignored on a CPU)
     ema_halflife_images: float = 5000.0  # EMA of the generator: half-life in rendered images
+    ema_rampup: float = 0.05  # the half-life is at most this fraction of the images seen so far (0: no ramp-up)
     log_every: int = 10  # iterations between metrics.jsonl records
     sample_every: int = 500  # iterations between sample grids under RUN/samples (0: only at the end)
     checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
@@ -77,6 +79,7 @@ class TrainGanConfig:
     generator: GeneratorConfig = field(default_factory=GeneratorConfig)
     discriminator: DiscriminatorConfig = field(default_factory=DiscriminatorConfig)
     loss: GanLossConfig = field(default_factory=GanLossConfig)
+    augment: AugmentConfig = field(default_factory=AugmentConfig)  # of every discriminator input, real and fake
     optim: OptimConfig = field(default_factory=OptimConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
 
@@ -201,9 +204,12 @@ class GanTrainer:
                                       betas=(o.beta1, o.beta2), eps=1e-8)
         use_amp = cfg.mixed_precision and device.type == "cuda"
         autocast = (lambda: torch.autocast("cuda", dtype=torch.bfloat16)) if use_amp else contextlib.nullcontext
-        self.loss = GanLoss(cfg.loss, self.d_field, self.d_proxy, autocast=autocast)
-        images_per_step = cfg.batch * cfg.views * distributed.world_size
-        self.ema_beta = 0.5 ** (images_per_step / max(cfg.ema_halflife_images, 1e-8))
+        try:
+            augment = DiffAugment(cfg.augment)
+        except ValueError as error:
+            raise UserError(f"augment: {error}") from None
+        self.loss = GanLoss(cfg.loss, self.d_field, self.d_proxy, autocast=autocast, augment=augment)
+        self.images_per_step = cfg.batch * cfg.views * distributed.world_size
         self.iteration = 0
         self.sample_batch = collate_shapes(shapes[: cfg.sample_shapes]).to(device)
         self.sample_z = torch.randn(self.sample_batch.num_shapes, gcfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed + 12345)).to(device)
@@ -290,7 +296,8 @@ class GanTrainer:
                     torch.nan_to_num_(p.grad, nan=0.0, posinf=1e5, neginf=-1e5)
             opt.step()
             if group == "G":
-                runs.ema_update(self.ema, self.generator, self.ema_beta)
+                beta = runs.ema_beta(self.iteration * self.images_per_step, self.images_per_step, cfg.ema_halflife_images, cfg.ema_rampup)
+                runs.ema_update(self.ema, self.generator, beta)
         self.generator.requires_grad_(True)
         self.d_field.requires_grad_(True)
         self.d_proxy.requires_grad_(True)

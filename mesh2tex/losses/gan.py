@@ -6,6 +6,11 @@ colour renders. Losses (StyleGAN2):
     G reg:   path-length regularisation on psi renders, every ``pl_interval`` steps, scaled by it
     D main:  softplus(D(fake)) + softplus(-D(real)) for both discriminators
     D reg:   R1 = gamma/2 |grad_x D(real)|^2 for both, every ``r1_interval`` steps, scaled by it
+
+Every image a discriminator sees, real or fake and in every phase, first goes through ``augment``
+(differentiable, :mod:`mesh2tex.losses.augment`). Fakes and reals go through the discriminators in
+separate calls: the minibatch standard deviation layer must see groups of fakes only or reals only,
+or a collapsed generator (every latent the same texture) would look as diverse as the photos.
 """
 
 from __future__ import annotations
@@ -43,8 +48,10 @@ class GanLoss:
     regularisation phases always run in float32.
     """
 
-    def __init__(self, cfg: GanLossConfig, d_field: nn.Module, d_proxy: nn.Module, autocast: Callable = contextlib.nullcontext):
+    def __init__(self, cfg: GanLossConfig, d_field: nn.Module, d_proxy: nn.Module, autocast: Callable = contextlib.nullcontext,
+                 augment: Callable[[torch.Tensor], torch.Tensor] | None = None):
         self.cfg, self.d_field, self.d_proxy, self.autocast = cfg, d_field, d_proxy, autocast
+        self.augment = augment or (lambda x: x)
         self.pl_mean = torch.zeros([])
 
     def phases(self, iteration: int) -> list[tuple[str, float]]:
@@ -66,10 +73,10 @@ class GanLoss:
         if phase == "Gmain":
             with self.autocast():
                 images, proxy, _ = generate(z)
-                loss = F.softplus(-self.d_field(images)).mean()
+                loss = F.softplus(-self.d_field(self.augment(images))).mean()
                 logs["loss_g_field"] = loss.detach()
                 if proxy is not None and self.cfg.proxy_weight > 0:
-                    loss_proxy = F.softplus(-self.d_proxy(proxy)).mean()
+                    loss_proxy = F.softplus(-self.d_proxy(self.augment(proxy))).mean()
                     logs["loss_g_proxy"] = loss_proxy.detach()
                     loss = loss + self.cfg.proxy_weight * loss_proxy
             (loss * gain).backward()
@@ -103,7 +110,7 @@ class GanLoss:
                 if name == "proxy" and self.cfg.proxy_weight <= 0:
                     continue
                 x = real.detach().float().requires_grad_(True)
-                logits = d(x)
+                logits = d(self.augment(x))
                 (grad,) = torch.autograd.grad(logits.sum(), x, create_graph=True)
                 r1 = grad.square().sum(dim=[1, 2, 3]).mean()
                 logs[f"r1_{name}"] = r1.detach()
@@ -113,12 +120,11 @@ class GanLoss:
             raise ValueError(f"unknown phase {phase!r}; expected one of {PHASES}")
         return logs
 
-    @staticmethod
-    def _d_main(d: nn.Module, fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
-        """softplus(D(fake)) + softplus(-D(real)), one discriminator call on both halves (faster)."""
-        logits = d(torch.cat([fake.detach(), real.to(fake.dtype)]))
-        n = fake.shape[0]
-        return F.softplus(logits[:n]).mean() + F.softplus(-logits[n:]).mean()
+    def _d_main(self, d: nn.Module, fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+        """softplus(D(fake)) + softplus(-D(real)), fakes and reals in separate calls (see the module docstring)."""
+        fake_logits = d(self.augment(fake.detach()))
+        real_logits = d(self.augment(real.to(fake.dtype)))
+        return F.softplus(fake_logits).mean() + F.softplus(-real_logits).mean()
 
     def state_dict(self) -> dict[str, torch.Tensor]:
         return {"pl_mean": self.pl_mean.detach().cpu().reshape([])}

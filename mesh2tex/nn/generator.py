@@ -5,7 +5,12 @@ and the neural field psi.
     z (512) ─► mapping ─► w ─► ws (B, num_ws, 512)
     synthesis, coarsest level first: block_l(unpool(x_{l+1}) ‖ E_l, ws) ─► x_l, rgb_l = unpool(rgb_{l+1}) + toRGB(x_l)
     F_c = x_0 (per finest face), face colours = rgb_0 (the proxy texture)
-    psi(barycentrics, blend of vertex means of [F_c ‖ E_0]) ─► colour at any surface point
+    psi(barycentrics, blend of vertex means of F_c [‖ P E_0]) ─► colour at any surface point
+
+psi sees the latent-dependent F_c and, with ``field_geometry_channels`` > 0, a learnt narrow linear
+projection P E_0 of the geometry features. Fed E_0 whole (as the paper's figure draws it) psi learns
+to read the latent-free, face-to-face noisy geometry channels and ignore F_c: every latent then
+gets the same texture.
 
 Each synthesis block uses three ws (conv0, conv1, toRGB), so num_ws = 3 * num_levels. Texture
 transfer optimises ws and then the parameters of the last (finest) synthesis blocks:
@@ -37,6 +42,7 @@ class GeneratorConfig:
     field_hidden: int = 128  # width of the neural field MLP
     aux_latent_dim: int = 512  # size of the learnt auxiliary latent of psi
     field_coords: str = "raw"  # local coordinates of psi: raw (barycentrics) or sorted_cdf
+    field_geometry_channels: int = 0  # E_0 channels psi sees besides F_c, through a learnt projection (0: F_c alone)
     field_output_init: float = 0.1  # initial weight scale of psi's output layer (1 starts from saturated colours)
     conv_clamp: float = 256.0  # clamp of synthesis activations (keeps mixed precision finite)
 
@@ -107,7 +113,7 @@ class SynthesisBlock(nn.Module):
 class FaceTexture:
     """The generator's output on a batch: per finest face.
 
-    field_features (F_0, C_field) float  the features psi blends ([F_c ‖ E_0])
+    field_features (F_0, C_field) float  the features psi blends (F_c, or [F_c ‖ P E_0])
     face_rgb       (F_0, 3) float        the per-face colours (proxy texture), nominally in [-1, 1]
     """
 
@@ -136,7 +142,11 @@ class TextureGenerator(nn.Module):
             in_ch = 0 if level == levels - 1 else cfg.synthesis_channels[level + 1]
             blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
         self.synthesis = nn.ModuleList(blocks)
-        self.field_dim = cfg.synthesis_channels[0] + cfg.encoder_channels[0]
+        if cfg.field_geometry_channels < 0:
+            raise ValueError("GeneratorConfig.field_geometry_channels must be >= 0")
+        self.field_geometry = (FullyConnected(cfg.encoder_channels[0], cfg.field_geometry_channels)
+                               if cfg.field_geometry_channels > 0 else None)
+        self.field_dim = cfg.synthesis_channels[0] + cfg.field_geometry_channels
         self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords, cfg.field_output_init)
 
     def synthesize(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random") -> FaceTexture:
@@ -160,7 +170,10 @@ class TextureGenerator(nn.Module):
                 rgb = face_unpool(rgb, batch.pool[level], neighbors)
             x, y = block(x, encoded[level], neighbors, ws[:, 3 * i : 3 * i + 3], batch.shape_index[level], noise_mode)
             rgb = y if rgb is None else rgb + y
-        return FaceTexture(field_features=torch.cat([x, encoded[0].to(x.dtype)], dim=1), face_rgb=rgb)
+        features = x
+        if self.field_geometry is not None:
+            features = torch.cat([x, self.field_geometry(encoded[0].to(x.dtype))], dim=1)
+        return FaceTexture(field_features=features, face_rgb=rgb)
 
     def forward(self, batch: MeshBatch, z: torch.Tensor, truncation_psi: float = 1.0, noise_mode: str = "random", update_w_avg: bool = False):
         """z: (B, z_dim), one per shape -> (FaceTexture, ws (B, num_ws, w_dim))."""
@@ -176,5 +189,5 @@ class TextureGenerator(nn.Module):
         return {
             "encoder": list(self.encoder.parameters()),
             "generator": list(self.mapping.parameters()) + list(self.synthesis.parameters()),
-            "field": list(self.field.parameters()),
+            "field": list(self.field.parameters()) + (list(self.field_geometry.parameters()) if self.field_geometry is not None else []),
         }

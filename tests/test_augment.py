@@ -1,0 +1,63 @@
+"""Differentiable augmentation of the discriminators' inputs, and how the GAN loss applies it."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from mesh2tex.losses.augment import AugmentConfig, DiffAugment, augment_cutout, augment_translation
+from mesh2tex.losses.gan import GanLoss, GanLossConfig
+from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
+
+
+def test_every_transform_lets_the_gradient_through():
+    torch.manual_seed(0)
+    for policy in ("color", "translation", "cutout", "color,translation,cutout"):
+        x = torch.rand(4, 3, 16, 16, requires_grad=True)
+        y = DiffAugment(AugmentConfig(policy=policy))(x * 2 - 1)
+        assert y.shape == x.shape
+        (y * torch.randn_like(y)).sum().backward()
+        assert torch.isfinite(x.grad).all() and x.grad.abs().sum() > 0, policy
+
+
+def test_augmentation_changes_images_and_can_be_switched_off():
+    torch.manual_seed(0)
+    x = torch.rand(8, 3, 16, 16) * 2 - 1
+    assert not torch.allclose(DiffAugment()(x), x)
+    assert torch.equal(DiffAugment(AugmentConfig(policy=""))(x), x)
+    assert torch.equal(DiffAugment(AugmentConfig(p=0.0))(x), x)
+    with pytest.raises(ValueError, match="unknown augmentation"):
+        DiffAugment(AugmentConfig(policy="colour"))
+
+
+def test_translation_moves_content_by_whole_pixels_and_cutout_blanks_a_square():
+    torch.manual_seed(0)
+    x = torch.zeros(16, 1, 16, 16)
+    x[:, :, 8, 8] = 1.0
+    moved = augment_translation(x, ratio=0.125)
+    assert (moved.sum(dim=[1, 2, 3]) == 1).all(), "a dot inside the shift range stays one dot"
+    where = moved[:, 0].flatten(1).argmax(1)
+    rows, cols = where // 16, where % 16
+    assert ((rows - 8).abs() <= 2).all() and ((cols - 8).abs() <= 2).all() and len(set(where.tolist())) > 1
+    ones = torch.ones(16, 3, 16, 16)
+    cut = augment_cutout(ones, ratio=0.5)
+    blank = (cut == 0).all(1).float().mean(dim=[1, 2])
+    assert (blank > 0.05).all() and (blank <= 0.25 + 1e-6).all()
+
+
+def test_gan_loss_augments_reals_and_fakes_in_every_discriminator_call():
+    torch.manual_seed(0)
+    seen = []
+
+    def augment(x):
+        seen.append(x.shape[0])
+        return x
+
+    d = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16))
+    loss = GanLoss(GanLossConfig(proxy_weight=0.0), d, d, augment=augment)
+    fake, real = torch.randn(4, 3, 16, 16), torch.randn(4, 3, 16, 16)
+    loss.accumulate_gradients("Dmain", lambda z: (fake, None, None), torch.zeros(1), real)
+    assert seen == [4, 4], "fakes and reals each augmented, in separate calls"
+    seen.clear()
+    loss.accumulate_gradients("Dreg", lambda z: (fake, None, None), torch.zeros(1), real)
+    assert seen == [4]

@@ -9,7 +9,7 @@ import trimesh
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.clean import clean_mesh, normalize
 from mesh2tex.geometry.features import face_features, fundamental_forms, noc_coordinates
-from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
+from mesh2tex.geometry.hierarchy import face_neighborhoods, orient_coherently, pooling_map
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
 from mesh2tex.geometry.prepared import PreparedShape
@@ -229,17 +229,33 @@ def test_features_are_finite_on_degenerate_quads():
     assert noc_coordinates(np.array([[-0.5, 0.0, 0.5]])).tolist() == [[0.0, 0.5, 1.0]]
 
 
-def test_features_do_not_depend_on_where_a_quad_list_starts(prepared):
-    """The remesher's choice of first corner is arbitrary: shifting every quad's vertex list changes
-    no feature; reversing it flips only the orientation-carrying ones (normal, sff_sum, H)."""
-    shape = prepared["chair"]
-    v, q = shape.vertices[0], shape.quads[0]
-    base, names = face_features(v, q)
-    rng = np.random.default_rng(0)
-    shifts = rng.integers(0, 4, len(q))
-    shifted = np.stack([np.roll(row, -k) for row, k in zip(q, shifts)])
-    assert np.allclose(face_features(v, shifted)[0], base, atol=1e-4)
-    reversed_quads = q[:, ::-1]
-    flipped = face_features(v, reversed_quads)[0]
-    sign = np.array([-1.0 if n in ("normal_x", "normal_y", "normal_z", "sff_sum", "mean_curvature") else 1.0 for n in names])
-    assert np.allclose(flipped, base * sign, atol=1e-4)
+def test_features_do_not_depend_on_how_each_quad_is_listed(prepared):
+    """The remesher's choice of first corner and direction is arbitrary: listing every quad from
+    another corner, a random half of them in reverse, or the whole mesh in reverse changes no feature."""
+    for name in ("chair", "sphere", "hole"):
+        shape = prepared[name]
+        v, q = shape.vertices[0], shape.quads[0]
+        base, names = face_features(v, q)
+        rng = np.random.default_rng(0)
+        shifts = rng.integers(0, 4, len(q))
+        reverse = rng.random(len(q)) < 0.5
+        relisted = np.stack([np.roll(row[::-1] if r else row, -k) for row, k, r in zip(q, shifts, reverse)])
+        assert np.allclose(face_features(v, relisted)[0], base, atol=1e-4), name
+        assert np.allclose(face_features(v, q[:, ::-1])[0], base, atol=1e-4), name
+        # the features still carry the orientation: normals face outwards on the sphere
+        if name == "sphere":
+            centers = v[q].mean(axis=1)
+            normals = base[:, [names.index(n) for n in ("normal_x", "normal_y", "normal_z")]]
+            assert (np.einsum("ij,ij->i", normals, centers) > 0).mean() > 0.95
+
+
+def test_orient_coherently_restores_the_outward_orientation_of_every_part():
+    """Two closed parts, a random half of each part's quads reversed: every quad comes back outwards."""
+    parts = [trimesh.creation.icosphere(2), trimesh.creation.box().apply_translation((3, 0, 0))]
+    v, q = triangles_to_quads(*[np.concatenate(x) for x in zip(*[(p.vertices, p.faces + sum(len(o.vertices) for o in parts[:i]))
+                                                                    for i, p in enumerate(parts)])])
+    rng = np.random.default_rng(1)
+    mixed = np.stack([row[::-1] if rng.random() < 0.5 else row for row in q])
+    oriented = orient_coherently(v, mixed)
+    assert np.array_equal(oriented, q)
+    assert np.array_equal(orient_coherently(v, q[:, ::-1]), q)

@@ -29,14 +29,19 @@ therefore invariants of that relabelling:
     mean_curvature             = asinh(H s)
     gaussian_curvature         = asinh(K s^2)
 
-All of them, and the normal, are unchanged by a cyclic shift. Listing a quad in reverse flips its
-orientation: the normal, sff_sum and the mean curvature change sign (they carry the orientation,
-which the prepared meshes fix outwards), the others are unchanged.
+All of them, and the normal, are unchanged by a cyclic shift. Listing a quad in reverse swaps X_s
+and X_t (E and G, L and N) and flips its orientation, which the normal, sff_sum and the mean
+curvature carry; :func:`face_features` therefore first re-lists every quad in the coherent, outward
+orientation of its connected part (:func:`mesh2tex.geometry.hierarchy.orient_coherently`, which
+reads only the quads' edges and positions), so that the start and the direction of every quad's
+list, and of the whole mesh's, change no feature.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from mesh2tex.geometry.hierarchy import orient_coherently
 
 FEATURE_NAMES = ["normal_x", "normal_y", "normal_z", "fff_stretch", "fff_shear", "sff_sum", "sff_diff", "sff_twist",
                  "mean_curvature", "gaussian_curvature"]
@@ -96,10 +101,12 @@ def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, 
     fundamental-form quantities and curvatures of the module docstring.
 
     Args:
-        vertices: (V, 3) float, normalised frame; quads: (F, 4) int, oriented outwards.
+        vertices: (V, 3) float, normalised frame; quads: (F, 4) int, each listed from any corner in
+            either direction (re-oriented coherently and outwards here).
     Returns:
         (F, 10) float32 features, all finite, and their names (:data:`FEATURE_NAMES`).
     """
+    quads = orient_coherently(vertices, quads)
     forms = fundamental_forms(vertices, quads)
     size_sq = np.maximum((forms["E"] + forms["G"]) / 2.0, 1e-30)
     size = np.sqrt(size_sq)

@@ -131,3 +131,65 @@ def pooling_map(fine_vertices: np.ndarray, fine_quads: np.ndarray, coarse_vertic
         assignment[chosen] = coarse
         counts[coarse] += 1
     return assignment
+
+
+def orient_coherently(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Quads re-listed (reversed where needed) so that each connected part is coherently oriented, outwards.
+
+    Two quads across a manifold edge agree when they traverse it in opposite directions; a
+    breadth-first walk over those edges reverses the quads that disagree with the part's first quad,
+    then the whole part is reversed if it encloses negative volume (``(1/3) sum_f (c_f - c) . a_f``
+    with ``c_f`` the quad's centre, ``a_f = (v2 - v0) x (v3 - v1) / 2`` its area vector and ``c`` the
+    part's centre). Nothing here depends on where a quad's vertex list starts or on its direction,
+    so any listing of the same quads gives the same orientation. A part that cannot be oriented (a
+    Moebius band) keeps the orientation the walk gives it.
+
+    Args:
+        vertices: (V, 3) float; quads: (F, 4) int.
+    Returns:
+        (F, 4) int64: every row the input row or its reverse.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    v = np.asarray(vertices, dtype=np.float64)
+    q = np.asarray(quads, dtype=np.int64)
+    f = len(q)
+    if f == 0:
+        return q.copy()
+    start, end = q.reshape(-1), np.roll(q, -1, axis=1).reshape(-1)
+    face = np.repeat(np.arange(f), 4)
+    proper = start != end
+    start, end, face = start[proper], end[proper], face[proper]
+    key = np.minimum(start, end) * (int(q.max()) + 1) + np.maximum(start, end)
+    forward = start < end
+    order = np.argsort(key, kind="stable")
+    key, forward, face = key[order], forward[order], face[order]
+    _, first, counts = np.unique(key, return_index=True, return_counts=True)
+    pairs = first[counts == 2]
+    a, b = face[pairs], face[pairs + 1]
+    keep = a != b
+    a, b = a[keep], b[keep]
+    disagree = (forward[pairs] == forward[pairs + 1])[keep]  # same direction: one of the two must flip
+    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(f, f)).tocsr()
+    n_parts, part = connected_components(graph, directed=False)
+    flip_of_pair = {}
+    for x, y, d in zip(a.tolist(), b.tolist(), disagree.tolist()):
+        flip_of_pair[(x, y)] = flip_of_pair[(y, x)] = d
+    flip = np.zeros(f, dtype=bool)
+    for p in range(n_parts):
+        root = int(np.flatnonzero(part == p)[0])
+        visit, parent = breadth_first_order(graph, root, directed=False, return_predecessors=True)
+        for node in visit[1:].tolist():
+            up = int(parent[node])
+            flip[node] = flip[up] ^ flip_of_pair[(node, up)]
+    oriented = np.where(flip[:, None], q[:, ::-1], q)
+    p = v[oriented]
+    centres = p.mean(axis=1)
+    area = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1]) / 2.0
+    weight = np.linalg.norm(area, axis=1)
+    part_centre = np.stack([np.bincount(part, weights=weight * centres[:, k], minlength=n_parts) for k in range(3)], axis=1)
+    part_centre /= np.maximum(np.bincount(part, weights=weight, minlength=n_parts), 1e-30)[:, None]
+    volume = np.bincount(part, weights=np.einsum("ij,ij->i", centres - part_centre[part], area), minlength=n_parts)
+    reverse = volume[part] < 0
+    return np.ascontiguousarray(np.where(reverse[:, None], oriented[:, ::-1], oriented))

@@ -25,21 +25,29 @@ Protocols (names as in ``protocols.json``):
 
 Each transfer protocol runs every ablation of Table 8 on the same queries with the same seeds:
 ``full``, ``no_noc`` (patch pairs without NOC guidance), ``no_patches`` (global style loss only) and
-``no_refine`` (latent only, "w/o surface features"). Metrics per ablation:
+``no_refine`` (latent only, "w/o surface features"), and beside them the simple baselines
+(:data:`BASELINES`): the ground-truth texture itself (``oracle``, the world's ``textured/`` GLB),
+the photo's mean colour everywhere (``flat_colour``), the generator's mean texture (``mean_texture``,
+``w_avg``, no optimisation) and the photo back-projected onto the mesh from the pose the transfer
+used (``backprojection``).
 
-* per query, where the geometry is exact (``known_pose``, ``unknown_pose``): the transferred texture
-  rendered at the query's TRUE pose (also when it was optimised at a predicted one), both crops framed
-  by their own silhouettes, against the photo: masked PSNR and SSIM over the pixels both masks cover,
-  and the colour-histogram distance of the object pixels. ``other_shape`` has only the histogram
-  distance (the render is of another shape at the estimated pose).
-* over the set of queries: the renders (object on white) against the query photos (object on white):
-  KID/FID on named features, SWD and the pooled histogram distance. With a handful of queries these
-  are noisy; the per-query metrics are the sharper comparison.
+Every method is judged alike (:mod:`mesh2tex.evaluation`): a textured surface rendered by one
+function with the photo's camera, light and background (``lighting: albedo`` renders all unlit), at
+the photo's view ("seen") and ``unseen_views`` views the photo does not show (the same camera
+turned about the vertical axis), against what the world photographs there (the query photo, then
+the world's own renders of the query shape). Scores per query and view side
+(``mesh2tex.evaluation.METRICS``): per-part CIELAB colour error (parts by the world's labels),
+low-pass PSNR (Gaussian blur of ``lowpass_sigma`` px), SWD on object patches, and PSNR / SSIM on
+the object mask. Exact geometry (``known_pose``, ``unknown_pose``) is scored on the pixels both the
+world's shape and the prepared one cover; ``other_shape`` (the texture on another shape, seen
+through the query's cameras) has per-part colour error (parts matched by label) and SWD only, and
+its oracle is the query shape's own material on the other shape. The oracle must win every column
+(``oracle_check``); the full method is compared with every other method query by query (wins and
+Wilcoxon signed-rank p-values).
 
 The paper measures CLIP similarity and LPIPS, which need downloaded weights; the metrics above need
-none (KID/FID use Inception only when its weights are on disk, else features named for what they are).
-Renders are the generator's albedo while the world's photos are shaded, so PSNR stays well below
-what a perfect texture would reach against unshaded references.
+none (KID/FID of the unconditional protocol use Inception only when its weights are on disk, else
+features named for what they are).
 """
 
 from __future__ import annotations
@@ -62,7 +70,7 @@ from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import write_json, write_text
 from mesh2tex.io.images import save_png
-from mesh2tex.metrics import color_histogram_distance, masked_psnr, masked_ssim, to_unit
+from mesh2tex.metrics import to_unit
 
 PROTOCOLS = ("unconditional", "known_pose", "unknown_pose", "other_shape")
 TRANSFER_PROTOCOLS = PROTOCOLS[1:]
@@ -73,8 +81,9 @@ ABLATIONS = {
     "no_patches": {"use_patches": False},
     "no_refine": {"refine": False},
 }
-ABLATION_TITLES = {"full": "full method", "no_noc": "w/o NOC", "no_patches": "w/o patches",
-                   "no_refine": "w/o surface features (no refine)"}
+# The simple methods beside every transfer (none optimises anything): the ground truth itself, the
+# photo's mean colour everywhere, the generator's mean texture (w_avg), and the photo back-projected.
+BASELINES = ("oracle", "flat_colour", "mean_texture", "backprojection")
 LOWER_IS_BETTER = ("kid", "fid", "swd", "color_hist_tv")
 HIGHER_IS_BETTER = ("psnr_masked", "ssim_masked")
 
@@ -91,6 +100,10 @@ class ProtocolConfig:
     scales: int = 2  # style-loss pyramid levels (paper: 3; 2 keeps a 16 px coarsest level for 32 px patches)
     patch_scales: int = 0  # pyramid levels of the patch loss alone (0: ``scales``)
     pose_search: bool = True  # unknown_pose, other_shape: silhouette search around the pose network's answer (as infer transfer)
+    baselines: list[str] = field(default_factory=lambda: list(BASELINES))  # simple methods judged beside the transfers
+    lighting: str = "photo"  # render every method with the photo's light ('photo') or unlit, as albedo ('albedo')
+    unseen_views: int = 4  # views the photo does not show, evenly spaced in azimuth after the photo's
+    lowpass_sigma: float = 3.0  # Gaussian blur of the low-pass PSNR, in pixels of the world's photos
     latents: int = 4  # unconditional: random latents per held-out shape
     views: int = 6  # unconditional: orbit views per latent (paper: 6)
     features: str = "auto"  # KID/FID features: auto, inception, tvinception, vgg or randvgg
@@ -113,6 +126,7 @@ class Query:
     elevation: float
     distance: float
     fov: float
+    record: dict = field(default_factory=dict)  # the sidecar (camera, light, background, files)
 
 
 @dataclass
@@ -151,7 +165,7 @@ def load_world(root: str | Path, max_queries: int = 0) -> World:
                 raise UserError(f"{path}: query file missing (listed in {index_path})")
         queries.append(Query(name=image.stem, image=image, mask=mask, shape=truth["shape"],
                              azimuth=float(truth["azimuth"]), elevation=float(truth["elevation"]),
-                             distance=float(truth["distance"]), fov=float(truth["fov"])))
+                             distance=float(truth["distance"]), fov=float(truth["fov"]), record=truth))
     if max_queries > 0:
         queries = queries[:max_queries]
     query_shapes = list(dict.fromkeys(q.shape for q in queries))
@@ -277,27 +291,37 @@ def render_at_view(generator, shape: PreparedShape, ws: torch.Tensor, view, reso
 
 def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[str, PreparedShape], targets: dict[str, str],
                           vgg, cfg: ProtocolConfig,
-                          pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None, extractor, eval_cfg,
+                          pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None,
                           distance: float, fov: float, device: torch.device, out: Path | None, log=print,
                           cache: "TransferCache | None" = None) -> dict:
-    """One transfer protocol (``known_pose``, ``unknown_pose`` or ``other_shape``) with every ablation of ``cfg``.
+    """One transfer protocol (``known_pose``, ``unknown_pose`` or ``other_shape``): the baselines of
+    ``cfg.baselines`` and every ablation of ``cfg.ablations``, judged alike.
 
-    ``shapes``: the prepared shapes by name; ``targets``: query shape -> the shape ``other_shape`` textures.
-    ``cache``: finished (query, ablation) transfers are stored there and taken from there on a re-run.
+    Every method is a textured surface rendered by ``mesh2tex.evaluation.render_for_comparison`` at
+    the photo's view and ``cfg.unseen_views`` views it does not show, with the photo's light and
+    background (``cfg.lighting``), against what the world photographs there (the query photo, then
+    the world's own renders). ``shapes``: the prepared shapes by name; ``targets``: query shape ->
+    the shape ``other_shape`` textures; ``cache``: finished transfers are stored there and reused.
 
-    Returns {"queries": [per-query setup], "ablations": {name: {"set": metrics, "query": mean metrics,
-    "per_query": [...], "seconds": s}}}.
+    Returns {"queries": [per-query setup], "methods": {name: {"query": mean scores, "per_query":
+    [rows], "seconds": s}}}; scores are named "seen <metric>" and "unseen <metric>".
     """
-    from infer.evaluate import evaluate_sets
     from infer.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, transfer_texture, view_at_pose
+    from mesh2tex.evaluation import (ComparisonRender, ScoreSettings, backprojected_surface, common_mask, flat_surface,
+                                     generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
+                                     seen_and_unseen)
+    from mesh2tex.evaluation.world import load_query_truth, load_shape_truth, reference_renders
+    from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.pose import azimuth_error
 
     base = TransferConfig(resolution=cfg.resolution, latent_iters=cfg.latent_iters, refine_iters=cfg.refine_iters,
                           patch_size=cfg.patch_size, scales=cfg.scales, patch_scales=cfg.patch_scales, seed=cfg.seed,
                           pose_search=cfg.pose_search, device=str(device), vgg_weights=cfg.vgg_weights)
     exact = protocol in ("known_pose", "unknown_pose")
-    setups, runs = [], {a: {"renders": [], "masks": [], "per_query": [], "seconds": 0.0} for a in cfg.ablations}
-    photos, photo_masks = [], []
+    settings = ScoreSettings(lowpass_sigma=cfg.lowpass_sigma, seed=cfg.seed)
+    offsets = [360.0 * k / (cfg.unseen_views + 1) for k in range(1, cfg.unseen_views + 1)]
+    methods = {name: {"per_query": [], "seconds": 0.0} for name in (*cfg.baselines, *cfg.ablations)}
+    setups = []
     for q, query in enumerate(world.queries):
         photo, _ = load_photo(query.image, query.mask, base)
         photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
@@ -311,77 +335,123 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             azimuth, elevation, network_pose = estimate.azimuth, estimate.elevation, estimate.network
             dist, view_fov = distance, fov
         view = view_at_pose(shape, azimuth, elevation, dist, view_fov, base)
-        # Exact geometry is judged at the true camera, pixel-aligned with the photo (also when the texture
-        # was optimised at a predicted pose); another shape only at the pose it was optimised for.
-        judge = photo_frame_view(shape, query, cfg.resolution, base.margin) if exact else view
         setups.append({"query": query.name, "shape": target, "azimuth": round(azimuth, 3), "elevation": round(elevation, 3),
                        "true_azimuth": query.azimuth, "true_elevation": query.elevation,
                        "azimuth_error": round(float(azimuth_error(azimuth, query.azimuth)), 3),
                        "elevation_error": round(abs(elevation - query.elevation), 3)})
         if network_pose is not None and cfg.pose_search:
             setups[-1]["network_azimuth_error"] = round(float(azimuth_error(network_pose[0], query.azimuth)), 3)
-        photo01, photo_mask = to_unit(photo.image).clamp(0, 1), photo.mask
-        photos.append(photo01)
-        photo_masks.append(photo_mask)
+
+        # The ground truth, and one render function for every method.
+        try:
+            truth = load_query_truth(world.root, world.index, query.record)
+            target_truth = truth.truth if exact else load_shape_truth(world.root, world.index, target)
+        except ValueError as error:
+            raise UserError(str(error)) from None
+        views = [truth.view] + other_views(truth.view, offsets)
+        size = truth.resolution
+
+        def render(surface):
+            return render_for_comparison(surface, views, size, lighting=cfg.lighting)
+
+        reference = reference_renders(truth, views, cfg.lighting)
+        oracle = render(truth.truth.oracle if exact else truth.truth.material_on(target_truth))
+        vertices, triangles = shape.vertices[0], shape.triangles(0)
+        batch = collate_shapes([shape])
+        flat = render(flat_surface(vertices, triangles, photo_mean_colour(truth.photo[0], truth.photo_mask[0])))
+        # Exact geometry: every method on the pixels both the world's shape and the prepared one cover, with
+        # the world's part labels. Another shape: each image on its own object pixels, parts by label.
+        mask = common_mask(reference.mask, flat.mask) if exact else common_mask(flat.mask, oracle.mask)
+
+        def score(rendered) -> dict:
+            if exact:
+                scores = score_views(rendered, reference.rgb, reference.parts, mask, settings)
+            else:
+                scores = score_views(ComparisonRender(rendered.rgb, mask, oracle.parts), reference.rgb, reference.parts, mask,
+                                     settings, reference_mask=reference.mask)
+            return {k: round(v, 5) for k, v in seen_and_unseen(scores).items()}
+
+        def keep(name: str, rendered, row: dict) -> None:
+            row = {"query": query.name, **score(rendered), **row}
+            methods[name]["per_query"].append(row)
+            methods[name]["seconds"] += row.get("seconds", 0.0)
+            if out is not None:
+                folder = out / "renders" / protocol / name
+                folder.mkdir(parents=True, exist_ok=True)
+                save_png(folder / f"{query.name}.png", _strip(rendered.rgb))
+            log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {target} {name}: "
+                + ", ".join(f"{k} {row[k]:.4g}" for k in ("seen part_delta_e", "unseen part_delta_e", "seen lowpass_psnr") if k in row)
+                + (f" ({row['seconds']:.0f} s)" if "seconds" in row else ""))
+
         if out is not None:
             (out / "renders" / protocol).mkdir(parents=True, exist_ok=True)
-            save_png(out / "renders" / protocol / f"{query.name}_photo.png", _uint8(on_white(photo01, photo_mask)[0]))
+            save_png(out / "renders" / protocol / f"{query.name}_reference.png", _strip(reference.rgb))
+        for name in cfg.baselines:
+            start = time.perf_counter()
+            if name == "oracle":
+                rendered = oracle
+            elif name == "flat_colour":
+                rendered = flat
+            elif name == "mean_texture":
+                with torch.no_grad():
+                    ws = generator.mapping.w_avg.reshape(1, 1, -1).expand(1, generator.num_ws, -1).to(device)
+                    features = generator.synthesize(batch.to(device), ws, noise_mode="none").field_features
+                rendered = render(generator_surface(generator, features, batch))
+            else:  # backprojection: the photo seen from the pose the transfer used, at the photo's own resolution
+                crop_cfg = replace(base, resolution=size)
+                crop, _ = load_photo(query.image, query.mask, crop_cfg)
+                frame = (photo_frame_view(shape, query, size, base.margin) if protocol == "known_pose"
+                         else view_at_pose(shape, azimuth, elevation, dist, view_fov, crop_cfg))
+                try:
+                    surface = backprojected_surface(vertices, triangles, to_unit(crop.image[0]).clamp(0, 1), crop.mask[0, 0],
+                                                    frame.mvp, frame.render_size, frame.box)
+                except ValueError as error:
+                    raise UserError(f"{query.image}: {error}") from None
+                rendered = render(surface)
+            keep(name, rendered, {"seconds": round(time.perf_counter() - start, 2)})
+
         for ablation in cfg.ablations:
             tcfg = replace(base, **ABLATIONS[ablation])
             guided = tcfg.use_noc and tcfg.use_patches
             if guided and photo_noc is None:
                 raise UserError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
-            record = runs[ablation]
             cached = cache.load(protocol, ablation, query.name) if cache is not None else None
             if cached is not None:  # made by an earlier run into this folder with the same settings
-                render01, row = cached
+                features, row = cached
             else:
                 torch.manual_seed(cfg.seed)
                 candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
                 result = transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
                                           show_progress=False)
-                render = result.render if judge is view else render_at_view(candidate, shape, result.ws, judge, cfg.resolution, device)
-                render01 = to_unit(render.float()).clamp(0, 1)
-                row = {"query": query.name, "loss_last": {k: v[-1] for k, v in result.losses.items() if v},
-                       "seconds": round(sum(result.seconds.values()), 2)}
-                if exact:
-                    # Pixels both silhouettes cover: the prepared (remeshed) shape may lose thin parts.
-                    both = judge.mask * photo_mask
-                    if both.sum() < 16:
-                        raise UserError(f"{query.image}: the shape at the true pose and the photo share almost no object pixels")
-                    row["psnr_masked"] = float(masked_psnr(render01, photo01, both)[0])
-                    row["ssim_masked"] = float(masked_ssim(render01, photo01, both)[0])
-                    row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, both)[0])
-                    row["silhouette_iou"] = round(float(both.sum() / ((judge.mask + photo_mask) > 0).sum()), 4)
-                else:
-                    row["color_hist_tv"] = float(color_histogram_distance(render01, photo01, judge.mask, photo_mask)[0])
+                with torch.no_grad():
+                    features = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none").field_features.cpu()
+                row = {"loss_last": {k: v[-1] for k, v in result.losses.items() if v}, "seconds": round(sum(result.seconds.values()), 2)}
                 if cache is not None:
-                    cache.save(protocol, ablation, query.name, render01, row)
-            record["renders"].append(render01)
-            record["masks"].append(judge.mask)
-            record["seconds"] += row["seconds"]
-            record["per_query"].append(row)
-            if out is not None:
-                folder = out / "renders" / protocol / ablation
-                folder.mkdir(parents=True, exist_ok=True)
-                save_png(folder / f"{query.name}.png", _uint8(on_white(render01, judge.mask)[0]))
-            log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {target} {ablation}: "
-                + ", ".join(f"{k} {row[k]:.4g}" for k in ("psnr_masked", "ssim_masked", "color_hist_tv") if k in row)
-                + (" (made earlier, reused)" if cached is not None else f" ({row['seconds']:.0f} s)"))
-    photo_mask_set = torch.cat(photo_masks)
-    photo_set = on_white(torch.cat(photos), photo_mask_set)
-    ablations = {}
-    for ablation, record in runs.items():
-        render_mask_set = torch.cat(record["masks"])
-        render_set = on_white(torch.cat(record["renders"]), render_mask_set)
-        per_query = record["per_query"]
-        means = {k: sum(r[k] for r in per_query) / len(per_query) for k in ("psnr_masked", "ssim_masked", "color_hist_tv")
-                 if k in per_query[0]}
-        set_metrics = (evaluate_sets(render_set, photo_set, extractor, eval_cfg, render_mask_set, photo_mask_set)["metrics"]
-                       if len(per_query) >= 2 else {})
-        ablations[ablation] = {"set": set_metrics, "query": means, "per_query": per_query,
-                               "seconds": round(record["seconds"], 2)}
-    return {"queries": setups, "ablations": ablations}
+                    cache.save(protocol, ablation, query.name, features, row)
+            # Stage 2 refines synthesis blocks only: psi is the original's, so the face features are the whole result.
+            keep(ablation, render(generator_surface(generator, features, batch)), dict(row))
+    for entry in methods.values():
+        entry["query"] = mean_scores(entry["per_query"])
+        entry["seconds"] = round(entry["seconds"], 2)
+    return {"queries": setups, "methods": methods}
+
+
+def mean_scores(rows: list[dict]) -> dict[str, float]:
+    """Mean over the rows (queries) of every score column ('seen ...', 'unseen ...'), NaNs skipped."""
+    columns = [k for k in (rows[0] if rows else {}) if k.startswith(("seen ", "unseen "))]
+    means = {}
+    for column in columns:
+        values = [r[column] for r in rows if column in r and isinstance(r[column], (int, float)) and not math.isnan(r[column])]
+        if values:
+            means[column] = sum(values) / len(values)
+    return means
+
+
+def _strip(images: torch.Tensor) -> np.ndarray:
+    """[B, 3, R, R] in [0, 1] -> one (R, B*R + 2*(B-1), 3) uint8 image, the views side by side."""
+    tiles = [_uint8(image) for image in images]
+    gap = np.full((tiles[0].shape[0], 2, 3), 255, dtype=np.uint8)
+    return np.concatenate([t for tile in tiles for t in (tile, gap)][:-1], axis=1)
 
 
 # ------------------------------------------------------------------------------------------ resume
@@ -389,8 +459,10 @@ class TransferCache:
     """Finished transfers of protocol runs into one folder: an interrupted run resumes where it stopped,
     and a run with more queries or ablations redoes none of the transfers already made.
 
-    ``DIR/transfers/<protocol>/<ablation>/<query>.npz`` holds the render [1,3,R,R] in [0,1] (float32)
-    and the per-query row (JSON) of one transfer; ``DIR/transfers/settings.json`` what they were made
+    ``DIR/transfers/<protocol>/<ablation>/<query>.npz`` holds the result of one transfer, the
+    generator's face features [F_0, C] (float32; with the unchanged psi they are the whole texture, so
+    the evaluation can be redone with other metrics, views or lighting without redoing the transfer),
+    and its row (JSON: last losses, seconds); ``DIR/transfers/settings.json`` what they were made
     with: every setting that changes a transfer (not the choice of protocols, ablations or number of
     queries) and the digests of the checkpoints. Transfers made with other settings are never mixed
     in: the run is refused, or with ``--overwrite`` they are discarded. Because each transfer is its
@@ -414,24 +486,36 @@ class TransferCache:
         return self.root / protocol / ablation / f"{query}.npz"
 
     def load(self, protocol: str, ablation: str, query: str) -> tuple[torch.Tensor, dict] | None:
+        """(face features [F_0, C], row) of a finished transfer, or None (also for a file of an older
+        layout, which kept only a render: that transfer is made again)."""
         path = self._path(protocol, ablation, query)
         if not path.is_file():
             return None
         with np.load(path, allow_pickle=False) as data:
-            return torch.from_numpy(data["render"]), json.loads(str(data["row"]))
+            if "field_features" not in data:
+                return None
+            return torch.from_numpy(data["field_features"]), json.loads(str(data["row"]))
 
-    def save(self, protocol: str, ablation: str, query: str, render01: torch.Tensor, row: dict) -> None:
+    def save(self, protocol: str, ablation: str, query: str, field_features: torch.Tensor, row: dict) -> None:
         from mesh2tex.io.atomic import atomic_path
 
         with atomic_path(self._path(protocol, ablation, query)) as tmp:
-            np.savez(tmp, render=render01.float().numpy(), row=np.array(json.dumps(row)))
+            np.savez(tmp, field_features=field_features.detach().float().cpu().numpy(), row=np.array(json.dumps(row)))
 
 
 # ------------------------------------------------------------------------------------- comparison
 def metric_direction(name: str) -> int:
-    """+1 if higher is better, -1 if lower is better, 0 for values that are not scores (spreads, levels)."""
+    """+1 if higher is better, -1 if lower is better, 0 for values that are not scores (spreads, levels).
+
+    Transfer columns are named '<seen|unseen> <metric>' (``mesh2tex.evaluation.METRICS``); the
+    unconditional protocol's set metrics by their own names (kid_*, fid_*, swd, color_hist_tv)."""
+    from mesh2tex.evaluation import METRICS
+
     if name.endswith("_std") or (name.startswith("swd_") and name.endswith("px")):
         return 0
+    last = name.split(" ")[-1]
+    if " " in name and last in METRICS:
+        return METRICS[last]
     if name in HIGHER_IS_BETTER:
         return 1
     base = name.split("_")[0]
@@ -439,29 +523,26 @@ def metric_direction(name: str) -> int:
 
 
 def scored_metrics(entry: dict) -> dict[str, float]:
-    """{"set <name>" | "query <name>": value} of the metrics of one ablation that rank methods."""
-    scores = {}
-    for group in ("set", "query"):
-        for name, value in entry.get(group, {}).items():
-            if metric_direction(name) != 0 and isinstance(value, (int, float)) and math.isfinite(value):
-                scores[f"{group} {name}"] = float(value)
-    return scores
+    """{column: mean value} of one method's scores that rank methods (finite values only)."""
+    return {name: float(value) for name, value in entry.get("query", {}).items()
+            if metric_direction(name) != 0 and isinstance(value, (int, float)) and math.isfinite(value)}
 
 
-def compare_to_full(ablations: dict) -> dict:
-    """For each ablation: per metric whether the full method is better, the count of wins, and per
-    per-query metric the paired view (``query_wins``, ``query_tests``: mean difference, Wilcoxon p)."""
-    if "full" not in ablations:
+def compare_to_full(methods: dict) -> dict:
+    """For every other method (ablation or baseline): per column whether the full method's mean is
+    better, the count of wins, and the paired view of the same queries (``query_wins``: [full better,
+    queries]; ``query_tests``: mean difference, Wilcoxon p)."""
+    if "full" not in methods:
         return {}
-    full = scored_metrics(ablations["full"])
-    full_rows = ablations["full"].get("per_query", [])
+    full = scored_metrics(methods["full"])
+    full_rows = methods["full"].get("per_query", [])
     comparison = {}
-    for name, entry in ablations.items():
+    for name, entry in methods.items():
         if name == "full":
             continue
         other = scored_metrics(entry)
         other_rows = entry.get("per_query", [])
-        margin = {m: (full[m] - other[m]) * metric_direction(m.split(" ", 1)[1]) for m in full if m in other}
+        margin = {m: (full[m] - other[m]) * metric_direction(m) for m in full if m in other}
         comparison[name] = {"full_better": {m: d > 0 for m, d in margin.items()}, "wins": sum(d > 0 for d in margin.values()),
                             "ties": sum(d == 0 for d in margin.values()), "metrics": len(margin),
                             "query_wins": paired_query_wins(full_rows, other_rows), "query_tests": paired_query_tests(full_rows, other_rows)}
@@ -469,17 +550,18 @@ def compare_to_full(ablations: dict) -> dict:
 
 
 def paired_query_differences(full_rows: list[dict], other_rows: list[dict]) -> dict[str, list[float]]:
-    """Per per-query metric, the differences full - other over the queries both ran, signed so that a
-    positive value means the full method is better (for the histogram distance: other - full)."""
+    """Per score column, the differences full - other over the queries both ran, signed so that a
+    positive value means the full method is better (for lower-is-better columns: other - full)."""
     others = {row["query"]: row for row in other_rows}
     differences: dict[str, list[float]] = {}
     for row in full_rows:
         other = others.get(row["query"])
         if other is None:
             continue
-        for metric in (*HIGHER_IS_BETTER, "color_hist_tv"):
-            if metric in row and metric in other:
-                differences.setdefault(metric, []).append((row[metric] - other[metric]) * metric_direction(metric))
+        for metric, value in row.items():
+            direction = metric_direction(metric) if isinstance(value, (int, float)) else 0
+            if direction and metric in other and math.isfinite(value) and math.isfinite(other[metric]):
+                differences.setdefault(metric, []).append((value - other[metric]) * direction)
     return differences
 
 
@@ -510,7 +592,49 @@ def paired_query_tests(full_rows: list[dict], other_rows: list[dict]) -> dict[st
     return tests
 
 
+def oracle_check(methods: dict) -> list[str]:
+    """The columns where the ground truth (``oracle``) does not score at least as well as every other
+    method: each one is a broken metric or comparison. Empty when it wins everywhere."""
+    if "oracle" not in methods:
+        return []
+    oracle = scored_metrics(methods["oracle"])
+    lost = []
+    for column, value in oracle.items():
+        others = [scored_metrics(e).get(column) for n, e in methods.items() if n != "oracle"]
+        others = [v for v in others if v is not None]
+        if others and any((v - value) * metric_direction(column) > 0 for v in others):
+            lost.append(column)
+    return lost
+
+
+def flat_colour_targets(methods: dict, method: str = "full") -> dict:
+    """How ``method`` does against the flat mean colour, query by query (the issue's targets): the
+    ratio of mean per-part ΔE (seen and unseen), the share of queries with a lower ΔE, and the share
+    with a higher low-pass PSNR (seen)."""
+    if method not in methods or "flat_colour" not in methods:
+        return {}
+    mine, flat = methods[method], methods["flat_colour"]
+    wins = paired_query_wins(mine["per_query"], flat["per_query"])
+    out = {}
+    for side in ("seen", "unseen"):
+        column = f"{side} part_delta_e"
+        if column in mine["query"] and column in flat["query"] and flat["query"][column] > 0:
+            out[f"{side} part_delta_e ratio"] = mine["query"][column] / flat["query"][column]
+            if column in wins:
+                out[f"{side} part_delta_e below"] = wins[column]
+    if "seen lowpass_psnr" in wins:
+        out["seen lowpass_psnr above"] = wins["seen lowpass_psnr"]
+    return out
+
+
 # ----------------------------------------------------------------------------------------- report
+METHOD_TITLES = {"oracle": "ground-truth texture (oracle)", "flat_colour": "flat mean colour of the photo",
+                 "mean_texture": "generator's mean texture (w_avg)", "backprojection": "photo back-projection",
+                 **{"full": "full method", "no_noc": "w/o NOC", "no_patches": "w/o patches",
+                    "no_refine": "w/o surface features (no refine)"}}
+ABLATION_TITLES = {k: METHOD_TITLES[k] for k in ABLATIONS}
+
+
 def _paired_note(test: dict | None) -> str:
     """' (mean +0.47, p 0.69)': the paired difference (positive: full better) and its Wilcoxon p-value."""
     if not test:
@@ -527,8 +651,44 @@ def _fmt(value, name: str) -> str:
     return f"{value:.4g}"
 
 
+def _column_title(column: str) -> str:
+    from mesh2tex.evaluation import METRIC_TITLES
+
+    side, _, metric = column.partition(" ")
+    arrow = " ↑" if metric_direction(column) > 0 else " ↓"
+    return f"{side} {METRIC_TITLES.get(metric, metric)}{arrow}"
+
+
+def transfer_table(methods: dict, order: list[str]) -> list[str]:
+    """Markdown rows of one transfer protocol: a row per method, seen columns then unseen columns; the
+    best value among the methods other than the oracle in bold."""
+    from mesh2tex.evaluation import METRICS
+
+    present = set().union(*(m["query"] for m in methods.values()))
+    columns = [f"{side} {metric}" for side in ("seen", "unseen") for metric in METRICS if f"{side} {metric}" in present]
+    best = {}
+    for column in columns:
+        values = [scored_metrics(e).get(column) for n, e in methods.items() if n != "oracle"]
+        values = [v for v in values if v is not None]
+        if values:
+            best[column] = max(values) if metric_direction(column) > 0 else min(values)
+    lines = ["| method | " + " | ".join(_column_title(c) for c in columns) + " | seconds |",
+             "| --- |" + " --- |" * (len(columns) + 1)]
+    for name in order:
+        if name not in methods:
+            continue
+        scores = methods[name]["query"]
+        cells = []
+        for column in columns:
+            text = _fmt(scores.get(column), column)
+            cells.append(f"**{text}**" if name != "oracle" and scores.get(column) is not None and scores.get(column) == best.get(column) else text)
+        lines.append(f"| {METHOD_TITLES.get(name, name)} | " + " | ".join(cells) + f" | {methods[name]['seconds']:.0f} |")
+    return lines
+
+
 def protocols_markdown(result: dict) -> str:
-    """The results as markdown: one table per protocol (rows ablations, like the paper's Table 8)."""
+    """The results as markdown: one table per protocol (rows: the oracle, the baselines, the ablations
+    of the paper's Table 8 and the full method), then the paired comparisons with the full method."""
     lines = ["# mesh2tex evaluate --protocols", ""]
     s = result["settings"]
     lines.append(f"World `{result['world']}`, GAN `{result['gan']}`; {result['counts']['queries']} queries; "
@@ -548,36 +708,45 @@ def protocols_markdown(result: dict) -> str:
         if protocol not in result["protocols"]:
             continue
         entry = result["protocols"][protocol]
-        ablations = entry["ablations"]
-        columns = list(scored_metrics(next(iter(ablations.values()))))
-        best = {}
-        for column in columns:
-            direction = metric_direction(column.split(" ", 1)[1])
-            values = [scored_metrics(a).get(column) for a in ablations.values()]
-            values = [v for v in values if v is not None]
-            best[column] = max(values) if direction > 0 else min(values)
+        methods = entry["methods"]
         lines += [f"## {titles[protocol]} (`{protocol}`)", "",
-                  "| method | " + " | ".join(c + (" ↑" if metric_direction(c.split(' ', 1)[1]) > 0 else " ↓") for c in columns) + " | seconds |",
-                  "| --- |" + " --- |" * (len(columns) + 1)]
-        order = [a for a in ("no_noc", "no_patches", "no_refine", "full") if a in ablations]
-        for ablation in order:
-            scores = scored_metrics(ablations[ablation])
-            cells = []
-            for column in columns:
-                text = _fmt(scores.get(column), column.split(" ", 1)[1])
-                cells.append(f"**{text}**" if scores.get(column) == best[column] else text)
-            lines.append(f"| {ABLATION_TITLES[ablation]} | " + " | ".join(cells) + f" | {ablations[ablation]['seconds']:.0f} |")
+                  f"Every method rendered alike (`mesh2tex.evaluation.render_for_comparison`, lighting `{s.get('lighting', 'photo')}`) "
+                  f"at the photo's view (seen) and {s.get('unseen_views', 4)} views it does not show (unseen, mean), "
+                  "against what the world photographs there; "
+                  + ("scored on the object pixels both the world's shape and the prepared one cover. "
+                     if protocol != "other_shape" else "each image on its own object pixels, parts matched by label. ")
+                  + f"Low-pass PSNR after a Gaussian blur of σ = {s.get('lowpass_sigma', 3.0):g} px; object SWD x1e3. "
+                  "Bold: the best method other than the oracle.", ""]
+        order = ["oracle", "flat_colour", "mean_texture", "backprojection", "no_noc", "no_patches", "no_refine", "full"]
+        lines += transfer_table(methods, order)
+        lost = oracle_check(methods)
+        lines += ["", "The oracle wins every column." if not lost else
+                  f"**The oracle does not win: {', '.join(lost)}** (a broken metric or comparison)."]
         errors = [q["azimuth_error"] for q in entry["queries"]]
-        if protocol != "known_pose":
+        if protocol != "known_pose" and errors:
             searched = [q["network_azimuth_error"] for q in entry["queries"] if "network_azimuth_error" in q]
             how = "Pose network + silhouette search" if searched else "Pose network"
             lines += ["", f"{how}: mean azimuth error {sum(errors) / len(errors):.1f} deg, "
                           f"mean elevation error {sum(q['elevation_error'] for q in entry['queries']) / len(errors):.1f} deg"
                           + (f" (the network's bins alone: mean azimuth error {sum(searched) / len(searched):.1f} deg)." if searched else ".")]
-        for ablation, c in result["comparison"].get(protocol, {}).items():
+        targets = flat_colour_targets(methods)
+        if targets:
+            parts = []
+            for side in ("seen", "unseen"):
+                if f"{side} part_delta_e ratio" in targets:
+                    below = targets.get(f"{side} part_delta_e below")
+                    parts.append(f"{side} per-part ΔE {targets[f'{side} part_delta_e ratio']:.2f} of the flat colour's"
+                                 + (f", lower on {below[0]} of {below[1]} queries" if below else ""))
+            if "seen lowpass_psnr above" in targets:
+                w, n = targets["seen lowpass_psnr above"]
+                parts.append(f"seen low-pass PSNR higher on {w} of {n}")
+            lines += ["", "Full method against the flat colour: " + "; ".join(parts) + "."]
+        for name, c in result["comparison"].get(protocol, {}).items():
+            if name == "oracle":
+                continue
             lost = [m for m, better in c["full_better"].items() if not better]
             lines.append("")
-            lines.append(f"Full method better than {ABLATION_TITLES[ablation]} on {c['wins']} of {c['metrics']} metrics"
+            lines.append(f"Full method better than {METHOD_TITLES.get(name, name)} on {c['wins']} of {c['metrics']} columns"
                          + (f", {c['ties']} tied" if c["ties"] else "")
                          + (f" (not better on: {', '.join(lost)})." if lost else ".")
                          + ("" if not c.get("query_wins") else " Per query, full better on "
@@ -608,10 +777,17 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     from mesh2tex.nn.vgg import load_vgg19
     from train.runs import select_device
 
-    unknown = [p for p in cfg.protocols if p not in PROTOCOLS] + [a for a in cfg.ablations if a not in ABLATIONS]
+    from mesh2tex.evaluation import LIGHTING
+
+    unknown = ([p for p in cfg.protocols if p not in PROTOCOLS] + [a for a in cfg.ablations if a not in ABLATIONS]
+               + [b for b in cfg.baselines if b not in BASELINES])
     if unknown:
-        raise UserError(f"unknown protocol or ablation {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
-                        f"ablations: {', '.join(ABLATIONS)}")
+        raise UserError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
+                        f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join(BASELINES)}")
+    if cfg.lighting not in LIGHTING:
+        raise UserError(f"lighting {cfg.lighting!r}: must be one of {', '.join(LIGHTING)}")
+    if not 0 <= cfg.unseen_views <= 35 or cfg.lowpass_sigma < 0:
+        raise UserError(f"unseen_views {cfg.unseen_views}, lowpass_sigma {cfg.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
     if cfg.resolution < 32:
         raise UserError(f"--resolution {cfg.resolution}: must be at least 32")
     if cfg.latent_iters < 0 or cfg.refine_iters < 0:
@@ -655,7 +831,8 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         out.mkdir(parents=True, exist_ok=True)
         inputs = {"world": str(Path(world_dir).resolve()), "shapes": str(Path(shapes_dir).resolve()),
                   "gan": _file_digest(gan_checkpoint), "pose": _file_digest(pose_checkpoint), "noc": _file_digest(noc_checkpoint)}
-        selection = ("protocols", "ablations", "queries")  # which transfers run, not how each one runs
+        # Which transfers run, and how they are judged, not how each one runs: a cached transfer is re-judged.
+        selection = ("protocols", "ablations", "queries", "baselines", "lighting", "unseen_views", "lowpass_sigma")
         settings = {k: v for k, v in asdict(cfg).items() if k not in selection}
         # Settings that do what the runs before these fields did are left out: their folders still match.
         for key, default in (("patch_scales", 0), ("pose_search", False)):
@@ -674,8 +851,10 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
             entry = run_unconditional(generator, world, shapes, cfg, extractor, eval_cfg, distance, fov, device, out)
         else:
             entry = run_transfer_protocol(protocol, generator, world, shapes, targets, vgg, cfg, pose_checkpoint,
-                                          noc_checkpoint, extractor, eval_cfg, distance, fov, device, out, log, cache)
-            result["comparison"][protocol] = compare_to_full(entry["ablations"])
+                                          noc_checkpoint, distance, fov, device, out, log, cache)
+            result["comparison"][protocol] = compare_to_full(entry["methods"])
+            entry["oracle_loses"] = oracle_check(entry["methods"])
+            entry["against_flat_colour"] = flat_colour_targets(entry["methods"])
         entry["seconds"] = round(time.perf_counter() - t, 2)
         result["protocols"][protocol] = entry
         log(f"{protocol}: done in {entry['seconds']:.0f} s")

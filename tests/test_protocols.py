@@ -13,8 +13,8 @@ import yaml
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
-from infer.protocols import (ABLATIONS, PROTOCOLS, compare_to_full, load_world, other_shape_name, paired_query_tests, paired_query_wins,
-                             photo_frame_view, protocols_markdown)
+from infer.protocols import (ABLATIONS, BASELINES, PROTOCOLS, compare_to_full, load_world, oracle_check, other_shape_name,
+                             paired_query_tests, paired_query_wins, photo_frame_view, protocols_markdown)
 from mesh2tex.io.images import load_mask
 from conftest import TINY_GAN as TINY
 
@@ -69,27 +69,33 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
     held_out = index["split"]["query_shapes"][0]
     for protocol in ("known_pose", "unknown_pose", "other_shape"):
         entry = result["protocols"][protocol]
-        assert list(entry["ablations"]) == list(ABLATIONS)
+        assert list(entry["methods"]) == list(BASELINES) + list(ABLATIONS)
         assert [q["query"] for q in entry["queries"]] == [q["image"].split("/")[-1][:-4] for q in index["queries"]]
-        for ablation in entry["ablations"].values():
-            assert len(ablation["per_query"]) == 2
-            assert np.isfinite(ablation["set"]["swd"]) and 0 <= ablation["query"]["color_hist_tv"] <= 1
-            exact = protocol != "other_shape"
-            assert ("psnr_masked" in ablation["query"]) == exact
-            if exact:
-                assert all(0 < row["silhouette_iou"] <= 1 for row in ablation["per_query"])
+        exact = protocol != "other_shape"
+        for name, method in entry["methods"].items():
+            assert len(method["per_query"]) == 2
+            for side in ("seen", "unseen"):  # the photo's view and the views it does not show, apart
+                assert np.isfinite(method["query"][f"{side} part_delta_e"]) and method["query"][f"{side} part_delta_e"] >= 0
+                assert np.isfinite(method["query"][f"{side} swd"])
+                assert (f"{side} lowpass_psnr" in method["query"]) == exact and (f"{side} psnr" in method["query"]) == exact
+        # The ground truth wins every column on exact geometry: a metric it loses is broken.
+        if exact:
+            assert entry["oracle_loses"] == [], f"{protocol}: the oracle loses {entry['oracle_loses']}"
         targets = {q["shape"] for q in entry["queries"]}
         assert targets == ({held_out} if protocol != "other_shape" else {index["split"]["train_shapes"][0]})
-        assert set(result["comparison"][protocol]) == {"no_noc", "no_patches", "no_refine"}
+        assert set(result["comparison"][protocol]) == set(BASELINES) | {"no_noc", "no_patches", "no_refine"}
     # The known pose is the sidecar's; stage 2 ran for the full method and not for no_refine.
     assert all(q["azimuth_error"] == 0 and q["elevation_error"] == 0 for q in result["protocols"]["known_pose"]["queries"])
-    rows = result["protocols"]["known_pose"]["ablations"]
+    rows = result["protocols"]["known_pose"]["methods"]
     assert "refine" in rows["full"]["per_query"][0]["loss_last"] and "refine" not in rows["no_refine"]["per_query"][0]["loss_last"]
 
     table = (out / "protocols.md").read_text()
     for title in ("| w/o NOC |", "| w/o patches |", "| w/o surface features (no refine) |", "| full method |",
-                  "exact geometry, unknown pose", "transfer to another shape"):
+                  "| ground-truth texture (oracle) |", "| flat mean colour of the photo |", "| photo back-projection |",
+                  "| generator's mean texture (w_avg) |", "exact geometry, unknown pose", "transfer to another shape",
+                  "seen per-part ΔE ↓", "unseen low-pass PSNR ↑", "seen object SWD ↓"):
         assert title in table
+    assert (out / "renders" / "known_pose" / "backprojection" / f"{entry['queries'][0]['query']}.png").is_file()
     assert (out / "renders" / "other_shape" / "full").is_dir()
     assert main(protocol_args(root, out)) == 2, "existing results are kept without --overwrite"
 
@@ -113,37 +119,42 @@ def test_true_pose_frame_lines_up_with_the_photo(setup):
 
 
 def test_comparison_counts_wins_by_each_metrics_direction():
-    ablations = {
-        "full": {"set": {"kid_randvgg": 0.1, "kid_randvgg_std": 0.5, "swd": 10.0, "swd_16px": 9.0},
-                 "query": {"psnr_masked": 20.0, "ssim_masked": 0.5, "color_hist_tv": 0.3}},
-        "no_noc": {"set": {"kid_randvgg": 0.2, "kid_randvgg_std": 0.0, "swd": 10.0, "swd_16px": 1.0},
-                   "query": {"psnr_masked": 21.0, "ssim_masked": 0.4, "color_hist_tv": 0.4}},
+    methods = {
+        "full": {"query": {"seen part_delta_e": 5.0, "seen lowpass_psnr": 20.0, "unseen swd": 30.0, "seen psnr": 18.0}},
+        "flat_colour": {"query": {"seen part_delta_e": 9.0, "seen lowpass_psnr": 21.0, "unseen swd": 30.0, "seen psnr": 17.0}},
     }
-    c = compare_to_full(ablations)["no_noc"]
-    assert c["full_better"] == {"set kid_randvgg": True, "set swd": False, "query psnr_masked": False,
-                                "query ssim_masked": True, "query color_hist_tv": True}
-    assert (c["wins"], c["ties"], c["metrics"]) == (3, 1, 5)
+    c = compare_to_full(methods)["flat_colour"]
+    assert c["full_better"] == {"seen part_delta_e": True, "seen lowpass_psnr": False, "unseen swd": False, "seen psnr": True}
+    assert (c["wins"], c["ties"], c["metrics"]) == (2, 1, 4)
+
+
+def test_oracle_check_names_the_columns_the_ground_truth_loses():
+    methods = {"oracle": {"query": {"seen part_delta_e": 1.0, "seen psnr": 30.0}},
+               "flat_colour": {"query": {"seen part_delta_e": 9.0, "seen psnr": 31.0}}}
+    assert oracle_check(methods) == ["seen psnr"]
+    methods["flat_colour"]["query"]["seen psnr"] = 20.0
+    assert oracle_check(methods) == []
 
 
 def test_paired_query_wins_compare_the_same_queries():
-    full = [{"query": "a", "psnr_masked": 20.0, "color_hist_tv": 0.2}, {"query": "b", "psnr_masked": 18.0, "color_hist_tv": 0.5}]
-    other = [{"query": "b", "psnr_masked": 17.0, "color_hist_tv": 0.5}, {"query": "a", "psnr_masked": 21.0, "color_hist_tv": 0.3}]
-    assert paired_query_wins(full, other) == {"psnr_masked": [1, 2], "color_hist_tv": [1, 2]}
+    full = [{"query": "a", "seen psnr": 20.0, "seen part_delta_e": 0.2}, {"query": "b", "seen psnr": 18.0, "seen part_delta_e": 0.5}]
+    other = [{"query": "b", "seen psnr": 17.0, "seen part_delta_e": 0.5}, {"query": "a", "seen psnr": 21.0, "seen part_delta_e": 0.3}]
+    assert paired_query_wins(full, other) == {"seen psnr": [1, 2], "seen part_delta_e": [1, 2]}
 
 
 def test_paired_tests_separate_a_consistent_advantage_from_noise():
     names = [f"q{i}" for i in range(8)]
-    other = [{"query": n, "psnr_masked": 15.0 + i, "color_hist_tv": 0.5} for i, n in enumerate(names)]
-    # Better on every query (higher PSNR, lower histogram distance): the smallest exact p of 8 pairs, 2/256.
-    better = [{"query": n, "psnr_masked": 15.5 + i + 0.1 * i, "color_hist_tv": 0.4} for i, n in enumerate(names)]
+    other = [{"query": n, "seen psnr": 15.0 + i, "seen part_delta_e": 0.5} for i, n in enumerate(names)]
+    # Better on every query (higher PSNR, lower colour error): the smallest exact p of 8 pairs, 2/256.
+    better = [{"query": n, "seen psnr": 15.5 + i + 0.1 * i, "seen part_delta_e": 0.4} for i, n in enumerate(names)]
     tests = paired_query_tests(better, other)
-    assert tests["psnr_masked"]["p_wilcoxon"] < 0.01 and tests["psnr_masked"]["mean_difference"] > 0
-    assert tests["color_hist_tv"]["p_wilcoxon"] < 0.01 and abs(tests["color_hist_tv"]["mean_difference"] - 0.1) < 1e-9
+    assert tests["seen psnr"]["p_wilcoxon"] < 0.01 and tests["seen psnr"]["mean_difference"] > 0
+    assert tests["seen part_delta_e"]["p_wilcoxon"] < 0.01 and abs(tests["seen part_delta_e"]["mean_difference"] - 0.1) < 1e-9
     # Wins and losses of matched sizes: no evidence either way.
-    mixed = [{"query": n, "psnr_masked": 15.0 + i + (1.0 if i % 2 else -1.0), "color_hist_tv": 0.5} for i, n in enumerate(names)]
+    mixed = [{"query": n, "seen psnr": 15.0 + i + (1.0 if i % 2 else -1.0), "seen part_delta_e": 0.5} for i, n in enumerate(names)]
     tests = paired_query_tests(mixed, other)
-    assert tests["psnr_masked"]["p_wilcoxon"] > 0.5 and tests["psnr_masked"]["mean_difference"] == 0
-    assert tests["color_hist_tv"]["p_wilcoxon"] is None  # every difference is 0
+    assert tests["seen psnr"]["p_wilcoxon"] > 0.5 and tests["seen psnr"]["mean_difference"] == 0
+    assert tests["seen part_delta_e"]["p_wilcoxon"] is None  # every difference is 0
 
 
 def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tmp_path, monkeypatch):
@@ -172,13 +183,18 @@ def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tm
     assert main(args) == 0
     assert len(counted) == 1, "only the transfer that had not finished runs again (2 queries x 2 ablations - 3)"
     result = json.loads((out / "protocols.json").read_text())
-    assert all(len(a["per_query"]) == 2 for a in result["protocols"]["known_pose"]["ablations"].values())
+    assert all(len(a["per_query"]) == 2 for a in result["protocols"]["known_pose"]["methods"].values())
 
     wider = protocol_args(root, out, "--only", "known_pose", "--ablations", "full,no_refine,no_noc", "--overwrite")
     assert main(wider) == 0
     assert len(counted) == 3, "a run with one more ablation makes only that ablation's transfers"
     result = json.loads((out / "protocols.json").read_text())
-    assert set(result["comparison"]["known_pose"]) == {"no_refine", "no_noc"}
+    assert set(result["comparison"]["known_pose"]) == set(BASELINES) | {"no_refine", "no_noc"}
+
+    judged_apart = protocol_args(root, out, "--only", "known_pose", "--ablations", "full", "--protocol-config",
+                                 str(_yaml(tmp_path / "albedo.yaml", lighting="albedo", unseen_views=2)), "--overwrite")
+    assert main(judged_apart) == 0
+    assert len(counted) == 3, "judging with other lighting and views re-judges the kept transfers, it does not redo them"
 
 
 def test_other_shape_is_never_the_query_shape():
@@ -198,17 +214,28 @@ def test_bad_inputs_name_the_problem(setup, tmp_path, capsys):
     assert main(protocol_args(root, tmp_path / "o", "--shapes", str(empty), "--only", "known_pose")) == 2
     assert f"no prepared shape for {index['split']['query_shapes'][0]}" in capsys.readouterr().err
     assert main(protocol_args(root, tmp_path / "o", "--only", "table9")) == 2
-    assert "unknown protocol or ablation table9" in capsys.readouterr().err
+    assert "unknown protocol, ablation or baseline table9" in capsys.readouterr().err
     assert main(["evaluate", "--out", str(tmp_path / "o")]) == 2
     assert "needs --renders and --images" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
 
 
-def test_markdown_marks_the_best_value():
+def test_markdown_marks_the_best_value_and_says_which_way_is_better():
+    rows = lambda value: [{"query": "q", "seen part_delta_e": value}]
     result = {"settings": {"latent_iters": 1, "refine_iters": 1, "resolution": 64, "patch_size": 32}, "world": "w", "gan": "g",
-              "counts": {"queries": 2}, "features": "f", "comparison": {},
-              "protocols": {"known_pose": {"queries": [{"azimuth_error": 0.0, "elevation_error": 0.0}], "ablations": {
-                  "full": {"set": {}, "query": {"psnr_masked": 20.0}, "seconds": 1.0},
-                  "no_noc": {"set": {}, "query": {"psnr_masked": 19.0}, "seconds": 1.0}}}}}
+              "counts": {"queries": 1}, "features": "f", "comparison": {},
+              "protocols": {"known_pose": {"queries": [{"azimuth_error": 0.0, "elevation_error": 0.0}], "methods": {
+                  "oracle": {"query": {"seen part_delta_e": 0.5}, "per_query": rows(0.5), "seconds": 0.0},
+                  "flat_colour": {"query": {"seen part_delta_e": 9.0}, "per_query": rows(9.0), "seconds": 0.0},
+                  "full": {"query": {"seen part_delta_e": 4.0}, "per_query": rows(4.0), "seconds": 1.0},
+                  "no_noc": {"query": {"seen part_delta_e": 5.0}, "per_query": rows(5.0), "seconds": 1.0}}}}}
     table = protocols_markdown(result)
-    assert "| full method | **20** | 1 |" in table and "| w/o NOC | 19 | 1 |" in table
+    assert "| method | seen per-part ΔE ↓ | seconds |" in table
+    assert "| full method | **4** | 1 |" in table and "| w/o NOC | 5 | 1 |" in table
+    assert "| ground-truth texture (oracle) | 0.5 | 0 |" in table and "The oracle wins every column." in table
+    assert "seen per-part ΔE 0.44 of the flat colour's, lower on 1 of 1 queries" in table
+
+
+def _yaml(path, **fields):
+    path.write_text(yaml.safe_dump({"latents": 1, "views": 2, "resolution": 32, "patch_size": 16, "scales": 1, **fields}))
+    return path

@@ -1,4 +1,5 @@
-"""Writers for textured assets: GLB with an embedded PNG base-colour texture, PLY with vertex colours.
+"""Writers for textured assets: GLB with an embedded PNG base-colour texture, PLY with vertex colours
+(and :func:`load_glb`, the reader of such a GLB).
 
 Both write atomically (``mesh2tex.io.atomic``) and take numpy arrays or torch tensors.
 UV convention at this boundary is the trimesh / OpenGL one: u to the right, v up, (0, 0) the
@@ -123,6 +124,28 @@ def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, ve
     for smooth shading (without them viewers shade flat). Loads in trimesh, Blender and three.js.
     """
     write_bytes(path, glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals, name))
+
+
+def load_glb(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Read a textured GLB of one mesh (as :func:`save_glb` writes): vertices (V, 3) float32, faces
+    (T, 3) int64 in the file's order, uv (V, 2) float32 (v up) and the base-colour texture (H, W, 3)
+    uint8. Raises ValueError naming the file when it holds no textured triangle mesh."""
+    import trimesh
+
+    try:
+        scene = trimesh.load(str(path), force="scene", process=False)
+    except Exception as error:  # trimesh raises many types for malformed files
+        raise ValueError(f"{path}: cannot be read as a GLB ({str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__})") from None
+    meshes = list(scene.geometry.values())
+    if len(meshes) != 1 or not isinstance(meshes[0], trimesh.Trimesh):
+        raise ValueError(f"{path}: expected one textured mesh, found {len(meshes)} geometries")
+    mesh = meshes[0]
+    visual = mesh.visual
+    image = getattr(getattr(visual, "material", None), "baseColorTexture", None)
+    if getattr(visual, "uv", None) is None or image is None:
+        raise ValueError(f"{path}: the mesh has no UV coordinates or no base-colour texture")
+    return (np.asarray(mesh.vertices, dtype=np.float32), np.asarray(mesh.faces, dtype=np.int64),
+            np.asarray(visual.uv, dtype=np.float32), np.asarray(image.convert("RGB"), dtype=np.uint8))
 
 
 def ply_bytes(vertices, faces, vertex_colors_uint8) -> bytes:

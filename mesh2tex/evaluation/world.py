@@ -1,0 +1,131 @@
+"""The synthetic world's ground truth of a query, for quality tables (loaders only; no writing).
+
+A world from ``mesh2tex prepare synthetic`` knows everything a fair comparison needs: the photo's
+camera, light and background (the query sidecar), each shape's part labels and its procedural
+material (rebuilt from the world's seed, checked against ``meshes/<s>.obj``), and the baked ground
+truth texture (``textured/<s>.glb``), which is the oracle of every table.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mesh2tex.evaluation.compare import ComparisonRender, images_to_unit, render_for_comparison
+from mesh2tex.evaluation.surfaces import Surface, material_surface, textured_surface
+
+
+@dataclass
+class ShapeTruth:
+    """One world shape: ``shape`` (a ``SyntheticShape``: vertices, faces, face_parts), its ``material``
+    and ``oracle``, the baked ground truth GLB as a :class:`Surface` with the shape's part labels."""
+
+    name: str
+    shape: object
+    material: object
+    oracle: Surface
+
+    def material_on(self, other: "ShapeTruth") -> Surface:
+        """This shape's material on ``other``'s mesh, parts matched by label: the ground truth of a
+        transfer of this shape's photo to ``other``."""
+        return material_surface(other.shape.vertices, other.shape.faces, other.shape.face_parts, self.material)
+
+    @property
+    def exact(self) -> Surface:
+        """The material on the shape itself (what the world's photos show, before any baking)."""
+        return self.material_on(self)
+
+
+@dataclass
+class QueryTruth:
+    """A query photo and its ground truth.
+
+    name   file stem (``chair_0009_00``); view the sidecar's camera, light and background
+    photo  [1, 3, R, R] float32 in [0, 1]; photo_mask [1, 1, R, R] {0, 1}; R = the world's resolution
+    truth  the query shape's :class:`ShapeTruth`
+    """
+
+    name: str
+    view: object
+    photo: torch.Tensor
+    photo_mask: torch.Tensor
+    truth: ShapeTruth
+
+    @property
+    def resolution(self) -> int:
+        return int(self.photo.shape[-1])
+
+
+def world_spec(index: dict):
+    """The ``WorldSpec`` of a world's ``index.json`` (its ``settings``)."""
+    from mesh2tex.synthetic.world import WorldSpec
+
+    settings = {k: v for k, v in index.get("settings", {}).items() if k in WorldSpec.__dataclass_fields__}
+    return WorldSpec(**settings)
+
+
+def _shape_index(name: str) -> int:
+    try:
+        return int(name.rsplit("_", 1)[1])
+    except (IndexError, ValueError):
+        raise ValueError(f"{name!r} is not a world shape name (category_NNNN)") from None
+
+
+def load_shape_truth(root: str | Path, index: dict, name: str) -> ShapeTruth:
+    """The ground truth of world shape ``name``: rebuilt from the world's seed, checked against
+    ``meshes/<name>.obj`` and ``textured/<name>.glb`` (ValueError naming the file if they disagree)."""
+    return _load_shape_truth(str(Path(root).resolve()), json.dumps(index.get("settings", {}), sort_keys=True), name)
+
+
+@lru_cache(maxsize=32)
+def _load_shape_truth(root: str, settings: str, name: str) -> ShapeTruth:
+    from mesh2tex.geometry.mesh_io import load_mesh
+    from mesh2tex.io.assets import load_glb
+    from mesh2tex.synthetic.world import make_material, make_shape
+
+    spec = world_spec({"settings": json.loads(settings)})
+    index = _shape_index(name)
+    shape = make_shape(spec, index)
+    obj = Path(root) / "meshes" / f"{name}.obj"
+    vertices, faces = load_mesh(obj)
+    if faces.shape != shape.faces.shape or not np.allclose(vertices[faces], shape.vertices[shape.faces], atol=1e-5):
+        raise ValueError(f"{obj}: differs from the shape the world's settings make (a world of another version?)")
+    glb = Path(root) / "textured" / f"{name}.glb"
+    glb_vertices, glb_faces, uv, image = load_glb(glb)
+    if glb_faces.shape != shape.faces.shape or not np.allclose(glb_vertices[glb_faces], shape.vertices[shape.faces], atol=1e-4):
+        raise ValueError(f"{glb}: its faces do not follow the order of {obj}")
+    oracle = textured_surface(glb_vertices, glb_faces, uv, image, shape.face_parts)
+    return ShapeTruth(name=name, shape=shape, material=make_material(spec, index), oracle=oracle)
+
+
+def load_query_truth(root: str | Path, index: dict, sidecar: dict) -> QueryTruth:
+    """A query (its sidecar, as in ``index["queries"]`` or ``queries/<q>.json``) and its ground truth."""
+    from mesh2tex.io.images import load_image, load_mask
+    from mesh2tex.synthetic.world import View
+
+    root = Path(root)
+    view = View(**{k: (tuple(sidecar[k]) if k == "light" else sidecar[k]) for k in View.__dataclass_fields__})
+    rgb, _ = load_image(root / sidecar["image"])
+    mask = np.asarray(load_mask(root / sidecar["mask"]), dtype=bool)
+    photo = images_to_unit(rgb)
+    name = Path(sidecar["image"]).stem
+    return QueryTruth(name=name, view=view, photo=photo, photo_mask=torch.from_numpy(mask)[None, None].float(),
+                      truth=load_shape_truth(root, index, sidecar["shape"]))
+
+
+def reference_renders(query: QueryTruth, views: list, lighting: str = "photo", supersample: int = 2) -> ComparisonRender:
+    """What the world would photograph at ``views``: the query shape's material rendered by
+    :func:`render_for_comparison`; where a view is the photo's own and ``lighting`` is "photo", the
+    photo file itself (the same image up to 8-bit rounding)."""
+    render = render_for_comparison(query.truth.exact, views, query.resolution, supersample, lighting)
+    if lighting == "photo":
+        for b, view in enumerate(views):
+            if view == query.view:
+                render.rgb[b] = query.photo[0]
+                render.mask[b] = query.photo_mask[0]
+    return render

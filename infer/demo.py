@@ -171,58 +171,87 @@ def pick_query(world: Path, index: int) -> dict:
 
 
 # ------------------------------------------------------------------------------------------- metrics
-def render_glb_at_pose(glb: Path, azimuth: float, elevation: float, distance: float, fov: float, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """Render a textured GLB (as written by the pipeline) without lighting: (size,size,3) float [0,1], (size,size) bool."""
-    import trimesh
-
-    from mesh2tex.render import interpolate, orbit_camera, rasterize, texture, transform_points
-
-    scene = trimesh.load(glb, force="scene")
-    mesh = next(iter(scene.geometry.values()))
-    image = np.asarray(mesh.visual.material.baseColorTexture.convert("RGB"), dtype=np.float32) / 255.0
-    vertices = torch.as_tensor(np.asarray(mesh.vertices), dtype=torch.float32)
-    faces = torch.as_tensor(np.asarray(mesh.faces), dtype=torch.int64)
-    uv = torch.as_tensor(np.asarray(mesh.visual.uv), dtype=torch.float32)
-    camera = orbit_camera(torch.tensor([azimuth]), torch.tensor([elevation]), distance=distance, fov=fov)
-    raster = rasterize(transform_points(vertices, camera.mvp), faces, (size, size))
-    colors = texture(torch.from_numpy(image).permute(2, 0, 1), interpolate(uv, raster, faces))[0]
-    mask = (raster.face_id[0] >= 0).numpy()
-    return colors.numpy() * mask[..., None], mask
+TRANSFER_METHODS = {  # name -> title in the report; every method judged alike (mesh2tex.evaluation)
+    "oracle": "ground-truth texture (oracle)", "transfer": "mesh2tex transfer", "flat_colour": "flat mean colour of the photo",
+    "mean_texture": "generator's mean texture (w_avg)", "backprojection": "photo back-projection",
+}
 
 
-def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int) -> dict:
-    """The GLB rendered at the query's true pose vs the query photo, both cropped around their objects."""
-    from infer.evaluate import evaluate_pairs
-    from infer.transfer import TransferConfig
-    from mesh2tex.io.images import load_image, load_mask
-    from mesh2tex.render import crop_mask, crop_square, object_box
+def render_glb_at_pose(glb: Path, views: list, size: int, lighting: str = "photo"):
+    """A textured GLB (as the pipeline writes it) rendered by ``mesh2tex.evaluation.render_for_comparison``
+    at ``views`` (``mesh2tex.synthetic.world.View``): a ``ComparisonRender`` (rgb [B,3,S,S] in [0,1], mask, parts)."""
+    from mesh2tex.evaluation import render_for_comparison, textured_surface
+    from mesh2tex.io.assets import load_glb
 
-    cfg = TransferConfig(resolution=resolution)
-    size = 2 * resolution
-    colors, mask = render_glb_at_pose(transfer / "textured.glb", query["azimuth"], query["elevation"], query["distance"], query["fov"], size)
-    photo, _ = load_image(world / query["image"])
-    photo_mask = load_mask(world / query["mask"]).astype(bool)
-    if photo.shape[0] != size:  # bring the photo to the render's size so both crops see the same frame
-        photo_t = F.interpolate(torch.from_numpy(photo).permute(2, 0, 1)[None].float(), size=(size, size), mode="bilinear", align_corners=False)
-        photo = photo_t[0].permute(1, 2, 0).numpy()
-        photo_mask = F.interpolate(torch.from_numpy(photo_mask)[None, None].float(), size=(size, size)).numpy()[0, 0] > 0.5
+    try:
+        vertices, faces, uv, image = load_glb(glb)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    return render_for_comparison(textured_surface(vertices, faces, uv, image), views, size, lighting=lighting)
 
-    def crop(image: np.ndarray, m: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
-        box = object_box(m, cfg.margin)
-        img = crop_square(torch.as_tensor(image, dtype=torch.float32).permute(2, 0, 1)[None], box, resolution)
-        return img.clamp(0, 1), crop_mask(m, box, resolution)
 
-    render_t, render_m = crop(colors, mask)
-    photo_t, photo_m = crop(np.asarray(photo, dtype=np.float32) / (255.0 if photo.dtype == np.uint8 else 1.0), photo_mask)
-    both = render_m * photo_m
+@torch.no_grad()
+def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, lighting: str = "photo",
+                     unseen_views: int = 4, lowpass_sigma: float = 3.0) -> dict:
+    """The transferred GLB beside the ground truth and the simple baselines, all judged alike.
+
+    Every method is a textured surface rendered by one function (``mesh2tex.evaluation``) with the
+    query photo's camera, light and background, at the photo's view ("seen") and ``unseen_views``
+    views it does not show, against what the world photographs there (the photo, then the world's own
+    renders), on the pixels both the world's shape and the transferred mesh cover: the ground truth
+    (``textured/`` GLB, the oracle), the transfer's GLB, the photo's mean colour, the generator's mean
+    texture and the photo back-projected from the pose the transfer used. ``resolution`` is the side
+    of the transfer's crops; the comparison runs at the photo's own resolution. Writes
+    ``transfer/comparison_views.png`` (a row per method, reference first).
+
+    Returns {method: {"seen <metric>": value, "unseen <metric>": mean}, "settings": {...}}.
+    """
+    from infer.generate import load_generator, load_shape
+    from mesh2tex.evaluation import (ScoreSettings, backproject_photo, common_mask, flat_surface, generator_surface,
+                                     other_views, photo_mean_colour, render_for_comparison, score_views, seen_and_unseen)
+    from mesh2tex.evaluation.world import load_query_truth, reference_renders
+    from mesh2tex.io.assets import load_glb
     from mesh2tex.io.images import save_png
+    from mesh2tex.nn.batch import collate_shapes
 
-    save_png(transfer / "render_at_true_pose.png", (render_t[0].permute(1, 2, 0).numpy() * 255).round().astype(np.uint8))
-    result = evaluate_pairs(render_t, photo_t, both, names=[query["image"]])
-    # A reference point: the photo against a flat texture of the photo's own mean colour.
-    mean_colour = (photo_t * photo_m).sum((2, 3), keepdim=True) / photo_m.sum((2, 3), keepdim=True).clamp_min(1)
-    flat = evaluate_pairs(mean_colour.expand_as(photo_t).contiguous(), photo_t, both, names=["flat"])
-    return {"transfer": result["metrics"], "flat_mean_colour_texture": flat["metrics"]}
+    index = json.loads((world / "index.json").read_text())
+    report = json.loads((transfer / "report.json").read_text())
+    try:
+        truth = load_query_truth(world, index, query)
+        vertices, faces, _, _ = load_glb(transfer / "textured.glb")
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    views = [truth.view] + other_views(truth.view, [360.0 * k / (unseen_views + 1) for k in range(1, unseen_views + 1)])
+    size = truth.resolution
+
+    def render(surface):
+        return render_for_comparison(surface, views, size, lighting=lighting)
+
+    reference = reference_renders(truth, views, lighting)
+    renders = {"oracle": render(truth.truth.oracle), "transfer": render_glb_at_pose(transfer / "textured.glb", views, size, lighting),
+               "flat_colour": render(flat_surface(vertices, faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])))}
+    generator, _ = load_generator(report["checkpoint"], torch.device("cpu"))
+    shape = load_shape(report["mesh"], generator, report["settings"].get("faces", 6144), report["settings"].get("seed", 0))
+    batch = collate_shapes([shape])
+    ws = generator.mapping.w_avg.reshape(1, 1, -1).expand(1, generator.num_ws, -1)
+    renders["mean_texture"] = render(generator_surface(generator, generator.synthesize(batch, ws, noise_mode="none").field_features, batch))
+    pose = report["pose"]
+    try:
+        renders["backprojection"] = render(backproject_photo(vertices, faces, truth.photo[0], truth.photo_mask[0, 0], pose["azimuth"],
+                                                             pose["elevation"], pose["distance"], pose["fov"], margin=report["settings"]["margin"]))
+    except ValueError as error:
+        raise UserError(f"{transfer / 'report.json'}: {error}") from None
+    mask = common_mask(reference.mask, renders["transfer"].mask)
+    settings = ScoreSettings(lowpass_sigma=lowpass_sigma)
+    result = {name: {k: round(v, 5) for k, v in seen_and_unseen(score_views(rendered, reference.rgb, reference.parts, mask, settings)).items()}
+              for name, rendered in renders.items()}
+    rows = [reference.rgb] + [renders[name].rgb for name in TRANSFER_METHODS]
+    tiles = [np.concatenate([(image.permute(1, 2, 0).numpy() * 255).round().astype(np.uint8) for image in row], axis=1) for row in rows]
+    save_png(transfer / "comparison_views.png", np.concatenate(tiles, axis=0))
+    save_png(transfer / "render_at_true_pose.png", tiles[2][:, :size])
+    result["settings"] = {"lighting": lighting, "views": [[round(v.azimuth, 2), round(v.elevation, 2)] for v in views],
+                          "lowpass_sigma_px": lowpass_sigma, "resolution": size, "pose_used": [pose["azimuth"], pose["elevation"]]}
+    return result
 
 
 @torch.no_grad()
@@ -266,6 +295,48 @@ def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
 
 
 # -------------------------------------------------------------------------------------------- report
+def transfer_section(scores: dict) -> str:
+    """The report's transfer tables: a row per method (the oracle first), a column per metric with
+    its direction, the photo's view and the unseen views apart; the best method but the oracle in bold."""
+    from mesh2tex.evaluation import METRIC_TITLES, METRICS
+
+    esc = html.escape
+    settings = scores.get("settings", {})
+    methods = [m for m in TRANSFER_METHODS if m in scores]
+    tables = []
+    for side, title in (("seen", "the photo's view"), ("unseen", f"{max(len(settings.get('views', [])) - 1, 0)} views the photo does not show (mean)")):
+        columns = [m for m in METRICS if f"{side} {m}" in scores.get("transfer", {})]
+        best = {}
+        for metric in columns:
+            values = [scores[m][f"{side} {metric}"] for m in methods if m != "oracle" and f"{side} {metric}" in scores[m]]
+            best[metric] = (max if METRICS[metric] > 0 else min)(values) if values else None
+        head = "<th>method</th>" + "".join(
+            f"<th>{esc(METRIC_TITLES[m])}<br><small>{'higher' if METRICS[m] > 0 else 'lower'} is better</small></th>" for m in columns)
+        body = ""
+        for name in methods:
+            cells = []
+            for metric in columns:
+                value = scores[name].get(f"{side} {metric}")
+                text = "-" if value is None else f"{value:.4g}"
+                cells.append(f"<td><b>{text}</b></td>" if name != "oracle" and value is not None and value == best[metric] else f"<td>{text}</td>")
+            body += f"<tr><td>{esc(TRANSFER_METHODS[name])}</td>{''.join(cells)}</tr>"
+        tables.append(f"<h3>{esc(title)}</h3><table><tr>{head}</tr>{body}</table>")
+    return f"""<h2>Transfer quality: the result beside the ground truth and the simple baselines</h2>
+<p>Every method is a textured mesh rendered by the same function with the photo's camera, light
+({esc(str(settings.get('lighting', 'photo')))}) and background, at the photo's view and at views it does not show, against
+what the world photographs there, on the object pixels only. Per-part ΔE: CIELAB distance of each part's mean colour
+(seat, back, leg ...), weighted by pixel count; low-pass PSNR after a Gaussian blur of σ = {settings.get('lowpass_sigma_px', 3):g} px;
+object SWD: sliced Wasserstein distance of object patches (x1e3). The oracle (the world's ground-truth texture) is the
+ceiling: a metric it does not win would be broken. Back-projection and the transfer use the pose the tool found
+(az {settings.get('pose_used', ['?'])[0]:.0f}, el {settings.get('pose_used', ['?', '?'])[1]:.0f}); the flat colour and
+back-projection are what a user could script in a few lines.</p>
+{''.join(tables)}
+<p>rows: what the world photographs | oracle | transfer | flat colour | mean texture | back-projection; columns: the photo's
+view, then the unseen views</p>
+<img src="transfer/comparison_views.png" width="{min(5 * 160, 960)}">
+"""
+
+
 def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics: dict) -> Path:
     """DIR/report.html: the photo, predicted pose and NOC, renders, turntable, metrics and timings."""
     transfer = json.loads((out / "transfer" / "report.json").read_text())
@@ -288,8 +359,6 @@ def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics
         pose_rows.append(("pose network alone", fmt(pose["network"][0]), fmt(pose["network"][1])))
         pose_note = (f"<p>Silhouette IoU with the photo's mask: {fmt(pose['silhouette_iou'])} at the used pose, "
                      f"{fmt(pose['network_silhouette_iou'])} at the network's.</p>")
-    t = metrics["transfer"]
-    transfer_rows = [(name, fmt(t["transfer"][name]), fmt(t["flat_mean_colour_texture"][name])) for name in t["transfer"]]
     g = metrics["generation"]
     gen_rows = [(name, fmt(g["trained"][name]), fmt(g["untrained"][name])) for name in g["trained"]]
     time_rows = [(stage, f"{s:.0f}") for stage, s in seconds.items()]
@@ -314,8 +383,7 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
 <a href="transfer/report.json">report.json</a>.</p>
 {vgg_note}
 <h2>Pose</h2>{table(pose_rows, ("", "azimuth", "elevation"))}{pose_note}
-<h2>Transfer metrics (exact geometry, predicted pose; the GLB at the true pose against the photo)</h2>
-{table(transfer_rows, ("metric", "mesh2tex transfer", "flat texture of the photo's mean colour"))}
+{transfer_section(metrics["transfer"])}
 <h2>Generation (GAN renders of the training shapes against the photo collection)</h2>
 {table(gen_rows, ("metric", "trained generator", "untrained generator"))}
 <p>swd: sliced Wasserstein distance on Laplacian-pyramid patches (x1e3, lower is better);

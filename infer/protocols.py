@@ -307,7 +307,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     [rows], "seconds": s}}}; scores are named "seen <metric>" and "unseen <metric>".
     """
     from infer.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, transfer_texture, view_at_pose
-    from mesh2tex.evaluation import (ComparisonRender, ScoreSettings, backprojected_surface, common_mask, flat_surface,
+    from mesh2tex.evaluation import (ComparisonRender, ScoreSettings, backproject_photo, common_mask, flat_surface,
                                      generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
                                      seen_and_unseen)
     from mesh2tex.evaluation.world import load_query_truth, load_shape_truth, reference_renders
@@ -397,14 +397,11 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                     ws = generator.mapping.w_avg.reshape(1, 1, -1).expand(1, generator.num_ws, -1).to(device)
                     features = generator.synthesize(batch.to(device), ws, noise_mode="none").field_features
                 rendered = render(generator_surface(generator, features, batch))
-            else:  # backprojection: the photo seen from the pose the transfer used, at the photo's own resolution
-                crop_cfg = replace(base, resolution=size)
-                crop, _ = load_photo(query.image, query.mask, crop_cfg)
-                frame = (photo_frame_view(shape, query, size, base.margin) if protocol == "known_pose"
-                         else view_at_pose(shape, azimuth, elevation, dist, view_fov, crop_cfg))
+            else:  # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
                 try:
-                    surface = backprojected_surface(vertices, triangles, to_unit(crop.image[0]).clamp(0, 1), crop.mask[0, 0],
-                                                    frame.mvp, frame.render_size, frame.box)
+                    surface = backproject_photo(vertices, triangles, truth.photo[0], truth.photo_mask[0, 0], azimuth, elevation,
+                                                dist, view_fov, align="photo" if protocol == "known_pose" else "silhouette",
+                                                margin=base.margin)
                 except ValueError as error:
                     raise UserError(f"{query.image}: {error}") from None
                 rendered = render(surface)

@@ -44,7 +44,7 @@ class ComparisonRender:
 
     rgb   [B, 3, R, R] float32 in [0, 1], the object over the view's background
     mask  [B, 1, R, R] float32 {0, 1}, where the object covers at least half of the pixel
-    parts [B, R, R] int64, the part label seen at each pixel's centre (-1 off the object or unknown)
+    parts [B, R, R] int64, the part label seen at each object pixel's centre (-1 off the object or unknown)
     """
 
     rgb: torch.Tensor
@@ -117,8 +117,12 @@ def render_for_comparison(surface: Surface, views: list, resolution: int, supers
     rgb = composite(shaded, mask, background)
     rgb, coverage = _box_down(rgb, supersample), _box_down(mask, supersample)
     keep = coverage[..., 0] >= 0.5
+    # Each pixel's face: its centre sub-pixel's, or where that one misses the object another covered sub-pixel's.
     centre = supersample // 2
-    face = raster.face_id[:, centre::supersample, centre::supersample]
+    offsets = [(centre, centre)] + [(i, j) for i in range(supersample) for j in range(supersample) if (i, j) != (centre, centre)]
+    face = raster.face_id[:, centre::supersample, centre::supersample].clone()
+    for i, j in offsets[1:]:
+        face = torch.where(face >= 0, face, raster.face_id[:, i::supersample, j::supersample])
     if surface.face_parts is not None:
         parts = torch.where(face >= 0, surface.face_parts[face.clamp_min(0)], torch.full_like(face, -1))
     else:

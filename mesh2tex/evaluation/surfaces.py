@@ -226,6 +226,39 @@ def backprojected_surface(vertices, faces, image: torch.Tensor, mask: torch.Tens
     return surface
 
 
+@torch.no_grad()
+def backproject_photo(vertices, faces, photo: torch.Tensor, photo_mask: torch.Tensor, azimuth: float, elevation: float,
+                      distance: float, fov: float, align: str = "silhouette", margin: float = 0.1, face_parts=None) -> Surface:
+    """:func:`backprojected_surface` from a whole photo and an orbit pose (degrees), framed like the transfer.
+
+    photo [3, H, H] in [0, 1], photo_mask [H, H] {0, 1}. ``align="photo"``: the pose is the photo's
+    own camera (a known pose), so photo pixels and render pixels coincide. ``align="silhouette"``: an
+    estimated pose (whose distance and field of view may differ from the photo's): the photo is
+    framed by its object's square box and the mesh by its silhouette's, both with ``margin``, the way
+    ``infer transfer`` lines them up.
+    """
+    from mesh2tex.render import crop_mask, crop_square, object_box, orbit_camera
+
+    photo = torch.as_tensor(photo, dtype=torch.float32)
+    mask = torch.as_tensor(np.asarray(photo_mask), dtype=torch.float32).reshape(photo.shape[-2:])
+    side = int(photo.shape[-1])
+    camera = orbit_camera(torch.tensor([float(azimuth)]), torch.tensor([float(elevation)]), distance=float(distance), fov=float(fov))
+    if align == "photo":
+        return backprojected_surface(vertices, faces, photo, mask, camera.mvp, side, (0, 0, side), face_parts=face_parts)
+    if align != "silhouette":
+        raise ValueError(f"align must be 'photo' or 'silhouette', got {align!r}")
+    box = object_box(mask.numpy() > 0.5, margin)
+    crop = crop_square(photo[None], box, side, fill=1.0)[0]
+    crop_m = crop_mask(mask > 0.5, box, side)[0, 0]
+    render_size = int(round(side * 1.5))
+    verts = torch.as_tensor(np.asarray(vertices), dtype=torch.float32)
+    tri = torch.as_tensor(np.asarray(faces), dtype=torch.int64)
+    covered = (rasterize(transform_points(verts, camera.mvp), tri, (render_size, render_size)).face_id[0] >= 0).numpy()
+    if covered.sum() < 4:
+        raise ValueError(f"the mesh is not visible at azimuth {azimuth}, elevation {elevation} (distance {distance})")
+    return backprojected_surface(verts, tri, crop, crop_m, camera.mvp, render_size, object_box(covered, margin), face_parts=face_parts)
+
+
 def photo_mean_colour(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """Mean colour [3] of the object pixels: image [3, H, W] in [0, 1], mask [H, W] (or [1, H, W]) {0, 1}."""
     mask = torch.as_tensor(mask, dtype=torch.float32).reshape(image.shape[-2:])

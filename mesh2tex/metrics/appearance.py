@@ -136,11 +136,19 @@ def _object_patches(level: torch.Tensor, mask: torch.Tensor, count: int, patch: 
     return patches.reshape(rows.numel(), -1)
 
 
+def _fill_background(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """[1, C, H, W]: the pixels off ``mask`` set to the mean object colour, so no pyramid level sees the background."""
+    weight = mask.sum().clamp_min(1.0)
+    mean = (image * mask).sum(dim=(2, 3), keepdim=True) / weight
+    return image * mask + mean * (1 - mask)
+
+
 def object_swd(images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor, reference_masks: torch.Tensor | None = None,
                patches: int = 256, patch_size: int = 7, projections: int = 256, min_size: int = 16, seed: int = 0) -> torch.Tensor:
     """Sliced Wasserstein distance x 1000 between the object patches of each image and its reference: [B] float64.
 
-    Both images are split into Laplacian pyramids (down to ``min_size`` pixels); at every level up
+    Off each image's mask, pixels take its mean object colour (the background never enters); both
+    images are split into Laplacian pyramids (down to ``min_size`` pixels); at every level up
     to ``patches`` random ``patch_size`` neighbourhoods centred on object pixels (the mask taken down
     with the level) are drawn from each, normalised per channel by the reference's statistics, and
     compared with ``projections`` random directions (the same for every image: a fixed ``seed``
@@ -153,9 +161,9 @@ def object_swd(images: torch.Tensor, references: torch.Tensor, masks: torch.Tens
     values = []
     for b in range(images.shape[0]):
         generator = torch.Generator().manual_seed(seed)
-        levels_a = laplacian_pyramid(references[b : b + 1].double(), min_size)
-        levels_b = laplacian_pyramid(images[b : b + 1].double(), min_size)
         mask_a, mask_b = reference_masks[b : b + 1].double(), masks[b : b + 1].double()
+        levels_a = laplacian_pyramid(_fill_background(references[b : b + 1].double(), mask_a), min_size)
+        levels_b = laplacian_pyramid(_fill_background(images[b : b + 1].double(), mask_b), min_size)
         per_level = []
         for level_a, level_b in zip(levels_a, levels_b):
             size = level_a.shape[-2:]

@@ -3,9 +3,10 @@
     OMP_NUM_THREADS=1 python benchmarks/transfer_protocols.py --world WORLD --shapes SHAPES --gan GAN \\
         --pose POSE --noc NOC [--latent-iters 20] [--refine-iters 20] [--queries 4] [--only known_pose] [--out DIR]
 
-Prints, per transfer protocol and ablation: seconds in all, seconds per transfer iteration, the time
-relative to the full method in the same run, and how many metrics the full method wins against
-each ablation (ties counted apart). The metrics themselves are in OUT/protocols.md.
+Prints, per transfer protocol and row (ablations and baselines): seconds in all, for ablations the
+seconds per transfer iteration and the time relative to the full method in the same run, and how
+many columns the full method wins against each row (ties counted apart); and the columns the
+oracle does not win, if any. The metrics themselves are in OUT/protocols.md.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from infer.protocols import PROTOCOLS, ProtocolConfig, run_protocols  # noqa: E402
+from infer.protocols import ABLATIONS, PROTOCOLS, ProtocolConfig, run_protocols  # noqa: E402
 
 
 def main() -> None:
@@ -41,16 +42,22 @@ def main() -> None:
     print(f"{queries} queries, {cfg.latent_iters} + {cfg.refine_iters} iterations at {cfg.resolution} px; results in {out}")
     for name, entry in result["protocols"].items():
         print(f"{name}: {entry['seconds']:.1f} s")
-        if "ablations" not in entry:
+        if "methods" not in entry:
             continue
-        full_seconds = entry["ablations"].get("full", {}).get("seconds")
-        for ablation, row in entry["ablations"].items():
-            iters = cfg.latent_iters + (cfg.refine_iters if ablation != "no_refine" else 0)
-            per_iter = row["seconds"] / max(queries * iters, 1)
-            ratio = f", x{row['seconds'] / full_seconds:.2f} of full" if full_seconds else ""
-            wins = result["comparison"][name].get(ablation)
-            outcome = f"; full wins {wins['wins']}/{wins['metrics']} (ties {wins['ties']})" if wins else ""
-            print(f"  {ablation:<10} {row['seconds']:7.1f} s, {per_iter:.3f} s/iteration{ratio}{outcome}")
+        methods = entry["methods"]
+        full_seconds = methods.get("full", {}).get("seconds")
+        for method, row in methods.items():
+            if method in ABLATIONS:
+                iters = cfg.latent_iters + (cfg.refine_iters if method != "no_refine" else 0)
+                cost = f", {row['seconds'] / max(queries * iters, 1):.3f} s/iteration"
+                cost += f", x{row['seconds'] / full_seconds:.2f} of full" if full_seconds else ""
+            else:
+                cost = " (baseline, no optimisation)"
+            wins = result["comparison"][name].get(method)
+            outcome = f"; full wins {wins['wins']}/{wins['metrics']} columns (ties {wins['ties']})" if wins else ""
+            print(f"  {method:<15} {row['seconds']:7.1f} s{cost}{outcome}")
+        if entry.get("oracle_loses"):
+            print(f"  the oracle does not win: {', '.join(entry['oracle_loses'])}")
 
 
 if __name__ == "__main__":

@@ -891,6 +891,10 @@ def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--queries", type=int, help="query photos used, the first K (default all)")
     group.add_argument("--only", help=f"comma-separated protocols to run (default all: {','.join(PROTOCOLS)})")
     group.add_argument("--ablations", help=f"comma-separated ablations (default all: {','.join(ABLATIONS)})")
+    group.add_argument("--lighting", choices=("photo", "albedo"),
+                       help="judge every method with the photo's light (default) or unlit, as albedo")
+    group.add_argument("--unseen-views", type=int, help="views the photo does not show, judged apart (default 4)")
+    group.add_argument("--baselines", help=f"comma-separated baselines beside the transfers (default all: {','.join(BASELINES)})")
     group.add_argument("--protocol-config", help="YAML file with any fields of the protocol config")
 
 
@@ -908,6 +912,8 @@ def run_protocols_command(args: argparse.Namespace) -> int:
     cfg = load_config(ProtocolConfig, args.protocol_config, {
         "latent_iters": args.latent_iters, "refine_iters": args.refine_iters, "queries": args.queries,
         "protocols": _split(args.only), "ablations": _split(args.ablations), "resolution": args.resolution,
+        "lighting": getattr(args, "lighting", None), "unseen_views": getattr(args, "unseen_views", None),
+        "baselines": _split(getattr(args, "baselines", None)),
         "features": args.features, "kid_subsets": args.kid_subsets, "seed": args.seed,
         "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
         "inception_weights": args.inception_weights})

@@ -19,6 +19,9 @@ computed over the mask (the ``--masks`` file, else the intersection of the alpha
 The library entry points :func:`evaluate_sets` and :func:`evaluate_pairs` take tensors and return
 plain dicts; the command writes ``OUT/metrics.json`` and ``OUT/metrics.md``.
 
+``--generation`` measures a texture GAN against a synthetic world's ground truth (trained, untrained
+and oracle rows, the gap closed, diversity across latents): see :mod:`infer.generation`.
+
 ``--protocols`` runs the paper's evaluation protocols on a synthetic world instead (unconditional
 generation; transfer with known pose, unknown pose, to another shape; each with the ablations of
 Table 8): see :mod:`infer.protocols`.
@@ -332,11 +335,52 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, help="seed for KID subsets and SWD sampling (default 0)")
     parser.add_argument("--overwrite", action="store_true", help="replace metrics already in --out")
     add_protocol_arguments(parser)
+    parser.add_argument("--generation", action="store_true",
+                        help="the generation protocol: --gan against --world's ground truth on the held-out shapes in --shapes")
+    parser.add_argument("--latents", type=int, help="--generation: latents per held-out shape for the diversity measures (default 16)")
+
+
+def run_generation_command(args: argparse.Namespace) -> int:
+    """``mesh2tex evaluate --generation``: OUT/generation.json, OUT/generation.md, OUT/generation_samples.png."""
+    from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
+    from mesh2tex.config import load_config
+
+    for flag in ("world", "shapes", "gan"):
+        if not getattr(args, flag):
+            raise UserError(f"--generation needs --{flag}")
+    cfg = load_config(GenerationConfig, None, {"latents": args.latents, "resolution": args.resolution, "features": args.features,
+                                               "seed": args.seed})
+    if cfg.latents < 2:
+        raise UserError(f"--latents {cfg.latents}: diversity needs at least 2")
+    out = Path(args.out)
+    if (out / "generation.json").exists() and not args.overwrite:
+        raise UserError(f"{out}: already holds generation results (generation.json); pass --overwrite to replace them")
+    if args.device not in ("auto", "cpu", "cuda"):
+        raise UserError(f"--device {args.device}: expected auto, cpu or cuda")
+    device = torch.device(("cuda" if torch.cuda.is_available() else "cpu") if args.device == "auto" else args.device)
+    extractor = None
+    if cfg.kid_fid:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            extractor = get_feature_extractor(cfg.features, args.inception_weights, args.vgg_weights, device)
+        for warning in caught:
+            print(f"mesh2tex: warning: {warning.message}", file=sys.stderr)
+    out.mkdir(parents=True, exist_ok=True)
+    result = run_generation_protocol(args.world, args.shapes, args.gan, cfg, device, extractor, out / "generation_samples.png",
+                                     log=lambda line: print(line, file=sys.stderr, flush=True))
+    write_json(out / "generation.json", _json_value(result))
+    text = generation_markdown(result)
+    write_text(out / "generation.md", text)
+    print(text, end="")
+    print(f"wrote {out / 'generation.json'}, {out / 'generation.md'} and {out / 'generation_samples.png'} ({result['seconds']:.0f} s)")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
     from mesh2tex.config import load_config
 
+    if getattr(args, "generation", False):
+        return run_generation_command(args)
     if getattr(args, "protocols", False):
         from infer.protocols import run_protocols_command
 

@@ -1,0 +1,282 @@
+"""The generation protocol: a texture GAN measured against the synthetic world's ground truth.
+
+    mesh2tex evaluate --generation --world WORLD --shapes SHAPES --gan CKPT --out DIR
+
+On the world's held-out shapes (those of its queries, never seen in training), with the same
+cameras and the same white background for every row:
+
+    trained     the checkpoint's EMA generator, one random latent per view
+    untrained   a freshly initialised generator of the same configuration (the floor)
+    oracle      the ground-truth material rendered as the world renders its photos (its lighting):
+                fresh photos of the held-out shapes, the best any generator can do
+    oracle, unlit  the same material without lighting (what an albedo-only generator could reach)
+
+each against the world's photo set (``images/``): SWD (x1000, mean over pyramid levels), KID and
+FID on named features, the pooled colour-histogram distance; and the **gap closed**: the share of the
+untrained-to-oracle gap in log SWD that the trained generator closes.
+
+**Diversity**: per held-out shape, ``latents`` latents at one pose: the spread of their mean object
+colours (Lab) and their mean pairwise per-pixel Delta E (:mod:`mesh2tex.metrics.generation`); the
+references are the spread of the mean object colours of the photo set's shapes (each shape's photos
+averaged), and, on the same held-out shape and pose, ``latents`` draws of the world's own material
+sampler, unlit. A generator that ignores its latent scores 0.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from infer.evaluate import EvaluateConfig, evaluate_sets, list_images, load_set
+from infer.generate import load_generator, shape_mismatch
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e
+from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.generator import TextureGenerator
+from mesh2tex.nn.render_texture import render_field_views
+from mesh2tex.render import orbit_camera
+from mesh2tex.synthetic.materials import random_material
+from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views
+
+ROWS = ("trained", "untrained", "oracle", "oracle_unlit")
+_REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
+
+
+@dataclass
+class GenerationConfig:
+    views: int = 8  # photo-like views of each held-out shape for the set metrics (one latent each)
+    latents: int = 16  # latents per held-out shape for the diversity measures
+    resolution: int = 0  # render and photo side (0: the GAN's training resolution)
+    azimuth: float = 35.0  # the one pose of the diversity renders, degrees
+    elevation: float = 20.0
+    features: str = "auto"  # KID/FID features (see mesh2tex.metrics.features)
+    kid_fid: bool = True  # compute KID and FID (the feature network is most of the cost)
+    max_shapes: int = 0  # held-out shapes used, the first K (0: all)
+    seed: int = 0  # latents, untrained weights, SWD sampling
+
+
+@dataclass
+class WorldData:
+    spec: WorldSpec
+    root: Path
+    held_out: list[str]  # shape names
+    indices: dict[str, int]  # shape name -> world index
+
+
+def read_world(root: str | Path) -> WorldData:
+    """The world's spec and its held-out shapes (the query split) from ``root/index.json``."""
+    import json
+
+    root = Path(root)
+    index_path = root / "index.json"
+    if not index_path.is_file():
+        raise UserError(f"{root}: not a synthetic world (no index.json; make one with 'mesh2tex prepare synthetic')")
+    try:
+        index = json.loads(index_path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise UserError(f"{index_path}: not valid JSON ({error})") from None
+    if index.get("format") != "mesh2tex-synthetic-world" or not index.get("complete", False):
+        raise UserError(f"{index_path}: not a complete mesh2tex synthetic world; finish it with 'mesh2tex prepare synthetic'")
+    names = {f.name for f in dataclasses.fields(WorldSpec)}
+    spec = WorldSpec(**{k: v for k, v in index["settings"].items() if k in names})
+    indices = {spec.shape_name(i): i for i in range(spec.shapes)}
+    held_out = list(index["split"]["query_shapes"])
+    if not held_out:
+        raise UserError(f"{index_path}: the world holds no held-out shapes")
+    return WorldData(spec=spec, root=root, held_out=held_out, indices=indices)
+
+
+def _white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+    """(B, R, R, 3) uint8 over any background, (B, R, R) 0/255 -> on white (B, 3, R, R) [0, 1], masks (B, 1, R, R)."""
+    rgb = torch.from_numpy(rgb_uint8).float().permute(0, 3, 1, 2) / 255.0
+    mask = torch.from_numpy(mask_uint8 > 127).float().unsqueeze(1)
+    return rgb * mask + (1.0 - mask), mask
+
+
+def oracle_renders(world: WorldData, name: str, views, resolution: int, lit: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
+    """The ground-truth material of shape ``name`` at ``views`` (world View records) on white; ``lit``
+    False renders the albedo (ambient 1). -> images (B, 3, R, R) in [0, 1], masks (B, 1, R, R)."""
+    index = world.indices[name]
+    if not lit:
+        views = [dataclasses.replace(v, ambient=1.0) for v in views]
+    out = render_views(make_shape(world.spec, index), make_material(world.spec, index), views, resolution)
+    return _white(out["rgb"], out["mask"])
+
+
+def material_draws(world: WorldData, name: str, view, count: int, resolution: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """``count`` fresh materials of the world's sampler on shape ``name`` at one ``view``, unlit, on white."""
+    index = world.indices[name]
+    shape = make_shape(world.spec, index)
+    unlit = dataclasses.replace(view, ambient=1.0)
+    images, masks = [], []
+    for k in range(count):
+        rng = np.random.default_rng([seed, _REFERENCE_STREAM, index, k])
+        out = render_views(shape, random_material(world.spec.category, rng), [unlit], resolution)
+        image, mask = _white(out["rgb"], out["mask"])
+        images.append(image)
+        masks.append(mask)
+    return torch.cat(images), torch.cat(masks)
+
+
+@torch.no_grad()
+def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor,
+                      device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """One latent per view: z (B, z_dim), ``views`` B world View records (their cameras) -> images
+    (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R)."""
+    b = len(views)
+    batch = collate_shapes([shape] * b).to(device)
+    camera = orbit_camera(torch.tensor([v.azimuth for v in views]), torch.tensor([v.elevation for v in views]),
+                          distance=torch.tensor([v.distance for v in views]), fov=torch.tensor([v.fov for v in views]))
+    ws = generator.mapping(z.to(device))
+    out = render_field_views(generator, batch, ws, camera.mvp.to(device), (resolution, resolution),
+                             torch.ones(b, 3, device=device), noise_mode="none")
+    return ((out.images.float() + 1) / 2).clamp(0, 1).cpu(), out.mask.float().cpu()
+
+
+def photo_set_spread(world: WorldData, photos: torch.Tensor, masks: torch.Tensor, names: list[str]) -> float:
+    """Spread of the mean object colours of the photo set's shapes: each shape's photos averaged."""
+    lab = mean_object_lab(photos, masks)
+    by_shape: dict[str, list[torch.Tensor]] = {}
+    for stem, colour in zip(names, lab):
+        by_shape.setdefault(stem.rsplit("_", 1)[0], []).append(colour)
+    return colour_spread(torch.stack([torch.stack(c).mean(0) for c in by_shape.values()]))
+
+
+def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, checkpoint: str | Path, cfg: GenerationConfig,
+                            device: torch.device | None = None, extractor=None, samples_path: Path | None = None,
+                            log=print) -> dict:
+    """Every row of the module docstring and the diversity measures; returns a JSON-ready dict.
+
+    ``samples_path``: also write a samples grid there (rows latents, columns views; the first held-out
+    shape, trained generator, with the oracle's views as the last row).
+    """
+    start = time.perf_counter()
+    device = device or torch.device("cpu")
+    world = read_world(world_dir)
+    trained, meta = load_generator(checkpoint, device)
+    resolution = cfg.resolution or int(meta["config"]["resolution"])
+    torch.manual_seed(cfg.seed)
+    untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
+    names = world.held_out[: cfg.max_shapes] if cfg.max_shapes > 0 else world.held_out
+    shapes = {}
+    for name in names:
+        path = Path(shapes_dir) / f"{name}.npz"
+        if not path.is_file():
+            raise UserError(f"{path}: the held-out shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
+        shape = PreparedShape.load(path)
+        problem = shape_mismatch(shape, trained)
+        if problem:
+            raise UserError(f"{path}: {problem}")
+        shapes[name] = shape
+
+    photos, photo_masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+    photo_names = list(list_images(world.root / "images", "image"))
+    z_gen = torch.Generator().manual_seed(cfg.seed + 1)
+    sets = {row: ([], []) for row in ROWS}
+    diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
+    for name in names:
+        index = world.indices[name]
+        views = sample_views(world.spec, index, cfg.views)  # fresh photo views: the world never used this stream for a held-out shape
+        z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
+        for row, generator in (("trained", trained), ("untrained", untrained)):
+            images, masks = generator_renders(generator, shapes[name], views, resolution, z, device)
+            sets[row][0].append(images)
+            sets[row][1].append(masks)
+        for row, lit in (("oracle", True), ("oracle_unlit", False)):
+            images, masks = oracle_renders(world, name, views, resolution, lit)
+            sets[row][0].append(images)
+            sets[row][1].append(masks)
+        # Diversity: many latents at one pose.
+        pose = dataclasses.replace(views[0], azimuth=cfg.azimuth, elevation=cfg.elevation,
+                                   distance=(world.spec.distance_min + world.spec.distance_max) / 2)
+        z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_gen)
+        for row, generator in (("trained", trained), ("untrained", untrained)):
+            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device)
+            diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
+            diversity[row]["pairwise"].append(mean_pairwise_delta_e(images, masks))
+        images, masks = material_draws(world, name, pose, cfg.latents, resolution, cfg.seed)
+        diversity["reference_materials"]["spread"].append(colour_spread(mean_object_lab(images, masks)))
+        diversity["reference_materials"]["pairwise"].append(mean_pairwise_delta_e(images, masks))
+        log(f"generation protocol: {name} done ({time.perf_counter() - start:.0f} s)")
+
+    eval_cfg = EvaluateConfig(resolution=resolution, features=cfg.features, seed=cfg.seed)
+    if cfg.kid_fid and extractor is None:
+        from mesh2tex.metrics import get_feature_extractor
+
+        extractor = get_feature_extractor(cfg.features, device=device)
+    rows = {}
+    for row in ROWS:
+        images, masks = torch.cat(sets[row][0]), torch.cat(sets[row][1])
+        metrics = evaluate_sets(images, photos, extractor, eval_cfg, masks, photo_masks, kid_fid=cfg.kid_fid)["metrics"]
+        levels = [v for k, v in metrics.items() if k.startswith("swd_") and k.endswith("px")]
+        metrics["swd"] = float(np.mean(levels))
+        rows[row] = metrics
+    photo_spread = photo_set_spread(world, photos, photo_masks, photo_names)
+    summary = {name: {k: float(np.mean(v)) for k, v in d.items()} for name, d in diversity.items()}
+    ref = summary["reference_materials"]
+    result = {
+        "world": str(world.root), "checkpoint": str(checkpoint), "shapes": names, "resolution": resolution,
+        "iteration": int(meta.get("iteration", 0)), "rows": rows,
+        "gap_closed": gap_closed(rows["untrained"]["swd"], rows["trained"]["swd"], rows["oracle"]["swd"]),
+        "diversity": {
+            **summary, "photo_set_spread": photo_spread,
+            "trained_spread_vs_photo_set": summary["trained"]["spread"] / max(photo_spread, 1e-9),
+            "trained_spread_vs_materials": summary["trained"]["spread"] / max(ref["spread"], 1e-9),
+            "trained_pairwise_vs_materials": summary["trained"]["pairwise"] / max(ref["pairwise"], 1e-9),
+        },
+        "settings": dataclasses.asdict(cfg), "seconds": round(time.perf_counter() - start, 1),
+    }
+    if samples_path is not None:
+        write_samples_grid(samples_path, trained, shapes[names[0]], world, names[0], resolution, cfg, device)
+    return result
+
+
+@torch.no_grad()
+def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedShape, world: WorldData, name: str,
+                       resolution: int, cfg: GenerationConfig, device: torch.device, latents: int = 4, views: int = 4) -> None:
+    """PNG grid: rows latents (seeds ``cfg.seed*1000 + row``), columns azimuths evenly spaced; the last row the oracle (lit)."""
+    from mesh2tex.io.images import save_png
+
+    base = sample_views(world.spec, world.indices[name], 1)[0]
+    ring = [dataclasses.replace(base, azimuth=a, elevation=cfg.elevation, distance=(world.spec.distance_min + world.spec.distance_max) / 2)
+            for a in (np.arange(views) * 360.0 / views + cfg.azimuth)]
+    rows = []
+    for k in range(latents):
+        z = torch.randn(1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed * 1000 + k)).repeat(views, 1)
+        rows.append(generator_renders(generator, shape, ring, resolution, z, device)[0])
+    rows.append(oracle_renders(world, name, ring, resolution, lit=True)[0])
+    grid = torch.stack(rows)  # (rows, views, 3, R, R)
+    grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)
+    save_png(path, (grid.numpy() * 255).round().astype(np.uint8))
+
+
+def generation_markdown(result: dict) -> str:
+    """The rows and the diversity of a :func:`run_generation_protocol` result as markdown."""
+    rows = result["rows"]
+    names = ["swd"] + [k for k in rows["trained"] if k.startswith(("kid", "fid")) and not k.endswith("_std")] + ["color_hist_tv"]
+    lines = [f"Generation protocol on {len(result['shapes'])} held-out shapes at {result['resolution']} px "
+             f"(checkpoint iteration {result['iteration']}); lower is better for every distance.", "",
+             "| row | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
+    for row in ROWS:
+        values = [rows[row].get(n, float("nan")) for n in names]
+        lines.append(f"| {row.replace('_', ', ')} | " + " | ".join(f"{v:.4g}" for v in values) + " |")
+    d = result["diversity"]
+    gap = result["gap_closed"]
+    lines += ["", f"Gap closed (log SWD, untrained 0 -> oracle 1; higher is better): **{gap:.2f}**" if math.isfinite(gap)
+              else "Gap closed: undefined (the oracle does not beat the untrained generator on SWD)", "",
+              "| diversity (higher is more varied) | colour spread (Delta E) | mean pairwise Delta E |", "| --- | --- | --- |",
+              f"| trained, {result['settings']['latents']} latents per shape | {d['trained']['spread']:.2f} | {d['trained']['pairwise']:.2f} |",
+              f"| untrained | {d['untrained']['spread']:.2f} | {d['untrained']['pairwise']:.2f} |",
+              f"| world's material sampler, same shapes and pose (reference) | {d['reference_materials']['spread']:.2f} | {d['reference_materials']['pairwise']:.2f} |",
+              f"| photo set, across shapes (reference) | {d['photo_set_spread']:.2f} | |", "",
+              f"Trained diversity: colour spread {d['trained_spread_vs_photo_set']:.2f} of the photo set's, "
+              f"{d['trained_spread_vs_materials']:.2f} of the material sampler's; pairwise Delta E "
+              f"{d['trained_pairwise_vs_materials']:.2f} of the material sampler's."]
+    return "\n".join(lines) + "\n"

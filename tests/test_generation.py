@@ -1,0 +1,103 @@
+"""The generation protocol (``mesh2tex evaluate --generation``) and its measures."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import yaml
+
+from conftest import TINY_GAN
+from infer.generation import GenerationConfig, run_generation_protocol
+from mesh2tex.cli import main
+from mesh2tex.geometry.mesh_io import load_mesh
+from mesh2tex.geometry.prepare import prepare_shape
+from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e
+
+
+def test_colour_measures_on_known_images():
+    white, black = torch.ones(1, 3, 4, 4), torch.zeros(1, 3, 4, 4)
+    mask = torch.ones(1, 1, 4, 4)
+    lab = mean_object_lab(torch.cat([white, black]), mask.repeat(2, 1, 1, 1))
+    assert lab[0, 0] == pytest.approx(100, abs=0.1) and lab[1, 0] == pytest.approx(0, abs=0.1)
+    assert colour_spread(lab) == pytest.approx(50, abs=0.1), "two colours 100 apart: spread 50"
+    assert colour_spread(lab[[0, 0]]) == 0
+    assert mean_pairwise_delta_e(torch.cat([white, black, white]), mask[0]) == pytest.approx(200 / 3, abs=0.1)
+    with pytest.raises(ValueError, match="no object pixel"):
+        mean_object_lab(white, torch.zeros(1, 1, 4, 4))
+
+
+def test_gap_closed():
+    assert gap_closed(200.0, 200.0, 50.0) == 0
+    assert gap_closed(200.0, 50.0, 50.0) == pytest.approx(1)
+    assert gap_closed(200.0, 100.0, 50.0) == pytest.approx(0.5)
+    assert gap_closed(200.0, 300.0, 50.0) < 0
+    assert np.isnan(gap_closed(50.0, 40.0, 60.0)), "an oracle that loses makes the figure meaningless"
+
+
+@pytest.fixture(scope="module")
+def world_and_gan(tmp_path_factory):
+    root = tmp_path_factory.mktemp("generation")
+    world = root / "world"
+    assert main(["prepare", "synthetic", "--output", str(world), "--shapes", "3", "--views", "3", "--resolution", "32",
+                 "--texture-size", "64", "--seed", "3", "--query-views", "1"]) == 0
+    index = json.loads((world / "index.json").read_text())
+    shapes = root / "shapes"
+    shapes.mkdir()
+    for name in index["split"]["query_shapes"] + index["split"]["train_shapes"][:1]:
+        vertices, faces = load_mesh(world / "meshes" / f"{name}.obj")
+        prepare_shape(vertices, faces, face_count=96, levels=3, seed=0).save(shapes / f"{name}.npz")
+    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
+    assert main(["train", "gan", "--shapes", str(shapes), "--images", str(world), "--out", str(root / "gan"), "--config",
+                 str(root / "tiny.yaml"), "--iters", "1", "--batch", "1", "--views", "1", "--resolution", "32", "--device", "cpu"]) == 0
+    return root
+
+
+def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
+    root = world_and_gan
+    cfg = GenerationConfig(views=3, latents=3, kid_fid=False)
+    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors", cfg,
+                                     samples_path=tmp_path / "grid.png", log=lambda line: None)
+    rows = result["rows"]
+    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit"}
+    # The oracle is fresh photos of the held-out shapes: it must beat a generator that has not learnt.
+    assert rows["oracle"]["swd"] < rows["untrained"]["swd"]
+    assert rows["oracle"]["color_hist_tv"] < rows["untrained"]["color_hist_tv"]
+    assert np.isfinite(result["gap_closed"])
+    d = result["diversity"]
+    assert d["reference_materials"]["spread"] > 1 and d["reference_materials"]["pairwise"] > 1 and d["photo_set_spread"] > 1
+    assert d["trained"]["spread"] >= 0 and d["trained_spread_vs_photo_set"] == pytest.approx(d["trained"]["spread"] / d["photo_set_spread"])
+    assert (tmp_path / "grid.png").is_file()
+
+
+def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp_path, monkeypatch):
+    root = world_and_gan
+    from infer import generation
+
+    original = generation.load_generator
+
+    def collapsed(path, device):
+        generator, meta = original(path, device)
+        mapping = generator.mapping.forward
+        generator.mapping.forward = lambda z, *a, **k: mapping(torch.zeros_like(z) + 1.0, *a, **k)
+        return generator, meta
+
+    monkeypatch.setattr(generation, "load_generator", collapsed)
+    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
+                                     GenerationConfig(views=2, latents=3, kid_fid=False), log=lambda line: None)
+    assert result["diversity"]["trained"]["spread"] == pytest.approx(0, abs=1e-3)
+    assert result["diversity"]["trained"]["pairwise"] == pytest.approx(0, abs=1e-3)
+
+
+def test_command_writes_results_and_refuses_to_overwrite(world_and_gan, tmp_path, capsys):
+    root = world_and_gan
+    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--gan",
+            str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--kid-subsets", "2",
+            "--device", "cpu", "--features", "randvgg"]
+    assert main(args) == 0
+    assert {"generation.json", "generation.md", "generation_samples.png"} <= {p.name for p in (tmp_path / "out").iterdir()}
+    assert "Gap closed" in (tmp_path / "out" / "generation.md").read_text()
+    assert main(args) == 2 and "--overwrite" in capsys.readouterr().err
+    assert main(args[:5] + args[7:]) == 2 and "--generation needs --gan" in capsys.readouterr().err

@@ -14,7 +14,7 @@ from infer.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
-from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e
+from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
 
 
 def test_colour_measures_on_known_images():
@@ -27,6 +27,20 @@ def test_colour_measures_on_known_images():
     assert mean_pairwise_delta_e(torch.cat([white, black, white]), mask[0]) == pytest.approx(200 / 3, abs=0.1)
     with pytest.raises(ValueError, match="no object pixel"):
         mean_object_lab(white, torch.zeros(1, 1, 4, 4))
+
+
+def test_object_set_swd_sees_object_colours_not_backgrounds():
+    torch.manual_seed(0)
+    masks = torch.zeros(6, 1, 32, 32)
+    masks[:, :, 8:24, 8:24] = 1
+    red = torch.zeros(6, 3, 32, 32)
+    red[:, 0] = 0.8
+    noisy_red = (red + 0.05 * torch.randn_like(red)).clamp(0, 1)
+    blue = noisy_red[:, [2, 1, 0]]
+    other_background = noisy_red * masks + torch.rand(6, 3, 32, 32) * (1 - masks)
+    same = object_set_swd(noisy_red, masks, noisy_red.flip(0), masks)
+    assert object_set_swd(other_background, masks, noisy_red, masks) == pytest.approx(same, rel=0.3, abs=5)
+    assert object_set_swd(blue, masks, noisy_red, masks) > 5 * max(same, 1.0)
 
 
 def test_gap_closed():
@@ -63,6 +77,7 @@ def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     rows = result["rows"]
     assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit"}
     # The oracle is fresh photos of the held-out shapes: it must beat a generator that has not learnt.
+    assert rows["oracle"]["object_swd"] < rows["untrained"]["object_swd"]
     assert rows["oracle"]["swd"] < rows["untrained"]["swd"]
     assert rows["oracle"]["color_hist_tv"] < rows["untrained"]["color_hist_tv"]
     assert np.isfinite(result["gap_closed"])

@@ -3,7 +3,8 @@
 Inputs are mesh files (.obj .ply .off .stl .glb .gltf) and folders searched recursively, the
 ShapeNetCore v2 layout ``<synset>/<id>/models/model_normalized.obj`` included (such a shape is named
 ``<synset>_<id>``). One ``<name>.npz`` per shape goes to ``--output`` with ``index.json`` listing every
-input, its status (ok or failed), the reason of a failure, face counts per level and seconds.
+input, its status (ok or failed), the reason of a failure, per level the faces, the ratio to the finer
+level and the method that made it, warnings (a level made by a fallback) and seconds.
 Finished shapes are skipped on a re-run, so an interrupted run resumes. Exit status 0 when every
 input succeeded, 2 when any failed.
 """
@@ -103,8 +104,10 @@ def prepare_one(path: str, output: str, faces: int, levels: int, seed: int) -> d
         vertices, triangles = load_mesh(path)
         shape = prepare_shape(vertices, triangles, face_count=faces, levels=levels, seed=seed, source=path)
         shape.save(output)
-        record.update(status="ok", reason="", face_counts=shape.face_counts,
-                      methods=[level["method"] for level in shape.metadata["levels"]])
+        levels = shape.metadata["levels"]
+        record.update(status="ok", reason="", face_counts=shape.face_counts, methods=[level["method"] for level in levels],
+                      levels=[{"faces": level["faces"], "ratio": level["ratio"], "method": level["method"]} for level in levels],
+                      warnings=list(shape.metadata["warnings"]))
     except UserError as error:
         message = str(error)
         record.update(status="failed", reason=message if message.startswith(path) else f"{path}: {message}", face_counts=[])
@@ -157,14 +160,18 @@ def run(args) -> int:
         ordered = [records[str(p)] for p in paths if str(p) in records]
         write_json(index_path, {"settings": settings, "shapes": ordered,
                                 "ok": sum(r["status"] == "ok" for r in ordered),
-                                "failed": sum(r["status"] == "failed" for r in ordered)})
+                                "failed": sum(r["status"] == "failed" for r in ordered),
+                                "with_warnings": sum(bool(r.get("warnings")) for r in ordered)})
 
     def finish(record: dict, bar) -> None:
         records[record["source"]] = record
-        log.write({"event": "shape", **{k: record[k] for k in ("source", "status", "reason", "face_counts", "seconds")}})
+        log.write({"event": "shape", **{k: record[k] for k in ("source", "status", "reason", "face_counts", "seconds")},
+                   "warnings": record.get("warnings", [])})
         write_index()  # after every shape, so an interruption loses at most the shapes in flight
         if record["status"] == "failed":
             bar.write(f"mesh2tex: failed: {record['reason']}", file=sys.stderr)
+        for warning in record.get("warnings", []):
+            bar.write(f"mesh2tex: warning: {record['source']}: {warning}", file=sys.stderr)
         bar.update(1)
 
     jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed) for p in todo]

@@ -74,7 +74,11 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         "input": {"vertices": int(len(vertices)), "triangles": int(len(faces)), "cleaned_triangles": int(len(clean_f))},
         "targets": targets,
         "face_counts": [int(len(q)) for q in level_quads],
-        "levels": [{"target": r.target, "faces": int(len(r.quads)), "method": r.method, "attempts": r.attempts} for r in results],
+        "levels": [{"target": r.target, "faces": int(len(r.quads)),
+                    "ratio": None if l == 0 else round(len(results[l - 1].quads) / len(r.quads), 3),
+                    "method": r.method, "warnings": r.warnings, "seconds": r.seconds, "attempts": r.attempts}
+                   for l, r in enumerate(results)],
+        "warnings": [f"level {l}: {w}" for l, r in enumerate(results) for w in r.warnings],
         "seed": int(seed),
         "seeds": sorted({int(a["method"].split("seed=")[1].rstrip(")")) for r in results for a in r.attempts if "seed=" in a["method"]}),
         "seconds": {"clean": round(seconds_clean, 3), "remesh": round(seconds_remesh, 3), "total": round(time.perf_counter() - start, 3)},

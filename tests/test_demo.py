@@ -17,7 +17,9 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     assert linked and all((out / path).is_file() for path in linked), "every image and file the report links exists"
     metrics = json.loads((out / "metrics.json").read_text())
     assert all(np.isfinite(v) for v in metrics["transfer"]["transfer"].values() if v != float("inf"))
-    assert set(metrics["generation"]) == {"trained", "untrained"}
+    generation = metrics["generation"]
+    assert set(generation["rows"]) == {"trained", "untrained", "oracle", "oracle_unlit"}
+    assert {"gap_closed", "diversity"} <= set(generation) and (out / "gan" / "generation_samples.png").is_file()
     stages = [json.loads(line)["stage"] for line in (out / "demo_log.jsonl").read_text().splitlines()]
     assert stages[:2] == ["prepare synthetic", "prepare shapes (train)"]
     iteration = read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"]

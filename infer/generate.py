@@ -30,7 +30,7 @@ from train.runs import select_device
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors)")
+    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors) or a shipped model's name (chair, car)")
     parser.add_argument("--mesh", required=True, help="a prepared shape (.npz) or a mesh file (.obj .ply .off .stl .glb)")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--seeds", default="0,1,2", help="comma-separated latent seeds (default 0,1,2)")
@@ -44,9 +44,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def load_generator(path: str | Path, device: torch.device) -> tuple[TextureGenerator, dict]:
-    """The EMA generator of a GAN checkpoint, in eval mode, and the checkpoint's metadata."""
+    """The EMA generator of a GAN checkpoint (a path, or a shipped model's name such as ``chair``), in
+    eval mode, and the checkpoint's metadata."""
     from mesh2tex.config import config_from_dict
+    from mesh2tex.io.models import resolve_checkpoint
 
+    path = resolve_checkpoint(path, "gan")
     groups, meta = load_checkpoint(path, kind="gan")
     cfg = config_from_dict(GeneratorConfig, meta["generator_config"], f"{path}: generator_config")
     generator = TextureGenerator(cfg)

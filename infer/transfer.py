@@ -433,7 +433,8 @@ def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, 
 
 # -------------------------------------------------------------------------------------------- stage
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan')")
+    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan'), or a shipped "
+                        "model's name (chair, car), which also supplies the pose and NOC networks unless given")
     parser.add_argument("--mesh", required=True, help="the mesh to texture: a prepared shape (.npz) or a mesh file")
     parser.add_argument("--image", required=True, help="the query photo")
     parser.add_argument("--mask", help="object mask of the photo (white = object); default: alpha channel or an estimate")
@@ -494,6 +495,11 @@ def run(args) -> int:
     if (out / "report.json").exists() and not args.overwrite:
         raise UserError(f"{out}: already holds a transfer result (report.json); pass --overwrite to replace it")
     pose = parse_pose(args.pose)
+    from mesh2tex.io.models import is_model_name
+
+    if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks
+        args.pose_checkpoint = args.pose_checkpoint or args.checkpoint
+        args.noc_checkpoint = args.noc_checkpoint or args.checkpoint
     if pose is None and not args.pose_checkpoint:
         raise UserError("--pose auto needs --pose-checkpoint (from 'mesh2tex train pose'), or give --pose AZIMUTH,ELEVATION")
     if cfg.use_noc and cfg.use_patches and not args.noc_checkpoint:

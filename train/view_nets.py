@@ -263,10 +263,13 @@ def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], inde
 
 
 def load_view_network(path: str | Path, kind: str, device: torch.device | str = "cpu") -> tuple[torch.nn.Module, ViewTrainConfig]:
-    """A trained pose or NOC network (eval mode) and its config, from a ``train pose|noc`` checkpoint."""
+    """A trained pose or NOC network (eval mode) and its config, from a ``train pose|noc`` checkpoint
+    (a path, or a shipped model's name such as ``chair``)."""
     from mesh2tex.config import config_from_dict
     from mesh2tex.io.checkpoint import load_checkpoint
+    from mesh2tex.io.models import resolve_checkpoint
 
+    path = resolve_checkpoint(path, kind)
     groups, meta = load_checkpoint(path, kind=kind)
     cfg = config_from_dict(ViewTrainConfig, meta["config"], where=str(path))
     net = build_network(kind, cfg)
@@ -288,7 +291,7 @@ def add_view_arguments(parser: argparse.ArgumentParser, kind: str) -> None:
     parser.add_argument("--resolution", type=int, help="side of the rendered views")
     parser.add_argument("--category", choices=["chair", "car"], help="material library of the renders")
     parser.add_argument("--gan", metavar="CHECKPOINT",
-                        help="a 'train gan' checkpoint that textures a share (data.gan_share, default 0.5) of the rendered views")
+                        help="a 'train gan' checkpoint, or a shipped model's name (chair, car), that textures a share (data.gan_share, default 0.5) of the rendered views")
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to train")
     parser.add_argument("--seed", type=int, help="random seed")
     parser.add_argument("--resume", action="store_true", help=f"continue the {kind} run in --out from its last checkpoint")
@@ -309,7 +312,9 @@ def build_view_config(args) -> ViewTrainConfig:
         raise UserError(f"data.gan_share {cfg.data.gan_share}: must be between 0 and 1")
     if cfg.data.gan_checkpoint:  # checked before the run directory is written
         from mesh2tex.io.checkpoint import read_checkpoint_meta
+        from mesh2tex.io.models import resolve_checkpoint
 
+        cfg.data.gan_checkpoint = str(resolve_checkpoint(cfg.data.gan_checkpoint, "gan"))  # a shipped model's name, or a path
         kind = read_checkpoint_meta(cfg.data.gan_checkpoint).get("kind")
         if kind != "gan":
             raise UserError(f"{cfg.data.gan_checkpoint}: this is a '{kind}' checkpoint, --gan needs a 'gan' checkpoint")

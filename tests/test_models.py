@@ -1,0 +1,62 @@
+"""Shipped models: a trained checkpoint exported for inference (float16) and named instead of a path."""
+
+from __future__ import annotations
+
+import torch
+
+from infer.generate import load_generator
+from mesh2tex.cli import main
+from mesh2tex.io.checkpoint import load_checkpoint
+from mesh2tex.io.models import MODEL_FILES, export_inference_checkpoint, list_models, resolve_checkpoint
+
+
+def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny_gan, tmp_path, monkeypatch, capsys):
+    models = tmp_path / "models"
+    (models / "tiny").mkdir(parents=True)
+    source = tiny_gan / "run" / "checkpoint.safetensors"
+    export_inference_checkpoint(source, "gan", models / "tiny" / MODEL_FILES["gan"])
+    monkeypatch.setenv("MESH2TEX_MODELS", str(models))
+    assert list_models() == ["tiny"]
+    groups, meta = load_checkpoint(models / "tiny" / MODEL_FILES["gan"], kind="gan")
+    assert set(groups) == {"generator_ema"} and "rng" not in meta
+    assert all(t.dtype == torch.float16 for t in groups["generator_ema"].values() if t.is_floating_point())
+    assert (models / "tiny" / MODEL_FILES["gan"]).stat().st_size < source.stat().st_size / 4
+
+    shipped, _ = load_generator("tiny", torch.device("cpu"))
+    full, _ = load_generator(source, torch.device("cpu"))
+    for (name, a), b in zip(shipped.state_dict().items(), full.state_dict().values()):
+        assert a.dtype == b.dtype and torch.allclose(a, b, rtol=2e-3, atol=2e-3), name
+
+    out = tmp_path / "gen"
+    assert main(["infer", "generate", "--checkpoint", "tiny", "--mesh", str(tiny_gan / "shapes" / "box0.npz"), "--out", str(out),
+                 "--seeds", "0", "--views", "1", "--resolution", "32", "--texture-size", "32", "--device", "cpu"]) == 0
+    assert (out / "seed0.glb").is_file()
+    assert main(["infer", "generate", "--checkpoint", "nosuchmodel", "--mesh", str(tiny_gan / "shapes" / "box0.npz"),
+                 "--out", str(tmp_path / "x"), "--device", "cpu"]) == 2
+    err = capsys.readouterr().err
+    assert "nosuchmodel: no such checkpoint file or shipped model (shipped models: tiny)" in err and "Traceback" not in err
+
+
+def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch):
+    from mesh2tex.errors import UserError
+    import pytest
+
+    models = tmp_path / "models"
+    (models / "tiny").mkdir(parents=True)
+    export_inference_checkpoint(tiny_gan / "run" / "checkpoint.safetensors", "gan", models / "tiny" / MODEL_FILES["gan"])
+    monkeypatch.setenv("MESH2TEX_MODELS", str(models))
+    with pytest.raises(UserError, match="has no pose network"):
+        resolve_checkpoint("tiny", "pose")
+    assert resolve_checkpoint(str(tiny_gan / "run" / "checkpoint.safetensors"), "gan").is_file()
+
+
+def test_the_shipped_models_load(monkeypatch):
+    """Every model in the source tree's models/ folder loads and has all three networks."""
+    monkeypatch.delenv("MESH2TEX_MODELS", raising=False)
+    from train.view_nets import load_view_network
+
+    for name in list_models():
+        generator, meta = load_generator(name, torch.device("cpu"))
+        assert generator.cfg.input_features > 0 and meta["iteration"] > 0
+        for kind in ("pose", "noc"):
+            load_view_network(name, kind)

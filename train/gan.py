@@ -75,6 +75,7 @@ class TrainGanConfig:
     log_every: int = 10  # iterations between metrics.jsonl records
     sample_every: int = 500  # iterations between sample grids under RUN/samples (0: only at the end)
     checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
+    snapshot_every: int = 0  # iterations between kept float16 EMA generators under RUN/snapshots (0: none)
     sample_shapes: int = 4  # shapes in a sample grid
     generator: GeneratorConfig = field(default_factory=GeneratorConfig)
     discriminator: DiscriminatorConfig = field(default_factory=DiscriminatorConfig)
@@ -304,6 +305,17 @@ class GanTrainer:
         self.iteration += 1
         return runs.scalars(logs)
 
+    def write_snapshot(self) -> Path:
+        """RUN/snapshots/iterNNNNNNN.safetensors: the EMA generator now, float16, loadable like a shipped model."""
+        from mesh2tex.io.models import save_inference_checkpoint
+
+        path = self.run.root / "snapshots" / f"iter{self.iteration:07d}.safetensors"
+        path.parent.mkdir(exist_ok=True)
+        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "generator_config": runs.dumps_config(self.cfg.generator),
+                "world_size": self.dist.world_size}
+        save_inference_checkpoint(path, KIND, self.ema.state_dict(), meta)
+        return path
+
     @torch.no_grad()
     def write_samples(self) -> Path:
         """Grid of EMA renders: one row per sample shape, one column per view (white background)."""
@@ -347,6 +359,8 @@ class GanTrainer:
                     last_time, last_iter = now, it
                 if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
                     self.save(self.run.checkpoint_path)
+                if main and cfg.snapshot_every and it % cfg.snapshot_every == 0:
+                    self.write_snapshot()
                 if main and cfg.sample_every and it % cfg.sample_every == 0 and it < cfg.iters:
                     self.write_samples()
         except KeyboardInterrupt:

@@ -70,9 +70,16 @@ def export_inference_checkpoint(source: str | os.PathLike, kind: str, target: st
     group = INFERENCE_GROUPS[kind]
     if group not in groups:
         raise UserError(f"{source}: no '{group}' weights in this {kind} checkpoint")
-    tensors = {name: (t.half() if half and t.is_floating_point() else t) for name, t in groups[group].items()}
     kept = {k: v for k, v in meta.items() if k != "rng"}
-    kept["exported_from"] = {"file": Path(source).name, "dtype": "float16" if half else "float32"}
-    save_checkpoint(target, {group: tensors}, kind, kept)
-    return kept
+    kept["exported_from"] = {"file": Path(source).name}
+    return save_inference_checkpoint(target, kind, groups[group], kept, half)
+
+
+def save_inference_checkpoint(target: str | os.PathLike, kind: str, state: dict, meta: dict, half: bool = True) -> dict:
+    """Write one network's ``state`` (float16 when ``half``) as an inference checkpoint of ``kind``
+    (group ``INFERENCE_GROUPS[kind]``) with ``meta``; returns the metadata written."""
+    tensors = {name: (t.detach().half() if half and t.is_floating_point() else t.detach()) for name, t in state.items()}
+    meta = {**meta, "dtype": "float16" if half else "float32"}
+    save_checkpoint(target, {INFERENCE_GROUPS[kind]: tensors}, kind, meta)
+    return meta
 

@@ -242,9 +242,10 @@ def quad_mesh_problem(vertices: np.ndarray, quads: np.ndarray, min_faces: float,
     """Why a quad mesh is unusable as a level, or None when it is fine.
 
     Checks: not empty; ``min_faces <= F <= max_faces``; no quad with a repeated vertex; every edge
-    on exactly two quads (every surface remeshed here is closed, so a boundary edge is a hole); and, with ``coverage_points`` (P, 3) on the input surface, that
-    :data:`COVERAGE_QUANTILE` of them lie within ``coverage_margin`` plus one quad edge
-    (``sqrt(area / F)``) of the mesh's vertices, edge midpoints or quad centres (no part left out).
+    on exactly two quads (every surface remeshed here is closed, so a boundary edge is a hole); and,
+    with ``coverage_points`` (P, 3) on the surface that was remeshed, that :data:`COVERAGE_QUANTILE`
+    of them lie within ``coverage_margin`` plus one quad edge (``sqrt(area / F)``) of the mesh's
+    vertices, edge midpoints or quad centres (no part left out).
 
     Args:
         vertices: (V, 3) float; quads: (F, 4) int.
@@ -296,9 +297,6 @@ class _Surfaces:
         self.area = float(triangle_areas(vertices, faces).sum())
         self._samples: tuple[float, np.ndarray, cKDTree] | None = None
         self._quadriflow_input: tuple[np.ndarray, np.ndarray] | None = None
-        self.coverage = surface_samples(vertices, faces, spacing=0.02)
-        if len(self.coverage) > 8192:
-            self.coverage = self.coverage[np.random.default_rng(0).choice(len(self.coverage), 8192, replace=False)]
 
     def quadriflow_input(self, edge: float) -> tuple[np.ndarray, np.ndarray]:
         """The repaired input remeshed to even triangles of about ``edge`` (:func:`clean.isotropic_remesh`)."""
@@ -331,12 +329,20 @@ class _Surfaces:
         return v, t
 
 
-def _attempt(attempts: list[dict], method: str, make, bounds: tuple[float, float], coverage: np.ndarray, margin: float):
+def _coverage_points(vertices: np.ndarray, faces: np.ndarray, edge: float, count: int = 8192) -> np.ndarray:
+    """(P, 3) points spread over the surface a level is remeshed from (at most ``count``, a fixed subset)."""
+    points = surface_samples(vertices, faces, spacing=edge / 2.0)
+    if len(points) > count:
+        points = points[np.random.default_rng(0).choice(len(points), count, replace=False)]
+    return points
+
+
+def _attempt(attempts: list[dict], method: str, make, bounds: tuple[float, float], coverage: np.ndarray | None):
     """Run one way of making a level; record it; return (vertices, quads) when it passes, else None."""
     start = time.perf_counter()
     try:
         out_v, out_q = make()
-        problem = quad_mesh_problem(out_v, out_q, bounds[0], bounds[1], coverage, margin)
+        problem = quad_mesh_problem(out_v, out_q, bounds[0], bounds[1], coverage)
     except QuadRemeshError as error:
         out_v, out_q, problem = None, None, str(error)
     attempts.append({"method": method, "faces": 0 if out_q is None else int(len(out_q)), "problem": problem,
@@ -389,11 +395,11 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
         sources = []
         if level == 0:
             if is_closed_single_part(faces):
-                sources.append(("input", lambda: surfaces.quadriflow_input(edge), 0.0))
-        sources.append((f"closed re-make, spacing={spacing:.3g}, offset={offset:.3g}", lambda: surfaces.remake(spacing, offset, edge), offset))
+                sources.append(("input", lambda: surfaces.quadriflow_input(edge)))
+        sources.append((f"closed re-make, spacing={spacing:.3g}, offset={offset:.3g}", lambda: surfaces.remake(spacing, offset, edge)))
 
         chosen, method = None, ""
-        for index, (name, make_source, margin) in enumerate(sources):
+        for index, (name, make_source) in enumerate(sources):
             last = index == len(sources) - 1
             start = time.perf_counter()
             try:
@@ -402,13 +408,21 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
                 attempts.append({"method": f"make {name}", "faces": 0, "problem": f"{error.__class__.__name__}: {error}",
                                  "seconds": round(time.perf_counter() - start, 3)})
                 continue
+            coverage = _coverage_points(*mesh, edge)
             for s in (seeds if last else seeds[:1]):
                 tries = [(request, f"quadriflow({name}, seed={s})")]
                 for ask, label in tries:
                     result = _attempt(attempts, label, lambda: quadriflow(*mesh, ask, s, timeout=timeout, isolate=isolate),
-                                      bounds, surfaces.coverage, margin)
+                                      bounds, coverage)
                     if result is not None:
-                        chosen, method = result, label
+                        got = len(result[1])
+                        if chosen is None or abs(np.log(got / request)) < abs(np.log(len(chosen[1]) / request)):
+                            chosen, method = result, label
+                        # a cheap coarse level far from its aim is asked once more, the nearer result kept
+                        if level > 0 and len(tries) == 1 and not (0.6 * request <= got <= request / 0.6):
+                            again = int(round(ask * request / got))
+                            tries.append((again, f"quadriflow({name}, {again} requested, seed={s})"))
+                            continue
                         break
                     got = attempts[-1]["faces"]
                     if got and not (bounds[0] <= got <= bounds[1]) and len(tries) == 1:
@@ -452,8 +466,8 @@ def _surface_net_level(surfaces: _Surfaces, request: int, bounds: tuple[float, f
     for _ in range(6):
         offset = 0.9 * spacing
         label = f"surface nets(closed re-make, spacing={spacing:.3g}, offset={offset:.3g})"
-        result = _attempt(attempts, label, lambda: surface_net_quads(surfaces.field(spacing, offset)), bounds,
-                          surfaces.coverage, offset)
+        # the surface nets are the solid's boundary by construction: nothing of it can be left out
+        result = _attempt(attempts, label, lambda: surface_net_quads(surfaces.field(spacing, offset)), bounds, None)
         got = attempts[-1]["faces"]
         if result is not None:
             miss = abs(np.log(got / request))

@@ -82,9 +82,9 @@ def test_every_shape_gets_every_level_with_valid_neighbourhoods_pooling_and_feat
     shape = prepared[name]
     assert shape.num_levels == 3
     counts = shape.face_counts
-    assert 384 * 0.5 <= counts[0] <= 384 * 2, counts
-    assert all(counts[l + 1] <= counts[l] for l in range(2)), counts
-    assert counts[1] < counts[0], "level 1 is really coarser"
+    assert 384 * 0.7 <= counts[0] <= 384 * 1.4, counts
+    assert all(2.0 <= counts[l] / counts[l + 1] <= 8.0 for l in range(2)), f"every level really coarser: {counts}"
+    assert not any("copy" in level["method"] for level in shape.metadata["levels"])
     for level in range(3):
         v, q = shape.vertices[level], shape.quads[level]
         assert v.dtype == np.float32 and q.dtype == np.int64 and q.shape[1] == 4

@@ -5,12 +5,15 @@ and the neural field psi.
     z (512) ─► mapping ─► w ─► ws (B, num_ws, 512)
     synthesis, coarsest level first: block_l(unpool(x_{l+1}) ‖ E_l, ws) ─► x_l, rgb_l = unpool(rgb_{l+1}) + toRGB(x_l)
     F_c = x_0 (per finest face), face colours = rgb_0 (the proxy texture)
-    psi(barycentrics, blend of vertex means of F_c [‖ P E_0]) ─► colour at any surface point
+    psi(barycentrics, blend of vertex means of F_c [‖ P E_0]) + blend of vertex means of rgb_0 ─► colour at any point
 
 psi sees the latent-dependent F_c and, with ``field_geometry_channels`` > 0, a learnt narrow linear
 projection P E_0 of the geometry features. Fed E_0 whole (as the paper's figure draws it) psi learns
 to read the latent-free, face-to-face noisy geometry channels and ignore F_c: every latent then
-gets the same texture.
+gets the same texture. With ``field_residual`` psi's output is a residual on the barycentric blend of
+the proxy colours rgb_0 (mean face colour around each vertex): the texture starts from the
+latent-dependent per-face colours, which the proxy discriminator trains directly, and psi adds the
+detail within faces (see :func:`mesh2tex.nn.render_texture.field_colors`).
 
 Each synthesis block uses three ws (conv0, conv1, toRGB), so num_ws = 3 * num_levels. Texture
 transfer optimises ws and then the parameters of the last (finest) synthesis blocks:
@@ -43,6 +46,8 @@ class GeneratorConfig:
     aux_latent_dim: int = 512  # size of the learnt auxiliary latent of psi
     field_coords: str = "raw"  # local coordinates of psi: raw (barycentrics) or sorted_cdf
     field_geometry_channels: int = 0  # E_0 channels psi sees besides F_c, through a learnt projection (0: F_c alone)
+    field_residual: bool = True  # psi adds to the blended proxy (per-face) colours instead of painting from scratch
+    rgb_output_init: float = 0.1  # initial weight scale of the toRGB layers (1: StyleGAN2's, fresh colours near +-2)
     field_output_init: float = 0.1  # initial weight scale of psi's output layer (1 starts from saturated colours)
     conv_clamp: float = 256.0  # clamp of synthesis activations (keeps mixed precision finite)
 
@@ -142,6 +147,9 @@ class TextureGenerator(nn.Module):
             in_ch = 0 if level == levels - 1 else cfg.synthesis_channels[level + 1]
             blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
         self.synthesis = nn.ModuleList(blocks)
+        with torch.no_grad():  # a fresh proxy (and, with field_residual, psi's base) starts near grey, not saturated
+            for block in self.synthesis:
+                block.torgb.weight.mul_(cfg.rgb_output_init)
         if cfg.field_geometry_channels < 0:
             raise ValueError("GeneratorConfig.field_geometry_channels must be >= 0")
         self.field_geometry = (FullyConnected(cfg.encoder_channels[0], cfg.field_geometry_channels)

@@ -65,10 +65,21 @@ def rasterize_batch(batch: MeshBatch, mvp: torch.Tensor, resolution: tuple[int, 
 
 
 def field_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-    """psi at surface points: triangle_id (P,) batch triangle indices, bary (P, 3) -> RGB (P, 3)."""
-    vfeat = vertex_features(texture.field_features, batch.quads, batch.num_vertices)
+    """psi at surface points: triangle_id (P,) batch triangle indices, bary (P, 3) -> RGB (P, 3).
+
+    With ``field_residual`` (the default) psi's output is added to the barycentric blend of the
+    proxy's vertex colours (the mean face colour around each vertex), so the colour at a point
+    starts from the latent-dependent per-face texture and psi adds detail within the faces.
+    """
+    features = texture.field_features
+    residual = generator.cfg.field_residual
+    if residual:
+        features = torch.cat([features, texture.face_rgb.to(features.dtype)], dim=1)
+    vfeat = vertex_features(features, batch.quads, batch.num_vertices)
     blended = blend_vertex_features(vfeat, batch.triangles(), triangle_id, bary)
-    return generator.field(blended, bary)
+    if not residual:
+        return generator.field(blended, bary)
+    return generator.field(blended[:, :-3], bary) + blended[:, -3:]
 
 
 def _paint(background: torch.Tensor, flat_index: torch.Tensor, colors: torch.Tensor) -> torch.Tensor:

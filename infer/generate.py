@@ -51,7 +51,9 @@ def load_generator(path: str | Path, device: torch.device) -> tuple[TextureGener
 
     path = resolve_checkpoint(path, "gan")
     groups, meta = load_checkpoint(path, kind="gan")
-    cfg = config_from_dict(GeneratorConfig, meta["generator_config"], f"{path}: generator_config")
+    saved = dict(meta["generator_config"])
+    saved.setdefault("field_residual", False)  # written before psi became a residual on the proxy colours
+    cfg = config_from_dict(GeneratorConfig, saved, f"{path}: generator_config")
     generator = TextureGenerator(cfg)
     try:
         generator.load_state_dict(groups["generator_ema"])

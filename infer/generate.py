@@ -151,7 +151,7 @@ def vertex_colors(generator: TextureGenerator, texture: FaceTexture, batch: Mesh
 
 
 def run(args) -> int:
-    from mesh2tex.io.assets import save_glb, save_ply
+    from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 
     device = select_device(args.device)
     seeds = parse_seeds(args.seeds)
@@ -178,7 +178,7 @@ def run(args) -> int:
             for v, image in enumerate(to_uint8(views.images)):
                 save_png(out / f"seed{seed}_view{v}.png", image)
             verts, faces, uv, tex, _ = bake_texture(generator, texture, batch, args.texture_size)
-            save_glb(out / f"seed{seed}.glb", verts.numpy(), faces.numpy(), uv.numpy(), tex)
+            save_glb(out / f"seed{seed}.glb", verts.numpy(), faces.numpy(), uv.numpy(), tex, smooth_vertex_normals(verts.numpy(), faces.numpy()))
             save_ply(out / f"seed{seed}.ply", batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
                      vertex_colors(generator, texture, batch))
             written.append(seed)

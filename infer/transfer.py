@@ -397,13 +397,13 @@ def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, 
     from PIL import Image
 
     from infer.generate import bake_texture, vertex_colors
-    from mesh2tex.io.assets import save_glb, save_ply
+    from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
     from mesh2tex.io.atomic import atomic_path
 
     batch = collate_shapes([shape]).to(device)
     texture = generator.synthesize(batch, result.ws.to(device), noise_mode="none")
     verts, faces, uv, tex, _ = bake_texture(generator, texture, batch, cfg.texture_size)
-    save_glb(out / "textured.glb", verts.numpy(), faces.numpy(), uv.numpy(), tex)
+    save_glb(out / "textured.glb", verts.numpy(), faces.numpy(), uv.numpy(), tex, smooth_vertex_normals(verts.numpy(), faces.numpy()))
     save_ply(out / "textured.ply", batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
              vertex_colors(generator, texture, batch))
 

@@ -126,6 +126,23 @@ def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, ve
     write_bytes(path, glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals, name))
 
 
+def smooth_vertex_normals(vertices, faces) -> np.ndarray:
+    """(V, 3) float32 unit normals for smooth shading: area-weighted face normals summed over every
+    vertex at the same position, so that vertices split on UV seams get one normal and the seams do
+    not show. vertices: (V, 3) float, faces: (T, 3) int, counter-clockwise seen from outside."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    _, welded = np.unique(np.round(v, 6), axis=0, return_inverse=True)
+    welded = welded.reshape(-1)
+    area_normals = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    sums = np.zeros((welded.max() + 1, 3))
+    for corner in range(3):
+        np.add.at(sums, welded[f[:, corner]], area_normals)
+    normals = sums[welded]
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return np.where(length > 1e-20, normals / np.maximum(length, 1e-20), [0.0, 0.0, 1.0]).astype(np.float32)
+
+
 def load_glb(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Read a textured GLB of one mesh (as :func:`save_glb` writes): vertices (V, 3) float32, faces
     (T, 3) int64 in the file's order, uv (V, 2) float32 (v up) and the base-colour texture (H, W, 3)

@@ -295,8 +295,8 @@ def transfer_section(scores: dict) -> str:
             body += f"<tr><td>{esc(TRANSFER_METHODS[name])}</td>{''.join(cells)}</tr>"
         tables.append(f"<h3>{esc(title)}</h3><table><tr>{head}</tr>{body}</table>")
     return f"""<h2>Transfer quality: the result beside the ground truth and the simple baselines</h2>
-<p>Every method is a textured mesh rendered by the same function with the photo's camera, light
-({esc(str(settings.get('lighting', 'photo')))}) and background, at the photo's view and at views it does not show, against
+<p>Every method is a textured mesh rendered by the same function with the photo's camera and background
+(lighting: {esc(str(settings.get('lighting', 'photo')))}), at the photo's view and at views it does not show, against
 what the world photographs there, on the object pixels only. Per-part ΔE: CIELAB distance of each part's mean colour
 (seat, back, leg ...), weighted by pixel count; low-pass PSNR after a Gaussian blur of σ = {settings.get('lowpass_sigma_px', 3):g} px;
 object SWD: sliced Wasserstein distance of object patches (x1e3). The oracle (the world's ground-truth texture) is the

@@ -1,15 +1,16 @@
-"""Learning curve of the texture GAN on the synthetic chairs: sliced Wasserstein distance over time.
+"""Learning curve of a texture GAN run: the generation protocol at each kept generator.
 
-    python benchmarks/learning_curve_gan.py --work /tmp/gan_curve [--minutes 30] [--eval-every 100]
-                                            [--shapes 10] [--faces 1536] [--levels 4] [--resolution 64] [--threads 1]
+    python benchmarks/learning_curve_gan.py --run RUN --world WORLD --shapes HELD_OUT_SHAPES
+        [--checkpoints FILE...] [--views 8] [--latents 8] [--max-shapes 0] [--json curve.json] [--threads 1]
 
-Builds (once, under --work) a synthetic chair world and its prepared shapes, then trains with the
-default hyperparameters at a CPU-sized scale (finest faces, levels, resolution as given; channel
-lists cut to the number of levels) for --minutes of wall-clock time. Every --eval-every iterations
-it renders 64 views of the training shapes with the EMA generator (random seeds and poses, white
-background) and computes the SWD (x1000, Laplacian-pyramid patches, mesh2tex.metrics.swd) against
-64 photos composited on white. Prints the curve and writes it to --work/curve.json. Iteration 0 is
-the untrained generator: the figure to beat.
+RUN is a ``mesh2tex train gan`` run directory; its generators are ``RUN/snapshots/*.safetensors``
+(``snapshot_every`` in the training config) unless ``--checkpoints`` names files (any GAN
+checkpoints: snapshots, training checkpoints, shipped models). Each one goes through the
+generation protocol of ``mesh2tex evaluate --generation`` (:mod:`infer.generation`) on the world's
+held-out shapes, without KID/FID: the gap closed on log object SWD (0 untrained, 1 the ground
+truth), the same on the colour histogram, and the colour diversity across latents against the
+photo set's. Wall time is read from RUN/metrics.jsonl (seconds since the run's first record,
+resumed runs included). Prints one line per generator and writes the curve to --json.
 """
 
 from __future__ import annotations
@@ -17,89 +18,72 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.cli import main as cli  # noqa: E402
-from mesh2tex.config import load_config  # noqa: E402
-from mesh2tex.metrics.swd import swd  # noqa: E402
-from mesh2tex.nn.batch import collate_shapes  # noqa: E402
-from mesh2tex.nn.render_texture import render_field_views  # noqa: E402
-from mesh2tex.render import orbit_camera  # noqa: E402
-from train import runs  # noqa: E402
-from train.gan import GanTrainer, TrainGanConfig, composite_real, load_images, load_shapes  # noqa: E402
+from infer.generation import GenerationConfig, run_generation_protocol  # noqa: E402
+from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 
 
-@torch.no_grad()
-def evaluate(trainer: GanTrainer, real: torch.Tensor, count: int = 64, seed: int = 0) -> float:
-    """SWD x1000 between ``count`` EMA renders (white background) and ``real`` (N, 3, R, R) in [-1, 1]."""
-    g = torch.Generator().manual_seed(seed)
-    cfg, res = trainer.cfg, trainer.cfg.resolution
-    per_batch, images = 4, []
-    for start in range(0, count, per_batch):
-        index = torch.randint(len(trainer.shapes), (per_batch,), generator=g).tolist()
-        batch = collate_shapes([trainer.shapes[i] for i in index]).to(trainer.device)
-        z = torch.randn(per_batch, cfg.generator.z_dim, generator=g).to(trainer.device)
-        az = torch.rand(per_batch, generator=g) * 360
-        el = cfg.camera.elevation_min + torch.rand(per_batch, generator=g) * (cfg.camera.elevation_max - cfg.camera.elevation_min)
-        mvp = orbit_camera(az, el, distance=cfg.camera.distance, fov=cfg.camera.fov).mvp.to(trainer.device)
-        out = render_field_views(trainer.ema, batch, trainer.ema.mapping(z), mvp, (res, res), torch.ones(per_batch, 3, device=trainer.device), noise_mode="none")
-        images.append(out.images.float().cpu())
-    return swd(real, torch.cat(images)[:count])
+def wall_seconds(run: Path) -> dict[int, float]:
+    """iteration -> seconds since the first metrics record of ``run`` (training time, pauses between resumes removed)."""
+    path = run / "metrics.jsonl"
+    if not path.is_file():
+        return {}
+    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    out, elapsed, last = {}, 0.0, None
+    for record in records:
+        if last is not None:
+            gap = record["time"] - last["time"]
+            rate = record.get("iters_per_second") or 0
+            expected = (record["iteration"] - last["iteration"]) / rate if rate else gap
+            elapsed += min(gap, 3 * expected + 60)  # a pause between a stop and a --resume does not count
+        out[int(record["iteration"])] = elapsed
+        last = record
+    return out
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--work", required=True)
-    parser.add_argument("--minutes", type=float, default=30.0)
-    parser.add_argument("--eval-every", type=int, default=100)
-    parser.add_argument("--shapes", type=int, default=10)
-    parser.add_argument("--faces", type=int, default=1536)
-    parser.add_argument("--levels", type=int, default=4)
-    parser.add_argument("--resolution", type=int, default=64)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (1 is fastest on a shared, busy machine)")
+    parser.add_argument("--run", required=True)
+    parser.add_argument("--world", required=True)
+    parser.add_argument("--shapes", required=True, help="prepared held-out shapes of the world")
+    parser.add_argument("--checkpoints", nargs="*")
+    parser.add_argument("--views", type=int, default=8)
+    parser.add_argument("--latents", type=int, default=8)
+    parser.add_argument("--max-shapes", type=int, default=0)
+    parser.add_argument("--json")
+    parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    work = Path(args.work)
-    world, shapes_dir = work / "world", work / "shapes"
-    if not (world / "index.json").is_file() or not list((world / "images").glob("*.png")):
-        assert cli(["prepare", "synthetic", "--output", str(world), "--category", "chair", "--shapes", str(args.shapes),
-                    "--views", "8", "--resolution", str(args.resolution)]) == 0
-    if not list(shapes_dir.glob("*.npz")):
-        assert cli(["prepare", "shapes", "--input", str(world / "meshes"), "--output", str(shapes_dir),
-                    "--faces", str(args.faces), "--levels", str(args.levels), "--workers", "2"]) == 0
-    shapes, _ = load_shapes(shapes_dir)
-    photos = load_images(world, args.resolution)
-    cfg = load_config(TrainGanConfig, None, {"resolution": args.resolution, "device": "cpu", "seed": args.seed, "iters": 10**9})
-    cfg.generator.input_features = shapes[0].face_features.shape[1]
-    cfg.generator.encoder_channels = cfg.generator.encoder_channels[: shapes[0].num_levels]
-    cfg.generator.synthesis_channels = cfg.generator.synthesis_channels[: shapes[0].num_levels]
-    cfg.ema_halflife_images = 500.0  # a short run: let the EMA follow within it
-    real = composite_real(photos[:64], torch.ones(min(64, len(photos)), 3))
-    trainer = GanTrainer(cfg, shapes, photos, runs.RunDirectory(work / "run"), runs.select_device("cpu"), runs.Distributed("cpu"))
-    print(f"{len(shapes)} shapes ({shapes[0].face_counts} faces), {len(photos)} photos at {args.resolution}px, "
-          f"{torch.get_num_threads()} threads")
-    curve = [{"iteration": 0, "seconds": 0.0, "swd": evaluate(trainer, real)}]
-    print(f"iteration {0:6d}  {0.0:8.1f} s  SWD {curve[0]['swd']:.1f} (untrained)")
-    start = time.perf_counter()
-    train_seconds = 0.0
-    while time.perf_counter() - start < args.minutes * 60:
-        t = time.perf_counter()
-        for _ in range(args.eval_every):
-            trainer.step()
-        train_seconds += time.perf_counter() - t
-        value = evaluate(trainer, real)
-        curve.append({"iteration": trainer.iteration, "seconds": round(train_seconds, 1), "swd": value})
-        print(f"iteration {trainer.iteration:6d}  {train_seconds:8.1f} s  SWD {value:.1f}", flush=True)
-        (work / "curve.json").write_text(json.dumps(curve, indent=1))
-    best = min(c["swd"] for c in curve[1:]) if len(curve) > 1 else float("nan")
-    print(f"untrained SWD {curve[0]['swd']:.1f}; final {curve[-1]['swd']:.1f}; best {best:.1f}; "
-          f"final / untrained = {curve[-1]['swd'] / curve[0]['swd']:.2f}")
+    run = Path(args.run)
+    paths = [Path(p) for p in args.checkpoints] if args.checkpoints else sorted((run / "snapshots").glob("*.safetensors"))
+    if not paths:
+        sys.exit(f"{run / 'snapshots'}: no generators to evaluate (set snapshot_every in the training config, or pass --checkpoints)")
+    paths.sort(key=lambda p: read_checkpoint_meta(p)["meta"]["iteration"])
+    seconds = wall_seconds(run)
+    cfg = GenerationConfig(views=args.views, latents=args.latents, kid_fid=False, max_shapes=args.max_shapes)
+    curve = []
+    print(f"{'iteration':>9} {'hours':>6} {'objSWD':>7} {'oracle':>7} {'untrained':>9} {'gap':>5} {'gap_hist':>8} "
+          f"{'div/photos':>10} {'pair/materials':>14}")
+    for path in paths:
+        r = run_generation_protocol(args.world, args.shapes, path, cfg, log=lambda line: None)
+        d, rows = r["diversity"], r["rows"]
+        point = {"checkpoint": str(path), "iteration": r["iteration"], "seconds": seconds.get(r["iteration"]),
+                 "object_swd": rows["trained"]["object_swd"], "oracle_object_swd": rows["oracle"]["object_swd"],
+                 "untrained_object_swd": rows["untrained"]["object_swd"], "gap_closed": r["gap_closed"],
+                 "gap_closed_histogram": r["gap_closed_histogram"], "spread_vs_photo_set": d["trained_spread_vs_photo_set"],
+                 "pairwise_vs_materials": d["trained_pairwise_vs_materials"]}
+        curve.append(point)
+        hours = f"{point['seconds'] / 3600:6.2f}" if point["seconds"] is not None else "     ?"
+        print(f"{point['iteration']:9d} {hours} {point['object_swd']:7.1f} {point['oracle_object_swd']:7.1f} "
+              f"{point['untrained_object_swd']:9.1f} {point['gap_closed']:5.2f} {point['gap_closed_histogram']:8.2f} "
+              f"{point['spread_vs_photo_set']:10.2f} {point['pairwise_vs_materials']:14.2f}", flush=True)
+        if args.json:
+            Path(args.json).write_text(json.dumps(curve, indent=1))
 
 
 if __name__ == "__main__":

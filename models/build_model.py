@@ -1,0 +1,156 @@
+"""Rebuild a shipped model from nothing: world, shapes, GAN, pose and NOC networks, export, evaluation, card.
+
+    python models/build_model.py --category chair|car --work WORK [--gan-iters 3000] [--out models/chair]
+                                 [--pose-iters 1500] [--noc-iters 400] [--device auto] [--from-gan CKPT] [--views-gan CKPT]
+
+Every stage resumes (re-run the same command after an interruption): the world and the shapes are
+skipped when present, the GAN, pose and NOC runs continue with --resume. ``--gan-iters`` is the total,
+so a larger value continues a finished run. ``--from-gan`` takes the GAN (and the iteration count
+in its metadata) from an existing run instead of training one: the run must have been trained with
+this script's settings (``GAN_CONFIG``, WORLD, SHAPES below) for the card to be true.
+
+The model folder gets generator.safetensors, pose.safetensors, noc.safetensors (float16 inference
+checkpoints, :mod:`mesh2tex.io.models`), card.json (settings, commands, iterations, hardware, wall
+time, the generation protocol's figures) and card.md (the same for people).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol  # noqa: E402
+from mesh2tex.cli import main as cli  # noqa: E402
+from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
+from mesh2tex.io.models import MODEL_FILES, export_inference_checkpoint  # noqa: E402
+
+WORLD = {"shapes": 32, "views": 8, "query_shapes": 8, "query_views": 2, "seed": 0, "resolution": 128}
+SHAPES = {"faces": 1536, "levels": 4, "seed": 0}
+GAN = {"resolution": 64, "views": 4, "seed": 0}
+GAN_CONFIG = {
+    "sample_every": 250, "checkpoint_every": 250, "snapshot_every": 250, "log_every": 10,
+    "generator": {"encoder_channels": [32, 48, 64, 64], "synthesis_channels": [32, 48, 64, 64]},
+    "discriminator": {"channel_base": 1024},
+    "optim": {"lr_field": 0.0012},
+}
+VIEWS = {"samples": 1536, "resolution": 64, "batch": 32, "seed": 0, "config": {"width": 16, "log_every": 25, "checkpoint_every": 100}}
+
+
+def run(argv: list[str], log: list[str]) -> None:
+    line = "mesh2tex " + " ".join(shlex.quote(a) for a in argv)
+    print(f"\n== {line}", flush=True)
+    log.append(line)
+    code = cli(argv)
+    if code != 0:
+        sys.exit(f"build_model: stage failed (exit {code}): {line}")
+
+
+def training_seconds(run_dir: Path) -> float | None:
+    """Seconds a training run spent stepping, from its metrics.jsonl (iterations / iterations per second)."""
+    path = run_dir / "metrics.jsonl"
+    if not path.is_file():
+        return None
+    total, last = 0.0, 0
+    for line in path.read_text().splitlines():
+        record = json.loads(line)
+        if record.get("iters_per_second"):
+            total += (record["iteration"] - last) / record["iters_per_second"]
+        last = record["iteration"]
+    return round(total, 1)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--category", choices=["chair", "car"], required=True)
+    parser.add_argument("--work", required=True, help="folder for the world, shapes and runs (kept, resumable)")
+    parser.add_argument("--out", help="model folder (default models/<category>)")
+    parser.add_argument("--gan-iters", type=int, default=3000)
+    parser.add_argument("--pose-iters", type=int, default=1500)
+    parser.add_argument("--noc-iters", type=int, default=400)
+    parser.add_argument("--device", default="auto")
+    parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
+    parser.add_argument("--views-gan", help="the GAN that textures half of the pose and NOC training views (default: the model's own)")
+    args = parser.parse_args()
+    work = Path(args.work)
+    out = Path(args.out) if args.out else ROOT / "models" / args.category
+    out.mkdir(parents=True, exist_ok=True)
+    commands: list[str] = []
+    start = time.perf_counter()
+    world = work / "world"
+    run(["prepare", "synthetic", "--output", str(world), "--category", args.category, "--shapes", str(WORLD["shapes"]),
+         "--views", str(WORLD["views"]), "--query-shapes", str(WORLD["query_shapes"]), "--query-views", str(WORLD["query_views"]),
+         "--seed", str(WORLD["seed"]), "--resolution", str(WORLD["resolution"])], commands)
+    split = json.loads((world / "index.json").read_text())["split"]
+    for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
+        folder = work / "shapes" / part
+        argv = ["prepare", "shapes", "--input", *[str(world / "meshes" / f"{n}.obj") for n in names], "--output", str(folder),
+                "--faces", str(SHAPES["faces"]), "--levels", str(SHAPES["levels"]), "--seed", str(SHAPES["seed"]), "--workers", "2"]
+        print(f"\n== mesh2tex {' '.join(argv[:2])} ... ({part})", flush=True)
+        commands.append("mesh2tex " + " ".join(shlex.quote(a) for a in argv))
+        cli(argv)  # a shape that cannot be remeshed fails alone (exit 2); the others are prepared
+    if args.from_gan:
+        gan_ckpt = Path(args.from_gan)
+        commands.append(f"(GAN from {gan_ckpt})")
+    else:
+        gan_yaml = work / "gan.yaml"
+        gan_yaml.write_text(yaml.safe_dump(GAN_CONFIG, sort_keys=False))
+        run(["train", "gan", "--shapes", str(work / "shapes" / "train"), "--images", str(world), "--out", str(work / "gan"),
+             "--config", str(gan_yaml), "--iters", str(args.gan_iters), "--resolution", str(GAN["resolution"]),
+             "--views", str(GAN["views"]), "--seed", str(GAN["seed"]), "--device", args.device, "--resume"], commands)
+        gan_ckpt = work / "gan" / "checkpoint.safetensors"
+    views_yaml = work / "views.yaml"
+    views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
+    views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt
+    for kind, iters in (("pose", args.pose_iters), ("noc", args.noc_iters)):
+        run(["train", kind, "--shapes", str(work / "shapes" / "train"), "--out", str(work / kind), "--config", str(views_yaml),
+             "--iters", str(iters), "--samples", str(VIEWS["samples"]), "--resolution", str(VIEWS["resolution"]),
+             "--batch", str(VIEWS["batch"]), "--category", args.category, "--seed", str(VIEWS["seed"]), "--gan", str(views_gan),
+             "--device", args.device, "--resume"], commands)
+    export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
+    for kind in ("pose", "noc"):
+        export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])
+    print("\n== generation protocol on the held-out shapes", flush=True)
+    result = run_generation_protocol(world, work / "shapes" / "query", out / MODEL_FILES["gan"],
+                                     GenerationConfig(views=8, latents=16, kid_fid=False), samples_path=out / "samples.png")
+    gan_meta = read_checkpoint_meta(gan_ckpt)["meta"]
+    size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
+    card = {
+        "name": out.name, "category": args.category, "world": WORLD, "shapes": SHAPES, "gan": {**GAN, "config": GAN_CONFIG},
+        "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
+        "noc_iterations": args.noc_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
+        "commands": commands, "gan_training_seconds": training_seconds(gan_ckpt.parent),
+        "hardware": f"{platform.machine()}, {os.cpu_count()} CPU cores, {platform.system()}; device {args.device}",
+        "build_seconds_this_invocation": round(time.perf_counter() - start, 1), "size_mb": round(size_mb, 2),
+        "generation": result,
+    }
+    (out / "card.json").write_text(json.dumps(card, indent=1, default=float))
+    rebuild = f"python models/build_model.py --category {args.category} --work WORK --gan-iters {card['gan_iterations']}"
+    (out / "card.md").write_text(
+        f"# Shipped model `{out.name}` ({args.category})\n\n"
+        f"Texture GAN (EMA generator), pose and NOC networks trained on the synthetic {args.category} world "
+        f"({WORLD['shapes'] - WORLD['query_shapes']} training shapes, {WORLD['views']} photos each at {WORLD['resolution']} px; "
+        f"{WORLD['query_shapes']} held-out shapes for the figures below). Float16, {size_mb:.1f} MB in all.\n\n"
+        f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch 2, "
+        f"{(card['gan_training_seconds'] or 0) / 3600:.1f} h of training; "
+        f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
+        f"{card['views_gan_iteration']} and half by the world's procedural materials\n"
+        f"- Hardware of this build: {card['hardware']}\n- Rebuild from nothing: `{rebuild}`\n\n"
+        f"## Commands\n\n```\n" + "\n".join(commands) + "\n```\n\n## Figures (generation protocol)\n\n"
+        + generation_markdown(result) + "\n![samples](samples.png)\n")
+    print(generation_markdown(result))
+    print(f"wrote {out} ({size_mb:.1f} MB)")
+
+
+if __name__ == "__main__":
+    main()

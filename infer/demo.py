@@ -322,6 +322,7 @@ def generation_section(g: dict, fmt, table) -> str:
                  ("world's material sampler (reference)", fmt(d["reference_materials"]["spread"]), fmt(d["reference_materials"]["pairwise"])),
                  ("photo set, across shapes (reference)", fmt(d["photo_set_spread"]), "")]
     gap = g["gap_closed"]
+    shipped = shipped_model_note(fmt)
     return f"""<h2>Generation: the GAN on the {len(g['shapes'])} held-out shapes, against the photo collection</h2>
 {table(rows, ("renders", "object SWD (lower is better)", "colour histogram TV (lower is better)", "whole-image SWD (lower is better)"))}
 <p>Gap closed (log object SWD; 0 = untrained, 1 = ground truth; higher is better): <b>{fmt(gap)}</b>.
@@ -330,8 +331,25 @@ white background and the silhouettes, which the rows share, so it barely ranks t
 <p>Diversity: {g['settings']['latents']} latents per held-out shape at one pose (higher is more varied).
 Colour spread {fmt(d['trained_spread_vs_photo_set'])} of the photo set's.</p>
 {table(diversity, ("", "colour spread (ΔE)", "mean pairwise ΔE"))}
+{shipped}
 <p>Samples: rows latents, columns views; the last row is the ground truth.</p>
 <img src="gan/generation_samples.png" width="384">"""
+
+
+def shipped_model_note(fmt) -> str:
+    """A paragraph with the shipped chair model's figures (from its card), or '' when none is shipped."""
+    from mesh2tex.io.models import models_root
+
+    card_path = models_root() / "chair" / "card.json"
+    if not card_path.is_file():
+        return ""
+    card = json.loads(card_path.read_text())
+    g = card["generation"]
+    d = g["diversity"]
+    return (f"<p>For comparison, the shipped <code>chair</code> model ({card['gan_iterations']} GAN iterations on "
+            f"{card['world']['shapes'] - card['world']['query_shapes']} chairs, measured the same way on its own world's "
+            f"{len(g['shapes'])} held-out chairs): gap closed <b>{fmt(g['gap_closed'])}</b>, colour spread "
+            f"{fmt(d['trained_spread_vs_photo_set'])} of the photo set's (models/chair/card.md).</p>")
 
 
 def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics: dict) -> Path:

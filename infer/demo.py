@@ -312,10 +312,11 @@ view, then the unseen views</p>
 
 def generation_section(g: dict, fmt, table) -> str:
     """The report's generation tables: the protocol's rows (the oracle the bar), gap closed, diversity, samples."""
-    labels = {"trained": "trained generator (EMA)", "untrained": "untrained generator", "oracle": "ground truth, photo lighting (oracle)",
-              "oracle_unlit": "ground truth, unlit"}
+    labels = {"trained": "trained generator (EMA)", "untrained": "untrained generator",
+              "oracle": "oracle: the world's material sampler, a draw per view, photo lighting",
+              "oracle_unlit": "the same draws, unlit", "ground_truth": "each shape's own ground-truth material, photo lighting"}
     rows = [(labels[r], fmt(g["rows"][r]["object_swd"]), fmt(g["rows"][r]["color_hist_tv"]), fmt(g["rows"][r]["swd"]))
-            for r in ("oracle", "trained", "untrained", "oracle_unlit")]
+            for r in ("oracle", "trained", "untrained", "oracle_unlit", "ground_truth")]
     d = g["diversity"]
     diversity = [("trained generator", fmt(d["trained"]["spread"]), fmt(d["trained"]["pairwise"])),
                  ("untrained generator", fmt(d["untrained"]["spread"]), fmt(d["untrained"]["pairwise"])),
@@ -325,7 +326,7 @@ def generation_section(g: dict, fmt, table) -> str:
     shipped = shipped_model_note(fmt)
     return f"""<h2>Generation: the GAN on the {len(g['shapes'])} held-out shapes, against the photo collection</h2>
 {table(rows, ("renders", "object SWD (lower is better)", "colour histogram TV (lower is better)", "whole-image SWD (lower is better)"))}
-<p>Gap closed (log object SWD; 0 = untrained, 1 = ground truth; higher is better): <b>{fmt(gap)}</b>.
+<p>Gap closed (log object SWD; 0 = untrained, 1 = oracle; higher is better): <b>{fmt(gap)}</b>.
 Object SWD: sliced Wasserstein distance of 7x7 patches of object pixels only (x1e3); the whole-image SWD also sees the
 white background and the silhouettes, which the rows share, so it barely ranks textures.</p>
 <p>Diversity: {g['settings']['latents']} latents per held-out shape at one pose (higher is more varied).

@@ -56,7 +56,12 @@ def run(argv: list[str], log: list[str]) -> None:
         sys.exit(f"build_model: stage failed (exit {code}): {line}")
 
 
-def training_seconds(run_dir: Path) -> float | None:
+def gan_run_dir(checkpoint: Path) -> Path:
+    """The run directory of a GAN checkpoint or snapshot (RUN/checkpoint.safetensors, RUN/snapshots/iter*.safetensors)."""
+    return checkpoint.parent.parent if checkpoint.parent.name == "snapshots" else checkpoint.parent
+
+
+def training_seconds(run_dir: Path, until: int) -> float | None:
     """Seconds a training run spent stepping, from its metrics.jsonl (iterations / iterations per second)."""
     path = run_dir / "metrics.jsonl"
     if not path.is_file():
@@ -64,6 +69,8 @@ def training_seconds(run_dir: Path) -> float | None:
     total, last = 0.0, 0
     for line in path.read_text().splitlines():
         record = json.loads(line)
+        if record["iteration"] > until:
+            break
         if record.get("iters_per_second"):
             total += (record["iteration"] - last) / record["iters_per_second"]
         last = record["iteration"]
@@ -80,6 +87,7 @@ def main() -> None:
     parser.add_argument("--noc-iters", type=int, default=400)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
+    parser.add_argument("--note", default="", help="a line for the card (e.g. how busy the machine was)")
     parser.add_argument("--views-gan", help="the GAN that textures half of the pose and NOC training views (default: the model's own)")
     args = parser.parse_args()
     work = Path(args.work)
@@ -101,7 +109,11 @@ def main() -> None:
         cli(argv)  # a shape that cannot be remeshed fails alone (exit 2); the others are prepared
     if args.from_gan:
         gan_ckpt = Path(args.from_gan)
-        commands.append(f"(GAN from {gan_ckpt})")
+        run_dir = gan_run_dir(gan_ckpt)
+        it = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"]
+        commands.append(f"mesh2tex train gan --shapes {work / 'shapes' / 'train'} --images {world} --out {run_dir} "
+                        f"--config {run_dir / 'config.yaml'} --resolution {GAN['resolution']} --views {GAN['views']} "
+                        f"--seed {GAN['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it")
     else:
         gan_yaml = work / "gan.yaml"
         gan_yaml.write_text(yaml.safe_dump(GAN_CONFIG, sort_keys=False))
@@ -120,17 +132,17 @@ def main() -> None:
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
     for kind in ("pose", "noc"):
         export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])
+    gan_meta = read_checkpoint_meta(gan_ckpt)["meta"]
     print("\n== generation protocol on the held-out shapes", flush=True)
     result = run_generation_protocol(world, work / "shapes" / "query", out / MODEL_FILES["gan"],
                                      GenerationConfig(views=8, latents=16, kid_fid=False), samples_path=out / "samples.png")
-    gan_meta = read_checkpoint_meta(gan_ckpt)["meta"]
     size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
     card = {
         "name": out.name, "category": args.category, "world": WORLD, "shapes": SHAPES, "gan": {**GAN, "config": GAN_CONFIG},
         "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
         "noc_iterations": args.noc_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
-        "commands": commands, "gan_training_seconds": training_seconds(gan_ckpt.parent),
-        "hardware": f"{platform.machine()}, {os.cpu_count()} CPU cores, {platform.system()}; device {args.device}",
+        "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), int(gan_meta["iteration"])),
+        "hardware": f"{platform.machine()}, {os.cpu_count()} CPU cores, {platform.system()}; device {args.device}", "note": args.note,
         "build_seconds_this_invocation": round(time.perf_counter() - start, 1), "size_mb": round(size_mb, 2),
         "generation": result,
     }
@@ -142,10 +154,11 @@ def main() -> None:
         f"({WORLD['shapes'] - WORLD['query_shapes']} training shapes, {WORLD['views']} photos each at {WORLD['resolution']} px; "
         f"{WORLD['query_shapes']} held-out shapes for the figures below). Float16, {size_mb:.1f} MB in all.\n\n"
         f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch 2, "
-        f"{(card['gan_training_seconds'] or 0) / 3600:.1f} h of training; "
-        f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
+        + (f"{card['gan_training_seconds'] / 3600:.2f} h of training; " if card["gan_training_seconds"] else "")
+        + f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
         f"{card['views_gan_iteration']} and half by the world's procedural materials\n"
-        f"- Hardware of this build: {card['hardware']}\n- Rebuild from nothing: `{rebuild}`\n\n"
+        f"- Hardware of this build: {card['hardware']}" + (f"; {args.note}" if args.note else "") + "\n"
+        f"- Rebuild from nothing: `{rebuild}`\n\n"
         f"## Commands\n\n```\n" + "\n".join(commands) + "\n```\n\n## Figures (generation protocol)\n\n"
         + generation_markdown(result) + "\n![samples](samples.png)\n")
     print(generation_markdown(result))

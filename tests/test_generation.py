@@ -75,8 +75,9 @@ def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors", cfg,
                                      samples_path=tmp_path / "grid.png", log=lambda line: None)
     rows = result["rows"]
-    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit"}
-    # The oracle is fresh photos of the held-out shapes: it must beat a generator that has not learnt.
+    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth"}
+    # The oracle is fresh photos of the held-out shapes with textures from the world's sampler: it must
+    # beat a generator that has not learnt.
     assert rows["oracle"]["object_swd"] < rows["untrained"]["object_swd"]
     assert rows["oracle"]["swd"] < rows["untrained"]["swd"]
     assert rows["oracle"]["color_hist_tv"] < rows["untrained"]["color_hist_tv"]

@@ -82,25 +82,15 @@ class WorldData:
 
 def read_world(root: str | Path) -> WorldData:
     """The world's spec and its held-out shapes (the query split) from ``root/index.json``."""
-    import json
+    from infer.protocols import load_world
+    from mesh2tex.evaluation.world import world_spec
 
-    root = Path(root)
-    index_path = root / "index.json"
-    if not index_path.is_file():
-        raise UserError(f"{root}: not a synthetic world (no index.json; make one with 'mesh2tex prepare synthetic')")
-    try:
-        index = json.loads(index_path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise UserError(f"{index_path}: not valid JSON ({error})") from None
-    if index.get("format") != "mesh2tex-synthetic-world" or not index.get("complete", False):
-        raise UserError(f"{index_path}: not a complete mesh2tex synthetic world; finish it with 'mesh2tex prepare synthetic'")
-    names = {f.name for f in dataclasses.fields(WorldSpec)}
-    spec = WorldSpec(**{k: v for k, v in index["settings"].items() if k in names})
-    indices = {spec.shape_name(i): i for i in range(spec.shapes)}
-    held_out = list(index["split"]["query_shapes"])
+    world = load_world(root)  # checks the index (format, complete, query files)
+    spec = world_spec(world.index)
+    held_out = list(world.index["split"]["query_shapes"])
     if not held_out:
-        raise UserError(f"{index_path}: the world holds no held-out shapes")
-    return WorldData(spec=spec, root=root, held_out=held_out, indices=indices)
+        raise UserError(f"{world.root / 'index.json'}: the world holds no held-out shapes")
+    return WorldData(spec=spec, root=world.root, held_out=held_out, indices={spec.shape_name(i): i for i in range(spec.shapes)})
 
 
 def _white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:

@@ -47,3 +47,25 @@ def tiny_gan(tmp_path_factory):
     assert code == 0
     trimesh.creation.box((0.8, 0.8, 0.3)).export(root / "slab.obj")
     return root
+
+
+def make_tiny_world(root, views: int, resolution: int, query_views: int) -> dict:
+    """A 3-chair synthetic world (seed 3, one held-out shape) under ``root/world`` and its held-out
+    shape and first training shape prepared (96 quads, 3 levels) under ``root/shapes``. Returns the
+    world's index."""
+    import json
+
+    from mesh2tex.cli import main
+    from mesh2tex.geometry.mesh_io import load_mesh
+    from mesh2tex.geometry.prepare import prepare_shape
+
+    world = root / "world"
+    assert main(["prepare", "synthetic", "--output", str(world), "--shapes", "3", "--views", str(views), "--resolution",
+                 str(resolution), "--texture-size", "64", "--seed", "3", "--query-views", str(query_views)]) == 0
+    index = json.loads((world / "index.json").read_text())
+    shapes = root / "shapes"
+    shapes.mkdir()
+    for name in index["split"]["query_shapes"] + index["split"]["train_shapes"][:1]:
+        vertices, faces = load_mesh(world / "meshes" / f"{name}.obj")
+        prepare_shape(vertices, faces, face_count=96, levels=3, seed=0).save(shapes / f"{name}.npz")
+    return index

@@ -2,18 +2,15 @@
 
 from __future__ import annotations
 
-import json
 
 import numpy as np
 import pytest
 import torch
 import yaml
 
-from conftest import TINY_GAN
+from conftest import TINY_GAN, make_tiny_world
 from infer.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.cli import main
-from mesh2tex.geometry.mesh_io import load_mesh
-from mesh2tex.geometry.prepare import prepare_shape
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
 
 
@@ -54,15 +51,8 @@ def test_gap_closed():
 @pytest.fixture(scope="module")
 def world_and_gan(tmp_path_factory):
     root = tmp_path_factory.mktemp("generation")
-    world = root / "world"
-    assert main(["prepare", "synthetic", "--output", str(world), "--shapes", "3", "--views", "3", "--resolution", "32",
-                 "--texture-size", "64", "--seed", "3", "--query-views", "1"]) == 0
-    index = json.loads((world / "index.json").read_text())
-    shapes = root / "shapes"
-    shapes.mkdir()
-    for name in index["split"]["query_shapes"] + index["split"]["train_shapes"][:1]:
-        vertices, faces = load_mesh(world / "meshes" / f"{name}.obj")
-        prepare_shape(vertices, faces, face_count=96, levels=3, seed=0).save(shapes / f"{name}.npz")
+    make_tiny_world(root, views=3, resolution=32, query_views=1)
+    world, shapes = root / "world", root / "shapes"
     (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
     assert main(["train", "gan", "--shapes", str(shapes), "--images", str(world), "--out", str(root / "gan"), "--config",
                  str(root / "tiny.yaml"), "--iters", "1", "--batch", "1", "--views", "1", "--resolution", "32", "--device", "cpu"]) == 0

@@ -12,11 +12,10 @@ import yaml
 
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
-from mesh2tex.geometry.prepare import prepare_shape
 from infer.protocols import (ABLATIONS, BASELINES, PROTOCOLS, compare_to_full, load_world, oracle_check, other_shape_name,
                              paired_query_tests, paired_query_wins, photo_frame_view, protocols_markdown)
 from mesh2tex.io.images import load_mask
-from conftest import TINY_GAN as TINY
+from conftest import TINY_GAN as TINY, make_tiny_world
 
 
 @pytest.fixture(scope="module")
@@ -24,15 +23,8 @@ def setup(tmp_path_factory):
     """A 3-chair world (1 held-out shape, 2 queries), its query shape and one training shape prepared,
     a GAN after 2 iterations and pose and NOC networks after 2 steps."""
     root = tmp_path_factory.mktemp("protocols")
-    world = root / "world"
-    assert main(["prepare", "synthetic", "--output", str(world), "--shapes", "3", "--views", "2", "--resolution", "48",
-                 "--texture-size", "64", "--seed", "3", "--query-views", "2"]) == 0
-    index = json.loads((world / "index.json").read_text())
-    shapes = root / "shapes"
-    shapes.mkdir()
-    for name in index["split"]["query_shapes"] + index["split"]["train_shapes"][:1]:
-        vertices, faces = load_mesh(world / "meshes" / f"{name}.obj")
-        prepare_shape(vertices, faces, face_count=96, levels=3, seed=0).save(shapes / f"{name}.npz")
+    index = make_tiny_world(root, views=2, resolution=48, query_views=2)
+    world, shapes = root / "world", root / "shapes"
     (root / "tiny.yaml").write_text(yaml.safe_dump(TINY))
     assert main(["train", "gan", "--shapes", str(shapes), "--images", str(world), "--out", str(root / "gan"),
                  "--config", str(root / "tiny.yaml"), "--iters", "2", "--batch", "2", "--views", "1", "--resolution", "16",

@@ -34,7 +34,8 @@ from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import save_png
 from mesh2tex.io.models import load_nca
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
-from mesh2tex.nn.nca import build_cell_graph, render_states
+from mesh2tex.nn.nca import build_cell_graph
+from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera

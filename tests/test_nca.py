@@ -7,8 +7,8 @@ import torch
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.primitives import cube_sphere, load_surface, subdivide_quads
 from mesh2tex.geometry.regions import region_weights
-from mesh2tex.nn.nca import (MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, render_states,
-                             spherical_harmonics)
+from mesh2tex.nn.nca import MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
+from mesh2tex.nn.render_texture import render_states
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.uv import bake_surface_colors
 

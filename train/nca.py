@@ -33,7 +33,8 @@ from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
 from mesh2tex.io.images import load_image, save_png
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
-from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty, render_states
+from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty
+from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera

@@ -15,6 +15,11 @@ the proxy colours rgb_0 (mean face colour around each vertex): the texture start
 latent-dependent per-face colours, which the proxy discriminator trains directly, and psi adds the
 detail within faces (see :func:`mesh2tex.nn.render_texture.field_colors`).
 
+With ``kind: nca`` a mesh cellular automaton on the finest vertices replaces the synthesis U-Net
+(:class:`mesh2tex.nn.nca.ConditionedNCA`): each cell is conditioned on w and on the encoder's E_0,
+F_c is the mean state of each face's corners and a linear readout of it the face colour; psi and
+everything downstream are unchanged; num_ws = 1.
+
 Each synthesis block uses three ws (conv0, conv1, toRGB), so num_ws = 3 * num_levels. Texture
 transfer optimises ws and then the parameters of the last (finest) synthesis blocks:
 :meth:`TextureGenerator.last_synthesis_parameters`.
@@ -30,6 +35,9 @@ from torch import nn
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, FullyConnected, ModulatedFaceConv, face_pool, face_unpool
 from mesh2tex.nn.field import NeuralField
+from mesh2tex.nn.nca import ConditionedNCA
+
+GENERATOR_KINDS = ("faceconv", "nca")
 
 
 @dataclass
@@ -50,6 +58,11 @@ class GeneratorConfig:
     rgb_output_init: float = 0.1  # initial weight scale of the toRGB layers (1: StyleGAN2's, fresh colours near +-2)
     field_output_init: float = 0.1  # initial weight scale of psi's output layer (1 starts from saturated colours)
     conv_clamp: float = 256.0  # clamp of synthesis activations (keeps mixed precision finite)
+    kind: str = "faceconv"  # the feature generator: "faceconv" (the synthesis U-Net) or "nca" (a mesh cellular automaton)
+    nca_channels: int = 16  # kind nca: state size per cell (the F_c channels psi blends)
+    nca_hidden: int = 64  # kind nca: width of the update MLP
+    nca_steps: int = 12  # kind nca: steps grown from the zero state
+    nca_condition: int = 16  # kind nca: width of each of the latent and the geometry conditions per cell
 
     @property
     def num_levels(self) -> int:
@@ -136,25 +149,37 @@ class TextureGenerator(nn.Module):
             raise ValueError("GeneratorConfig.input_features must be set to the face-feature count of the shapes")
         if len(cfg.encoder_channels) != len(cfg.synthesis_channels):
             raise ValueError("encoder_channels and synthesis_channels need one entry per level")
+        if cfg.kind not in GENERATOR_KINDS:
+            raise ValueError(f"GeneratorConfig.kind must be one of {GENERATOR_KINDS}, got {cfg.kind!r}")
         self.cfg = cfg
         levels = cfg.num_levels
-        self.num_ws = 3 * levels
-        self.encoder = GeometryEncoder(cfg.input_features, cfg.encoder_channels, cfg.pool_mode)
+        self.num_ws = 1 if cfg.kind == "nca" else 3 * levels  # nca: one w conditions every cell
+        # nca reads only the finest geometry features E_0: no coarser encoder levels to train for nothing.
+        self.encoder = GeometryEncoder(cfg.input_features, cfg.encoder_channels[:1] if cfg.kind == "nca" else cfg.encoder_channels, cfg.pool_mode)
         self.mapping = MappingNetwork(cfg.z_dim, cfg.w_dim, self.num_ws, cfg.mapping_layers, cfg.mapping_lr_multiplier)
-        # synthesis[i] works on level L-1-i (coarsest first).
-        blocks = []
-        for level in reversed(range(levels)):
-            in_ch = 0 if level == levels - 1 else cfg.synthesis_channels[level + 1]
-            blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
-        self.synthesis = nn.ModuleList(blocks)
-        with torch.no_grad():  # a fresh proxy (and, with field_residual, psi's base) starts near grey, not saturated
-            for block in self.synthesis:
-                block.torgb.weight.mul_(cfg.rgb_output_init)
+        if cfg.kind == "nca":
+            self.nca = ConditionedNCA(cfg.nca_channels, cfg.nca_hidden, cfg.nca_steps, cfg.nca_condition, cfg.w_dim, cfg.encoder_channels[0])
+            self.nca_torgb = nn.Linear(cfg.nca_channels, 3)
+            with torch.no_grad():
+                self.nca_torgb.weight.mul_(cfg.rgb_output_init)
+            self.synthesis = nn.ModuleList()
+            texture_channels = cfg.nca_channels
+        else:
+            # synthesis[i] works on level L-1-i (coarsest first).
+            blocks = []
+            for level in reversed(range(levels)):
+                in_ch = 0 if level == levels - 1 else cfg.synthesis_channels[level + 1]
+                blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
+            self.synthesis = nn.ModuleList(blocks)
+            with torch.no_grad():  # a fresh proxy (and, with field_residual, psi's base) starts near grey, not saturated
+                for block in self.synthesis:
+                    block.torgb.weight.mul_(cfg.rgb_output_init)
+            texture_channels = cfg.synthesis_channels[0]
         if cfg.field_geometry_channels < 0:
             raise ValueError("GeneratorConfig.field_geometry_channels must be >= 0")
         self.field_geometry = (FullyConnected(cfg.encoder_channels[0], cfg.field_geometry_channels)
                                if cfg.field_geometry_channels > 0 else None)
-        self.field_dim = cfg.synthesis_channels[0] + cfg.field_geometry_channels
+        self.field_dim = texture_channels + cfg.field_geometry_channels
         self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords, cfg.field_output_init)
 
     def synthesize(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random") -> FaceTexture:
@@ -168,6 +193,11 @@ class TextureGenerator(nn.Module):
             raise ValueError(f"ws must be ({batch.num_shapes}, {self.num_ws}, w_dim), got {tuple(ws.shape)}")
         if encoded is None:
             encoded = self.encoder(batch)
+        if self.cfg.kind == "nca":
+            states = self.nca(batch, ws[:, 0], encoded[0], noise_mode)  # (V, C)
+            x = states[batch.quads].mean(1)  # (F_0, C): each face the mean of its corner cells
+            rgb = self.nca_torgb(x)
+            return self._texture(x, rgb, encoded)
         levels = self.cfg.num_levels
         x = rgb = None
         for i, block in enumerate(self.synthesis):
@@ -178,6 +208,9 @@ class TextureGenerator(nn.Module):
                 rgb = face_unpool(rgb, batch.pool[level], neighbors)
             x, y = block(x, encoded[level], neighbors, ws[:, 3 * i : 3 * i + 3], batch.shape_index[level], noise_mode)
             rgb = y if rgb is None else rgb + y
+        return self._texture(x, rgb, encoded)
+
+    def _texture(self, x: torch.Tensor, rgb: torch.Tensor, encoded: list[torch.Tensor]) -> FaceTexture:
         features = x
         if self.field_geometry is not None:
             features = torch.cat([x, self.field_geometry(encoded[0].to(x.dtype))], dim=1)
@@ -189,13 +222,17 @@ class TextureGenerator(nn.Module):
         return self.synthesize(batch, ws, noise_mode=noise_mode), ws
 
     def last_synthesis_parameters(self, num_blocks: int = 2) -> list[nn.Parameter]:
-        """Parameters of the last ``num_blocks`` synthesis blocks (the finest levels), for texture transfer."""
+        """Parameters of the last ``num_blocks`` synthesis blocks (the finest levels), for texture
+        transfer; with ``kind: nca`` the automaton's update rule and colour readout."""
+        if self.cfg.kind == "nca":
+            return list(self.nca.update.parameters()) + list(self.nca_torgb.parameters())
         return [p for block in self.synthesis[-num_blocks:] for p in block.parameters()]
 
     def parameter_groups(self) -> dict[str, list[nn.Parameter]]:
         """{"encoder", "generator" (mapping + synthesis), "field"}: the groups that get the paper's learning rates."""
         return {
             "encoder": list(self.encoder.parameters()),
-            "generator": list(self.mapping.parameters()) + list(self.synthesis.parameters()),
+            "generator": list(self.mapping.parameters()) + list(self.synthesis.parameters())
+                         + (list(self.nca.parameters()) + list(self.nca_torgb.parameters()) if self.cfg.kind == "nca" else []),
             "field": list(self.field.parameters()) + (list(self.field_geometry.parameters()) if self.field_geometry is not None else []),
         }

@@ -39,8 +39,6 @@ import torch.nn.functional as F
 from torch import nn
 
 from mesh2tex.nn.field import sorted_cdf_coordinates
-from mesh2tex.nn.render_texture import paint_pixels
-from mesh2tex.render import rasterize, transform_points
 from mesh2tex.render.shading import vertex_normals
 
 NEIGHBOURHOODS = ("edges", "edges+diagonals")
@@ -357,38 +355,56 @@ def overflow_penalty(state: torch.Tensor, rgb: torch.Tensor | None = None) -> to
     return loss
 
 
-@dataclass
-class StateViews:
-    """images (N, 3, H, W) renders of cell states over the background, RGB in about [-1, 1];
-    mask (N, 1, H, W) float 0/1."""
 
-    images: torch.Tensor
-    mask: torch.Tensor
+class ConditionedNCA(nn.Module):
+    """The automaton as the texture GAN's feature generator (``generator.kind: nca``).
 
-
-def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: torch.Tensor, resolution: int,
-                  background: float | torch.Tensor = 0.0) -> StateViews:
-    """Render B states of one mesh with K = N / B cameras each (views s*K .. s*K+K-1 show state s).
-
-    state (B, V, C); mvp (N, 4, 4); background a float, (N, 3) colours or (N, 3, H, W) images in
-    [-1, 1]. The readout is evaluated only at covered pixels. Differentiable with respect to the
-    states and the readout's parameters.
+    Cells are the finest vertices of a :class:`~mesh2tex.nn.batch.MeshBatch` (all shapes at once;
+    shapes share no edge, so they do not talk). Each cell carries a condition
+    c_i = [A w_s, G e_i]: the latent w of its shape through a linear map A, and the mean geometry
+    feature e_i of the encoder's finest output E_0 over its quads through G. The update reads
+    [z_i, s_i, c_i]; states start from a linear seed of the condition, s_i = S c_i (so that
+    different latents differ from the first iteration), and grow for ``steps`` asynchronous steps,
+    with gradients through every step. Output: the vertex states (V, C). The update's last layer
+    starts small (``output_init``).
     """
-    n, b = mvp.shape[0], state.shape[0]
-    if n % b:
-        raise ValueError(f"{n} cameras cannot be split evenly over {b} states")
-    h = w = int(resolution)
-    raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (h, w))
-    covered = raster.face_id >= 0  # (N, H, W)
-    flat_index = covered.reshape(-1).nonzero().squeeze(1)
-    triangle_id = raster.face_id.reshape(-1)[flat_index]
-    bary = raster.bary.reshape(-1, 3)[flat_index]
-    sample = flat_index // (h * w) // (n // b)
-    colors = model.colors(state, graph.triangles, triangle_id, bary, sample)
-    background = torch.as_tensor(background, dtype=colors.dtype, device=colors.device)
-    if background.dim() == 0:
-        background = background.expand(n, 3)
-    if background.dim() == 2:
-        background = background[:, :, None, None].expand(n, 3, h, w)
-    images = paint_pixels(background, flat_index, colors)
-    return StateViews(images=images, mask=covered.unsqueeze(1).to(images.dtype))
+
+    def __init__(self, channels: int, hidden: int, steps: int, condition: int, w_dim: int, geometry_dim: int,
+                 sh_order: int = 1, update_rate: float = 0.5, nominal_valence: float = 4.0, neighbourhood: str = "edges",
+                 output_init: float = 0.1):
+        super().__init__()
+        if steps < 1 or channels < 1 or condition < 1:
+            raise ValueError("the NCA generator needs steps, channels and condition of at least 1")
+        self.channels, self.steps, self.sh_order = channels, steps, sh_order
+        self.update_rate, self.nominal_valence, self.neighbourhood = update_rate, nominal_valence, neighbourhood
+        self.from_w = nn.Linear(w_dim, condition)
+        self.from_geometry = nn.Linear(geometry_dim, condition)
+        k = num_harmonics(sh_order)
+        self.seed = nn.Linear(2 * condition, channels)
+        self.update = nn.Sequential(nn.Linear(k * channels + channels + 2 * condition, hidden), nn.ReLU(), nn.Linear(hidden, channels))
+        with torch.no_grad():
+            self.update[2].weight.mul_(output_init)
+            self.update[2].bias.zero_()
+
+    def forward(self, batch, w: torch.Tensor, geometry: torch.Tensor, noise_mode: str = "random") -> torch.Tensor:
+        """batch: MeshBatch; w (B, w_dim) one per shape; geometry (F_0, G) -> vertex states (V, C).
+
+        ``noise_mode`` "none" fixes which cells fire at each step (a seeded draw), so that inference
+        is deterministic; "random" draws them afresh.
+        """
+        from mesh2tex.nn.field import vertex_features
+
+        device = w.device
+        graph = build_cell_graph(batch.vertices.detach().cpu().numpy(), batch.quads.cpu().numpy(), self.neighbourhood).to(device)
+        counts = (batch.vertex_offsets[1:] - batch.vertex_offsets[:-1]).to(device)
+        shape_of_vertex = torch.repeat_interleave(torch.arange(batch.num_shapes, device=device), counts)
+        vertex_geometry = vertex_features(geometry.to(w.dtype), batch.quads, batch.num_vertices)
+        condition = torch.cat([self.from_w(w)[shape_of_vertex], self.from_geometry(vertex_geometry)], dim=1)[None]  # (1, V, 2c)
+        generator = torch.Generator(device=device).manual_seed(0) if noise_mode == "none" else None
+        state = self.seed(condition)
+        for _ in range(self.steps):
+            z = perceive(state, graph, self.sh_order, self.nominal_valence)
+            ds = self.update(torch.cat([z, state, condition], dim=-1))
+            fire = (torch.rand(state.shape[:2], generator=generator, device=device) < self.update_rate).to(state.dtype)[..., None]
+            state = state + ds * fire
+        return state[0]

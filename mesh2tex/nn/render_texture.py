@@ -1,5 +1,6 @@
 """Rendering generated textures: the one function that training, ``infer generate`` and texture
-transfer use to turn (generator, shapes, ws, cameras) into images.
+transfer use to turn (generator, shapes, ws, cameras) into images, and its counterpart for the
+cell states of a mesh cellular automaton (:func:`render_states`).
 
 Each shape of the batch is seen by K cameras: views ``s*K .. s*K+K-1`` belong to shape ``s``. The
 finest level is rasterized; psi is evaluated only at covered pixels (one flat list of points over all
@@ -15,6 +16,7 @@ import torch
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.field import blend_vertex_features, vertex_features
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
+from mesh2tex.nn.nca import CellGraph, MeshNCA
 from mesh2tex.render import rasterize, transform_points
 
 
@@ -117,3 +119,40 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     images = paint_pixels(background, flat_index, field_colors(generator, texture, batch, triangle_id, bary))
     proxy_images = paint_pixels(background, flat_index, texture.face_rgb[triangle_id // 2]) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=mask.unsqueeze(1).to(images.dtype))
+
+
+@dataclass
+class StateViews:
+    """images (N, 3, H, W) renders of cell states over the background, RGB in about [-1, 1];
+    mask (N, 1, H, W) float 0/1."""
+
+    images: torch.Tensor
+    mask: torch.Tensor
+
+
+def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: torch.Tensor, resolution: int,
+                  background: float | torch.Tensor = 0.0) -> StateViews:
+    """Render B states of one mesh with K = N / B cameras each (views s*K .. s*K+K-1 show state s).
+
+    state (B, V, C); mvp (N, 4, 4); background a float, (N, 3) colours or (N, 3, H, W) images in
+    [-1, 1]. The readout is evaluated only at covered pixels. Differentiable with respect to the
+    states and the readout's parameters.
+    """
+    n, b = mvp.shape[0], state.shape[0]
+    if n % b:
+        raise ValueError(f"{n} cameras cannot be split evenly over {b} states")
+    h = w = int(resolution)
+    raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (h, w))
+    covered = raster.face_id >= 0  # (N, H, W)
+    flat_index = covered.reshape(-1).nonzero().squeeze(1)
+    triangle_id = raster.face_id.reshape(-1)[flat_index]
+    bary = raster.bary.reshape(-1, 3)[flat_index]
+    sample = flat_index // (h * w) // (n // b)
+    colors = model.colors(state, graph.triangles, triangle_id, bary, sample)
+    background = torch.as_tensor(background, dtype=colors.dtype, device=colors.device)
+    if background.dim() == 0:
+        background = background.expand(n, 3)
+    if background.dim() == 2:
+        background = background[:, :, None, None].expand(n, 3, h, w)
+    images = paint_pixels(background, flat_index, colors)
+    return StateViews(images=images, mask=covered.unsqueeze(1).to(images.dtype))

@@ -12,7 +12,8 @@ from mesh2tex.cli import main
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import field_colors
-from infer.generate import latent, load_generator
+from mesh2tex.io.models import load_generator
+from mesh2tex.texture import latent
 
 @pytest.fixture(scope="module")
 def trained(tiny_gan):

@@ -3,6 +3,8 @@
     mesh2tex infer generate --checkpoint RUN/checkpoint.safetensors --mesh MESH_OR_NPZ --out DIR
                             [--seeds 0,1,2] [--views 8] [--resolution 512] [--texture-size 1024]
 
+``--config YAML`` sets any field of :class:`GenerateConfig` (the flags override it).
+
 Writes, per seed S: ``seed{S}_view{V}.png`` (orbit views, azimuths evenly spaced), ``seed{S}.glb``
 (the finest quad level, split into triangles, with a UV texture baked from psi: xatlas unwrapping,
 UV-space rasterization, seams dilated) and ``seed{S}.ply`` (vertex colours). A raw mesh is
@@ -13,10 +15,12 @@ prepared shape's normalised frame (bounding-box centre at the origin, diagonal 1
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
 
+from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import gan_camera, load_generator
@@ -27,18 +31,37 @@ from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, load_shape, write_textured_mesh
 
 
+@dataclass
+class GenerateConfig:
+    seeds: list[int] = field(default_factory=lambda: [0, 1, 2])  # latent seeds, one texture each
+    views: int = 8  # orbit views per seed, azimuths evenly spaced
+    resolution: int = 512  # side of the rendered views
+    texture_size: int = 1024  # side of the UV texture baked into each GLB
+    elevation: float = 20.0  # elevation of the orbit views, degrees
+    truncation: float = 1.0  # truncation psi of the latent (1: none)
+    faces: int = 6144  # finest quad count when a raw mesh is prepared on the fly
+    device: str = "auto"  # auto, cpu or cuda
+
+    def __post_init__(self):
+        if not self.seeds:
+            raise UserError("--seeds: give at least one seed")
+        if self.views < 1 or self.resolution < 8 or self.texture_size < 16:
+            raise UserError("--views must be >= 1, --resolution >= 8 and --texture-size >= 16")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors) or a shipped model's name (chair, car)")
     parser.add_argument("--mesh", required=True, help="a prepared shape (.npz) or a mesh file (.obj .ply .off .stl .glb)")
     parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("--seeds", default="0,1,2", help="comma-separated latent seeds (default 0,1,2)")
-    parser.add_argument("--views", type=int, default=8, help="orbit views per seed (default 8)")
-    parser.add_argument("--resolution", type=int, default=512, help="render resolution (default 512)")
-    parser.add_argument("--texture-size", type=int, default=1024, help="baked UV texture size (default 1024)")
-    parser.add_argument("--elevation", type=float, default=20.0, help="elevation of the orbit views, degrees (default 20)")
-    parser.add_argument("--truncation", type=float, default=1.0, help="truncation psi of the latent (1: none)")
-    parser.add_argument("--faces", type=int, default=6144, help="finest quad count when preparing a raw mesh (default 6144)")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto", help="where to run")
+    parser.add_argument("--config", help="YAML file with any fields of the generate config (flags override it)")
+    parser.add_argument("--seeds", help="comma-separated latent seeds (default 0,1,2)")
+    parser.add_argument("--views", type=int, help="orbit views per seed (default 8)")
+    parser.add_argument("--resolution", type=int, help="render resolution (default 512)")
+    parser.add_argument("--texture-size", type=int, help="baked UV texture size (default 1024)")
+    parser.add_argument("--elevation", type=float, help="elevation of the orbit views, degrees (default 20)")
+    parser.add_argument("--truncation", type=float, help="truncation psi of the latent (1: none)")
+    parser.add_argument("--faces", type=int, help="finest quad count when preparing a raw mesh (default 6144)")
+    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to run")
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -51,31 +74,35 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
+def build_config(args) -> GenerateConfig:
+    """The config's defaults, then ``--config``, then the flags given."""
+    return load_config(GenerateConfig, args.config, {
+        "seeds": None if args.seeds is None else parse_seeds(args.seeds), "views": args.views, "resolution": args.resolution,
+        "texture_size": args.texture_size, "elevation": args.elevation, "truncation": args.truncation, "faces": args.faces,
+        "device": args.device})
+
+
 def run(args) -> int:
-    device = select_device(args.device)
-    seeds = parse_seeds(args.seeds)
-    if args.views < 1 or args.resolution < 8 or args.texture_size < 16:
-        raise UserError("--views must be >= 1, --resolution >= 8 and --texture-size >= 16")
+    cfg = build_config(args)
+    device = select_device(cfg.device)
     generator, meta = load_generator(args.checkpoint, device)
     distance, fov = gan_camera(meta)
-    shape = load_shape(args.mesh, generator, args.faces)
+    shape = load_shape(args.mesh, generator, cfg.faces)
     batch = collate_shapes([shape]).to(device)
     encoded = generator.encoder(batch)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    azimuth, elevation = turntable_angles(args.views, args.elevation)
+    azimuth, elevation = turntable_angles(cfg.views, cfg.elevation)
     mvp = orbit_camera(azimuth, elevation, distance=distance, fov=fov).mvp.to(device)
-    res = (args.resolution, args.resolution)
-    white = torch.ones(args.views, 3, device=device)
-    written = []
+    res = (cfg.resolution, cfg.resolution)
+    white = torch.ones(cfg.views, 3, device=device)
     with torch.no_grad():
-        for seed in seeds:
-            ws = latent(generator, seed, device, args.truncation)
+        for seed in cfg.seeds:
+            ws = latent(generator, seed, device, cfg.truncation)
             texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode="none")
             views = render_field_views(generator, batch, ws, mvp, res, white, texture=texture)
             for v, image in enumerate(images_to_uint8(views.images)):
                 save_png(out / f"seed{seed}_view{v}.png", image)
-            write_textured_mesh(out / f"seed{seed}.glb", out / f"seed{seed}.ply", generator, texture, batch, args.texture_size)
-            written.append(seed)
-            print(f"seed {seed}: {args.views} views, {out / f'seed{seed}.glb'}, {out / f'seed{seed}.ply'}")
+            write_textured_mesh(out / f"seed{seed}.glb", out / f"seed{seed}.ply", generator, texture, batch, cfg.texture_size)
+            print(f"seed {seed}: {cfg.views} views, {out / f'seed{seed}.glb'}, {out / f'seed{seed}.ply'}")
     return 0

@@ -54,7 +54,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import hashlib
 import json
 import shutil
 import sys
@@ -77,6 +76,7 @@ from mesh2tex.evaluation.report import BASELINES, PROTOCOLS, TRANSFER_PROTOCOLS,
 from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth, load_world, other_shape_name, reference_renders
 from mesh2tex.geometry.prepared import PreparedShape, shape_paths
 from mesh2tex.io.atomic import atomic_path, json_ready, write_json, write_text
+from mesh2tex.io.checkpoint import checkpoint_digest
 from mesh2tex.io.image_sets import list_images, load_set
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import gan_camera, load_generator
@@ -450,12 +450,8 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
 
 
 def _file_digest(path: str | Path | None) -> str | None:
-    """SHA-256 prefix of a file's bytes (None for None): the identity of a checkpoint, wherever it lies."""
-    if path is None:
-        return None
-    if not Path(path).is_file():
-        raise UserError(f"{path}: checkpoint not found")
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+    """:func:`mesh2tex.io.checkpoint.checkpoint_digest`, None for None."""
+    return None if path is None else checkpoint_digest(path)
 
 
 def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:

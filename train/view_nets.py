@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import json
 import sys
 import time
@@ -35,7 +34,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.atomic import atomic_path
-from mesh2tex.io.checkpoint import read_checkpoint_meta
+from mesh2tex.io.checkpoint import checkpoint_digest, read_checkpoint_meta
 from mesh2tex.io.models import load_generator, resolve_checkpoint
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.noc import noc_error, noc_loss
@@ -150,10 +149,7 @@ def data_fingerprint(cfg: ViewTrainConfig) -> str:
     checkpoint's path replaced by a digest of its bytes (a moved checkpoint keeps the cache, a retrained one does not)."""
     data = dataclasses.asdict(cfg.data)
     if cfg.data.gan_checkpoint:
-        path = Path(cfg.data.gan_checkpoint)
-        if not path.is_file():
-            raise UserError(f"{path}: GAN checkpoint not found")
-        data["gan_checkpoint"] = "sha256:" + hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+        data["gan_checkpoint"] = "sha256:" + checkpoint_digest(cfg.data.gan_checkpoint, "GAN checkpoint")
     return json.dumps({"data": data, "seed": cfg.seed}, sort_keys=True)
 
 

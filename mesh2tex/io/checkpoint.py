@@ -9,6 +9,7 @@ Writes are atomic, so a kill during a save never spoils the previous checkpoint.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -59,6 +60,15 @@ def save_checkpoint(path: str | os.PathLike, groups: dict[str, dict[str, torch.T
             seen[ptr] = key
     with atomic_path(path, suffix=".safetensors") as tmp:
         save_file(flat, str(tmp), metadata={_META_KEY: json.dumps(header)})
+
+
+def checkpoint_digest(path: str | os.PathLike, what: str = "checkpoint") -> str:
+    """SHA-256 prefix (16 hex digits) of a file's bytes: the identity of a checkpoint wherever it lies
+    (a moved one keeps it, a retrained one does not). UserError naming ``what`` when it is missing."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: {what} not found")
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 
 
 def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:

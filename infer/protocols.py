@@ -117,6 +117,32 @@ class ProtocolConfig:
     vgg_weights: str = ""  # VGG19 ImageNet weights for the style losses ('' looks in $TORCH_HOME)
     inception_weights: str = ""  # Inception-v3 weights for KID/FID ('' looks in $TORCH_HOME)
 
+    def __post_init__(self):
+        unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
+                   + [b for b in self.baselines if b not in BASELINES])
+        if unknown:
+            raise UserError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
+                            f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join(BASELINES)}")
+        if self.lighting not in LIGHTING:
+            raise UserError(f"lighting {self.lighting!r}: must be one of {', '.join(LIGHTING)}")
+        if not 0 <= self.unseen_views <= 35 or self.lowpass_sigma < 0:
+            raise UserError(f"unseen_views {self.unseen_views}, lowpass_sigma {self.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
+        if self.resolution < 32:
+            raise UserError(f"--resolution {self.resolution}: must be at least 32")
+        if self.latent_iters < 0 or self.refine_iters < 0:
+            raise UserError("--latent-iters and --refine-iters must not be negative")
+
+    def transfer_config(self, device: str = "auto") -> TransferConfig:
+        """The settings of every transfer: :class:`TransferConfig`'s defaults with this config's resolution,
+        iterations, style sizes, pose search, seed and VGG weights (the ablations change it further)."""
+        return TransferConfig(resolution=self.resolution, latent_iters=self.latent_iters, refine_iters=self.refine_iters,
+                              patch_size=self.patch_size, scales=self.scales, patch_scales=self.patch_scales, seed=self.seed,
+                              pose_search=self.pose_search, device=device, vgg_weights=self.vgg_weights)
+
+    def evaluate_config(self) -> EvaluateConfig:
+        """The settings of the unconditional protocol's set metrics."""
+        return EvaluateConfig(resolution=self.resolution, features=self.features, kid_subsets=self.kid_subsets, seed=self.seed)
+
 
 # ---------------------------------------------------------------------------------- unconditional
 @torch.no_grad()
@@ -183,9 +209,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     Returns {"queries": [per-query setup], "methods": {name: {"query": mean scores, "per_query":
     [rows], "seconds": s}}}; scores are named "seen <metric>" and "unseen <metric>".
     """
-    base = TransferConfig(resolution=cfg.resolution, latent_iters=cfg.latent_iters, refine_iters=cfg.refine_iters,
-                          patch_size=cfg.patch_size, scales=cfg.scales, patch_scales=cfg.patch_scales, seed=cfg.seed,
-                          pose_search=cfg.pose_search, device=str(device), vgg_weights=cfg.vgg_weights)
+    base = cfg.transfer_config(str(device))
     exact = protocol in ("known_pose", "unknown_pose")
     settings = ScoreSettings(lowpass_sigma=cfg.lowpass_sigma, seed=cfg.seed)
     offsets = [360.0 * k / (cfg.unseen_views + 1) for k in range(1, cfg.unseen_views + 1)]
@@ -366,23 +390,9 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     With ``out``, every finished transfer is kept in ``out/transfers`` (:class:`TransferCache`), so
     re-running after an interruption resumes and a wider run reuses them; ``overwrite`` discards
     transfers made with other settings instead of refusing the run."""
-    unknown = ([p for p in cfg.protocols if p not in PROTOCOLS] + [a for a in cfg.ablations if a not in ABLATIONS]
-               + [b for b in cfg.baselines if b not in BASELINES])
-    if unknown:
-        raise UserError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
-                        f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join(BASELINES)}")
-    if cfg.lighting not in LIGHTING:
-        raise UserError(f"lighting {cfg.lighting!r}: must be one of {', '.join(LIGHTING)}")
-    if not 0 <= cfg.unseen_views <= 35 or cfg.lowpass_sigma < 0:
-        raise UserError(f"unseen_views {cfg.unseen_views}, lowpass_sigma {cfg.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
-    if cfg.resolution < 32:
-        raise UserError(f"--resolution {cfg.resolution}: must be at least 32")
-    if cfg.latent_iters < 0 or cfg.refine_iters < 0:
-        raise UserError("--latent-iters and --refine-iters must not be negative")
     transfers = [p for p in cfg.protocols if p in TRANSFER_PROTOCOLS]
     if transfers:
-        check_style_sizes(TransferConfig(resolution=cfg.resolution, patch_size=cfg.patch_size, scales=cfg.scales,
-                                         patch_scales=cfg.patch_scales))
+        check_style_sizes(cfg.transfer_config())
     if any(p != "known_pose" for p in transfers) and not pose_checkpoint:
         raise UserError("the unknown_pose and other_shape protocols need --pose-checkpoint (from 'mesh2tex train pose')")
     if transfers and any(ABLATIONS[a].get("use_noc", True) and ABLATIONS[a].get("use_patches", True) for a in cfg.ablations) \
@@ -402,7 +412,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     if missing:
         raise UserError(f"{shapes_dir}: no prepared shape for {', '.join(missing)} (prepare the world's meshes with 'mesh2tex prepare shapes')")
     shapes = {name: load_shape(paths[name], generator, 0, cfg.seed) for name in sorted(needed)}
-    eval_cfg = EvaluateConfig(resolution=cfg.resolution, features=cfg.features, kid_subsets=cfg.kid_subsets, seed=cfg.seed)
+    eval_cfg = cfg.evaluate_config()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         extractor = get_feature_extractor(cfg.features, cfg.inception_weights or None, cfg.vgg_weights or None, device)

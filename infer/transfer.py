@@ -46,7 +46,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
-from mesh2tex.render import composite_images, orbit_camera, turntable_angles
+from mesh2tex.render import composite, composite_images, orbit_camera, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import load_shape, write_textured_mesh
 from mesh2tex.transfer import (Photo, PoseEstimate, TransferConfig, TransferResult, View, check_style_sizes, estimate_pose, load_photo,
@@ -74,7 +74,7 @@ def to_uint8_image(image: torch.Tensor) -> np.ndarray:
 def noc_to_uint8(noc: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
     """(H,W,3) NOC in [0,1] and a (…,H,W) mask -> (H,W,3) uint8, white background."""
     m = mask.reshape(noc.shape[:2] + (1,)).cpu()
-    return colors_to_uint8(noc.cpu().clamp(0, 1) * m + (1 - m), signed=False)
+    return colors_to_uint8(composite(noc.cpu().clamp(0, 1)[None], m[None], 1.0)[0], signed=False)
 
 
 @torch.no_grad()

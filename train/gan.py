@@ -27,7 +27,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.io.models import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_EMA, save_inference_checkpoint
+from mesh2tex.io.models import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, save_inference_checkpoint
 from mesh2tex.losses.augment import AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
 from mesh2tex.nn.batch import collate_shapes
@@ -184,7 +184,7 @@ class GanTrainer:
         rng_states = self.dist.gather_objects(runs.rng_to_state())
         if self.dist.is_main:
             meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
-                    "generator_config": runs.dumps_config(self.cfg.generator)}
+                    GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator)}
             runs.save_training_state(path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d},
                                      {GAN_LOSS: self.loss.state_dict()}, meta, rng_states)
         self.dist.barrier()
@@ -268,7 +268,7 @@ class GanTrainer:
         """RUN/snapshots/iterNNNNNNN.safetensors: the EMA generator now, float16, loadable like a shipped model."""
         path = self.run.root / "snapshots" / f"iter{self.iteration:07d}.safetensors"
         path.parent.mkdir(exist_ok=True)
-        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "generator_config": runs.dumps_config(self.cfg.generator),
+        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
                 "world_size": self.dist.world_size}
         save_inference_checkpoint(path, KIND, self.ema.state_dict(), meta)
         return path

@@ -35,7 +35,7 @@ from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.atomic import atomic_path
 from mesh2tex.io.checkpoint import checkpoint_digest, read_checkpoint_meta
-from mesh2tex.io.models import load_generator, resolve_checkpoint
+from mesh2tex.io.models import VIEW_NET, load_generator, resolve_checkpoint
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.noc import noc_error, noc_loss
 from mesh2tex.nn.pose import pose_accuracy, pose_loss
@@ -269,13 +269,13 @@ def run_view_training(args, kind: str) -> int:
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     iteration = 0
     if resume:
-        _, meta = runs.load_training_state(run.checkpoint_path, kind, {"net": net}, {"opt": opt}, device)
+        _, meta = runs.load_training_state(run.checkpoint_path, kind, {VIEW_NET: net}, {"opt": opt}, device)
         iteration = int(meta["iteration"])
         runs.rng_from_state(meta["rng"][0])
         run.metrics.truncate_after("iteration", iteration)
 
     def save(path: Path) -> None:
-        runs.save_training_state(path, kind, {"net": net}, {"opt": opt}, {},
+        runs.save_training_state(path, kind, {VIEW_NET: net}, {"opt": opt}, {},
                                  {"iteration": iteration, "config": runs.dumps_config(cfg)}, [runs.rng_to_state()])
 
     bar = progress_bar(total=cfg.iters, initial=iteration, desc=f"train {kind}")

@@ -38,6 +38,8 @@ from mesh2tex.render.cameras import CameraConfig
 
 # Tensor groups of the 'gan' kind.
 GENERATOR, GENERATOR_EMA, D_FIELD, D_PROXY, GAN_LOSS = "generator", "generator_ema", "d_field", "d_proxy", "loss"
+# Metadata key of the 'gan' kind with the GeneratorConfig that load_generator builds.
+GENERATOR_CONFIG = "generator_config"
 # Tensor group of the 'pose' and 'noc' kinds.
 VIEW_NET = "net"
 MODEL_FILES = {"gan": "generator.safetensors", "pose": "pose.safetensors", "noc": "noc.safetensors"}
@@ -110,9 +112,9 @@ def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[Textu
     eval mode without gradients, and the checkpoint's metadata."""
     path = resolve_checkpoint(path, "gan")
     groups, meta = load_checkpoint(path, kind="gan")
-    saved = dict(meta["generator_config"])
+    saved = dict(meta[GENERATOR_CONFIG])
     saved.setdefault("field_residual", False)  # written before psi became a residual on the proxy colours
-    cfg = config_from_dict(GeneratorConfig, saved, f"{path}: generator_config")
+    cfg = config_from_dict(GeneratorConfig, saved, f"{path}: {GENERATOR_CONFIG}")
     generator = TextureGenerator(cfg)
     try:
         generator.load_state_dict(groups[GENERATOR_EMA])

@@ -109,8 +109,7 @@ def composite(rgb: torch.Tensor, mask: torch.Tensor, background) -> torch.Tensor
         background = background.reshape(1, 1, 1, -1)
     elif background.dim() == 3:
         background = background[None]
-    mask = mask.to(rgb.dtype)
-    return rgb * mask + background * (1 - mask)
+    return composite_images(rgb, mask.to(rgb.dtype), background)
 
 
 def composite_images(images: torch.Tensor, masks: torch.Tensor, background=1.0) -> torch.Tensor:

@@ -41,7 +41,9 @@ class View:
 
 
 def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig) -> tuple[Photo, str]:
-    """The query photo cropped around its object; also says where the mask came from."""
+    """The query photo cropped around its object (``cfg.margin``) and resized to R = ``cfg.resolution``:
+    a :class:`Photo` (image (1,3,R,R) in [-1,1], white outside the photo; mask (1,1,R,R)), and where
+    the mask came from (the ``mask_path`` file, the alpha channel, or a GrabCut estimate)."""
     rgb, alpha = load_image(image_path)
     if mask_path is not None:
         mask = load_mask(mask_path)
@@ -63,7 +65,9 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
 
 @torch.no_grad()
 def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig) -> View:
-    """Rasterize the mesh at the pose, find the object's square crop, render its NOC map there."""
+    """Rasterize the finest level of ``shape`` at the pose (degrees; ``distance``, ``fov`` of the orbit
+    camera) at ``cfg.render_oversample`` times R = ``cfg.resolution``, find the object's square crop
+    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`View` (noc (R,R,3), mask (1,1,R,R))."""
     size = int(round(cfg.resolution * cfg.render_oversample))
     camera = orbit_camera(torch.tensor([azimuth]), torch.tensor([elevation]), distance=distance, fov=fov)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)

@@ -21,8 +21,10 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
     ("train", "gan"): ("train.gan", "train the mesh-field texture GAN"),
     ("train", "pose"): ("train.pose", "train the pose network"),
     ("train", "noc"): ("train.noc", "train the NOC network"),
+    ("train", "nca"): ("train.nca", "grow a texture from one exemplar image with a mesh cellular automaton"),
     ("infer", "generate"): ("infer.generate", "texture a mesh from random latent codes"),
     ("infer", "transfer"): ("infer.transfer", "texture a mesh after one photo"),
+    ("infer", "nca"): ("infer.nca", "grow a trained cellular automaton's texture on any mesh"),
     ("evaluate", None): ("infer.evaluate", "metrics between renders and images"),
     ("demo", None): ("infer.demo", "run the whole pipeline on the embedded synthetic world"),
 }

@@ -15,11 +15,11 @@ import torch
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
-from mesh2tex.io.images import colors_to_uint8, images_to_uint8
+from mesh2tex.io.images import colors_to_uint8
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
 from mesh2tex.nn.render_texture import field_colors
-from mesh2tex.render import dilate_texture, unwrap_uv, uv_rasterize
+from mesh2tex.render.uv import bake_surface_colors
 
 
 def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0) -> PreparedShape:
@@ -63,27 +63,17 @@ def mean_latent(generator: TextureGenerator) -> torch.Tensor:
 
 @torch.no_grad()
 def bake_texture(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, size: int, dilate: int = 8):
-    """Bake psi into a UV texture for shape 0 of ``batch``.
+    """Bake psi into a UV texture for shape 0 of ``batch`` (:func:`mesh2tex.render.uv.bake_surface_colors`).
 
     Returns (vertices (V', 3) float32, faces (T, 3) int64, uv (V', 2) float32, texture (size, size, 3)
     uint8, coverage (size, size) bool). Faces keep the order of ``batch.triangles()``.
     """
-    triangles = batch.shape_triangles(0).cpu()
-    vertices = batch.shape_vertices(0).cpu()
-    new_vertices, faces, uv, vertex_map = unwrap_uv(vertices, triangles)
-    faces = torch.as_tensor(np.asarray(faces), dtype=torch.int64)
-    vertex_map = torch.as_tensor(np.asarray(vertex_map), dtype=torch.int64)
-    uv = torch.as_tensor(np.asarray(uv), dtype=torch.float32)
-    if not torch.equal(vertex_map[faces], triangles):
-        raise RuntimeError("unwrap_uv changed the face order or corners; baking needs them kept")
     device = texture.face_rgb.device
-    raster = uv_rasterize(uv.to(device), faces.to(device), (size, size))
-    covered = raster.face_id[0] >= 0
-    colors = torch.zeros(size, size, 3, device=device)
-    colors[covered] = field_colors(generator, texture, batch, raster.face_id[0][covered], raster.bary[0][covered]).float()
-    image = dilate_texture(colors.permute(2, 0, 1), covered[None].float(), dilate)
-    image = image.reshape(3, size, size)
-    return torch.as_tensor(np.asarray(new_vertices), dtype=torch.float32), faces, uv, images_to_uint8(image), covered.cpu()
+
+    def colors_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+        return field_colors(generator, texture, batch, triangle_id.to(device), bary.to(device))
+
+    return bake_surface_colors(batch.shape_vertices(0), batch.shape_triangles(0), colors_at, size, dilate)
 
 
 @torch.no_grad()

@@ -33,6 +33,7 @@ from mesh2tex.config import config_from_dict
 from mesh2tex.errors import UserError
 from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
+from mesh2tex.nn.nca import MeshNCA, NCAConfig
 from mesh2tex.nn.view_nets import ViewTrainConfig, build_network
 from mesh2tex.render.cameras import CameraConfig
 
@@ -143,3 +144,26 @@ def load_view_network(path: str | os.PathLike, kind: str, device: torch.device |
     except (KeyError, RuntimeError) as error:
         raise UserError(f"{path}: the {kind} weights do not fit its config ({str(error).splitlines()[0]})") from None
     return net.to(device).eval(), cfg
+
+
+def load_nca(path: str | os.PathLike, device="cpu"):
+    """A trained cellular automaton from a ``train nca`` checkpoint (training or exported).
+
+    Returns (model :class:`mesh2tex.nn.nca.MeshNCA` in eval mode on ``device``, meta, exemplar
+    (H, W, 3) uint8 or None). Raises UserError naming ``path`` for a missing, foreign or damaged file.
+    """
+    groups, meta = load_checkpoint(path, kind="nca")
+    if "model" not in groups or "nca" not in meta:
+        raise UserError(f"{path}: the nca checkpoint holds no automaton")
+    try:
+        cfg = config_from_dict(NCAConfig, meta["nca"], where=f"{path} nca")
+    except ValueError as error:
+        raise UserError(f"{path}: {error}") from None
+    model = MeshNCA(cfg)
+    try:
+        model.load_state_dict({k: v.float() for k, v in groups["model"].items()})
+    except RuntimeError as error:
+        raise UserError(f"{path}: the automaton weights do not fit its config ({str(error).splitlines()[0]})") from None
+    exemplar = groups.get("exemplar", {}).get("image")
+    exemplar = None if exemplar is None else exemplar.permute(1, 2, 0).numpy()
+    return model.to(device).eval(), meta, exemplar

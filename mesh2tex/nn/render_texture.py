@@ -82,7 +82,7 @@ def field_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshB
     return generator.field(blended[:, :-3], bary) + blended[:, -3:]
 
 
-def _paint(background: torch.Tensor, flat_index: torch.Tensor, colors: torch.Tensor) -> torch.Tensor:
+def paint_pixels(background: torch.Tensor, flat_index: torch.Tensor, colors: torch.Tensor) -> torch.Tensor:
     """background (N, 3, H, W); colours (P, 3) at flat pixel indices into N*H*W -> (N, 3, H, W)."""
     n, _, h, w = background.shape
     flat = background.permute(0, 2, 3, 1).reshape(-1, 3).to(colors.dtype)
@@ -114,6 +114,6 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     flat_index = mask.reshape(-1).nonzero().squeeze(1)
     triangle_id = samples.triangle_id.reshape(-1)[flat_index]
     bary = samples.bary.reshape(-1, 3)[flat_index]
-    images = _paint(background, flat_index, field_colors(generator, texture, batch, triangle_id, bary))
-    proxy_images = _paint(background, flat_index, texture.face_rgb[triangle_id // 2]) if proxy else None
+    images = paint_pixels(background, flat_index, field_colors(generator, texture, batch, triangle_id, bary))
+    proxy_images = paint_pixels(background, flat_index, texture.face_rgb[triangle_id // 2]) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=mask.unsqueeze(1).to(images.dtype))

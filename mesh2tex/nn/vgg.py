@@ -110,10 +110,11 @@ class VGG19Features(nn.Module):
         self.pretrained = False
         self.source = "uninitialised"
 
-    def forward(self, images: torch.Tensor) -> list[torch.Tensor]:
+    def forward(self, images: torch.Tensor, depth: int = len(STYLE_CONV_LAYERS)) -> list[torch.Tensor]:
+        """The first ``depth`` style activations (all five by default); the trunk stops after the last one asked for."""
         x = ((images + 1.0) * 0.5 - self.mean) / self.std
         outputs = []
-        last = self.output_indices[-1]
+        last = self.output_indices[depth - 1]
         for index, module in enumerate(self.features):
             x = module(x)
             if index in self.output_indices:

@@ -1,0 +1,208 @@
+"""``mesh2tex infer nca``: grow a trained cellular automaton's texture on any mesh.
+
+    mesh2tex infer nca --checkpoint RUN/model.safetensors --mesh MESH --out DIR [--steps 96]
+                       [--graft C2 --graft-mask EXPR|FILE] [--regrow EXPR] [--angle DEG]
+                       [--subdivide auto|N] [--views 4] [--resolution 256] [--texture-size 1024]
+                       [--frames 24] [--seed 0] [--device] [--overwrite]
+
+Writes into DIR: ``view_K.png`` renders, ``textured.glb`` (the readout baked into a UV texture over
+an xatlas atlas, opens in Blender), ``textured.ply`` (per-vertex colours), ``growth.gif`` (the
+texture growing from the seed, a quarter turn of the camera), ``state.safetensors`` (the final cell
+states and positions) and ``report.json`` (settings, timings, the style loss of the renders against
+the exemplar). ``--graft`` blends the updates of a second model of the same lineage by a mask on
+the mesh; ``--regrow`` zeroes the cells of a region after growth and grows them back (the frames
+of the regrowth follow in the GIF).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.primitives import load_surface, mean_edge_length
+from mesh2tex.geometry.regions import region_weights
+from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
+from mesh2tex.io.atomic import atomic_path, write_json
+from mesh2tex.io.checkpoint import save_checkpoint
+from mesh2tex.io.images import save_png
+from mesh2tex.io.models import load_nca
+from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
+from mesh2tex.nn.nca import build_cell_graph, render_states
+from mesh2tex.nn.vgg import load_vgg19
+from mesh2tex.progress import progress_bar
+from mesh2tex.render import orbit_camera
+from mesh2tex.render.uv import bake_surface_colors
+
+OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
+CAMERA_DISTANCE, CAMERA_FOV = 3.2, 40.0  # the unit ball, framed as in training
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--checkpoint", required=True, help="a 'train nca' model (RUN/model.safetensors) or checkpoint")
+    parser.add_argument("--mesh", default="sphere", help="sphere, sphere:N, a prepared shape (.npz) or a mesh file (default: sphere)")
+    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--steps", type=int, default=96, help="automaton steps from the seed (default 96)")
+    parser.add_argument("--graft", help="a second model of the same lineage, grown where --graft-mask is 1")
+    parser.add_argument("--graft-mask", default="smoothstep(-0.15, 0.15, x)",
+                        help="where the --graft model grows: an expression in x, y, z (the mesh in the unit ball) or a per-vertex .npy/.txt file")
+    parser.add_argument("--regrow", help="after growth, zero the cells where this expression (or file) is above 0.5 and grow them back")
+    parser.add_argument("--angle", type=float, default=0.0, help="texture orientation: degrees about each vertex normal")
+    parser.add_argument("--subdivide", default="auto", help="split faces into four N times; auto matches the training mesh's cell spacing")
+    parser.add_argument("--views", type=int, default=4, help="renders around the mesh")
+    parser.add_argument("--resolution", type=int, default=256, help="render resolution")
+    parser.add_argument("--texture-size", type=int, default=1024, help="baked texture size")
+    parser.add_argument("--frames", type=int, default=24, help="frames of growth.gif (0: no GIF)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the asynchronous updates")
+    parser.add_argument("--vgg-weights", help="VGG19 weights for the report's style loss")
+    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
+    parser.add_argument("--overwrite", action="store_true", help="replace outputs already in --out")
+
+
+def choose_subdivisions(value: str, vertices: np.ndarray, faces: np.ndarray, cell_spacing: float) -> int:
+    """--subdivide: a number, or "auto": halve the edges (at most 3 times) while they are over 1.5x the training mesh's."""
+    if value != "auto":
+        if not value.isdigit() or int(value) > 4:
+            raise UserError(f"--subdivide {value}: expected auto or a number 0..4")
+        return int(value)
+    if cell_spacing <= 0:
+        return 0
+    spacing, count = mean_edge_length(vertices, faces), 0
+    while spacing > 1.5 * cell_spacing and count < 3:
+        spacing, count = spacing / 2, count + 1
+    return count
+
+
+def select_device(name: str) -> torch.device:
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and not torch.cuda.is_available():
+        raise UserError("--device cuda: no CUDA device is available (use --device cpu or auto)")
+    return torch.device(name)
+
+
+def run(args) -> int:
+    from PIL import Image
+
+    for name, value, low in (("--steps", args.steps, 1), ("--views", args.views, 1), ("--resolution", args.resolution, 32),
+                             ("--texture-size", args.texture_size, 16), ("--frames", args.frames, 0)):
+        if value < low:
+            raise UserError(f"{name} must be at least {low}, got {value}")
+    out = Path(args.out)
+    existing = [n for n in OUTPUTS if (out / n).exists()]
+    if existing and not args.overwrite:
+        raise UserError(f"{out}: already holds {', '.join(existing)}; pass --overwrite to replace them")
+    device = select_device(args.device)
+    model, meta, exemplar = load_nca(args.checkpoint, device)
+    other = None
+    lineage_note = None
+    if args.graft:
+        other, other_meta, _ = load_nca(args.graft, device)
+        if other.cfg != model.cfg:
+            raise UserError(f"{args.graft}: its automaton config differs from {args.checkpoint}'s; only models of one lineage can be grafted")
+        lineage_note = lineage(meta, other_meta)
+
+    vertices, faces = load_surface(args.mesh)
+    subdivisions = choose_subdivisions(args.subdivide, vertices, faces, float(meta.get("cell_spacing", 0.0)))
+    if subdivisions:
+        vertices, faces = load_surface(args.mesh, subdivide=subdivisions)
+    graph = build_cell_graph(vertices, faces, model.cfg.neighbourhood).to(device)
+    positions = graph.positions.cpu().numpy()
+    graft = None
+    if other is not None:
+        alpha = torch.from_numpy(region_weights(args.graft_mask, positions)).to(device)
+        graft = (other, alpha)
+    damage = None
+    if args.regrow:
+        damage = torch.from_numpy(region_weights(args.regrow, positions) > 0.5).to(device)
+        if not bool(damage.any()):
+            raise UserError(f"--regrow {args.regrow}: the region holds no vertex of this mesh")
+    out.mkdir(parents=True, exist_ok=True)
+
+    angle = math.radians(args.angle)
+    generator = torch.Generator(device=device).manual_seed(args.seed)
+    frames_at = set(np.linspace(0, args.steps, args.frames, dtype=int).tolist()) if args.frames else set()
+    gif_size = min(args.resolution, 192)
+    frames: list[np.ndarray] = []
+
+    def frame(state, index, total):
+        azimuth = 30.0 + 90.0 * index / max(total - 1, 1)
+        mvp = orbit_camera(azimuth, 20.0, distance=CAMERA_DISTANCE, fov=CAMERA_FOV).mvp.to(device)
+        frames.append(to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0).images)[0])
+
+    state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(args.seed))
+    total_frames = len(frames_at) * (2 if damage is not None else 1)
+    started = time.perf_counter()
+    step_seconds = 0.0
+    with torch.no_grad():
+        phases = [("grow", args.steps)] + ([("regrow", args.steps)] if damage is not None else [])
+        for phase, steps in phases:
+            if phase == "regrow":
+                state = state.masked_fill(damage[None, :, None], 0.0) if model.cfg.seed == "zero" else torch.where(
+                    damage[None, :, None], model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(args.seed + 1)), state)
+            for step in progress_bar(range(steps + 1), desc=f"infer nca ({phase})"):
+                if step in frames_at:
+                    frame(state, len(frames), total_frames)
+                if step == steps:
+                    break
+                tick = time.perf_counter()
+                state = model.step(state, graph, angle=angle, graft=graft, generator=generator)
+                step_seconds += time.perf_counter() - tick
+        if not torch.isfinite(state).all():
+            raise UserError(f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps")
+
+        mvp = orbit_camera(torch.arange(args.views, dtype=torch.float32) * (360.0 / args.views) + 30.0, 20.0,
+                           distance=CAMERA_DISTANCE, fov=CAMERA_FOV).mvp.to(device)
+        views = render_states(model, state, graph, mvp, args.resolution, background=1.0)
+        for k, image in enumerate(to_uint8(views.images)):
+            save_png(out / f"view_{k}.png", image)
+        style = None
+        if exemplar is not None:
+            vgg = load_vgg19(args.vgg_weights, device=device, warn=False)
+            depth = int(meta.get("config", {}).get("vgg_depth", 4))
+            target = torch.from_numpy(exemplar).permute(2, 0, 1)[None].float().to(device) / 127.5 - 1
+            style = float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
+                                     generator=torch.Generator().manual_seed(0)))
+
+        def colors_at(triangle_id, bary):
+            return model.colors(state, graph.triangles, triangle_id.to(device), bary.to(device))
+
+        verts, tris, uv, texture, _ = bake_surface_colors(graph.positions, graph.triangles, colors_at, args.texture_size)
+        save_glb(out / "textured.glb", verts.numpy(), tris.numpy(), uv.numpy(), texture, smooth_vertex_normals(verts.numpy(), tris.numpy()))
+        vertex_rgb = ((model.vertex_colors(state)[0].clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).cpu().numpy()
+        save_ply(out / "textured.ply", positions, graph.triangles.cpu().numpy(), vertex_rgb)
+    save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
+                    meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": args.steps})
+    if frames:
+        pictures = [Image.fromarray(f) for f in frames]
+        with atomic_path(out / "growth.gif") as tmp:
+            pictures[0].save(tmp, format="GIF", save_all=True, append_images=pictures[1:], duration=100, loop=0)
+    report = {"checkpoint": str(args.checkpoint), "mesh": args.mesh, "cells": graph.num_cells, "subdivisions": subdivisions,
+              "steps": args.steps, "regrow": args.regrow, "graft": args.graft, "graft_mask": args.graft_mask if args.graft else None,
+              "lineage": lineage_note, "angle_degrees": args.angle, "seconds": round(time.perf_counter() - started, 2),
+              "ms_per_step": round(1000 * step_seconds / (args.steps * len(phases)), 3), "style_loss": style,
+              "files": [f"view_{k}.png" for k in range(args.views)] + [n for n in OUTPUTS if (out / n).exists()]}
+    write_json(out / "report.json", report)
+    print(f"{graph.num_cells} cells, {args.steps} steps ({report['ms_per_step']} ms each): {out / 'textured.glb'}"
+          + (f"; style loss {style:.3f}" if style is not None else ""))
+    if lineage_note:
+        print(f"mesh2tex: note: {lineage_note}")
+    return 0
+
+
+def lineage(meta: dict, other_meta: dict) -> str | None:
+    """None when two models are of one lineage (one trained from the other, or both from one ancestor), else a warning."""
+    if meta.get("lineage") and meta.get("lineage") == other_meta.get("lineage"):
+        return None
+    return "the two models are not of one lineage (train the second with --parent FIRST); the graft may not blend"
+
+
+def to_uint8(images: torch.Tensor) -> np.ndarray:
+    """(N, 3, H, W) in [-1, 1] -> (N, H, W, 3) uint8."""
+    return ((images.detach().clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()

@@ -1,0 +1,127 @@
+"""The relaxed optimal-transport style loss of texture NCAs (Kolkin et al. 2019, as MeshNCA uses it).
+
+An image becomes one feature *set* per layer: its RGB pixels (layer 0) and the VGG19 style
+activations (:mod:`mesh2tex.nn.vgg`), each position a point in R^C. Two sets A (render) and B
+(exemplar) are compared by
+
+    W(A, B)  = mean_i min_j D(A_i, B_j),   D = cosine distance (+ L2 distance on the RGB layer)
+    L_W      = max(W(A, B), W(B, A))                       relaxed earth mover's distance
+    L_M      = |m_A - m_B|_1 / C + |T_A - T_B|_1 / C^2     means m and covariances T
+    loss     = mean over images of sum over layers of (L_W + L_M)
+
+Departure from the reference: only positions on the object enter a render's sets (the mask,
+area-resampled to each layer, above 0.5), where the reference feeds whole renders, background
+included. Our renders show a mesh over a constant background: counting the background would ask the
+automaton to paint the exemplar's statistics *and* make room for a grey that the exemplar lacks.
+
+Sets are subsampled to at most ``max_points`` random positions (the cost matrices are
+|A| x |B|); the exemplar's features are computed once (:class:`ExemplarFeatures`).
+
+Conventions: images (N, 3, H, W) in [-1, 1]; masks (N, 1, H, W) in [0, 1].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+
+from mesh2tex.losses.style import masked_gram
+
+STYLE_LOSSES = ("ot", "gram")
+
+
+def image_layers(vgg, images: torch.Tensor, depth: int) -> list[torch.Tensor]:
+    """[images, the first ``depth`` VGG style activations]: (N, C_l, H_l, W_l) each."""
+    return [images] + (list(vgg(images, depth=depth)) if depth > 0 else [])
+
+
+def _positions(mask: torch.Tensor | None, size: tuple[int, int], max_points: int, generator: torch.Generator | None,
+               device) -> torch.Tensor:
+    """Flat indices (P,) of at most ``max_points`` random positions of an (h, w) map inside ``mask`` (1, H, W)."""
+    h, w = size
+    if mask is None:
+        index = torch.arange(h * w, device=device)
+    else:
+        small = F.adaptive_avg_pool2d(mask[None].float(), (h, w)).reshape(-1)
+        index = (small > 0.5).nonzero().squeeze(1)
+    if index.numel() > max_points:
+        pick = torch.randperm(index.numel(), generator=generator)[:max_points].to(index.device)
+        index = index[pick]
+    return index
+
+
+def feature_sets(layers: list[torch.Tensor], mask: torch.Tensor | None, max_points: int,
+                 generator: torch.Generator | None = None) -> list[torch.Tensor]:
+    """Per layer, the (P_l, C_l) features of image 0 of ``layers`` at object positions (all with mask None)."""
+    sets = []
+    for feats in layers:
+        c, h, w = feats.shape[1:]
+        index = _positions(mask, (h, w), max_points, generator, feats.device)
+        sets.append(feats[0].reshape(c, h * w)[:, index].t())
+    return sets
+
+
+def relaxed_emd(a: torch.Tensor, b: torch.Tensor, l2: bool) -> torch.Tensor:
+    """L_W between point sets a (P, C) and b (Q, C)."""
+    cost = 1.0 - F.normalize(a, dim=1) @ F.normalize(b, dim=1).t()
+    if l2:
+        cost = cost + torch.cdist(a, b)
+    return torch.maximum(cost.min(dim=1).values.mean(), cost.min(dim=0).values.mean())
+
+
+def moment_loss(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """L_M between point sets a (P, C) and b (Q, C): mean absolute differences of means and covariances."""
+    ma, mb = a.mean(0), b.mean(0)
+    ca = (a - ma).t() @ (a - ma) / max(a.shape[0] - 1, 1)
+    cb = (b - mb).t() @ (b - mb) / max(b.shape[0] - 1, 1)
+    return (ma - mb).abs().mean() + (ca - cb).abs().mean()
+
+
+def ot_style_distance(render_sets: list[torch.Tensor], exemplar_sets: list[torch.Tensor]) -> torch.Tensor:
+    """sum over layers of L_W + L_M (layer 0, RGB, with the L2 term); an empty render set counts 0."""
+    total = render_sets[0].new_zeros(())
+    for layer, (a, b) in enumerate(zip(render_sets, exemplar_sets)):
+        if a.shape[0] < 2:
+            continue
+        total = total + relaxed_emd(a, b, l2=layer == 0) + moment_loss(a, b)
+    return total
+
+
+@dataclass
+class ExemplarFeatures:
+    """An exemplar image's layers, computed once. image (1, 3, H, W) in [-1, 1]; layers as :func:`image_layers`."""
+
+    image: torch.Tensor
+    layers: list[torch.Tensor]
+
+    @classmethod
+    def compute(cls, vgg, image: torch.Tensor, depth: int) -> "ExemplarFeatures":
+        with torch.no_grad():
+            return cls(image=image, layers=[t.detach() for t in image_layers(vgg, image, depth)])
+
+
+def style_loss(vgg, images: torch.Tensor, masks: torch.Tensor, exemplar: ExemplarFeatures, kind: str = "ot",
+               max_points: int = 1024, generator: torch.Generator | None = None) -> torch.Tensor:
+    """Mean over the N images of their style distance to the exemplar (see the module docstring).
+
+    images (N, 3, H, W) in [-1, 1], masks (N, 1, H, W); ``kind`` "ot" (relaxed optimal transport and
+    moments) or "gram" (squared differences of masked Gram matrices, the project's transfer loss,
+    summed over the layers). Differentiable with respect to ``images``.
+    """
+    if kind not in STYLE_LOSSES:
+        raise ValueError(f"style loss must be one of {STYLE_LOSSES}, got {kind!r}")
+    depth = len(exemplar.layers) - 1
+    layers = image_layers(vgg, images, depth)
+    losses = []
+    for n in range(images.shape[0]):
+        if kind == "gram":
+            mine = [masked_gram(f[n : n + 1], masks[n : n + 1]) for f in layers]
+            theirs = [masked_gram(f) for f in exemplar.layers]
+            losses.append(sum((x - y).square().mean() for x, y in zip(mine, theirs)))
+            continue
+        render_sets = feature_sets([f[n : n + 1] for f in layers], masks[n], max_points, generator)
+        exemplar_sets = feature_sets(exemplar.layers, None, max_points, generator)
+        losses.append(ot_style_distance(render_sets, exemplar_sets))
+    return torch.stack(losses).mean()

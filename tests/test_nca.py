@@ -1,0 +1,188 @@
+"""The mesh cellular automaton: perception, update rule, readouts, meshes, masks, rendering and baking."""
+
+import numpy as np
+import pytest
+import torch
+
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.primitives import cube_sphere, load_surface, subdivide_quads
+from mesh2tex.geometry.regions import region_weights
+from mesh2tex.nn.nca import (MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, render_states,
+                             spherical_harmonics)
+from mesh2tex.render import orbit_camera
+from mesh2tex.render.uv import bake_surface_colors
+
+
+def grid_mesh(n: int):
+    """An n x n vertex grid with unit spacing in the xy plane, as quads."""
+    ii, jj = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    vertices = np.stack([jj.ravel(), ii.ravel(), np.zeros(n * n)], axis=1).astype(np.float32)
+    index = np.arange(n * n).reshape(n, n)
+    quads = np.stack([index[:-1, :-1], index[:-1, 1:], index[1:, 1:], index[1:, :-1]], axis=-1).reshape(-1, 4)
+    return vertices, quads
+
+
+def interior(n: int) -> np.ndarray:
+    ii, jj = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    return ((ii > 0) & (ii < n - 1) & (jj > 0) & (jj < n - 1)).ravel()
+
+
+def test_order0_perception_on_a_grid_is_the_discrete_laplacian():
+    n = 7
+    vertices, quads = grid_mesh(n)
+    graph = build_cell_graph(vertices, quads)
+    values = torch.randn(n, n)
+    z = perceive(values.reshape(1, -1, 1), graph, order=0, nominal_valence=4.0)[0, :, 0].reshape(n, n)
+    laplacian = values[:-2, 1:-1] + values[2:, 1:-1] + values[1:-1, :-2] + values[1:-1, 2:] - 4 * values[1:-1, 1:-1]
+    assert torch.allclose(z[1:-1, 1:-1], laplacian, atol=1e-5)
+
+
+def test_order1_perception_of_a_ramp_is_twice_its_gradient():
+    n = 6
+    vertices, quads = grid_mesh(n)
+    graph = build_cell_graph(vertices, quads)
+    a, b = 0.7, -0.3
+    ramp = torch.from_numpy(a * vertices[:, 0] + b * vertices[:, 1]).reshape(1, -1, 1)
+    z = perceive(ramp, graph, order=1, nominal_valence=4.0)[0]  # (V, 4): Y_0, then (y, z, x)
+    inner = torch.from_numpy(interior(n))
+    assert torch.allclose(z[inner, 0], torch.zeros(int(inner.sum())), atol=1e-5)  # a ramp has no Laplacian
+    assert torch.allclose(z[inner, 1], torch.full((int(inner.sum()),), 2 * b), atol=1e-5)
+    assert torch.allclose(z[inner, 2], torch.zeros(int(inner.sum())), atol=1e-5)
+    assert torch.allclose(z[inner, 3], torch.full((int(inner.sum()),), 2 * a), atol=1e-5)
+
+
+@pytest.mark.parametrize("order", [0, 1, 2])
+def test_sparse_perception_equals_the_edge_list_definition(order):
+    vertices, quads = cube_sphere(6)
+    graph = build_cell_graph(vertices, quads, "edges+diagonals")
+    state = torch.randn(2, graph.num_cells, 5)
+    for angle in (0.0, 0.4):
+        assert torch.allclose(perceive(state, graph, order, 4.0, angle), perceive_edges(state, graph, order, 4.0, angle), atol=1e-5)
+
+
+def test_orientation_rotates_the_edge_directions_about_the_normal():
+    vertices, quads = grid_mesh(4)
+    graph = build_cell_graph(vertices, quads)
+    d0, d90 = graph.directions(0.0), graph.directions(np.pi / 2)
+    n = graph.normals[graph.receiver]
+    assert torch.allclose(d90, torch.linalg.cross(n, d0), atol=1e-6)
+    assert torch.allclose(spherical_harmonics(d0, 2)[:, 0], torch.ones(d0.shape[0]))
+
+
+def test_update_rule_has_the_papers_parameter_count():
+    assert MeshNCA(NCAConfig(channels=16, hidden=128, sh_order=1)).rule_parameters() == 12_432
+
+
+def test_update_rate_is_the_share_of_cells_that_change():
+    model = MeshNCA(NCAConfig(channels=4, update_rate=0.5))
+    torch.nn.init.constant_(model.update[2].bias, 1.0)  # every cell that fires changes
+    vertices, quads = cube_sphere(130)  # 101k cells
+    graph = build_cell_graph(vertices, quads)
+    state = torch.zeros(1, graph.num_cells, 4)
+    changed = (model.step(state, graph, generator=torch.Generator().manual_seed(0)) != state).any(-1).float().mean()
+    assert graph.num_cells > 100_000
+    assert abs(float(changed) - 0.5) < 0.005
+
+
+def test_seeded_rollouts_are_reproducible_and_the_identity_at_start():
+    vertices, quads = cube_sphere(5)
+    graph = build_cell_graph(vertices, quads)
+    torch.manual_seed(1)
+    model = MeshNCA()
+    state = model.seed_state(1, graph.num_cells)
+    assert torch.equal(model.rollout(state, graph, 3), state)  # the last layer starts at zero
+    torch.nn.init.normal_(model.update[2].weight, std=0.1)
+    runs = [model.rollout(state, graph, 5, generator=torch.Generator().manual_seed(7)) for _ in range(2)]
+    assert torch.equal(runs[0], runs[1])
+    assert not torch.equal(runs[0], model.rollout(state, graph, 5, generator=torch.Generator().manual_seed(8)))
+
+
+@pytest.mark.parametrize("readout", ["linear", "lppn"])
+def test_gradients_reach_every_parameter_through_rollout_and_render(readout):
+    vertices, quads = cube_sphere(4)
+    graph = build_cell_graph(vertices, quads)
+    torch.manual_seed(0)
+    model = MeshNCA(NCAConfig(channels=8, hidden=16, readout=readout))
+    torch.nn.init.normal_(model.update[2].weight, std=0.05)
+    state = model.rollout(model.seed_state(1, graph.num_cells, generator=torch.Generator().manual_seed(0)) + 0.1, graph, 3)
+    views = render_states(model, state, graph, orbit_camera(torch.tensor([0.0, 120.0]), 20.0, distance=3.2).mvp, 32)
+    ((views.images - 0.3) ** 2 * views.mask).mean().backward()
+    for name, p in model.named_parameters():
+        assert p.grad is not None and p.grad.abs().sum() > 0, name
+
+
+def test_graft_blends_the_updates_of_two_models_by_the_mask():
+    vertices, quads = cube_sphere(4)
+    graph = build_cell_graph(vertices, quads)
+    torch.manual_seed(0)
+    a, b = MeshNCA(NCAConfig(update_rate=1.0)), MeshNCA(NCAConfig(update_rate=1.0))
+    for m in (a, b):
+        torch.nn.init.normal_(m.update[2].weight, std=0.1)
+    state = torch.randn(1, graph.num_cells, 16) * 0.1
+    alpha = torch.from_numpy(region_weights("x > 0", graph.positions.numpy()))
+    grafted = a.step(state, graph, graft=(b, alpha))
+    left, right = alpha == 0, alpha == 1
+    assert torch.allclose(grafted[0, left], a.step(state, graph)[0, left], atol=1e-6)
+    assert torch.allclose(grafted[0, right], b.step(state, graph)[0, right], atol=1e-6)
+
+
+def test_cube_sphere_is_closed_outward_and_subdivision_welds():
+    vertices, quads = cube_sphere(5)
+    assert vertices.shape == (6 * 25 + 2, 3) and quads.shape == (150, 4)
+    edges = np.sort(np.stack([quads, np.roll(quads, -1, 1)], -1).reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)  # closed: every edge shared by two quads
+    graph = build_cell_graph(vertices, quads)
+    assert float((graph.normals * graph.positions).sum(-1).min()) > 0.99
+    fine_v, fine_q = subdivide_quads(vertices, quads)
+    assert fine_v.shape[0] == vertices.shape[0] + len(counts) + quads.shape[0]  # every midpoint once
+    fine_edges = np.sort(np.stack([fine_q, np.roll(fine_q, -1, 1)], -1).reshape(-1, 2), axis=1)
+    assert np.all(np.unique(fine_edges, axis=0, return_counts=True)[1] == 2)
+
+
+def test_load_surface_normalises_to_the_unit_ball(tmp_path):
+    import trimesh
+
+    trimesh.creation.box((4.0, 2.0, 1.0)).export(tmp_path / "box.obj")
+    vertices, faces = load_surface(str(tmp_path / "box.obj"))
+    assert faces.shape[1] == 3
+    assert np.isclose(np.linalg.norm(vertices, axis=1).max(), 1.0)
+    assert load_surface("sphere:3")[1].shape == (54, 4)
+    with pytest.raises(UserError, match="sphere:N"):
+        load_surface("sphere:x")
+
+
+def test_region_weights_from_expressions_and_files(tmp_path):
+    positions = np.array([[-0.5, 0.0, 0.0], [0.5, 0.2, 0.0], [0.0, 0.9, 0.1]])
+    assert region_weights("x > 0", positions).tolist() == [0.0, 1.0, 0.0]
+    assert np.allclose(region_weights("clip(y * 2, 0, 1)", positions), [0.0, 0.4, 1.0])
+    np.save(tmp_path / "mask.npy", np.array([0.2, 0.5, 2.0]))
+    assert np.allclose(region_weights(str(tmp_path / "mask.npy"), positions), [0.2, 0.5, 1.0])
+    for bad in ("__import__('os').system('true')", "x.real", "open('f')", "x >"):
+        with pytest.raises(UserError, match="graft mask"):
+            region_weights(bad, positions)
+    with pytest.raises(UserError, match="3 vertices"):
+        np.save(tmp_path / "short.npy", np.zeros(2))
+        region_weights(str(tmp_path / "short.npy"), positions)
+
+
+@pytest.mark.parametrize("readout", ["linear", "lppn"])
+def test_baked_texels_equal_the_readout(readout):
+    vertices, quads = cube_sphere(3)
+    graph = build_cell_graph(vertices, quads)
+    torch.manual_seed(0)
+    model = MeshNCA(NCAConfig(channels=6, hidden=8, readout=readout))
+    state = torch.rand(1, graph.num_cells, 6) * 1.6 - 0.8
+
+    def colors_at(triangle_id, bary):
+        return model.colors(state, graph.triangles, triangle_id, bary)
+
+    with torch.no_grad():
+        _, faces, uv, texture, covered = bake_surface_colors(graph.positions, graph.triangles, colors_at, 64, dilate=0)
+        from mesh2tex.render import uv_rasterize
+
+        raster = uv_rasterize(uv, faces, (64, 64))
+        expected = colors_at(raster.face_id[0][covered], raster.bary[0][covered]).clamp(-1, 1)
+    baked = torch.from_numpy(texture)[covered].float() / 127.5 - 1
+    assert covered.float().mean() > 0.3
+    assert (baked - expected).abs().max() <= 1.0 / 255 + 1e-6

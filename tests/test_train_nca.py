@@ -1,0 +1,104 @@
+"""``train nca`` and ``infer nca`` end to end on a tiny sphere: files, resume, lineage, grafting, errors."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import yaml
+from PIL import Image
+
+from mesh2tex.cli import main
+from mesh2tex.io.checkpoint import load_checkpoint
+from mesh2tex.synthetic.exemplars import exemplar_image
+
+TINY_NCA = {"iters": 4, "batch": 1, "views": 1, "resolution": 32, "steps_min": 2, "steps_max": 3, "pool": 4, "seed_every": 2,
+            "mesh": "sphere:3", "exemplar_size": 32, "vgg_depth": 1, "max_points": 64, "sample_every": 0, "checkpoint_every": 1, "log_every": 1,
+            "nca": {"channels": 6, "hidden": 16}}
+
+
+@pytest.fixture(scope="module")
+def nca_files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("nca")
+    Image.fromarray(exemplar_image("stripes", 48)).save(root / "stripes.png")
+    Image.fromarray(exemplar_image("checker", 48)).save(root / "checker.png")
+    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_NCA))
+    return root
+
+
+def train(root, out, *extra):
+    return main(["train", "nca", "--exemplar", str(root / "stripes.png"), "--out", str(out), "--config", str(root / "tiny.yaml"),
+                 "--device", "cpu", *extra])
+
+
+def test_an_interrupted_run_resumes_exactly(nca_files, monkeypatch):
+    import train.nca as stage
+
+    assert train(nca_files, nca_files / "straight") == 0
+    step = stage.NCATrainer.step
+
+    def interrupted(self):
+        if self.iteration == 2:
+            raise KeyboardInterrupt
+        return step(self)
+
+    monkeypatch.setattr(stage.NCATrainer, "step", interrupted)
+    assert train(nca_files, nca_files / "split") != 0
+    monkeypatch.setattr(stage.NCATrainer, "step", step)
+    assert load_checkpoint(nca_files / "split" / "checkpoint.safetensors", kind="nca")[1]["iteration"] == 2
+    assert train(nca_files, nca_files / "split", "--resume") == 0
+    a, meta_a = load_checkpoint(nca_files / "straight" / "checkpoint.safetensors", kind="nca")
+    b, meta_b = load_checkpoint(nca_files / "split" / "checkpoint.safetensors", kind="nca")
+    assert meta_a["iteration"] == meta_b["iteration"] == 4
+    for name in a["model"]:
+        assert torch.allclose(a["model"][name], b["model"][name], atol=1e-6), name
+    assert torch.allclose(a["pool"]["states"], b["pool"]["states"], atol=1e-6)
+    assert (nca_files / "straight" / "model.safetensors").stat().st_size < 200_000
+    lines = [json.loads(l) for l in (nca_files / "straight" / "metrics.jsonl").read_text().splitlines()]
+    assert [l["iteration"] for l in lines] == [1, 2, 3, 4]
+
+
+def test_a_second_run_into_the_same_folder_is_refused(nca_files, capsys):
+    assert train(nca_files, nca_files / "straight") != 0
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, capsys):
+    parent = nca_files / "straight" / "model.safetensors"
+    assert main(["train", "nca", "--exemplar", str(nca_files / "checker.png"), "--out", str(nca_files / "child"),
+                 "--config", str(nca_files / "tiny.yaml"), "--parent", str(parent), "--iters", "2", "--device", "cpu"]) == 0
+    _, parent_meta = load_checkpoint(parent, kind="nca")
+    _, child_meta = load_checkpoint(nca_files / "child" / "model.safetensors", kind="nca")
+    assert child_meta["lineage"] == parent_meta["lineage"]
+    assert child_meta["parent"]["sha256"]
+    out = nca_files / "graft"
+    assert main(["infer", "nca", "--checkpoint", str(parent), "--graft", str(nca_files / "child" / "model.safetensors"),
+                 "--mesh", "sphere:4", "--out", str(out), "--steps", "6", "--views", "2", "--resolution", "32",
+                 "--texture-size", "64", "--frames", "3", "--regrow", "y > 0.5", "--device", "cpu"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["lineage"] is None and report["cells"] == 6 * 16 + 2
+    for name in ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "view_0.png", "view_1.png"):
+        assert (out / name).is_file(), name
+    with Image.open(out / "growth.gif") as gif:
+        assert gif.n_frames == 6  # 3 of the growth, 3 of the regrowth
+    state, _ = load_checkpoint(out / "state.safetensors")
+    assert state["cells"]["state"].shape == (6 * 16 + 2, 6)
+    assert np.isfinite(report["style_loss"])
+
+
+def test_infer_refuses_to_replace_outputs_and_names_bad_input(nca_files, capsys):
+    model = str(nca_files / "straight" / "model.safetensors")
+    out = nca_files / "once"
+    args = ["infer", "nca", "--checkpoint", model, "--mesh", "sphere:2", "--out", str(out), "--steps", "2", "--views", "1",
+            "--resolution", "32", "--texture-size", "32", "--frames", "0", "--device", "cpu"]
+    assert main(args) == 0
+    assert main(args) != 0
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(args + ["--overwrite"]) == 0
+    bad = nca_files / "bad.safetensors"
+    bad.write_bytes(b"not a checkpoint")
+    assert main(["infer", "nca", "--checkpoint", str(bad), "--out", str(nca_files / "x"), "--device", "cpu"]) != 0
+    err = capsys.readouterr().err
+    assert "bad.safetensors" in err and "Traceback" not in err
+    assert main(args[:-2] + ["--graft", model, "--graft-mask", "import os", "--out", str(nca_files / "y"), "--device", "cpu"]) != 0
+    assert "graft mask" in capsys.readouterr().err

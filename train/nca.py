@@ -1,0 +1,354 @@
+"""``mesh2tex train nca``: grow a texture from one exemplar image with a mesh cellular automaton.
+
+    mesh2tex train nca --exemplar IMG --out RUN [--mesh sphere|sphere:N|SHAPE.npz|MESH] [--iters N]
+                       [--views K] [--resolution R] [--steps MIN,MAX] [--pool P] [--parent CKPT]
+                       [--readout linear|lppn] [--vgg-weights PATH] [--config YAML] [--device]
+                       [--seed S] [--resume]
+
+Each iteration: ``batch`` states drawn from a pool (every ``seed_every`` iterations the first is
+replaced by a fresh seed), a rollout of a random number of steps in [MIN, MAX] with gradients
+through every step, K random views of each state through the rasterizer, the style loss against
+the exemplar (:mod:`mesh2tex.losses.ot_style`) plus an overflow penalty on states and colours,
+per-parameter gradient normalisation, Adam; the final states go back into the pool. The model of
+the automaton is :mod:`mesh2tex.nn.nca`. ``--parent`` starts from a trained model (same lineage:
+the two can be grafted) and records its digest.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mesh2tex.config import config_from_dict, load_config
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.primitives import load_surface, mean_edge_length
+from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
+from mesh2tex.io.images import load_image, save_png
+from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
+from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty, render_states
+from mesh2tex.nn.vgg import load_vgg19
+from mesh2tex.progress import progress_bar
+from mesh2tex.render import orbit_camera
+from mesh2tex.synthetic.world import contact_sheet
+from train import runs
+
+KIND = "nca"
+MODEL_NAME = "model.safetensors"  # the trained automaton alone, what infer nca reads
+
+
+@dataclass
+class NCACameraConfig:
+    distance: float = 3.2  # in units of the mesh's radius (meshes are scaled into the unit ball)
+    fov: float = 40.0  # vertical field of view, degrees
+    elevation_min: float = -60.0  # random views: elevation range, degrees
+    elevation_max: float = 60.0
+
+
+@dataclass
+class TrainNCAConfig:
+    seed: int = 0
+    iters: int = 500  # training iterations
+    batch: int = 2  # states per iteration
+    views: int = 2  # random views per state
+    resolution: int = 128  # render resolution
+    steps_min: int = 15  # rollout length per iteration: uniform in [steps_min, steps_max]
+    steps_max: int = 25
+    pool: int = 256  # states kept between iterations
+    seed_every: int = 4  # every this many iterations a fresh seed replaces the batch's first state
+    mesh: str = "sphere"  # the training mesh (see load_surface)
+    exemplar_size: int = 128  # the exemplar is centre-cropped to a square and resized to this
+    style_loss: str = "ot"  # "ot" (relaxed optimal transport + moments) or "gram"
+    vgg_depth: int = 4  # VGG19 style layers used (relu1_2 ... relu4_4; 0: RGB only)
+    max_points: int = 1024  # feature positions per set in the OT loss
+    overflow_weight: float = 10.0  # weight of the overflow penalty
+    lr: float = 1e-3  # Adam learning rate
+    lr_milestones: list[float] = field(default_factory=lambda: [0.5, 0.8])  # fractions of iters where the rate drops
+    lr_gamma: float = 0.3  # the drop
+    device: str = "auto"
+    log_every: int = 10
+    sample_every: int = 100  # iterations between sample sheets (0: only at the end)
+    checkpoint_every: int = 100  # iterations between checkpoints (0: only at the end)
+    nca: NCAConfig = field(default_factory=NCAConfig)
+    camera: NCACameraConfig = field(default_factory=NCACameraConfig)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--exemplar", required=True, help="the texture photo to grow (any image file)")
+    parser.add_argument("--out", required=True, help="run directory (config, checkpoint, metrics, samples)")
+    parser.add_argument("--mesh", help="training mesh: sphere (default), sphere:N, a prepared shape .npz or a mesh file")
+    parser.add_argument("--config", help="YAML file with any fields of the training config")
+    parser.add_argument("--iters", type=int, help="training iterations (total, also when resuming)")
+    parser.add_argument("--views", type=int, help="random views per state and iteration")
+    parser.add_argument("--resolution", type=int, help="render resolution")
+    parser.add_argument("--steps", help="rollout length range MIN,MAX (default 15,25)")
+    parser.add_argument("--pool", type=int, help="pool size")
+    parser.add_argument("--parent", help="start from this trained nca checkpoint (its lineage: the two can be grafted)")
+    parser.add_argument("--readout", choices=["linear", "lppn"], help="state-to-colour readout")
+    parser.add_argument("--vgg-weights", help="ImageNet VGG19 weights (default: $MESH2TEX_VGG_WEIGHTS, torch's cache, else random weights)")
+    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to train")
+    parser.add_argument("--seed", type=int, help="random seed")
+    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+
+
+def parse_steps(text: str | None) -> tuple[int, int] | None:
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        low, high = (int(parts[0]), int(parts[-1])) if len(parts) in (1, 2) else (0, -1)
+    except ValueError:
+        low, high = 0, -1
+    if not 1 <= low <= high:
+        raise UserError(f"--steps {text}: expected MIN,MAX with 1 <= MIN <= MAX (or one number)")
+    return low, high
+
+
+def build_config(args) -> TrainNCAConfig:
+    steps = parse_steps(args.steps)
+    overrides = {"iters": args.iters, "views": args.views, "resolution": args.resolution, "pool": args.pool,
+                 "device": args.device, "seed": args.seed, "mesh": args.mesh,
+                 "steps_min": steps[0] if steps else None, "steps_max": steps[1] if steps else None}
+    run_config = Path(args.out) / "config.yaml"
+    try:
+        if args.resume and run_config.is_file():
+            if args.config:
+                print(f"mesh2tex: note: resuming uses {run_config}; --config {args.config} is ignored", file=sys.stderr)
+            cfg = load_config(TrainNCAConfig, run_config, overrides)
+        else:
+            cfg = load_config(TrainNCAConfig, args.config, overrides)
+        if args.readout:
+            cfg.nca.readout = args.readout
+            cfg.nca.__post_init__()
+    except ValueError as error:
+        raise UserError(f"config: {error}") from None
+    for name in ("iters", "batch", "views", "pool", "steps_min", "log_every", "max_points"):
+        if getattr(cfg, name) < 1:
+            raise UserError(f"{name} must be at least 1, got {getattr(cfg, name)}")
+    if cfg.steps_max < cfg.steps_min:
+        raise UserError(f"steps_max {cfg.steps_max} is below steps_min {cfg.steps_min}")
+    if cfg.resolution < 32 or cfg.exemplar_size < 32:
+        raise UserError("resolution and exemplar_size must be at least 32 pixels")
+    if cfg.batch > cfg.pool:
+        raise UserError(f"batch {cfg.batch} is larger than the pool {cfg.pool}")
+    if cfg.style_loss not in STYLE_LOSSES:
+        raise UserError(f"style_loss must be one of {STYLE_LOSSES}, got {cfg.style_loss!r}")
+    if not 0 <= cfg.vgg_depth <= 5:
+        raise UserError(f"vgg_depth must be in 0..5, got {cfg.vgg_depth}")
+    return cfg
+
+
+# ------------------------------------------------------------------------------------------ data
+def load_exemplar(path: str | Path, size: int) -> torch.Tensor:
+    """(1, 3, size, size) in [-1, 1]: the image's centred square, area-resized."""
+    import torch.nn.functional as F
+
+    rgb, _ = load_image(path)  # (H, W, 3) uint8; a bad file is a UserError naming it
+    h, w = rgb.shape[:2]
+    if min(h, w) < 8:
+        raise UserError(f"{path}: a {w}x{h} image is too small to be an exemplar")
+    side = min(h, w)
+    top, left = (h - side) // 2, (w - side) // 2
+    square = torch.from_numpy(np.array(rgb[top : top + side, left : left + side])).permute(2, 0, 1)[None].float() / 127.5 - 1
+    return F.interpolate(square, size=(size, size), mode="area") if side >= size else F.interpolate(square, size=(size, size), mode="bilinear", align_corners=False)
+
+
+def file_digest(path: str | Path) -> str:
+    """sha256 of a file's bytes (a parent checkpoint's identity)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def random_cameras(cfg: TrainNCAConfig, count: int, generator: torch.Generator) -> torch.Tensor:
+    """(count, 4, 4) mvp of random orbit views of the unit ball."""
+    azimuth = torch.rand(count, generator=generator) * 360.0
+    elevation = cfg.camera.elevation_min + torch.rand(count, generator=generator) * (cfg.camera.elevation_max - cfg.camera.elevation_min)
+    return orbit_camera(azimuth, elevation, distance=cfg.camera.distance, fov=cfg.camera.fov).mvp
+
+
+def fixed_cameras(cfg: TrainNCAConfig, count: int = 4, elevation: float = 20.0) -> torch.Tensor:
+    """(count, 4, 4) mvp of evenly spaced views around the mesh, for samples and reports."""
+    azimuth = torch.arange(count, dtype=torch.float32) * (360.0 / count) + 30.0
+    return orbit_camera(azimuth, elevation, distance=cfg.camera.distance, fov=cfg.camera.fov).mvp
+
+
+def to_uint8(images: torch.Tensor) -> np.ndarray:
+    """(N, 3, H, W) in [-1, 1] -> (N, H, W, 3) uint8."""
+    return ((images.detach().clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
+
+
+# --------------------------------------------------------------------------------------- trainer
+class NCATrainer:
+    """The loop of ``train nca`` (see the module docstring)."""
+
+    def __init__(self, cfg: TrainNCAConfig, exemplar: torch.Tensor, graph: CellGraph, run: runs.RunDirectory,
+                 device: torch.device, vgg, parent: dict | None = None, cell_spacing: float = 0.0):
+        self.cfg, self.run, self.device, self.vgg = cfg, run, device, vgg
+        self.graph = graph.to(device)
+        self.exemplar = ExemplarFeatures.compute(vgg, exemplar.to(device), cfg.vgg_depth)
+        runs.seed_everything(cfg.seed)  # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
+        self.model = MeshNCA(cfg.nca).to(device)
+        self.parent_record = None if parent is None else {"path": parent["path"], "sha256": parent["sha256"]}
+        # Models of one lineage (a parent and every model trained from it) can be grafted.
+        self.lineage = parent["lineage"] if parent is not None else uuid.uuid4().hex
+        if parent is not None:
+            self.model.load_state_dict(parent["state"])
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=cfg.lr)
+        self.cell_spacing = cell_spacing
+        self.generator = torch.Generator().manual_seed(cfg.seed)
+        self.pool = self.model.seed_state(cfg.pool, self.graph.num_cells, device, generator=self.generator)
+        self.iteration = 0
+
+    def learning_rate(self, iteration: int) -> float:
+        drops = sum(iteration >= m * self.cfg.iters for m in self.cfg.lr_milestones)
+        return self.cfg.lr * self.cfg.lr_gamma**drops
+
+    def step(self) -> dict[str, float]:
+        cfg = self.cfg
+        for group in self.optimizer.param_groups:
+            group["lr"] = self.learning_rate(self.iteration)
+        index = torch.randperm(cfg.pool, generator=self.generator)[: cfg.batch].to(self.device)
+        state = self.pool[index].clone()
+        if self.iteration % cfg.seed_every == 0:
+            state[:1] = self.model.seed_state(1, self.graph.num_cells, self.device, generator=self.generator)
+        steps = int(torch.randint(cfg.steps_min, cfg.steps_max + 1, (1,), generator=self.generator))
+        state = self.model.rollout(state, self.graph, steps)
+        mvp = random_cameras(cfg, cfg.batch * cfg.views, self.generator).to(self.device)
+        views = render_states(self.model, state, self.graph, mvp, cfg.resolution)
+        style = style_loss(self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator)
+        overflow = overflow_penalty(state, self.model.vertex_colors(state))
+        loss = style + cfg.overflow_weight * overflow
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        with torch.no_grad():  # per-parameter gradient normalisation (as texture NCAs train)
+            for p in self.model.parameters():
+                if p.grad is not None:
+                    p.grad /= p.grad.norm() + 1e-8
+        self.optimizer.step()
+        self.pool[index] = state.detach()
+        self.iteration += 1
+        logs = {"loss": float(loss.detach()), "loss_style": float(style.detach()), "loss_overflow": float(overflow.detach()), "steps": steps,
+                "lr": self.learning_rate(self.iteration - 1)}
+        runs.check_finite(logs, self.iteration)
+        return logs
+
+    # -------------------------------------------------------------------------------- state I/O
+    def meta(self) -> dict:
+        return {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "nca": runs.dumps_config(self.cfg.nca),
+                "cell_spacing": self.cell_spacing, "vgg": self.vgg.source,
+                "parent": self.parent_record, "lineage": self.lineage,
+                "generator_state": self.generator.get_state().tolist()}
+
+    def exemplar_uint8(self) -> torch.Tensor:
+        """(3, H, W) uint8: the exemplar as the model saw it, kept in every checkpoint."""
+        return ((self.exemplar.image[0].cpu() + 1) * 127.5).round().clamp(0, 255).to(torch.uint8)
+
+    def save(self, path: Path) -> None:
+        runs.save_training_state(path, KIND, {"model": self.model}, {"adam": self.optimizer},
+                                 {"pool": {"states": self.pool.cpu()}, "exemplar": {"image": self.exemplar_uint8()}},
+                                 self.meta(), [runs.rng_to_state()])
+
+    def resume(self) -> None:
+        groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, {"model": self.model}, {"adam": self.optimizer}, self.device)
+        pool = groups["pool"]["states"]
+        if pool.shape != self.pool.shape:
+            raise UserError(f"{self.run.checkpoint_path}: its pool is {tuple(pool.shape)}, this config and mesh need {tuple(self.pool.shape)}")
+        self.pool = pool.to(self.device)
+        self.iteration = int(meta["iteration"])
+        self.parent_record = meta.get("parent")
+        self.lineage = meta.get("lineage", self.lineage)
+        self.generator.set_state(torch.tensor(meta["generator_state"], dtype=torch.uint8))
+        runs.rng_from_state(meta["rng"][0])
+        self.run.metrics.truncate_after("iteration", self.iteration)
+
+    @torch.no_grad()
+    def write_samples(self) -> None:
+        """samples/iter_NNNNNN.png: the exemplar beside 4 views of a state grown from the seed for steps_max * 2 steps."""
+        generator = torch.Generator(device=self.device).manual_seed(self.cfg.seed + 1)
+        state = self.model.seed_state(1, self.graph.num_cells, self.device)
+        for _ in range(self.cfg.steps_max * 2):
+            state = self.model.step(state, self.graph, generator=generator)
+        views = render_states(self.model, state, self.graph, fixed_cameras(self.cfg).to(self.device), self.cfg.resolution, background=1.0)
+        size = self.cfg.resolution
+        exemplar = torch.nn.functional.interpolate(self.exemplar.image, size=(size, size), mode="bilinear", align_corners=False)
+        tiles = list(to_uint8(torch.cat([exemplar, views.images])))
+        save_png(self.run.samples_dir / f"iter_{self.iteration:06d}.png", contact_sheet(tiles, len(tiles)))
+
+    def train(self) -> None:
+        cfg = self.cfg
+        bar = progress_bar(total=cfg.iters, initial=self.iteration, desc="train nca")
+        last_time, last_iter = time.perf_counter(), self.iteration
+        try:
+            while self.iteration < cfg.iters:
+                try:
+                    logs = self.step()
+                except runs.NonFiniteLoss as error:
+                    self.save(self.run.nonfinite_path)
+                    raise UserError(f"{self.run.root}: training stopped, non-finite loss ({error}); state saved to {self.run.nonfinite_path}. "
+                                    "Lower lr in a --config and start again, or --resume from the last checkpoint", exit_code=4) from None
+                bar.update(1)
+                bar.set_postfix({"style": f"{logs['loss_style']:.3f}"})
+                it = self.iteration
+                if it % cfg.log_every == 0 or it == cfg.iters:
+                    now = time.perf_counter()
+                    self.run.metrics.write({"iteration": it, **{k: round(v, 6) for k, v in logs.items()},
+                                            "iters_per_second": round((it - last_iter) / max(now - last_time, 1e-9), 4),
+                                            "peak_memory_gb": round(runs.peak_memory_gb(self.device), 3)})
+                    last_time, last_iter = now, it
+                if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
+                    self.save(self.run.checkpoint_path)
+                if cfg.sample_every and it % cfg.sample_every == 0 and it < cfg.iters:
+                    self.write_samples()
+        except KeyboardInterrupt:
+            self.save(self.run.checkpoint_path)
+            raise
+        finally:
+            bar.close()
+        self.save(self.run.checkpoint_path)
+        self.save_model(self.run.root / MODEL_NAME)
+        self.write_samples()
+
+    def save_model(self, path: Path) -> None:
+        """The inference part: weights, exemplar and metadata (no pool, optimizer or RNG), a few tens of kB."""
+        meta = {k: v for k, v in self.meta().items() if k != "generator_state"}
+        save_checkpoint(path, {"model": {k: v.detach().cpu() for k, v in self.model.state_dict().items()}, "exemplar": {"image": self.exemplar_uint8()}},
+                        kind=KIND, meta=meta)
+
+
+def load_parent(path: str) -> tuple[NCAConfig, dict]:
+    """A parent checkpoint's automaton config and {state, path, sha256}."""
+    groups, meta = load_checkpoint(path, kind=KIND)
+    if "model" not in groups:
+        raise UserError(f"{path}: the checkpoint holds no automaton weights")
+    parent_cfg = config_from_dict(NCAConfig, meta.get("nca", {}), where=f"{path} nca")
+    return parent_cfg, {"state": groups["model"], "path": str(path), "sha256": file_digest(path), "lineage": meta.get("lineage") or file_digest(path)}
+
+
+def run(args) -> int:
+    cfg = build_config(args)
+    device = runs.select_device(cfg.device)
+    run_dir = runs.RunDirectory(args.out)
+    resume = args.resume and run_dir.has_checkpoint()
+    if args.resume and not resume:
+        print(f"mesh2tex: note: {run_dir.checkpoint_path} not found; starting a new run", file=sys.stderr)
+    exemplar = load_exemplar(args.exemplar, cfg.exemplar_size)
+    parent = None
+    if args.parent and not resume:
+        # A child takes its parent's automaton (sizes, perception, readout): that is what makes the two graftable.
+        cfg.nca, parent = load_parent(args.parent)
+    vertices, faces = load_surface(cfg.mesh)
+    graph = build_cell_graph(vertices, faces, cfg.nca.neighbourhood)
+    vgg = load_vgg19(args.vgg_weights, device=device)
+    run_dir.start(cfg, resume=resume)
+    trainer = NCATrainer(cfg, exemplar, graph, run_dir, device, vgg, parent=parent, cell_spacing=mean_edge_length(vertices, faces))
+    if resume:
+        trainer.resume()
+    trainer.train()
+    print(f"trained {trainer.iteration} iterations on {graph.num_cells} cells; checkpoint {run_dir.checkpoint_path}")
+    return 0

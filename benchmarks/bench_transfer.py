@@ -23,14 +23,18 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from infer.transfer import Photo, TransferConfig, transfer_texture, view_at_pose  # noqa: E402
+from mesh2tex.render import CameraConfig  # noqa: E402
+from mesh2tex.transfer import Photo, TransferConfig, transfer_texture, view_at_pose  # noqa: E402
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator  # noqa: E402
 from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
 from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views  # noqa: E402
-from train.runs import select_device  # noqa: E402
+from mesh2tex.runtime import select_device  # noqa: E402
 
 TARGET_SECONDS = 300.0
+
+
+GAN_CAMERA = CameraConfig()  # the camera an untrained or default GAN renders with
 
 
 def main() -> None:
@@ -63,7 +67,7 @@ def main() -> None:
     cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
                          patch_size=args.patch_size, patch_scales=args.patch_scales)
     generator = TextureGenerator(GeneratorConfig(input_features=shape.face_features.shape[1])).eval()
-    view = view_at_pose(shape, query_view.azimuth, query_view.elevation, 1.7, 40.0, cfg)
+    view = view_at_pose(shape, query_view.azimuth, query_view.elevation, GAN_CAMERA.distance, GAN_CAMERA.fov, cfg)
     vgg = load_vgg19(None, device=device, warn=False)
     result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, show_progress=False)
 

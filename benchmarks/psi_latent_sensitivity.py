@@ -20,7 +20,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from infer.generate import load_generator  # noqa: E402
+from mesh2tex.io.models import gan_camera, load_generator  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.nn.batch import collate_shapes  # noqa: E402
 from mesh2tex.nn.generator import FaceTexture  # noqa: E402
@@ -38,13 +38,13 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     generator, meta = load_generator(args.checkpoint, torch.device("cpu"))
-    camera = meta["config"]["camera"]
+    distance, fov = gan_camera(meta)
     paths = sorted(Path(args.shapes).glob("*.npz"))[:4]
     latent_swap, proxy_swap, frozen = [], [], []
     z = torch.randn(args.latents, generator.cfg.z_dim, generator=torch.Generator().manual_seed(0))
     for path in paths:
         batch = collate_shapes([PreparedShape.load(path)])
-        mvp = orbit_camera(torch.tensor([30.0, 120.0, 210.0, 300.0]), torch.full((4,), 20.0), distance=camera["distance"], fov=camera["fov"]).mvp
+        mvp = orbit_camera(torch.tensor([30.0, 120.0, 210.0, 300.0]), torch.full((4,), 20.0), distance=distance, fov=fov).mvp
         samples = rasterize_batch(batch, mvp, (args.resolution, args.resolution))
         covered = samples.mask.reshape(-1)
         triangle_id, bary = samples.triangle_id.reshape(-1)[covered], samples.bary.reshape(-1, 3)[covered]

@@ -31,7 +31,8 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from infer.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, predict_pose  # noqa: E402
+from mesh2tex.render import CameraConfig  # noqa: E402
+from mesh2tex.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, predict_pose  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.io.images import load_image, load_mask  # noqa: E402
 from mesh2tex.nn.pose import PoseBins  # noqa: E402
@@ -50,6 +51,9 @@ def true_noc(world: Path, entry: dict, cfg: TransferConfig) -> torch.Tensor:
     box = object_box(mask, cfg.margin)
     noc_t = torch.from_numpy(np.array(noc)).permute(2, 0, 1)[None].float() / 255.0
     return crop_square(noc_t, box, cfg.resolution)[0].permute(1, 2, 0)
+
+
+GAN_CAMERA = CameraConfig()  # the camera an untrained or default GAN renders with
 
 
 def main() -> None:
@@ -91,7 +95,7 @@ def main() -> None:
             if entry["shape"] in shape_files:
                 shape = PreparedShape.load(shape_files[entry["shape"]])
                 start = time.perf_counter()
-                estimate = estimate_pose(args.pose_checkpoint, shape, photo, 1.7, 40.0, cfg, device)
+                estimate = estimate_pose(args.pose_checkpoint, shape, photo, GAN_CAMERA.distance, GAN_CAMERA.fov, cfg, device)
                 search_seconds.append(time.perf_counter() - start)
                 search_errors.append(azimuth_error(estimate.azimuth, entry["azimuth"]))
                 if args.show_misses is not None and search_errors[-1] > args.show_misses:

@@ -31,7 +31,8 @@ import numpy as np
 from PIL import Image
 
 from mesh2tex.errors import UserError
-from mesh2tex.io.atomic import atomic_path, write_json
+from mesh2tex.io.atomic import write_json
+from mesh2tex.io.images import save_png
 from mesh2tex.progress import JsonLines, progress_bar
 
 FORMAT = "mesh2tex-synthetic-world"
@@ -101,11 +102,6 @@ def _check_output(output: Path, settings: dict) -> None:
         raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); choose another --output")
 
 
-def _save_png(path: Path, array: np.ndarray) -> None:
-    with atomic_path(path) as tmp:
-        Image.fromarray(array).save(tmp, format="PNG")
-
-
 def _photo_record(spec, view, shape_name: str, k: int, query: bool) -> dict:
     stem = f"{shape_name}_{k:02d}"
     folder = "queries" if query else "images"
@@ -164,10 +160,10 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
         views = [View(**{k: (tuple(r[k]) if k == "light" else r[k]) for k in View.__dataclass_fields__}) for r in todo]
         rendered = render_views(shape, material, views, spec.resolution, spec.supersample)
         for b, record in enumerate(todo):
-            _save_png(output / record["image"], rendered["rgb"][b])
-            _save_png(output / record["mask"], rendered["mask"][b])
+            save_png(output / record["image"], rendered["rgb"][b])
+            save_png(output / record["mask"], rendered["mask"][b])
             if query:
-                _save_png(output / record["noc"], rendered["noc"][b])
+                save_png(output / record["noc"], rendered["noc"][b])
                 sidecar = {key: value for key, value in record.items() if key != "sidecar"}
                 sidecar.update({"mesh": f"meshes/{name}.obj", "textured": f"textured/{name}.glb", "resolution": spec.resolution,
                                 "camera_convention": CAMERA_CONVENTION, "noc_convention": NOC_CONVENTION})
@@ -194,7 +190,7 @@ def write_preview(output: Path, index: dict, columns: int = 8, rows: int = 4) ->
     files = [r["image"] for r in photos[: columns * (rows - 1)]] + [f for q in queries for f in (q["image"], q["noc"])]
     images = [np.asarray(Image.open(output / f).convert("RGB")) for f in files]
     path = output / "preview.png"
-    _save_png(path, contact_sheet(images, columns))
+    save_png(path, contact_sheet(images, columns))
     return path
 
 

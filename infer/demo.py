@@ -34,12 +34,22 @@ import numpy as np
 import torch
 import yaml
 
+from infer.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.cli import main as cli_main
 from mesh2tex.config import load_config, save_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import atomic_path, write_json, write_text
+from mesh2tex.evaluation import (METRIC_TITLES, METRICS, ScoreSettings, backproject_photo, common_mask, flat_surface, generator_surface,
+                                 other_views, photo_mean_colour, render_for_comparison, score_views, seen_and_unseen,
+                                 textured_surface)
+from mesh2tex.evaluation.world import load_query_truth, reference_renders
+from mesh2tex.io.assets import load_glb
+from mesh2tex.io.images import images_to_uint8, save_png
+from mesh2tex.io.models import load_generator, models_root
+from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.progress import JsonLines
-from train.view_nets import VIEWS_NAME
+from mesh2tex.texture import load_shape, mean_latent
 
 
 @dataclass
@@ -180,9 +190,6 @@ TRANSFER_METHODS = {  # name -> title in the report; every method judged alike (
 def render_glb_at_pose(glb: Path, views: list, size: int, lighting: str = "photo"):
     """A textured GLB (as the pipeline writes it) rendered by ``mesh2tex.evaluation.render_for_comparison``
     at ``views`` (``mesh2tex.synthetic.world.View``): a ``ComparisonRender`` (rgb [B,3,S,S] in [0,1], mask, parts)."""
-    from mesh2tex.evaluation import render_for_comparison, textured_surface
-    from mesh2tex.io.assets import load_glb
-
     try:
         vertices, faces, uv, image = load_glb(glb)
     except ValueError as error:
@@ -206,14 +213,6 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
 
     Returns {method: {"seen <metric>": value, "unseen <metric>": mean}, "settings": {...}}.
     """
-    from infer.generate import load_generator, load_shape
-    from mesh2tex.evaluation import (ScoreSettings, backproject_photo, common_mask, flat_surface, generator_surface,
-                                     other_views, photo_mean_colour, render_for_comparison, score_views, seen_and_unseen)
-    from mesh2tex.evaluation.world import load_query_truth, reference_renders
-    from mesh2tex.io.assets import load_glb
-    from mesh2tex.io.images import save_png
-    from mesh2tex.nn.batch import collate_shapes
-
     index = json.loads((world / "index.json").read_text())
     report = json.loads((transfer / "report.json").read_text())
     try:
@@ -233,7 +232,7 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     generator, _ = load_generator(report["checkpoint"], torch.device("cpu"))
     shape = load_shape(report["mesh"], generator, report["settings"].get("faces", 6144), report["settings"].get("seed", 0))
     batch = collate_shapes([shape])
-    ws = generator.mapping.w_avg.reshape(1, 1, -1).expand(1, generator.num_ws, -1)
+    ws = mean_latent(generator)
     renders["mean_texture"] = render(generator_surface(generator, generator.synthesize(batch, ws, noise_mode="none").field_features, batch))
     pose = report["pose"]
     try:
@@ -246,7 +245,7 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     result = {name: {k: round(v, 5) for k, v in seen_and_unseen(score_views(rendered, reference.rgb, reference.parts, mask, settings)).items()}
               for name, rendered in renders.items()}
     rows = [reference.rgb] + [renders[name].rgb for name in TRANSFER_METHODS]
-    tiles = [np.concatenate([(image.permute(1, 2, 0).numpy() * 255).round().astype(np.uint8) for image in row], axis=1) for row in rows]
+    tiles = [np.concatenate(list(images_to_uint8(row, signed=False)), axis=1) for row in rows]
     save_png(transfer / "comparison_views.png", np.concatenate(tiles, axis=0))
     save_png(transfer / "render_at_true_pose.png", tiles[2][:, :size])
     result["settings"] = {"lighting": lighting, "views": [[round(v.azimuth, 2), round(v.elevation, 2)] for v in views],
@@ -259,8 +258,6 @@ def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
     untrained and oracle rows against the photos, the gap closed and the diversity across latents;
     writes the samples grid ``gan/generation_samples.png`` (rows latents, columns views, last row the
     ground truth)."""
-    from infer.generation import GenerationConfig, run_generation_protocol
-
     gen_cfg = GenerationConfig(views=cfg.eval_views, latents=cfg.eval_latents, kid_fid=False, seed=cfg.seed)
     return run_generation_protocol(out / "world", out / "shapes" / "query", out / "gan" / "checkpoint.safetensors", gen_cfg,
                                    samples_path=out / "gan" / "generation_samples.png", log=lambda line: None)
@@ -270,8 +267,6 @@ def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
 def transfer_section(scores: dict) -> str:
     """The report's transfer tables: a row per method (the oracle first), a column per metric with
     its direction, the photo's view and the unseen views apart; the best method but the oracle in bold."""
-    from mesh2tex.evaluation import METRIC_TITLES, METRICS
-
     esc = html.escape
     settings = scores.get("settings", {})
     methods = [m for m in TRANSFER_METHODS if m in scores]
@@ -338,8 +333,6 @@ Colour spread {fmt(d['trained_spread_vs_photo_set'])} of the photo set's.</p>
 
 def shipped_model_note(fmt) -> str:
     """A paragraph with the shipped chair model's figures (from its card), or '' when none is shipped."""
-    from mesh2tex.io.models import models_root
-
     card_path = models_root() / "chair" / "card.json"
     if not card_path.is_file():
         return ""

@@ -42,17 +42,22 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from infer.evaluate import EvaluateConfig, evaluate_sets, list_images, load_set
-from infer.generate import load_generator, shape_mismatch
 from mesh2tex.errors import UserError
+from mesh2tex.evaluation.world import load_world, world_spec
 from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.image_sets import list_images, load_set
+from mesh2tex.io.images import colors_to_uint8, save_png
+from mesh2tex.io.models import load_generator
+from mesh2tex.metrics import get_feature_extractor
+from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
-from mesh2tex.render import orbit_camera
+from mesh2tex.render import composite_images, orbit_camera
 from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views
+from mesh2tex.texture import shape_mismatch
 
 ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth")
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
@@ -82,9 +87,6 @@ class WorldData:
 
 def read_world(root: str | Path) -> WorldData:
     """The world's spec and its held-out shapes (the query split) from ``root/index.json``."""
-    from infer.protocols import load_world
-    from mesh2tex.evaluation.world import world_spec
-
     world = load_world(root)  # checks the index (format, complete, query files)
     spec = world_spec(world.index)
     held_out = list(world.index["split"]["query_shapes"])
@@ -97,7 +99,7 @@ def _white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor,
     """(B, R, R, 3) uint8 over any background, (B, R, R) 0/255 -> on white (B, 3, R, R) [0, 1], masks (B, 1, R, R)."""
     rgb = torch.from_numpy(rgb_uint8).float().permute(0, 3, 1, 2) / 255.0
     mask = torch.from_numpy(mask_uint8 > 127).float().unsqueeze(1)
-    return rgb * mask + (1.0 - mask), mask
+    return composite_images(rgb, mask, 1.0), mask
 
 
 def ground_truth_renders(world: WorldData, name: str, views, resolution: int, lit: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
@@ -212,8 +214,6 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
 
     eval_cfg = EvaluateConfig(resolution=resolution, features=cfg.features, seed=cfg.seed)
     if cfg.kid_fid and extractor is None:
-        from mesh2tex.metrics import get_feature_extractor
-
         extractor = get_feature_extractor(cfg.features, device=device)
     rows = {}
     for row in ROWS:
@@ -249,8 +249,6 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
 def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedShape, world: WorldData, name: str,
                        resolution: int, cfg: GenerationConfig, device: torch.device, latents: int = 4, views: int = 4) -> None:
     """PNG grid: rows latents (seeds ``cfg.seed*1000 + row``), columns azimuths evenly spaced; the last row the shape's ground truth (lit)."""
-    from mesh2tex.io.images import save_png
-
     base = sample_views(world.spec, world.indices[name], 1)[0]
     ring = [dataclasses.replace(base, azimuth=a, elevation=cfg.elevation, distance=(world.spec.distance_min + world.spec.distance_max) / 2)
             for a in (np.arange(views) * 360.0 / views + cfg.azimuth)]
@@ -261,7 +259,7 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     rows.append(ground_truth_renders(world, name, ring, resolution, lit=True)[0])
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)
-    save_png(path, (grid.numpy() * 255).round().astype(np.uint8))
+    save_png(path, colors_to_uint8(grid, signed=False))
 
 
 def generation_markdown(result: dict) -> str:

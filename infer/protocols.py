@@ -55,7 +55,6 @@ from __future__ import annotations
 import argparse
 import copy
 import json
-import math
 import shutil
 import sys
 import time
@@ -66,26 +65,31 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from mesh2tex import transfer
+from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
-from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.io.atomic import write_json, write_text
-from mesh2tex.io.images import save_png
-from mesh2tex.metrics import to_unit
-
-PROTOCOLS = ("unconditional", "known_pose", "unknown_pose", "other_shape")
-TRANSFER_PROTOCOLS = PROTOCOLS[1:]
-# Ablation name -> the TransferConfig fields it changes (paper Table 8).
-ABLATIONS = {
-    "full": {},
-    "no_noc": {"use_noc": False},
-    "no_patches": {"use_patches": False},
-    "no_refine": {"refine": False},
-}
-# The simple methods beside every transfer (none optimises anything): the ground truth itself, the
-# photo's mean colour everywhere, the generator's mean texture (w_avg), and the photo back-projected.
-BASELINES = ("oracle", "flat_colour", "mean_texture", "backprojection")
-LOWER_IS_BETTER = ("kid", "fid", "swd", "color_hist_tv")
-HIGHER_IS_BETTER = ("psnr_masked", "ssim_masked")
+from mesh2tex.evaluation import (LIGHTING, ComparisonRender, ScoreSettings, backproject_photo, common_mask, flat_surface,
+                                 generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
+                                 seen_and_unseen)
+from mesh2tex.evaluation.paired import compare_to_full, flat_colour_targets, mean_scores, oracle_check
+from mesh2tex.evaluation.report import BASELINES, PROTOCOLS, TRANSFER_PROTOCOLS, protocols_markdown
+from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth, load_world, other_shape_name, reference_renders
+from mesh2tex.geometry.prepared import PreparedShape, shape_paths
+from mesh2tex.io.atomic import atomic_path, json_ready, write_json, write_text
+from mesh2tex.io.checkpoint import checkpoint_digest
+from mesh2tex.io.image_sets import list_images, load_set
+from mesh2tex.io.images import images_to_uint8, save_png
+from mesh2tex.io.models import gan_camera, load_generator
+from mesh2tex.metrics import get_feature_extractor, to_unit
+from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
+from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.pose import azimuth_error
+from mesh2tex.nn.render_texture import render_field_views
+from mesh2tex.nn.vgg import load_vgg19
+from mesh2tex.render import orbit_camera
+from mesh2tex.runtime import select_device
+from mesh2tex.texture import latent, load_shape, mean_latent
+from mesh2tex.transfer import ABLATIONS, TransferConfig, check_style_sizes, estimate_pose, load_photo, predict_noc, view_at_pose
 
 
 @dataclass
@@ -113,88 +117,31 @@ class ProtocolConfig:
     vgg_weights: str = ""  # VGG19 ImageNet weights for the style losses ('' looks in $TORCH_HOME)
     inception_weights: str = ""  # Inception-v3 weights for KID/FID ('' looks in $TORCH_HOME)
 
+    def __post_init__(self):
+        unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
+                   + [b for b in self.baselines if b not in BASELINES])
+        if unknown:
+            raise UserError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
+                            f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join(BASELINES)}")
+        if self.lighting not in LIGHTING:
+            raise UserError(f"lighting {self.lighting!r}: must be one of {', '.join(LIGHTING)}")
+        if not 0 <= self.unseen_views <= 35 or self.lowpass_sigma < 0:
+            raise UserError(f"unseen_views {self.unseen_views}, lowpass_sigma {self.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
+        if self.resolution < 32:
+            raise UserError(f"--resolution {self.resolution}: must be at least 32")
+        if self.latent_iters < 0 or self.refine_iters < 0:
+            raise UserError("--latent-iters and --refine-iters must not be negative")
 
-@dataclass
-class Query:
-    """One held-out query photo of the world and its ground truth."""
+    def transfer_config(self, device: str = "auto") -> TransferConfig:
+        """The settings of every transfer: :class:`TransferConfig`'s defaults with this config's resolution,
+        iterations, style sizes, pose search, seed and VGG weights (the ablations change it further)."""
+        return TransferConfig(resolution=self.resolution, latent_iters=self.latent_iters, refine_iters=self.refine_iters,
+                              patch_size=self.patch_size, scales=self.scales, patch_scales=self.patch_scales, seed=self.seed,
+                              pose_search=self.pose_search, device=device, vgg_weights=self.vgg_weights)
 
-    name: str  # file stem, e.g. chair_0004_00
-    image: Path
-    mask: Path
-    shape: str  # the world shape it shows
-    azimuth: float
-    elevation: float
-    distance: float
-    fov: float
-    record: dict = field(default_factory=dict)  # the sidecar (camera, light, background, files)
-
-
-@dataclass
-class World:
-    root: Path
-    index: dict
-    queries: list[Query]
-    query_shapes: list[str]
-
-
-# ------------------------------------------------------------------------------------------- inputs
-def load_world(root: str | Path, max_queries: int = 0) -> World:
-    """The world's index and its query photos (first ``max_queries``; 0: all) with their sidecar poses."""
-    root = Path(root)
-    index_path = root / "index.json"
-    if not index_path.is_file():
-        raise UserError(f"{root}: not a synthetic world (no index.json; make one with 'mesh2tex prepare synthetic')")
-    try:
-        index = json.loads(index_path.read_text())
-    except json.JSONDecodeError as error:
-        raise UserError(f"{index_path}: not valid JSON ({error.msg})") from None
-    if index.get("format") != "mesh2tex-synthetic-world":
-        raise UserError(f"{index_path}: not a mesh2tex synthetic world index (format {index.get('format')!r})")
-    if not index.get("complete", False):
-        raise UserError(f"{root}: the world is incomplete; finish it with 'mesh2tex prepare synthetic' (it resumes)")
-    entries = index.get("queries") or []
-    if not entries:
-        raise UserError(f"{index_path}: the world has no query photos (prepare it with --query-views above 0)")
-    queries = []
-    for entry in entries:
-        sidecar = root / entry["sidecar"] if "sidecar" in entry else None
-        truth = json.loads(sidecar.read_text()) if sidecar is not None and sidecar.is_file() else entry
-        image, mask = root / entry["image"], root / entry["mask"]
-        for path in (image, mask):
-            if not path.is_file():
-                raise UserError(f"{path}: query file missing (listed in {index_path})")
-        queries.append(Query(name=image.stem, image=image, mask=mask, shape=truth["shape"],
-                             azimuth=float(truth["azimuth"]), elevation=float(truth["elevation"]),
-                             distance=float(truth["distance"]), fov=float(truth["fov"]), record=truth))
-    if max_queries > 0:
-        queries = queries[:max_queries]
-    query_shapes = list(dict.fromkeys(q.shape for q in queries))
-    return World(root=root, index=index, queries=queries, query_shapes=query_shapes)
-
-
-def shape_paths(folder: str | Path) -> dict[str, Path]:
-    """{name: path} of the prepared shapes (.npz) in ``folder``, sorted by name."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise UserError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
-    found = {p.stem: p for p in sorted(folder.glob("*.npz"))}
-    if not found:
-        raise UserError(f"{folder}: no prepared shapes (.npz)")
-    return found
-
-
-def other_shape_name(name: str, available: list[str]) -> str:
-    """The transfer target for a query of shape ``name``: the next available shape by name (cyclic), never ``name``."""
-    others = sorted(set(available) - {name})
-    if not others:
-        raise UserError(f"transfer to another shape needs a second prepared shape besides {name}")
-    later = [n for n in others if n > name]
-    return later[0] if later else others[0]
-
-
-def on_white(images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
-    """images [N,3,H,W] in [0,1], masks [N,1,H,W] {0,1} -> the object on white."""
-    return images * masks + (1.0 - masks)
+    def evaluate_config(self) -> EvaluateConfig:
+        """The settings of the unconditional protocol's set metrics."""
+        return EvaluateConfig(resolution=self.resolution, features=self.features, kid_subsets=self.kid_subsets, seed=self.seed)
 
 
 # ---------------------------------------------------------------------------------- unconditional
@@ -208,11 +155,6 @@ def unconditional_renders(generator, shapes: list[PreparedShape], latents: int, 
     Views of one latent: azimuths evenly spaced (offset by the latent), elevations evenly across
     ``elevations`` (degrees); latent seeds ``seed * 1000 + k``.
     """
-    from infer.generate import latent
-    from mesh2tex.nn.batch import collate_shapes
-    from mesh2tex.nn.render_texture import render_field_views
-    from mesh2tex.render import orbit_camera
-
     renders, masks = [], []
     for s, shape in enumerate(shapes):
         batch = collate_shapes([shape]).to(device)
@@ -232,8 +174,6 @@ def unconditional_renders(generator, shapes: list[PreparedShape], latents: int, 
 def run_unconditional(generator, world: World, shapes: dict[str, PreparedShape], cfg: ProtocolConfig, extractor,
                       eval_cfg, distance: float, fov: float, device: torch.device, out: Path | None) -> dict:
     """Protocol ``unconditional``: GAN renders on the held-out shapes against the world's photos."""
-    from infer.evaluate import evaluate_sets, list_images, load_set
-
     start = time.perf_counter()
     settings = world.index.get("settings", {})
     elevations = (float(settings.get("elevation_min", 5.0)), float(settings.get("elevation_max", 35.0)))
@@ -246,49 +186,12 @@ def run_unconditional(generator, world: World, shapes: dict[str, PreparedShape],
         folder = out / "renders" / "unconditional"
         folder.mkdir(parents=True, exist_ok=True)
         for i, image in enumerate(renders[: cfg.views * cfg.latents]):
-            save_png(folder / f"{world.query_shapes[0]}_{i:02d}.png", _uint8(image))
+            save_png(folder / f"{world.query_shapes[0]}_{i:02d}.png", images_to_uint8(image, signed=False))
     return {"shapes": world.query_shapes, "reference": str(world.root / "images"), **result,
             "seconds": round(time.perf_counter() - start, 2)}
 
 
 # -------------------------------------------------------------------------------------- transfers
-@torch.no_grad()
-def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin: float):
-    """The query's true camera, framed like its photo crop: an ``infer.transfer.View`` whose render,
-    cropped with the photo's own box, is pixel-aligned with the cropped photo (exact geometry).
-
-    Its ``mask`` (1,1,R,R) is where the shape covers the crop; its ``noc`` is left empty.
-    """
-    from infer.transfer import View
-    from mesh2tex.io.images import load_mask
-    from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
-
-    photo_mask = np.asarray(load_mask(query.mask), dtype=bool)
-    side = photo_mask.shape[0]
-    if photo_mask.shape[1] != side:
-        raise UserError(f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}")
-    box = object_box(photo_mask, margin)
-    camera = orbit_camera(torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov)
-    vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
-    raster = rasterize(transform_points(vertices, camera.mvp), torch.as_tensor(shape.triangles(0)), (side, side))
-    mask = crop_mask(raster.face_id[0] >= 0, box, resolution)
-    return View(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask)
-
-
-@torch.no_grad()
-def render_at_view(generator, shape: PreparedShape, ws: torch.Tensor, view, resolution: int, device: torch.device) -> torch.Tensor:
-    """The texture of ``ws`` on ``shape`` seen at ``view`` (infer.transfer.View), cropped by its box: [1,3,R,R] in [-1,1]."""
-    from mesh2tex.render import crop_square
-    from mesh2tex.nn.batch import collate_shapes
-    from mesh2tex.nn.render_texture import render_field_views
-
-    batch = collate_shapes([shape]).to(device)
-    size = (view.render_size, view.render_size)
-    full = render_field_views(generator, batch, ws.to(device), view.mvp.to(device), size, torch.zeros(1, 3, device=device),
-                              noise_mode="none").images
-    return crop_square(full.float(), view.box, resolution).cpu()
-
-
 def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[str, PreparedShape], targets: dict[str, str],
                           vgg, cfg: ProtocolConfig,
                           pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None,
@@ -306,17 +209,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     Returns {"queries": [per-query setup], "methods": {name: {"query": mean scores, "per_query":
     [rows], "seconds": s}}}; scores are named "seen <metric>" and "unseen <metric>".
     """
-    from infer.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, transfer_texture, view_at_pose
-    from mesh2tex.evaluation import (ComparisonRender, ScoreSettings, backproject_photo, common_mask, flat_surface,
-                                     generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
-                                     seen_and_unseen)
-    from mesh2tex.evaluation.world import load_query_truth, load_shape_truth, reference_renders
-    from mesh2tex.nn.batch import collate_shapes
-    from mesh2tex.nn.pose import azimuth_error
-
-    base = TransferConfig(resolution=cfg.resolution, latent_iters=cfg.latent_iters, refine_iters=cfg.refine_iters,
-                          patch_size=cfg.patch_size, scales=cfg.scales, patch_scales=cfg.patch_scales, seed=cfg.seed,
-                          pose_search=cfg.pose_search, device=str(device), vgg_weights=cfg.vgg_weights)
+    base = cfg.transfer_config(str(device))
     exact = protocol in ("known_pose", "unknown_pose")
     settings = ScoreSettings(lowpass_sigma=cfg.lowpass_sigma, seed=cfg.seed)
     offsets = [360.0 * k / (cfg.unseen_views + 1) for k in range(1, cfg.unseen_views + 1)]
@@ -394,7 +287,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                 rendered = flat
             elif name == "mean_texture":
                 with torch.no_grad():
-                    ws = generator.mapping.w_avg.reshape(1, 1, -1).expand(1, generator.num_ws, -1).to(device)
+                    ws = mean_latent(generator).to(device)
                     features = generator.synthesize(batch.to(device), ws, noise_mode="none").field_features
                 rendered = render(generator_surface(generator, features, batch))
             else:  # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
@@ -418,7 +311,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             else:
                 torch.manual_seed(cfg.seed)
                 candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
-                result = transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
+                result = transfer.transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
                                           show_progress=False)
                 with torch.no_grad():
                     features = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none").field_features.cpu()
@@ -433,20 +326,9 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     return {"queries": setups, "methods": methods}
 
 
-def mean_scores(rows: list[dict]) -> dict[str, float]:
-    """Mean over the rows (queries) of every score column ('seen ...', 'unseen ...'), NaNs skipped."""
-    columns = [k for k in (rows[0] if rows else {}) if k.startswith(("seen ", "unseen "))]
-    means = {}
-    for column in columns:
-        values = [r[column] for r in rows if column in r and isinstance(r[column], (int, float)) and not math.isnan(r[column])]
-        if values:
-            means[column] = sum(values) / len(values)
-    return means
-
-
 def _strip(images: torch.Tensor) -> np.ndarray:
     """[B, 3, R, R] in [0, 1] -> one (R, B*R + 2*(B-1), 3) uint8 image, the views side by side."""
-    tiles = [_uint8(image) for image in images]
+    tiles = [images_to_uint8(image, signed=False) for image in images]
     gap = np.full((tiles[0].shape[0], 2, 3), 255, dtype=np.uint8)
     return np.concatenate([t for tile in tiles for t in (tile, gap)][:-1], axis=1)
 
@@ -494,268 +376,8 @@ class TransferCache:
             return torch.from_numpy(data["field_features"]), json.loads(str(data["row"]))
 
     def save(self, protocol: str, ablation: str, query: str, field_features: torch.Tensor, row: dict) -> None:
-        from mesh2tex.io.atomic import atomic_path
-
         with atomic_path(self._path(protocol, ablation, query)) as tmp:
             np.savez(tmp, field_features=field_features.detach().float().cpu().numpy(), row=np.array(json.dumps(row)))
-
-
-# ------------------------------------------------------------------------------------- comparison
-def metric_direction(name: str) -> int:
-    """+1 if higher is better, -1 if lower is better, 0 for values that are not scores (spreads, levels).
-
-    Transfer columns are named '<seen|unseen> <metric>' (``mesh2tex.evaluation.METRICS``); the
-    unconditional protocol's set metrics by their own names (kid_*, fid_*, swd, color_hist_tv)."""
-    from mesh2tex.evaluation import METRICS
-
-    if name.endswith("_std") or (name.startswith("swd_") and name.endswith("px")):
-        return 0
-    last = name.split(" ")[-1]
-    if " " in name and last in METRICS:
-        return METRICS[last]
-    if name in HIGHER_IS_BETTER:
-        return 1
-    base = name.split("_")[0]
-    return -1 if base in ("kid", "fid", "swd") or name == "color_hist_tv" else 0
-
-
-def scored_metrics(entry: dict) -> dict[str, float]:
-    """{column: mean value} of one method's scores that rank methods (finite values only)."""
-    return {name: float(value) for name, value in entry.get("query", {}).items()
-            if metric_direction(name) != 0 and isinstance(value, (int, float)) and math.isfinite(value)}
-
-
-def compare_to_full(methods: dict) -> dict:
-    """For every other method (ablation or baseline): per column whether the full method's mean is
-    better, the count of wins, and the paired view of the same queries (``query_wins``: [full better,
-    queries]; ``query_tests``: mean difference, Wilcoxon p)."""
-    if "full" not in methods:
-        return {}
-    full = scored_metrics(methods["full"])
-    full_rows = methods["full"].get("per_query", [])
-    comparison = {}
-    for name, entry in methods.items():
-        if name == "full":
-            continue
-        other = scored_metrics(entry)
-        other_rows = entry.get("per_query", [])
-        margin = {m: (full[m] - other[m]) * metric_direction(m) for m in full if m in other}
-        comparison[name] = {"full_better": {m: d > 0 for m, d in margin.items()}, "wins": sum(d > 0 for d in margin.values()),
-                            "ties": sum(d == 0 for d in margin.values()), "metrics": len(margin),
-                            "query_wins": paired_query_wins(full_rows, other_rows), "query_tests": paired_query_tests(full_rows, other_rows)}
-    return comparison
-
-
-def paired_query_differences(full_rows: list[dict], other_rows: list[dict]) -> dict[str, list[float]]:
-    """Per score column, the differences full - other over the queries both ran, signed so that a
-    positive value means the full method is better (for lower-is-better columns: other - full)."""
-    others = {row["query"]: row for row in other_rows}
-    differences: dict[str, list[float]] = {}
-    for row in full_rows:
-        other = others.get(row["query"])
-        if other is None:
-            continue
-        for metric, value in row.items():
-            direction = metric_direction(metric) if isinstance(value, (int, float)) else 0
-            if direction and metric in other and math.isfinite(value) and math.isfinite(other[metric]):
-                differences.setdefault(metric, []).append((value - other[metric]) * direction)
-    return differences
-
-
-def paired_query_wins(full_rows: list[dict], other_rows: list[dict]) -> dict[str, list[int]]:
-    """Per metric, [queries where the full method is strictly better, queries compared]: the paired view
-    of the same queries, less sensitive than a mean to one query's large margin."""
-    return {metric: [sum(d > 0 for d in values), len(values)]
-            for metric, values in paired_query_differences(full_rows, other_rows).items()}
-
-
-def paired_query_tests(full_rows: list[dict], other_rows: list[dict]) -> dict[str, dict]:
-    """Per metric: the mean paired difference (positive: the full method is better) and the two-sided
-    p-value of the Wilcoxon signed-rank test of the differences (exact for small, untied samples).
-
-    The p-value says how often differences at least this one-sided would arise if neither method were
-    better on such queries: with 6 queries it cannot go below 0.031, so a table of 6 queries can
-    show a trend but not settle a comparison. ``p_wilcoxon`` is None when every difference is 0 or
-    fewer than 2 queries were compared.
-    """
-    from scipy.stats import wilcoxon
-
-    tests = {}
-    for metric, values in paired_query_differences(full_rows, other_rows).items():
-        p_value = None
-        if len(values) >= 2 and any(v != 0 for v in values):
-            p_value = float(wilcoxon(values).pvalue)
-        tests[metric] = {"mean_difference": sum(values) / len(values), "p_wilcoxon": p_value, "pairs": len(values)}
-    return tests
-
-
-def oracle_check(methods: dict) -> list[str]:
-    """The columns where the ground truth (``oracle``) does not score at least as well as every other
-    method: each one is a broken metric or comparison. Empty when it wins everywhere."""
-    if "oracle" not in methods:
-        return []
-    oracle = scored_metrics(methods["oracle"])
-    lost = []
-    for column, value in oracle.items():
-        others = [scored_metrics(e).get(column) for n, e in methods.items() if n != "oracle"]
-        others = [v for v in others if v is not None]
-        if others and any((v - value) * metric_direction(column) > 0 for v in others):
-            lost.append(column)
-    return lost
-
-
-def flat_colour_targets(methods: dict, method: str = "full") -> dict:
-    """How ``method`` does against the flat mean colour, query by query (the issue's targets): the
-    ratio of mean per-part ΔE (seen and unseen), the share of queries with a lower ΔE, and the share
-    with a higher low-pass PSNR (seen)."""
-    if method not in methods or "flat_colour" not in methods:
-        return {}
-    mine, flat = methods[method], methods["flat_colour"]
-    wins = paired_query_wins(mine["per_query"], flat["per_query"])
-    out = {}
-    for side in ("seen", "unseen"):
-        column = f"{side} part_delta_e"
-        if column in mine["query"] and column in flat["query"] and flat["query"][column] > 0:
-            out[f"{side} part_delta_e ratio"] = mine["query"][column] / flat["query"][column]
-            if column in wins:
-                out[f"{side} part_delta_e below"] = wins[column]
-    if "seen lowpass_psnr" in wins:
-        out["seen lowpass_psnr above"] = wins["seen lowpass_psnr"]
-    return out
-
-
-# ----------------------------------------------------------------------------------------- report
-METHOD_TITLES = {"oracle": "ground-truth texture (oracle)", "flat_colour": "flat mean colour of the photo",
-                 "mean_texture": "generator's mean texture (w_avg)", "backprojection": "photo back-projection",
-                 **{"full": "full method", "no_noc": "w/o NOC", "no_patches": "w/o patches",
-                    "no_refine": "w/o surface features (no refine)"}}
-ABLATION_TITLES = {k: METHOD_TITLES[k] for k in ABLATIONS}
-
-
-def _paired_note(test: dict | None) -> str:
-    """' (mean +0.47, p 0.69)': the paired difference (positive: full better) and its Wilcoxon p-value."""
-    if not test:
-        return ""
-    p_value = test.get("p_wilcoxon")
-    return f" (mean {test['mean_difference']:+.3g}" + ("" if p_value is None else f", p {p_value:.2g}") + ")"
-
-
-def _fmt(value, name: str) -> str:
-    if not isinstance(value, (int, float)) or not math.isfinite(value):
-        return "-" if value is None else str(value)
-    if name.startswith("kid"):
-        return f"{value * 100:.3g}"  # x1e2, as the paper's tables
-    return f"{value:.4g}"
-
-
-def _column_title(column: str) -> str:
-    from mesh2tex.evaluation import METRIC_TITLES
-
-    side, _, metric = column.partition(" ")
-    arrow = " ↑" if metric_direction(column) > 0 else " ↓"
-    return f"{side} {METRIC_TITLES.get(metric, metric)}{arrow}"
-
-
-def transfer_table(methods: dict, order: list[str]) -> list[str]:
-    """Markdown rows of one transfer protocol: a row per method, seen columns then unseen columns; the
-    best value among the methods other than the oracle in bold."""
-    from mesh2tex.evaluation import METRICS
-
-    present = set().union(*(m["query"] for m in methods.values()))
-    columns = [f"{side} {metric}" for side in ("seen", "unseen") for metric in METRICS if f"{side} {metric}" in present]
-    best = {}
-    for column in columns:
-        values = [scored_metrics(e).get(column) for n, e in methods.items() if n != "oracle"]
-        values = [v for v in values if v is not None]
-        if values:
-            best[column] = max(values) if metric_direction(column) > 0 else min(values)
-    lines = ["| method | " + " | ".join(_column_title(c) for c in columns) + " | seconds |",
-             "| --- |" + " --- |" * (len(columns) + 1)]
-    for name in order:
-        if name not in methods:
-            continue
-        scores = methods[name]["query"]
-        cells = []
-        for column in columns:
-            text = _fmt(scores.get(column), column)
-            cells.append(f"**{text}**" if name != "oracle" and scores.get(column) is not None and scores.get(column) == best.get(column) else text)
-        lines.append(f"| {METHOD_TITLES.get(name, name)} | " + " | ".join(cells) + f" | {methods[name]['seconds']:.0f} |")
-    return lines
-
-
-def protocols_markdown(result: dict) -> str:
-    """The results as markdown: one table per protocol (rows: the oracle, the baselines, the ablations
-    of the paper's Table 8 and the full method), then the paired comparisons with the full method."""
-    lines = ["# mesh2tex evaluate --protocols", ""]
-    s = result["settings"]
-    lines.append(f"World `{result['world']}`, GAN `{result['gan']}`; {result['counts']['queries']} queries; "
-                 f"transfer {s['latent_iters']} + {s['refine_iters']} iterations at {s['resolution']} px, "
-                 f"style scales {s.get('scales', '?')}, patches {s['patch_size']} px at {s.get('patch_scales') or s.get('scales', '?')} "
-                 f"scales. KID is shown x1e2. KID/FID features: {result['features']}.")
-    lines.append("")
-    if "unconditional" in result["protocols"]:
-        entry = result["protocols"]["unconditional"]
-        metrics = {k: v for k, v in entry["metrics"].items() if metric_direction(k) != 0}
-        lines += ["## unconditional generation (held-out shapes vs the world's photos)", "",
-                  "| " + " | ".join(metrics) + " |", "|" + " --- |" * len(metrics),
-                  "| " + " | ".join(_fmt(v, k) for k, v in metrics.items()) + " |", ""]
-    titles = {"known_pose": "exact geometry, known pose", "unknown_pose": "exact geometry, unknown pose (pose network)",
-              "other_shape": "transfer to another shape of the category"}
-    for protocol in TRANSFER_PROTOCOLS:
-        if protocol not in result["protocols"]:
-            continue
-        entry = result["protocols"][protocol]
-        methods = entry["methods"]
-        lines += [f"## {titles[protocol]} (`{protocol}`)", "",
-                  f"Every method rendered alike (`mesh2tex.evaluation.render_for_comparison`, lighting `{s.get('lighting', 'photo')}`) "
-                  f"at the photo's view (seen) and {s.get('unseen_views', 4)} views it does not show (unseen, mean), "
-                  "against what the world photographs there; "
-                  + ("scored on the object pixels both the world's shape and the prepared one cover. "
-                     if protocol != "other_shape" else "each image on its own object pixels, parts matched by label. ")
-                  + f"Low-pass PSNR after a Gaussian blur of σ = {s.get('lowpass_sigma', 3.0):g} px; object SWD x1e3. "
-                  "Bold: the best method other than the oracle.", ""]
-        order = ["oracle", "flat_colour", "mean_texture", "backprojection", "no_noc", "no_patches", "no_refine", "full"]
-        lines += transfer_table(methods, order)
-        lost = oracle_check(methods)
-        lines += ["", "The oracle wins every column." if not lost else
-                  f"**The oracle does not win: {', '.join(lost)}** (a broken metric or comparison)."]
-        errors = [q["azimuth_error"] for q in entry["queries"]]
-        if protocol != "known_pose" and errors:
-            searched = [q["network_azimuth_error"] for q in entry["queries"] if "network_azimuth_error" in q]
-            how = "Pose network + silhouette search" if searched else "Pose network"
-            lines += ["", f"{how}: mean azimuth error {sum(errors) / len(errors):.1f} deg, "
-                          f"mean elevation error {sum(q['elevation_error'] for q in entry['queries']) / len(errors):.1f} deg"
-                          + (f" (the network's bins alone: mean azimuth error {sum(searched) / len(searched):.1f} deg)." if searched else ".")]
-        targets = flat_colour_targets(methods)
-        if targets:
-            parts = []
-            for side in ("seen", "unseen"):
-                if f"{side} part_delta_e ratio" in targets:
-                    below = targets.get(f"{side} part_delta_e below")
-                    parts.append(f"{side} per-part ΔE {targets[f'{side} part_delta_e ratio']:.2f} of the flat colour's"
-                                 + (f", lower on {below[0]} of {below[1]} queries" if below else ""))
-            if "seen lowpass_psnr above" in targets:
-                w, n = targets["seen lowpass_psnr above"]
-                parts.append(f"seen low-pass PSNR higher on {w} of {n}")
-            lines += ["", "Full method against the flat colour: " + "; ".join(parts) + "."]
-        for name, c in result["comparison"].get(protocol, {}).items():
-            if name == "oracle":
-                continue
-            lost = [m for m, better in c["full_better"].items() if not better]
-            lines.append("")
-            lines.append(f"Full method better than {METHOD_TITLES.get(name, name)} on {c['wins']} of {c['metrics']} columns"
-                         + (f", {c['ties']} tied" if c["ties"] else "")
-                         + (f" (not better on: {', '.join(lost)})." if lost else ".")
-                         + ("" if not c.get("query_wins") else " Per query, full better on "
-                            + ", ".join(f"{m} in {w} of {n}" + _paired_note(c.get("query_tests", {}).get(m))
-                                        for m, (w, n) in c["query_wins"].items()) + "."))
-        lines.append("")
-    return "\n".join(lines) + "\n"
-
-
-def _uint8(image01: torch.Tensor):
-    """[3,H,W] in [0,1] -> (H,W,3) uint8."""
-    return (image01.clamp(0, 1) * 255).round().to(torch.uint8).permute(1, 2, 0).cpu().numpy()
 
 
 # ------------------------------------------------------------------------------------------- entry
@@ -768,33 +390,9 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     With ``out``, every finished transfer is kept in ``out/transfers`` (:class:`TransferCache`), so
     re-running after an interruption resumes and a wider run reuses them; ``overwrite`` discards
     transfers made with other settings instead of refusing the run."""
-    from infer.evaluate import EvaluateConfig, _json_value
-    from infer.generate import load_generator, load_shape
-    from mesh2tex.metrics import get_feature_extractor
-    from mesh2tex.nn.vgg import load_vgg19
-    from train.runs import select_device
-
-    from mesh2tex.evaluation import LIGHTING
-
-    unknown = ([p for p in cfg.protocols if p not in PROTOCOLS] + [a for a in cfg.ablations if a not in ABLATIONS]
-               + [b for b in cfg.baselines if b not in BASELINES])
-    if unknown:
-        raise UserError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
-                        f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join(BASELINES)}")
-    if cfg.lighting not in LIGHTING:
-        raise UserError(f"lighting {cfg.lighting!r}: must be one of {', '.join(LIGHTING)}")
-    if not 0 <= cfg.unseen_views <= 35 or cfg.lowpass_sigma < 0:
-        raise UserError(f"unseen_views {cfg.unseen_views}, lowpass_sigma {cfg.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
-    if cfg.resolution < 32:
-        raise UserError(f"--resolution {cfg.resolution}: must be at least 32")
-    if cfg.latent_iters < 0 or cfg.refine_iters < 0:
-        raise UserError("--latent-iters and --refine-iters must not be negative")
     transfers = [p for p in cfg.protocols if p in TRANSFER_PROTOCOLS]
     if transfers:
-        from infer.transfer import TransferConfig, check_style_sizes
-
-        check_style_sizes(TransferConfig(resolution=cfg.resolution, patch_size=cfg.patch_size, scales=cfg.scales,
-                                         patch_scales=cfg.patch_scales))
+        check_style_sizes(cfg.transfer_config())
     if any(p != "known_pose" for p in transfers) and not pose_checkpoint:
         raise UserError("the unknown_pose and other_shape protocols need --pose-checkpoint (from 'mesh2tex train pose')")
     if transfers and any(ABLATIONS[a].get("use_noc", True) and ABLATIONS[a].get("use_patches", True) for a in cfg.ablations) \
@@ -804,8 +402,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     started = time.perf_counter()
     world = load_world(world_dir, cfg.queries)
     generator, meta = load_generator(gan_checkpoint, device)
-    camera = meta.get("config", {}).get("camera", {})
-    distance, fov = float(camera.get("distance", 1.7)), float(camera.get("fov", 40.0))
+    distance, fov = gan_camera(meta)
     paths = shape_paths(shapes_dir)
     needed, targets = set(world.query_shapes), {}
     if "other_shape" in cfg.protocols:
@@ -815,7 +412,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     if missing:
         raise UserError(f"{shapes_dir}: no prepared shape for {', '.join(missing)} (prepare the world's meshes with 'mesh2tex prepare shapes')")
     shapes = {name: load_shape(paths[name], generator, 0, cfg.seed) for name in sorted(needed)}
-    eval_cfg = EvaluateConfig(resolution=cfg.resolution, features=cfg.features, kid_subsets=cfg.kid_subsets, seed=cfg.seed)
+    eval_cfg = cfg.evaluate_config()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         extractor = get_feature_extractor(cfg.features, cfg.inception_weights or None, cfg.vgg_weights or None, device)
@@ -835,7 +432,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         for key, default in (("patch_scales", 0), ("pose_search", False)):
             if settings[key] == default:
                 del settings[key]
-        cache = TransferCache(out, {"settings": _json_safe(settings), "inputs": inputs}, overwrite)
+        cache = TransferCache(out, {"settings": json_ready(settings), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
               "noc_checkpoint": str(noc_checkpoint) if noc_checkpoint else None,
@@ -857,24 +454,14 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         log(f"{protocol}: done in {entry['seconds']:.0f} s")
     result["seconds"] = round(time.perf_counter() - started, 2)
     if out is not None:
-        write_json(out / "protocols.json", _json_value(result))
+        write_json(out / "protocols.json", json_ready(result))
         write_text(out / "protocols.md", protocols_markdown(result))
     return result
 
 
 def _file_digest(path: str | Path | None) -> str | None:
-    """SHA-256 prefix of a file's bytes (None for None): the identity of a checkpoint, wherever it lies."""
-    import hashlib
-
-    if path is None:
-        return None
-    if not Path(path).is_file():
-        raise UserError(f"{path}: checkpoint not found")
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
-
-
-def _json_safe(value):
-    return json.loads(json.dumps(value))
+    """:func:`mesh2tex.io.checkpoint.checkpoint_digest`, None for None."""
+    return None if path is None else checkpoint_digest(path)
 
 
 def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
@@ -904,8 +491,6 @@ def _split(text: str | None) -> list[str] | None:
 
 def run_protocols_command(args: argparse.Namespace) -> int:
     """``mesh2tex evaluate --protocols ...``: writes OUT/protocols.json, OUT/protocols.md and OUT/renders/."""
-    from mesh2tex.config import load_config
-
     for flag in ("world", "shapes", "gan"):
         if not getattr(args, flag):
             raise UserError(f"--protocols needs --{flag}")

@@ -5,10 +5,17 @@ Library layout (one home per concept):
     mesh2tex.render     cameras, rasterizer, interpolation, shading, UV-space rasterization, baking
     mesh2tex.nn         face convolutions, generator, neural field, discriminators, pose and NOC nets, VGG
     mesh2tex.losses     GAN losses and regularisers, style losses
-    mesh2tex.metrics    KID/FID, sliced Wasserstein, PSNR/SSIM, histogram distances
-    mesh2tex.io         atomic writes, checkpoints (safetensors + JSON), images, textured assets
+    mesh2tex.metrics    KID/FID, sliced Wasserstein, PSNR/SSIM, histogram distances, set and pair evaluations
+    mesh2tex.evaluation quality tables on equal footing: surfaces, one render function, the world's ground truth,
+                        paired statistics, the protocols' report
+    mesh2tex.transfer   texture transfer: the photo, the pose search, the optimisation
+    mesh2tex.io         atomic writes, checkpoints of every kind (safetensors + JSON), images, textured assets
     mesh2tex.synthetic  the procedural synthetic world (shapes, materials)
-The pipeline stages that read and write files live in the packages data_prep/, train/ and infer/.
+    mesh2tex.texture    a generator's texture on a shape: latents, vertex colours, UV baking
+    mesh2tex.runtime    devices, processes, seeding, RNG state, EMA
+    mesh2tex.photos     object masks (GrabCut) and square crops of photos
+The pipeline stages that read and write files live in the packages data_prep/, train/ and infer/;
+they import the library and never one another (docs/architecture.md).
 """
 
 __version__ = "0.1.0"

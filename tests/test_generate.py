@@ -10,9 +10,10 @@ from PIL import Image
 
 from mesh2tex.cli import main
 from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.models import load_generator
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import field_colors
-from infer.generate import latent, load_generator
+from mesh2tex.texture import latent
 
 @pytest.fixture(scope="module")
 def trained(tiny_gan):
@@ -67,6 +68,20 @@ def test_baked_texture_matches_the_field(trained, tmp_path):
     error = np.abs(baked - expected).mean()
     assert error < 4.0
     assert np.abs(baked - expected[::-1]).mean() > 3 * error  # a wrong triangle order would not match
+
+
+def test_generate_reads_a_config_file_and_flags_override_it(trained, tmp_path, capsys):
+    config = tmp_path / "generate.yaml"
+    config.write_text("seeds: [3]\nviews: 2\nresolution: 16\ntexture_size: 32\ndevice: cpu\n")
+    base = ["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh",
+            str(trained / "shapes" / "box0.npz"), "--config", str(config)]
+    assert main(base + ["--out", str(tmp_path / "a")]) == 0
+    assert sorted(p.name for p in (tmp_path / "a").glob("*.png")) == ["seed3_view0.png", "seed3_view1.png"]
+    assert main(base + ["--out", str(tmp_path / "b"), "--views", "1", "--seeds", "4"]) == 0
+    assert sorted(p.name for p in (tmp_path / "b").glob("*.png")) == ["seed4_view0.png"]
+    config.write_text("views: 0\n")
+    assert main(base + ["--out", str(tmp_path / "c")]) == 2
+    assert "--views must be >= 1" in capsys.readouterr().err
 
 
 def test_generate_prepares_a_raw_mesh_and_rejects_bad_input(trained, tmp_path, capsys):

@@ -171,7 +171,7 @@ def test_evaluate_command_sets_and_pairs(tmp_path, monkeypatch, capsys):
 
 
 def test_set_colour_histograms_compare_object_pixels_not_backgrounds():
-    from infer.evaluate import pooled_histogram_distance
+    from mesh2tex.metrics.evaluate import pooled_histogram_distance
 
     def objects(colour, side, n=3):
         """n white 32x32 images with a centred square of ``colour`` and ``side`` pixels, and its masks."""
@@ -195,7 +195,7 @@ def test_set_colour_histograms_compare_object_pixels_not_backgrounds():
 
 
 def test_evaluate_sets_without_kid_fid_skips_the_feature_network(monkeypatch):
-    import infer.evaluate as evaluate
+    import mesh2tex.metrics.evaluate as evaluate
 
     def no_network(*args, **kwargs):
         raise AssertionError("the feature network was built")

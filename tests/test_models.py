@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from infer.generate import load_generator
+from mesh2tex.io.models import load_generator
 from mesh2tex.cli import main
 from mesh2tex.io.checkpoint import load_checkpoint
 from mesh2tex.io.models import MODEL_FILES, export_inference_checkpoint, list_models, resolve_checkpoint
@@ -53,7 +53,7 @@ def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch)
 def test_the_shipped_models_load(monkeypatch):
     """Every model in the source tree's models/ folder loads and has all three networks."""
     monkeypatch.delenv("MESH2TEX_MODELS", raising=False)
-    from train.view_nets import load_view_network
+    from mesh2tex.io.models import load_view_network
 
     for name in list_models():
         generator, meta = load_generator(name, torch.device("cpu"))

@@ -112,7 +112,7 @@ def chair():
 
 
 def test_silhouette_search_finds_the_pose_the_network_gets_backwards(chair):
-    from infer.transfer import Photo, PoseBeliefs, TransferConfig, search_pose, view_at_pose
+    from mesh2tex.transfer import Photo, PoseBeliefs, TransferConfig, search_pose, view_at_pose
 
     cfg = TransferConfig(resolution=64)
     # The "photo": the chair's silhouette from farther away than the search's camera (crops remove the scale).

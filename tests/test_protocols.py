@@ -12,8 +12,10 @@ import yaml
 
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
-from infer.protocols import (ABLATIONS, BASELINES, PROTOCOLS, compare_to_full, load_world, oracle_check, other_shape_name,
-                             paired_query_tests, paired_query_wins, photo_frame_view, protocols_markdown)
+from mesh2tex.evaluation.paired import compare_to_full, oracle_check, paired_query_tests, paired_query_wins
+from mesh2tex.evaluation.report import BASELINES, PROTOCOLS, protocols_markdown
+from mesh2tex.evaluation.world import load_world, other_shape_name, photo_frame_view
+from mesh2tex.transfer import ABLATIONS
 from mesh2tex.io.images import load_mask
 from conftest import TINY_GAN as TINY, make_tiny_world
 
@@ -150,13 +152,13 @@ def test_paired_tests_separate_a_consistent_advantage_from_noise():
 
 
 def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tmp_path, monkeypatch):
-    import infer.transfer
+    import mesh2tex.transfer
 
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "no_weights"))
     root, _ = setup
     out = tmp_path / "eval"
     args = protocol_args(root, out, "--only", "known_pose", "--ablations", "full,no_refine")
-    real, calls = infer.transfer.transfer_texture, []
+    real, calls = mesh2tex.transfer.transfer_texture, []
 
     def interrupted(*a, **k):
         if len(calls) == 3:
@@ -164,14 +166,14 @@ def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tm
         calls.append(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(infer.transfer, "transfer_texture", interrupted)
+    monkeypatch.setattr(mesh2tex.transfer, "transfer_texture", interrupted)
     assert main(args) == 130, "Ctrl-C stops the run with the shell's interrupt status"
     assert len(list((out / "transfers").rglob("*.npz"))) == 3 and not (out / "protocols.json").exists()
     changed = protocol_args(root, out, "--only", "known_pose", "--ablations", "full,no_refine", "--seed", "5")
     assert main(changed) == 2, "transfers made with other settings are not mixed with new ones"
 
     counted = []
-    monkeypatch.setattr(infer.transfer, "transfer_texture", lambda *a, **k: counted.append(1) or real(*a, **k))
+    monkeypatch.setattr(mesh2tex.transfer, "transfer_texture", lambda *a, **k: counted.append(1) or real(*a, **k))
     assert main(args) == 0
     assert len(counted) == 1, "only the transfer that had not finished runs again (2 queries x 2 ablations - 3)"
     result = json.loads((out / "protocols.json").read_text())

@@ -152,7 +152,7 @@ def test_ema_follows_the_generator_from_the_start():
     """With the ramp-up the EMA of a short run is not its random initialisation: after the demo's
     600 steps of 8 images it keeps under 1 % of the initial weights (51 % without the ramp-up), and
     after the first step it equals the live generator."""
-    from train.runs import ema_beta
+    from mesh2tex.runtime import ema_beta
 
     def initial_share(steps, rampup):
         share = 1.0
@@ -175,7 +175,7 @@ def test_after_one_step_the_ema_is_the_live_generator(tiny_data, tmp_path):
 
 
 def test_snapshots_keep_loadable_float16_generators(tiny_data, tmp_path):
-    from infer.generate import load_generator
+    from mesh2tex.io.models import load_generator
 
     config = tmp_path / "snap.yaml"
     config.write_text(yaml.safe_dump({**TINY, "snapshot_every": 1}))

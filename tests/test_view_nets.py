@@ -10,7 +10,9 @@ import trimesh
 from mesh2tex.cli import main
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepare import prepare_shape
-from train.view_nets import ViewDataConfig, load_view_network, render_view_dataset
+from mesh2tex.io.models import load_view_network
+from mesh2tex.nn.view_nets import ViewDataConfig
+from train.view_nets import render_view_dataset
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +83,7 @@ def test_train_resume_and_load(kind, shapes_dir, tmp_path):
 
 # ---------------------------------------------------------------------------- GAN-textured views
 def _tiny_shapes(tiny_gan):
-    from train.gan import load_shapes
+    from mesh2tex.geometry.prepared import load_shapes
 
     return load_shapes(tiny_gan / "shapes")[0]
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -26,8 +25,9 @@ from PIL import Image
 
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
-from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.io.atomic import atomic_path
+from mesh2tex.geometry.prepared import PreparedShape, load_shapes
+from mesh2tex.io.images import images_to_uint8, save_png
+from mesh2tex.io.models import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, save_inference_checkpoint
 from mesh2tex.losses.augment import AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
 from mesh2tex.nn.batch import collate_shapes
@@ -35,20 +35,10 @@ from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import orbit_camera
+from mesh2tex.render import CameraConfig, composite_images, orbit_camera, turntable_angles
 from train import runs
 
 KIND = "gan"
-
-
-@dataclass
-class CameraConfig:
-    distance: float = 1.7  # camera distance from the origin (shapes have a bounding-box diagonal of 1)
-    fov: float = 40.0  # vertical field of view, degrees
-    elevation_min: float = 5.0  # lowest elevation of the random views, degrees
-    elevation_max: float = 35.0  # highest elevation of the random views, degrees
-    jitter_degrees: float = 2.0  # std of the Gaussian noise added to azimuth and elevation
-    distance_jitter: float = 0.06  # relative std of the Gaussian noise on the distance
 
 
 @dataclass
@@ -100,22 +90,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 # ------------------------------------------------------------------------------------------ data
-def load_shapes(folder: str | Path) -> tuple[list[PreparedShape], list[str]]:
-    """All prepared shapes (*.npz) of ``folder``; they must share levels and feature columns."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise UserError(f"{folder}: shapes folder not found")
-    paths = sorted(folder.glob("*.npz"))
-    if not paths:
-        raise UserError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
-    shapes = [PreparedShape.load(p) for p in paths]
-    first = shapes[0]
-    for path, shape in zip(paths, shapes):
-        if shape.num_levels != first.num_levels or list(shape.feature_names) != list(first.feature_names):
-            raise UserError(f"{path}: levels or face features differ from {paths[0].name}; prepare all shapes with the same settings")
-    return shapes, [p.stem for p in paths]
-
-
 def load_images(folder: str | Path, resolution: int) -> torch.Tensor:
     """The photo collection as uint8 (N, 4, R, R): RGB plus mask.
 
@@ -152,7 +126,7 @@ def composite_real(images: torch.Tensor, background: torch.Tensor) -> torch.Tens
     """uint8 (N, 4, R, R) photos over solid (N, 3) backgrounds in [-1, 1] -> float (N, 3, R, R) in [-1, 1]."""
     rgb = images[:, :3].float() / 127.5 - 1.0
     alpha = images[:, 3:].float() / 255.0
-    return rgb * alpha + background[:, :, None, None] * (1.0 - alpha)
+    return composite_images(rgb, alpha, background)
 
 
 def random_cameras(n: int, cfg: CameraConfig, device: torch.device) -> torch.Tensor:
@@ -161,21 +135,6 @@ def random_cameras(n: int, cfg: CameraConfig, device: torch.device) -> torch.Ten
     elevation = cfg.elevation_min + torch.rand(n) * (cfg.elevation_max - cfg.elevation_min) + torch.randn(n) * cfg.jitter_degrees
     distance = cfg.distance * (1.0 + torch.randn(n) * cfg.distance_jitter)
     return orbit_camera(azimuth, elevation.clamp(-89.0, 89.0), distance=distance, fov=cfg.fov).mvp.to(device)
-
-
-def sample_views(k: int, elevation: float = 20.0) -> tuple[torch.Tensor, torch.Tensor]:
-    """Azimuths evenly spaced over the circle (k,) and a fixed elevation (k,), in degrees."""
-    return torch.arange(k, dtype=torch.float32) * (360.0 / k), torch.full((k,), float(elevation))
-
-
-def to_uint8(images: torch.Tensor) -> np.ndarray:
-    """float (N, 3, H, W) in [-1, 1] -> uint8 (N, H, W, 3)."""
-    return ((images.detach().float().clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
-
-
-def save_png(path: Path, image: np.ndarray) -> None:
-    with atomic_path(path) as tmp:
-        Image.fromarray(image).save(tmp)
 
 
 # ---------------------------------------------------------------------------------------- trainer
@@ -218,21 +177,21 @@ class GanTrainer:
 
     # ----------------------------------------------------------------------------- checkpoints
     def modules(self) -> dict:
-        return {"generator": self.generator, "generator_ema": self.ema, "d_field": self.d_field, "d_proxy": self.d_proxy}
+        return {GENERATOR: self.generator, GENERATOR_EMA: self.ema, D_FIELD: self.d_field, D_PROXY: self.d_proxy}
 
     def save(self, path: Path) -> None:
         """Collective: every process contributes its RNG state; the main process writes."""
         rng_states = self.dist.gather_objects(runs.rng_to_state())
         if self.dist.is_main:
             meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
-                    "generator_config": runs.dumps_config(self.cfg.generator)}
+                    GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator)}
             runs.save_training_state(path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d},
-                                     {"loss": self.loss.state_dict()}, meta, rng_states)
+                                     {GAN_LOSS: self.loss.state_dict()}, meta, rng_states)
         self.dist.barrier()
 
     def resume(self) -> None:
         groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d}, self.device)
-        self.loss.load_state_dict(groups["loss"])
+        self.loss.load_state_dict(groups[GAN_LOSS])
         self.iteration = int(meta["iteration"])
         states = meta["rng"]
         if len(states) == self.dist.world_size:
@@ -307,11 +266,9 @@ class GanTrainer:
 
     def write_snapshot(self) -> Path:
         """RUN/snapshots/iterNNNNNNN.safetensors: the EMA generator now, float16, loadable like a shipped model."""
-        from mesh2tex.io.models import save_inference_checkpoint
-
         path = self.run.root / "snapshots" / f"iter{self.iteration:07d}.safetensors"
         path.parent.mkdir(exist_ok=True)
-        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "generator_config": runs.dumps_config(self.cfg.generator),
+        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
                 "world_size": self.dist.world_size}
         save_inference_checkpoint(path, KIND, self.ema.state_dict(), meta)
         return path
@@ -321,13 +278,13 @@ class GanTrainer:
         """Grid of EMA renders: one row per sample shape, one column per view (white background)."""
         k = 4
         b = self.sample_batch
-        azimuth, elevation = sample_views(k)
+        azimuth, elevation = turntable_angles(k)
         mvp = orbit_camera(azimuth.repeat(b.num_shapes), elevation.repeat(b.num_shapes), distance=self.cfg.camera.distance,
                            fov=self.cfg.camera.fov).mvp.to(self.device)
         ws = self.ema.mapping(self.sample_z)
         res = self.cfg.resolution
         out = render_field_views(self.ema, b, ws, mvp, (res, res), torch.ones(b.num_shapes * k, 3, device=self.device), noise_mode="none")
-        tiles = to_uint8(out.images).reshape(b.num_shapes, k, res, res, 3)
+        tiles = images_to_uint8(out.images).reshape(b.num_shapes, k, res, res, 3)
         grid = tiles.transpose(0, 2, 1, 3, 4).reshape(b.num_shapes * res, k * res, 3)
         path = self.run.samples_dir / f"iter{self.iteration:07d}.png"
         save_png(path, grid)

@@ -21,9 +21,10 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,52 +32,21 @@ import torch
 
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
-from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.atomic import atomic_path
-from mesh2tex.nn.noc import NocUNet, noc_error, noc_loss
-from mesh2tex.nn.pose import PoseBins, PoseNet, pose_accuracy, pose_loss
+from mesh2tex.io.checkpoint import checkpoint_digest, read_checkpoint_meta
+from mesh2tex.io.models import VIEW_NET, load_generator, resolve_checkpoint
+from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.noc import noc_error, noc_loss
+from mesh2tex.nn.pose import pose_accuracy, pose_loss
+from mesh2tex.nn.view_nets import VIEWS_NAME, ViewDataConfig, ViewTrainConfig, build_network
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square, object_box
 from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views, unit_to_uint8
+from mesh2tex.texture import latent, shape_mismatch, vertex_colors
 from train import runs
-
-VIEWS_NAME = "views.npz"
-
-
-@dataclass
-class ViewDataConfig:
-    category: str = "chair"  # material library of the renders: 'chair' or 'car'
-    samples: int = 512  # rendered views in all (training plus held-out)
-    views_per_material: int = 4  # views that share one random material and shape
-    holdout: float = 0.1  # share of the views kept for validation
-    resolution: int = 128  # side of the rendered views (and the network input)
-    supersample: int = 1  # render at this multiple and average (anti-aliasing)
-    elevation_min: float = 5.0  # degrees; match the photos you will query with
-    elevation_max: float = 35.0  # degrees
-    distance_min: float = 1.5  # camera distance range (shapes have bbox diagonal 1)
-    distance_max: float = 1.9
-    fov: float = 40.0  # vertical field of view, degrees
-    frame_margin: float = 0.1  # crop each view to the square around its object with this margin, as 'infer transfer' crops the photo (< 0: keep the whole frame)
-    frame_oversample: int = 2  # render framed views at this multiple of ``resolution`` before cropping
-    gan_checkpoint: str = ""  # a 'train gan' checkpoint that textures a share of the groups; '' = procedural materials only
-    gan_share: float = 0.5  # share of the view groups textured by the GAN when gan_checkpoint is given
-
-
-@dataclass
-class ViewTrainConfig:
-    seed: int = 0  # seed of the renders, the initialisation and the mini-batches
-    iters: int = 2000  # optimisation steps
-    batch: int = 32  # views per step
-    lr: float = 3e-4  # Adam learning rate (paper: 3e-4 for chairs)
-    width: int = 32  # channel width of the network's first level
-    device: str = "auto"  # auto, cpu or cuda
-    log_every: int = 25  # steps between metrics.jsonl records (with validation figures)
-    checkpoint_every: int = 250  # steps between checkpoints (0: only at the end)
-    data: ViewDataConfig = field(default_factory=ViewDataConfig)
-    bins: PoseBins = field(default_factory=PoseBins)  # pose classes (used by 'pose' only)
-
 
 # --------------------------------------------------------------------------------------- data
 _GAN_STREAM = 4  # random stream of a group (WorldSpec.rng) that picks GAN or material, and the latent seed
@@ -151,9 +121,6 @@ class _GanTextures:
     """Per-vertex colours of prepared shapes textured by a trained GAN (CPU, EMA generator, no noise)."""
 
     def __init__(self, checkpoint: str, shapes: list[PreparedShape]):
-        from infer.generate import load_generator, shape_mismatch
-        from mesh2tex.nn.batch import collate_shapes
-
         self.device = torch.device("cpu")
         self.generator, _ = load_generator(checkpoint, self.device)
         problem = shape_mismatch(shapes[0], self.generator)  # all shapes share levels and features (load_shapes)
@@ -169,8 +136,6 @@ class _GanTextures:
     def vertex_colours(self, index: int, latent_seed: int) -> np.ndarray:
         """(V, 3) float32 in [0, 1]: the texture of latent ``latent_seed`` at the finest vertices of shape
         ``index``, in the order of ``shapes[index].vertices[0]`` (= ``batch.shape_vertices(0)``)."""
-        from infer.generate import latent, vertex_colors
-
         batch = self.batches[index]
         if index not in self.encoded:
             self.encoded[index] = self.generator.encoder(batch)
@@ -182,16 +147,9 @@ class _GanTextures:
 def data_fingerprint(cfg: ViewTrainConfig) -> str:
     """JSON of everything the rendered views depend on: the data config and the seed, with the GAN
     checkpoint's path replaced by a digest of its bytes (a moved checkpoint keeps the cache, a retrained one does not)."""
-    import dataclasses
-    import hashlib
-    import json
-
     data = dataclasses.asdict(cfg.data)
     if cfg.data.gan_checkpoint:
-        path = Path(cfg.data.gan_checkpoint)
-        if not path.is_file():
-            raise UserError(f"{path}: GAN checkpoint not found")
-        data["gan_checkpoint"] = "sha256:" + hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+        data["gan_checkpoint"] = "sha256:" + checkpoint_digest(cfg.data.gan_checkpoint, "GAN checkpoint")
     return json.dumps({"data": data, "seed": cfg.seed}, sort_keys=True)
 
 
@@ -223,14 +181,6 @@ def views_to_tensors(views: dict[str, np.ndarray], index: np.ndarray, device: to
 
 
 # ------------------------------------------------------------------------------------ networks
-def build_network(kind: str, cfg: ViewTrainConfig) -> torch.nn.Module:
-    if kind == "pose":
-        return PoseNet(bins=cfg.bins, width=cfg.width)
-    if kind == "noc":
-        return NocUNet(width=cfg.width)
-    raise ValueError(f"unknown network kind {kind!r}")
-
-
 def network_loss(kind: str, net: torch.nn.Module, batch: dict[str, torch.Tensor], cfg: ViewTrainConfig) -> torch.Tensor:
     if kind == "pose":
         azimuth_logits, elevation_logits = net(batch["image"])
@@ -260,24 +210,6 @@ def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], inde
         out[f"val_{k}"] = round(v / max(len(index), 1), 5)
     net.train()
     return out
-
-
-def load_view_network(path: str | Path, kind: str, device: torch.device | str = "cpu") -> tuple[torch.nn.Module, ViewTrainConfig]:
-    """A trained pose or NOC network (eval mode) and its config, from a ``train pose|noc`` checkpoint
-    (a path, or a shipped model's name such as ``chair``)."""
-    from mesh2tex.config import config_from_dict
-    from mesh2tex.io.checkpoint import load_checkpoint
-    from mesh2tex.io.models import resolve_checkpoint
-
-    path = resolve_checkpoint(path, kind)
-    groups, meta = load_checkpoint(path, kind=kind)
-    cfg = config_from_dict(ViewTrainConfig, meta["config"], where=str(path))
-    net = build_network(kind, cfg)
-    try:
-        net.load_state_dict(groups["net"])
-    except (KeyError, RuntimeError) as error:
-        raise UserError(f"{path}: the {kind} weights do not fit its config ({str(error).splitlines()[0]})") from None
-    return net.to(device).eval(), cfg
 
 
 # ---------------------------------------------------------------------------------------- stage
@@ -311,9 +243,6 @@ def build_view_config(args) -> ViewTrainConfig:
     if not 0.0 <= cfg.data.gan_share <= 1.0:
         raise UserError(f"data.gan_share {cfg.data.gan_share}: must be between 0 and 1")
     if cfg.data.gan_checkpoint:  # checked before the run directory is written
-        from mesh2tex.io.checkpoint import read_checkpoint_meta
-        from mesh2tex.io.models import resolve_checkpoint
-
         cfg.data.gan_checkpoint = str(resolve_checkpoint(cfg.data.gan_checkpoint, "gan"))  # a shipped model's name, or a path
         kind = read_checkpoint_meta(cfg.data.gan_checkpoint).get("kind")
         if kind != "gan":
@@ -322,8 +251,6 @@ def build_view_config(args) -> ViewTrainConfig:
 
 
 def run_view_training(args, kind: str) -> int:
-    from train.gan import load_shapes
-
     cfg = build_view_config(args)
     device = runs.select_device(cfg.device)
     shapes, _ = load_shapes(args.shapes)
@@ -342,13 +269,13 @@ def run_view_training(args, kind: str) -> int:
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     iteration = 0
     if resume:
-        _, meta = runs.load_training_state(run.checkpoint_path, kind, {"net": net}, {"opt": opt}, device)
+        _, meta = runs.load_training_state(run.checkpoint_path, kind, {VIEW_NET: net}, {"opt": opt}, device)
         iteration = int(meta["iteration"])
         runs.rng_from_state(meta["rng"][0])
         run.metrics.truncate_after("iteration", iteration)
 
     def save(path: Path) -> None:
-        runs.save_training_state(path, kind, {"net": net}, {"opt": opt}, {},
+        runs.save_training_state(path, kind, {VIEW_NET: net}, {"opt": opt}, {},
                                  {"iteration": iteration, "config": runs.dumps_config(cfg)}, [runs.rng_to_state()])
 
     bar = progress_bar(total=cfg.iters, initial=iteration, desc=f"train {kind}")

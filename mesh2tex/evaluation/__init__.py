@@ -2,7 +2,9 @@
 
 ``surfaces``: the candidates (UV texture, flat colour, procedural material, a generator's field, photo
 back-projection); ``compare``: :func:`render_for_comparison`, the views a photo does not show, and
-:func:`score_views`; ``world``: the synthetic world's ground truth of a query (the oracle).
+:func:`score_views`; ``world``: the synthetic world's queries and their ground truth (the oracle);
+``paired``: methods compared query by query (wins, Wilcoxon tests, the oracle check); ``report``:
+the markdown tables of ``mesh2tex evaluate --protocols``.
 The metrics themselves live in :mod:`mesh2tex.metrics.appearance`.
 """
 

@@ -178,9 +178,19 @@ def seen_and_unseen(scores: dict[str, list[float]]) -> dict[str, float]:
     return out
 
 
-def metric_direction(column: str) -> int:
-    """+1 / -1 for a column such as 'seen part_delta_e' or 'psnr' (see :data:`METRICS`), 0 if unknown."""
-    return METRICS.get(column.split(" ")[-1], 0)
+def metric_direction(name: str) -> int:
+    """+1 if higher is better, -1 if lower is better, 0 for values that are not scores (spreads, levels).
+
+    Transfer columns are named '<seen|unseen> <metric>' or bare (see :data:`METRICS`); the set metrics
+    of ``mesh2tex evaluate`` by their own names (kid_*, fid_*, swd, color_hist_tv, psnr_masked, ssim_masked)."""
+    if name.endswith("_std") or (name.startswith("swd_") and name.endswith("px")):
+        return 0
+    last = name.split(" ")[-1]
+    if last in METRICS:
+        return METRICS[last]
+    if name in ("psnr_masked", "ssim_masked"):
+        return 1
+    return -1 if name.split("_")[0] in ("kid", "fid", "swd") or name == "color_hist_tv" else 0
 
 
 def common_mask(*masks: torch.Tensor) -> torch.Tensor:

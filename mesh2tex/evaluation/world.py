@@ -1,4 +1,4 @@
-"""The synthetic world's ground truth of a query, for quality tables (loaders only; no writing).
+"""The synthetic world's queries and their ground truth, for quality tables (loaders only; no writing).
 
 A world from ``mesh2tex prepare synthetic`` knows everything a fair comparison needs: the photo's
 camera, light and background (the query sidecar), each shape's part labels and its procedural
@@ -9,17 +9,110 @@ truth texture (``textured/<s>.glb``), which is the oracle of every table.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from mesh2tex.errors import UserError
 from mesh2tex.evaluation.compare import ComparisonRender, images_to_unit, render_for_comparison
 from mesh2tex.evaluation.surfaces import Surface, material_surface, textured_surface
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.images import load_image, load_mask
+from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
+from mesh2tex.transfer.photo import View as TransferView
 
 
+@dataclass
+class Query:
+    """One held-out query photo of the world and its ground truth."""
+
+    name: str  # file stem, e.g. chair_0004_00
+    image: Path
+    mask: Path
+    shape: str  # the world shape it shows
+    azimuth: float
+    elevation: float
+    distance: float
+    fov: float
+    record: dict = field(default_factory=dict)  # the sidecar (camera, light, background, files)
+
+
+@dataclass
+class World:
+    root: Path
+    index: dict
+    queries: list[Query]
+    query_shapes: list[str]
+
+
+# ------------------------------------------------------------------------------------------ queries
+def load_world(root: str | Path, max_queries: int = 0) -> World:
+    """The world's index and its query photos (first ``max_queries``; 0: all) with their sidecar poses."""
+    root = Path(root)
+    index_path = root / "index.json"
+    if not index_path.is_file():
+        raise UserError(f"{root}: not a synthetic world (no index.json; make one with 'mesh2tex prepare synthetic')")
+    try:
+        index = json.loads(index_path.read_text())
+    except json.JSONDecodeError as error:
+        raise UserError(f"{index_path}: not valid JSON ({error.msg})") from None
+    if index.get("format") != "mesh2tex-synthetic-world":
+        raise UserError(f"{index_path}: not a mesh2tex synthetic world index (format {index.get('format')!r})")
+    if not index.get("complete", False):
+        raise UserError(f"{root}: the world is incomplete; finish it with 'mesh2tex prepare synthetic' (it resumes)")
+    entries = index.get("queries") or []
+    if not entries:
+        raise UserError(f"{index_path}: the world has no query photos (prepare it with --query-views above 0)")
+    queries = []
+    for entry in entries:
+        sidecar = root / entry["sidecar"] if "sidecar" in entry else None
+        truth = json.loads(sidecar.read_text()) if sidecar is not None and sidecar.is_file() else entry
+        image, mask = root / entry["image"], root / entry["mask"]
+        for path in (image, mask):
+            if not path.is_file():
+                raise UserError(f"{path}: query file missing (listed in {index_path})")
+        queries.append(Query(name=image.stem, image=image, mask=mask, shape=truth["shape"],
+                             azimuth=float(truth["azimuth"]), elevation=float(truth["elevation"]),
+                             distance=float(truth["distance"]), fov=float(truth["fov"]), record=truth))
+    if max_queries > 0:
+        queries = queries[:max_queries]
+    query_shapes = list(dict.fromkeys(q.shape for q in queries))
+    return World(root=root, index=index, queries=queries, query_shapes=query_shapes)
+
+
+def other_shape_name(name: str, available: list[str]) -> str:
+    """The transfer target for a query of shape ``name``: the next available shape by name (cyclic), never ``name``."""
+    others = sorted(set(available) - {name})
+    if not others:
+        raise UserError(f"transfer to another shape needs a second prepared shape besides {name}")
+    later = [n for n in others if n > name]
+    return later[0] if later else others[0]
+
+
+@torch.no_grad()
+def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin: float) -> TransferView:
+    """The query's true camera, framed like its photo crop: a :class:`mesh2tex.transfer.View` whose render,
+    cropped with the photo's own box, is pixel-aligned with the cropped photo (exact geometry).
+
+    Its ``mask`` (1,1,R,R) is where the shape covers the crop; its ``noc`` is left empty.
+    """
+    photo_mask = np.asarray(load_mask(query.mask), dtype=bool)
+    side = photo_mask.shape[0]
+    if photo_mask.shape[1] != side:
+        raise UserError(f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}")
+    box = object_box(photo_mask, margin)
+    camera = orbit_camera(torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov)
+    vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
+    raster = rasterize(transform_points(vertices, camera.mvp), torch.as_tensor(shape.triangles(0)), (side, side))
+    mask = crop_mask(raster.face_id[0] >= 0, box, resolution)
+    return TransferView(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask)
+
+
+
+# ------------------------------------------------------------------------------------- ground truth
 @dataclass
 class ShapeTruth:
     """One world shape: ``shape`` (a ``SyntheticShape``: vertices, faces, face_parts), its ``material``
@@ -105,7 +198,6 @@ def _load_shape_truth(root: str, settings: str, name: str) -> ShapeTruth:
 
 def load_query_truth(root: str | Path, index: dict, sidecar: dict) -> QueryTruth:
     """A query (its sidecar, as in ``index["queries"]`` or ``queries/<q>.json``) and its ground truth."""
-    from mesh2tex.io.images import load_image, load_mask
     from mesh2tex.synthetic.world import View
 
     root = Path(root)

@@ -104,3 +104,27 @@ class PreparedShape:
             raise UserError(f"{path}: prepared shape not found") from None
         except (OSError, ValueError, KeyError, json.JSONDecodeError) as error:
             raise UserError(f"{path}: not a valid prepared shape ({error.__class__.__name__}: {error})") from None
+
+
+def shape_paths(folder: str | os.PathLike) -> dict[str, Path]:
+    """{name: path} of the prepared shapes (``<name>.npz``) in ``folder``, sorted by name; UserError
+    when the folder is missing or holds none."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
+    found = {p.stem: p for p in sorted(folder.glob("*.npz"))}
+    if not found:
+        raise UserError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
+    return found
+
+
+def load_shapes(folder: str | os.PathLike) -> tuple[list[PreparedShape], list[str]]:
+    """All prepared shapes of ``folder`` (:func:`shape_paths`) and their names; they must share levels and
+    feature columns (UserError naming the first that does not)."""
+    paths = list(shape_paths(folder).values())
+    shapes = [PreparedShape.load(p) for p in paths]
+    first = shapes[0]
+    for path, shape in zip(paths, shapes):
+        if shape.num_levels != first.num_levels or list(shape.feature_names) != list(first.feature_names):
+            raise UserError(f"{path}: levels or face features differ from {paths[0].name}; prepare all shapes with the same settings")
+    return shapes, [p.stem for p in paths]

@@ -9,6 +9,7 @@ Writes are atomic, so a kill during a save never spoils the previous checkpoint.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -17,6 +18,8 @@ from typing import Any
 import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
+
+from torch import nn
 
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import atomic_path
@@ -59,6 +62,15 @@ def save_checkpoint(path: str | os.PathLike, groups: dict[str, dict[str, torch.T
         save_file(flat, str(tmp), metadata={_META_KEY: json.dumps(header)})
 
 
+def checkpoint_digest(path: str | os.PathLike, what: str = "checkpoint") -> str:
+    """SHA-256 prefix (16 hex digits) of a file's bytes: the identity of a checkpoint wherever it lies
+    (a moved one keeps it, a retrained one does not). UserError naming ``what`` when it is missing."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: {what} not found")
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
 def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:
     """The JSON header ({format, kind, meta}) of a checkpoint, without loading its tensors."""
     path = Path(path)
@@ -88,3 +100,64 @@ def load_checkpoint(path: str | os.PathLike, kind: str | None = None, map_locati
     except (SafetensorError, OSError) as error:
         raise UserError(f"{path}: damaged checkpoint ({error})") from None
     return unflatten_state(flat), header["meta"]
+
+
+# ------------------------------------------------------------------------------------- state codecs
+def optimizer_to_state(opt: torch.optim.Optimizer) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+    """Optimizer -> (tensors, JSON meta): per-parameter state tensors and the param groups."""
+    sd = opt.state_dict()
+    tensors, scalars = {}, {}
+    for index, state in sd["state"].items():
+        for key, value in state.items():
+            if torch.is_tensor(value):
+                tensors[f"{index}.{key}"] = value
+            else:
+                scalars[f"{index}.{key}"] = value
+    return tensors, {"param_groups": sd["param_groups"], "scalars": scalars}
+
+
+def optimizer_from_state(opt: torch.optim.Optimizer, tensors: dict[str, torch.Tensor], meta: dict[str, Any]) -> None:
+    """Inverse of :func:`optimizer_to_state`."""
+    state: dict[int, dict[str, Any]] = {}
+    for name, value in list(tensors.items()) + list(meta["scalars"].items()):
+        index, _, key = name.partition(".")
+        state.setdefault(int(index), {})[key] = value
+    groups = []
+    for group in meta["param_groups"]:
+        group = dict(group)
+        if "betas" in group:
+            group["betas"] = tuple(group["betas"])
+        groups.append(group)
+    opt.load_state_dict({"state": state, "param_groups": groups})
+
+
+# ------------------------------------------------------------------------------ training states
+def save_training_state(path: Path, kind: str, modules: dict[str, nn.Module], optimizers: dict[str, torch.optim.Optimizer],
+                        extra_tensors: dict[str, dict[str, torch.Tensor]], meta: dict[str, Any], rng_states: list[dict[str, Any]]) -> None:
+    """Write modules, optimizers, extra tensor groups, per-process RNG states and ``meta`` atomically."""
+    groups: dict[str, dict[str, torch.Tensor]] = {name: m.state_dict() for name, m in modules.items()}
+    optim_meta = {}
+    for name, opt in optimizers.items():
+        tensors, optim_meta[name] = optimizer_to_state(opt)
+        groups[f"optim_{name}"] = tensors
+    groups.update(extra_tensors)
+    meta = {**meta, "optimizers": optim_meta, "rng": rng_states}
+    save_checkpoint(path, groups, kind=kind, meta=meta)
+
+
+def load_training_state(path: Path, kind: str, modules: dict[str, nn.Module], optimizers: dict[str, torch.optim.Optimizer],
+                        device: torch.device) -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
+    """Load what :func:`save_training_state` wrote into ``modules`` and ``optimizers``; returns
+    (all tensor groups, meta) for the caller's extra state. RNG states are not applied here."""
+    groups, meta = load_checkpoint(path, kind=kind)
+    for name, module in modules.items():
+        if name not in groups:
+            raise UserError(f"{path}: checkpoint has no '{name}' weights")
+        try:
+            module.load_state_dict(groups[name])
+        except RuntimeError as error:
+            raise UserError(f"{path}: '{name}' weights do not fit this config ({str(error).splitlines()[0]})") from None
+        module.to(device)
+    for name, opt in optimizers.items():
+        optimizer_from_state(opt, groups.get(f"optim_{name}", {}), meta["optimizers"][name])
+    return groups, meta

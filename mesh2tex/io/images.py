@@ -1,4 +1,5 @@
-"""Reading photos of any common kind into RGB uint8 arrays, and writing PNGs atomically."""
+"""Reading photos of any common kind into RGB uint8 arrays, writing PNGs atomically, and the
+conversions of colours at this file boundary (networks work in [-1, 1], files hold uint8)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import atomic_path
@@ -64,7 +66,7 @@ def load_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
                 image = image.convert("RGB")
             array = np.asarray(image)
     except UnidentifiedImageError:
-        raise UserError(f"{path}: not an image or an unsupported format") from None
+        raise UserError(f"{path}: not a readable image (not an image, or an unsupported format)") from None
     except (OSError, ValueError, SyntaxError) as error:
         raise UserError(f"{path}: corrupt image ({error})") from None
     if array.ndim != 3 or array.shape[0] == 0 or array.shape[1] == 0:
@@ -94,3 +96,15 @@ def save_png(path: str | os.PathLike, image: np.ndarray) -> None:
         raise ValueError(f"save_png expects uint8 or bool, got {image.dtype}")
     with atomic_path(path, suffix=".png") as tmp:
         Image.fromarray(image).save(tmp, format="PNG")
+
+
+def colors_to_uint8(colors: torch.Tensor, signed: bool = True) -> np.ndarray:
+    """Float colours in [-1, 1] (``signed``) or [0, 1] -> uint8 of the same shape (clamped, rounded half to even)."""
+    colors = colors.detach().float()
+    scaled = (colors.clamp(-1, 1) + 1) * 127.5 if signed else colors.clamp(0, 1) * 255
+    return scaled.round().to(torch.uint8).cpu().numpy()
+
+
+def images_to_uint8(images: torch.Tensor, signed: bool = True) -> np.ndarray:
+    """Images [..., 3, H, W] float in [-1, 1] (``signed``) or [0, 1] -> uint8 [..., H, W, 3] (channels last)."""
+    return colors_to_uint8(images.movedim(-3, -1), signed)

@@ -1,4 +1,14 @@
-"""Shipped models: trained checkpoints a user names instead of a path (``--checkpoint chair``).
+"""Every checkpoint kind in one place: the tensor groups and metadata keys each kind holds, the
+loaders of the trained networks (:func:`load_generator`, :func:`load_view_network`), and the
+shipped models, trained checkpoints a user names instead of a path (``--checkpoint chair``).
+
+Checkpoint kinds and their tensor groups (the file format itself is :mod:`mesh2tex.io.checkpoint`):
+
+    gan    training: generator, generator_ema, d_field, d_proxy, loss, optim_g, optim_d; inference:
+           generator_ema. Metadata: iteration, config (the 'train gan' config, with its camera),
+           generator_config (what :func:`load_generator` builds), world_size.
+    pose   the pose network (group ``net``, plus ``optim_opt`` while training); metadata: iteration,
+    noc    config (the 'train pose|noc' config, :class:`mesh2tex.nn.view_nets.ViewTrainConfig`).
 
 A model is a folder ``<models>/<name>/`` with one inference checkpoint per kind and a model card:
 
@@ -17,11 +27,24 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import torch
+
+from mesh2tex.config import config_from_dict
 from mesh2tex.errors import UserError
 from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
+from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
+from mesh2tex.nn.nca import MeshNCA, NCAConfig
+from mesh2tex.nn.view_nets import ViewTrainConfig, build_network
+from mesh2tex.render.cameras import CameraConfig
 
+# Tensor groups of the 'gan' kind.
+GENERATOR, GENERATOR_EMA, D_FIELD, D_PROXY, GAN_LOSS = "generator", "generator_ema", "d_field", "d_proxy", "loss"
+# Metadata key of the 'gan' kind with the GeneratorConfig that load_generator builds.
+GENERATOR_CONFIG = "generator_config"
+# Tensor group of the 'pose' and 'noc' kinds.
+VIEW_NET = "net"
 MODEL_FILES = {"gan": "generator.safetensors", "pose": "pose.safetensors", "noc": "noc.safetensors"}
-INFERENCE_GROUPS = {"gan": "generator_ema", "pose": "net", "noc": "net"}
+INFERENCE_GROUPS = {"gan": GENERATOR_EMA, "pose": VIEW_NET, "noc": VIEW_NET}
 
 
 def models_root() -> Path:
@@ -84,6 +107,44 @@ def save_inference_checkpoint(target: str | os.PathLike, kind: str, state: dict,
     return meta
 
 
+# ------------------------------------------------------------------------------------- loaders
+def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[TextureGenerator, dict]:
+    """The EMA generator of a GAN checkpoint (a path, or a shipped model's name such as ``chair``), in
+    eval mode without gradients, and the checkpoint's metadata."""
+    path = resolve_checkpoint(path, "gan")
+    groups, meta = load_checkpoint(path, kind="gan")
+    saved = dict(meta[GENERATOR_CONFIG])
+    saved.setdefault("field_residual", False)  # written before psi became a residual on the proxy colours
+    cfg = config_from_dict(GeneratorConfig, saved, f"{path}: {GENERATOR_CONFIG}")
+    generator = TextureGenerator(cfg)
+    try:
+        generator.load_state_dict(groups[GENERATOR_EMA])
+    except (KeyError, RuntimeError) as error:
+        raise UserError(f"{path}: generator weights missing or damaged ({str(error).splitlines()[0]})") from None
+    return generator.to(device).eval().requires_grad_(False), meta
+
+
+def gan_camera(meta: dict) -> tuple[float, float]:
+    """(distance, fov) of the camera a GAN was trained with, from its checkpoint's metadata
+    (``config.camera``; :class:`mesh2tex.render.CameraConfig`'s defaults where it has none)."""
+    camera = meta.get("config", {}).get("camera", {})
+    default = CameraConfig()
+    return float(camera.get("distance", default.distance)), float(camera.get("fov", default.fov))
+
+
+def load_view_network(path: str | os.PathLike, kind: str, device: torch.device | str = "cpu") -> tuple[torch.nn.Module, ViewTrainConfig]:
+    """A trained pose or NOC network (eval mode) and its config, from a ``train pose|noc`` checkpoint
+    (a path, or a shipped model's name such as ``chair``)."""
+    path = resolve_checkpoint(path, kind)
+    groups, meta = load_checkpoint(path, kind=kind)
+    cfg = config_from_dict(ViewTrainConfig, meta["config"], where=str(path))
+    net = build_network(kind, cfg)
+    try:
+        net.load_state_dict(groups[VIEW_NET])
+    except (KeyError, RuntimeError) as error:
+        raise UserError(f"{path}: the {kind} weights do not fit its config ({str(error).splitlines()[0]})") from None
+    return net.to(device).eval(), cfg
+
 
 def load_nca(path: str | os.PathLike, device="cpu"):
     """A trained cellular automaton from a ``train nca`` checkpoint (training or exported).
@@ -91,11 +152,6 @@ def load_nca(path: str | os.PathLike, device="cpu"):
     Returns (model :class:`mesh2tex.nn.nca.MeshNCA` in eval mode on ``device``, meta, exemplar
     (H, W, 3) uint8 or None). Raises UserError naming ``path`` for a missing, foreign or damaged file.
     """
-    import torch
-
-    from mesh2tex.config import config_from_dict
-    from mesh2tex.nn.nca import MeshNCA, NCAConfig
-
     groups, meta = load_checkpoint(path, kind="nca")
     if "model" not in groups or "nca" not in meta:
         raise UserError(f"{path}: the nca checkpoint holds no automaton")

@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.errors import UserError
+from mesh2tex.render.shading import composite_images
 
 Grams = list[list[torch.Tensor]]
 
@@ -42,7 +43,7 @@ def composite_background(images: torch.Tensor, masks: torch.Tensor | None, value
     """images [B, 3, H, W] with the background (mask 0) replaced by ``value``; soft masks blend."""
     if masks is None:
         return images
-    return images * masks + value * (1.0 - masks)
+    return composite_images(images, masks, value)
 
 
 def masked_gram(features: torch.Tensor, masks: torch.Tensor | None = None) -> torch.Tensor:

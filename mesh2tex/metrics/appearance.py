@@ -24,6 +24,7 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.metrics.swd import laplacian_pyramid, sliced_wasserstein
+from mesh2tex.render.shading import composite_images
 
 
 def _check(images: torch.Tensor, name: str = "images") -> None:
@@ -140,7 +141,7 @@ def _fill_background(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """[1, C, H, W]: the pixels off ``mask`` set to the mean object colour, so no pyramid level sees the background."""
     weight = mask.sum().clamp_min(1.0)
     mean = (image * mask).sum(dim=(2, 3), keepdim=True) / weight
-    return image * mask + mean * (1 - mask)
+    return composite_images(image, mask, mean)
 
 
 def object_swd(images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor, reference_masks: torch.Tensor | None = None,

@@ -2,7 +2,9 @@
 field psi, the image discriminator, and the rendering of generated textures.
 
 Modules: ``batch`` (concatenating prepared shapes), ``faceconv`` (layers), ``generator``,
-``field``, ``discriminator``, ``render_texture`` (imports the rasterizer; import it directly).
+``field``, ``discriminator``, ``render_texture`` (imports the rasterizer; import it directly),
+``pose`` and ``noc`` (the transfer's image networks) with ``view_nets`` (their config and
+construction), ``vgg`` (style features).
 """
 
 from mesh2tex.nn.batch import MeshBatch, collate_shapes

@@ -17,6 +17,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from mesh2tex.checks import check_shape
+
 NEIGHBORHOOD = 9
 # Smoothing blur of the unpooling step: the binomial 3x3 window [1,2,1] x [1,2,1] laid on the
 # neighbourhood order (centre, then edge and corner neighbours alternating).
@@ -26,6 +28,7 @@ LRELU_GAIN = math.sqrt(2.0)
 
 def gather_neighborhood(x: torch.Tensor, neighbors: torch.Tensor) -> torch.Tensor:
     """x: (F, C) face features, neighbors: (F, 9) int64 with -1 missing -> (F, 9, C), zeros where missing."""
+    check_shape(neighbors, "gather_neighborhood: neighbors", ("F", NEIGHBORHOOD), sizes=check_shape(x, "gather_neighborhood: x", ("F", "C")))
     padded = torch.cat([x, x.new_zeros(1, x.shape[1])], dim=0)
     index = torch.where(neighbors >= 0, neighbors, x.shape[0])
     return padded[index]
@@ -77,6 +80,7 @@ class FaceConv(nn.Module):
 
     def forward(self, x: torch.Tensor, neighbors: torch.Tensor) -> torch.Tensor:
         """x: (F, in) float, neighbors: (F, 9) int64 -> (F, out)."""
+        check_shape(neighbors, "FaceConv: neighbors", ("F", NEIGHBORHOOD), sizes=check_shape(x, "FaceConv: x", ("F", self.weight.shape[2])))
         patches = gather_neighborhood(x, neighbors).flatten(1)  # (F, 9*in)
         w = (self.weight * self.weight_gain).flatten(1).to(x.dtype)  # (out, 9*in)
         return bias_act(patches @ w.t(), self.bias, self.activation)
@@ -114,6 +118,11 @@ class ModulatedFaceConv(nn.Module):
         ``noise_mode``: "random" adds fresh per-face Gaussian noise scaled by a learnt strength,
         "none" adds nothing (deterministic output).
         """
+        sizes = check_shape(x, "ModulatedFaceConv: x", ("F", self.in_channels))
+        check_shape(sample_index, "ModulatedFaceConv: sample_index", ("F",), sizes=sizes)
+        if self.kernel_size != 1:
+            check_shape(neighbors, "ModulatedFaceConv: neighbors", ("F", NEIGHBORHOOD), sizes=sizes)
+        check_shape(w, "ModulatedFaceConv: w", ("B", self.affine.weight.shape[1]))
         styles = self.affine(w)  # (B, in)
         weight = self.weight * self.weight_gain  # (out, k, in)
         if self.kernel_size == 1:
@@ -136,6 +145,7 @@ def face_pool(x: torch.Tensor, pool: torch.Tensor, num_coarse: int, mode: str = 
 
     ``mode`` "max" or "mean" over the fine faces that map to each coarse face.
     """
+    check_shape(pool, "face_pool: pool", ("F",), sizes=check_shape(x, "face_pool: x", ("F", "C")))
     index = pool.unsqueeze(1).expand_as(x)
     out = x.new_zeros(num_coarse, x.shape[1])
     reduce = {"max": "amax", "mean": "mean"}[mode]
@@ -147,6 +157,10 @@ def face_unpool(x: torch.Tensor, pool: torch.Tensor, neighbors_fine: torch.Tenso
     neighbourhood (weights renormalised over the neighbours that exist) so that the copies do not
     leave blocky steps. x: (F_{l+1}, C), pool: (F_l,), neighbors_fine: (F_l, 9) or None (no blur) -> (F_l, C).
     """
+    check_shape(x, "face_unpool: x", (None, "C"))
+    sizes = check_shape(pool, "face_unpool: pool", ("F",))
+    if neighbors_fine is not None:
+        check_shape(neighbors_fine, "face_unpool: neighbors_fine", ("F", NEIGHBORHOOD), sizes=sizes)
     up = x[pool]
     if neighbors_fine is None:
         return up

@@ -10,12 +10,13 @@ Four primitives in the spirit of nvdiffrast, composed by the caller::
 Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in docs/rendering.md.
 """
 
-from .cameras import Camera, orbit_camera, perspective, transform_points
+from .cameras import Camera, CameraConfig, orbit_camera, perspective, transform_points, turntable_angles
 from .crop import crop_mask, crop_square, object_box
 from .interpolate import face_attribute, interpolate, texture
 from .rasterize import Raster, pixel_centers, rasterize
 from .shading import (
     composite,
+    composite_images,
     face_normals,
     render_mask,
     render_noc,
@@ -27,8 +28,10 @@ from .uv import dilate_texture, unwrap_uv, uv_rasterize
 
 __all__ = [
     "Camera",
+    "CameraConfig",
     "Raster",
     "composite",
+    "composite_images",
     "crop_mask",
     "crop_square",
     "dilate_texture",
@@ -46,6 +49,7 @@ __all__ = [
     "shade_lambert",
     "texture",
     "transform_points",
+    "turntable_angles",
     "unwrap_uv",
     "uv_rasterize",
     "vertex_normals",

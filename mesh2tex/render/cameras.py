@@ -19,10 +19,23 @@ from dataclasses import dataclass
 
 import torch
 
-DEFAULT_DISTANCE = 2.5  # world units; a unit-sized object fills most of the frame at the default fov
+DEFAULT_DISTANCE = 2.5  # world units; a unit-sized object fills most of the frame at the default fov (the GAN's own camera: CameraConfig)
 DEFAULT_FOV = 40.0  # vertical field of view in degrees
 DEFAULT_NEAR = 0.1
 DEFAULT_FAR = 100.0
+
+
+@dataclass
+class CameraConfig:
+    """The texture GAN's cameras: the random training views, and the camera its textures are shown and
+    transferred with (a GAN checkpoint keeps it in ``config.camera``; :func:`mesh2tex.io.models.gan_camera`)."""
+
+    distance: float = 1.7  # camera distance from the origin (shapes have a bounding-box diagonal of 1)
+    fov: float = 40.0  # vertical field of view, degrees
+    elevation_min: float = 5.0  # lowest elevation of the random views, degrees
+    elevation_max: float = 35.0  # highest elevation of the random views, degrees
+    jitter_degrees: float = 2.0  # std of the Gaussian noise added to azimuth and elevation
+    distance_jitter: float = 0.06  # relative std of the Gaussian noise on the distance
 
 
 @dataclass
@@ -123,6 +136,11 @@ def orbit_camera(
 
     proj = perspective(fov, near, far, aspect, device=az.device).expand(B, 4, 4).contiguous()
     return Camera(view=view, proj=proj, mvp=proj @ view, position=position)
+
+
+def turntable_angles(k: int, elevation: float = 20.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Azimuths evenly spaced over the circle from 0 (k,) and a fixed elevation (k,), in degrees."""
+    return torch.arange(k, dtype=torch.float32) * (360.0 / k), torch.full((k,), float(elevation))
 
 
 def transform_points(vertices: torch.Tensor, mvp: torch.Tensor) -> torch.Tensor:

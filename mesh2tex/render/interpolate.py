@@ -9,6 +9,8 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
+
 from .rasterize import Raster
 
 
@@ -40,6 +42,8 @@ def interpolate(attr: torch.Tensor, raster: Raster, tri: torch.Tensor) -> torch.
     Returns:
         (B,H,W,C) in the dtype of ``attr``, 0 on background; differentiable with respect to ``attr``.
     """
+    check_shape(attr, "interpolate: attr", ("V", "C"), (None, "V", "C"))
+    check_shape(tri, "interpolate: tri", ("T", 3))
     B = raster.face_id.shape[0]
     attr = _batched(attr, B)
     tri = tri.to(device=raster.face_id.device, dtype=torch.long)
@@ -59,6 +63,7 @@ def face_attribute(attr: torch.Tensor, raster: Raster) -> torch.Tensor:
     Returns:
         (B,H,W,C), 0 on background; differentiable with respect to ``attr``.
     """
+    check_shape(attr, "face_attribute: attr", ("T", "C"), (None, "T", "C"))
     B = raster.face_id.shape[0]
     attr = _batched(attr, B)
     mask = raster.face_id >= 0
@@ -78,6 +83,8 @@ def texture(image: torch.Tensor, uv: torch.Tensor, mode: str = "bilinear") -> to
     Returns:
         (B,H,W,C), differentiable with respect to ``image`` and ``uv``.
     """
+    check_shape(image, "texture: image", ("C", "Ht", "Wt"), (None, "C", "Ht", "Wt"))
+    check_shape(uv, "texture: uv", ("B", "H", "W", 2))
     if image.dim() == 3:
         image = image[None]
     B = uv.shape[0]

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import torch
 
+from mesh2tex.checks import check_shape
+
 # Candidate (triangle, pixel) pairs handled at once; about 130 bytes of temporaries each.
 DEFAULT_MAX_PAIRS = 1 << 21
 # Bounding boxes grow by this fraction of a pixel so that pixel centres exactly on an edge are tested.
@@ -324,6 +326,10 @@ def rasterize(
         on the device of ``pos``. The nearest surface (smallest NDC z) wins; surface points outside
         -1 <= z <= 1 (in front of the near plane or beyond the far plane) are not drawn.
     """
+    check_shape(pos, "rasterize: pos", ("B", "V", 4), ("V", 4))
+    check_shape(tri, "rasterize: tri", ("T", 3))
+    if len(resolution) != 2:
+        raise ValueError(f"rasterize: resolution must be (H, W), got {tuple(resolution)}")
     H, W = int(resolution[0]), int(resolution[1])
     with torch.no_grad():
         if pos.dim() == 2:

@@ -109,5 +109,20 @@ def composite(rgb: torch.Tensor, mask: torch.Tensor, background) -> torch.Tensor
         background = background.reshape(1, 1, 1, -1)
     elif background.dim() == 3:
         background = background[None]
-    mask = mask.to(rgb.dtype)
-    return rgb * mask + background * (1 - mask)
+    return composite_images(rgb, mask.to(rgb.dtype), background)
+
+
+def composite_images(images: torch.Tensor, masks: torch.Tensor, background=1.0) -> torch.Tensor:
+    """:func:`composite` for channels-first images: ``images * masks + background * (1 - masks)``.
+
+    Args:
+        images: (N,C,H,W).
+        masks: (N,1,H,W) in [0,1] (soft masks blend).
+        background: a float, (N,C) colours (one per image), or images broadcastable to (N,C,H,W),
+            in the colour range of ``images``.
+    Returns:
+        (N,C,H,W).
+    """
+    if isinstance(background, torch.Tensor) and background.dim() == 2:
+        background = background[:, :, None, None]
+    return images * masks + background * (1 - masks)

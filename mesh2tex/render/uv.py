@@ -6,6 +6,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.io.images import images_to_uint8
+
 from .rasterize import Raster, rasterize
 
 
@@ -106,5 +108,4 @@ def bake_surface_colors(vertices: torch.Tensor, triangles: torch.Tensor, colors_
     colors = torch.zeros(size, size, 3)
     colors[covered] = colors_at(raster.face_id[0][covered], raster.bary[0][covered]).float().cpu()
     image = dilate_texture(colors.permute(2, 0, 1), covered[None].float(), dilate).reshape(3, size, size)
-    uint8 = ((image.clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).permute(1, 2, 0).numpy()
-    return new_vertices.float(), faces, uv.float(), uint8, covered
+    return new_vertices.float(), faces, uv.float(), images_to_uint8(image), covered

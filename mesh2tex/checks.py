@@ -1,0 +1,66 @@
+"""Checks at the public boundary of the library (as stylegan2-ada's ``assert_shape`` and kornia's
+``KORNIA_CHECK_SHAPE``): a tensor of the wrong shape fails at the call, with a message that names
+the argument, the shape it needs and the shape it has, instead of an index error deep inside.
+
+    sizes = check_shape(x, "face_conv: x", ("F", 16))
+    check_shape(neighbors, "face_conv: neighbors", ("F", 9), sizes=sizes)   # the same F as x
+
+A shape is a sequence of ints (that size), strings (a named size: every use of the name in one
+``sizes`` must agree) and None (any size). Several shapes are alternatives, e.g. ``(B, V, 4)`` or
+``(V, 4)``.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+
+Shape = Sequence[int | str | None]
+
+
+def _text(shape: Shape) -> str:
+    return "[" + ", ".join("*" if d is None else str(d) for d in shape) + "]"
+
+
+def _matches(actual: tuple[int, ...], shape: Shape, sizes: dict[str, tuple[int, str]]) -> str | None:
+    """None when ``actual`` fits ``shape`` (named sizes checked against ``sizes``), else why not."""
+    if len(actual) != len(shape):
+        return ""
+    for have, want in zip(actual, shape):
+        if isinstance(want, str):
+            if want in sizes and sizes[want][0] != have:
+                size, source = sizes[want]
+                return f" ({want} = {size} from {source})"
+        elif want is not None and want != have:
+            return ""
+    return None
+
+
+def check_shape(tensor, name: str, *shapes: Shape, sizes: dict[str, tuple[int, str]] | None = None) -> dict[str, tuple[int, str]]:
+    """Raise unless ``tensor`` is a tensor of one of ``shapes``; returns ``sizes`` with the named sizes it fixed.
+
+    Args:
+        tensor: the argument to check.
+        name: how the message names it, e.g. ``"rasterize: pos"``.
+        shapes: one or more alternative shapes (ints, size names, None for any size).
+        sizes: {size name: (size, argument that fixed it)} shared by the checks of one call.
+    Raises:
+        TypeError: ``tensor`` is not a ``torch.Tensor``.
+        ValueError: its shape fits none of ``shapes``.
+    """
+    sizes = {} if sizes is None else sizes
+    if not isinstance(tensor, torch.Tensor):
+        raise TypeError(f"{name} must be a torch.Tensor of shape {' or '.join(_text(s) for s in shapes)}, got {type(tensor).__name__}")
+    actual = tuple(tensor.shape)
+    reasons = []
+    for shape in shapes:
+        reason = _matches(actual, shape, sizes)
+        if reason is None:
+            for have, want in zip(actual, shape):
+                if isinstance(want, str):
+                    sizes.setdefault(want, (have, name.rpartition(": ")[2]))
+            return sizes
+        reasons.append(reason)
+    expected = " or ".join(_text(s) + r for s, r in zip(shapes, reasons))
+    raise ValueError(f"{name} must have shape {expected}, got {_text(actual)}")

@@ -1,0 +1,139 @@
+"""The markdown report of ``mesh2tex evaluate --protocols``: the protocols and methods by name, one
+table per protocol (a row per method, seen then unseen columns), the oracle check and the paired
+comparisons with the full method."""
+
+from __future__ import annotations
+
+import math
+
+from mesh2tex.evaluation.compare import METRIC_TITLES, METRICS, metric_direction
+from mesh2tex.evaluation.paired import flat_colour_targets, oracle_check, scored_metrics
+
+PROTOCOLS = ("unconditional", "known_pose", "unknown_pose", "other_shape")
+TRANSFER_PROTOCOLS = PROTOCOLS[1:]
+# The simple methods beside every transfer (none optimises anything): the ground truth itself, the
+# photo's mean colour everywhere, the generator's mean texture (w_avg), and the photo back-projected.
+BASELINES = ("oracle", "flat_colour", "mean_texture", "backprojection")
+
+
+METHOD_TITLES = {"oracle": "ground-truth texture (oracle)", "flat_colour": "flat mean colour of the photo",
+                 "mean_texture": "generator's mean texture (w_avg)", "backprojection": "photo back-projection",
+                 **{"full": "full method", "no_noc": "w/o NOC", "no_patches": "w/o patches",
+                    "no_refine": "w/o surface features (no refine)"}}
+
+
+def _paired_note(test: dict | None) -> str:
+    """' (mean +0.47, p 0.69)': the paired difference (positive: full better) and its Wilcoxon p-value."""
+    if not test:
+        return ""
+    p_value = test.get("p_wilcoxon")
+    return f" (mean {test['mean_difference']:+.3g}" + ("" if p_value is None else f", p {p_value:.2g}") + ")"
+
+
+def _fmt(value, name: str) -> str:
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        return "-" if value is None else str(value)
+    if name.startswith("kid"):
+        return f"{value * 100:.3g}"  # x1e2, as the paper's tables
+    return f"{value:.4g}"
+
+
+def _column_title(column: str) -> str:
+    side, _, metric = column.partition(" ")
+    arrow = " ↑" if metric_direction(column) > 0 else " ↓"
+    return f"{side} {METRIC_TITLES.get(metric, metric)}{arrow}"
+
+
+def transfer_table(methods: dict, order: list[str]) -> list[str]:
+    """Markdown rows of one transfer protocol: a row per method, seen columns then unseen columns; the
+    best value among the methods other than the oracle in bold."""
+    present = set().union(*(m["query"] for m in methods.values()))
+    columns = [f"{side} {metric}" for side in ("seen", "unseen") for metric in METRICS if f"{side} {metric}" in present]
+    best = {}
+    for column in columns:
+        values = [scored_metrics(e).get(column) for n, e in methods.items() if n != "oracle"]
+        values = [v for v in values if v is not None]
+        if values:
+            best[column] = max(values) if metric_direction(column) > 0 else min(values)
+    lines = ["| method | " + " | ".join(_column_title(c) for c in columns) + " | seconds |",
+             "| --- |" + " --- |" * (len(columns) + 1)]
+    for name in order:
+        if name not in methods:
+            continue
+        scores = methods[name]["query"]
+        cells = []
+        for column in columns:
+            text = _fmt(scores.get(column), column)
+            cells.append(f"**{text}**" if name != "oracle" and scores.get(column) is not None and scores.get(column) == best.get(column) else text)
+        lines.append(f"| {METHOD_TITLES.get(name, name)} | " + " | ".join(cells) + f" | {methods[name]['seconds']:.0f} |")
+    return lines
+
+
+def protocols_markdown(result: dict) -> str:
+    """The results as markdown: one table per protocol (rows: the oracle, the baselines, the ablations
+    of the paper's Table 8 and the full method), then the paired comparisons with the full method."""
+    lines = ["# mesh2tex evaluate --protocols", ""]
+    s = result["settings"]
+    lines.append(f"World `{result['world']}`, GAN `{result['gan']}`; {result['counts']['queries']} queries; "
+                 f"transfer {s['latent_iters']} + {s['refine_iters']} iterations at {s['resolution']} px, "
+                 f"style scales {s.get('scales', '?')}, patches {s['patch_size']} px at {s.get('patch_scales') or s.get('scales', '?')} "
+                 f"scales. KID is shown x1e2. KID/FID features: {result['features']}.")
+    lines.append("")
+    if "unconditional" in result["protocols"]:
+        entry = result["protocols"]["unconditional"]
+        metrics = {k: v for k, v in entry["metrics"].items() if metric_direction(k) != 0}
+        lines += ["## unconditional generation (held-out shapes vs the world's photos)", "",
+                  "| " + " | ".join(metrics) + " |", "|" + " --- |" * len(metrics),
+                  "| " + " | ".join(_fmt(v, k) for k, v in metrics.items()) + " |", ""]
+    titles = {"known_pose": "exact geometry, known pose", "unknown_pose": "exact geometry, unknown pose (pose network)",
+              "other_shape": "transfer to another shape of the category"}
+    for protocol in TRANSFER_PROTOCOLS:
+        if protocol not in result["protocols"]:
+            continue
+        entry = result["protocols"][protocol]
+        methods = entry["methods"]
+        lines += [f"## {titles[protocol]} (`{protocol}`)", "",
+                  f"Every method rendered alike (`mesh2tex.evaluation.render_for_comparison`, lighting `{s.get('lighting', 'photo')}`) "
+                  f"at the photo's view (seen) and {s.get('unseen_views', 4)} views it does not show (unseen, mean), "
+                  "against what the world photographs there; "
+                  + ("scored on the object pixels both the world's shape and the prepared one cover. "
+                     if protocol != "other_shape" else "each image on its own object pixels, parts matched by label. ")
+                  + f"Low-pass PSNR after a Gaussian blur of σ = {s.get('lowpass_sigma', 3.0):g} px; object SWD x1e3. "
+                  "Bold: the best method other than the oracle.", ""]
+        order = ["oracle", "flat_colour", "mean_texture", "backprojection", "no_noc", "no_patches", "no_refine", "full"]
+        lines += transfer_table(methods, order)
+        lost = oracle_check(methods)
+        lines += ["", "The oracle wins every column." if not lost else
+                  f"**The oracle does not win: {', '.join(lost)}** (a broken metric or comparison)."]
+        errors = [q["azimuth_error"] for q in entry["queries"]]
+        if protocol != "known_pose" and errors:
+            searched = [q["network_azimuth_error"] for q in entry["queries"] if "network_azimuth_error" in q]
+            how = "Pose network + silhouette search" if searched else "Pose network"
+            lines += ["", f"{how}: mean azimuth error {sum(errors) / len(errors):.1f} deg, "
+                          f"mean elevation error {sum(q['elevation_error'] for q in entry['queries']) / len(errors):.1f} deg"
+                          + (f" (the network's bins alone: mean azimuth error {sum(searched) / len(searched):.1f} deg)." if searched else ".")]
+        targets = flat_colour_targets(methods)
+        if targets:
+            parts = []
+            for side in ("seen", "unseen"):
+                if f"{side} part_delta_e ratio" in targets:
+                    below = targets.get(f"{side} part_delta_e below")
+                    parts.append(f"{side} per-part ΔE {targets[f'{side} part_delta_e ratio']:.2f} of the flat colour's"
+                                 + (f", lower on {below[0]} of {below[1]} queries" if below else ""))
+            if "seen lowpass_psnr above" in targets:
+                w, n = targets["seen lowpass_psnr above"]
+                parts.append(f"seen low-pass PSNR higher on {w} of {n}")
+            lines += ["", "Full method against the flat colour: " + "; ".join(parts) + "."]
+        for name, c in result["comparison"].get(protocol, {}).items():
+            if name == "oracle":
+                continue
+            lost = [m for m, better in c["full_better"].items() if not better]
+            lines.append("")
+            lines.append(f"Full method better than {METHOD_TITLES.get(name, name)} on {c['wins']} of {c['metrics']} columns"
+                         + (f", {c['ties']} tied" if c["ties"] else "")
+                         + (f" (not better on: {', '.join(lost)})." if lost else ".")
+                         + ("" if not c.get("query_wins") else " Per query, full better on "
+                            + ", ".join(f"{m} in {w} of {n}" + _paired_note(c.get("query_tests", {}).get(m))
+                                        for m, (w, n) in c["query_wins"].items()) + "."))
+        lines.append("")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,157 @@
+"""Renders against images, as tensors: unpaired set metrics (KID/FID on named features, SWD, pooled
+colour histograms) and paired metrics (masked PSNR/SSIM, colour histograms), with the meaning of
+each metric name. ``mesh2tex evaluate`` reads the folders (:mod:`mesh2tex.io.image_sets`) and writes
+the results.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+from mesh2tex.errors import UserError
+from mesh2tex.metrics.distribution import fid, kid
+from mesh2tex.metrics.features import FeatureExtractor, get_feature_extractor
+from mesh2tex.metrics.image import color_histogram_distance, color_histograms, masked_psnr, masked_ssim
+from mesh2tex.metrics.swd import swd_per_level
+
+
+@dataclass
+class EvaluateConfig:
+    resolution: int = 128  # sets mode: square side images are resized to (pairs keep their size)
+    features: str = "auto"  # KID/FID features: auto, inception, tvinception, vgg or randvgg
+    kid_subsets: int = 100  # random subsets averaged by KID
+    kid_subset_size: int = 1000  # vectors per KID subset (at most the smaller set's size)
+    swd_patches_per_image: int = 128  # 7x7 descriptors per image and pyramid level for SWD
+    swd_projections: int = 512  # random directions per SWD repeat
+    swd_repeats: int = 4  # SWD repeats averaged
+    histogram_bins: int = 8  # bins per colour channel of the joint RGB histogram
+    background: str = "white"  # sets mode: colour replacing masked-out pixels (white, black, grey)
+    seed: int = 0  # seed of KID subsets and SWD sampling
+
+
+def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: FeatureExtractor | None = None,
+                  config: EvaluateConfig | None = None, render_masks: torch.Tensor | None = None,
+                  image_masks: torch.Tensor | None = None, kid_fid: bool = True) -> dict:
+    """Unpaired metrics between renders [N, 3, H, W] and images [M, 3, H, W], both float in [0, 1], same H, W.
+
+    ``extractor``: KID/FID features (default: ``get_feature_extractor(config.features)``; metric
+    names carry its suffix, e.g. ``kid_randvgg``). ``render_masks`` [N, 1, H, W] and ``image_masks``
+    [M, 1, H, W] (1 on the object): with both, the colour histograms pool object pixels only
+    (``color_hist_tv``); without, every pixel, background included, and the metric is named
+    ``color_hist_tv_whole_image`` (it then also measures how much of each image the object covers).
+    KID, FID and SWD always see the whole images (objects on their background, as in the paper).
+    ``kid_fid=False`` skips KID and FID (and the feature network, most of the cost; ``features`` is None).
+    Returns {"metrics": {name: value}, "features": description, "counts": {"renders": N, "images": M}}.
+    KID has a ``<name>_std`` entry (spread over subsets); SWD has one entry per pyramid level (``swd_<side>px``).
+    """
+    config = config or EvaluateConfig()
+    if renders.shape[0] < 2 or images.shape[0] < 2:
+        raise UserError(f"set metrics need at least 2 renders and 2 images (got {renders.shape[0]} and {images.shape[0]})")
+    metrics: dict[str, float] = {}
+    if kid_fid:
+        extractor = extractor or get_feature_extractor(config.features)
+        features_renders = extractor(renders * 2 - 1)
+        features_images = extractor(images * 2 - 1)
+        kid_mean, kid_std = kid(features_images, features_renders, config.kid_subsets, config.kid_subset_size, config.seed)
+        metrics[extractor.metric_name("kid")] = kid_mean
+        metrics[extractor.metric_name("kid") + "_std"] = kid_std
+        metrics[extractor.metric_name("fid")] = fid(features_images, features_renders)
+    metrics.update(swd_per_level(images, renders, config.swd_patches_per_image, num_projections=config.swd_projections,
+                                 repeats=config.swd_repeats, seed=config.seed))
+    metrics.update(pooled_histogram_distance(renders, images, render_masks, image_masks, config.histogram_bins))
+    return {"metrics": metrics, "features": extractor.description if kid_fid else None,
+            "counts": {"renders": int(renders.shape[0]), "images": int(images.shape[0])}}
+
+
+def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, render_masks: torch.Tensor | None,
+                              image_masks: torch.Tensor | None, bins: int) -> dict[str, float]:
+    """TV distance between the colour histograms of two sets, each pooled as one distribution of pixels:
+    {"color_hist_tv": d} over object pixels when both sets have masks, else {"color_hist_tv_whole_image": d}.
+
+    Pooling counts every object pixel once (a large object weighs more than a small one), so the
+    distance compares the colours of the two sets, not of single images."""
+    if render_masks is None or image_masks is None:
+        name, render_masks, image_masks = "color_hist_tv_whole_image", None, None
+    else:
+        name = "color_hist_tv"
+        if render_masks.sum() == 0 or image_masks.sum() == 0:
+            raise UserError("set colour histograms: one of the sets has no object pixel (all masks empty)")
+
+    def pooled(x: torch.Tensor, masks: torch.Tensor | None) -> torch.Tensor:
+        def stacked(t: torch.Tensor) -> torch.Tensor:  # [N, C, H, W] -> one [1, C, N*H, W] image
+            return t.transpose(0, 1).reshape(1, t.shape[1], -1, t.shape[-1])
+
+        return color_histograms(stacked(x), None if masks is None else stacked(masks), bins)[0]
+
+    return {name: float(0.5 * (pooled(renders, render_masks) - pooled(images, image_masks)).abs().sum())}
+
+
+def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Tensor | None = None,
+                   names: list[str] | None = None, config: EvaluateConfig | None = None) -> dict:
+    """Paired metrics: renders and images [N, 3, H, W] float in [0, 1], masks [N, 1, H, W] in {0, 1} or None.
+
+    Returns {"metrics": {"psnr_masked", "ssim_masked", "color_hist_tv"} (means over pairs; PSNR is
+    +inf if every pair is identical), "per_pair": [{"name", "psnr_masked", "ssim_masked", "color_hist_tv"}],
+    "counts": {"pairs": N}}.
+    """
+    config = config or EvaluateConfig()
+    if renders.shape != images.shape:
+        raise UserError(f"paired metrics need renders and images of one shape, got {tuple(renders.shape)} and {tuple(images.shape)}")
+    if masks is not None and bool((masks.flatten(1).sum(1) == 0).any()):
+        empty = int((masks.flatten(1).sum(1) == 0).nonzero()[0])
+        raise UserError(f"the mask of pair '{names[empty] if names else empty}' is empty")
+    psnr = masked_psnr(renders, images, masks)
+    ssim = masked_ssim(renders, images, masks)
+    histogram = color_histogram_distance(renders, images, masks, bins=config.histogram_bins)
+    names = names or [str(i) for i in range(renders.shape[0])]
+    per_pair = [{"name": name, "psnr_masked": float(p), "ssim_masked": float(s), "color_hist_tv": float(h)}
+                for name, p, s, h in zip(names, psnr, ssim, histogram)]
+    metrics = {"psnr_masked": float(psnr.mean()), "ssim_masked": float(ssim.mean()), "color_hist_tv": float(histogram.mean())}
+    return {"metrics": metrics, "per_pair": per_pair, "counts": {"pairs": int(renders.shape[0])}}
+
+
+METRIC_MEANINGS = {
+    "kid": "Kernel Inception Distance (FID Inception-v3 features), lower is better",
+    "fid": "Frechet Inception Distance (FID Inception-v3 features), lower is better",
+    "swd": "sliced Wasserstein distance x1e3 on Laplacian-pyramid 7x7 patches, mean over levels, lower is better",
+    "color_hist_tv": "total-variation distance of joint RGB histograms of object pixels, 0 (same colours) to 1, lower is better",
+    "color_hist_tv_whole_image": "the same over every pixel, background included (no masks given), lower is better",
+    "psnr_masked": "PSNR in dB over the mask, higher is better",
+    "ssim_masked": "SSIM over the mask, 1 is identical",
+}
+
+
+def describe_metric(name: str) -> str:
+    """One line saying what a metric name means (suffixes name substitute features)."""
+    if name in METRIC_MEANINGS:
+        return METRIC_MEANINGS[name]
+    base, _, suffix = name.partition("_")
+    if name.startswith("swd_") and name.endswith("px"):
+        return f"SWD x1e3 at the {name[4:]} pyramid level"
+    if base in ("kid", "fid"):
+        if suffix.endswith("_std"):
+            return "standard deviation of KID over subsets"
+        what = {"randvgg": "random-weight VGG19 statistics (no pretrained weights; NOT standard " + base.upper() + ")",
+                "vgg": "ImageNet VGG19 statistics (not standard " + base.upper() + ")",
+                "tvinception": "torchvision Inception-v3 features (close to, not equal to, standard " + base.upper() + ")"}
+        return f"{base.upper()} on {what.get(suffix, suffix + ' features')}, lower is better"
+    if name == "kid_std":
+        return "standard deviation of KID over subsets"
+    return ""
+
+
+def markdown_table(result: dict) -> str:
+    """The metrics of an evaluation result as a markdown table with one line of meaning per metric."""
+    lines = ["| metric | value | meaning |", "| --- | --- | --- |"]
+    metrics = result["metrics"]
+    for name, value in metrics.items():
+        if name.endswith("_std"):
+            continue
+        shown = f"{value:.4g}" if isinstance(value, float) and math.isfinite(value) else str(value)
+        if f"{name}_std" in metrics:
+            shown += f" ± {metrics[name + '_std']:.2g}"
+        lines.append(f"| {name} | {shown} | {describe_metric(name)} |")
+    return "\n".join(lines) + "\n"

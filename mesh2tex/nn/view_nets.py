@@ -1,0 +1,59 @@
+"""The two image networks of texture transfer, the pose classifier and the NOC U-Net: the config
+they are trained with (kept in their checkpoints) and their construction from it.
+
+``mesh2tex train pose|noc`` trains them (:mod:`train.view_nets`); :func:`mesh2tex.io.models.load_view_network`
+reads them back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+
+from mesh2tex.nn.noc import NocUNet
+from mesh2tex.nn.pose import PoseBins, PoseNet
+
+VIEWS_NAME = "views.npz"  # where a 'train pose|noc' run directory caches its rendered views
+
+
+@dataclass
+class ViewDataConfig:
+    category: str = "chair"  # material library of the renders: 'chair' or 'car'
+    samples: int = 512  # rendered views in all (training plus held-out)
+    views_per_material: int = 4  # views that share one random material and shape
+    holdout: float = 0.1  # share of the views kept for validation
+    resolution: int = 128  # side of the rendered views (and the network input)
+    supersample: int = 1  # render at this multiple and average (anti-aliasing)
+    elevation_min: float = 5.0  # degrees; match the photos you will query with
+    elevation_max: float = 35.0  # degrees
+    distance_min: float = 1.5  # camera distance range (shapes have bbox diagonal 1)
+    distance_max: float = 1.9
+    fov: float = 40.0  # vertical field of view, degrees
+    frame_margin: float = 0.1  # crop each view to the square around its object with this margin, as 'infer transfer' crops the photo (< 0: keep the whole frame)
+    frame_oversample: int = 2  # render framed views at this multiple of ``resolution`` before cropping
+    gan_checkpoint: str = ""  # a 'train gan' checkpoint that textures a share of the groups; '' = procedural materials only
+    gan_share: float = 0.5  # share of the view groups textured by the GAN when gan_checkpoint is given
+
+
+@dataclass
+class ViewTrainConfig:
+    seed: int = 0  # seed of the renders, the initialisation and the mini-batches
+    iters: int = 2000  # optimisation steps
+    batch: int = 32  # views per step
+    lr: float = 3e-4  # Adam learning rate (paper: 3e-4 for chairs)
+    width: int = 32  # channel width of the network's first level
+    device: str = "auto"  # auto, cpu or cuda
+    log_every: int = 25  # steps between metrics.jsonl records (with validation figures)
+    checkpoint_every: int = 250  # steps between checkpoints (0: only at the end)
+    data: ViewDataConfig = field(default_factory=ViewDataConfig)
+    bins: PoseBins = field(default_factory=PoseBins)  # pose classes (used by 'pose' only)
+
+
+def build_network(kind: str, cfg: ViewTrainConfig) -> torch.nn.Module:
+    """A fresh ``kind`` network ('pose' or 'noc') of ``cfg``'s width (and, for 'pose', its bins)."""
+    if kind == "pose":
+        return PoseNet(bins=cfg.bins, width=cfg.width)
+    if kind == "noc":
+        return NocUNet(width=cfg.width)
+    raise ValueError(f"unknown network kind {kind!r}")

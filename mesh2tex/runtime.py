@@ -1,0 +1,174 @@
+"""The runtime a command runs in: device selection, memory, data-parallel processes, seeding, RNG
+state and the exponential moving average of weights.
+
+Every stage (training, inference, evaluation) picks its device with :func:`select_device` and seeds
+with :func:`seed_everything`; the trainers keep RNG states in their checkpoints
+(:func:`rng_to_state`, :func:`rng_from_state`) so that ``--resume`` continues exactly.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import random
+import resource
+from typing import Any
+
+import numpy as np
+import torch
+import torch.distributed as dist
+from torch import nn
+
+from mesh2tex.errors import UserError
+
+
+# ----------------------------------------------------------------------------------------- devices
+def select_device(name: str) -> torch.device:
+    """"auto" (CUDA when available, else CPU), "cpu" or "cuda"; a missing GPU is a user error."""
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and not torch.cuda.is_available():
+        raise UserError("--device cuda: no CUDA device is available (use --device cpu or auto)")
+    if name not in ("cpu", "cuda"):
+        raise UserError(f"--device {name}: expected auto, cpu or cuda")
+    if name == "cuda" and dist.is_available() and dist.is_initialized():
+        return torch.device("cuda", int(os.environ.get("LOCAL_RANK", 0)))
+    return torch.device(name)
+
+
+def peak_memory_gb(device: torch.device) -> float:
+    """Peak memory of this process so far: CUDA allocator peak on a GPU, resident set size on a CPU."""
+    if device.type == "cuda":
+        return torch.cuda.max_memory_allocated(device) / 2**30
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # Linux: kilobytes
+
+
+# ------------------------------------------------------------------------------------ distribution
+class Distributed:
+    """Data-parallel state of this process under ``torchrun`` (or a single process without it).
+
+    Gradients are averaged with one all-reduce per optimizer step (as stylegan2-ada does), which
+    works for training loops with several forward/backward phases per step.
+    """
+
+    def __init__(self, device_name: str):
+        self.world_size = int(os.environ.get("WORLD_SIZE", "1"))
+        self.rank = int(os.environ.get("RANK", "0"))
+        if self.world_size > 1 and not dist.is_initialized():
+            backend = "nccl" if device_name != "cpu" and torch.cuda.is_available() else "gloo"
+            if backend == "nccl":
+                torch.cuda.set_device(int(os.environ.get("LOCAL_RANK", 0)))
+            dist.init_process_group(backend=backend)
+
+    @property
+    def enabled(self) -> bool:
+        return self.world_size > 1
+
+    @property
+    def is_main(self) -> bool:
+        return self.rank == 0
+
+    def broadcast_module(self, module: nn.Module) -> None:
+        """Make every process start from rank 0's parameters and buffers."""
+        if self.enabled:
+            for tensor in list(module.parameters()) + list(module.buffers()):
+                dist.broadcast(tensor.data, src=0)
+
+    def average_gradients(self, params: list[nn.Parameter]) -> None:
+        """All-reduce (mean) the gradients of ``params`` in one flat buffer; missing grads count as zero."""
+        if not self.enabled:
+            return
+        params = [p for p in params if p.requires_grad]
+        for p in params:
+            if p.grad is None:
+                p.grad = torch.zeros_like(p)
+        flat = torch.cat([p.grad.reshape(-1) for p in params])
+        dist.all_reduce(flat)
+        flat /= self.world_size
+        offset = 0
+        for p in params:
+            n = p.numel()
+            p.grad.copy_(flat[offset : offset + n].view_as(p))
+            offset += n
+
+    def any(self, flag: bool, device: torch.device) -> bool:
+        """True when ``flag`` is true on any process."""
+        if not self.enabled:
+            return flag
+        t = torch.tensor([1.0 if flag else 0.0], device=device)
+        dist.all_reduce(t)
+        return bool(t.item() > 0)
+
+    def gather_objects(self, obj) -> list:
+        if not self.enabled:
+            return [obj]
+        out = [None] * self.world_size
+        dist.all_gather_object(out, obj)
+        return out
+
+    def barrier(self) -> None:
+        if self.enabled:
+            dist.barrier()
+
+    def close(self) -> None:
+        if self.enabled and dist.is_initialized():
+            dist.destroy_process_group()
+
+
+# ------------------------------------------------------------------------------------ random state
+def rng_to_state() -> dict[str, Any]:
+    """JSON-serialisable RNG states of torch (CPU and CUDA), numpy and Python's ``random``."""
+    np_state = np.random.get_state()
+    return {
+        "torch": torch.get_rng_state().tolist(),
+        "cuda": [s.tolist() for s in torch.cuda.get_rng_state_all()] if torch.cuda.is_available() else [],
+        "numpy": [np_state[0], np_state[1].tolist(), int(np_state[2]), int(np_state[3]), float(np_state[4])],
+        "python": [random.getstate()[0], list(random.getstate()[1]), random.getstate()[2]],
+    }
+
+
+def rng_from_state(state: dict[str, Any]) -> None:
+    torch.set_rng_state(torch.tensor(state["torch"], dtype=torch.uint8))
+    if state["cuda"] and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all([torch.tensor(s, dtype=torch.uint8) for s in state["cuda"]])
+    name, keys, pos, has_gauss, cached = state["numpy"]
+    np.random.set_state((name, np.array(keys, dtype=np.uint32), pos, has_gauss, cached))
+    version, internal, gauss = state["python"]
+    random.setstate((version, tuple(internal), gauss))
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.manual_seed(seed)
+
+
+# ------------------------------------------------------------------------------------------- EMA
+def make_ema(module: nn.Module) -> nn.Module:
+    """A frozen copy of ``module`` for the exponential moving average of its weights."""
+    ema = copy.deepcopy(module).eval()
+    ema.requires_grad_(False)
+    return ema
+
+
+def ema_beta(images_seen: int, images_per_step: int, halflife_images: float, rampup: float = 0.0) -> float:
+    """Decay of the generator EMA for one step, as stylegan2-ada ramps it up.
+
+    The half-life is ``halflife_images``, but at most ``rampup`` times the images seen so far
+    (``rampup`` 0: no limit). Without the ramp-up a short run's EMA still carries most of its random
+    initial weights (half-life 5000 images, 600 steps of 8 images: 51 %); with it the EMA follows the
+    live generator early and averages over ever longer spans later.
+    """
+    halflife = float(halflife_images)
+    if rampup > 0:
+        halflife = min(halflife, images_seen * rampup)
+    return 0.5 ** (images_per_step / max(halflife, 1e-8))
+
+
+@torch.no_grad()
+def ema_update(ema: nn.Module, module: nn.Module, beta: float) -> None:
+    """ema <- beta * ema + (1 - beta) * module for parameters; buffers are copied."""
+    for p_ema, p in zip(ema.parameters(), module.parameters()):
+        p_ema.lerp_(p.detach(), 1.0 - beta)
+    for b_ema, b in zip(ema.buffers(), module.buffers()):
+        b_ema.copy_(b)

@@ -1,0 +1,103 @@
+"""A trained generator's texture on a prepared shape: latents, the shapes it can texture, its colours
+at the mesh's vertices and its texture baked into UV space (for GLB files).
+
+Rendering the texture in views is :func:`mesh2tex.nn.render_texture.render_field_views`; loading a
+generator is :func:`mesh2tex.io.models.load_generator`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
+from mesh2tex.io.images import colors_to_uint8
+from mesh2tex.nn.batch import MeshBatch
+from mesh2tex.nn.generator import FaceTexture, TextureGenerator
+from mesh2tex.nn.render_texture import field_colors
+from mesh2tex.render.uv import bake_surface_colors
+
+
+def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0) -> PreparedShape:
+    """A prepared shape from .npz, or a mesh file prepared on the fly; checked against the generator."""
+    path = Path(path)
+    levels = generator.cfg.num_levels
+    if path.suffix.lower() == ".npz":
+        shape = PreparedShape.load(path)
+    else:
+        from mesh2tex.geometry.mesh_io import load_mesh
+        from mesh2tex.geometry.prepare import prepare_shape
+
+        vertices, faces = load_mesh(path)
+        shape = prepare_shape(vertices, faces, face_count=face_count, levels=levels, seed=seed, source=str(path))
+    problem = shape_mismatch(shape, generator)
+    if problem:
+        raise UserError(f"{path}: has {problem}")
+    return shape
+
+
+def shape_mismatch(shape: PreparedShape, generator: TextureGenerator) -> str:
+    """'' when the generator can texture ``shape``, else what differs, e.g. '2 levels, the generator needs 3'."""
+    levels = generator.cfg.num_levels
+    if shape.num_levels != levels:
+        return f"{shape.num_levels} levels, the generator needs {levels}"
+    if shape.face_features.shape[1] != generator.cfg.input_features:
+        return f"{shape.face_features.shape[1]} face features, the generator needs {generator.cfg.input_features}"
+    return ""
+
+
+def latent(generator: TextureGenerator, seed: int, device: torch.device, truncation: float = 1.0) -> torch.Tensor:
+    """ws (1, num_ws, w_dim) of latent seed ``seed`` (the same on every device)."""
+    z = torch.randn(1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(seed)).to(device)
+    return generator.mapping(z, truncation_psi=truncation)
+
+
+def mean_latent(generator: TextureGenerator) -> torch.Tensor:
+    """ws (1, num_ws, w_dim): the mapping network's running mean ``w_avg`` at every style input (the mean texture)."""
+    return generator.mapping.w_avg.reshape(1, 1, -1).expand(1, generator.num_ws, -1)
+
+
+@torch.no_grad()
+def bake_texture(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, size: int, dilate: int = 8):
+    """Bake psi into a UV texture for shape 0 of ``batch`` (:func:`mesh2tex.render.uv.bake_surface_colors`).
+
+    Returns (vertices (V', 3) float32, faces (T, 3) int64, uv (V', 2) float32, texture (size, size, 3)
+    uint8, coverage (size, size) bool). Faces keep the order of ``batch.triangles()``.
+    """
+    device = texture.face_rgb.device
+
+    def colors_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+        return field_colors(generator, texture, batch, triangle_id.to(device), bary.to(device))
+
+    return bake_surface_colors(batch.shape_vertices(0), batch.shape_triangles(0), colors_at, size, dilate)
+
+
+@torch.no_grad()
+def vertex_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch) -> np.ndarray:
+    """(V, 3) uint8 colours of shape 0's finest vertices: psi at each corner of each incident triangle, averaged."""
+    triangles = batch.shape_triangles(0)
+    t = triangles.shape[0]
+    triangle_id = torch.arange(t, device=triangles.device).repeat_interleave(3) + 2 * int(batch.face_offsets[0][0])
+    bary = torch.eye(3, device=triangles.device).repeat(t, 1)
+    colors = field_colors(generator, texture, batch, triangle_id, bary).float()  # (3T, 3)
+    v = batch.shape_vertices(0).shape[0]
+    index = triangles.reshape(-1)
+    summed = torch.zeros(v, 3, device=colors.device).index_add_(0, index, colors)
+    counts = torch.zeros(v, device=colors.device).index_add_(0, index, torch.ones_like(index, dtype=torch.float32))
+    mean = summed / counts.clamp(min=1).unsqueeze(1)
+    return colors_to_uint8(mean)
+
+
+@torch.no_grad()
+def write_textured_mesh(glb_path: str | Path, ply_path: str | Path, generator: TextureGenerator, texture: FaceTexture,
+                        batch: MeshBatch, texture_size: int) -> None:
+    """Shape 0 of ``batch`` with ``texture``: a GLB with the texture baked into a ``texture_size``
+    square UV map (:func:`bake_texture`) and a PLY with :func:`vertex_colors`."""
+    verts, faces, uv, image, _ = bake_texture(generator, texture, batch, texture_size)
+    save_glb(glb_path, verts.numpy(), faces.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), faces.numpy()))
+    save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
+             vertex_colors(generator, texture, batch))

@@ -1,0 +1,61 @@
+"""The settings of a texture transfer (Mesh2Tex section 3.3) and the checks they must pass."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mesh2tex.errors import UserError
+
+# Ablation name -> the TransferConfig fields it changes (paper Table 8).
+ABLATIONS = {
+    "full": {},
+    "no_noc": {"use_noc": False},
+    "no_patches": {"use_patches": False},
+    "no_refine": {"refine": False},
+}
+
+@dataclass
+class TransferConfig:
+    resolution: int = 128  # side of the photo crop and of the optimised renders
+    latent_iters: int = 100  # stage 1: iterations on the latent w (paper: 100)
+    refine_iters: int = 300  # stage 2: iterations on the last two synthesis blocks (paper: 300)
+    refine_blocks: int = 2  # synthesis blocks unfrozen in stage 2 (paper: 2)
+    lr: float = 1e-2  # Adam learning rate of both stages (paper: 1e-2)
+    w_glob: float = 1.0  # weight of the global style loss
+    w_patch: float = 1.0  # weight of the patch style loss
+    scales: int = 3  # resolution levels of the global style loss, and of the patch loss when patch_scales is 0 (paper: 3)
+    patches: int = 2  # patch pairs per iteration (paper: 2)
+    patch_size: int = 32  # side of a patch in pixels (paper: 64; at 128 px crops 32 beats it, docs/protocols.md)
+    patch_scales: int = 2  # resolution levels of the patch loss alone (0: ``scales``; 2 keeps 32 px patches at a 16 px coarsest level)
+    use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
+    use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
+    refine: bool = True  # stage 2 (False: the "w/o surface features" ablation)
+    margin: float = 0.1  # crop margin around the object, as a share of its larger side
+    pose_search: bool = True  # --pose auto: pick the pose whose silhouette best matches the photo's mask (False: the network's bin centres, as the paper)
+    pose_search_step: float = 10.0  # azimuth spacing of the silhouette search in degrees (then one finer pass at half of it)
+    pose_search_elevations: int = 2  # elevation bins searched: the network's most likely ones
+    render_oversample: float = 1.5  # render at this multiple of ``resolution`` before cropping to the object
+    turntable_frames: int = 12  # frames of turntable.gif
+    texture_size: int = 1024  # side of the baked UV texture in textured.glb
+    faces: int = 6144  # finest quad count when a raw mesh is prepared on the fly
+    seed: int = 0  # seed of the initial latent and the patch sampling
+    device: str = "auto"  # auto, cpu or cuda
+    vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
+
+    @property
+    def patch_levels(self) -> int:
+        """Resolution levels the patch loss uses: ``patch_scales``, or ``scales`` when that is 0."""
+        return self.patch_scales or self.scales
+
+
+def check_style_sizes(cfg: TransferConfig) -> None:
+    """UserError unless the crop and the patches keep 16 pixels at the coarsest level of their style losses."""
+    if cfg.scales < 1 or cfg.patch_scales < 0:
+        raise UserError(f"scales {cfg.scales}, patch_scales {cfg.patch_scales}: scales must be at least 1, patch_scales at least 0")
+    smallest = 16 * 2 ** (cfg.scales - 1)
+    if cfg.resolution < smallest:
+        raise UserError(f"--resolution {cfg.resolution}: must be at least {smallest} for {cfg.scales} style scales")
+    patch = min(cfg.patch_size, cfg.resolution)  # a patch is clipped to the crop
+    if cfg.use_patches and patch < 16 * 2 ** (cfg.patch_levels - 1):
+        raise UserError(f"patch_size {cfg.patch_size}: a patch of {patch} px keeps fewer than 16 px at its "
+                        f"{cfg.patch_levels} style scales; use larger patches or fewer patch_scales")

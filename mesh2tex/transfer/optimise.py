@@ -1,0 +1,109 @@
+"""The optimisation of a transfer: the latent, then the last synthesis blocks, against the photo's
+style (Mesh2Tex Equation 2, NOC-guided patch pairs)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import torch
+
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.losses.style import global_style_loss, patch_style_loss, sample_patch_pairs, style_grams
+from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.generator import TextureGenerator
+from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
+from mesh2tex.progress import progress_bar
+from mesh2tex.render import crop_square
+from mesh2tex.texture import mean_latent
+from mesh2tex.transfer.config import TransferConfig
+from mesh2tex.transfer.photo import Photo, View
+
+
+@dataclass
+class TransferResult:
+    ws: torch.Tensor  # (1, num_ws, w_dim) the optimised latent
+    render: torch.Tensor  # (1, 3, R, R) the final render at the pose, cropped, in [-1, 1]
+    losses: dict[str, list[float]] = field(default_factory=dict)  # per stage, one value per iteration
+    seconds: dict[str, float] = field(default_factory=dict)  # per stage
+
+
+def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: Photo, view: View,
+                     photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig, device: torch.device,
+                     show_progress: bool = True) -> TransferResult:
+    """Optimise the texture of ``shape`` to look like ``photo`` (Equation 2, then refinement).
+
+    ``generator`` is modified in place by stage 2 (its last ``refine_blocks`` synthesis blocks):
+    pass a copy if the original is needed again. ``photo_noc`` (R,R,3) is needed when
+    ``cfg.use_noc`` and ``cfg.use_patches``.
+    """
+    guided = cfg.use_noc and cfg.use_patches
+    if guided and photo_noc is None:
+        raise UserError("NOC-guided patches need the photo's NOC: give --noc-checkpoint, or --no-noc")
+    batch = collate_shapes([shape]).to(device)
+    generator = generator.to(device).requires_grad_(False)
+    encoded = [e.detach() for e in generator.encoder(batch)]
+    samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
+    photo_image, photo_mask = photo.image.to(device), photo.mask.to(device)
+    render_mask = view.mask.to(device)
+    render_noc = view.noc.to(device)
+    photo_noc = photo_noc.to(device) if photo_noc is not None else None
+    with torch.no_grad():
+        photo_grams = style_grams(vgg, photo_image, photo_mask, cfg.scales)
+    grey = torch.zeros(1, 3, device=device)
+    pick = torch.Generator().manual_seed(cfg.seed)
+
+    def render(ws: torch.Tensor) -> torch.Tensor:
+        full = render_field_views(generator, batch, ws, view.mvp.to(device), (view.render_size,) * 2, grey,
+                                  encoded=encoded, noise_mode="none", samples=samples).images
+        return crop_square(full, view.box, cfg.resolution)
+
+    def loss_of(image: torch.Tensor, use_global: bool) -> tuple[torch.Tensor, dict[str, float]]:
+        parts: dict[str, torch.Tensor] = {}
+        if use_global:
+            parts["global"] = cfg.w_glob * global_style_loss(vgg, image, render_mask, target_grams=photo_grams, scales=cfg.scales)
+        if cfg.use_patches:
+            pairs = sample_patch_pairs(photo_mask[0, 0], render_mask[0, 0], cfg.patches, photo_noc, render_noc, guided=guided, generator=pick)
+            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, cfg.patch_levels)
+        total = sum(parts.values())
+        return total, {k: float(v.detach()) for k, v in parts.items()}
+
+    with torch.no_grad():
+        ws = mean_latent(generator).clone()
+    ws.requires_grad_(True)
+    result = TransferResult(ws=ws, render=torch.empty(0))
+
+    def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool) -> None:
+        opt = torch.optim.Adam(params, lr=cfg.lr)
+        history: list[float] = []
+        start = time.perf_counter()
+        iterator = progress_bar(range(iters), desc=f"transfer {stage}") if show_progress else range(iters)
+        for _ in iterator:
+            total, parts = loss_of(render(ws), use_global)
+            if not torch.isfinite(total):
+                raise UserError(f"transfer {stage}: the style loss became {float(total)}; lower the learning rate (lr)")
+            opt.zero_grad(set_to_none=True)
+            total.backward()
+            opt.step()
+            value = float(total.detach())
+            history.append(round(value, 6))
+            if show_progress:
+                iterator.set_postfix(loss=f"{value:.4f}")
+        result.losses[stage] = history
+        result.seconds[stage] = round(time.perf_counter() - start, 2)
+
+    optimise("latent", [ws], cfg.latent_iters, use_global=True)
+    if cfg.refine and cfg.refine_iters > 0:
+        ws.requires_grad_(False)
+        params = generator.last_synthesis_parameters(cfg.refine_blocks)
+        for p in params:
+            p.requires_grad_(True)
+        # Stage 2 uses the patch loss alone (paper); without patches it keeps the global loss.
+        optimise("refine", params, cfg.refine_iters, use_global=not cfg.use_patches)
+        for p in params:
+            p.requires_grad_(False)
+    with torch.no_grad():
+        result.render = render(ws).cpu()
+    result.ws = ws.detach()
+    return result

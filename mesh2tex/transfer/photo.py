@@ -1,0 +1,82 @@
+"""The query photo, cropped around its object as every image the networks see is framed
+(:mod:`mesh2tex.render.crop`), and the mesh seen at the query's pose, cropped alike."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mesh2tex.errors import UserError
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.images import load_image, load_mask
+from mesh2tex.photos import estimate_mask
+from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
+from mesh2tex.transfer.config import TransferConfig
+
+
+@dataclass
+class Photo:
+    """The query, cropped: image (1,3,R,R) in [-1,1]; mask (1,1,R,R) {0,1}."""
+
+    image: torch.Tensor
+    mask: torch.Tensor
+
+
+@dataclass
+class View:
+    """The mesh seen at the query's pose, cropped like the photo.
+
+    mvp (1,4,4) camera; box (top, left, side) of the crop in the full render of side ``render_size``;
+    noc (R,R,3) rendered NOC in [0,1]; mask (1,1,R,R).
+    """
+
+    mvp: torch.Tensor
+    render_size: int
+    box: tuple[int, int, int]
+    noc: torch.Tensor
+    mask: torch.Tensor
+
+
+def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig) -> tuple[Photo, str]:
+    """The query photo cropped around its object (``cfg.margin``) and resized to R = ``cfg.resolution``:
+    a :class:`Photo` (image (1,3,R,R) in [-1,1], white outside the photo; mask (1,1,R,R)), and where
+    the mask came from (the ``mask_path`` file, the alpha channel, or a GrabCut estimate)."""
+    rgb, alpha = load_image(image_path)
+    if mask_path is not None:
+        mask = load_mask(mask_path)
+        if mask.shape != rgb.shape[:2]:
+            raise UserError(f"{mask_path}: mask is {mask.shape[1]}x{mask.shape[0]}, the photo {rgb.shape[1]}x{rgb.shape[0]}")
+        source = str(mask_path)
+    elif alpha is not None and (alpha < 128).any():
+        mask, source = alpha >= 128, "alpha channel"
+    else:
+        mask, source = estimate_mask(rgb), "estimated (GrabCut)"
+    mask = np.asarray(mask, dtype=bool)
+    if mask.sum() < 16:
+        raise UserError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")
+    box = object_box(mask, cfg.margin)
+    image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
+    image = crop_square(image, box, cfg.resolution, fill=1.0)
+    return Photo(image=image, mask=crop_mask(mask, box, cfg.resolution)), source
+
+
+@torch.no_grad()
+def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig) -> View:
+    """Rasterize the finest level of ``shape`` at the pose (degrees; ``distance``, ``fov`` of the orbit
+    camera) at ``cfg.render_oversample`` times R = ``cfg.resolution``, find the object's square crop
+    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`View` (noc (R,R,3), mask (1,1,R,R))."""
+    size = int(round(cfg.resolution * cfg.render_oversample))
+    camera = orbit_camera(torch.tensor([azimuth]), torch.tensor([elevation]), distance=distance, fov=fov)
+    vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
+    triangles = torch.as_tensor(shape.triangles(0))
+    raster = rasterize(transform_points(vertices, camera.mvp), triangles, (size, size))
+    covered = (raster.face_id[0] >= 0).numpy()
+    if covered.sum() < 16:
+        raise UserError(f"the mesh is not visible at azimuth {azimuth}, elevation {elevation} (distance {distance})")
+    box = object_box(covered, cfg.margin)
+    noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
+    noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)
+    return View(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution))

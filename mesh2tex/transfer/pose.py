@@ -1,0 +1,139 @@
+"""The query's pose: the pose network's beliefs over its bins, refined by a silhouette search;
+and the photo's NOC map by the NOC network."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+import torch.nn.functional as F
+
+from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.io.models import load_view_network
+from mesh2tex.nn.pose import PoseBins
+from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
+from mesh2tex.transfer.config import TransferConfig
+from mesh2tex.transfer.photo import Photo
+
+
+@torch.no_grad()
+def predict_pose(checkpoint: str | Path, photo: Photo, device: torch.device) -> tuple[float, float]:
+    """Azimuth and elevation (degrees, bin centres) of the photo by the pose network."""
+    return pose_network_beliefs(checkpoint, photo, device).most_likely()
+
+
+@dataclass
+class PoseBeliefs:
+    """The pose network's softmax over its bins for one photo: azimuth [A], elevation [E] float32 (CPU)."""
+
+    bins: PoseBins
+    azimuth: torch.Tensor
+    elevation: torch.Tensor
+
+    def most_likely(self) -> tuple[float, float]:
+        """Centres (degrees) of the most likely azimuth and elevation bins."""
+        return (float(self.bins.bin_to_azimuth(int(self.azimuth.argmax()))),
+                float(self.bins.bin_to_elevation(int(self.elevation.argmax()))))
+
+
+@torch.no_grad()
+def pose_network_beliefs(checkpoint: str | Path, photo: Photo, device: torch.device) -> PoseBeliefs:
+    """The pose network's bin probabilities for the photo."""
+    net, cfg = load_view_network(checkpoint, "pose", device)
+    azimuth_logits, elevation_logits = net(_network_input(photo, cfg.data.resolution, device))
+    return PoseBeliefs(net.bins, F.softmax(azimuth_logits, 1)[0].float().cpu(), F.softmax(elevation_logits, 1)[0].float().cpu())
+
+
+@torch.no_grad()
+def silhouette_iou(shape: PreparedShape, photo_mask: torch.Tensor, azimuths: torch.Tensor, elevations: torch.Tensor,
+                   distance: float, fov: float, margin: float, size: int = 64, batch: int = 24) -> torch.Tensor:
+    """IoU of the photo's object mask with the mesh's silhouette at each pose, both cropped alike.
+
+    photo_mask (1,1,R,R) {0,1}, already cropped around the object with ``margin``; azimuths,
+    elevations [N] degrees. Each silhouette is rasterized, cropped around itself with the same
+    margin (so the camera distance does not matter) and compared at ``size`` x ``size``. Returns [N].
+    """
+    target = (F.interpolate(photo_mask.float().cpu(), size=(size, size), mode="area")[0, 0] > 0.5)
+    vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
+    triangles = torch.as_tensor(shape.triangles(0))
+    render = int(round(size * 1.5))
+    scores = []
+    for start in range(0, azimuths.shape[0], batch):
+        camera = orbit_camera(azimuths[start:start + batch].float(), elevations[start:start + batch].float(), distance=distance, fov=fov)
+        covered = (rasterize(transform_points(vertices, camera.mvp), triangles, (render, render)).face_id >= 0).numpy()
+        for view in covered:
+            if view.sum() < 4:
+                scores.append(0.0)
+                continue
+            crop = crop_mask(view, object_box(view, margin), size)[0, 0] > 0.5
+            scores.append(float((crop & target).sum()) / max(float((crop | target).sum()), 1.0))
+    return torch.tensor(scores)
+
+
+@dataclass
+class PoseEstimate:
+    """Where the camera is (degrees) and how it was found; ``network``: the pose network's own bin centres."""
+
+    azimuth: float
+    elevation: float
+    source: str
+    network: tuple[float, float] | None = None
+    silhouette_iou: float | None = None  # of the chosen pose
+    network_silhouette_iou: float | None = None  # of the network's own pose
+
+
+def search_pose(shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distance: float, fov: float,
+                cfg: TransferConfig) -> PoseEstimate:
+    """The pose whose silhouette best matches the photo's mask (render and compare).
+
+    The pose network proposes the elevations (the centres of its ``pose_search_elevations`` most
+    likely bins); every azimuth ``pose_search_step`` degrees apart is tried with each, then the
+    best one's neighbours at half the step in both angles. Silhouettes tell a chair's front from its
+    back where the network, trained on few shapes, often does not (docs/style_and_pose.md has figures);
+    on ties the network's more likely bin wins.
+    """
+    bins, step = beliefs.bins, float(cfg.pose_search_step)
+
+    def best_of(azimuths: torch.Tensor, elevations: torch.Tensor) -> tuple[float, float, float]:
+        iou = silhouette_iou(shape, photo.mask, azimuths, elevations, distance, fov, cfg.margin)
+        prior = beliefs.azimuth[bins.azimuth_to_bin(azimuths)] * beliefs.elevation[bins.elevation_to_bin(elevations)]
+        best = int(torch.argmax(iou + 1e-6 * prior))  # the prior only breaks ties
+        return float(azimuths[best]), float(elevations[best]), float(iou[best])
+
+    order = beliefs.elevation.argsort(descending=True)[:max(1, cfg.pose_search_elevations)]
+    elevations = bins.bin_to_elevation(order).float()
+    azimuths = torch.arange(0.0, 360.0, step)
+    best_az, best_el, _ = best_of(azimuths.repeat(len(elevations)), elevations.repeat_interleave(len(azimuths)))
+    offsets = torch.tensor([-0.5, 0.0, 0.5]) * step
+    best_az, best_el, best_iou = best_of((best_az + offsets).repeat(3) % 360.0, (best_el + offsets).repeat_interleave(3))
+    network = beliefs.most_likely()
+    network_iou = float(silhouette_iou(shape, photo.mask, torch.tensor([network[0]]), torch.tensor([network[1]]),
+                                       distance, fov, cfg.margin)[0])
+    return PoseEstimate(best_az, best_el, "pose network + silhouette search", network, round(best_iou, 4), round(network_iou, 4))
+
+
+def estimate_pose(checkpoint: str | Path, shape: PreparedShape, photo: Photo, distance: float, fov: float,
+                  cfg: TransferConfig, device: torch.device) -> PoseEstimate:
+    """``--pose auto``: the pose network's bins, refined by :func:`search_pose` unless ``cfg.pose_search`` is off."""
+    beliefs = pose_network_beliefs(checkpoint, photo, device)
+    if cfg.pose_search:
+        return search_pose(shape, photo, beliefs, distance, fov, cfg)
+    azimuth, elevation = beliefs.most_likely()
+    return PoseEstimate(azimuth, elevation, "pose network", (azimuth, elevation))
+
+
+@torch.no_grad()
+def predict_noc(checkpoint: str | Path, photo: Photo, device: torch.device) -> torch.Tensor:
+    """(R,R,3) NOC map of the photo in [0,1], by the NOC network."""
+    net, cfg = load_view_network(checkpoint, "noc", device)
+    size = cfg.data.resolution
+    image = _network_input(photo, size, device)
+    mask = F.interpolate(photo.mask.to(device), size=(size, size), mode="nearest")
+    noc = net(image, mask)
+    noc = F.interpolate(noc, size=photo.image.shape[-2:], mode="bilinear", align_corners=False)
+    return noc[0].permute(1, 2, 0).cpu()
+
+
+def _network_input(photo: Photo, size: int, device: torch.device) -> torch.Tensor:
+    return F.interpolate(photo.image, size=(size, size), mode="area").to(device)

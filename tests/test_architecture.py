@@ -1,0 +1,145 @@
+"""The layout rules of docs/architecture.md, read from the source files with ``ast`` (nothing is imported):
+the stage packages (``data_prep``, ``train``, ``infer``) never import one another, the library
+(``mesh2tex``) imports no stage, no two modules import each other (directly or around a loop, at
+module level or inside a function), and no source file is longer than 600 lines."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LIBRARY = "mesh2tex"
+STAGES = ("data_prep", "train", "infer")
+MAX_LINES = 600
+
+
+def module_files(root: Path = ROOT) -> dict[str, Path]:
+    """{dotted module name: file} of the library and the stage packages."""
+    modules = {}
+    for package in (LIBRARY, *STAGES):
+        for path in sorted((root / package).rglob("*.py")):
+            parts = list(path.relative_to(root).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            modules[".".join(parts)] = path
+    return modules
+
+
+def imported_modules(name: str, path: Path, known: set[str]) -> set[str]:
+    """The modules of ``known`` that module ``name`` (at ``path``) imports anywhere in its body.
+
+    ``from a.b import c`` counts as importing ``a.b.c`` when that is a module, else ``a.b``;
+    relative imports are resolved against the module's package."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join(anchor + ([base] if base else []))
+            targets = [f"{base}.{alias.name}" if f"{base}.{alias.name}" in known else base for alias in node.names]
+        else:
+            continue
+        for target in targets:
+            while target and target not in known:  # 'import a.b.c' of a package path: its closest known module
+                target = target.rpartition(".")[0]
+            if target and target != name:
+                found.add(target)
+    return found
+
+
+def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
+    files = module_files(root)
+    known = set(files)
+    return {name: imported_modules(name, path, known) for name, path in files.items()}
+
+
+def top(name: str) -> str:
+    return name.split(".")[0]
+
+
+def cross_package_imports(graph: dict[str, set[str]]) -> list[str]:
+    """'a -> b' for every import of a stage by another stage or by the library."""
+    bad = []
+    for name, targets in sorted(graph.items()):
+        for target in sorted(targets):
+            if top(target) in STAGES and top(target) != top(name):
+                bad.append(f"{name} -> {target}")
+    return bad
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for target in graph.get(node, ()):
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in on_stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return cycles
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    return import_graph()
+
+
+def test_the_graph_sees_the_imports(graph):
+    """A guard for the checks below: the walker finds imports of every form the code uses."""
+    assert "mesh2tex.render.cameras" in graph["mesh2tex.render"]  # relative, from a package's __init__
+    assert "mesh2tex.runtime" in graph["infer.generate"]  # from a module import a name
+    assert "mesh2tex.transfer" in graph["infer.protocols"]  # from a package import a submodule
+    assert all(top(t) in (LIBRARY, *STAGES) for targets in graph.values() for t in targets)
+
+
+def test_no_stage_imports_another_stage_and_the_library_imports_none(graph):
+    assert cross_package_imports(graph) == [], "stages share code through the library (docs/architecture.md)"
+
+
+def test_no_import_cycles(graph):
+    assert import_cycles(graph) == []
+
+
+def test_the_checks_find_what_they_forbid():
+    graph = {"infer.a": {"train.b", "mesh2tex.c"}, "train.b": set(), "mesh2tex.c": {"infer.a"}, "mesh2tex.d": {"mesh2tex.e"},
+             "mesh2tex.e": {"mesh2tex.f"}, "mesh2tex.f": {"mesh2tex.d"}}
+    assert cross_package_imports(graph) == ["infer.a -> train.b", "mesh2tex.c -> infer.a"]
+    assert import_cycles(graph) == [["infer.a", "mesh2tex.c"], ["mesh2tex.d", "mesh2tex.e", "mesh2tex.f"]]
+
+
+def test_no_source_file_is_longer_than_600_lines():
+    folders = (LIBRARY, *STAGES, "tests", "benchmarks", "models")
+    long = {str(p.relative_to(ROOT)): n for folder in folders for p in sorted((ROOT / folder).rglob("*.py"))
+            if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert long == {}, "split a long file by job"

@@ -17,7 +17,6 @@ of the regrowth follow in the GIF).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from pathlib import Path
@@ -31,7 +30,7 @@ from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.checkpoint import save_checkpoint
-from mesh2tex.io.images import save_png
+from mesh2tex.io.images import colors_to_uint8, images_to_uint8, save_png
 from mesh2tex.io.models import load_nca
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
 from mesh2tex.nn.nca import build_cell_graph
@@ -40,9 +39,9 @@ from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.uv import bake_surface_colors
+from mesh2tex.runtime import select_device
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
-CAMERA_DISTANCE, CAMERA_FOV = 3.2, 40.0  # the unit ball, framed as in training
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -80,14 +79,6 @@ def choose_subdivisions(value: str, vertices: np.ndarray, faces: np.ndarray, cel
     return count
 
 
-def select_device(name: str) -> torch.device:
-    if name == "auto":
-        name = "cuda" if torch.cuda.is_available() else "cpu"
-    if name == "cuda" and not torch.cuda.is_available():
-        raise UserError("--device cuda: no CUDA device is available (use --device cpu or auto)")
-    return torch.device(name)
-
-
 def run(args) -> int:
     from PIL import Image
 
@@ -101,6 +92,8 @@ def run(args) -> int:
         raise UserError(f"{out}: already holds {', '.join(existing)}; pass --overwrite to replace them")
     device = select_device(args.device)
     model, meta, exemplar = load_nca(args.checkpoint, device)
+    camera = meta.get("config", {}).get("camera", {})  # frame the unit ball as training did
+    distance, fov = float(camera.get("distance", 3.2)), float(camera.get("fov", 40.0))
     other = None
     lineage_note = None
     if args.graft:
@@ -134,8 +127,8 @@ def run(args) -> int:
 
     def frame(state, index, total):
         azimuth = 30.0 + 90.0 * index / max(total - 1, 1)
-        mvp = orbit_camera(azimuth, 20.0, distance=CAMERA_DISTANCE, fov=CAMERA_FOV).mvp.to(device)
-        frames.append(to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0).images)[0])
+        mvp = orbit_camera(azimuth, 20.0, distance=distance, fov=fov).mvp.to(device)
+        frames.append(images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0).images)[0])
 
     state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(args.seed))
     total_frames = len(frames_at) * (2 if damage is not None else 1)
@@ -159,9 +152,9 @@ def run(args) -> int:
             raise UserError(f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps")
 
         mvp = orbit_camera(torch.arange(args.views, dtype=torch.float32) * (360.0 / args.views) + 30.0, 20.0,
-                           distance=CAMERA_DISTANCE, fov=CAMERA_FOV).mvp.to(device)
+                           distance=distance, fov=fov).mvp.to(device)
         views = render_states(model, state, graph, mvp, args.resolution, background=1.0)
-        for k, image in enumerate(to_uint8(views.images)):
+        for k, image in enumerate(images_to_uint8(views.images)):
             save_png(out / f"view_{k}.png", image)
         style = None
         if exemplar is not None:
@@ -176,7 +169,7 @@ def run(args) -> int:
 
         verts, tris, uv, texture, _ = bake_surface_colors(graph.positions, graph.triangles, colors_at, args.texture_size)
         save_glb(out / "textured.glb", verts.numpy(), tris.numpy(), uv.numpy(), texture, smooth_vertex_normals(verts.numpy(), tris.numpy()))
-        vertex_rgb = ((model.vertex_colors(state)[0].clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).cpu().numpy()
+        vertex_rgb = colors_to_uint8(model.vertex_colors(state)[0])
         save_ply(out / "textured.ply", positions, graph.triangles.cpu().numpy(), vertex_rgb)
     save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
                     meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": args.steps})
@@ -203,7 +196,3 @@ def lineage(meta: dict, other_meta: dict) -> str | None:
         return None
     return "the two models are not of one lineage (train the second with --parent FIRST); the graft may not blend"
 
-
-def to_uint8(images: torch.Tensor) -> np.ndarray:
-    """(N, 3, H, W) in [-1, 1] -> (N, H, W, 3) uint8."""
-    return ((images.detach().clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()

@@ -9,7 +9,7 @@ import yaml
 from PIL import Image
 
 from mesh2tex.cli import main
-from mesh2tex.io.checkpoint import load_checkpoint
+from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint
 from mesh2tex.synthetic.exemplars import exemplar_image
 
 TINY_NCA = {"iters": 4, "batch": 1, "views": 1, "resolution": 32, "steps_min": 2, "steps_max": 3, "pool": 4, "seed_every": 2,
@@ -70,7 +70,7 @@ def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, capsys):
     _, parent_meta = load_checkpoint(parent, kind="nca")
     _, child_meta = load_checkpoint(nca_files / "child" / "model.safetensors", kind="nca")
     assert child_meta["lineage"] == parent_meta["lineage"]
-    assert child_meta["parent"]["sha256"]
+    assert child_meta["parent"]["digest"] == checkpoint_digest(parent)
     out = nca_files / "graft"
     assert main(["infer", "nca", "--checkpoint", str(parent), "--graft", str(nca_files / "child" / "model.safetensors"),
                  "--mesh", "sphere:4", "--out", str(out), "--steps", "6", "--views", "2", "--resolution", "32",

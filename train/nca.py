@@ -17,7 +17,6 @@ the two can be grafted) and records its digest.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import sys
 import time
 import uuid
@@ -30,8 +29,8 @@ import torch
 from mesh2tex.config import config_from_dict, load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.primitives import load_surface, mean_edge_length
-from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
-from mesh2tex.io.images import load_image, save_png
+from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
+from mesh2tex.io.images import colors_to_uint8, images_to_uint8, load_image, save_png
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
 from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
@@ -161,11 +160,6 @@ def load_exemplar(path: str | Path, size: int) -> torch.Tensor:
     return F.interpolate(square, size=(size, size), mode="area") if side >= size else F.interpolate(square, size=(size, size), mode="bilinear", align_corners=False)
 
 
-def file_digest(path: str | Path) -> str:
-    """sha256 of a file's bytes (a parent checkpoint's identity)."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
 def random_cameras(cfg: TrainNCAConfig, count: int, generator: torch.Generator) -> torch.Tensor:
     """(count, 4, 4) mvp of random orbit views of the unit ball."""
     azimuth = torch.rand(count, generator=generator) * 360.0
@@ -179,11 +173,6 @@ def fixed_cameras(cfg: TrainNCAConfig, count: int = 4, elevation: float = 20.0) 
     return orbit_camera(azimuth, elevation, distance=cfg.camera.distance, fov=cfg.camera.fov).mvp
 
 
-def to_uint8(images: torch.Tensor) -> np.ndarray:
-    """(N, 3, H, W) in [-1, 1] -> (N, H, W, 3) uint8."""
-    return ((images.detach().clamp(-1, 1) + 1) * 127.5).round().to(torch.uint8).permute(0, 2, 3, 1).cpu().numpy()
-
-
 # --------------------------------------------------------------------------------------- trainer
 class NCATrainer:
     """The loop of ``train nca`` (see the module docstring)."""
@@ -195,7 +184,7 @@ class NCATrainer:
         self.exemplar = ExemplarFeatures.compute(vgg, exemplar.to(device), cfg.vgg_depth)
         runs.seed_everything(cfg.seed)  # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
         self.model = MeshNCA(cfg.nca).to(device)
-        self.parent_record = None if parent is None else {"path": parent["path"], "sha256": parent["sha256"]}
+        self.parent_record = None if parent is None else {"path": parent["path"], "digest": parent["digest"]}
         # Models of one lineage (a parent and every model trained from it) can be grafted.
         self.lineage = parent["lineage"] if parent is not None else uuid.uuid4().hex
         if parent is not None:
@@ -248,7 +237,7 @@ class NCATrainer:
 
     def exemplar_uint8(self) -> torch.Tensor:
         """(3, H, W) uint8: the exemplar as the model saw it, kept in every checkpoint."""
-        return ((self.exemplar.image[0].cpu() + 1) * 127.5).round().clamp(0, 255).to(torch.uint8)
+        return torch.from_numpy(colors_to_uint8(self.exemplar.image[0]))
 
     def save(self, path: Path) -> None:
         runs.save_training_state(path, KIND, {"model": self.model}, {"adam": self.optimizer},
@@ -278,7 +267,7 @@ class NCATrainer:
         views = render_states(self.model, state, self.graph, fixed_cameras(self.cfg).to(self.device), self.cfg.resolution, background=1.0)
         size = self.cfg.resolution
         exemplar = torch.nn.functional.interpolate(self.exemplar.image, size=(size, size), mode="bilinear", align_corners=False)
-        tiles = list(to_uint8(torch.cat([exemplar, views.images])))
+        tiles = list(images_to_uint8(torch.cat([exemplar, views.images])))
         save_png(self.run.samples_dir / f"iter_{self.iteration:06d}.png", contact_sheet(tiles, len(tiles)))
 
     def train(self) -> None:
@@ -323,12 +312,13 @@ class NCATrainer:
 
 
 def load_parent(path: str) -> tuple[NCAConfig, dict]:
-    """A parent checkpoint's automaton config and {state, path, sha256}."""
+    """A parent checkpoint's automaton config and {state, path, digest, lineage}."""
     groups, meta = load_checkpoint(path, kind=KIND)
     if "model" not in groups:
         raise UserError(f"{path}: the checkpoint holds no automaton weights")
     parent_cfg = config_from_dict(NCAConfig, meta.get("nca", {}), where=f"{path} nca")
-    return parent_cfg, {"state": groups["model"], "path": str(path), "sha256": file_digest(path), "lineage": meta.get("lineage") or file_digest(path)}
+    digest = checkpoint_digest(path, "parent checkpoint")
+    return parent_cfg, {"state": groups["model"], "path": str(path), "digest": digest, "lineage": meta.get("lineage") or digest}
 
 
 def run(args) -> int:

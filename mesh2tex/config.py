@@ -18,7 +18,9 @@ Usage::
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
+import types
 import typing
 from pathlib import Path
 from typing import Any, TypeVar
@@ -30,6 +32,10 @@ from mesh2tex.io.atomic import write_text
 
 T = TypeVar("T")
 
+# The widest layer a config may ask for: far above any trained model (the paper's widest is 512), far
+# below a width whose weights would not fit in memory.
+MAX_CHANNELS = 4096
+
 
 def config_to_dict(cfg) -> dict[str, Any]:
     """A plain dict (nested) of a config dataclass."""
@@ -37,7 +43,8 @@ def config_to_dict(cfg) -> dict[str, Any]:
 
 
 def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "config") -> T:
-    """Build ``cls`` from a nested dict; unknown keys and wrong types are user errors naming the key."""
+    """Build ``cls`` from a nested dict; unknown keys, wrong types and values a config's own checks
+    (its ``__post_init__``, raising ValueError) refuse are user errors naming the key."""
     data = dict(data or {})
     hints = typing.get_type_hints(cls)
     kwargs = {}
@@ -55,13 +62,33 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
         kwargs[f.name] = value
     if data:
         known = ", ".join(f.name for f in dataclasses.fields(cls))
-        raise UserError(f"{where}: unknown key(s) {sorted(data)}; known keys: {known}")
-    return cls(**kwargs)
+        raise UserError(f"{where}: unknown key(s) {sorted(str(k) for k in data)}; known keys: {known}")
+    try:
+        return cls(**kwargs)
+    except (ValueError, TypeError) as error:
+        raise UserError(f"{where}: {error}") from None
 
 
 def _coerce(value, hint, where: str):
+    """``value`` as type ``hint``: floats from ints and numeric strings ("1e-3", which YAML 1.1 reads as
+    a string), finite only; ints, strings and bools as they are; list elements each coerced."""
     origin = typing.get_origin(hint)
-    if hint is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+    args = typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        inner = [a for a in args if a is not type(None)]
+        return _coerce(value, inner[0], where) if len(inner) == 1 else value
+    if hint is float:
+        if isinstance(value, str):
+            try:
+                value = float(value.strip())
+            except ValueError:
+                raise UserError(f"{where}: expected a number, got {value!r}") from None
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise UserError(f"{where}: expected a number, got {value!r}")
+        if not math.isfinite(value):
+            raise UserError(f"{where}: expected a finite number, got {value!r}")
         return float(value)
     if hint in (int, str, bool):
         if not isinstance(value, hint) or (hint is int and isinstance(value, bool)):
@@ -70,8 +97,35 @@ def _coerce(value, hint, where: str):
     if origin in (list, tuple):
         if not isinstance(value, (list, tuple)):
             raise UserError(f"{where}: expected a list, got {value!r}")
+        if args and args[-1] is not Ellipsis and origin is tuple and len(args) != len(value):
+            raise UserError(f"{where}: expected {len(args)} values, got {len(value)}")
+        if args:
+            element = (lambda i: args[0]) if origin is list or args[-1] is Ellipsis else (lambda i: args[i])
+            value = [_coerce(v, element(i), f"{where}[{i}]") for i, v in enumerate(value)]
         return list(value) if origin is list else tuple(value)
     return value
+
+
+def check_fields(cfg, *, at_least: dict[str, float] | None = None, positive: tuple[str, ...] = (),
+                 between: dict[str, tuple[float, float]] | None = None) -> None:
+    """Range checks for a config's ``__post_init__``: ValueError naming the first field out of range.
+
+    ``at_least`` maps a field to its lowest value, ``positive`` lists fields that must be > 0,
+    ``between`` maps a field to its closed interval (a list field: every element).
+    """
+    def values(name):
+        value = getattr(cfg, name)
+        return list(value) if isinstance(value, (list, tuple)) else [value]
+
+    for name, low in (at_least or {}).items():
+        if any(v < low for v in values(name)):
+            raise ValueError(f"{name} must be at least {low:g}, got {getattr(cfg, name)!r}")
+    for name in positive:
+        if any(not v > 0 for v in values(name)):
+            raise ValueError(f"{name} must be positive, got {getattr(cfg, name)!r}")
+    for name, (low, high) in (between or {}).items():
+        if any(not low <= v <= high for v in values(name)):
+            raise ValueError(f"{name} must be in [{low:g}, {high:g}], got {getattr(cfg, name)!r}")
 
 
 def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: dict[str, Any] | None = None) -> T:
@@ -86,9 +140,13 @@ def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: 
         if not path.is_file():
             raise UserError(f"{path}: config file not found")
         try:
-            loaded = yaml.safe_load(path.read_text())
+            loaded = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except UnicodeDecodeError as error:
+            raise UserError(f"{path}: not UTF-8 text (byte {error.start}); save the config as UTF-8") from None
         except yaml.YAMLError as error:
             raise UserError(f"{path}: not valid YAML ({error.__class__.__name__})") from None
+        except RecursionError:
+            raise UserError(f"{path}: nested too deeply to be a config") from None
         if loaded is not None and not isinstance(loaded, dict):
             raise UserError(f"{path}: the config must be a mapping")
         data = loaded or {}
@@ -99,6 +157,8 @@ def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: 
         *parents, leaf = key.split(".")
         for part in parents:
             node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise UserError(f"{path or 'config'}: '{part}' must be a mapping")
         node[leaf] = value
     return config_from_dict(cls, data, str(path) if path else "config")
 

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 from PIL import Image
 
-from mesh2tex.config import load_config
+from mesh2tex.config import check_fields, load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, save_png
@@ -50,6 +50,14 @@ class OptimConfig:
     beta1: float = 0.0  # Adam beta1 (paper: 0)
     beta2: float = 0.99  # Adam beta2 (paper: 0.99)
 
+    def __post_init__(self):
+        check_fields(self, positive=("lr_encoder", "lr_generator", "lr_field", "lr_discriminator"),
+                     between={"beta1": (0.0, 0.9999), "beta2": (0.0, 0.9999)})
+
+    def learning_rates(self) -> dict[str, list[float]]:
+        """{optimizer: learning rate of each of its parameter groups}, in the order the trainer builds them."""
+        return {"g": [self.lr_encoder, self.lr_generator, self.lr_field], "d": [self.lr_discriminator]}
+
 
 @dataclass
 class TrainGanConfig:
@@ -73,6 +81,12 @@ class TrainGanConfig:
     augment: AugmentConfig = field(default_factory=AugmentConfig)  # of every discriminator input, real and fake
     optim: OptimConfig = field(default_factory=OptimConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
+
+    def __post_init__(self):
+        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "sample_shapes": 1,
+                                     "ema_rampup": 0}, positive=("ema_halflife_images",))
+        if self.resolution >= 8:  # smaller ones are refused by build_config, naming --resolution
+            self.discriminator.check_resolution(self.resolution)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

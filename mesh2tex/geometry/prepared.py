@@ -112,7 +112,7 @@ def shape_paths(folder: str | os.PathLike) -> dict[str, Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
-    found = {p.stem: p for p in sorted(folder.glob("*.npz"))}
+    found = {p.stem: p for p in sorted(folder.glob("*.npz")) if not p.name.startswith(".")}  # hidden: half-written by an old version
     if not found:
         raise UserError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
     return found

@@ -1,4 +1,11 @@
-"""Atomic file writes: a reader (or a crash) never sees a half-written file under its final name."""
+"""Atomic file writes: a reader (or a crash) never sees a half-written file under its final name.
+
+A file being written lives in a hidden folder beside its target,
+``<folder>/.mesh2tex-partial/<pid>.<random>/<name>``, so that no loader's pattern (``*.npz``,
+``*.png``, ``*.json`` in ``<folder>``) can pick it up, and it keeps its final name (some writers,
+numpy, PIL and trimesh, pick the format from the suffix). Writing anything into a folder removes
+what killed writers of that folder left behind (their process is gone).
+"""
 
 from __future__ import annotations
 
@@ -6,35 +13,78 @@ import contextlib
 import json
 import math
 import os
+import shutil
 import tempfile
 from pathlib import Path
 from typing import Iterator
 
+PARTIAL_DIR = ".mesh2tex-partial"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return True
+    return True
+
+
+def clean_partials(folder: str | os.PathLike) -> list[Path]:
+    """Remove the half-written files that killed processes left in ``folder``; returns what was removed."""
+    root = Path(folder) / PARTIAL_DIR
+    removed: list[Path] = []
+    try:
+        entries = list(root.iterdir())
+    except OSError:
+        return removed
+    for entry in entries:
+        pid = entry.name.split(".", 1)[0]
+        if pid.isdigit() and _alive(int(pid)):
+            continue
+        shutil.rmtree(entry, ignore_errors=True)
+        removed.append(entry)
+    with contextlib.suppress(OSError):
+        root.rmdir()  # only when empty: another writer may be using it
+    return removed
+
+
+def _temp_dir(parent: Path) -> Path:
+    for _ in range(5):  # another process may remove the (empty) partial folder between the two calls
+        (parent / PARTIAL_DIR).mkdir(parents=True, exist_ok=True)
+        try:
+            return Path(tempfile.mkdtemp(prefix=f"{os.getpid()}.", dir=parent / PARTIAL_DIR))
+        except FileNotFoundError:
+            continue
+    raise OSError(f"{parent}: cannot create a temporary folder for an atomic write")
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; on success it is fsynced and renamed onto ``path``.
+    """Yield a temporary path for ``path`` (see the module docstring); on success it is fsynced and
+    renamed onto ``path``.
 
-    The temporary name keeps the final suffix (``suffix`` or ``path``'s own), because some writers
-    (numpy, PIL, trimesh) pick the format from it. On an exception the temporary file is removed
-    and ``path`` is left as it was.
+    The temporary name is ``path``'s own name (``suffix``, when given, replaces its suffix), because
+    some writers pick the format from it. On an exception the temporary file is removed and ``path``
+    is left as it was.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    suffix = path.suffix if suffix is None else suffix
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".partial{suffix}", dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
+    clean_partials(path.parent)
+    folder = _temp_dir(path.parent)
+    tmp = folder / (path.name if suffix is None else path.stem + suffix)
+    tmp.touch()
     try:
         yield tmp
         with open(tmp, "rb+") as handle:
             os.fsync(handle.fileno())
-        # mkstemp creates 0600 files; give the result the permissions of a normally created file.
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        shutil.rmtree(folder, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            folder.parent.rmdir()
 
 
 def _umask() -> int:

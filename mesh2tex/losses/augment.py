@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import torch
 
+from mesh2tex.config import check_fields
+
 TRANSFORMS = ("color", "translation", "cutout")
 
 
@@ -29,6 +31,9 @@ class AugmentConfig:
     p: float = 1.0  # probability that each transform is applied to a sample
     translation_ratio: float = 0.125  # largest shift, as a fraction of the image side
     cutout_ratio: float = 0.5  # side of the cut-out square, as a fraction of the image side
+
+    def __post_init__(self):
+        check_fields(self, between={"p": (0.0, 1.0), "translation_ratio": (0.0, 1.0), "cutout_ratio": (0.0, 1.0)})
 
 
 def parse_policy(policy: str) -> list[str]:

@@ -24,6 +24,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from mesh2tex.config import check_fields
+
 PHASES = ("Gmain", "Greg", "Dmain", "Dreg")
 
 
@@ -35,6 +37,10 @@ class GanLossConfig:
     pl_interval: int = 4  # lazy path-length regularisation: every this many iterations
     pl_decay: float = 0.01  # running-mean decay of the path lengths
     proxy_weight: float = 1.0  # weight of the proxy (per-face colour) adversarial loss
+
+    def __post_init__(self):
+        check_fields(self, at_least={"r1_gamma": 0, "pl_weight": 0, "proxy_weight": 0, "r1_interval": 1, "pl_interval": 1},
+                     between={"pl_decay": (0.0, 1.0)})
 
 
 # generate(z) -> (psi images (N,3,H,W), proxy images (N,3,H,W) or None, ws (B,num_ws,w_dim))

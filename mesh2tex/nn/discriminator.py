@@ -9,6 +9,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.faceconv import FullyConnected, bias_act
 
 _BLUR_1D = torch.tensor([1.0, 3.0, 3.0, 1.0])
@@ -20,6 +21,16 @@ class DiscriminatorConfig:
     channel_max: int = 128  # widest layer
     mbstd_group: int = 4  # minibatch standard deviation group size
     conv_clamp: float = 256.0  # clamp of activations (keeps mixed precision finite)
+
+    def __post_init__(self):
+        check_fields(self, between={"channel_base": (1, 64 * MAX_CHANNELS), "channel_max": (1, MAX_CHANNELS)},
+                     at_least={"mbstd_group": 1}, positive=("conv_clamp",))
+
+    def check_resolution(self, resolution: int) -> None:
+        """ValueError when a layer at ``resolution`` would have no channel (``channel_base // resolution`` is 0)."""
+        if self.channel_base // resolution < 1:
+            raise ValueError(f"channel_base {self.channel_base} is too small for resolution {resolution}: "
+                             f"every layer needs a channel (channel_base >= {resolution})")
 
 
 class Conv2dLayer(nn.Module):

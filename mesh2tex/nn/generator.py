@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import torch
 from torch import nn
 
+from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, FullyConnected, ModulatedFaceConv, face_pool, face_unpool
 from mesh2tex.nn.field import NeuralField
@@ -63,6 +64,15 @@ class GeneratorConfig:
     nca_hidden: int = 64  # kind nca: width of the update MLP
     nca_steps: int = 12  # kind nca: steps grown from the zero state
     nca_condition: int = 16  # kind nca: width of each of the latent and the geometry conditions per cell
+
+    def __post_init__(self):
+        check_fields(self, at_least={"mapping_layers": 1, "input_features": 0, "field_geometry_channels": 0, "nca_steps": 1},
+                     positive=("mapping_lr_multiplier", "conv_clamp"),
+                     between={name: (1, MAX_CHANNELS) for name in ("z_dim", "w_dim", "encoder_channels", "synthesis_channels", "field_hidden",
+                                                                  "aux_latent_dim", "nca_channels", "nca_hidden", "nca_condition")})
+        if not self.synthesis_channels or len(self.encoder_channels) != len(self.synthesis_channels):
+            raise ValueError(f"encoder_channels and synthesis_channels need one entry per level each "
+                             f"(got {len(self.encoder_channels)} and {len(self.synthesis_channels)})")
 
     @property
     def num_levels(self) -> int:

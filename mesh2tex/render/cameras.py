@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import torch
 
+from mesh2tex.config import check_fields
+
 DEFAULT_DISTANCE = 2.5  # world units; a unit-sized object fills most of the frame at the default fov (the GAN's own camera: CameraConfig)
 DEFAULT_FOV = 40.0  # vertical field of view in degrees
 DEFAULT_NEAR = 0.1
@@ -36,6 +38,12 @@ class CameraConfig:
     elevation_max: float = 35.0  # highest elevation of the random views, degrees
     jitter_degrees: float = 2.0  # std of the Gaussian noise added to azimuth and elevation
     distance_jitter: float = 0.06  # relative std of the Gaussian noise on the distance
+
+    def __post_init__(self):
+        check_fields(self, positive=("distance",), between={"fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0),
+                                                            "jitter_degrees": (0.0, 90.0), "distance_jitter": (0.0, 0.5)})
+        if self.elevation_min > self.elevation_max:
+            raise ValueError(f"elevation_min {self.elevation_min} is above elevation_max {self.elevation_max}")
 
 
 @dataclass

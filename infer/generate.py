@@ -1,7 +1,7 @@
 """``mesh2tex infer generate``: texture a mesh from random latent codes with a trained GAN.
 
     mesh2tex infer generate --checkpoint RUN/checkpoint.safetensors --mesh MESH_OR_NPZ --out DIR
-                            [--seeds 0,1,2] [--views 8] [--resolution 512] [--texture-size 1024]
+                            [--seeds 0,1,2] [--views 8] [--resolution 512] [--texture-size 1024] [--overwrite]
 
 ``--config YAML`` sets any field of :class:`GenerateConfig` (the flags override it).
 
@@ -9,14 +9,14 @@ Writes, per seed S: ``seed{S}_view{V}.png`` (orbit views, azimuths evenly spaced
 (the finest quad level, split into triangles, with a UV texture baked from psi: xatlas unwrapping,
 UV-space rasterization, seams dilated) and ``seed{S}.ply`` (vertex colours). A raw mesh is
 prepared on the fly (``mesh2tex prepare shapes`` does the same ahead of time). Assets are in the
-prepared shape's normalised frame (bounding-box centre at the origin, diagonal 1).
+prepared shape's normalised frame (bounding-box centre at the origin, diagonal 1). Files already in
+DIR are never replaced without ``--overwrite``.
 """
 
 from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import torch
 
@@ -24,6 +24,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import gan_camera, load_generator
+from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.render import orbit_camera, turntable_angles
@@ -62,6 +63,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--truncation", type=float, help="truncation psi of the latent (1: none)")
     parser.add_argument("--faces", type=int, help="finest quad count when preparing a raw mesh (default 6144)")
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to run")
+    parser.add_argument("--overwrite", action="store_true", help="replace files already in --out")
+
+
+def output_names(cfg: GenerateConfig) -> list[str]:
+    """The files the command writes into --out."""
+    return [name for seed in cfg.seeds for name in [f"seed{seed}_view{v}.png" for v in range(cfg.views)] + [f"seed{seed}.glb", f"seed{seed}.ply"]]
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -90,7 +97,7 @@ def run(args) -> int:
     shape = load_shape(args.mesh, generator, cfg.faces)
     batch = collate_shapes([shape]).to(device)
     encoded = generator.encoder(batch)
-    out = Path(args.out)
+    out = guard_outputs(args.out, output_names(cfg), args.overwrite)  # after the inputs are checked, before anything is written
     out.mkdir(parents=True, exist_ok=True)
     azimuth, elevation = turntable_angles(cfg.views, cfg.elevation)
     mvp = orbit_camera(azimuth, elevation, distance=distance, fov=fov).mvp.to(device)

@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -32,6 +31,7 @@ from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import colors_to_uint8, images_to_uint8, save_png
 from mesh2tex.io.models import load_nca
+from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
 from mesh2tex.nn.nca import build_cell_graph
 from mesh2tex.nn.render_texture import render_states
@@ -86,10 +86,7 @@ def run(args) -> int:
                              ("--texture-size", args.texture_size, 16), ("--frames", args.frames, 0)):
         if value < low:
             raise UserError(f"{name} must be at least {low}, got {value}")
-    out = Path(args.out)
-    existing = [n for n in OUTPUTS if (out / n).exists()]
-    if existing and not args.overwrite:
-        raise UserError(f"{out}: already holds {', '.join(existing)}; pass --overwrite to replace them")
+    out = guard_outputs(args.out, list(OUTPUTS) + [f"view_{k}.png" for k in range(args.views)], args.overwrite)
     device = select_device(args.device)
     model, meta, exemplar = load_nca(args.checkpoint, device)
     camera = meta.get("config", {}).get("camera", {})  # frame the unit ball as training did

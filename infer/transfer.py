@@ -42,6 +42,7 @@ from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.images import colors_to_uint8, images_to_uint8, save_png
 from mesh2tex.io.models import gan_camera, is_model_name, load_generator
+from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
@@ -109,6 +110,12 @@ def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, 
     return {"glb": "textured.glb", "ply": "textured.ply", "comparison": "comparison.png", "turntable": "turntable.gif"}
 
 
+def output_names(cfg: TransferConfig) -> list[str]:
+    """The files the command writes into --out."""
+    return (["textured.glb", "textured.ply", "comparison.png", "turntable.gif", "photo_crop.png", "render_at_pose.png", "report.json"]
+            + [f"turntable_{i:02d}.png" for i in range(cfg.turntable_frames)])
+
+
 # -------------------------------------------------------------------------------------------- stage
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan'), or a shipped "
@@ -152,9 +159,7 @@ def build_config(args) -> TransferConfig:
 
 def run(args) -> int:
     cfg = build_config(args)
-    out = Path(args.out)
-    if (out / "report.json").exists() and not args.overwrite:
-        raise UserError(f"{out}: already holds a transfer result (report.json); pass --overwrite to replace it")
+    out = guard_outputs(args.out, output_names(cfg), args.overwrite)
     pose = parse_pose(args.pose)
     if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks
         args.pose_checkpoint = args.pose_checkpoint or args.checkpoint

@@ -71,8 +71,23 @@ def checkpoint_digest(path: str | os.PathLike, what: str = "checkpoint") -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 
 
+def check_header(header: Any) -> dict[str, Any]:
+    """The schema of a checkpoint's mesh2tex header: a mapping with an integer ``format``, a string
+    ``kind`` and a mapping ``meta``; ValueError saying what is wrong."""
+    if not isinstance(header, dict):
+        raise ValueError(f"its header is a {type(header).__name__}, not a mapping")
+    if not isinstance(header.get("format"), int) or isinstance(header.get("format"), bool):
+        raise ValueError("its header has no format number")
+    if not isinstance(header.get("kind"), str):
+        raise ValueError("its header has no kind")
+    if not isinstance(header.get("meta"), dict):
+        raise ValueError("its header has no 'meta' mapping")
+    return header
+
+
 def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:
-    """The JSON header ({format, kind, meta}) of a checkpoint, without loading its tensors."""
+    """The JSON header ({format, kind, meta}) of a checkpoint, without loading its tensors; UserError
+    for anything that is not a checkpoint this module wrote (checked against :func:`check_header`)."""
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: checkpoint not found")
@@ -82,10 +97,24 @@ def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:
             if size <= 0 or size > 100_000_000:
                 raise ValueError("bad header size")
             header = json.loads(handle.read(size))
+        if not isinstance(header, dict):
+            raise ValueError(f"the safetensors header is a {type(header).__name__}, not a mapping")
         meta = header.get("__metadata__", {})
-        return json.loads(meta[_META_KEY])
-    except (ValueError, KeyError, json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise UserError(f"{path}: not a mesh2tex checkpoint ({error.__class__.__name__})") from None
+        if not isinstance(meta, dict) or not isinstance(meta.get(_META_KEY), str):
+            raise ValueError("no mesh2tex metadata")
+        return check_header(json.loads(meta[_META_KEY]))
+    except (ValueError, UnicodeDecodeError, RecursionError, OSError) as error:
+        reason = "nested too deeply" if isinstance(error, RecursionError) else (
+            str(error) if type(error) is ValueError else error.__class__.__name__)
+        raise UserError(f"{path}: not a mesh2tex checkpoint ({reason})") from None
+
+
+def meta_mapping(meta: dict[str, Any], key: str, path: str | os.PathLike) -> dict[str, Any]:
+    """``meta[key]``, a mapping; UserError naming ``path`` when the checkpoint has none."""
+    value = meta.get(key)
+    if not isinstance(value, dict):
+        raise UserError(f"{path}: not a usable checkpoint (its metadata has no '{key}' mapping)")
+    return value
 
 
 def load_checkpoint(path: str | os.PathLike, kind: str | None = None, map_location: str = "cpu") -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
@@ -158,6 +187,12 @@ def load_training_state(path: Path, kind: str, modules: dict[str, nn.Module], op
         except RuntimeError as error:
             raise UserError(f"{path}: '{name}' weights do not fit this config ({str(error).splitlines()[0]})") from None
         module.to(device)
+    saved = meta_mapping(meta, "optimizers", path)
+    if not isinstance(meta.get("rng"), list) or not isinstance(meta.get("iteration"), int):
+        raise UserError(f"{path}: not a usable training state (no iteration or RNG states)")
     for name, opt in optimizers.items():
-        optimizer_from_state(opt, groups.get(f"optim_{name}", {}), meta["optimizers"][name])
+        try:
+            optimizer_from_state(opt, groups.get(f"optim_{name}", {}), meta_mapping(saved, name, path))
+        except (KeyError, ValueError, TypeError, AttributeError) as error:
+            raise UserError(f"{path}: the '{name}' optimizer state does not fit this config ({error})") from None
     return groups, meta

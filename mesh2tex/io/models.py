@@ -31,7 +31,7 @@ import torch
 
 from mesh2tex.config import config_from_dict
 from mesh2tex.errors import UserError
-from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
+from mesh2tex.io.checkpoint import load_checkpoint, meta_mapping, save_checkpoint
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.nca import MeshNCA, NCAConfig
 from mesh2tex.nn.view_nets import ViewTrainConfig, build_network
@@ -113,7 +113,7 @@ def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[Textu
     eval mode without gradients, and the checkpoint's metadata."""
     path = resolve_checkpoint(path, "gan")
     groups, meta = load_checkpoint(path, kind="gan")
-    saved = dict(meta[GENERATOR_CONFIG])
+    saved = dict(meta_mapping(meta, GENERATOR_CONFIG, path))
     saved.setdefault("field_residual", False)  # written before psi became a residual on the proxy colours
     cfg = config_from_dict(GeneratorConfig, saved, f"{path}: {GENERATOR_CONFIG}")
     generator = TextureGenerator(cfg)
@@ -127,9 +127,15 @@ def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[Textu
 def gan_camera(meta: dict) -> tuple[float, float]:
     """(distance, fov) of the camera a GAN was trained with, from its checkpoint's metadata
     (``config.camera``; :class:`mesh2tex.render.CameraConfig`'s defaults where it has none)."""
-    camera = meta.get("config", {}).get("camera", {})
+    config = meta.get("config", {})
+    camera = config.get("camera", {}) if isinstance(config, dict) else {}
+    camera = camera if isinstance(camera, dict) else {}
     default = CameraConfig()
-    return float(camera.get("distance", default.distance)), float(camera.get("fov", default.fov))
+    try:
+        checked = CameraConfig(distance=float(camera.get("distance", default.distance)), fov=float(camera.get("fov", default.fov)))
+    except (TypeError, ValueError) as error:
+        raise UserError(f"the checkpoint's config.camera is not usable ({error})") from None
+    return checked.distance, checked.fov
 
 
 def load_view_network(path: str | os.PathLike, kind: str, device: torch.device | str = "cpu") -> tuple[torch.nn.Module, ViewTrainConfig]:
@@ -137,7 +143,7 @@ def load_view_network(path: str | os.PathLike, kind: str, device: torch.device |
     (a path, or a shipped model's name such as ``chair``)."""
     path = resolve_checkpoint(path, kind)
     groups, meta = load_checkpoint(path, kind=kind)
-    cfg = config_from_dict(ViewTrainConfig, meta["config"], where=str(path))
+    cfg = config_from_dict(ViewTrainConfig, meta_mapping(meta, "config", path), where=str(path))
     net = build_network(kind, cfg)
     try:
         net.load_state_dict(groups[VIEW_NET])

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,6 +32,9 @@ from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import atomic_path
 
 SCHEMA_VERSION = 1
+# Largest prepared shape read (its arrays uncompressed): a 6144-quad shape of 5 levels is about 1 MB.
+MAX_UNCOMPRESSED_BYTES = 1 << 30
+MAX_LEVELS = 16
 
 
 @dataclass
@@ -78,17 +83,53 @@ class PreparedShape:
         with atomic_path(path, suffix=".npz") as tmp:
             np.savez_compressed(tmp, **arrays)
 
+    def validate(self) -> None:
+        """ValueError naming the first array whose shape, index range or values are not a prepared shape's."""
+        levels = self.num_levels
+        if not 1 <= levels <= MAX_LEVELS or len(self.vertices) != levels or len(self.neighbors) != levels or len(self.pool) != levels - 1:
+            raise ValueError(f"inconsistent level count ({levels} quad levels, {len(self.pool)} pooling maps)")
+
+        def check(name, array, shape, low=None, high=None, finite=False):
+            if array.ndim != len(shape) or any(s is not None and a != s for a, s in zip(array.shape, shape)):
+                raise ValueError(f"{name} has shape {array.shape}, expected {tuple('N' if s is None else s for s in shape)}")
+            if not np.issubdtype(array.dtype, np.integer if low is not None else np.number):
+                raise ValueError(f"{name} holds {array.dtype} values, expected {'integers' if low is not None else 'numbers'}")
+            if finite and not np.isfinite(array).all():
+                raise ValueError(f"{name} holds NaN or infinite values")
+            if array.size and low is not None and (array.min() < low or array.max() >= high):
+                raise ValueError(f"{name} has indices outside [{low}, {high})")
+
+        for l in range(levels):
+            check(f"vertices_{l}", self.vertices[l], (None, 3), finite=True)
+            faces = self.quads[l].shape[0] if self.quads[l].ndim == 2 else -1
+            check(f"quads_{l}", self.quads[l], (None, 4), 0, self.vertices[l].shape[0])
+            check(f"neighbors_{l}", self.neighbors[l], (faces, 9), -1, faces)
+            if l + 1 < levels:
+                check(f"pool_{l}", self.pool[l], (faces,), 0, self.quads[l + 1].shape[0])
+        check("face_features", self.face_features, (self.quads[0].shape[0], len(self.feature_names)), finite=True)
+        check("noc_0", self.noc, (self.vertices[0].shape[0], 3), finite=True)
+
     @classmethod
     def load(cls, path: str | os.PathLike) -> "PreparedShape":
-        """Read a record written by :meth:`save`; a damaged or foreign file is a :class:`UserError`."""
+        """Read a record written by :meth:`save`; a damaged, foreign or inconsistent file (see
+        :meth:`validate`), or one that would inflate beyond ``MAX_UNCOMPRESSED_BYTES``, is a :class:`UserError`."""
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as data:
+                if not isinstance(data, np.lib.npyio.NpzFile):
+                    raise ValueError("not an .npz archive")
+                inflated = sum(info.file_size for info in data.zip.infolist())
+                if inflated > MAX_UNCOMPRESSED_BYTES:
+                    raise ValueError(f"its arrays would take {inflated / 2**30:.1f} GiB, more than the {MAX_UNCOMPRESSED_BYTES / 2**30:.0f} GiB a prepared shape may")
                 metadata = json.loads(str(data["metadata"]))
+                if not isinstance(metadata, dict):
+                    raise ValueError("its metadata is not a JSON mapping")
                 if metadata.get("schema_version") != SCHEMA_VERSION:
                     raise UserError(f"{path}: prepared-shape schema {metadata.get('schema_version')} is not supported (expected {SCHEMA_VERSION}); re-run 'mesh2tex prepare shapes'")
-                levels = int(metadata["num_levels"])
-                return cls(
+                levels = metadata.get("num_levels")
+                if not isinstance(levels, int) or not 1 <= levels <= MAX_LEVELS:
+                    raise ValueError(f"num_levels {levels!r} is not a level count")
+                shape = cls(
                     vertices=[data[f"vertices_{l}"] for l in range(levels)],
                     quads=[data[f"quads_{l}"] for l in range(levels)],
                     neighbors=[data[f"neighbors_{l}"] for l in range(levels)],
@@ -98,11 +139,13 @@ class PreparedShape:
                     noc=data["noc_0"],
                     metadata=metadata,
                 )
+            shape.validate()
+            return shape
         except UserError:
             raise
         except FileNotFoundError:
             raise UserError(f"{path}: prepared shape not found") from None
-        except (OSError, ValueError, KeyError, json.JSONDecodeError) as error:
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error, RecursionError) as error:
             raise UserError(f"{path}: not a valid prepared shape ({error.__class__.__name__}: {error})") from None
 
 

@@ -28,6 +28,7 @@ Ablations of the paper's Table 8: ``--no-noc`` (patch pairs without NOC guidance
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -63,6 +64,8 @@ def parse_pose(text: str) -> tuple[float, float] | None:
         azimuth, elevation = (float(v) for v in text.split(","))
     except ValueError:
         raise UserError(f"--pose {text!r}: give 'auto' or 'AZIMUTH,ELEVATION' in degrees, e.g. 30,20") from None
+    if not (math.isfinite(azimuth) and -90.0 <= elevation <= 90.0):
+        raise UserError(f"--pose {text!r}: the azimuth must be a finite angle and the elevation in [-90, 90] degrees")
     return azimuth, elevation
 
 

@@ -26,7 +26,7 @@ from PIL import Image
 from mesh2tex.config import check_fields, load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
-from mesh2tex.io.images import images_to_uint8, save_png
+from mesh2tex.io.images import images_to_uint8, read_image, save_png
 from mesh2tex.io.models import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, save_inference_checkpoint
 from mesh2tex.losses.augment import AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
@@ -120,18 +120,15 @@ def load_images(folder: str | Path, resolution: int) -> torch.Tensor:
         raise UserError(f"{image_dir}: no images (*.png, *.jpg)")
     out = np.empty((len(paths), resolution, resolution, 4), dtype=np.uint8)
     for i, path in enumerate(paths):
-        try:
-            with Image.open(path) as img:
-                img.load()
-                rgba = img.convert("RGBA")
-            if mask_dir is not None:
-                mask_path = mask_dir / (path.stem + ".png")
-                if not mask_path.is_file():
-                    raise UserError(f"{mask_path}: mask missing for {path.name}")
-                with Image.open(mask_path) as m:
-                    rgba.putalpha(m.convert("L"))
-        except (OSError, ValueError) as error:
-            raise UserError(f"{path}: cannot read image ({error})") from None
+        rgba = read_image(path, lambda image: image.convert("RGBA"))
+        if mask_dir is not None:
+            mask_path = mask_dir / (path.stem + ".png")
+            if not mask_path.is_file():
+                raise UserError(f"{mask_path}: mask missing for {path.name}")
+            mask = read_image(mask_path, lambda image: image.convert("L"))
+            if mask.size != rgba.size:
+                raise UserError(f"{mask_path}: mask size {mask.size} differs from {path.name}'s {rgba.size}")
+            rgba.putalpha(mask)
         out[i] = np.asarray(rgba.resize((resolution, resolution), Image.LANCZOS))
     return torch.from_numpy(out).permute(0, 3, 1, 2).contiguous()
 

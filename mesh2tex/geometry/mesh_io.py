@@ -48,7 +48,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         vertices: (V, 3) float64; faces: (T, 3) int64 indices into ``vertices``.
     Raises:
         UserError: the file is missing, empty, unreadable, not a mesh, a point cloud, has no faces,
-        or has non-finite coordinates everywhere.
+        or has a vertex with non-finite coordinates.
     """
     import trimesh
 
@@ -94,8 +94,8 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise UserError(f"{path}: face indices refer to vertices that do not exist")
     finite = np.isfinite(vertices).all(axis=1)
-    if not finite.all():
-        faces = faces[finite[faces].all(axis=1)]
-        if len(faces) == 0:
-            raise UserError(f"{path}: every face has a non-finite (NaN or infinite) vertex")
+    if not finite.all():  # a damaged file: dropping its faces would change the shape without a word
+        used = int((~finite[faces]).any(axis=1).sum())
+        raise UserError(f"{path}: {int((~finite).sum())} vertex(es) with non-finite (NaN or infinite) coordinates, "
+                        f"used by {used} of {len(faces)} faces")
     return vertices, faces

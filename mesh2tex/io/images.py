@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
@@ -32,18 +33,10 @@ def _to_uint8(array: np.ndarray) -> np.ndarray:
     return np.clip(np.round(np.nan_to_num(array.astype(np.float64)) * 255.0), 0, 255).astype(np.uint8)
 
 
-def load_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
-    """Read an image as RGB.
-
-    Grayscale, 16-bit, palette, CMYK and RGBA/LA inputs are normalised; EXIF orientation is applied.
-
-    Returns:
-        rgb: (H, W, 3) uint8; alpha: (H, W) uint8, or None when the file has no alpha channel
-        (a palette with a transparent entry counts as alpha).
-    Raises:
-        UserError: missing, empty, corrupt or not an image.
-    """
-    from PIL import Image, ImageOps, UnidentifiedImageError
+def read_image(path: str | os.PathLike, convert: Callable):
+    """``convert(image)`` of the PIL image in ``path``, decoded in full; every failure to read it
+    (missing, empty, not an image, truncated, corrupt, a decompression bomb) is a UserError naming the file."""
+    from PIL import Image, UnidentifiedImageError
 
     path = Path(path)
     if not path.is_file():
@@ -53,22 +46,52 @@ def load_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
     try:
         with Image.open(path) as image:
             image.load()
-            image = ImageOps.exif_transpose(image)
-            mode = image.mode
-            if mode == "P":
-                image = image.convert("RGBA" if "transparency" in image.info else "RGB")
-            elif mode in ("I;16", "I;16B", "I;16L", "I", "F"):
-                gray = _to_uint8(np.asarray(image))
-                return np.repeat(gray[..., None], 3, axis=2), None
-            elif mode == "LA" or mode == "PA":
-                image = image.convert("RGBA")
-            elif mode not in ("RGB", "RGBA"):
-                image = image.convert("RGB")
-            array = np.asarray(image)
+            return convert(image)
+    except UserError:
+        raise
     except UnidentifiedImageError:
         raise UserError(f"{path}: not a readable image (not an image, or an unsupported format)") from None
+    except Image.DecompressionBombError:
+        raise UserError(f"{path}: image too large (over {Image.MAX_IMAGE_PIXELS * 2} pixels: a decompression bomb?)") from None
     except (OSError, ValueError, SyntaxError) as error:
         raise UserError(f"{path}: corrupt image ({error})") from None
+    except Exception as error:  # a damaged file can make a PIL decoder fail in many ways (struct.error, IndexError, ...)
+        raise UserError(f"{path}: corrupt image ({error.__class__.__name__}: {error})") from None
+
+
+def _to_array(image) -> np.ndarray:
+    """A loaded PIL image -> (H, W, 3 or 4) array (uint8, or 16-bit / float for the high-depth modes)."""
+    from PIL import ImageOps
+
+    image = ImageOps.exif_transpose(image)
+    mode = image.mode
+    if mode == "P":
+        image = image.convert("RGBA" if "transparency" in image.info else "RGB")
+    elif mode in ("I;16", "I;16B", "I;16L", "I", "F"):
+        array = np.asarray(image)
+        if mode.startswith("I;16"):  # 16 bits whatever the largest value (a dark image is not an 8-bit one)
+            array = np.round(array.astype(np.float64) / 65535.0 * 255.0).astype(np.uint8)
+        return np.repeat(_to_uint8(array)[..., None], 3, axis=2)
+    elif mode == "LA" or mode == "PA":
+        image = image.convert("RGBA")
+    elif mode not in ("RGB", "RGBA"):
+        image = image.convert("RGB")
+    return np.asarray(image)
+
+
+def load_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read an image as RGB.
+
+    Grayscale, 16-bit, palette, CMYK and RGBA/LA inputs are normalised; EXIF orientation is applied.
+
+    Returns:
+        rgb: (H, W, 3) uint8; alpha: (H, W) uint8, or None when the file has no alpha channel
+        (a palette with a transparent entry counts as alpha).
+    Raises:
+        UserError: missing, empty, corrupt or not an image (:func:`read_image`).
+    """
+    path = Path(path)
+    array = read_image(path, _to_array)
     if array.ndim != 3 or array.shape[0] == 0 or array.shape[1] == 0:
         raise UserError(f"{path}: image has no pixels")
     array = _to_uint8(array)

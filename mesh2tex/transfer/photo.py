@@ -40,11 +40,17 @@ class View:
     mask: torch.Tensor
 
 
+MIN_PHOTO_SIDE = 16  # the smallest query photo: fewer pixels hold no texture to transfer
+
+
 def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig) -> tuple[Photo, str]:
     """The query photo cropped around its object (``cfg.margin``) and resized to R = ``cfg.resolution``:
     a :class:`Photo` (image (1,3,R,R) in [-1,1], white outside the photo; mask (1,1,R,R)), and where
     the mask came from (the ``mask_path`` file, the alpha channel, or a GrabCut estimate)."""
     rgb, alpha = load_image(image_path)
+    if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
+        raise UserError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
+                        f"{MIN_PHOTO_SIDE}x{MIN_PHOTO_SIDE}")
     if mask_path is not None:
         mask = load_mask(mask_path)
         if mask.shape != rgb.shape[:2]:

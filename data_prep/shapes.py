@@ -22,7 +22,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from mesh2tex.errors import UserError
-from mesh2tex.io.atomic import write_json
+from mesh2tex.io.atomic import locked, write_json
 from mesh2tex.progress import JsonLines, progress_bar
 
 
@@ -60,7 +60,7 @@ def find_meshes(inputs: list[str]) -> list[Path]:
             found.extend(root_path / name for name in sorted(files) if is_mesh_file(name))
     unique, seen = [], set()
     for path in found:
-        key = path.resolve()
+        key = os.path.realpath(path)  # never raises, not even for a symbolic-link loop
         if key not in seen:
             seen.add(key)
             unique.append(path)
@@ -117,6 +117,22 @@ def prepare_one(path: str, output: str, faces: int, levels: int, seed: int) -> d
     return record
 
 
+INDEX_LOCK = ".index.json.lock"  # held while index.json is read, merged and rewritten
+
+
+def read_index(index_path: Path, settings: dict) -> tuple[dict[str, dict], dict | None]:
+    """({source: entry} of ``index_path`` when it was written with ``settings``, else {}; the other
+    settings when they differ and it lists shapes). A missing or damaged index is empty."""
+    try:
+        old = json.loads(index_path.read_text())
+        entries = {entry["source"]: entry for entry in old.get("shapes", [])}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}, None
+    if old.get("settings") != settings:
+        return {}, (old.get("settings") if entries else None)
+    return entries, None
+
+
 def _settings(args) -> dict:
     return {"faces": int(args.faces), "levels": int(args.levels), "seed": int(args.seed)}
 
@@ -135,14 +151,11 @@ def run(args) -> int:
     names = assign_names(paths)
     index_path = output / "index.json"
     settings = _settings(args)
-    previous: dict[str, dict] = {}
-    if index_path.exists():
-        try:
-            old = json.loads(index_path.read_text())
-            if old.get("settings") == settings:
-                previous = {entry["source"]: entry for entry in old.get("shapes", [])}
-        except (json.JSONDecodeError, KeyError, TypeError, AttributeError):
-            previous = {}
+    with locked(output / INDEX_LOCK):
+        previous, other_settings = read_index(index_path, settings)
+    if other_settings:
+        print(f"mesh2tex: note: {index_path} lists shapes prepared with other settings ({other_settings}); "
+              f"they are dropped from it, their .npz files stay", file=sys.stderr)
 
     records: dict[str, dict] = {}
     todo: list[Path] = []
@@ -157,11 +170,14 @@ def run(args) -> int:
     log = JsonLines(output / "progress.jsonl")
 
     def write_index() -> None:
-        ordered = [records[str(p)] for p in paths if str(p) in records]
-        write_json(index_path, {"settings": settings, "shapes": ordered,
-                                "ok": sum(r["status"] == "ok" for r in ordered),
-                                "failed": sum(r["status"] == "failed" for r in ordered),
-                                "with_warnings": sum(bool(r.get("warnings")) for r in ordered)})
+        ours = [records[str(p)] for p in paths if str(p) in records]
+        with locked(output / INDEX_LOCK):  # merged with what other invocations wrote meanwhile, never rewritten from our view
+            others = [entry for source, entry in read_index(index_path, settings)[0].items() if source not in records]
+            ordered = others + ours
+            write_json(index_path, {"settings": settings, "shapes": ordered,
+                                    "ok": sum(r["status"] == "ok" for r in ordered),
+                                    "failed": sum(r["status"] == "failed" for r in ordered),
+                                    "with_warnings": sum(bool(r.get("warnings")) for r in ordered)})
 
     def finish(record: dict, bar) -> None:
         records[record["source"]] = record

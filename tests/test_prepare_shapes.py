@@ -79,3 +79,47 @@ def test_prepare_shapes_missing_input_is_one_line_error(tmp_path, capsys):
     assert code == 2
     err = capsys.readouterr().err
     assert err.startswith("mesh2tex: error:") and "nowhere" in err
+
+
+def test_two_invocations_into_one_folder_keep_every_entry(tmp_path):
+    """index.json is merged under a lock: runs at once, and one after another, keep each other's shapes."""
+    import os
+    import subprocess
+    import sys
+
+    for name, mesh in (("a1", trimesh.creation.box()), ("a2", trimesh.creation.icosphere(1)),
+                       ("b1", trimesh.creation.box((1.0, 0.5, 0.3))), ("b2", trimesh.creation.cylinder(0.5, 1.0, sections=12))):
+        (tmp_path / name[0]).mkdir(exist_ok=True)
+        mesh.export(tmp_path / name[0] / f"{name}.obj")
+    out = tmp_path / "out"
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MESH2TEX_PROGRESS": "0"}
+    runs = [subprocess.Popen([sys.executable, "-m", "mesh2tex", "prepare", "shapes", "--input", str(tmp_path / group), "--output", str(out),
+                              "--faces", "96", "--levels", "2"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            for group in ("a", "b")]
+    for run in runs:
+        _, err = run.communicate(timeout=300)
+        assert run.returncode == 0, err.decode()
+    index = json.loads((out / "index.json").read_text())
+    assert sorted(entry["file"] for entry in index["shapes"]) == ["a1.npz", "a2.npz", "b1.npz", "b2.npz"]
+    assert index["ok"] == 4
+    # one after another, too: a run over one group keeps the other's entries
+    (tmp_path / "c").mkdir()
+    trimesh.creation.box((0.3, 0.6, 0.9)).export(tmp_path / "c" / "c1.obj")
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "c"), "--output", str(out), "--faces", "96", "--levels", "2"]) == 0
+    index = json.loads((out / "index.json").read_text())
+    assert sorted(entry["file"] for entry in index["shapes"]) == ["a1.npz", "a2.npz", "b1.npz", "b2.npz", "c1.npz"]
+    assert not (out / ".mesh2tex-partial").exists(), "no half-written files left"
+
+
+def test_a_symlink_loop_fails_alone_and_the_mesh_beside_it_is_prepared(tmp_path, capsys):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    trimesh.creation.box().export(folder / "good.obj")
+    (folder / "a.obj").symlink_to(folder / "b.obj")
+    (folder / "b.obj").symlink_to(folder / "a.obj")
+    out = tmp_path / "out"
+    assert main(["prepare", "shapes", "--input", str(folder), "--output", str(out), "--faces", "96", "--levels", "2"]) == 2
+    index = {entry["file"]: entry for entry in json.loads((out / "index.json").read_text())["shapes"]}
+    assert index["good.npz"]["status"] == "ok"
+    assert index["a.npz"]["status"] == "failed" and "symbolic link" in index["a.npz"]["reason"]
+    assert "Traceback" not in capsys.readouterr().err

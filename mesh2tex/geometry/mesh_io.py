@@ -53,6 +53,8 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
     path = Path(path)
+    if path.is_symlink() and not path.exists():
+        raise UserError(f"{path}: a broken or looping symbolic link")
     if not path.exists():
         raise UserError(f"{path}: file not found")
     if path.is_dir():

@@ -87,6 +87,22 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
             folder.parent.rmdir()
 
 
+@contextlib.contextmanager
+def locked(path: str | os.PathLike) -> Iterator[None]:
+    """Hold an exclusive lock (``fcntl.flock``) on the file ``path`` (created, and left in place) for
+    the block: processes that read, change and rewrite one file take turns."""
+    import fcntl
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as handle:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

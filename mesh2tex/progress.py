@@ -11,6 +11,8 @@ from typing import Any, Iterable
 
 from tqdm.auto import tqdm
 
+from mesh2tex.errors import UserError
+
 
 def progress_bar(iterable: Iterable | None = None, total: int | None = None, desc: str = "", initial: int = 0, **kwargs) -> tqdm:
     """A tqdm bar on stderr; hidden when stderr is not a terminal and MESH2TEX_PROGRESS=0."""
@@ -32,13 +34,29 @@ class JsonLines:
             handle.flush()
 
     def read(self) -> list[dict[str, Any]]:
+        """The records written so far. A torn last line (the process was killed while writing it) is
+        left out; any other line that is not a JSON object is a UserError naming the file and line."""
         if not self.path.exists():
             return []
-        return [json.loads(line) for line in self.path.read_text().splitlines() if line.strip()]
+        lines = self.path.read_text(encoding="utf-8", errors="replace").splitlines()
+        records = []
+        for number, line in enumerate(lines, 1):
+            if not line.strip():
+                continue
+            try:
+                record = json.loads(line)
+            except ValueError:
+                record = None
+            if not isinstance(record, dict):
+                if number == len(lines):
+                    break
+                raise UserError(f"{self.path}: line {number} is not a JSON record; remove it to go on")
+            records.append(record)
+        return records
 
     def truncate_after(self, key: str, value) -> None:
         """Drop records whose ``key`` exceeds ``value`` (used when a run resumes from an earlier checkpoint)."""
-        kept = [r for r in self.read() if r.get(key, -1) <= value]
+        kept = [r for r in self.read() if not isinstance(r.get(key, -1), (int, float)) or r.get(key, -1) <= value]
         from mesh2tex.io.atomic import write_text
 
         write_text(self.path, "".join(json.dumps(r) + "\n" for r in kept))

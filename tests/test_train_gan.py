@@ -95,6 +95,26 @@ def test_resume_reproduces_the_uninterrupted_run(tiny_data, tmp_path):
         torch.testing.assert_close(tensor, gb["generator_ema"][name], rtol=1e-5, atol=1e-6)
 
 
+def test_resume_applies_the_run_configs_learning_rates(tiny_data, tmp_path, capsys):
+    """The NaN message's advice (lower the rates in RUN/config.yaml, --resume) works: the resumed
+    optimizers use the config's rates, not the checkpoint's, and say so; a torn last metrics line is dropped."""
+    out = tmp_path / "run"
+    assert train(tiny_data, out, "--iters", "2") == 0
+    cfg = yaml.safe_load((out / "config.yaml").read_text())
+    cfg["optim"]["lr_generator"] = 6e-4
+    cfg["optim"]["lr_discriminator"] = "7e-4"  # YAML 1.1 reads this as a string: a number all the same
+    (out / "config.yaml").write_text(yaml.safe_dump(cfg))
+    with open(out / "metrics.jsonl", "a") as handle:
+        handle.write('{"iteration": 3, "loss_g')  # a kill while a line was written
+    capsys.readouterr()
+    assert train(tiny_data, out, "--iters", "3", "--resume") == 0
+    assert "g[1] 0.0012 -> 0.0006" in capsys.readouterr().err
+    _, meta = load_checkpoint(out / "checkpoint.safetensors")
+    assert [g["lr"] for g in meta["optimizers"]["g"]["param_groups"]] == [1e-4, 6e-4, 1e-4]
+    assert [g["lr"] for g in meta["optimizers"]["d"]["param_groups"]] == [7e-4]
+    assert [r["iteration"] for r in metrics(out)] == [1, 2, 3]
+
+
 def test_nca_generator_trains_resumes_and_generates(tiny_data, tmp_path):
     config = tmp_path / "nca.yaml"
     config.write_text(yaml.safe_dump({**TINY, "generator": {**TINY["generator"], "kind": "nca", "nca_channels": 6, "nca_hidden": 16,

@@ -201,7 +201,13 @@ class GanTrainer:
         self.dist.barrier()
 
     def resume(self) -> None:
-        groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d}, self.device)
+        optimizers = {"g": self.opt_g, "d": self.opt_d}
+        groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, self.modules(), optimizers, self.device)
+        changed = runs.apply_learning_rates(optimizers, self.cfg.optim.learning_rates())  # the run's config.yaml rules, not the checkpoint
+        if changed and self.dist.is_main:
+            print(f"mesh2tex: note: resuming with the learning rates of {self.run.config_path}: {', '.join(changed)}", file=sys.stderr)
+        if GAN_LOSS not in groups:
+            raise UserError(f"{self.run.checkpoint_path}: checkpoint has no '{GAN_LOSS}' state")
         self.loss.load_state_dict(groups[GAN_LOSS])
         self.iteration = int(meta["iteration"])
         states = meta["rng"]
@@ -314,7 +320,8 @@ class GanTrainer:
                     self.save(self.run.nonfinite_path)
                     kept = f"; the last good checkpoint is {self.run.checkpoint_path}" if self.run.has_checkpoint() else ""
                     raise UserError(f"{self.run.root}: training stopped, non-finite loss ({error}); state saved to {self.run.nonfinite_path}{kept}. "
-                                    "Lower the learning rates or raise loss.r1_gamma and --resume", exit_code=4) from None
+                                    f"Lower the optim.lr_* learning rates (or raise loss.r1_gamma) in {self.run.config_path} and re-run with --resume",
+                                    exit_code=4) from None
                 if bar is not None:
                     bar.update(1)
                     bar.set_postfix({k: f"{v:.3f}" for k, v in logs.items() if k.startswith("loss_g_field") or k.startswith("loss_d_field")})

@@ -34,7 +34,7 @@ from mesh2tex.progress import JsonLines
 from mesh2tex.runtime import (Distributed, ema_beta, ema_update, make_ema, peak_memory_gb, rng_from_state,  # noqa: F401
                               rng_to_state, seed_everything, select_device)
 
-__all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "NonFiniteLoss", "RunDirectory", "check_finite", "dumps_config",
+__all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "NonFiniteLoss", "RunDirectory", "apply_learning_rates", "check_finite", "dumps_config",
            "ema_beta", "ema_update", "load_training_state", "make_ema", "peak_memory_gb", "rng_from_state", "rng_to_state",
            "save_training_state", "scalars", "seed_everything", "select_device"]
 
@@ -63,6 +63,8 @@ class RunDirectory:
             raise UserError(f"{self.root}: already holds a run ({CHECKPOINT_NAME}); pass --resume to continue it or choose another --out")
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
+        if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again
+            self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)
 
 
@@ -77,6 +79,18 @@ def check_finite(logs: dict[str, torch.Tensor | float], iteration: int) -> None:
         v = float(value.detach()) if isinstance(value, torch.Tensor) else float(value)
         if not np.isfinite(v):
             raise NonFiniteLoss(f"{name} = {v} at iteration {iteration}")
+
+
+def apply_learning_rates(optimizers: dict[str, torch.optim.Optimizer], rates: dict[str, list[float]]) -> list[str]:
+    """Set each parameter group's learning rate to the config's (``rates[name][group]``) after a resumed
+    optimizer state brought the checkpoint's; returns the changes, e.g. ``"g[1] 0.0012 -> 0.0006"``."""
+    changes = []
+    for name, opt in optimizers.items():
+        for index, (group, lr) in enumerate(zip(opt.param_groups, rates[name])):
+            if group["lr"] != lr:
+                changes.append(f"{name}[{index}] {group['lr']:g} -> {lr:g}")
+                group["lr"] = lr
+    return changes
 
 
 def scalars(logs: dict[str, torch.Tensor | float]) -> dict[str, float]:

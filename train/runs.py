@@ -29,7 +29,7 @@ from mesh2tex.config import save_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
-from mesh2tex.io.checkpoint import load_training_state, save_training_state  # noqa: F401
+from mesh2tex.io.checkpoint import load_training_state, read_checkpoint_meta, save_training_state  # noqa: F401
 from mesh2tex.progress import JsonLines
 from mesh2tex.runtime import (Distributed, ema_beta, ema_update, make_ema, peak_memory_gb, rng_from_state,  # noqa: F401
                               rng_to_state, seed_everything, select_device)
@@ -61,6 +61,8 @@ class RunDirectory:
         """Create the directory and write the resolved config; refuse to overwrite a run by accident."""
         if not resume and self.has_checkpoint():
             raise UserError(f"{self.root}: already holds a run ({CHECKPOINT_NAME}); pass --resume to continue it or choose another --out")
+        if resume:
+            read_checkpoint_meta(self.checkpoint_path)  # a damaged checkpoint is refused before config.yaml is rewritten
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
         if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again

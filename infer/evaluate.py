@@ -35,7 +35,6 @@ import sys
 import time
 import warnings
 from dataclasses import asdict
-from pathlib import Path
 
 from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
 from infer.protocols import add_protocol_arguments, run_protocols_command
@@ -43,6 +42,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.io.image_sets import list_images, load_pairs, load_set
+from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.metrics import EXTRACTOR_NAMES, get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, markdown_table
 from mesh2tex.runtime import select_device
@@ -85,9 +85,7 @@ def run_generation_command(args: argparse.Namespace) -> int:
                                                "seed": args.seed})
     if cfg.latents < 2:
         raise UserError(f"--latents {cfg.latents}: diversity needs at least 2")
-    out = Path(args.out)
-    if (out / "generation.json").exists() and not args.overwrite:
-        raise UserError(f"{out}: already holds generation results (generation.json); pass --overwrite to replace them")
+    out = guard_outputs(args.out, ["generation.json", "generation.md", "generation_samples.png"], args.overwrite)
     device = select_device(args.device)
     extractor = None
     if cfg.kid_fid:
@@ -119,10 +117,8 @@ def run(args: argparse.Namespace) -> int:
         "kid_subset_size": args.kid_subset_size, "background": args.background, "seed": args.seed})
     if config.resolution < 16:
         raise UserError(f"--resolution {config.resolution}: must be at least 16")
-    out = Path(args.out)
+    out = guard_outputs(args.out, ["metrics.json", "metrics.md"], args.overwrite)
     targets = [out / "metrics.json", out / "metrics.md"]
-    if not args.overwrite and any(t.exists() for t in targets):
-        raise UserError(f"{out}: already holds metrics; pass --overwrite to replace them")
     masks = list_images(args.masks, "mask") if args.masks else None
     start = time.perf_counter()
     if args.pairs:

@@ -79,6 +79,7 @@ from mesh2tex.io.atomic import atomic_path, json_ready, write_json, write_text
 from mesh2tex.io.checkpoint import checkpoint_digest
 from mesh2tex.io.image_sets import list_images, load_set
 from mesh2tex.io.images import images_to_uint8, save_png
+from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.io.models import gan_camera, load_generator
 from mesh2tex.metrics import get_feature_extractor, to_unit
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
@@ -502,9 +503,7 @@ def run_protocols_command(args: argparse.Namespace) -> int:
         "features": args.features, "kid_subsets": args.kid_subsets, "seed": args.seed,
         "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
         "inception_weights": args.inception_weights})
-    out = Path(args.out)
-    if (out / "protocols.json").exists() and not args.overwrite:
-        raise UserError(f"{out}: already holds protocol results (protocols.json); pass --overwrite to replace them")
+    out = guard_outputs(args.out, ["protocols.json", "protocols.md"], args.overwrite)  # finished transfers are a cache (TransferCache)
     result = run_protocols(args.world, args.shapes, args.gan, args.pose_checkpoint, args.noc_checkpoint, cfg, out,
                            log=lambda line: print(line, flush=True), overwrite=args.overwrite)
     print(protocols_markdown(result), end="")

@@ -33,7 +33,10 @@ def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, s
         from mesh2tex.geometry.prepare import prepare_shape
 
         vertices, faces = load_mesh(path)
-        shape = prepare_shape(vertices, faces, face_count=face_count, levels=levels, seed=seed, source=str(path))
+        try:
+            shape = prepare_shape(vertices, faces, face_count=face_count, levels=levels, seed=seed, source=str(path))
+        except UserError as error:  # name the mesh the problem is in
+            raise (error if str(error).startswith(str(path)) else UserError(f"{path}: {error}")) from None
     problem = shape_mismatch(shape, generator)
     if problem:
         raise UserError(f"{path}: has {problem}")

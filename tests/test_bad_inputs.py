@@ -202,6 +202,14 @@ CASES = {
         train_gan(c, t, None, spoiled_shape(c, t / "shapes" / "box9.npz", lambda a: set_item(a, "quads_1", (0, 0), -2)).parent), "box9.npz"),
     # meshes
     "mesh with a NaN vertex": lambda c, t: Case(generate(c, t, None, nan_vertex_obj(t / "nan.obj")), "nan.obj: 1 vertex(es) with non-finite"),
+    "mesh of random bytes": lambda c, t: Case(generate(c, t, None, write(t / "noise.stl", np.random.default_rng(0).bytes(3000))),
+                                              "noise.stl: cannot be read as a mesh (not a valid .stl file)"),
+    "mesh of garbage text": lambda c, t: Case(generate(c, t, None, write(t / "junk.obj", b"garbage \x00\xff\xfe\nv 1 2\nf a b c\n")), "junk.obj"),
+    "mesh with a vertex at 1e300": lambda c, t: Case(generate(c, t, None, write(t / "huge.obj", "v 0 0 0\nv 1e300 0 0\nv 0 1 0\nv 0 0 1\n"
+                                                                                "f 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n")),
+                                                     "huge.obj: the mesh's coordinates are too large"),
+    "degenerate mesh prepared on the fly": lambda c, t: Case(transfer(c, t, None, "--mesh", str(write(t / "flat.obj", "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n"))),
+                                                             "flat.obj: the mesh has a zero-size bounding box"),
     # images
     "photo 1x1": lambda c, t: Case(transfer(c, t, png(t / "tiny.png", (1, 1))), "tiny.png: the photo is 1x1"),
     "photo truncated": lambda c, t: Case(transfer(c, t, truncated(t / "cut.png", c["root"] / "query.png", 60)), "cut.png"),
@@ -267,11 +275,12 @@ def test_a_shape_that_would_inflate_beyond_the_cap_is_refused_before_reading(ctx
 
 # ----------------------------------------------------------------------- data loss: the output guard
 @pytest.mark.parametrize("command, existing", [("generate", "seed0.glb"), ("generate", "seed0_view0.png"),
-                                               ("transfer", "comparison.png"), ("transfer", "textured.glb")])
+                                               ("transfer", "comparison.png"), ("transfer", "textured.glb"), ("evaluate", "metrics.md")])
 def test_files_already_in_out_are_kept_without_overwrite(command, existing, ctx, tmp_path, capsys):
     out = tmp_path / "out"
     write(out / existing, "the user's own file")
-    argv = generate(ctx, tmp_path) if command == "generate" else transfer(ctx, tmp_path)
+    argv = {"generate": lambda: generate(ctx, tmp_path), "transfer": lambda: transfer(ctx, tmp_path),
+            "evaluate": lambda: evaluate(tmp_path, *pair_folders(tmp_path), "--pairs")}[command]()
     line = check_case(Case(argv, f"already holds {existing}"), out, capsys)
     assert "--overwrite" in line
 

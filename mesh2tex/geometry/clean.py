@@ -50,12 +50,15 @@ def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
     Returns:
         (V, 3) float64 normalised vertices and the :class:`Normalization` that made them.
     Raises:
-        UserError: all vertices coincide (zero-size bounding box).
+        UserError: all vertices coincide (zero-size bounding box), or the coordinates overflow.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     low, high = vertices.min(axis=0), vertices.max(axis=0)
-    diagonal = float(np.linalg.norm(high - low))
-    if not np.isfinite(diagonal) or diagonal <= 1e-12:
+    with np.errstate(over="ignore", invalid="ignore"):
+        diagonal = float(np.linalg.norm(high - low))
+    if not np.isfinite(diagonal):
+        raise UserError(f"the mesh's coordinates are too large to normalise (up to {np.abs(vertices).max():.3g})")
+    if diagonal <= 1e-12:
         raise UserError("the mesh has a zero-size bounding box")
     transform = Normalization(center=(low + high) / 2.0, scale=1.0 / diagonal)
     return transform.apply(vertices), transform

@@ -68,6 +68,8 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         loaded = trimesh.load(str(path), process=False, skip_materials=True)
     except Exception as error:  # trimesh raises many types for malformed files
         message = str(error).strip().splitlines()[0] if str(error).strip() else error.__class__.__name__
+        if isinstance(error, ImportError):  # trimesh reaches for an optional decoder when the bytes are no known format
+            message = f"not a valid {path.suffix.lower()} file"
         raise UserError(f"{path}: cannot be read as a mesh ({message})") from None
 
     vertex_blocks, face_blocks, offset = [], [], 0

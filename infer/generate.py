@@ -46,9 +46,6 @@ class GenerateConfig:
     def __post_init__(self):
         if not self.seeds:
             raise UserError("--seeds: give at least one seed")
-        outside = [seed for seed in self.seeds if not -2**63 <= seed < 2**64]
-        if outside:
-            raise UserError(f"--seeds: {outside[0]} is out of range (a seed is a 64-bit integer)")
         if self.views < 1 or self.resolution < 8 or self.texture_size < 16:
             raise UserError("--views must be >= 1, --resolution >= 8 and --texture-size >= 16")
 

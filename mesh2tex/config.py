@@ -71,7 +71,7 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
 
 def _coerce(value, hint, where: str):
     """``value`` as type ``hint``: floats from ints and numeric strings ("1e-3", which YAML 1.1 reads as
-    a string), finite only; ints, strings and bools as they are; list elements each coerced."""
+    a string), finite only; ints (64-bit), strings and bools as they are; list elements each coerced."""
     origin = typing.get_origin(hint)
     args = typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
@@ -93,6 +93,8 @@ def _coerce(value, hint, where: str):
     if hint in (int, str, bool):
         if not isinstance(value, hint) or (hint is int and isinstance(value, bool)):
             raise UserError(f"{where}: expected {hint.__name__}, got {value!r}")
+        if hint is int and not -2**63 <= value < 2**63:  # seeds and counts alike: beyond 64 bits is a typo
+            raise UserError(f"{where}: {value} is out of range (a 64-bit integer)")
         return value
     if origin in (list, tuple):
         if not isinstance(value, (list, tuple)):

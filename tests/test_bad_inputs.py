@@ -159,9 +159,15 @@ CASES = {
     "config negative learning rate": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", **{"optim.lr_generator": -1e-4})), "lr_generator"),
     "config NaN": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", ema_rampup=math.nan)), "ema_rampup: expected a finite number"),
     "config not a mapping below": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", optim=[1, 2])), "'optim' must be a mapping"),
+    "transfer config turntable_frames 0": lambda c, t: Case(
+        transfer(c, t, None, "--config", str(write(t / "t.yaml", "turntable_frames: 0\n"))), "t.yaml: turntable_frames"),
+    "train pose config distance range reversed": lambda c, t: Case(
+        ["train", "pose", "--shapes", str(c["gan"] / "shapes"), "--out", str(t / "out"), "--device", "cpu",
+         "--config", str(write(t / "p.yaml", "data: {distance_min: 3.0, distance_max: 1.0}\n"))], "p.yaml.data: distance 3.0..1.0"),
     # flags
     "generate --truncation nan": lambda c, t: Case(generate(c, t, None, None, "--truncation", "nan"), "truncation: expected a finite number"),
-    "generate --seeds beyond 64 bits": lambda c, t: Case(generate(c, t, None, None, "--seeds", "99999999999999999999"), "--seeds"),
+    "generate --seeds beyond 64 bits": lambda c, t: Case(generate(c, t, None, None, "--seeds", "99999999999999999999"), "seeds[0]: 99999999999999999999 is out of range"),
+    "train gan --seed beyond 64 bits": lambda c, t: Case(train_gan(c, t, None, None, None, "--seed", "-99999999999999999999"), "seed: -99999999999999999999 is out of range"),
     "generate --elevation inf in a config": lambda c, t: Case(
         generate(c, t, None, None, "--config", str(write(t / "g.yaml", "elevation: .inf\n"))), "g.yaml.elevation"),
     "transfer --pose elevation 1000": lambda c, t: Case(transfer(c, t, None, "--pose", "30,1000"), "--pose"),

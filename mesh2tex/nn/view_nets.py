@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import torch
 
+from mesh2tex.config import MAX_CHANNELS, check_fields
+
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseBins, PoseNet
 
@@ -35,6 +37,14 @@ class ViewDataConfig:
     gan_checkpoint: str = ""  # a 'train gan' checkpoint that textures a share of the groups; '' = procedural materials only
     gan_share: float = 0.5  # share of the view groups textured by the GAN when gan_checkpoint is given
 
+    def __post_init__(self):
+        check_fields(self, at_least={"views_per_material": 1, "supersample": 1, "frame_oversample": 1},
+                     positive=("distance_min",), between={"holdout": (0.0, 0.9), "fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0),
+                                                         "elevation_max": (-90.0, 90.0)})
+        if self.distance_min > self.distance_max or self.elevation_min > self.elevation_max:
+            raise ValueError(f"distance {self.distance_min}..{self.distance_max}, elevation {self.elevation_min}..{self.elevation_max}: "
+                             "a range's minimum is above its maximum")
+
 
 @dataclass
 class ViewTrainConfig:
@@ -48,6 +58,9 @@ class ViewTrainConfig:
     checkpoint_every: int = 250  # steps between checkpoints (0: only at the end)
     data: ViewDataConfig = field(default_factory=ViewDataConfig)
     bins: PoseBins = field(default_factory=PoseBins)  # pose classes (used by 'pose' only)
+
+    def __post_init__(self):
+        check_fields(self, positive=("lr",), at_least={"log_every": 1, "checkpoint_every": 0}, between={"width": (1, MAX_CHANNELS)})
 
 
 def build_network(kind: str, cfg: ViewTrainConfig) -> torch.nn.Module:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mesh2tex.config import check_fields
 from mesh2tex.errors import UserError
 
 # Ablation name -> the TransferConfig fields it changes (paper Table 8).
@@ -41,6 +42,11 @@ class TransferConfig:
     seed: int = 0  # seed of the initial latent and the patch sampling
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
+
+    def __post_init__(self):
+        check_fields(self, positive=("lr",), at_least={"w_glob": 0, "w_patch": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1,
+                                                       "resolution": 16, "texture_size": 16, "patch_size": 1},
+                     between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8)})
 
     @property
     def patch_levels(self) -> int:

@@ -115,6 +115,14 @@ def test_resume_applies_the_run_configs_learning_rates(tiny_data, tmp_path, caps
     assert [r["iteration"] for r in metrics(out)] == [1, 2, 3]
 
 
+def test_a_run_killed_before_its_first_checkpoint_starts_its_metrics_afresh(tiny_data, tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "metrics.jsonl").write_text('{"iteration": 1, "loss_g_field": 0.5}\n{"iteration": 2, "loss_g_field": 0.4}\n')  # no checkpoint
+    assert train(tiny_data, out, "--iters", "2", "--resume") == 0
+    assert [r["iteration"] for r in metrics(out)] == [1, 2]
+
+
 def test_nca_generator_trains_resumes_and_generates(tiny_data, tmp_path):
     config = tmp_path / "nca.yaml"
     config.write_text(yaml.safe_dump({**TINY, "generator": {**TINY["generator"], "kind": "nca", "nca_channels": 6, "nca_hidden": 16,

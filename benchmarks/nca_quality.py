@@ -89,8 +89,9 @@ class Judge:
                               for s in range(3)]))
 
     @torch.no_grad()
-    def oracle_loss(self, name: str, graph, exemplar_pixels: int) -> float:
-        """The style loss of the exemplar's pattern painted per pixel on the mesh at the exemplar's scale."""
+    def oracle_loss(self, name: str, graph, exemplar_pixels: float) -> float:
+        """The style loss of the exemplar's pattern painted per pixel on the mesh at the exemplar's scale
+        (``exemplar_pixels``: exemplar pixels per unit of the pattern)."""
         from mesh2tex.render import interpolate, rasterize, transform_points
         from mesh2tex.synthetic.exemplars import EXEMPLARS
 
@@ -151,6 +152,7 @@ def main() -> int:
     parser.add_argument("--child", help="run folder trained with --parent MODEL")
     parser.add_argument("--scratch", help="run folder trained on the child's exemplar from scratch")
     parser.add_argument("--exemplar-name", help="the model's exemplar by name (mesh2tex.synthetic.exemplars) for the oracle row")
+    parser.add_argument("--exemplar-extent", type=float, default=1.0, help="the extent the exemplar image was made with (exemplar_image)")
     parser.add_argument("--out", help="write the figures as JSON here")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -172,7 +174,7 @@ def main() -> int:
     results["flat"] = judge.loss(flat[0], flat[1], graph)
     results["vertex_noise"] = judge.loss(noise[0], noise[1], graph)
     if args.exemplar_name:
-        results["oracle"] = judge.oracle_loss(args.exemplar_name, graph, exemplar.shape[0])
+        results["oracle"] = judge.oracle_loss(args.exemplar_name, graph, exemplar.shape[0] / args.exemplar_extent)
     best_baseline = min(results["flat"], results["vertex_noise"])
     results["ratio_to_untrained"] = results["trained"] / results["untrained"]
     results["ratio_to_best_baseline"] = results["trained"] / best_baseline

@@ -5,12 +5,15 @@
 #   2. a chair-world GAN run of TRAIN_MINUTES minutes (64 px, the shipped model's config) with snapshots,
 #      then its learning curve through the generation protocol: benchmarks/learning_curve_gan.py
 #   3. texture transfer timing: benchmarks/bench_transfer.py
+#   4. the cellular automaton: a NCA_ITERS-iteration train nca on a stripes exemplar, its seconds per
+#      iteration, and its quality and step time: benchmarks/nca_quality.py
 # Runs in under 10 minutes on one H200 with the defaults; on a CPU it runs too (slowly: lower TRAIN_MINUTES).
 #   OUT=device_out TRAIN_MINUTES=4 bash benchmarks/device_check.sh
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-device_out}
 TRAIN_MINUTES=${TRAIN_MINUTES:-4}
+NCA_ITERS=${NCA_ITERS:-300}
 DEVICE=${DEVICE:-auto}
 PY=${PYTHON:-python3}
 mkdir -p "$OUT"
@@ -54,6 +57,11 @@ $PY benchmarks/learning_curve_gan.py --run "$OUT/gan" --world "$W/world" --shape
   > "$OUT/curve.txt" 2>&1
 log "transfer timing"
 $PY benchmarks/bench_transfer.py > "$OUT/transfer.txt" 2>&1 || true
+log "cellular automaton: $NCA_ITERS iterations"
+$PY -c "from mesh2tex.synthetic.exemplars import exemplar_image; from mesh2tex.io.images import save_png; save_png('$OUT/stripes.png', exemplar_image('stripes', 128))"
+$PY -m mesh2tex train nca --exemplar "$OUT/stripes.png" --out "$OUT/nca" --iters "$NCA_ITERS" --device "$DEVICE" >> "$OUT/log.txt" 2>&1
+$PY benchmarks/nca_quality.py --model "$OUT/nca/model.safetensors" --exemplar-name stripes --out "$OUT/nca_quality.json" \
+  > "$OUT/nca_quality.txt" 2>&1 || true
 rm -rf "$W"
 log "done"
-tail -n 3 "$OUT"/gan_step_*.txt "$OUT/curve.txt"
+tail -n 3 "$OUT"/gan_step_*.txt "$OUT/curve.txt" "$OUT/nca/metrics.jsonl" "$OUT/nca_quality.txt"

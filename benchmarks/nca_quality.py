@@ -9,6 +9,9 @@ elevations alternating 15 and -15 degrees) at 128 px, each averaged over 3 featu
 Rows:
   trained        the model, 60 steps from its seed, on the training sphere
   untrained      a freshly initialised automaton of the same config, 60 steps
+  oracle         with --exemplar-name (one of mesh2tex.synthetic.exemplars): the exemplar's own pattern
+                 as a solid texture on the sphere at the exemplar's pixel scale, evaluated per pixel
+                 (what a perfect texture would score; a loss that does not rank it first is suspect)
   flat           the exemplar's mean colour on every vertex
   vertex noise   each vertex the colour of a random exemplar pixel
   SWD            object patches of the renders against patches of the exemplar (x1000, lower is better)
@@ -18,9 +21,9 @@ Rows:
   unseen meshes  each --meshes file and a finer sphere (sphere:48) against the training sphere
   graft          with --graft: per side of the seam x = 0 (cells with |x| > 0.3), the style loss against
                  each exemplar
-  lineage        with --child and --scratch (two runs on one exemplar, one from --parent): the first
-                 logged iteration whose 50-iteration running mean of the style loss reaches the
-                 parent's final one
+  lineage        with --child and --scratch (two runs on one exemplar, the child from --parent MODEL):
+                 the first logged iteration whose 50-iteration running mean of the style loss
+                 reaches the scratch run's final one (the mean of its last 50 iterations)
   speed          ms per step on 6,146 cells (sphere:32), one thread, 200 steps after 20 warm-up
 """
 
@@ -86,6 +89,28 @@ class Judge:
                               for s in range(3)]))
 
     @torch.no_grad()
+    def oracle_loss(self, name: str, graph, exemplar_pixels: float) -> float:
+        """The style loss of the exemplar's pattern painted per pixel on the mesh at the exemplar's scale
+        (``exemplar_pixels``: exemplar pixels per unit of the pattern)."""
+        from mesh2tex.render import interpolate, rasterize, transform_points
+        from mesh2tex.synthetic.exemplars import EXEMPLARS
+
+        raster = rasterize(transform_points(graph.positions, self.mvp), graph.triangles, (RESOLUTION, RESOLUTION))
+        points = interpolate(graph.positions, raster, graph.triangles)  # (N, H, W, 3)
+        normals = torch.nn.functional.normalize(interpolate(graph.normals, raster, graph.triangles), dim=-1)
+        mask = (raster.face_id >= 0)
+        # World units per pixel of the render at the mesh (distance 3.2, fov 40), over exemplar units per pixel.
+        pixels_per_unit = RESOLUTION / (2 * 3.2 * np.tan(np.radians(20.0)))
+        scale = pixels_per_unit / exemplar_pixels
+        rgb = EXEMPLARS[name](points[mask].double().numpy() * scale, normals[mask].double().numpy())
+        images = torch.ones(self.mvp.shape[0], RESOLUTION, RESOLUTION, 3)
+        images[mask] = torch.from_numpy(rgb).float()
+        images = images.permute(0, 3, 1, 2) * 2 - 1
+        masks = mask[:, None].float()
+        return float(np.mean([float(style_loss(self.vgg, images, masks, self.features, generator=torch.Generator().manual_seed(s)))
+                              for s in range(3)]))
+
+    @torch.no_grad()
     def swd(self, model, state, graph) -> float:
         views = self.render(model, state, graph)
         target = torch.nn.functional.interpolate(self.target, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
@@ -126,6 +151,8 @@ def main() -> int:
     parser.add_argument("--graft", help="a second model of the same lineage")
     parser.add_argument("--child", help="run folder trained with --parent MODEL")
     parser.add_argument("--scratch", help="run folder trained on the child's exemplar from scratch")
+    parser.add_argument("--exemplar-name", help="the model's exemplar by name (mesh2tex.synthetic.exemplars) for the oracle row")
+    parser.add_argument("--exemplar-extent", type=float, default=1.0, help="the extent the exemplar image was made with (exemplar_image)")
     parser.add_argument("--out", help="write the figures as JSON here")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -146,6 +173,8 @@ def main() -> int:
     noise = color_model(pixels[torch.randint(pixels.shape[0], (graph.num_cells,), generator=torch.Generator().manual_seed(0))])
     results["flat"] = judge.loss(flat[0], flat[1], graph)
     results["vertex_noise"] = judge.loss(noise[0], noise[1], graph)
+    if args.exemplar_name:
+        results["oracle"] = judge.oracle_loss(args.exemplar_name, graph, exemplar.shape[0] / args.exemplar_extent)
     best_baseline = min(results["flat"], results["vertex_noise"])
     results["ratio_to_untrained"] = results["trained"] / results["untrained"]
     results["ratio_to_best_baseline"] = results["trained"] / best_baseline
@@ -191,9 +220,9 @@ def main() -> int:
             "right_vs_own": other_judge.loss(model, state, graph, right), "right_vs_other": judge.loss(model, state, graph, right),
             "lineage_shared": meta.get("lineage") == other_meta.get("lineage")}
     if args.child and args.scratch:
-        parent_rows = [json.loads(line) for line in (Path(args.model).parent / "metrics.jsonl").read_text().splitlines()]
-        target = float(np.mean([r["loss_style"] for r in parent_rows[-5:]]))
-        results["lineage"] = {"parent_final_style": target,
+        scratch_rows = [json.loads(line) for line in (Path(args.scratch) / "metrics.jsonl").read_text().splitlines()]
+        target = float(np.mean([r["loss_style"] for r in scratch_rows[-5:]]))
+        results["lineage"] = {"scratch_final_style": target,
                               "child_reaches_at": first_reaching(Path(args.child) / "metrics.jsonl", target),
                               "scratch_reaches_at": first_reaching(Path(args.scratch) / "metrics.jsonl", target)}
 

@@ -23,6 +23,7 @@ The defaults are a CPU budget (about 18 minutes on 2 cores), far below the paper
 from __future__ import annotations
 
 import argparse
+import base64
 import html
 import json
 import shutil
@@ -264,7 +265,16 @@ def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
 
 
 # -------------------------------------------------------------------------------------------- report
-def transfer_section(scores: dict) -> str:
+def image_tag(path: Path | None, width: int) -> str:
+    """An <img> with the file embedded as a data URI, so that report.html shows it when moved or mailed
+    alone; '' when there is no such file."""
+    if path is None or not path.is_file():
+        return ""
+    kind = {".png": "image/png", ".gif": "image/gif", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}[path.suffix.lower()]
+    return f'<img src="data:{kind};base64,{base64.b64encode(path.read_bytes()).decode("ascii")}" width="{width}">'
+
+
+def transfer_section(scores: dict, out: Path | None = None) -> str:
     """The report's transfer tables: a row per method (the oracle first), a column per metric with
     its direction, the photo's view and the unseen views apart; the best method but the oracle in bold."""
     esc = html.escape
@@ -300,11 +310,11 @@ back-projection are what a user could script in a few lines.</p>
 {''.join(tables)}
 <p>rows: what the world photographs | oracle | transfer | flat colour | mean texture | back-projection; columns: the photo's
 view, then the unseen views</p>
-<img src="transfer/comparison_views.png" width="{min(5 * 160, 960)}">
+{image_tag(out / 'transfer' / 'comparison_views.png' if out else None, min(5 * 160, 960))}
 """
 
 
-def generation_section(g: dict, fmt, table) -> str:
+def generation_section(g: dict, fmt, table, out: Path) -> str:
     """The report's generation tables: the protocol's rows (the oracle the bar), gap closed, diversity, samples."""
     labels = {"trained": "trained generator (EMA)", "untrained": "untrained generator",
               "oracle": "oracle: the world's material sampler, a draw per view, photo lighting",
@@ -328,7 +338,7 @@ Colour spread {fmt(d['trained_spread_vs_photo_set'])} of the photo set's.</p>
 {table(diversity, ("", "colour spread (ΔE)", "mean pairwise ΔE"))}
 {shipped}
 <p>Samples: rows latents, columns views; the last row is the ground truth.</p>
-<img src="gan/generation_samples.png" width="384">"""
+{image_tag(out / 'gan' / 'generation_samples.png', 384)}"""
 
 
 def shipped_model_note(fmt) -> str:
@@ -346,7 +356,10 @@ def shipped_model_note(fmt) -> str:
 
 
 def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics: dict) -> Path:
-    """DIR/report.html: the photo, predicted pose and NOC, renders, turntable, metrics and timings."""
+    """DIR/report.html: the photo, predicted pose and NOC, renders, turntable, metrics and timings.
+
+    Self-contained: every image is embedded (data URIs); only the links to the GLB, PLY and JSON files
+    point next to it."""
     transfer = json.loads((out / "transfer" / "report.json").read_text())
     esc = html.escape
 
@@ -366,7 +379,7 @@ def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics
         pose_rows.append(("pose network alone", fmt(pose["network"][0]), fmt(pose["network"][1])))
         pose_note = (f"<p>Silhouette IoU with the photo's mask: {fmt(pose['silhouette_iou'])} at the used pose, "
                      f"{fmt(pose['network_silhouette_iou'])} at the network's.</p>")
-    generation = generation_section(metrics["generation"], fmt, table)
+    generation = generation_section(metrics["generation"], fmt, table, out)
     time_rows = [(stage, f"{s:.0f}") for stage, s in seconds.items()]
     vgg = transfer.get("vgg", {})
     vgg_note = "" if vgg.get("pretrained") else (
@@ -382,17 +395,17 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
 (the paper: 50k GAN iterations on two GPUs, 100 + 300 transfer iterations).</p>
 <h2>Query and result</h2>
 <p>photo crop | render of the result at the used pose | predicted photo NOC | rendered mesh NOC</p>
-<img src="transfer/comparison.png" width="{4 * 192}">
+{image_tag(out / 'transfer' / 'comparison.png', 4 * 192)}
 <p>the exported GLB rendered at the query's true pose, and the turntable</p>
-<img src="transfer/render_at_true_pose.png" width="192"> <img src="transfer/turntable.gif" width="256">
+{image_tag(out / 'transfer' / 'render_at_true_pose.png', 192)} {image_tag(out / 'transfer' / 'turntable.gif', 256)}
 <p>Files: <a href="transfer/textured.glb">textured.glb</a> (opens in Blender), <a href="transfer/textured.ply">textured.ply</a>,
 <a href="transfer/report.json">report.json</a>.</p>
 {vgg_note}
 <h2>Pose</h2>{table(pose_rows, ("", "azimuth", "elevation"))}{pose_note}
-{transfer_section(metrics["transfer"])}
+{transfer_section(metrics["transfer"], out)}
 {generation}
 <h2>Timings (seconds, each stage summed over every run of the demo in this folder)</h2>{table(time_rows, ("stage", "seconds"))}
-<p>Transfer stages: {esc(json.dumps(transfer['seconds']))}</p>
+<h3>Transfer stages (seconds)</h3>{table([(stage, fmt(float(v))) for stage, v in transfer['seconds'].items()], ("stage", "seconds"))}
 </body></html>
 """
     path = out / "report.html"

@@ -13,8 +13,10 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--quick"]) == 0
     report = (out / "report.html").read_text()
-    linked = re.findall(r'(?:src|href)="([^"]+)"', report)
-    assert linked and all((out / path).is_file() for path in linked), "every image and file the report links exists"
+    images = re.findall(r'src="([^"]+)"', report)
+    assert len(images) >= 5 and all(src.startswith("data:image/") for src in images), "every image is embedded: the report moves alone"
+    linked = re.findall(r'href="([^"]+)"', report)
+    assert linked and all((out / path).is_file() for path in linked), "every file the report links exists"
     metrics = json.loads((out / "metrics.json").read_text())
     assert all(np.isfinite(v) for v in metrics["transfer"]["transfer"].values() if v != float("inf"))
     generation = metrics["generation"]

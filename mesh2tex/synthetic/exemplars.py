@@ -22,11 +22,12 @@ EXEMPLARS: dict[str, Pattern] = {
 }
 
 
-def exemplar_image(name: str, size: int = 128) -> np.ndarray:
-    """(size, size, 3) uint8 image of the exemplar ``name`` (one of :data:`EXEMPLARS`)."""
+def exemplar_image(name: str, size: int = 128, extent: float = 1.0) -> np.ndarray:
+    """(size, size, 3) uint8 image of the exemplar ``name`` (one of :data:`EXEMPLARS`) over the square
+    [0, extent]^2 of its pattern (extent 0.5: a 2x close-up, each feature twice as many pixels)."""
     if name not in EXEMPLARS:
         raise ValueError(f"unknown exemplar {name!r}; expected one of {sorted(EXEMPLARS)}")
-    t = (np.arange(size) + 0.5) / size
+    t = (np.arange(size) + 0.5) / size * extent
     u, v = np.meshgrid(t, t, indexing="xy")
     points = np.stack([u.ravel(), 1.0 - v.ravel(), np.zeros(size * size)], axis=1)
     normals = np.broadcast_to(np.array([0.0, 0.0, 1.0]), points.shape)

@@ -62,8 +62,10 @@ def spec_from_args(args):
 
     checks = [
         (args.shapes >= 2, "--shapes must be at least 2 (training shapes and at least one query shape)"),
-        (args.views >= 1, "--views must be at least 1"),
-        (args.query_views >= 1, "--query-views must be at least 1"),
+        (args.shapes <= 100_000, "--shapes must be at most 100000"),
+        (1 <= args.views <= 10_000, "--views must be between 1 and 10000"),
+        (1 <= args.query_views <= 10_000, "--query-views must be between 1 and 10000"),
+        (0 <= args.seed < 2**63, "--seed must be in [0, 2^63)"),
         (16 <= args.resolution <= 2048, "--resolution must be between 16 and 2048"),
         (64 <= args.texture_size <= 8192, "--texture-size must be between 64 and 8192"),
         (-89 <= args.elevation[0] <= args.elevation[1] <= 89, "--elevation needs -89 <= MIN <= MAX <= 89"),

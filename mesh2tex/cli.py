@@ -8,7 +8,9 @@ lazily so that ``mesh2tex --help`` stays fast and one broken stage cannot break 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import os
 import sys
 
 from mesh2tex.errors import UserError
@@ -28,6 +30,10 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
     ("evaluate", None): ("infer.evaluate", "metrics between renders and images"),
     ("demo", None): ("infer.demo", "run the whole pipeline on the embedded synthetic world"),
 }
+
+
+# errno values an OSError without a file name still means the user's environment for
+USER_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM}
 
 
 def _load_stage(module_name: str):
@@ -81,6 +87,17 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as error:
         print(f"mesh2tex: error: {error}", file=sys.stderr)
         return error.exit_code
+    except OSError as error:
+        # a path the user gave that cannot be used (a file where a folder is needed, no permission, a full
+        # disk): the environment, not a bug; anything else keeps its traceback
+        if error.filename is None and error.errno not in USER_ERRNOS:
+            raise
+        where = f"{error.filename}: " if error.filename is not None else ""
+        reason = error.strerror or str(error)
+        if isinstance(error, (FileExistsError, NotADirectoryError)) and os.path.isfile(error.filename or ""):
+            reason = "is a file where a folder is needed"
+        print(f"mesh2tex: error: {where}{reason}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"mesh2tex: {name} interrupted; re-run the same command to resume", file=sys.stderr)
         return 130

@@ -216,6 +216,13 @@ CASES = {
                                                      "huge.obj: the mesh's coordinates are too large"),
     "degenerate mesh prepared on the fly": lambda c, t: Case(transfer(c, t, None, "--mesh", str(write(t / "flat.obj", "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n"))),
                                                              "flat.obj: the mesh has a zero-size bounding box"),
+    # paths
+    "--out a file (prepare shapes)": lambda c, t: Case(["prepare", "shapes", "--input", str(nan_vertex_obj(t / "m.obj")), "--output",
+                                                       str(write(t / "out" / "a_file", "x"))], "a_file: is a file where a folder is needed"),
+    "--out a file (generate)": lambda c, t: Case(generate(c, t, None, None, "--out", str(write(t / "out" / "a_file", "x"))),
+                                                 "a_file: --out is a file"),
+    "prepare synthetic --shapes beyond reason": lambda c, t: Case(["prepare", "synthetic", "--output", str(t / "out" / "w"),
+                                                                   "--shapes", "99999999999999999999"], "--shapes must be at most"),
     # images
     "photo 1x1": lambda c, t: Case(transfer(c, t, png(t / "tiny.png", (1, 1))), "tiny.png: the photo is 1x1"),
     "photo truncated": lambda c, t: Case(transfer(c, t, truncated(t / "cut.png", c["root"] / "query.png", 60)), "cut.png"),

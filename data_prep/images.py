@@ -75,7 +75,7 @@ def prepare_image(path: Path, relative: Path, name: str, output: Path, size: int
 def run(args) -> int:
     input_dir, output = Path(args.input), Path(args.output)
     if not input_dir.is_dir():
-        raise UserError(f"{input_dir}: no such folder")
+        raise UserError(f"{input_dir}: {'is a file; --input takes a folder of photos' if input_dir.is_file() else 'no such folder'}")
     if args.size < 8:
         raise UserError(f"--size must be at least 8 (got {args.size})")
     masks_dir = Path(args.masks) if args.masks else None

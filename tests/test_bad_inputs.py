@@ -231,6 +231,10 @@ CASES = {
         train_gan(c, t, None, None, truncated(t / "photos" / "0.png", c["gan"] / "photos" / "0.png", 50).parent), "0.png"),
     "evaluate --pairs image truncated": lambda c, t: Case(
         evaluate(t, *pair_folders(t, truncated(t / "a.png", png(t / "src.png"), 40)), "--pairs"), "a.png"),
+    "evaluate --pairs mask of another size": lambda c, t: Case(
+        evaluate(t, *pair_folders(t), "--pairs", "--masks", str(png(t / "m" / "a.png", (10, 10), "L").parent)), "m/a.png: mask size (10, 10)"),
+    "prepare images --input a file": lambda c, t: Case(["prepare", "images", "--input", str(png(t / "p.png")), "--output", str(t / "out" / "p")],
+                                                       "p.png: is a file"),
     "evaluate sets image not an image": lambda c, t: Case(
         evaluate(t, *pair_folders(t, write(t / "a.png", b"\x89PNG\r\n\x1a\n garbage"))), "a.png"),
 }

@@ -104,7 +104,8 @@ def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str,
         else:
             mask = None
         if mask is not None and mask.shape[-2:] != render.shape[-2:]:
-            raise UserError(f"mask of '{name}': size {tuple(mask.shape[-2:])} differs from the render's {tuple(render.shape[-2:])}")
+            raise UserError(f"{masks[name] if masks is not None and name in masks else images[name]}: mask size {tuple(mask.shape[-2:])} "
+                            f"differs from the render's {tuple(render.shape[-2:])}")
         any_mask = any_mask or mask is not None
         render_list.append(render)
         image_list.append(image)

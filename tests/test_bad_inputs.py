@@ -302,6 +302,21 @@ def test_files_already_in_out_are_kept_without_overwrite(command, existing, ctx,
     assert "--overwrite" in line
 
 
+def test_infer_nca_keeps_files_already_in_out(tmp_path, capsys):
+    from mesh2tex.synthetic.exemplars import exemplar_image
+    from test_train_nca import TINY_NCA
+
+    Image.fromarray(exemplar_image("stripes", 48)).save(tmp_path / "stripes.png")
+    write(tmp_path / "tiny.yaml", yaml.safe_dump({**TINY_NCA, "iters": 1}))
+    assert main(["train", "nca", "--exemplar", str(tmp_path / "stripes.png"), "--out", str(tmp_path / "run"),
+                 "--config", str(tmp_path / "tiny.yaml"), "--device", "cpu"]) == 0
+    out = tmp_path / "out"
+    write(out / "view_0.png", "the user's own file")
+    check_case(Case(["infer", "nca", "--checkpoint", str(tmp_path / "run" / "model.safetensors"), "--mesh", "sphere:2", "--out", str(out),
+                     "--steps", "2", "--views", "1", "--resolution", "32", "--texture-size", "32", "--frames", "0", "--device", "cpu"],
+                    "already holds view_0.png"), out, capsys)
+
+
 def test_overwrite_replaces_them(ctx, tmp_path):
     out = tmp_path / "out"
     write(out / "seed0.glb", "the user's own file")

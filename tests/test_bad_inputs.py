@@ -344,14 +344,17 @@ def test_sixteen_bit_pngs_are_read_to_their_full_range(tmp_path, capsys):
 def test_old_half_written_files_are_not_taken_for_shapes(ctx, tmp_path):
     """A leftover of a killed writer (the hidden temp names of old versions, or the partial folder) is not a shape."""
     from mesh2tex.geometry.prepared import shape_paths
-    from mesh2tex.io.atomic import PARTIAL_DIR, atomic_path
+    from mesh2tex.io.atomic import PARTIAL_DIR, _owner, atomic_path
 
     folder = tmp_path / "shapes"
     write(folder / "box0.npz", (ctx["gan"] / "shapes" / "box0.npz").read_bytes())
     write(folder / ".box1.x1y2.partial.npz", b"PK\x03\x04 half")
-    write(folder / PARTIAL_DIR / "999999999.abc" / "box2.npz", b"PK\x03\x04 half")  # a dead process's
+    write(folder / PARTIAL_DIR / "999999999.abc" / "box2.npz", b"PK\x03\x04 half")  # a dead process's (an older name)
+    host = _owner().split("@", 1)[1]
+    write(folder / PARTIAL_DIR / f"999999998@{host}.abc" / "box3.npz", b"PK\x03\x04 half")  # a dead process's
+    write(folder / PARTIAL_DIR / "999999997@another-machine.abc" / "box4.npz", b"PK\x03\x04 half")  # not ours to judge
     assert list(shape_paths(folder)) == ["box0"]
     with atomic_path(folder / "note.json") as tmp:  # the next write into the folder removes the dead one's leftovers
         assert tmp.parent.parent.name == PARTIAL_DIR and tmp.name == "note.json"
         tmp.write_text("{}")
-    assert not (folder / PARTIAL_DIR).exists()
+    assert [p.name for p in (folder / PARTIAL_DIR).iterdir()] == ["999999997@another-machine.abc"]

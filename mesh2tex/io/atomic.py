@@ -1,10 +1,10 @@
 """Atomic file writes: a reader (or a crash) never sees a half-written file under its final name.
 
 A file being written lives in a hidden folder beside its target,
-``<folder>/.mesh2tex-partial/<pid>.<random>/<name>``, so that no loader's pattern (``*.npz``,
+``<folder>/.mesh2tex-partial/<pid>@<host>.<random>/<name>``, so that no loader's pattern (``*.npz``,
 ``*.png``, ``*.json`` in ``<folder>``) can pick it up, and it keeps its final name (some writers,
 numpy, PIL and trimesh, pick the format from the suffix). Writing anything into a folder removes
-what killed writers of that folder left behind (their process is gone).
+what killed writers of that folder on this machine left behind (their process is gone).
 """
 
 from __future__ import annotations
@@ -14,11 +14,18 @@ import json
 import math
 import os
 import shutil
+import socket
 import tempfile
 from pathlib import Path
 from typing import Iterator
 
 PARTIAL_DIR = ".mesh2tex-partial"
+
+
+def _owner() -> str:
+    """``<pid>@<host>``: whose a temporary folder is (a folder on a shared disk may see several machines)."""
+    host = "".join(c if c.isalnum() or c == "-" else "-" for c in socket.gethostname()) or "host"
+    return f"{os.getpid()}@{host}"
 
 
 def _alive(pid: int) -> bool:
@@ -39,10 +46,11 @@ def clean_partials(folder: str | os.PathLike) -> list[Path]:
         entries = list(root.iterdir())
     except OSError:
         return removed
+    here = _owner().split("@", 1)[1]
     for entry in entries:
-        pid = entry.name.split(".", 1)[0]
-        if pid.isdigit() and _alive(int(pid)):
-            continue
+        pid, _, host = entry.name.split(".", 1)[0].partition("@")
+        if host not in ("", here) or (pid.isdigit() and _alive(int(pid))):
+            continue  # another machine's, or a live process's
         shutil.rmtree(entry, ignore_errors=True)
         removed.append(entry)
     with contextlib.suppress(OSError):
@@ -54,7 +62,7 @@ def _temp_dir(parent: Path) -> Path:
     for _ in range(5):  # another process may remove the (empty) partial folder between the two calls
         (parent / PARTIAL_DIR).mkdir(parents=True, exist_ok=True)
         try:
-            return Path(tempfile.mkdtemp(prefix=f"{os.getpid()}.", dir=parent / PARTIAL_DIR))
+            return Path(tempfile.mkdtemp(prefix=f"{_owner()}.", dir=parent / PARTIAL_DIR))
         except FileNotFoundError:
             continue
     raise OSError(f"{parent}: cannot create a temporary folder for an atomic write")

@@ -76,11 +76,18 @@ def shape_name(path: Path) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]", "_", stem) or "shape"
 
 
-def assign_names(paths: list[Path]) -> dict[Path, str]:
-    """Unique output names: a repeated name gets its parent folder's name, then a counter."""
+def assign_names(paths: list[Path], earlier: dict[str, str] | None = None) -> dict[Path, str]:
+    """Unique output names: a repeated name gets its parent folder's name, then a counter.
+
+    ``earlier`` maps the sources an earlier run into the same folder prepared to their names: such a
+    source keeps its name, and no other input takes one of them."""
+    earlier = earlier or {}
     names: dict[Path, str] = {}
-    used: set[str] = set()
+    used: set[str] = set(earlier.values())
     for path in paths:
+        if str(path) in earlier:
+            names[path] = earlier[str(path)]
+            continue
         name = shape_name(path)
         if name in used:
             name = f"{re.sub(r'[^A-Za-z0-9_.-]', '_', path.parent.name)}_{name}"
@@ -148,11 +155,11 @@ def run(args) -> int:
     paths = find_meshes(args.input)
     if not paths:
         raise UserError(f"no mesh files (.obj .ply .off .stl .glb .gltf) under {' '.join(args.input)}")
-    names = assign_names(paths)
     index_path = output / "index.json"
     settings = _settings(args)
     with locked(output / INDEX_LOCK):
         previous, other_settings = read_index(index_path, settings)
+    names = assign_names(paths, {source: Path(entry["file"]).stem for source, entry in previous.items() if isinstance(entry.get("file"), str)})
     if other_settings:
         print(f"mesh2tex: note: {index_path} lists shapes prepared with other settings ({other_settings}); "
               f"they are dropped from it, their .npz files stay", file=sys.stderr)

@@ -108,6 +108,14 @@ def test_two_invocations_into_one_folder_keep_every_entry(tmp_path):
     assert main(["prepare", "shapes", "--input", str(tmp_path / "c"), "--output", str(out), "--faces", "96", "--levels", "2"]) == 0
     index = json.loads((out / "index.json").read_text())
     assert sorted(entry["file"] for entry in index["shapes"]) == ["a1.npz", "a2.npz", "b1.npz", "b2.npz", "c1.npz"]
+    # a later input of a name already taken gets another, and the first keeps its file
+    (tmp_path / "d").mkdir()
+    before = (out / "a1.npz").read_bytes()
+    trimesh.creation.icosphere(2).export(tmp_path / "d" / "a1.obj")
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "d"), "--output", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert (out / "a1.npz").read_bytes() == before and (out / "d_a1.npz").is_file()
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "a"), "--output", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert (out / "a1.npz").read_bytes() == before, "a re-run keeps the names (and skips the shapes) it made"
     assert not (out / ".mesh2tex-partial").exists(), "no half-written files left"
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import multiprocessing
 import os
 import re
@@ -33,6 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--levels", type=int, default=5, help="levels, each with a quarter of the faces of the finer one (default 5)")
     parser.add_argument("--workers", type=int, default=1, help="shapes prepared in parallel processes (default 1)")
     parser.add_argument("--seed", type=int, default=0, help="QuadriFlow seed (default 0)")
+    parser.add_argument("--max-seconds", type=float, help="time budget of one shape; past it the shape fails with that reason (default: none)")
+    parser.add_argument("--max-memory-gb", type=float, help="memory budget of each QuadriFlow process of a shape, GiB (default: none)")
 
 
 def find_meshes(inputs: list[str]) -> list[Path]:
@@ -100,8 +103,9 @@ def assign_names(paths: list[Path], earlier: dict[str, str] | None = None) -> di
     return names
 
 
-def prepare_one(path: str, output: str, faces: int, levels: int, seed: int) -> dict:
-    """Load, prepare and save one shape; returns its index record (never raises for a bad input)."""
+def prepare_one(path: str, output: str, faces: int, levels: int, seed: int, max_seconds: float | None = None,
+                max_memory_gb: float | None = None) -> dict:
+    """Load, prepare and save one shape (within the budgets given); returns its index record (never raises for a bad input)."""
     from mesh2tex.geometry.mesh_io import load_mesh
     from mesh2tex.geometry.prepare import prepare_shape
 
@@ -109,7 +113,8 @@ def prepare_one(path: str, output: str, faces: int, levels: int, seed: int) -> d
     record = {"source": path, "file": Path(output).name}
     try:
         vertices, triangles = load_mesh(path)
-        shape = prepare_shape(vertices, triangles, face_count=faces, levels=levels, seed=seed, source=path)
+        shape = prepare_shape(vertices, triangles, face_count=faces, levels=levels, seed=seed, source=path,
+                              max_seconds=max_seconds, max_memory_gb=max_memory_gb)
         shape.save(output)
         levels = shape.metadata["levels"]
         record.update(status="ok", reason="", face_counts=shape.face_counts, methods=[level["method"] for level in levels],
@@ -150,6 +155,9 @@ def run(args) -> int:
     level_face_counts(args.faces, args.levels)  # validates the options before any work
     if args.workers < 1:
         raise UserError(f"--workers must be at least 1 (got {args.workers})")
+    for flag, value in (("--max-seconds", args.max_seconds), ("--max-memory-gb", args.max_memory_gb)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise UserError(f"{flag} {value}: must be a positive number")
     output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
     paths = find_meshes(args.input)
@@ -197,7 +205,7 @@ def run(args) -> int:
             bar.write(f"mesh2tex: warning: {record['source']}: {warning}", file=sys.stderr)
         bar.update(1)
 
-    jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed) for p in todo]
+    jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed, args.max_seconds, args.max_memory_gb) for p in todo]
     with progress_bar(total=len(paths), initial=len(paths) - len(todo), desc="prepare shapes", unit="shape") as bar:
         if args.workers == 1 or len(jobs) <= 1:
             for job in jobs:

@@ -131,3 +131,25 @@ def test_a_symlink_loop_fails_alone_and_the_mesh_beside_it_is_prepared(tmp_path,
     assert index["good.npz"]["status"] == "ok"
     assert index["a.npz"]["status"] == "failed" and "symbolic link" in index["a.npz"]["reason"]
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_shape_past_its_time_budget_fails_with_that_reason(tmp_path, capsys):
+    trimesh.creation.icosphere(3).export(tmp_path / "ball.obj")
+    out = tmp_path / "out"
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--output", str(out), "--faces", "96", "--levels", "2",
+                 "--max-seconds", "0.001"]) == 2
+    entry = json.loads((out / "index.json").read_text())["shapes"][0]
+    assert entry["status"] == "failed" and "time budget of 0.001 s" in entry["reason"]
+    assert entry["seconds"] < 30
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--output", str(out), "--max-seconds", "-1"]) == 2
+    assert "--max-seconds -1.0: must be a positive number" in capsys.readouterr().err
+
+
+def test_quadriflow_past_its_memory_budget_is_a_quad_remesh_error():
+    import pytest
+
+    from mesh2tex.geometry.quadremesh import QuadRemeshError, quadriflow
+
+    ball = trimesh.creation.icosphere(3)
+    with pytest.raises(QuadRemeshError, match="memory budget of 0.01 GiB"):
+        quadriflow(ball.vertices, ball.faces, 96, memory_gb=0.01)

@@ -11,7 +11,7 @@ from mesh2tex.geometry.clean import clean_mesh, decimate, normalize
 from mesh2tex.geometry.features import face_features, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.geometry.quadremesh import QuadRemeshError, remesh_hierarchy
+from mesh2tex.geometry.quadremesh import Budget, QuadRemeshError, remesh_hierarchy
 
 # QuadriFlow's run time grows with the input; more triangles than this add nothing at 6144 quads
 MAX_INPUT_TRIANGLES = 100_000
@@ -28,7 +28,8 @@ def level_face_counts(face_count: int, levels: int) -> list[int]:
 
 
 def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 6144, levels: int = 5, seed: int = 0,
-                  source: str = "", timeout: float | None = 300.0) -> PreparedShape:
+                  source: str = "", timeout: float | None = 300.0, max_seconds: float | None = None,
+                  max_memory_gb: float | None = None) -> PreparedShape:
     """Repair, normalise and quad-remesh a mesh into a hierarchy with neighbourhoods, pooling and features.
 
     Args:
@@ -38,13 +39,17 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         seed: QuadriFlow seed (other seeds are tried on failure).
         source: recorded in the metadata (e.g. the input path).
         timeout: seconds per QuadriFlow attempt.
+        max_seconds: the shape's time budget (cleaning and every remeshing attempt); past it the
+            preparation stops with that reason. None: no limit.
+        max_memory_gb: address-space limit of each QuadriFlow process, GiB. None: no limit.
     Returns:
         a :class:`PreparedShape` in the normalised frame (bbox centre 0, diagonal 1); its metadata
         holds the transform from the input frame, the method used per level, seconds and seeds.
     Raises:
-        UserError: the mesh is unusable (no area, no quad mesh possible), with the reason.
+        UserError: the mesh is unusable (no area, no quad mesh possible), or its budget was spent, with the reason.
     """
     start = time.perf_counter()
+    budget = Budget(seconds=max_seconds, memory_gb=max_memory_gb)
     targets = level_face_counts(face_count, levels)
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -58,7 +63,7 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         clean_v, clean_f = decimate(clean_v, clean_f, MAX_INPUT_TRIANGLES)
     seconds_clean = time.perf_counter() - start
     try:
-        results = remesh_hierarchy(clean_v, clean_f, targets, seed=seed, timeout=timeout)
+        results = remesh_hierarchy(clean_v, clean_f, targets, seed=seed, timeout=timeout, budget=budget)
     except QuadRemeshError as error:
         raise UserError(str(error)) from None
     seconds_remesh = time.perf_counter() - start - seconds_clean

@@ -49,6 +49,32 @@ class QuadRemeshError(RuntimeError):
     """QuadriFlow gave no usable quad mesh."""
 
 
+class BudgetExceeded(QuadRemeshError):
+    """A shape's preparation ran past its time budget (no further attempt is made)."""
+
+
+@dataclass
+class Budget:
+    """The time and memory one shape's remeshing may take: a deadline every attempt checks (an attempt
+    is never given more than what is left), and an address-space limit for each QuadriFlow process."""
+
+    seconds: float | None = None  # wall-clock seconds for all attempts of all levels (None: no limit)
+    memory_gb: float | None = None  # address space of each forked QuadriFlow process, GiB (None: no limit)
+    started: float = field(default_factory=time.monotonic)
+
+    def check(self) -> None:
+        """BudgetExceeded when the time is spent."""
+        if self.seconds is not None and time.monotonic() - self.started >= self.seconds:
+            raise BudgetExceeded(f"preparation ran past its time budget of {self.seconds:g} s")
+
+    def timeout(self, timeout: float | None) -> float | None:
+        """The seconds one attempt may take: ``timeout``, or what is left of the budget when that is less."""
+        if self.seconds is None:
+            return timeout
+        left = max(0.0, self.seconds - (time.monotonic() - self.started))
+        return left if timeout is None else min(timeout, left)
+
+
 _LIBRARY = None
 
 
@@ -90,14 +116,20 @@ def _quadriflow_in_process(vertices: np.ndarray, faces: np.ndarray, target_faces
         free(result)
 
 
-def _run_forked(function, args: tuple, timeout: float | None):
-    """``function(*args)`` in a forked child; its result or exception comes back through a pipe."""
+def _run_forked(function, args: tuple, timeout: float | None, memory_gb: float | None = None):
+    """``function(*args)`` in a forked child (its address space limited to ``memory_gb`` GiB when given);
+    its result or exception comes back through a pipe."""
     read_fd, write_fd = os.pipe()
     pid = os.fork()
     if pid == 0:  # child: never returns into the caller's code
         os.close(read_fd)
         try:
             try:
+                if memory_gb is not None:
+                    import resource
+
+                    limit = int(memory_gb * 2**30)
+                    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
                 payload = ("ok", function(*args))
             except BaseException as error:  # noqa: BLE001 - everything goes back to the parent
                 payload = ("error", f"{error.__class__.__name__}: {error}")
@@ -124,19 +156,21 @@ def _run_forked(function, args: tuple, timeout: float | None):
     _, status = os.waitpid(pid, 0)
     if timed_out:
         raise QuadRemeshError(f"QuadriFlow ran past {timeout:.0f} s")
+    beyond = f" (run within a memory budget of {memory_gb:g} GiB)" if memory_gb is not None else ""
     if not chunks:
         reason = f"signal {os.WTERMSIG(status)}" if os.WIFSIGNALED(status) else f"exit status {os.WEXITSTATUS(status)}"
-        raise QuadRemeshError(f"QuadriFlow crashed ({reason})")
+        raise QuadRemeshError(f"QuadriFlow crashed ({reason}){beyond}")
     # the payload comes from our own forked child, never from a file or the network
     kind, value = pickle.loads(b"".join(chunks))
     if kind == "error":
-        raise QuadRemeshError(value)
+        raise QuadRemeshError(value + beyond)
     return value
 
 
 def quadriflow(vertices: np.ndarray, faces: np.ndarray, target_faces: int, seed: int = 0, *, preserve_sharp: bool = False,
                preserve_boundary: bool = False, adaptive_scale: bool = False, aggressive_sat: bool = False,
-               minimum_cost_flow: bool = False, timeout: float | None = 300.0, isolate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+               minimum_cost_flow: bool = False, timeout: float | None = 300.0, isolate: bool = True,
+               memory_gb: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Quad-remesh a triangle mesh with QuadriFlow.
 
     Args:
@@ -145,6 +179,7 @@ def quadriflow(vertices: np.ndarray, faces: np.ndarray, target_faces: int, seed:
         seed: QuadriFlow's random seed.
         timeout: seconds before the attempt is abandoned (only when ``isolate``).
         isolate: run in a forked child process (POSIX only) so a crash cannot take the caller down.
+        memory_gb: address-space limit of that child, GiB (only when ``isolate``).
     Returns:
         (N, 3) float64 vertices (unreferenced ones removed) and (M, 4) int64 quads; M may be 0.
     Raises:
@@ -153,7 +188,7 @@ def quadriflow(vertices: np.ndarray, faces: np.ndarray, target_faces: int, seed:
     flags = (bool(preserve_sharp), bool(preserve_boundary), bool(adaptive_scale), bool(aggressive_sat), bool(minimum_cost_flow))
     args = (np.asarray(vertices), np.asarray(faces), int(target_faces), int(seed), flags)
     if isolate and hasattr(os, "fork"):
-        out_v, out_q = _run_forked(_quadriflow_in_process, args, timeout)
+        out_v, out_q = _run_forked(_quadriflow_in_process, args, timeout, memory_gb)
     else:
         out_v, out_q = _quadriflow_in_process(*args)
     return remove_unreferenced(out_v, out_q)
@@ -337,8 +372,12 @@ def _coverage_points(vertices: np.ndarray, faces: np.ndarray, edge: float, count
     return points
 
 
-def _attempt(attempts: list[dict], method: str, make, bounds: tuple[float, float], coverage: np.ndarray | None):
-    """Run one way of making a level; record it; return (vertices, quads) when it passes, else None."""
+def _attempt(attempts: list[dict], method: str, make, bounds: tuple[float, float], coverage: np.ndarray | None,
+             budget: Budget | None = None):
+    """Run one way of making a level; record it; return (vertices, quads) when it passes, else None.
+    BudgetExceeded, before it starts, when ``budget``'s time is spent."""
+    if budget is not None:
+        budget.check()
     start = time.perf_counter()
     try:
         out_v, out_q = make()
@@ -357,7 +396,8 @@ def _corrected(request: int, obtained: int, bounds: tuple[float, float]) -> int:
 
 
 def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[int], seed: int = 0,
-                     extra_seeds: int = 1, timeout: float | None = 300.0, isolate: bool = True) -> list[LevelResult]:
+                     extra_seeds: int = 1, timeout: float | None = 300.0, isolate: bool = True,
+                     budget: Budget | None = None) -> list[LevelResult]:
     """Quad meshes of decreasing face counts for one triangle mesh (level 0 the finest); see the module docstring.
 
     Args:
@@ -366,12 +406,15 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
         seed: QuadriFlow's seed; ``extra_seeds`` more are tried before a fallback.
         timeout: seconds per QuadriFlow attempt (only when ``isolate``).
         isolate: run QuadriFlow in a forked child process.
+        budget: the time and memory the whole hierarchy may take (:class:`Budget`; default none).
     Returns:
         one :class:`LevelResult` per target, each strictly coarser than the one before
         (face-count ratio within :data:`COARSER_RATIO`).
     Raises:
-        QuadRemeshError: a level could not be made (the message lists every attempt and its reason).
+        QuadRemeshError: a level could not be made (the message lists every attempt and its reason);
+        BudgetExceeded: the budget's time was spent.
     """
+    budget = budget or Budget()
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     surfaces = _Surfaces(vertices, faces)
@@ -401,6 +444,7 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
         chosen, method = None, ""
         for index, (name, make_source) in enumerate(sources):
             last = index == len(sources) - 1
+            budget.check()
             start = time.perf_counter()
             try:
                 mesh = make_source()
@@ -412,8 +456,8 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
             for s in (seeds if last else seeds[:1]):
                 tries = [(request, f"quadriflow({name}, seed={s})")]
                 for ask, label in tries:
-                    result = _attempt(attempts, label, lambda: quadriflow(*mesh, ask, s, timeout=timeout, isolate=isolate),
-                                      bounds, coverage)
+                    result = _attempt(attempts, label, lambda: quadriflow(*mesh, ask, s, timeout=budget.timeout(timeout), isolate=isolate,
+                                                                         memory_gb=budget.memory_gb), bounds, coverage, budget)
                     if result is not None:
                         got = len(result[1])
                         if chosen is None or abs(np.log(got / request)) < abs(np.log(len(chosen[1]) / request)):
@@ -433,7 +477,7 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
             if chosen is not None:
                 break
         if chosen is None:
-            chosen, method = _surface_net_level(surfaces, request, bounds, attempts)
+            chosen, method = _surface_net_level(surfaces, request, bounds, attempts, budget)
             if chosen is not None:
                 warnings.append(f"QuadriFlow gave no usable level at {request} faces; surface-net quads of the closed re-make instead")
         if chosen is None:
@@ -454,7 +498,7 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
     return levels
 
 
-def _surface_net_level(surfaces: _Surfaces, request: int, bounds: tuple[float, float], attempts: list[dict]):
+def _surface_net_level(surfaces: _Surfaces, request: int, bounds: tuple[float, float], attempts: list[dict], budget: Budget | None = None):
     """Surface-net quads of the closed re-make, the grid spacing steered towards ``request`` faces.
 
     The count falls roughly with the square of the spacing; up to six spacings are tried, stopping
@@ -467,7 +511,7 @@ def _surface_net_level(surfaces: _Surfaces, request: int, bounds: tuple[float, f
         offset = 0.9 * spacing
         label = f"surface nets(closed re-make, spacing={spacing:.3g}, offset={offset:.3g})"
         # the surface nets are the solid's boundary by construction: nothing of it can be left out
-        result = _attempt(attempts, label, lambda: surface_net_quads(surfaces.field(spacing, offset)), bounds, None)
+        result = _attempt(attempts, label, lambda: surface_net_quads(surfaces.field(spacing, offset)), bounds, None, budget)
         got = attempts[-1]["faces"]
         if result is not None:
             miss = abs(np.log(got / request))

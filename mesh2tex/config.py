@@ -87,9 +87,13 @@ def _coerce(value, hint, where: str):
                 raise UserError(f"{where}: expected a number, got {value!r}") from None
         if not isinstance(value, (int, float)) or isinstance(value, bool):
             raise UserError(f"{where}: expected a number, got {value!r}")
-        if not math.isfinite(value):
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond any float
+            number = math.inf
+        if not math.isfinite(number):
             raise UserError(f"{where}: expected a finite number, got {value!r}")
-        return float(value)
+        return number
     if hint in (int, str, bool):
         if not isinstance(value, hint) or (hint is int and isinstance(value, bool)):
             raise UserError(f"{where}: expected {hint.__name__}, got {value!r}")

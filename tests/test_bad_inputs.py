@@ -157,6 +157,8 @@ CASES = {
     "config camera.distance a word": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", **{"camera.distance": "far"})), "camera.distance"),
     "config camera.distance 0": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", **{"camera.distance": 0})), "distance must be positive"),
     "config negative learning rate": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", **{"optim.lr_generator": -1e-4})), "lr_generator"),
+    "config a number beyond any float": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", ema_rampup=10**400)),
+                                                          "ema_rampup: expected a finite number"),
     "config NaN": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", ema_rampup=math.nan)), "ema_rampup: expected a finite number"),
     "config not a mapping below": lambda c, t: Case(train_gan(c, t, gan_config(t / "c.yaml", optim=[1, 2])), "'optim' must be a mapping"),
     "transfer config turntable_frames 0": lambda c, t: Case(

@@ -131,6 +131,17 @@ def crafted_resume(ctx, tmp):
     return train_gan(ctx, tmp, None, None, None, "--resume")
 
 
+def resume_with_meta(ctx, tmp, change):
+    """The tiny GAN's run copied with ``change(meta)`` applied to its checkpoint's metadata, resumed."""
+    from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
+
+    groups, meta = load_checkpoint(ctx["gan"] / "run" / "checkpoint.safetensors", kind="gan")
+    change(meta)
+    save_checkpoint(tmp / "out" / "checkpoint.safetensors", groups, "gan", meta)
+    write(tmp / "out" / "config.yaml", (ctx["gan"] / "run" / "config.yaml").read_text())
+    return train_gan(ctx, tmp, None, None, None, "--resume", "--iters", "3")
+
+
 def pair_folders(tmp, bad_image: Path | None = None):
     renders, images = png(tmp / "r" / "a.png").parent, png(tmp / "i" / "a.png").parent
     if bad_image is not None:
@@ -192,6 +203,10 @@ CASES = {
         "format": 1, "kind": "gan", "meta": {"generator_config": {**TINY_GAN["generator"], "synthesis_channels": [100000, 8, 8]}}})),
         "wide.safetensors"),
     "resume from a checkpoint with a crafted header": lambda c, t: Case(crafted_resume(c, t), "out/checkpoint.safetensors"),
+    "resume with RNG states of another form": lambda c, t: Case(resume_with_meta(c, t, lambda m: m.update(rng=[{"torch": 7}])),
+                                                                "RNG states of another form"),
+    "resume with optimizer states missing": lambda c, t: Case(resume_with_meta(c, t, lambda m: m["optimizers"].pop("d")),
+                                                              "no 'd' mapping"),
     # prepared shapes
     "shape truncated (BadZipFile)": lambda c, t: Case(generate(c, t, None, truncated(t / "cut.npz", c["gan"] / "shapes" / "box0.npz", 300)), "cut.npz"),
     "shape quads out of range": lambda c, t: Case(generate(c, t, None, spoiled_shape(c, t / "quads.npz", lambda a: set_item(a, "quads_0", (0, 0), 10**6))),

@@ -383,12 +383,15 @@ def run(args) -> int:
         resume = args.resume and run_dir.has_checkpoint()
         if args.resume and not resume and distributed.is_main:
             print(f"mesh2tex: note: {run_dir.checkpoint_path} not found; starting a new run", file=sys.stderr)
-        if distributed.is_main:
-            run_dir.start(cfg, resume=resume)
+        if distributed.is_main and not resume:
+            run_dir.start(cfg, resume=False)
         distributed.barrier()
         trainer = GanTrainer(cfg, shapes, images, run_dir, device, distributed)
         if resume:
-            trainer.resume()
+            trainer.resume()  # before config.yaml is rewritten: a checkpoint that cannot be resumed leaves the run as it was
+            if distributed.is_main:
+                run_dir.start(cfg, resume=True)
+            distributed.barrier()
         trainer.train()
         if distributed.is_main:
             print(f"trained {trainer.iteration} iterations; checkpoint {run_dir.checkpoint_path}")

@@ -174,6 +174,13 @@ def save_training_state(path: Path, kind: str, modules: dict[str, nn.Module], op
     save_checkpoint(path, groups, kind=kind, meta=meta)
 
 
+def _rng_state_like(state: Any) -> bool:
+    """Whether ``state`` has the form of :func:`mesh2tex.runtime.rng_to_state`'s (its values are not checked)."""
+    return (isinstance(state, dict) and isinstance(state.get("torch"), list) and isinstance(state.get("cuda"), list)
+            and isinstance(state.get("numpy"), list) and len(state["numpy"]) == 5
+            and isinstance(state.get("python"), list) and len(state["python"]) == 3)
+
+
 def load_training_state(path: Path, kind: str, modules: dict[str, nn.Module], optimizers: dict[str, torch.optim.Optimizer],
                         device: torch.device) -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
     """Load what :func:`save_training_state` wrote into ``modules`` and ``optimizers``; returns
@@ -188,8 +195,8 @@ def load_training_state(path: Path, kind: str, modules: dict[str, nn.Module], op
             raise UserError(f"{path}: '{name}' weights do not fit this config ({str(error).splitlines()[0]})") from None
         module.to(device)
     saved = meta_mapping(meta, "optimizers", path)
-    if not isinstance(meta.get("rng"), list) or not isinstance(meta.get("iteration"), int):
-        raise UserError(f"{path}: not a usable training state (no iteration or RNG states)")
+    if not isinstance(meta.get("rng"), list) or not isinstance(meta.get("iteration"), int) or not all(map(_rng_state_like, meta["rng"])):
+        raise UserError(f"{path}: not a usable training state (no iteration, or RNG states of another form)")
     for name, opt in optimizers.items():
         try:
             optimizer_from_state(opt, groups.get(f"optim_{name}", {}), meta_mapping(saved, name, path))

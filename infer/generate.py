@@ -108,6 +108,8 @@ def run(args) -> int:
             ws = latent(generator, seed, device, cfg.truncation)
             texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode="none")
             views = render_field_views(generator, batch, ws, mvp, res, white, texture=texture)
+            if not bool(torch.isfinite(views.images).all()):  # would be written as black pixels without a word
+                raise UserError(f"{args.checkpoint}: the generator's colours for seed {seed} are not finite (damaged weights?)")
             for v, image in enumerate(images_to_uint8(views.images)):
                 save_png(out / f"seed{seed}_view{v}.png", image)
             write_textured_mesh(out / f"seed{seed}.glb", out / f"seed{seed}.ply", generator, texture, batch, cfg.texture_size)

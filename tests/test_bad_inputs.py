@@ -142,6 +142,18 @@ def resume_with_meta(ctx, tmp, change):
     return train_gan(ctx, tmp, None, None, None, "--resume", "--iters", "3")
 
 
+def nan_weights(ctx, path: Path) -> Path:
+    """The tiny GAN's checkpoint with a NaN in the EMA generator's weights."""
+    from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
+
+    groups, meta = load_checkpoint(ctx["gan"] / "run" / "checkpoint.safetensors", kind="gan")
+    for name, tensor in groups["generator_ema"].items():
+        if tensor.is_floating_point() and "weight" in name:
+            tensor.view(-1)[0] = float("nan")
+    save_checkpoint(path, groups, "gan", meta)
+    return path
+
+
 def pair_folders(tmp, bad_image: Path | None = None):
     renders, images = png(tmp / "r" / "a.png").parent, png(tmp / "i" / "a.png").parent
     if bad_image is not None:
@@ -202,6 +214,7 @@ CASES = {
     "checkpoint asking for 100000 channels": lambda c, t: Case(generate(c, t, mesh2tex_header(t / "wide.safetensors", {
         "format": 1, "kind": "gan", "meta": {"generator_config": {**TINY_GAN["generator"], "synthesis_channels": [100000, 8, 8]}}})),
         "wide.safetensors"),
+    "checkpoint with NaN weights": lambda c, t: Case(generate(c, t, nan_weights(c, t / "nan.safetensors")), "nan.safetensors: the generator's colours"),
     "resume from a checkpoint with a crafted header": lambda c, t: Case(crafted_resume(c, t), "out/checkpoint.safetensors"),
     "resume with RNG states of another form": lambda c, t: Case(resume_with_meta(c, t, lambda m: m.update(rng=[{"torch": 7}])),
                                                                 "RNG states of another form"),

@@ -388,3 +388,17 @@ def test_old_half_written_files_are_not_taken_for_shapes(ctx, tmp_path):
         assert tmp.parent.parent.name == PARTIAL_DIR and tmp.name == "note.json"
         tmp.write_text("{}")
     assert [p.name for p in (folder / PARTIAL_DIR).iterdir()] == ["999999997@another-machine.abc"]
+
+
+@pytest.mark.parametrize("change, names", [({"lr": -1.0}, "lr must be positive"), ({"camera": {"distance": 0}}, "distance must be positive"),
+                                           ({"nca": {"channels": 100000}}, "channels must be at most"),
+                                           ({"checkpoint_every": -3}, "checkpoint_every must be at least 0"),
+                                           ({"steps_min": 5, "steps_max": 2}, "steps_max 2 is below steps_min 5"),
+                                           ({"nca": {"readout": "mlp"}}, "readout must be one of")])
+def test_train_nca_config_values_out_of_range_are_named(change, names, tmp_path, capsys):
+    from mesh2tex.synthetic.exemplars import exemplar_image
+
+    Image.fromarray(exemplar_image("stripes", 48)).save(tmp_path / "stripes.png")
+    config = write(tmp_path / "bad.yaml", yaml.safe_dump(change))
+    check_case(Case(["train", "nca", "--exemplar", str(tmp_path / "stripes.png"), "--out", str(tmp_path / "out"), "--config", str(config),
+                     "--device", "cpu"], names), tmp_path / "out", capsys)

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mesh2tex.config import config_from_dict, load_config
+from mesh2tex.config import check_fields, config_from_dict, load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
@@ -50,6 +50,11 @@ class NCACameraConfig:
     fov: float = 40.0  # vertical field of view, degrees
     elevation_min: float = -60.0  # random views: elevation range, degrees
     elevation_max: float = 60.0
+
+    def __post_init__(self):
+        check_fields(self, positive=("distance",), between={"fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0)})
+        if self.elevation_max < self.elevation_min:
+            raise ValueError(f"elevation_max {self.elevation_max} is below elevation_min {self.elevation_min}")
 
 
 @dataclass
@@ -78,6 +83,20 @@ class TrainNCAConfig:
     checkpoint_every: int = 100  # iterations between checkpoints (0: only at the end)
     nca: NCAConfig = field(default_factory=NCAConfig)
     camera: NCACameraConfig = field(default_factory=NCACameraConfig)
+
+    def __post_init__(self):
+        check_fields(self, at_least={"iters": 1, "batch": 1, "views": 1, "resolution": 32, "steps_min": 1, "steps_max": 1, "pool": 1,
+                                     "seed_every": 1, "exemplar_size": 32, "max_points": 1, "log_every": 1, "sample_every": 0,
+                                     "checkpoint_every": 0, "overflow_weight": 0},
+                     between={"vgg_depth": (0, 5), "lr_gamma": (0.0, 1.0), "lr_milestones": (0.0, 1.0), "resolution": (32, 4096),
+                              "exemplar_size": (32, 4096), "steps_max": (1, 10_000), "pool": (1, 100_000)},
+                     positive=("lr",))
+        if self.steps_max < self.steps_min:
+            raise ValueError(f"steps_max {self.steps_max} is below steps_min {self.steps_min}")
+        if self.batch > self.pool:
+            raise ValueError(f"batch {self.batch} is larger than the pool {self.pool}")
+        if self.style_loss not in STYLE_LOSSES:
+            raise ValueError(f"style_loss must be one of {STYLE_LOSSES}, got {self.style_loss!r}")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -129,19 +148,6 @@ def build_config(args) -> TrainNCAConfig:
             cfg.nca.__post_init__()
     except ValueError as error:
         raise UserError(f"config: {error}") from None
-    for name in ("iters", "batch", "views", "pool", "steps_min", "log_every", "max_points"):
-        if getattr(cfg, name) < 1:
-            raise UserError(f"{name} must be at least 1, got {getattr(cfg, name)}")
-    if cfg.steps_max < cfg.steps_min:
-        raise UserError(f"steps_max {cfg.steps_max} is below steps_min {cfg.steps_min}")
-    if cfg.resolution < 32 or cfg.exemplar_size < 32:
-        raise UserError("resolution and exemplar_size must be at least 32 pixels")
-    if cfg.batch > cfg.pool:
-        raise UserError(f"batch {cfg.batch} is larger than the pool {cfg.pool}")
-    if cfg.style_loss not in STYLE_LOSSES:
-        raise UserError(f"style_loss must be one of {STYLE_LOSSES}, got {cfg.style_loss!r}")
-    if not 0 <= cfg.vgg_depth <= 5:
-        raise UserError(f"vgg_depth must be in 0..5, got {cfg.vgg_depth}")
     return cfg
 
 

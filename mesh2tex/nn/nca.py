@@ -38,6 +38,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.field import sorted_cdf_coordinates
 from mesh2tex.render.shading import vertex_normals
 
@@ -60,8 +61,10 @@ class NCAConfig:
     lppn_frequency: float = 3.0  # SIREN frequency of the local coordinates (periods per triangle ~ this / pi)
 
     def __post_init__(self):
-        if self.channels < 3:
-            raise ValueError(f"nca.channels must be >= 3, got {self.channels}")
+        check_fields(self, at_least={"channels": 3}, between={"hidden": (1, MAX_CHANNELS), "lppn_hidden": (1, MAX_CHANNELS)},
+                     positive=("lppn_frequency",))
+        if self.channels > MAX_CHANNELS:
+            raise ValueError(f"nca.channels must be at most {MAX_CHANNELS}, got {self.channels}")
         if self.sh_order not in (0, 1, 2):
             raise ValueError(f"nca.sh_order must be 0, 1 or 2, got {self.sh_order}")
         if not 0.0 < self.update_rate <= 1.0:

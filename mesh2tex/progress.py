@@ -15,8 +15,12 @@ from mesh2tex.errors import UserError
 
 
 def progress_bar(iterable: Iterable | None = None, total: int | None = None, desc: str = "", initial: int = 0, **kwargs) -> tqdm:
-    """A tqdm bar on stderr; hidden when stderr is not a terminal and MESH2TEX_PROGRESS=0."""
-    disable = os.environ.get("MESH2TEX_PROGRESS", "1") == "0"
+    """A tqdm bar on stderr, shown when stderr is a terminal: redirected logs get no ``\r`` frames.
+
+    ``MESH2TEX_PROGRESS=1`` shows it anyway, ``MESH2TEX_PROGRESS=0`` hides it everywhere.
+    """
+    setting = os.environ.get("MESH2TEX_PROGRESS")
+    disable = setting == "0" if setting in ("0", "1") else not sys.stderr.isatty()
     return tqdm(iterable, total=total, desc=desc, initial=initial, file=sys.stderr, disable=disable, dynamic_ncols=True, **kwargs)
 
 

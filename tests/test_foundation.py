@@ -71,3 +71,25 @@ def test_config_yaml_overrides_and_unknown_keys(tmp_path):
     yaml_path.write_text("itres: 9\n")
     with pytest.raises(UserError, match="itres"):
         load_config(Outer, yaml_path)
+
+
+def test_progress_bars_show_on_a_terminal_only_unless_asked(monkeypatch):
+    import io
+    import sys
+
+    from mesh2tex.progress import progress_bar
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, setting, shown in ((io.StringIO(), None, False), (Terminal(), None, True), (io.StringIO(), "1", True), (Terminal(), "0", False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        if setting is None:
+            monkeypatch.delenv("MESH2TEX_PROGRESS", raising=False)
+        else:
+            monkeypatch.setenv("MESH2TEX_PROGRESS", setting)
+        bar = progress_bar(range(3), desc="x")
+        list(bar)
+        bar.close()
+        assert bool(stream.getvalue()) == shown, (setting, shown)

@@ -39,7 +39,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from mesh2tex.config import MAX_CHANNELS, check_fields
-from mesh2tex.nn.field import sorted_cdf_coordinates
+from mesh2tex.nn.field import sorted_cdf_coordinates, vertex_features
 from mesh2tex.render.shading import vertex_normals
 
 NEIGHBOURHOODS = ("edges", "edges+diagonals")
@@ -395,8 +395,6 @@ class ConditionedNCA(nn.Module):
         ``noise_mode`` "none" fixes which cells fire at each step (a seeded draw), so that inference
         is deterministic; "random" draws them afresh.
         """
-        from mesh2tex.nn.field import vertex_features
-
         device = w.device
         graph = build_cell_graph(batch.vertices.detach().cpu().numpy(), batch.quads.cpu().numpy(), self.neighbourhood).to(device)
         counts = (batch.vertex_offsets[1:] - batch.vertex_offsets[:-1]).to(device)

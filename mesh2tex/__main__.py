@@ -1,5 +1,5 @@
 import sys
 
-from mesh2tex.cli import main
+from mesh2tex.cli import console
 
-sys.exit(main())
+sys.exit(console())

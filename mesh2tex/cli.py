@@ -103,5 +103,17 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def console() -> int:
+    """The ``mesh2tex`` console script: :func:`main` with torch's thread count chosen for the machine's
+    load (:func:`mesh2tex.runtime.choose_threads`). ``main`` itself leaves threads alone, so that a
+    program or test calling it keeps its own setting."""
+    argv = sys.argv[1:]
+    if not any(a in ("-h", "--help", "--version") for a in argv) and argv:
+        from mesh2tex.runtime import configure_threads
+
+        configure_threads()
+    return main(argv)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(console())

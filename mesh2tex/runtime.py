@@ -22,6 +22,39 @@ from torch import nn
 from mesh2tex.errors import UserError
 
 
+# ----------------------------------------------------------------------------------------- threads
+THREAD_VARIABLES = ("MESH2TEX_THREADS", "OMP_NUM_THREADS")
+
+
+def choose_threads(cpu_count: int | None = None, load: float | None = None, environ=os.environ) -> int:
+    """Threads for torch's CPU pool: the user's ``MESH2TEX_THREADS`` or ``OMP_NUM_THREADS`` when set,
+    else the cores that the last minute's load average leaves idle (at least 1).
+
+    Why not all cores: torch's threads wait for one another at every operation, so one descheduled
+    thread stalls the rest. With one competing CPU-bound process on a 2-core machine, two threads
+    took 1.8x (best of 8) to 3.5x (median) the time of one thread for a 256 px render
+    (docs/rendering.md).
+    """
+    for name in THREAD_VARIABLES:
+        value = environ.get(name, "")
+        if value.isdigit() and int(value) >= 1:
+            return int(value)
+    cpu_count = cpu_count or os.cpu_count() or 1
+    if load is None:
+        try:
+            load = os.getloadavg()[0]
+        except OSError:  # not available on this platform
+            load = 0.0
+    return max(1, min(cpu_count, cpu_count - int(round(load))))
+
+
+def configure_threads() -> int:
+    """Apply :func:`choose_threads` to torch; returns the count."""
+    threads = choose_threads()
+    torch.set_num_threads(threads)
+    return threads
+
+
 # ----------------------------------------------------------------------------------------- devices
 def select_device(name: str) -> torch.device:
     """"auto" (CUDA when available, else CPU), "cpu" or "cuda"; a missing GPU is a user error."""

@@ -93,3 +93,15 @@ def test_progress_bars_show_on_a_terminal_only_unless_asked(monkeypatch):
         list(bar)
         bar.close()
         assert bool(stream.getvalue()) == shown, (setting, shown)
+
+
+def test_threads_follow_the_idle_cores_unless_the_user_sets_them():
+    from mesh2tex.runtime import choose_threads
+
+    assert choose_threads(cpu_count=2, load=0.2, environ={}) == 2
+    assert choose_threads(cpu_count=2, load=1.1, environ={}) == 1  # one competing process: one thread
+    assert choose_threads(cpu_count=2, load=7.0, environ={}) == 1
+    assert choose_threads(cpu_count=16, load=3.4, environ={}) == 13
+    assert choose_threads(cpu_count=2, load=5.0, environ={"OMP_NUM_THREADS": "2"}) == 2
+    assert choose_threads(cpu_count=2, load=0.0, environ={"MESH2TEX_THREADS": "1", "OMP_NUM_THREADS": "2"}) == 1
+    assert choose_threads(cpu_count=2, load=0.0, environ={"OMP_NUM_THREADS": "junk"}) == 2

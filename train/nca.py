@@ -287,7 +287,8 @@ class NCATrainer:
                 except runs.NonFiniteLoss as error:
                     self.save(self.run.nonfinite_path)
                     raise UserError(f"{self.run.root}: training stopped, non-finite loss ({error}); state saved to {self.run.nonfinite_path}. "
-                                    "Lower lr in a --config and start again, or --resume from the last checkpoint", exit_code=4) from None
+                                    f"Lower lr in {self.run.config_path} and --resume from the last checkpoint (the rate is read "
+                                    "from the run's config at every step)", exit_code=4) from None
                 bar.update(1)
                 bar.set_postfix({"style": f"{logs['loss_style']:.3f}"})
                 it = self.iteration
@@ -311,7 +312,7 @@ class NCATrainer:
         self.write_samples()
 
     def save_model(self, path: Path) -> None:
-        """The inference part: weights, exemplar and metadata (no pool, optimizer or RNG), a few tens of kB."""
+        """The inference part: weights, exemplar and metadata (no pool, optimizer or RNG), about 100 kB."""
         meta = {k: v for k, v in self.meta().items() if k != "generator_state"}
         save_checkpoint(path, {"model": {k: v.detach().cpu() for k, v in self.model.state_dict().items()}, "exemplar": {"image": self.exemplar_uint8()}},
                         kind=KIND, meta=meta)

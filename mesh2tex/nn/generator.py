@@ -62,7 +62,7 @@ class GeneratorConfig:
     kind: str = "faceconv"  # the feature generator: "faceconv" (the synthesis U-Net) or "nca" (a mesh cellular automaton)
     nca_channels: int = 16  # kind nca: state size per cell (the F_c channels psi blends)
     nca_hidden: int = 64  # kind nca: width of the update MLP
-    nca_steps: int = 12  # kind nca: steps grown from the zero state
+    nca_steps: int = 12  # kind nca: steps grown from the seed (a linear map of each cell's condition)
     nca_condition: int = 16  # kind nca: width of each of the latent and the geometry conditions per cell
 
     def __post_init__(self):
@@ -70,6 +70,8 @@ class GeneratorConfig:
                      positive=("mapping_lr_multiplier", "conv_clamp"),
                      between={name: (1, MAX_CHANNELS) for name in ("z_dim", "w_dim", "encoder_channels", "synthesis_channels", "field_hidden",
                                                                   "aux_latent_dim", "nca_channels", "nca_hidden", "nca_condition")})
+        if self.kind not in GENERATOR_KINDS:
+            raise ValueError(f"kind must be one of {GENERATOR_KINDS}, got {self.kind!r}")
         if not self.synthesis_channels or len(self.encoder_channels) != len(self.synthesis_channels):
             raise ValueError(f"encoder_channels and synthesis_channels need one entry per level each "
                              f"(got {len(self.encoder_channels)} and {len(self.synthesis_channels)})")

@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -311,7 +310,7 @@ class GanTrainer:
         cfg = self.cfg
         main = self.dist.is_main
         bar = progress_bar(total=cfg.iters, initial=self.iteration, desc="train gan") if main else None
-        last_time, last_iter = time.perf_counter(), self.iteration
+        throughput = runs.Throughput(self.iteration, self.device)
         try:
             while self.iteration < cfg.iters:
                 try:
@@ -327,11 +326,7 @@ class GanTrainer:
                     bar.set_postfix({k: f"{v:.3f}" for k, v in logs.items() if k.startswith("loss_g_field") or k.startswith("loss_d_field")})
                 it = self.iteration
                 if main and (it % cfg.log_every == 0 or it == cfg.iters):
-                    now = time.perf_counter()
-                    record = {"iteration": it, **logs, "iters_per_second": round((it - last_iter) / max(now - last_time, 1e-9), 4),
-                              "peak_memory_gb": round(runs.peak_memory_gb(self.device), 3), "world_size": self.dist.world_size}
-                    self.run.metrics.write(record)
-                    last_time, last_iter = now, it
+                    self.run.metrics.write({"iteration": it, **logs, **throughput.fields(it), "world_size": self.dist.world_size})
                 if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
                     self.save(self.run.checkpoint_path)
                 if main and cfg.snapshot_every and it % cfg.snapshot_every == 0:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -279,7 +278,7 @@ class NCATrainer:
     def train(self) -> None:
         cfg = self.cfg
         bar = progress_bar(total=cfg.iters, initial=self.iteration, desc="train nca")
-        last_time, last_iter = time.perf_counter(), self.iteration
+        throughput = runs.Throughput(self.iteration, self.device)
         try:
             while self.iteration < cfg.iters:
                 try:
@@ -293,11 +292,7 @@ class NCATrainer:
                 bar.set_postfix({"style": f"{logs['loss_style']:.3f}"})
                 it = self.iteration
                 if it % cfg.log_every == 0 or it == cfg.iters:
-                    now = time.perf_counter()
-                    self.run.metrics.write({"iteration": it, **{k: round(v, 6) for k, v in logs.items()},
-                                            "iters_per_second": round((it - last_iter) / max(now - last_time, 1e-9), 4),
-                                            "peak_memory_gb": round(runs.peak_memory_gb(self.device), 3)})
-                    last_time, last_iter = now, it
+                    self.run.metrics.write({"iteration": it, **{k: round(v, 6) for k, v in logs.items()}, **throughput.fields(it)})
                 if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
                     self.save(self.run.checkpoint_path)
                 if cfg.sample_every and it % cfg.sample_every == 0 and it < cfg.iters:

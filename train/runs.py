@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -71,6 +72,22 @@ class RunDirectory:
 
 
 # ------------------------------------------------------------------------------------ NaN guard
+class Throughput:
+    """The speed and memory fields of a metrics.jsonl record: iterations per second since the last
+    record (or since the loop started) and the process's peak memory so far."""
+
+    def __init__(self, iteration: int, device: torch.device, digits: int = 4):
+        self.device, self.digits = device, digits
+        self.last_time, self.last_iteration = time.perf_counter(), iteration
+
+    def fields(self, iteration: int) -> dict[str, float]:
+        """{"iters_per_second", "peak_memory_gb"} at ``iteration``; the next call measures from here."""
+        now = time.perf_counter()
+        rate = (iteration - self.last_iteration) / max(now - self.last_time, 1e-9)
+        self.last_time, self.last_iteration = now, iteration
+        return {"iters_per_second": round(rate, self.digits), "peak_memory_gb": round(peak_memory_gb(self.device), 3)}
+
+
 class NonFiniteLoss(Exception):
     """A loss became NaN or infinite."""
 

@@ -24,7 +24,6 @@ import argparse
 import dataclasses
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -279,7 +278,7 @@ def run_view_training(args, kind: str) -> int:
                                  {"iteration": iteration, "config": runs.dumps_config(cfg)}, [runs.rng_to_state()])
 
     bar = progress_bar(total=cfg.iters, initial=iteration, desc=f"train {kind}")
-    last_time, last_iter = time.perf_counter(), iteration
+    throughput = runs.Throughput(iteration, device, digits=3)
     try:
         while iteration < cfg.iters:
             pick = train_index[torch.randint(len(train_index), (min(cfg.batch, len(train_index)),)).numpy()]
@@ -297,12 +296,9 @@ def run_view_training(args, kind: str) -> int:
             bar.update(1)
             bar.set_postfix(loss=f"{float(loss.detach()):.4f}")
             if iteration % cfg.log_every == 0 or iteration == cfg.iters:
-                now = time.perf_counter()
+                speed = throughput.fields(iteration)  # before validating: the validation counts towards the next interval
                 run.metrics.write({"iteration": iteration, "loss": round(float(loss.detach()), 6),
-                                   **validate(kind, net, views, val_index, cfg, device),
-                                   "iters_per_second": round((iteration - last_iter) / max(now - last_time, 1e-9), 3),
-                                   "peak_memory_gb": round(runs.peak_memory_gb(device), 3)})
-                last_time, last_iter = now, iteration
+                                   **validate(kind, net, views, val_index, cfg, device), **speed})
             if cfg.checkpoint_every and iteration % cfg.checkpoint_every == 0:
                 save(run.checkpoint_path)
     except KeyboardInterrupt:

@@ -38,6 +38,7 @@ from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
+from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.render.uv import bake_surface_colors
 from mesh2tex.runtime import select_device
 
@@ -148,8 +149,7 @@ def run(args) -> int:
         if not torch.isfinite(state).all():
             raise UserError(f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps")
 
-        mvp = orbit_camera(torch.arange(args.views, dtype=torch.float32) * (360.0 / args.views) + 30.0, 20.0,
-                           distance=distance, fov=fov).mvp.to(device)
+        mvp = orbit_camera(*turntable_angles(args.views, 20.0, start=30.0), distance=distance, fov=fov).mvp.to(device)
         views = render_states(model, state, graph, mvp, args.resolution, background=1.0)
         for k, image in enumerate(images_to_uint8(views.images)):
             save_png(out / f"view_{k}.png", image)

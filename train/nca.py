@@ -36,10 +36,12 @@ from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
+from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.synthetic.world import contact_sheet
 from train import runs
 
 KIND = "nca"
+VIEW_START = 30.0  # azimuth of the first sample view: off the cube-sphere's face centres
 MODEL_NAME = "model.safetensors"  # the trained automaton alone, what infer nca reads
 
 
@@ -174,8 +176,7 @@ def random_cameras(cfg: TrainNCAConfig, count: int, generator: torch.Generator) 
 
 def fixed_cameras(cfg: TrainNCAConfig, count: int = 4, elevation: float = 20.0) -> torch.Tensor:
     """(count, 4, 4) mvp of evenly spaced views around the mesh, for samples and reports."""
-    azimuth = torch.arange(count, dtype=torch.float32) * (360.0 / count) + 30.0
-    return orbit_camera(azimuth, elevation, distance=cfg.camera.distance, fov=cfg.camera.fov).mvp
+    return orbit_camera(*turntable_angles(count, elevation, start=VIEW_START), distance=cfg.camera.distance, fov=cfg.camera.fov).mvp
 
 
 # --------------------------------------------------------------------------------------- trainer

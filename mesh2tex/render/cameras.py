@@ -146,9 +146,9 @@ def orbit_camera(
     return Camera(view=view, proj=proj, mvp=proj @ view, position=position)
 
 
-def turntable_angles(k: int, elevation: float = 20.0) -> tuple[torch.Tensor, torch.Tensor]:
-    """Azimuths evenly spaced over the circle from 0 (k,) and a fixed elevation (k,), in degrees."""
-    return torch.arange(k, dtype=torch.float32) * (360.0 / k), torch.full((k,), float(elevation))
+def turntable_angles(k: int, elevation: float = 20.0, start: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """Azimuths evenly spaced over the circle from ``start`` (k,) and a fixed elevation (k,), in degrees."""
+    return torch.arange(k, dtype=torch.float32) * (360.0 / k) + start, torch.full((k,), float(elevation))
 
 
 def transform_points(vertices: torch.Tensor, mvp: torch.Tensor) -> torch.Tensor:

@@ -51,7 +51,7 @@ def main() -> int:
         for _ in range(6):
             batch = collate_shapes([shapes[i] for i in torch.randint(len(shapes), (2,)).tolist()])
             ws = trainer.generator.mapping(torch.randn(2, cfg.generator.z_dim))
-            out = render_field_views(trainer.generator, batch, ws, random_cameras(8, cfg.camera, torch.device("cpu")),
+            out = render_field_views(trainer.generator, batch, ws, random_cameras(8, cfg.camera, torch.device("cpu"))[0],
                                      (cfg.resolution, cfg.resolution), torch.rand(8, 3) * 2 - 1)
             fakes.append(out.images)
         fakes = torch.cat(fakes)

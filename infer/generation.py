@@ -28,7 +28,14 @@ on the chair world a one-colour generator matched the oracle on it, so it does n
 colours (Lab) and their mean pairwise per-pixel Delta E (:mod:`mesh2tex.metrics.generation`); the
 references are the spread of the mean object colours of the photo set's shapes (each shape's photos
 averaged), and, on the same held-out shape and pose, ``latents`` draws of the world's own material
-sampler, unlit. A generator that ignores its latent scores 0.
+sampler. A generator that ignores its latent scores 0.
+
+**Lighting.** A generator trained with ``lighting.enabled`` (the default since the light prior was
+added) learnt albedo under random lights: its rows (trained, untrained, diversity) are rendered
+under each view's own light, as the oracle and the photos are, and its diversity reference (the
+material sampler) is lit too. A generator trained unlit (older runs, ``lighting.enabled: false``)
+baked its own shading into its colours: its rows are rendered unlit, as it was trained, against the
+lit oracle. ``generator_lit`` in the result says which.
 """
 
 from __future__ import annotations
@@ -54,7 +61,7 @@ from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_l
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
-from mesh2tex.render import composite_images, orbit_camera
+from mesh2tex.render import Lights, composite_images, orbit_camera
 from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views
 from mesh2tex.texture import shape_mismatch
@@ -129,17 +136,28 @@ def material_draws(world: WorldData, name: str, views, resolution: int, seed: in
 
 
 @torch.no_grad()
+def trained_lit(meta: dict) -> bool:
+    """Whether a GAN checkpoint's run shaded its renders (``lighting.enabled``); runs from before the
+    light prior have no ``lighting`` and were unlit."""
+    return bool(meta.get("config", {}).get("lighting", {}).get("enabled", False))
+
+
+def view_lights(views) -> Lights:
+    """The lights of world View records: directions (B, 3) and ambient shares (B,)."""
+    return Lights(torch.tensor([v.light for v in views], dtype=torch.float32), torch.tensor([v.ambient for v in views], dtype=torch.float32))
+
+
 def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor,
-                      device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
-    """One latent per view: z (B, z_dim), ``views`` B world View records (their cameras) -> images
-    (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R)."""
+                      device: torch.device, lit: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+    """One latent per view: z (B, z_dim), ``views`` B world View records (their cameras, and with
+    ``lit`` their lights) -> images (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R)."""
     b = len(views)
     batch = collate_shapes([shape] * b).to(device)
     camera = orbit_camera(torch.tensor([v.azimuth for v in views]), torch.tensor([v.elevation for v in views]),
                           distance=torch.tensor([v.distance for v in views]), fov=torch.tensor([v.fov for v in views]))
     ws = generator.mapping(z.to(device))
     out = render_field_views(generator, batch, ws, camera.mvp.to(device), (resolution, resolution),
-                             torch.ones(b, 3, device=device), noise_mode="none")
+                             torch.ones(b, 3, device=device), noise_mode="none", lights=view_lights(views).to(device) if lit else None)
     return ((out.images.float() + 1) / 2).clamp(0, 1).cpu(), out.mask.float().cpu()
 
 
@@ -167,6 +185,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     resolution = cfg.resolution or int(meta["config"]["resolution"])
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
+    lit = trained_lit(meta)
     names = world.held_out[: cfg.max_shapes] if cfg.max_shapes > 0 else world.held_out
     shapes = {}
     for name in names:
@@ -189,7 +208,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         views = sample_views(world.spec, index, cfg.views)  # fresh photo views: the world never used this stream for a held-out shape
         z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
         for row, generator in (("trained", trained), ("untrained", untrained)):
-            images, masks = generator_renders(generator, shapes[name], views, resolution, z, device)
+            images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit)
             sets[row][0].append(images)
             sets[row][1].append(masks)
         for row, lit in (("oracle", True), ("oracle_unlit", False)):
@@ -204,10 +223,10 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
                                    distance=(world.spec.distance_min + world.spec.distance_max) / 2)
         z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_gen)
         for row, generator in (("trained", trained), ("untrained", untrained)):
-            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device)
+            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit)
             diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
             diversity[row]["pairwise"].append(mean_pairwise_delta_e(images, masks))
-        images, masks = material_draws(world, name, [pose] * cfg.latents, resolution, cfg.seed)
+        images, masks = material_draws(world, name, [pose] * cfg.latents, resolution, cfg.seed, lit=lit)
         diversity["reference_materials"]["spread"].append(colour_spread(mean_object_lab(images, masks)))
         diversity["reference_materials"]["pairwise"].append(mean_pairwise_delta_e(images, masks))
         log(f"generation protocol: {name} done ({time.perf_counter() - start:.0f} s)")
@@ -228,7 +247,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     ref = summary["reference_materials"]
     result = {
         "world": str(world.root), "checkpoint": str(checkpoint), "shapes": names, "resolution": resolution,
-        "iteration": int(meta.get("iteration", 0)), "rows": rows,
+        "iteration": int(meta.get("iteration", 0)), "rows": rows, "generator_lit": lit,
         "gap_closed": gap_closed(rows["untrained"]["object_swd"], rows["trained"]["object_swd"], rows["oracle"]["object_swd"]),
         "gap_closed_histogram": gap_closed(rows["untrained"]["color_hist_tv"], rows["trained"]["color_hist_tv"], rows["oracle"]["color_hist_tv"]),
         "gap_closed_whole_image_swd": gap_closed(rows["untrained"]["swd"], rows["trained"]["swd"], rows["oracle"]["swd"]),
@@ -241,13 +260,13 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         "settings": dataclasses.asdict(cfg), "seconds": round(time.perf_counter() - start, 1),
     }
     if samples_path is not None:
-        write_samples_grid(samples_path, trained, shapes[names[0]], world, names[0], resolution, cfg, device)
+        write_samples_grid(samples_path, trained, shapes[names[0]], world, names[0], resolution, cfg, device, lit=lit)
     return result
 
 
 @torch.no_grad()
 def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedShape, world: WorldData, name: str,
-                       resolution: int, cfg: GenerationConfig, device: torch.device, latents: int = 4, views: int = 4) -> None:
+                       resolution: int, cfg: GenerationConfig, device: torch.device, latents: int = 4, views: int = 4, lit: bool = False) -> None:
     """PNG grid: rows latents (seeds ``cfg.seed*1000 + row``), columns azimuths evenly spaced; the last row the shape's ground truth (lit)."""
     base = sample_views(world.spec, world.indices[name], 1)[0]
     ring = [dataclasses.replace(base, azimuth=a, elevation=cfg.elevation, distance=(world.spec.distance_min + world.spec.distance_max) / 2)
@@ -255,7 +274,7 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     rows = []
     for k in range(latents):
         z = torch.randn(1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed * 1000 + k)).repeat(views, 1)
-        rows.append(generator_renders(generator, shape, ring, resolution, z, device)[0])
+        rows.append(generator_renders(generator, shape, ring, resolution, z, device, lit)[0])
     rows.append(ground_truth_renders(world, name, ring, resolution, lit=True)[0])
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)
@@ -266,8 +285,10 @@ def generation_markdown(result: dict) -> str:
     """The rows and the diversity of a :func:`run_generation_protocol` result as markdown."""
     rows = result["rows"]
     names = ["object_swd", "swd"] + [k for k in rows["trained"] if k.startswith(("kid", "fid")) and not k.endswith("_std")] + ["color_hist_tv"]
+    lighting = ("the generator's rows lit by each view's light, as the oracle" if result.get("generator_lit")
+                else "the generator's rows unlit, as it was trained")
     lines = [f"Generation protocol on {len(result['shapes'])} held-out shapes at {result['resolution']} px "
-             f"(checkpoint iteration {result['iteration']}); lower is better for every distance.", "",
+             f"(checkpoint iteration {result['iteration']}; {lighting}); lower is better for every distance.", "",
              "| row | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
     for row in ROWS:
         values = [rows[row].get(n, float("nan")) for n in names]

@@ -132,6 +132,14 @@ class Distributed:
         dist.all_reduce(t)
         return bool(t.item() > 0)
 
+    def mean(self, value: float, device: torch.device) -> float:
+        """The mean of ``value`` over the processes."""
+        if not self.enabled:
+            return float(value)
+        t = torch.tensor([float(value)], device=device)
+        dist.all_reduce(t)
+        return float(t.item()) / self.world_size
+
     def gather_objects(self, obj) -> list:
         if not self.enabled:
             return [obj]

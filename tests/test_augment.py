@@ -61,3 +61,33 @@ def test_gan_loss_augments_reals_and_fakes_in_every_discriminator_call():
     seen.clear()
     loss.accumulate_gradients("Dreg", lambda z: (fake, None, None), torch.zeros(1), real)
     assert seen == [4]
+
+
+def test_adaptive_probability_follows_the_discriminators_overfitting():
+    """ADA's rule: p rises while E[sign D(real)] is above the target, falls below it, stays in [0, 1],
+    moves only every ada_interval iterations, and survives a checkpoint round trip."""
+    from mesh2tex.losses.augment import AdaptiveAugment
+
+    cfg = AugmentConfig(p=0.0, ada_target=0.6, ada_interval=2, ada_images=80.0)
+    ada = AdaptiveAugment(DiffAugment(cfg))
+    assert ada.adaptive and ada.augment.p == 0.0 and not ada.augment.enabled
+    for it in range(8):  # overfitting: every real called real
+        ada.observe(1.0)
+        ada.step(it, images_per_iteration=8)
+        assert ada.augment.p == pytest.approx(min((it + 1) // 2 * 0.2, 1.0))
+    for it in range(8, 40):
+        ada.observe(1.0)
+        ada.step(it, 8)
+    assert ada.augment.p == 1.0
+    ada.observe(0.0)  # at chance: p falls
+    state = ada.state_dict()
+    restored = AdaptiveAugment(DiffAugment(cfg))
+    restored.load_state_dict(state)
+    for a in (ada, restored):
+        a.observe(0.0)
+        a.step(41, 8)
+    assert ada.augment.p == restored.augment.p == pytest.approx(0.8)
+    fixed = AdaptiveAugment(DiffAugment(AugmentConfig(p=0.5, ada_target=0.0)))
+    fixed.observe(1.0)
+    fixed.step(3, 8)
+    assert not fixed.adaptive and fixed.augment.p == 0.5

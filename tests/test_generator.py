@@ -223,3 +223,47 @@ def test_nca_generator_follows_the_latent_and_trains_end_to_end():
             continue  # reached through ws, which this test feeds directly
         assert p.grad is not None and p.grad.abs().sum() > 0, name
     assert set(map(id, gen.last_synthesis_parameters())) == set(map(id, list(gen.nca.update.parameters()) + list(gen.nca_torgb.parameters())))
+
+
+def test_lit_renders_are_the_albedo_scaled_by_lambert_shading():
+    """Lights shade psi and proxy colours alike: ambient 1 is the unlit render; otherwise each covered
+    pixel's albedo (colour + 1) / 2 is scaled by a + (1 - a)|n.l| of its quad, never brightened, and the
+    background is untouched; gradients still reach the generator."""
+    from mesh2tex.render import LightConfig, Lights, quad_normals, random_lights
+
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(), tiny_batch()
+    mvp, background = views(), torch.rand(4, 3) * 2 - 1
+    ws = gen.mapping(torch.randn(2, 16))
+    samples = rasterize_batch(batch, mvp, (16, 16))
+    texture = gen.synthesize(batch, ws, noise_mode="none")
+
+    def render(lights):
+        return render_field_views(gen, batch, ws, mvp, (16, 16), background, proxy=True, texture=texture, samples=samples, lights=lights)
+
+    unlit = render(None)
+    direction = torch.nn.functional.normalize(torch.randn(4, 3), dim=1)
+    assert torch.allclose(render(Lights(direction, torch.ones(4))).images, unlit.images, atol=1e-6)
+    ambient = torch.tensor([0.2, 0.4, 0.0, 0.6])
+    lit = render(Lights(direction, ambient))
+    cover = samples.mask  # (4, 16, 16)
+    normals = quad_normals(batch.vertices, batch.quads)[samples.triangle_id[cover] // 2]
+    view = torch.arange(4)[:, None, None].expand_as(cover)[cover]
+    factor = ambient[view] + (1 - ambient[view]) * (normals * direction[view]).sum(1).abs()
+    for name in ("images", "proxy"):
+        got = (getattr(lit, name).permute(0, 2, 3, 1)[cover] + 1) / 2
+        albedo = (getattr(unlit, name).permute(0, 2, 3, 1)[cover] + 1) / 2
+        assert torch.allclose(got, albedo * factor[:, None], atol=1e-5), name
+        assert torch.equal(getattr(lit, name).permute(0, 2, 3, 1)[~cover], getattr(unlit, name).permute(0, 2, 3, 1)[~cover])
+    assert (factor < 0.99).any(), "some pixels must be shaded"
+    # The prior: directions are unit vectors within the configured elevations; ambient in range.
+    cfg = LightConfig()
+    drawn = random_lights(torch.full((256,), 30.0), cfg, torch.Generator().manual_seed(0))
+    elevation = torch.rad2deg(torch.asin(drawn.direction[:, 1]))
+    assert torch.allclose(drawn.direction.norm(dim=1), torch.ones(256), atol=1e-6)
+    assert elevation.min() >= cfg.elevation_min - 1e-3 and elevation.max() <= cfg.elevation_max + 1e-3
+    assert drawn.ambient.min() >= cfg.ambient_min and drawn.ambient.max() <= cfg.ambient_max
+    out = render_field_views(gen, batch, gen.mapping(torch.randn(2, 16)), mvp, (16, 16), background, proxy=True,
+                              lights=Lights(direction, ambient))
+    (out.images.sum() + out.proxy.sum()).backward()
+    assert all(p.grad is not None for p in gen.synthesis.parameters())

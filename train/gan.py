@@ -27,14 +27,14 @@ from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, read_image, save_png
 from mesh2tex.io.models import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, save_inference_checkpoint
-from mesh2tex.losses.augment import AugmentConfig, DiffAugment
+from mesh2tex.losses.augment import AdaptiveAugment, AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import CameraConfig, composite_images, orbit_camera, turntable_angles
+from mesh2tex.render import CameraConfig, LightConfig, composite_images, orbit_camera, random_lights, turntable_angles
 from train import runs
 
 KIND = "gan"
@@ -80,6 +80,7 @@ class TrainGanConfig:
     augment: AugmentConfig = field(default_factory=AugmentConfig)  # of every discriminator input, real and fake
     optim: OptimConfig = field(default_factory=OptimConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
+    lighting: LightConfig = field(default_factory=LightConfig)  # fakes are shaded like photos, so the generator learns albedo
 
     def __post_init__(self):
         check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "sample_shapes": 1,
@@ -139,12 +140,13 @@ def composite_real(images: torch.Tensor, background: torch.Tensor) -> torch.Tens
     return composite_images(rgb, alpha, background)
 
 
-def random_cameras(n: int, cfg: CameraConfig, device: torch.device) -> torch.Tensor:
-    """(n, 4, 4) MVP matrices of random orbit views (azimuth uniform, elevation in range, jitter)."""
+def random_cameras(n: int, cfg: CameraConfig, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """Random orbit views (azimuth uniform, elevation in range, jitter): (n, 4, 4) MVP matrices on
+    ``device`` and the (n,) azimuths in degrees (CPU)."""
     azimuth = torch.rand(n) * 360.0 + torch.randn(n) * cfg.jitter_degrees
     elevation = cfg.elevation_min + torch.rand(n) * (cfg.elevation_max - cfg.elevation_min) + torch.randn(n) * cfg.jitter_degrees
     distance = cfg.distance * (1.0 + torch.randn(n) * cfg.distance_jitter)
-    return orbit_camera(azimuth, elevation.clamp(-89.0, 89.0), distance=distance, fov=cfg.fov).mvp.to(device)
+    return orbit_camera(azimuth, elevation.clamp(-89.0, 89.0), distance=distance, fov=cfg.fov).mvp.to(device), azimuth
 
 
 # ---------------------------------------------------------------------------------------- trainer
@@ -179,6 +181,7 @@ class GanTrainer:
         except ValueError as error:
             raise UserError(f"augment: {error}") from None
         self.loss = GanLoss(cfg.loss, self.d_field, self.d_proxy, autocast=autocast, augment=augment)
+        self.ada = AdaptiveAugment(augment)
         self.images_per_step = cfg.batch * cfg.views * distributed.world_size
         self.iteration = 0
         self.sample_batch = collate_shapes(shapes[: cfg.sample_shapes]).to(device)
@@ -196,7 +199,7 @@ class GanTrainer:
             meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
                     GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator)}
             runs.save_training_state(path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d},
-                                     {GAN_LOSS: self.loss.state_dict()}, meta, rng_states)
+                                     {GAN_LOSS: {**self.loss.state_dict(), **self.ada.state_dict()}}, meta, rng_states)
         self.dist.barrier()
 
     def resume(self) -> None:
@@ -208,6 +211,7 @@ class GanTrainer:
         if GAN_LOSS not in groups:
             raise UserError(f"{self.run.checkpoint_path}: checkpoint has no '{GAN_LOSS}' state")
         self.loss.load_state_dict(groups[GAN_LOSS])
+        self.ada.load_state_dict(groups[GAN_LOSS])
         self.iteration = int(meta["iteration"])
         states = meta["rng"]
         if len(states) == self.dist.world_size:
@@ -231,7 +235,8 @@ class GanTrainer:
         n = cfg.batch * cfg.views
         shape_index = torch.randint(len(self.shapes), (cfg.batch,)).tolist()
         batch = collate_shapes([self.shapes[i] for i in shape_index]).to(self.device)
-        mvp = random_cameras(n, cfg.camera, self.device)
+        mvp, azimuth = random_cameras(n, cfg.camera, self.device)
+        lights = random_lights(azimuth, cfg.lighting).to(self.device) if cfg.lighting.enabled else None
         samples = rasterize_batch(batch, mvp, (cfg.resolution, cfg.resolution))
         fake_background = (torch.rand(n, 3) * 2 - 1).to(self.device)
         real = self.draw_real(n)
@@ -241,7 +246,8 @@ class GanTrainer:
 
         def generate(z, update_w_avg=False):
             ws = g.mapping(z, update_w_avg=update_w_avg)
-            out = render_field_views(g, batch, ws, mvp, (cfg.resolution, cfg.resolution), fake_background, proxy=True, samples=samples)
+            out = render_field_views(g, batch, ws, mvp, (cfg.resolution, cfg.resolution), fake_background, proxy=True, samples=samples,
+                                     lights=lights)
             return out.images, out.proxy, ws
 
         logs: dict[str, torch.Tensor] = {}
@@ -277,6 +283,11 @@ class GanTrainer:
         self.generator.requires_grad_(True)
         self.d_field.requires_grad_(True)
         self.d_proxy.requires_grad_(True)
+        signs = [float(v) for k, v in logs.items() if k.startswith("sign_real_")]
+        if self.ada.adaptive and signs:
+            self.ada.observe(self.dist.mean(sum(signs) / len(signs), self.device))  # every process keeps the same p
+        self.ada.step(self.iteration, self.images_per_step)
+        logs["augment_p"] = self.ada.augment.p
         self.iteration += 1
         return runs.scalars(logs)
 

@@ -103,10 +103,10 @@ class GanLoss:
             with torch.no_grad(), self.autocast():
                 images, proxy, _ = generate(z)
             with self.autocast():
-                loss = self._d_main(self.d_field, images, real)
+                loss = self._d_main(self.d_field, images, real, logs, "field")
                 logs["loss_d_field"] = loss.detach()
                 if proxy is not None and self.cfg.proxy_weight > 0:
-                    loss_proxy = self._d_main(self.d_proxy, proxy, real)
+                    loss_proxy = self._d_main(self.d_proxy, proxy, real, logs, "proxy")
                     logs["loss_d_proxy"] = loss_proxy.detach()
                     loss = loss + loss_proxy
             (loss * gain).backward()
@@ -126,10 +126,17 @@ class GanLoss:
             raise ValueError(f"unknown phase {phase!r}; expected one of {PHASES}")
         return logs
 
-    def _d_main(self, d: nn.Module, fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
-        """softplus(D(fake)) + softplus(-D(real)), fakes and reals in separate calls (see the module docstring)."""
+    def _d_main(self, d: nn.Module, fake: torch.Tensor, real: torch.Tensor, logs: dict | None = None, name: str = "") -> torch.Tensor:
+        """softplus(D(fake)) + softplus(-D(real)), fakes and reals in separate calls (see the module docstring).
+
+        Logs the mean logits ``score_fake_<name>``, ``score_real_<name>`` and ``sign_real_<name>``
+        (the mean sign of the real logits: ADA's overfitting measure r_t) into ``logs`` when given."""
         fake_logits = d(self.augment(fake.detach()))
         real_logits = d(self.augment(real.to(fake.dtype)))
+        if logs is not None:
+            logs[f"score_fake_{name}"] = fake_logits.detach().float().mean()
+            logs[f"score_real_{name}"] = real_logits.detach().float().mean()
+            logs[f"sign_real_{name}"] = real_logits.detach().float().sign().mean()
         return F.softplus(fake_logits).mean() + F.softplus(-real_logits).mean()
 
     def state_dict(self) -> dict[str, torch.Tensor]:

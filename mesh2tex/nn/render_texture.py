@@ -17,7 +17,7 @@ from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.field import blend_vertex_features, vertex_features
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
 from mesh2tex.nn.nca import CellGraph, MeshNCA
-from mesh2tex.render import rasterize, transform_points
+from mesh2tex.render import Lights, quad_normals, rasterize, shade_colors, transform_points
 
 
 @dataclass
@@ -96,12 +96,13 @@ def paint_pixels(background: torch.Tensor, flat_index: torch.Tensor, colors: tor
 def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.Tensor, mvp: torch.Tensor,
                        resolution: tuple[int, int], background: torch.Tensor, proxy: bool = False,
                        texture: FaceTexture | None = None, encoded: list[torch.Tensor] | None = None,
-                       noise_mode: str = "random", samples: SurfaceSamples | None = None) -> RenderedViews:
+                       noise_mode: str = "random", samples: SurfaceSamples | None = None, lights: Lights | None = None) -> RenderedViews:
     """Render the texture that ``generator`` makes for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim).
 
     mvp: (N, 4, 4) camera matrices (``orbit_camera(...).mvp``), K = N / B views per shape;
     background: (N, 3) solid colours or (N, 3, H, W) images in [-1, 1];
-    proxy: also render the per-face colours; texture / encoded / samples: reuse what was computed.
+    proxy: also render the per-face colours; texture / encoded / samples: reuse what was computed;
+    lights: one light per view (N) to shade the colours with (Lambert, flat quad normals), None: unlit.
     Differentiable with respect to ws and every generator parameter.
     """
     h, w = int(resolution[0]), int(resolution[1])
@@ -116,8 +117,16 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     flat_index = mask.reshape(-1).nonzero().squeeze(1)
     triangle_id = samples.triangle_id.reshape(-1)[flat_index]
     bary = samples.bary.reshape(-1, 3)[flat_index]
-    images = paint_pixels(background, flat_index, field_colors(generator, texture, batch, triangle_id, bary))
-    proxy_images = paint_pixels(background, flat_index, texture.face_rgb[triangle_id // 2]) if proxy else None
+    colors = field_colors(generator, texture, batch, triangle_id, bary)
+    proxy_colors = texture.face_rgb[triangle_id // 2] if proxy else None
+    if lights is not None:
+        view = flat_index // (h * w)
+        normals = quad_normals(batch.vertices, batch.quads)[triangle_id // 2].to(colors.dtype)
+        direction, ambient = lights.direction[view].to(colors.dtype), lights.ambient[view].to(colors.dtype)
+        colors = shade_colors(colors, normals, direction, ambient)
+        proxy_colors = shade_colors(proxy_colors, normals, direction, ambient) if proxy else None
+    images = paint_pixels(background, flat_index, colors)
+    proxy_images = paint_pixels(background, flat_index, proxy_colors) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=mask.unsqueeze(1).to(images.dtype))
 
 

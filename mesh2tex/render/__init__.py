@@ -15,12 +15,17 @@ from .crop import crop_mask, crop_square, object_box
 from .interpolate import face_attribute, interpolate, texture
 from .rasterize import Raster, pixel_centers, rasterize
 from .shading import (
+    LightConfig,
+    Lights,
     composite,
     composite_images,
     face_normals,
     render_mask,
     render_noc,
+    quad_normals,
+    random_lights,
     render_normals,
+    shade_colors,
     shade_lambert,
     vertex_normals,
 )
@@ -29,6 +34,8 @@ from .uv import dilate_texture, unwrap_uv, uv_rasterize
 __all__ = [
     "Camera",
     "CameraConfig",
+    "LightConfig",
+    "Lights",
     "Raster",
     "composite",
     "composite_images",
@@ -45,7 +52,10 @@ __all__ = [
     "rasterize",
     "render_mask",
     "render_noc",
+    "quad_normals",
+    "random_lights",
     "render_normals",
+    "shade_colors",
     "shade_lambert",
     "texture",
     "transform_points",

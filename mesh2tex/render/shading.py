@@ -5,7 +5,11 @@ Every function takes and returns channels-last images (B,H,W,C), like :func:`int
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
+
+from mesh2tex.config import check_fields
 
 from .interpolate import face_attribute, interpolate
 from .rasterize import Raster
@@ -26,6 +30,14 @@ def face_normals(vertices: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
     corners = vertices[..., tri, :]  # (...,T,3,3)
     normal = torch.linalg.cross(corners[..., 1, :] - corners[..., 0, :],
                                 corners[..., 2, :] - corners[..., 0, :])
+    return torch.nn.functional.normalize(normal, dim=-1)
+
+
+def quad_normals(vertices: torch.Tensor, quads: torch.Tensor) -> torch.Tensor:
+    """Unit normals (F,3) of quads (F,4) int64 over vertices (V,3): the cross product of the diagonals,
+    so both triangles of a slightly bent quad share one normal; zero for degenerate quads."""
+    corners = vertices[quads]  # (F,4,3)
+    normal = torch.linalg.cross(corners[:, 2] - corners[:, 0], corners[:, 3] - corners[:, 1])
     return torch.nn.functional.normalize(normal, dim=-1)
 
 
@@ -91,6 +103,66 @@ def shade_lambert(albedo: torch.Tensor, normals: torch.Tensor, light_dir, ambien
     cosine = (normals * light).sum(-1, keepdim=True)
     cosine = cosine.abs() if two_sided else cosine.clamp(min=0)
     return albedo * (ambient + (1.0 - ambient) * cosine)
+
+
+@dataclass
+class LightConfig:
+    """The light prior of training renders: one directional light and an ambient share per view.
+
+    The defaults are the synthetic world's photo lights (a key light from the camera's side and
+    above, never from behind the object): Lambert shading with ambient a gives each surface point
+    ``albedo * (a + (1 - a) |n . l|)``.
+    """
+
+    enabled: bool = True  # shade training renders (False: the generator's colours are shown unlit, as the paper does)
+    azimuth_spread: float = 70.0  # light azimuth within +- this many degrees of the camera's
+    elevation_min: float = 20.0  # light elevation range, degrees above the horizon
+    elevation_max: float = 75.0
+    ambient_min: float = 0.35  # ambient share range
+    ambient_max: float = 0.6
+
+    def __post_init__(self):
+        check_fields(self, between={"azimuth_spread": (0.0, 180.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0),
+                                    "ambient_min": (0.0, 1.0), "ambient_max": (0.0, 1.0)})
+        if self.elevation_min > self.elevation_max or self.ambient_min > self.ambient_max:
+            raise ValueError("elevation_min/ambient_min must not exceed elevation_max/ambient_max")
+
+
+@dataclass
+class Lights:
+    """One directional light per view. direction (N, 3) unit vectors towards the light, world space;
+    ambient (N,) the share of light that does not depend on the normal."""
+
+    direction: torch.Tensor
+    ambient: torch.Tensor
+
+    def to(self, device) -> "Lights":
+        return Lights(self.direction.to(device), self.ambient.to(device))
+
+
+def light_direction(azimuth: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:
+    """Unit directions (N, 3) at ``azimuth``/``elevation`` (N,) degrees, the orbit camera's convention."""
+    az, el = torch.deg2rad(azimuth.float()), torch.deg2rad(elevation.float())
+    return torch.stack([torch.cos(el) * torch.sin(az), torch.sin(el), torch.cos(el) * torch.cos(az)], dim=1)
+
+
+def random_lights(camera_azimuth: torch.Tensor, cfg: LightConfig, generator: torch.Generator | None = None) -> Lights:
+    """Lights drawn from ``cfg``'s prior for cameras at ``camera_azimuth`` (N,) degrees."""
+    n = camera_azimuth.shape[0]
+    u = torch.rand(n, 3, generator=generator)
+    azimuth = camera_azimuth.float() + (u[:, 0] * 2 - 1) * cfg.azimuth_spread
+    elevation = cfg.elevation_min + u[:, 1] * (cfg.elevation_max - cfg.elevation_min)
+    ambient = cfg.ambient_min + u[:, 2] * (cfg.ambient_max - cfg.ambient_min)
+    return Lights(light_direction(azimuth, elevation), ambient)
+
+
+def shade_colors(colors: torch.Tensor, normals: torch.Tensor, direction: torch.Tensor, ambient: torch.Tensor) -> torch.Tensor:
+    """Lambert shading of network colours at P points: colours (P, 3) in [-1, 1] (albedo 0..1 mapped),
+    unit normals (P, 3), light direction (P, 3), ambient (P,) -> shaded colours (P, 3) in [-1, 1].
+    Two-sided, as :func:`shade_lambert` (which it applies to the albedo)."""
+    albedo = (colors + 1) * 0.5
+    shaded = shade_lambert(albedo[:, None, None], normals[:, None, None], direction, ambient.reshape(-1, 1, 1, 1).to(colors.dtype))
+    return shaded[:, 0, 0] * 2 - 1
 
 
 def composite(rgb: torch.Tensor, mask: torch.Tensor, background) -> torch.Tensor:

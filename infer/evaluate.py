@@ -43,7 +43,7 @@ from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.io.image_sets import list_images, load_pairs, load_set
 from mesh2tex.io.outputs import guard_outputs
-from mesh2tex.metrics import EXTRACTOR_NAMES, get_feature_extractor
+from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, markdown_table
 from mesh2tex.runtime import select_device
 

@@ -4,8 +4,12 @@ Trains the pose classifier (azimuth in 12 bins, elevation in 5) on rendered view
 prepared shapes; see :mod:`train.view_nets` for the data and the loop.
 """
 
-from train.view_nets import run_view_training
-from train.view_nets import build_view_config as build_config  # noqa: F401  (--print-config)
+from train.view_nets import build_view_config, run_view_training
+
+
+def build_config(args):
+    """The resolved training config (what --print-config prints)."""
+    return build_view_config(args)
 
 
 def run(args) -> int:

@@ -71,7 +71,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
                 group_parser = commands.add_parser(command, help=f"{command} subcommands", formatter_class=HelpFormatter)
                 groups[command] = group_parser.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
             target = groups[command].add_parser(sub, help=help_text, description=help_text, formatter_class=HelpFormatter)
-        target.set_defaults(_stage=stage)
+        target.set_defaults(_stage=stage, _parser=target)
         if words is not None and words[: 1 if sub is None else 2] != [command] + ([sub] if sub else []):
             continue
         add_options = _options(stage)
@@ -100,7 +100,9 @@ def print_config(stage, args) -> int:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # named by the command's own parser, whose --help lists what it takes
+        args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     name = args.command + (f" {args.subcommand}" if getattr(args, "subcommand", None) else "")
     if getattr(args, "_unfinished", False):
         print(f"mesh2tex: error: '{name}' is not available in this version yet", file=sys.stderr)

@@ -30,6 +30,10 @@ class Parser(argparse.ArgumentParser):
     """An ArgumentParser whose errors are one line: ``mesh2tex: error: <what>; see 'PROG --help'`` (exit 2)."""
 
     def error(self, message: str):
+        for action in self._actions:  # name an option as its help does, without its hidden aliases
+            hidden = getattr(action, "hidden_aliases", ())
+            if hidden:
+                message = message.replace("/".join(action.option_strings), "/".join(s for s in action.option_strings if s not in hidden))
         print(f"mesh2tex: error: {message}; see '{self.prog} --help'", file=sys.stderr)
         sys.exit(2)
 

@@ -152,12 +152,18 @@ def test_a_bad_device_is_one_line_and_exit_2(argv, capsys):
     assert err.count("\n") == 1 and err.startswith("mesh2tex: error: argument --device: invalid choice: 'gpu'"), err
 
 
-def test_a_missing_option_is_one_line(capsys):
+@pytest.mark.parametrize("argv, says", [
+    (["train", "gan", "--out", "o"], "required: --shapes, --images; see 'mesh2tex train gan --help'"),
+    (["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--bogus", "1"], "unrecognized arguments: --bogus 1; see 'mesh2tex train gan --help'"),
+    (["prepare", "shapes", "--input", "x"], "required: --out; see"),  # not '--out/--output': the alias stays hidden
+    (["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--iters", "many"], "argument --iters: invalid int value: 'many'"),
+])
+def test_a_bad_option_is_one_line_naming_the_commands_help(argv, says, capsys):
     with pytest.raises(SystemExit) as exit_info:
-        main(["train", "gan", "--out", "o"])
+        main(argv)
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "required: --shapes, --images" in err and "mesh2tex train gan --help" in err
+    assert err.count("\n") == 1 and err.startswith("mesh2tex: error: ") and says in err, err
 
 
 @pytest.mark.parametrize("sub", ["shapes", "images", "synthetic"])

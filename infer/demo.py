@@ -416,6 +416,7 @@ def run(args) -> int:
     out = Path(args.out)
     saved = out / "demo_config.yaml"
     cfg = build_config(args)
+    select_device(args.device)  # --device cuda without a GPU is refused before any stage runs
     if saved.is_file() and load_config(DemoConfig, saved) != cfg:
         raise UserError(f"{out}: holds a demo run with other settings ({saved}); resume it with the same options or choose another --out")
     out.mkdir(parents=True, exist_ok=True)

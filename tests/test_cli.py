@@ -182,3 +182,12 @@ def test_backgrounds_named_in_the_options_are_the_commands():
 
     assert sorted(BACKGROUNDS) == sorted(NAMES)
 
+
+
+def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("a GPU is there")
+    assert main(["demo", "--quick", "--device", "cuda", "--out", str(tmp_path / "demo")]) == 2
+    assert "no CUDA device" in capsys.readouterr().err and not (tmp_path / "demo").exists()

@@ -91,7 +91,7 @@ def world_meshes(world: Path, category: str, count: int) -> dict[str, Path]:
     if count <= 0:
         return {}
     if not (folder / "index.json").exists() or len(list((folder / "meshes").glob("*.obj"))) < count:
-        subprocess.run([sys.executable, "-m", "mesh2tex", "prepare", "synthetic", "--output", str(folder), "--category", category,
+        subprocess.run([sys.executable, "-m", "mesh2tex", "prepare", "synthetic", "--out", str(folder), "--category", category,
                         "--shapes", str(count), "--views", "1", "--resolution", "32", "--texture-size", "64", "--query-views", "1"],
                        check=True, stdout=subprocess.DEVNULL)
     return {p.stem: p for p in sorted((folder / "meshes").glob("*.obj"))[:count]}

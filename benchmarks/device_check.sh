@@ -34,11 +34,11 @@ $PY benchmarks/bench_gan_step.py --device "$DEVICE" --iters 6 > "$OUT/gan_step_d
 
 log "chair world"
 W="$OUT/work"
-$PY -m mesh2tex prepare synthetic --output "$W/world" --category chair --shapes 32 --views 8 --query-shapes 8 --seed 0 >> "$OUT/log.txt" 2>&1
+$PY -m mesh2tex prepare synthetic --out "$W/world" --category chair --shapes 32 --views 8 --query-shapes 8 --seed 0 >> "$OUT/log.txt" 2>&1
 TRAIN=$($PY -c "import json,sys; d=json.load(open('$W/world/index.json')); print(' '.join('$W/world/meshes/%s.obj'%n for n in d['split']['train_shapes']))")
 QUERY=$($PY -c "import json,sys; d=json.load(open('$W/world/index.json')); print(' '.join('$W/world/meshes/%s.obj'%n for n in d['split']['query_shapes']))")
-$PY -m mesh2tex prepare shapes --input $TRAIN --output "$W/shapes/train" --faces 1536 --levels 4 --workers 8 --seed 0 >> "$OUT/log.txt" 2>&1
-$PY -m mesh2tex prepare shapes --input $QUERY --output "$W/shapes/query" --faces 1536 --levels 4 --workers 8 --seed 0 >> "$OUT/log.txt" 2>&1
+$PY -m mesh2tex prepare shapes --input $TRAIN --out "$W/shapes/train" --faces 1536 --levels 4 --workers 8 --seed 0 >> "$OUT/log.txt" 2>&1
+$PY -m mesh2tex prepare shapes --input $QUERY --out "$W/shapes/query" --faces 1536 --levels 4 --workers 8 --seed 0 >> "$OUT/log.txt" 2>&1
 
 log "GAN run of $TRAIN_MINUTES minutes"
 cat > "$OUT/gan.yaml" <<EOF

@@ -71,7 +71,7 @@ def commands(work: Path, iters: int) -> dict[str, list[str]]:
         "train gan": python + ["train", "gan", "--shapes", str(work / "shapes"), "--images", str(work / "photos"), "--out", str(work / "run"),
                                "--config", str(work / "tiny.yaml"), "--iters", str(iters), "--batch", "2", "--views", "2",
                                "--resolution", "16", "--device", "cpu", "--resume"],
-        "prepare shapes": python + ["prepare", "shapes", "--input", str(work / "meshes"), "--output", str(work / "prepared"),
+        "prepare shapes": python + ["prepare", "shapes", "--input", str(work / "meshes"), "--out", str(work / "prepared"),
                                     "--faces", "96", "--levels", "2"],
     }
 

@@ -10,7 +10,6 @@ reason, mask source, mask coverage). Exit status 0 when every image succeeded, 2
 
 from __future__ import annotations
 
-import argparse
 import os
 import re
 import sys
@@ -22,12 +21,6 @@ from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import is_image_file, load_image, load_mask, save_png
 from mesh2tex.photos import estimate_mask, square_crop
 from mesh2tex.progress import progress_bar
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--input", required=True, metavar="DIR", help="folder of photos (searched recursively)")
-    parser.add_argument("--output", required=True, metavar="DIR", help="folder for images/, masks/ and index.json")
-    parser.add_argument("--size", type=int, default=256, help="side of the square output images in pixels (default 256)")
-    parser.add_argument("--masks", metavar="DIR", default=None, help="folder of mask images named like the photos (any image suffix)")
 
 
 def find_mask_file(masks_dir: Path | None, relative: Path) -> Path | None:
@@ -73,7 +66,7 @@ def prepare_image(path: Path, relative: Path, name: str, output: Path, size: int
 
 
 def run(args) -> int:
-    input_dir, output = Path(args.input), Path(args.output)
+    input_dir, output = Path(args.input), Path(args.out)
     if not input_dir.is_dir():
         raise UserError(f"{input_dir}: {'is a file; --input takes a folder of photos' if input_dir.is_file() else 'no such folder'}")
     if args.size < 8:

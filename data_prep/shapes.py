@@ -2,7 +2,7 @@
 
 Inputs are mesh files (.obj .ply .off .stl .glb .gltf) and folders searched recursively, the
 ShapeNetCore v2 layout ``<synset>/<id>/models/model_normalized.obj`` included (such a shape is named
-``<synset>_<id>``). One ``<name>.npz`` per shape goes to ``--output`` with ``index.json`` listing every
+``<synset>_<id>``). One ``<name>.npz`` per shape goes to ``--out`` with ``index.json`` listing every
 input, its status (ok or failed), the reason of a failure, per level the faces, the ratio to the finer
 level and the method that made it, warnings (a level made by a fallback) and seconds.
 Finished shapes are skipped on a re-run, so an interrupted run resumes. Exit status 0 when every
@@ -11,7 +11,6 @@ input succeeded, 2 when any failed.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import multiprocessing
@@ -25,17 +24,6 @@ from pathlib import Path
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import locked, write_json
 from mesh2tex.progress import JsonLines, progress_bar
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--input", nargs="+", required=True, metavar="PATH", help="mesh files and/or folders (searched recursively)")
-    parser.add_argument("--output", required=True, metavar="DIR", help="folder for <name>.npz files and index.json")
-    parser.add_argument("--faces", type=int, default=6144, help="quads of the finest level (default 6144)")
-    parser.add_argument("--levels", type=int, default=5, help="levels, each with a quarter of the faces of the finer one (default 5)")
-    parser.add_argument("--workers", type=int, default=1, help="shapes prepared in parallel processes (default 1)")
-    parser.add_argument("--seed", type=int, default=0, help="QuadriFlow seed (default 0)")
-    parser.add_argument("--max-seconds", type=float, help="time budget of one shape; past it the shape fails with that reason (default: none)")
-    parser.add_argument("--max-memory-gb", type=float, help="memory budget of each QuadriFlow process of a shape, GiB (default: none)")
 
 
 def find_meshes(inputs: list[str]) -> list[Path]:
@@ -158,7 +146,7 @@ def run(args) -> int:
     for flag, value in (("--max-seconds", args.max_seconds), ("--max-memory-gb", args.max_memory_gb)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise UserError(f"{flag} {value}: must be a positive number")
-    output = Path(args.output)
+    output = Path(args.out)
     output.mkdir(parents=True, exist_ok=True)
     paths = find_meshes(args.input)
     if not paths:

@@ -1,6 +1,6 @@
 """``mesh2tex prepare synthetic``: build the synthetic world the project trains, tests and demos on.
 
-Layout of ``--output`` (``<s>`` a shape name such as ``chair_0003``, ``<k>`` a two-digit view number):
+Layout of ``--out`` (``<s>`` a shape name such as ``chair_0003``, ``<k>`` a two-digit view number):
 
     index.json                 settings, the train/query split, every shape (design choices, material),
                                every photo and query with its camera
@@ -21,7 +21,6 @@ Deterministic for a seed. Every file is written atomically, so a re-run skips wh
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from dataclasses import asdict
@@ -42,19 +41,6 @@ CAMERA_CONVENTION = (
     "looking at the origin; the object's front faces +z (azimuth 0 sees the front)"
 )
 NOC_CONVENTION = "NOC = vertex position + 0.5 in the normalised frame (bbox centre 0, diagonal 1); PNG stores NOC*255, 0 off the mask"
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--output", required=True, metavar="DIR", help="folder of the world (created; an unfinished one is resumed)")
-    parser.add_argument("--category", choices=("chair", "car"), default="chair", help="shape category (default chair)")
-    parser.add_argument("--shapes", type=int, default=12, help="shapes in all, query shapes included (default 12)")
-    parser.add_argument("--views", type=int, default=8, help="photos per training shape (default 8)")
-    parser.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
-    parser.add_argument("--resolution", type=int, default=128, help="photo size in pixels (default 128)")
-    parser.add_argument("--query-shapes", type=int, default=0, help="shapes held out for queries/ (default: a quarter, at least 1)")
-    parser.add_argument("--query-views", type=int, default=2, help="query photos per held-out shape (default 2)")
-    parser.add_argument("--elevation", type=float, nargs=2, default=(5.0, 35.0), metavar=("MIN", "MAX"), help="elevation range in degrees (default 5 35)")
-    parser.add_argument("--texture-size", type=int, default=512, help="side of the baked UV texture of textured/*.glb (default 512)")
 
 
 def spec_from_args(args):
@@ -94,14 +80,14 @@ def _check_output(output: Path, settings: dict) -> None:
         try:
             existing = json.loads(index_path.read_text())
         except (OSError, json.JSONDecodeError):
-            raise UserError(f"{index_path}: unreadable; remove the folder or choose another --output") from None
+            raise UserError(f"{index_path}: unreadable; remove the folder or choose another --out") from None
         if existing.get("format") != FORMAT:
-            raise UserError(f"{index_path}: not a synthetic world index; choose another --output")
+            raise UserError(f"{index_path}: not a synthetic world index; choose another --out")
         if existing.get("settings") != settings:
             changed = sorted(k for k in settings if existing.get("settings", {}).get(k) != settings[k])
-            raise UserError(f"{output}: holds a world built with other settings ({', '.join(changed)}); choose another --output")
+            raise UserError(f"{output}: holds a world built with other settings ({', '.join(changed)}); choose another --out")
     elif output.is_dir() and any(output.iterdir()):
-        raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); choose another --output")
+        raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); choose another --out")
 
 
 def _photo_record(spec, view, shape_name: str, k: int, query: bool) -> dict:
@@ -198,7 +184,7 @@ def write_preview(output: Path, index: dict, columns: int = 8, rows: int = 4) ->
 
 def run(args) -> int:
     spec = spec_from_args(args)
-    output = Path(args.output)
+    output = Path(args.out)
     _check_output(output, _settings(spec))
     index = plan(spec)
     write_json(output / "index.json", index)

@@ -22,7 +22,6 @@ The defaults are a CPU budget (about 18 minutes on 2 cores), far below the paper
 
 from __future__ import annotations
 
-import argparse
 import base64
 import html
 import json
@@ -50,6 +49,7 @@ from mesh2tex.io.models import load_generator, models_root
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.progress import JsonLines
+from mesh2tex.runtime import select_device
 from mesh2tex.texture import load_shape, mean_latent
 
 
@@ -91,13 +91,6 @@ QUICK = {  # a smoke-test budget: every stage runs, nothing learns much
 }
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", default="demo_out", help="output folder (default: demo_out)")
-    parser.add_argument("--config", help="YAML file with any fields of the demo config")
-    parser.add_argument("--quick", action="store_true", help="a smoke-test budget (a minute or two): every stage runs, nothing learns much")
-    parser.add_argument("--seed", type=int, help="master seed")
-
-
 def _stage(name: str, argv: list[str], log: JsonLines) -> float:
     """Run one CLI stage in-process; a failure stops the demo with the stage's name."""
     print(f"\n== demo: {name}: mesh2tex {' '.join(argv)}", flush=True)
@@ -123,27 +116,28 @@ def _gan_config(cfg: DemoConfig) -> dict:
     return gan
 
 
-def run_pipeline(out: Path, cfg: DemoConfig) -> dict:
-    """Run (or resume) every stage into ``out``; returns {stage: seconds of this run}."""
+def run_pipeline(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
+    """Run (or resume) every stage into ``out``, the training and transfer stages on ``device`` (auto, cpu or
+    cuda); returns {stage: seconds of this run}."""
     out.mkdir(parents=True, exist_ok=True)
     log = JsonLines(out / "demo_log.jsonl")
     seconds: dict[str, float] = {}
     world = out / "world"
     seconds["prepare synthetic"] = _stage("prepare synthetic", [
-        "prepare", "synthetic", "--output", str(world), "--category", "chair", "--shapes", str(cfg.shapes),
+        "prepare", "synthetic", "--out", str(world), "--category", "chair", "--shapes", str(cfg.shapes),
         "--views", str(cfg.views), "--resolution", str(cfg.photo_resolution), "--seed", str(cfg.seed)], log)
     split = json.loads((world / "index.json").read_text())["split"]
     for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
         meshes = [str(world / "meshes" / f"{n}.obj") for n in names]
         seconds[f"prepare shapes ({part})"] = _stage(f"prepare shapes ({part})", [
-            "prepare", "shapes", "--input", *meshes, "--output", str(out / "shapes" / part), "--faces", str(cfg.faces),
+            "prepare", "shapes", "--input", *meshes, "--out", str(out / "shapes" / part), "--faces", str(cfg.faces),
             "--levels", str(cfg.levels), "--workers", str(cfg.workers), "--seed", str(cfg.seed)], log)
     gan_yaml = out / "gan_config.yaml"
     write_text(gan_yaml, yaml.safe_dump(_gan_config(cfg), sort_keys=False))
     seconds["train gan"] = _stage("train gan", [
         "train", "gan", "--shapes", str(out / "shapes" / "train"), "--images", str(world), "--out", str(out / "gan"),
         "--config", str(gan_yaml), "--iters", str(cfg.gan_iters), "--resolution", str(cfg.gan_resolution),
-        "--views", str(cfg.gan_views), "--seed", str(cfg.seed), "--resume"], log)
+        "--views", str(cfg.gan_views), "--seed", str(cfg.seed), "--device", device, "--resume"], log)
     views_yaml = out / "view_nets_config.yaml"
     write_text(views_yaml, yaml.safe_dump({"width": cfg.view_width, "log_every": 25, "checkpoint_every": 100}))
     for kind, iters in (("pose", cfg.pose_iters), ("noc", cfg.noc_iters)):
@@ -151,7 +145,7 @@ def run_pipeline(out: Path, cfg: DemoConfig) -> dict:
         seconds[f"train {kind}"] = _stage(f"train {kind}", [
             "train", kind, "--shapes", str(out / "shapes" / "train"), "--out", str(out / kind), "--config", str(views_yaml),
             "--iters", str(iters), "--samples", str(cfg.view_samples), "--resolution", str(cfg.view_resolution),
-            "--batch", "32", "--seed", str(cfg.seed), "--gan", str(out / "gan" / "checkpoint.safetensors"), "--resume"], log)
+            "--batch", "32", "--seed", str(cfg.seed), "--device", device, "--gan", str(out / "gan" / "checkpoint.safetensors"), "--resume"], log)
     query = pick_query(world, cfg.query)
     transfer = out / "transfer"
     if not (transfer / "report.json").is_file():
@@ -161,7 +155,7 @@ def run_pipeline(out: Path, cfg: DemoConfig) -> dict:
             "--mask", str(world / query["mask"]), "--pose", "auto", "--pose-checkpoint", str(out / "pose" / "checkpoint.safetensors"),
             "--noc-checkpoint", str(out / "noc" / "checkpoint.safetensors"), "--out", str(transfer),
             "--resolution", str(cfg.transfer_resolution), "--latent-iters", str(cfg.latent_iters),
-            "--refine-iters", str(cfg.refine_iters), "--seed", str(cfg.seed), "--overwrite"], log)
+            "--refine-iters", str(cfg.refine_iters), "--seed", str(cfg.seed), "--device", device, "--overwrite"], log)
     return seconds
 
 
@@ -254,14 +248,14 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     return result
 
 
-def generation_metrics(out: Path, cfg: DemoConfig) -> dict:
+def generation_metrics(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
     """The generation protocol (:mod:`infer.generation`) on the world's held-out shapes: trained,
     untrained and oracle rows against the photos, the gap closed and the diversity across latents;
     writes the samples grid ``gan/generation_samples.png`` (rows latents, columns views, last row the
     ground truth)."""
     gen_cfg = GenerationConfig(views=cfg.eval_views, latents=cfg.eval_latents, kid_fid=False, seed=cfg.seed)
     return run_generation_protocol(out / "world", out / "shapes" / "query", out / "gan" / "checkpoint.safetensors", gen_cfg,
-                                   samples_path=out / "gan" / "generation_samples.png", log=lambda line: None)
+                                   select_device(device), samples_path=out / "gan" / "generation_samples.png", log=lambda line: None)
 
 
 # -------------------------------------------------------------------------------------------- report
@@ -413,19 +407,22 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
     return path
 
 
+def build_config(args) -> DemoConfig:
+    """The demo config: its defaults, then --config, then --quick's budget and --seed."""
+    return load_config(DemoConfig, args.config, {**(QUICK if args.quick else {}), "seed": args.seed})
+
+
 def run(args) -> int:
     out = Path(args.out)
-    overrides = {"seed": args.seed}
-    if args.quick:
-        overrides.update(QUICK)
     saved = out / "demo_config.yaml"
-    cfg = load_config(DemoConfig, args.config, overrides)
+    cfg = build_config(args)
+    select_device(args.device)  # --device cuda without a GPU is refused before any stage runs
     if saved.is_file() and load_config(DemoConfig, saved) != cfg:
         raise UserError(f"{out}: holds a demo run with other settings ({saved}); resume it with the same options or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     save_config(cfg, saved)
     start = time.perf_counter()
-    run_pipeline(out, cfg)
+    run_pipeline(out, cfg, args.device)
     # Seconds per stage summed over every run of the demo in this folder (an interrupted stage counts twice).
     seconds: dict[str, float] = {}
     for record in JsonLines(out / "demo_log.jsonl").read():
@@ -433,7 +430,7 @@ def run(args) -> int:
     query = pick_query(out / "world", cfg.query)
     t = time.perf_counter()
     metrics = {"transfer": transfer_metrics(out / "world", out / "transfer", query, cfg.transfer_resolution),
-               "generation": generation_metrics(out, cfg)}
+               "generation": generation_metrics(out, cfg, args.device)}
     seconds["metrics"] = round(time.perf_counter() - t, 1)
     seconds["demo total (this run)"] = round(time.perf_counter() - start, 1)
     write_json(out / "metrics.json", {"query": query, **metrics, "seconds": seconds, "config": asdict(cfg)})

@@ -37,13 +37,13 @@ import warnings
 from dataclasses import asdict
 
 from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
-from infer.protocols import add_protocol_arguments, run_protocols_command
+from infer.protocols import protocol_config, run_protocols_command
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.io.image_sets import list_images, load_pairs, load_set
 from mesh2tex.io.outputs import guard_outputs
-from mesh2tex.metrics import EXTRACTOR_NAMES, get_feature_extractor
+from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, markdown_table
 from mesh2tex.runtime import select_device
 
@@ -51,29 +51,27 @@ BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
 
 
 # ----------------------------------------------------------------------------------------------
-# Command line
+# Command line (the options are in infer/options.py)
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--renders", help="folder of rendered images (PNG/JPEG; RGBA alpha is the mask); required unless --protocols")
-    parser.add_argument("--images", help="folder of reference images (photos, or ground-truth renders with --pairs); required unless --protocols")
-    parser.add_argument("--masks", help="folder of masks named like the images (white = object)")
-    parser.add_argument("--pairs", action="store_true", help="paired metrics (PSNR, SSIM, histogram) between files of the same name")
-    parser.add_argument("--out", required=True, help="output folder for metrics.json and metrics.md")
-    parser.add_argument("--resolution", type=int, help="sets mode: square side images are resized to (default 128)")
-    parser.add_argument("--features", choices=EXTRACTOR_NAMES, help="KID/FID features (default auto: Inception if its weights are found, else randvgg)")
-    parser.add_argument("--inception-weights", help="Inception-v3 weight file (pt_inception-2015-12-05 or torchvision's inception_v3_google)")
-    parser.add_argument("--vgg-weights", help="VGG19 weight file (torchvision's vgg19-dcbb9e9d.pth), for --features vgg")
-    parser.add_argument("--kid-subsets", type=int, help="KID subsets (default 100)")
-    parser.add_argument("--kid-subset-size", type=int, help="KID subset size (default 1000)")
-    parser.add_argument("--background", choices=sorted(BACKGROUNDS), help="sets mode: colour for masked-out pixels (default white)")
-    parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
-    parser.add_argument("--seed", type=int, help="seed for KID subsets and SWD sampling (default 0)")
-    parser.add_argument("--overwrite", action="store_true", help="replace metrics already in --out")
-    add_protocol_arguments(parser)
-    parser.add_argument("--generation", action="store_true",
-                        help="the generation protocol: --gan against --world's ground truth on the held-out shapes in --shapes")
-    parser.add_argument("--latents", type=int, help="--generation: latents per held-out shape for the diversity measures (default 16)")
+def generation_config(args: argparse.Namespace) -> GenerationConfig:
+    return load_config(GenerationConfig, None, {"latents": args.latents, "resolution": args.resolution, "features": args.features,
+                                                "seed": args.seed})
+
+
+def sets_config(args: argparse.Namespace) -> EvaluateConfig:
+    return load_config(EvaluateConfig, None, {
+        "resolution": args.resolution, "features": args.features, "kid_subsets": args.kid_subsets,
+        "kid_subset_size": args.kid_subset_size, "background": args.background, "seed": args.seed})
+
+
+def build_config(args: argparse.Namespace):
+    """The config of the mode asked for: ``--generation``, ``--protocols``, else sets and pairs."""
+    if getattr(args, "generation", False):
+        return generation_config(args)
+    if getattr(args, "protocols", False):
+        return protocol_config(args)
+    return sets_config(args)
 
 
 def run_generation_command(args: argparse.Namespace) -> int:
@@ -81,8 +79,7 @@ def run_generation_command(args: argparse.Namespace) -> int:
     for flag in ("world", "shapes", "gan"):
         if not getattr(args, flag):
             raise UserError(f"--generation needs --{flag}")
-    cfg = load_config(GenerationConfig, None, {"latents": args.latents, "resolution": args.resolution, "features": args.features,
-                                               "seed": args.seed})
+    cfg = generation_config(args)
     if cfg.latents < 2:
         raise UserError(f"--latents {cfg.latents}: diversity needs at least 2")
     out = guard_outputs(args.out, ["generation.json", "generation.md", "generation_samples.png"], args.overwrite)
@@ -112,9 +109,7 @@ def run(args: argparse.Namespace) -> int:
         return run_protocols_command(args)
     if not args.renders or not args.images:
         raise UserError("evaluate needs --renders and --images (or --protocols with --world, --shapes and --gan)")
-    config = load_config(EvaluateConfig, None, {
-        "resolution": args.resolution, "features": args.features, "kid_subsets": args.kid_subsets,
-        "kid_subset_size": args.kid_subset_size, "background": args.background, "seed": args.seed})
+    config = sets_config(args)
     if config.resolution < 16:
         raise UserError(f"--resolution {config.resolution}: must be at least 16")
     out = guard_outputs(args.out, ["metrics.json", "metrics.md"], args.overwrite)

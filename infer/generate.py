@@ -15,7 +15,6 @@ DIR are never replaced without ``--overwrite``.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass, field
 
 import torch
@@ -48,22 +47,6 @@ class GenerateConfig:
             raise UserError("--seeds: give at least one seed")
         if self.views < 1 or self.resolution < 8 or self.texture_size < 16:
             raise UserError("--views must be >= 1, --resolution >= 8 and --texture-size >= 16")
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors) or a shipped model's name (chair, car)")
-    parser.add_argument("--mesh", required=True, help="a prepared shape (.npz) or a mesh file (.obj .ply .off .stl .glb)")
-    parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("--config", help="YAML file with any fields of the generate config (flags override it)")
-    parser.add_argument("--seeds", help="comma-separated latent seeds (default 0,1,2)")
-    parser.add_argument("--views", type=int, help="orbit views per seed (default 8)")
-    parser.add_argument("--resolution", type=int, help="render resolution (default 512)")
-    parser.add_argument("--texture-size", type=int, help="baked UV texture size (default 1024)")
-    parser.add_argument("--elevation", type=float, help="elevation of the orbit views, degrees (default 20)")
-    parser.add_argument("--truncation", type=float, help="truncation psi of the latent (1: none)")
-    parser.add_argument("--faces", type=int, help="finest quad count when preparing a raw mesh (default 6144)")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to run")
-    parser.add_argument("--overwrite", action="store_true", help="replace files already in --out")
 
 
 def output_names(cfg: GenerateConfig) -> list[str]:

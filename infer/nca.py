@@ -16,7 +16,6 @@ of the regrowth follow in the GIF).
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 
@@ -43,27 +42,6 @@ from mesh2tex.render.uv import bake_surface_colors
 from mesh2tex.runtime import select_device
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--checkpoint", required=True, help="a 'train nca' model (RUN/model.safetensors) or checkpoint")
-    parser.add_argument("--mesh", default="sphere", help="sphere, sphere:N, a prepared shape (.npz) or a mesh file (default: sphere)")
-    parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("--steps", type=int, default=96, help="automaton steps from the seed (default 96)")
-    parser.add_argument("--graft", help="a second model of the same lineage, grown where --graft-mask is 1")
-    parser.add_argument("--graft-mask", default="smoothstep(-0.15, 0.15, x)",
-                        help="where the --graft model grows: an expression in x, y, z (the mesh in the unit ball) or a per-vertex .npy/.txt file")
-    parser.add_argument("--regrow", help="after growth, zero the cells where this expression (or file) is above 0.5 and grow them back")
-    parser.add_argument("--angle", type=float, default=0.0, help="texture orientation: degrees about each vertex normal")
-    parser.add_argument("--subdivide", default="auto", help="split faces into four N times; auto matches the training mesh's cell spacing")
-    parser.add_argument("--views", type=int, default=4, help="renders around the mesh")
-    parser.add_argument("--resolution", type=int, default=256, help="render resolution")
-    parser.add_argument("--texture-size", type=int, default=1024, help="baked texture size")
-    parser.add_argument("--frames", type=int, default=24, help="frames of growth.gif (0: no GIF)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the asynchronous updates")
-    parser.add_argument("--vgg-weights", help="VGG19 weights for the report's style loss")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
-    parser.add_argument("--overwrite", action="store_true", help="replace outputs already in --out")
 
 
 def choose_subdivisions(value: str, vertices: np.ndarray, faces: np.ndarray, cell_spacing: float) -> int:

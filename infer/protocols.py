@@ -465,37 +465,13 @@ def _file_digest(path: str | Path | None) -> str | None:
     return None if path is None else checkpoint_digest(path)
 
 
-def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``mesh2tex evaluate --protocols`` (added to the evaluate command's parser)."""
-    group = parser.add_argument_group("protocols (--protocols: the paper's synthetic evaluation)")
-    group.add_argument("--protocols", action="store_true", help="run the evaluation protocols on a synthetic world")
-    group.add_argument("--world", help="synthetic world folder (from 'mesh2tex prepare synthetic')")
-    group.add_argument("--shapes", help="prepared shapes of the world's meshes (from 'mesh2tex prepare shapes')")
-    group.add_argument("--gan", help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan')")
-    group.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose')")
-    group.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc')")
-    group.add_argument("--latent-iters", type=int, help="transfer stage 1 iterations (default 100)")
-    group.add_argument("--refine-iters", type=int, help="transfer stage 2 iterations (default 300)")
-    group.add_argument("--queries", type=int, help="query photos used, the first K (default all)")
-    group.add_argument("--only", help=f"comma-separated protocols to run (default all: {','.join(PROTOCOLS)})")
-    group.add_argument("--ablations", help=f"comma-separated ablations (default all: {','.join(ABLATIONS)})")
-    group.add_argument("--lighting", choices=("photo", "albedo"),
-                       help="judge every method with the photo's light (default) or unlit, as albedo")
-    group.add_argument("--unseen-views", type=int, help="views the photo does not show, judged apart (default 4)")
-    group.add_argument("--baselines", help=f"comma-separated baselines beside the transfers (default all: {','.join(BASELINES)})")
-    group.add_argument("--protocol-config", help="YAML file with any fields of the protocol config")
-
-
 def _split(text: str | None) -> list[str] | None:
     return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
 
 
-def run_protocols_command(args: argparse.Namespace) -> int:
-    """``mesh2tex evaluate --protocols ...``: writes OUT/protocols.json, OUT/protocols.md and OUT/renders/."""
-    for flag in ("world", "shapes", "gan"):
-        if not getattr(args, flag):
-            raise UserError(f"--protocols needs --{flag}")
-    cfg = load_config(ProtocolConfig, args.protocol_config, {
+def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
+    """The protocol config: its defaults, then ``--protocol-config``, then the flags given."""
+    return load_config(ProtocolConfig, args.protocol_config, {
         "latent_iters": args.latent_iters, "refine_iters": args.refine_iters, "queries": args.queries,
         "protocols": _split(args.only), "ablations": _split(args.ablations), "resolution": args.resolution,
         "lighting": getattr(args, "lighting", None), "unseen_views": getattr(args, "unseen_views", None),
@@ -503,6 +479,14 @@ def run_protocols_command(args: argparse.Namespace) -> int:
         "features": args.features, "kid_subsets": args.kid_subsets, "seed": args.seed,
         "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
         "inception_weights": args.inception_weights})
+
+
+def run_protocols_command(args: argparse.Namespace) -> int:
+    """``mesh2tex evaluate --protocols ...``: writes OUT/protocols.json, OUT/protocols.md and OUT/renders/."""
+    for flag in ("world", "shapes", "gan"):
+        if not getattr(args, flag):
+            raise UserError(f"--protocols needs --{flag}")
+    cfg = protocol_config(args)
     out = guard_outputs(args.out, ["protocols.json", "protocols.md"], args.overwrite)  # finished transfers are a cache (TransferCache)
     result = run_protocols(args.world, args.shapes, args.gan, args.pose_checkpoint, args.noc_checkpoint, cfg, out,
                            log=lambda line: print(line, flush=True), overwrite=args.overwrite)

@@ -27,7 +27,6 @@ Ablations of the paper's Table 8: ``--no-noc`` (patch pairs without NOC guidance
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from dataclasses import asdict
@@ -120,31 +119,6 @@ def output_names(cfg: TransferConfig) -> list[str]:
 
 
 # -------------------------------------------------------------------------------------------- stage
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan'), or a shipped "
-                        "model's name (chair, car), which also supplies the pose and NOC networks unless given")
-    parser.add_argument("--mesh", required=True, help="the mesh to texture: a prepared shape (.npz) or a mesh file")
-    parser.add_argument("--image", required=True, help="the query photo")
-    parser.add_argument("--mask", help="object mask of the photo (white = object); default: alpha channel or an estimate")
-    parser.add_argument("--pose", default="auto", help="'auto' (pose network) or AZIMUTH,ELEVATION in degrees")
-    parser.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose'), for --pose auto")
-    parser.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc'), for NOC-guided patches")
-    parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("--config", help="YAML file with any fields of the transfer config")
-    parser.add_argument("--resolution", type=int, help="side of the photo crop and the renders (default 128)")
-    parser.add_argument("--latent-iters", type=int, help="stage 1 iterations (default 100)")
-    parser.add_argument("--refine-iters", type=int, help="stage 2 iterations (default 300)")
-    parser.add_argument("--no-noc", action="store_true", help="ablation: patch pairs without NOC guidance")
-    parser.add_argument("--no-patches", action="store_true", help="ablation: global style loss only")
-    parser.add_argument("--no-refine", action="store_true", help="ablation: optimise the latent only")
-    parser.add_argument("--no-pose-search", action="store_true",
-                        help="--pose auto takes the pose network's bin centres as they are (the paper), without the silhouette search")
-    parser.add_argument("--vgg-weights", help="VGG19 ImageNet weights (torchvision's vgg19-dcbb9e9d.pth)")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to run")
-    parser.add_argument("--seed", type=int, help="random seed")
-    parser.add_argument("--overwrite", action="store_true", help="replace the results already in --out")
-
-
 def build_config(args) -> TransferConfig:
     overrides = {"resolution": args.resolution, "latent_iters": args.latent_iters, "refine_iters": args.refine_iters,
                  "device": args.device, "seed": args.seed, "vgg_weights": args.vgg_weights,

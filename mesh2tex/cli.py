@@ -1,8 +1,11 @@
 """The ``mesh2tex`` console script.
 
-Every subcommand lives in a stage module (``data_prep``, ``train``, ``infer``) that defines
-``add_arguments(parser)`` and ``run(args) -> int``. This file only routes; it imports a stage
-lazily so that ``mesh2tex --help`` stays fast and one broken stage cannot break the others.
+Every subcommand is a stage module (``data_prep``, ``train``, ``infer``) that defines ``run(args) -> int``
+(and ``build_config(args)`` where the command has a config); its options are the function of the same
+name in the package's ``options.py`` (``train.gan`` -> ``train.options.gan(parser)``), which imports no
+torch. This file only routes: it builds the options of the one command asked for and imports its
+stage when it runs, so that ``mesh2tex --help`` and ``mesh2tex CMD --help`` stay fast and one broken
+stage cannot break the others. ``--print-config`` prints the command's resolved config and exits.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import os
 import sys
 
 from mesh2tex.errors import UserError
+from mesh2tex.options import HelpFormatter, Parser
 
 # (command, subcommand or None) -> (stage module, one-line help)
 COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
@@ -36,54 +40,78 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
 USER_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM}
 
 
-def _load_stage(module_name: str):
-    """The stage module, or None while it is not written yet (never a pretend command)."""
+def _options(stage: str):
+    """The options function of ``stage`` (``train.gan`` -> ``train.options.gan``), or None while the
+    command is not written yet (never a pretend command)."""
+    package, name = stage.rsplit(".", 1)
     try:
-        module = importlib.import_module(module_name)
+        module = importlib.import_module(f"{package}.options")
     except ModuleNotFoundError as error:
-        if error.name == module_name:
+        if error.name == f"{package}.options":
             return None
         raise
-    if not (hasattr(module, "add_arguments") and hasattr(module, "run")):
-        return None
-    return module
+    return getattr(module, name, None)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of every command; with ``argv``, only the command it names gets its options (the others
+    are not needed to parse it). ``--print-config`` in ``argv`` makes the required options optional."""
     from mesh2tex import __version__
 
-    parser = argparse.ArgumentParser(prog="mesh2tex", description="Texture 3D meshes from photographs.")
+    parser = Parser(prog="mesh2tex", description="Texture 3D meshes from photographs.", formatter_class=HelpFormatter)
     parser.add_argument("--version", action="version", version=f"mesh2tex {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     groups: dict[str, argparse._SubParsersAction] = {}
-    for (command, sub), (module_name, help_text) in COMMANDS.items():
+    words = argv[:2] if argv is not None else None
+    for (command, sub), (stage, help_text) in COMMANDS.items():
         if sub is None:
-            target = commands.add_parser(command, help=help_text, description=help_text)
+            target = commands.add_parser(command, help=help_text, description=help_text, formatter_class=HelpFormatter)
         else:
             if command not in groups:
-                group_parser = commands.add_parser(command, help=f"{command} subcommands")
+                group_parser = commands.add_parser(command, help=f"{command} subcommands", formatter_class=HelpFormatter)
                 groups[command] = group_parser.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
-            target = groups[command].add_parser(sub, help=help_text, description=help_text)
-        target.set_defaults(_stage=module_name)
-        module = _load_stage(module_name)
-        if module is not None:
-            module.add_arguments(target)
-        else:
+            target = groups[command].add_parser(sub, help=help_text, description=help_text, formatter_class=HelpFormatter)
+        target.set_defaults(_stage=stage, _parser=target)
+        if words is not None and words[: 1 if sub is None else 2] != [command] + ([sub] if sub else []):
+            continue
+        add_options = _options(stage)
+        if add_options is None:
             target.set_defaults(_unfinished=True)
             target.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+            continue
+        add_options(target)
+        if argv is not None and "--print-config" in argv:
+            for action in target._actions:
+                action.required = False
     return parser
 
 
+def print_config(stage, args) -> int:
+    """``--print-config``: the config ``stage.build_config(args)`` resolves, as YAML on stdout. Without
+    ``--out`` there is no run to resume, so the defaults, ``--config`` and the flags decide."""
+    from mesh2tex.config import config_yaml
+
+    if getattr(args, "out", "") is None:
+        args.out, args.resume = "", False
+    print(config_yaml(stage.build_config(args)), end="")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # named by the command's own parser, whose --help lists what it takes
+        args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     name = args.command + (f" {args.subcommand}" if getattr(args, "subcommand", None) else "")
     if getattr(args, "_unfinished", False):
         print(f"mesh2tex: error: '{name}' is not available in this version yet", file=sys.stderr)
         return 3
-    module = _load_stage(args._stage)
     try:
-        return int(module.run(args) or 0)
+        stage = importlib.import_module(args._stage)
+        if getattr(args, "print_config", False):
+            return print_config(stage, args)
+        return int(stage.run(args) or 0)
     except UserError as error:
         print(f"mesh2tex: error: {error}", file=sys.stderr)
         return error.exit_code

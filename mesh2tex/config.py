@@ -169,6 +169,11 @@ def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: 
     return config_from_dict(cls, data, str(path) if path else "config")
 
 
+def config_yaml(cfg) -> str:
+    """The config as YAML text, its fields in their order (what ``--print-config`` prints)."""
+    return yaml.safe_dump(config_to_dict(cfg), sort_keys=False)
+
+
 def save_config(cfg, path: str | os.PathLike) -> None:
     """Write the resolved config as YAML (atomically)."""
-    write_text(path, yaml.safe_dump(config_to_dict(cfg), sort_keys=False))
+    write_text(path, config_yaml(cfg))

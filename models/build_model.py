@@ -96,13 +96,13 @@ def main() -> None:
     commands: list[str] = []
     start = time.perf_counter()
     world = work / "world"
-    run(["prepare", "synthetic", "--output", str(world), "--category", args.category, "--shapes", str(WORLD["shapes"]),
+    run(["prepare", "synthetic", "--out", str(world), "--category", args.category, "--shapes", str(WORLD["shapes"]),
          "--views", str(WORLD["views"]), "--query-shapes", str(WORLD["query_shapes"]), "--query-views", str(WORLD["query_views"]),
          "--seed", str(WORLD["seed"]), "--resolution", str(WORLD["resolution"])], commands)
     split = json.loads((world / "index.json").read_text())["split"]
     for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
         folder = work / "shapes" / part
-        argv = ["prepare", "shapes", "--input", *[str(world / "meshes" / f"{n}.obj") for n in names], "--output", str(folder),
+        argv = ["prepare", "shapes", "--input", *[str(world / "meshes" / f"{n}.obj") for n in names], "--out", str(folder),
                 "--faces", str(SHAPES["faces"]), "--levels", str(SHAPES["levels"]), "--seed", str(SHAPES["seed"]), "--workers", "2"]
         print(f"\n== mesh2tex {' '.join(argv[:2])} ... ({part})", flush=True)
         commands.append("mesh2tex " + " ".join(shlex.quote(a) for a in argv))

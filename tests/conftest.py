@@ -60,7 +60,7 @@ def make_tiny_world(root, views: int, resolution: int, query_views: int) -> dict
     from mesh2tex.geometry.prepare import prepare_shape
 
     world = root / "world"
-    assert main(["prepare", "synthetic", "--output", str(world), "--shapes", "3", "--views", str(views), "--resolution",
+    assert main(["prepare", "synthetic", "--out", str(world), "--shapes", "3", "--views", str(views), "--resolution",
                  str(resolution), "--texture-size", "64", "--seed", "3", "--query-views", str(query_views)]) == 0
     index = json.loads((world / "index.json").read_text())
     shapes = root / "shapes"

@@ -247,11 +247,11 @@ CASES = {
     "degenerate mesh prepared on the fly": lambda c, t: Case(transfer(c, t, None, "--mesh", str(write(t / "flat.obj", "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n"))),
                                                              "flat.obj: the mesh has a zero-size bounding box"),
     # paths
-    "--out a file (prepare shapes)": lambda c, t: Case(["prepare", "shapes", "--input", str(nan_vertex_obj(t / "m.obj")), "--output",
+    "--out a file (prepare shapes)": lambda c, t: Case(["prepare", "shapes", "--input", str(nan_vertex_obj(t / "m.obj")), "--out",
                                                        str(write(t / "out" / "a_file", "x"))], "a_file: is a file where a folder is needed"),
     "--out a file (generate)": lambda c, t: Case(generate(c, t, None, None, "--out", str(write(t / "out" / "a_file", "x"))),
                                                  "a_file: --out is a file"),
-    "prepare synthetic --shapes beyond reason": lambda c, t: Case(["prepare", "synthetic", "--output", str(t / "out" / "w"),
+    "prepare synthetic --shapes beyond reason": lambda c, t: Case(["prepare", "synthetic", "--out", str(t / "out" / "w"),
                                                                    "--shapes", "99999999999999999999"], "--shapes must be at most"),
     # images
     "photo 1x1": lambda c, t: Case(transfer(c, t, png(t / "tiny.png", (1, 1))), "tiny.png: the photo is 1x1"),
@@ -263,7 +263,7 @@ CASES = {
         evaluate(t, *pair_folders(t, truncated(t / "a.png", png(t / "src.png"), 40)), "--pairs"), "a.png"),
     "evaluate --pairs mask of another size": lambda c, t: Case(
         evaluate(t, *pair_folders(t), "--pairs", "--masks", str(png(t / "m" / "a.png", (10, 10), "L").parent)), "m/a.png: mask size (10, 10)"),
-    "prepare images --input a file": lambda c, t: Case(["prepare", "images", "--input", str(png(t / "p.png")), "--output", str(t / "out" / "p")],
+    "prepare images --input a file": lambda c, t: Case(["prepare", "images", "--input", str(png(t / "p.png")), "--out", str(t / "out" / "p")],
                                                        "p.png: is a file"),
     "evaluate sets image not an image": lambda c, t: Case(
         evaluate(t, *pair_folders(t, write(t / "a.png", b"\x89PNG\r\n\x1a\n garbage"))), "a.png"),

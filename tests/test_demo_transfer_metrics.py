@@ -22,7 +22,7 @@ def scored(tmp_path_factory, tiny_gan):
     truth GLB, scored by transfer_metrics (whose crops, 64 px, differ from the photos' size)."""
     root = tmp_path_factory.mktemp("demo_metrics")
     world = root / "world"
-    assert main(["prepare", "synthetic", "--output", str(world), "--shapes", "3", "--views", "1", "--resolution", "48",
+    assert main(["prepare", "synthetic", "--out", str(world), "--shapes", "3", "--views", "1", "--resolution", "48",
                  "--texture-size", "128", "--seed", "4", "--query-views", "1"]) == 0
     index = json.loads((world / "index.json").read_text())
     query = json.loads((world / index["queries"][0]["sidecar"]).read_text())

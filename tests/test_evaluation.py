@@ -20,7 +20,7 @@ from mesh2tex.metrics.appearance import lowpass_psnr, object_swd, part_colour_er
 def world(tmp_path_factory):
     """A 3-chair world at 64 px (1 held-out shape, 2 queries) and the truth of its first query."""
     root = tmp_path_factory.mktemp("evaluation") / "world"
-    assert main(["prepare", "synthetic", "--output", str(root), "--shapes", "3", "--views", "1", "--resolution", "64",
+    assert main(["prepare", "synthetic", "--out", str(root), "--shapes", "3", "--views", "1", "--resolution", "64",
                  "--texture-size", "256", "--seed", "2", "--query-views", "2"]) == 0
     index = json.loads((root / "index.json").read_text())
     return root, index, load_query_truth(root, index, index["queries"][0])

@@ -155,7 +155,7 @@ def test_a_fallback_level_is_ok_with_a_warning_in_index_json(tmp_path, monkeypat
     monkeypatch.setattr(quadremesh, "quadriflow", coarse_fails)
     trimesh.creation.icosphere(3).export(tmp_path / "ball.ply")
     out = tmp_path / "out"
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.ply"), "--output", str(out), "--faces", "384", "--levels", "2"]) == 0
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.ply"), "--out", str(out), "--faces", "384", "--levels", "2"]) == 0
     entry = json.loads((out / "index.json").read_text())["shapes"][0]
     assert entry["status"] == "ok"
     assert entry["levels"][1]["method"].startswith("surface nets") and entry["levels"][1]["ratio"] >= 2.0

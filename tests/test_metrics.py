@@ -8,6 +8,7 @@ import scipy.linalg
 import torch
 from PIL import Image
 
+from mesh2tex.cli import main
 from mesh2tex.errors import UserError
 from mesh2tex.metrics import (InceptionV3Features, color_histogram_distance, fid, get_feature_extractor, kid, load_inception,
                               masked_psnr, masked_ssim, swd)
@@ -112,23 +113,6 @@ def test_inception_features_shape():
     with torch.no_grad():
         features = model(torch.rand(2, 3, 64, 64) * 2 - 1)
     assert features.shape == (2, 2048)
-
-
-def main(argv):
-    """Run `mesh2tex evaluate` through its stage module, as the CLI does (user errors -> message, exit 2)."""
-    import argparse
-    import sys
-
-    from infer import evaluate
-
-    assert argv[0] == "evaluate"
-    parser = argparse.ArgumentParser(prog="mesh2tex evaluate")
-    evaluate.add_arguments(parser)
-    try:
-        return evaluate.run(parser.parse_args(argv[1:]))
-    except UserError as error:
-        print(f"mesh2tex: error: {error}", file=sys.stderr)
-        return error.exit_code
 
 
 def _write_set(folder, count, seed, shift=0.0, alpha=False):

@@ -65,7 +65,7 @@ def test_prepare_images_masks_from_alpha_file_and_estimate(tmp_path, capsys):
     (src / "corrupt.jpg").write_bytes(b"\xff\xd8\xff not really a jpeg")
     Image.fromarray(np.dstack([rgb, np.zeros_like(mask, dtype=np.uint8)])).save(src / "invisible.png")  # fully transparent
 
-    code = main(["prepare", "images", "--input", str(src), "--output", str(out), "--size", "64", "--masks", str(masks)])
+    code = main(["prepare", "images", "--input", str(src), "--out", str(out), "--size", "64", "--masks", str(masks)])
     assert code == 2, "corrupt and empty-mask inputs make the run fail, the rest still done"
     index = {entry["name"]: entry for entry in json.loads((out / "index.json").read_text())["images"]}
     assert index["with_alpha"]["mask"] == "alpha"
@@ -89,5 +89,5 @@ def test_prepare_images_masks_from_alpha_file_and_estimate(tmp_path, capsys):
 
 
 def test_prepare_images_missing_folder_is_a_user_error(tmp_path, capsys):
-    assert main(["prepare", "images", "--input", str(tmp_path / "none"), "--output", str(tmp_path / "out")]) == 2
+    assert main(["prepare", "images", "--input", str(tmp_path / "none"), "--out", str(tmp_path / "out")]) == 2
     assert "none" in capsys.readouterr().err

@@ -30,7 +30,7 @@ def make_inputs(root):
 def test_prepare_shapes_folder_reports_failures_and_resumes(tmp_path, capsys):
     make_inputs(tmp_path / "in")
     out = tmp_path / "out"
-    argv = ["prepare", "shapes", "--input", str(tmp_path / "in"), "--output", str(out), "--faces", "96", "--levels", "2", "--workers", "2"]
+    argv = ["prepare", "shapes", "--input", str(tmp_path / "in"), "--out", str(out), "--faces", "96", "--levels", "2", "--workers", "2"]
     assert main(argv) == 2, "a failed input gives exit status 2"
 
     index = json.loads((out / "index.json").read_text())
@@ -68,14 +68,14 @@ def test_prepare_shapes_all_good_exits_zero_and_files_are_named_after_inputs(tmp
     trimesh.creation.icosphere(2).export(tmp_path / "ball.obj")
     out = tmp_path / "out"
     code = main(["prepare", "shapes", "--input", str(tmp_path / "cube.stl"), str(tmp_path / "ball.obj"),
-                 "--output", str(out), "--faces", "96", "--levels", "2", "--seed", "3"])
+                 "--out", str(out), "--faces", "96", "--levels", "2", "--seed", "3"])
     assert code == 0
     assert sorted(p.name for p in out.glob("*.npz")) == ["ball.npz", "cube.npz"]
     assert PreparedShape.load(out / "cube.npz").metadata["seed"] == 3
 
 
 def test_prepare_shapes_missing_input_is_one_line_error(tmp_path, capsys):
-    code = main(["prepare", "shapes", "--input", str(tmp_path / "nowhere"), "--output", str(tmp_path / "out")])
+    code = main(["prepare", "shapes", "--input", str(tmp_path / "nowhere"), "--out", str(tmp_path / "out")])
     assert code == 2
     err = capsys.readouterr().err
     assert err.startswith("mesh2tex: error:") and "nowhere" in err
@@ -93,7 +93,7 @@ def test_two_invocations_into_one_folder_keep_every_entry(tmp_path):
         mesh.export(tmp_path / name[0] / f"{name}.obj")
     out = tmp_path / "out"
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MESH2TEX_PROGRESS": "0"}
-    runs = [subprocess.Popen([sys.executable, "-m", "mesh2tex", "prepare", "shapes", "--input", str(tmp_path / group), "--output", str(out),
+    runs = [subprocess.Popen([sys.executable, "-m", "mesh2tex", "prepare", "shapes", "--input", str(tmp_path / group), "--out", str(out),
                               "--faces", "96", "--levels", "2"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
             for group in ("a", "b")]
     for run in runs:
@@ -105,16 +105,16 @@ def test_two_invocations_into_one_folder_keep_every_entry(tmp_path):
     # one after another, too: a run over one group keeps the other's entries
     (tmp_path / "c").mkdir()
     trimesh.creation.box((0.3, 0.6, 0.9)).export(tmp_path / "c" / "c1.obj")
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "c"), "--output", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "c"), "--out", str(out), "--faces", "96", "--levels", "2"]) == 0
     index = json.loads((out / "index.json").read_text())
     assert sorted(entry["file"] for entry in index["shapes"]) == ["a1.npz", "a2.npz", "b1.npz", "b2.npz", "c1.npz"]
     # a later input of a name already taken gets another, and the first keeps its file
     (tmp_path / "d").mkdir()
     before = (out / "a1.npz").read_bytes()
     trimesh.creation.icosphere(2).export(tmp_path / "d" / "a1.obj")
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "d"), "--output", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "d"), "--out", str(out), "--faces", "96", "--levels", "2"]) == 0
     assert (out / "a1.npz").read_bytes() == before and (out / "d_a1.npz").is_file()
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "a"), "--output", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "a"), "--out", str(out), "--faces", "96", "--levels", "2"]) == 0
     assert (out / "a1.npz").read_bytes() == before, "a re-run keeps the names (and skips the shapes) it made"
     assert not (out / ".mesh2tex-partial").exists(), "no half-written files left"
 
@@ -126,7 +126,7 @@ def test_a_symlink_loop_fails_alone_and_the_mesh_beside_it_is_prepared(tmp_path,
     (folder / "a.obj").symlink_to(folder / "b.obj")
     (folder / "b.obj").symlink_to(folder / "a.obj")
     out = tmp_path / "out"
-    assert main(["prepare", "shapes", "--input", str(folder), "--output", str(out), "--faces", "96", "--levels", "2"]) == 2
+    assert main(["prepare", "shapes", "--input", str(folder), "--out", str(out), "--faces", "96", "--levels", "2"]) == 2
     index = {entry["file"]: entry for entry in json.loads((out / "index.json").read_text())["shapes"]}
     assert index["good.npz"]["status"] == "ok"
     assert index["a.npz"]["status"] == "failed" and "symbolic link" in index["a.npz"]["reason"]
@@ -136,12 +136,12 @@ def test_a_symlink_loop_fails_alone_and_the_mesh_beside_it_is_prepared(tmp_path,
 def test_a_shape_past_its_time_budget_fails_with_that_reason(tmp_path, capsys):
     trimesh.creation.icosphere(3).export(tmp_path / "ball.obj")
     out = tmp_path / "out"
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--output", str(out), "--faces", "96", "--levels", "2",
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--out", str(out), "--faces", "96", "--levels", "2",
                  "--max-seconds", "0.001"]) == 2
     entry = json.loads((out / "index.json").read_text())["shapes"][0]
     assert entry["status"] == "failed" and "time budget of 0.001 s" in entry["reason"]
     assert entry["seconds"] < 30
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--output", str(out), "--max-seconds", "-1"]) == 2
+    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--out", str(out), "--max-seconds", "-1"]) == 2
     assert "--max-seconds -1.0: must be a positive number" in capsys.readouterr().err
 
 

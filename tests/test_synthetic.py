@@ -103,7 +103,7 @@ def test_photographic_textures_come_from_bundled_images():
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
     output = tmp_path_factory.mktemp("world") / "chairs"
-    argv = ["prepare", "synthetic", "--output", str(output), "--category", "chair", "--shapes", "4", "--views", "3",
+    argv = ["prepare", "synthetic", "--out", str(output), "--category", "chair", "--shapes", "4", "--views", "3",
             "--resolution", "48", "--texture-size", "128", "--seed", "3"]
     assert main(argv) == 0
     return output, argv
@@ -173,7 +173,7 @@ def test_world_is_deterministic_for_a_seed(world, tmp_path):
     output, argv = world
     other = tmp_path / "again"
     argv = list(argv)
-    argv[argv.index("--output") + 1] = str(other)
+    argv[argv.index("--out") + 1] = str(other)
     argv[argv.index("--shapes") + 1] = "2"  # fewer shapes: shape 0 must not change
     argv[argv.index("--views") + 1] = "3"
     assert main(argv) == 0

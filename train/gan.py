@@ -12,7 +12,6 @@ CUDA); each process renders its own B shapes and gradients are averaged.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import sys
 from dataclasses import dataclass, field
@@ -87,20 +86,6 @@ class TrainGanConfig:
                                      "ema_rampup": 0}, positive=("ema_halflife_images",))
         if self.resolution >= 8:  # smaller ones are refused by build_config, naming --resolution
             self.discriminator.check_resolution(self.resolution)
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--shapes", required=True, help="folder of prepared shapes (.npz from 'mesh2tex prepare shapes')")
-    parser.add_argument("--images", required=True, help="photo folder: images/*.png with masks/*.png, or RGBA *.png")
-    parser.add_argument("--out", required=True, help="run directory (config, checkpoint, metrics, samples)")
-    parser.add_argument("--config", help="YAML file with any fields of the training config")
-    parser.add_argument("--iters", type=int, help="training iterations (total, also when resuming)")
-    parser.add_argument("--batch", type=int, help="shapes per iteration and process")
-    parser.add_argument("--views", type=int, help="random views per shape")
-    parser.add_argument("--resolution", type=int, help="render resolution (power of two)")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to train")
-    parser.add_argument("--seed", type=int, help="random seed")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
 
 # ------------------------------------------------------------------------------------------ data

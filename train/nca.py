@@ -16,7 +16,6 @@ the two can be grafted) and records its digest.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import uuid
 from dataclasses import dataclass, field
@@ -98,24 +97,6 @@ class TrainNCAConfig:
             raise ValueError(f"batch {self.batch} is larger than the pool {self.pool}")
         if self.style_loss not in STYLE_LOSSES:
             raise ValueError(f"style_loss must be one of {STYLE_LOSSES}, got {self.style_loss!r}")
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--exemplar", required=True, help="the texture photo to grow (any image file)")
-    parser.add_argument("--out", required=True, help="run directory (config, checkpoint, metrics, samples)")
-    parser.add_argument("--mesh", help="training mesh: sphere (default), sphere:N, a prepared shape .npz or a mesh file")
-    parser.add_argument("--config", help="YAML file with any fields of the training config")
-    parser.add_argument("--iters", type=int, help="training iterations (total, also when resuming)")
-    parser.add_argument("--views", type=int, help="random views per state and iteration")
-    parser.add_argument("--resolution", type=int, help="render resolution")
-    parser.add_argument("--steps", help="rollout length range MIN,MAX (default 15,25)")
-    parser.add_argument("--pool", type=int, help="pool size")
-    parser.add_argument("--parent", help="start from this trained nca checkpoint (its lineage: the two can be grafted)")
-    parser.add_argument("--readout", choices=["linear", "lppn"], help="state-to-colour readout")
-    parser.add_argument("--vgg-weights", help="ImageNet VGG19 weights (default: $MESH2TEX_VGG_WEIGHTS, torch's cache, else random weights)")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to train")
-    parser.add_argument("--seed", type=int, help="random seed")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
 
 
 def parse_steps(text: str | None) -> tuple[int, int] | None:

@@ -4,11 +4,12 @@ Trains the NOC U-Net (RGB + mask in, normalised object coordinates out) on rende
 prepared shapes; see :mod:`train.view_nets` for the data and the loop.
 """
 
-from train.view_nets import add_view_arguments, run_view_training
+from train.view_nets import build_view_config, run_view_training
 
 
-def add_arguments(parser) -> None:
-    add_view_arguments(parser, "noc")
+def build_config(args):
+    """The resolved training config (what --print-config prints)."""
+    return build_view_config(args)
 
 
 def run(args) -> int:

@@ -20,7 +20,6 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import sys
@@ -212,22 +211,6 @@ def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], inde
 
 
 # ---------------------------------------------------------------------------------------- stage
-def add_view_arguments(parser: argparse.ArgumentParser, kind: str) -> None:
-    parser.add_argument("--shapes", required=True, help="folder of prepared shapes (.npz from 'mesh2tex prepare shapes')")
-    parser.add_argument("--out", required=True, help="run directory (config, views cache, checkpoint, metrics)")
-    parser.add_argument("--config", help="YAML file with any fields of the training config")
-    parser.add_argument("--iters", type=int, help="optimisation steps (total, also when resuming)")
-    parser.add_argument("--batch", type=int, help="views per step")
-    parser.add_argument("--samples", type=int, help="rendered training views (plus held-out ones)")
-    parser.add_argument("--resolution", type=int, help="side of the rendered views")
-    parser.add_argument("--category", choices=["chair", "car"], help="material library of the renders")
-    parser.add_argument("--gan", metavar="CHECKPOINT",
-                        help="a 'train gan' checkpoint, or a shipped model's name (chair, car), that textures a share (data.gan_share, default 0.5) of the rendered views")
-    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="where to train")
-    parser.add_argument("--seed", type=int, help="random seed")
-    parser.add_argument("--resume", action="store_true", help=f"continue the {kind} run in --out from its last checkpoint")
-
-
 def build_view_config(args) -> ViewTrainConfig:
     overrides = {"iters": args.iters, "batch": args.batch, "device": args.device, "seed": args.seed,
                  "data.samples": args.samples, "data.resolution": args.resolution, "data.category": args.category,

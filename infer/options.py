@@ -1,0 +1,134 @@
+"""The options of ``mesh2tex infer generate|transfer|nca``, ``evaluate`` and ``demo``, built without
+importing torch (``--help`` stays fast; the defaults shown are read from the configs' source, see
+:mod:`mesh2tex.options`); each command's ``run()`` and ``build_config()`` are in its own module."""
+
+from __future__ import annotations
+
+import argparse
+
+from mesh2tex.options import DEVICES, ConfigOptions, add_device, add_out, add_print_config, config_default, static_value
+
+SETS_CONFIG = "mesh2tex.metrics.evaluate:EvaluateConfig"
+PROTOCOL_CONFIG = "infer.protocols:ProtocolConfig"
+GENERATION_CONFIG = "infer.generation:GenerationConfig"
+BACKGROUNDS = ("black", "grey", "white")  # infer.evaluate.BACKGROUNDS maps them to grey levels
+
+
+def generate(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors) or a shipped model's name (chair, car)")
+    parser.add_argument("--mesh", required=True, help="a prepared shape (.npz) or a mesh file (.obj .ply .off .stl .glb)")
+    add_out(parser, "output folder")
+    config = ConfigOptions(parser, "infer.generate:GenerateConfig", what="the generate config")
+    config.add("--seeds", help="comma-separated latent seeds")
+    config.add("--views", type=int, help="orbit views per seed")
+    config.add("--resolution", type=int, help="render resolution")
+    config.add("--texture-size", type=int, help="baked UV texture size")
+    config.add("--elevation", type=float, help="elevation of the orbit views, degrees")
+    config.add("--truncation", type=float, help="truncation psi of the latent (1: none)")
+    config.add("--faces", type=int, help="finest quad count when preparing a raw mesh")
+    config.add("--device", choices=DEVICES, help="where to run")
+    parser.add_argument("--overwrite", action="store_true", help="replace files already in --out")
+
+
+def transfer(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan'), or a shipped "
+                        "model's name (chair, car), which also supplies the pose and NOC networks unless given")
+    parser.add_argument("--mesh", required=True, help="the mesh to texture: a prepared shape (.npz) or a mesh file")
+    parser.add_argument("--image", required=True, help="the query photo")
+    parser.add_argument("--mask", help="object mask of the photo (white = object); default: alpha channel or an estimate")
+    parser.add_argument("--pose", default="auto", help="'auto' (pose network) or AZIMUTH,ELEVATION in degrees")
+    parser.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose'), for --pose auto")
+    parser.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc'), for NOC-guided patches")
+    add_out(parser, "output folder")
+    config = ConfigOptions(parser, "mesh2tex.transfer.config:TransferConfig", what="the transfer config")
+    config.add("--resolution", type=int, help="side of the photo crop and the renders")
+    config.add("--latent-iters", type=int, help="stage 1 iterations")
+    config.add("--refine-iters", type=int, help="stage 2 iterations")
+    parser.add_argument("--no-noc", action="store_true", help="ablation: patch pairs without NOC guidance")
+    parser.add_argument("--no-patches", action="store_true", help="ablation: global style loss only")
+    parser.add_argument("--no-refine", action="store_true", help="ablation: optimise the latent only")
+    parser.add_argument("--no-pose-search", action="store_true",
+                        help="--pose auto takes the pose network's bin centres as they are (the paper), without the silhouette search")
+    config.add("--vgg-weights", help="VGG19 ImageNet weights (torchvision's vgg19-dcbb9e9d.pth; default: torch's cache, else random weights)")
+    config.add("--device", choices=DEVICES, help="where to run")
+    config.add("--seed", type=int, help="random seed")
+    parser.add_argument("--overwrite", action="store_true", help="replace the results already in --out")
+
+
+def nca(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--checkpoint", required=True, help="a 'train nca' model (RUN/model.safetensors) or checkpoint")
+    parser.add_argument("--mesh", default="sphere", help="sphere, sphere:N, a prepared shape (.npz) or a mesh file")
+    add_out(parser, "output folder")
+    parser.add_argument("--steps", type=int, default=96, help="automaton steps from the seed")
+    parser.add_argument("--graft", help="a second model of the same lineage, grown where --graft-mask is 1")
+    parser.add_argument("--graft-mask", default="smoothstep(-0.15, 0.15, x)",
+                        help="where the --graft model grows: an expression in x, y, z (the mesh in the unit ball) or a per-vertex .npy/.txt file")
+    parser.add_argument("--regrow", help="after growth, zero the cells where this expression (or file) is above 0.5 and grow them back")
+    parser.add_argument("--angle", type=float, default=0.0, help="texture orientation: degrees about each vertex normal")
+    parser.add_argument("--subdivide", default="auto", help="split faces into four N times; auto matches the training mesh's cell spacing")
+    parser.add_argument("--views", type=int, default=4, help="renders around the mesh")
+    parser.add_argument("--resolution", type=int, default=256, help="render resolution")
+    parser.add_argument("--texture-size", type=int, default=1024, help="baked texture size")
+    parser.add_argument("--frames", type=int, default=24, help="frames of growth.gif (0: no GIF)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the asynchronous updates")
+    parser.add_argument("--vgg-weights", help="VGG19 weights for the report's style loss")
+    add_device(parser)
+    parser.add_argument("--overwrite", action="store_true", help="replace outputs already in --out")
+
+
+def evaluate(parser: argparse.ArgumentParser) -> None:
+    """Three modes, each with its config: sets (default) and pairs, ``--protocols``, ``--generation``;
+    ``--print-config`` prints the one of the mode asked for."""
+    parser.add_argument("--renders", help="folder of rendered images (PNG/JPEG; RGBA alpha is the mask); required unless --protocols")
+    parser.add_argument("--images", help="folder of reference images (photos, or ground-truth renders with --pairs); required unless --protocols")
+    parser.add_argument("--masks", help="folder of masks named like the images (white = object)")
+    parser.add_argument("--pairs", action="store_true", help="paired metrics (PSNR, SSIM, histogram) between files of the same name")
+    add_out(parser, "output folder for metrics.json and metrics.md (protocols.* with --protocols, generation.* with --generation)")
+    add_print_config(parser)
+    sets = ConfigOptions(parser, SETS_CONFIG, config_flag=None)
+    parser.add_argument("--resolution", type=int, help=(
+        f"square side images are resized to (default: {config_default(SETS_CONFIG, 'resolution')}; with --protocols "
+        f"{config_default(PROTOCOL_CONFIG, 'resolution')}; with --generation the GAN's training resolution)"))
+    sets.add("--features", choices=static_value("mesh2tex.metrics.features:EXTRACTOR_NAMES"),
+             help="KID/FID features (auto: Inception if its weights are found, else randvgg)")
+    parser.add_argument("--inception-weights", help="Inception-v3 weight file (pt_inception-2015-12-05 or torchvision's inception_v3_google)")
+    parser.add_argument("--vgg-weights", help="VGG19 weight file (torchvision's vgg19-dcbb9e9d.pth), for --features vgg")
+    sets.add("--kid-subsets", type=int, help="KID subsets")
+    sets.add("--kid-subset-size", type=int, help="KID subset size")
+    sets.add("--background", choices=BACKGROUNDS, help="sets mode: colour for masked-out pixels")
+    add_device(parser)
+    sets.add("--seed", type=int, help="seed for KID subsets and SWD sampling")
+    parser.add_argument("--overwrite", action="store_true", help="replace metrics already in --out")
+    _protocols(parser)
+    group = parser.add_argument_group("generation (--generation: a GAN against a synthetic world's ground truth)")
+    group.add_argument("--generation", action="store_true",
+                       help="the generation protocol: --gan against --world's ground truth on the held-out shapes in --shapes")
+    ConfigOptions(group, GENERATION_CONFIG, config_flag=None).add(
+        "--latents", type=int, help="latents per held-out shape for the diversity measures")
+
+
+def _protocols(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("protocols (--protocols: the paper's synthetic evaluation)")
+    group.add_argument("--protocols", action="store_true", help="run the evaluation protocols on a synthetic world")
+    group.add_argument("--world", help="synthetic world folder (from 'mesh2tex prepare synthetic')")
+    group.add_argument("--shapes", help="prepared shapes of the world's meshes (from 'mesh2tex prepare shapes')")
+    group.add_argument("--gan", help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan')")
+    group.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose')")
+    group.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc')")
+    config = ConfigOptions(group, PROTOCOL_CONFIG, config_flag="--protocol-config", print_config=False, what="the protocol config")
+    config.add("--latent-iters", type=int, help="transfer stage 1 iterations")
+    config.add("--refine-iters", type=int, help="transfer stage 2 iterations")
+    config.add("--queries", type=int, help="query photos used, the first K (0: all)")
+    config.add("--only", key="protocols", help="comma-separated protocols to run")
+    config.add("--ablations", help="comma-separated ablations of each transfer protocol")
+    config.add("--lighting", choices=("photo", "albedo"), help="judge every method with the photo's light or unlit, as albedo")
+    config.add("--unseen-views", type=int, help="views the photo does not show, judged apart")
+    config.add("--baselines", help="comma-separated baselines beside the transfers")
+
+
+def demo(parser: argparse.ArgumentParser) -> None:
+    add_out(parser, "output folder", required=False, default="demo_out")
+    config = ConfigOptions(parser, "infer.demo:DemoConfig", what="the demo config")
+    parser.add_argument("--quick", action="store_true", help="a smoke-test budget (a minute or two): every stage runs, nothing learns much")
+    config.add("--seed", type=int, help="master seed")
+    add_device(parser, help="where every stage runs")

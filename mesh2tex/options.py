@@ -1,0 +1,208 @@
+"""The command-line options every command shares, built without importing torch.
+
+``mesh2tex --help`` and ``mesh2tex CMD --help`` read only the stages' ``options.py`` modules, which
+import this module and nothing heavy; a command's ``run()`` imports the rest. So that ``--help`` can
+still show the defaults of a config that lives beside torch code (``TrainGanConfig`` in
+``train/gan.py``, ``GeneratorConfig`` in ``mesh2tex/nn/generator.py``), :func:`static_defaults` reads
+them from the source with ``ast`` (literal values, nested configs, names of module constants);
+``tests/test_cli.py`` checks that they equal the defaults the imported classes give.
+
+* :class:`Parser` prints a bad option as one line, ``mesh2tex: error: ...``, and exits with status 2.
+* :class:`HelpFormatter` appends ``(default: X)`` to every option's help: the argparse default, or for
+  a flag that overrides a config field (:meth:`ConfigOptions.add`) that field's default.
+* :func:`add_out` and :func:`add_device`: ``--out DIR`` and ``--device auto|cpu|cuda`` alike everywhere.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import copy
+import functools
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]  # the folder holding mesh2tex/, data_prep/, train/, infer/
+DEVICES = ("auto", "cpu", "cuda")
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line: ``mesh2tex: error: <what>; see 'PROG --help'`` (exit 2)."""
+
+    def error(self, message: str):
+        for action in self._actions:  # name an option as its help does, without its hidden aliases
+            hidden = getattr(action, "hidden_aliases", ())
+            if hidden:
+                message = message.replace("/".join(action.option_strings), "/".join(s for s in action.option_strings if s not in hidden))
+        print(f"mesh2tex: error: {message}; see '{self.prog} --help'", file=sys.stderr)
+        sys.exit(2)
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Help that shows every option's default and hides the aliases kept for old scripts."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if action.default is argparse.SUPPRESS or "default" in text:  # written by hand
+            return text
+        source = getattr(action, "config_source", None)
+        shown = show_default(config_default(*source) if source else action.default)
+        return text if shown is None else f"{text} (default: {shown.replace('%', '%%')})"
+
+    def _format_action_invocation(self, action: argparse.Action) -> str:
+        hidden = getattr(action, "hidden_aliases", ())
+        if hidden:
+            action = copy.copy(action)
+            action.option_strings = [s for s in action.option_strings if s not in hidden]
+        return super()._format_action_invocation(action)
+
+
+def show_default(value) -> str | None:
+    """A default as the user would type it (lists comma-separated); None where there is nothing to show."""
+    if value is None or value is False or value == "" or value is argparse.SUPPRESS:
+        return None
+    if isinstance(value, (list, tuple)):
+        return ",".join(str(v) for v in value)
+    return str(value)
+
+
+def add_out(parser, help: str, *, required: bool = True, default: str | None = None, alias: str | None = None) -> argparse.Action:
+    """``--out DIR``; ``alias`` (an older spelling such as ``--output``) still works but is not shown."""
+    flags = ["--out"] + ([alias] if alias else [])
+    action = parser.add_argument(*flags, dest="out", metavar="DIR", required=required, default=default, help=help)
+    action.hidden_aliases = (alias,) if alias else ()
+    return action
+
+
+def add_device(parser, help: str = "where to run", default: str | None = "auto") -> argparse.Action:
+    """``--device auto|cpu|cuda`` (auto: CUDA when available)."""
+    return parser.add_argument("--device", choices=DEVICES, default=default, help=help)
+
+
+class ConfigOptions:
+    """The options of a command with a config dataclass ``config`` (``"module:Class"``): ``--config YAML``
+    (``config_flag``; None: none), ``--print-config`` (unless ``print_config`` is False), and flags that
+    each override one field and show its default in ``--help``."""
+
+    def __init__(self, parser, config: str, *, config_flag: str | None = "--config", print_config: bool = True,
+                 what: str = "the config"):
+        self.parser, self.config = parser, config
+        if config_flag:
+            parser.add_argument(config_flag, metavar="YAML", help=f"YAML file with any fields of {what} (the flags given override it)")
+        if print_config and config_flag:
+            add_print_config(parser)
+
+    def add(self, *flags, key: str | tuple[str, ...] | None = None, **kwargs) -> argparse.Action:
+        """``parser.add_argument(*flags, **kwargs)`` for the field ``key`` (dotted; default: the flag's
+        name; a tuple: fields shown comma-separated, as ``--steps MIN,MAX``)."""
+        action = self.parser.add_argument(*flags, **kwargs)
+        action.config_source = (self.config, key or action.dest)
+        return action
+
+
+def add_print_config(parser) -> argparse.Action:
+    return parser.add_argument("--print-config", action="store_true",
+                               help="print the resolved config (its defaults, then --config, then the flags given) as YAML and exit")
+
+
+# ------------------------------------------------------------------------------ static defaults
+class NotStatic(ValueError):
+    """A default that is not a literal (a computed value): it is not shown."""
+
+
+def config_default(config: str, key: str | tuple[str, ...]):
+    """The default of the dotted field ``key`` of ``config`` ("module:Class"), read from the source;
+    None when it is not a literal."""
+    if isinstance(key, tuple):
+        values = [config_default(config, k) for k in key]
+        return None if None in values else values
+    node = static_defaults(config)
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+@functools.lru_cache(maxsize=None)
+def static_defaults(config: str) -> dict:
+    """The defaults of the config dataclass ``config`` ("module:Class") as a nested dict, read from its
+    source without importing it; fields whose default is not a literal are left out."""
+    value = static_value(config)
+    if not isinstance(value, dict):
+        raise NotStatic(f"{config} is not a class")
+    return value
+
+
+def static_value(target: str):
+    """The value of ``target`` ("module:NAME"), a literal module constant or a config class (its defaults)."""
+    module, name = target.split(":")
+    return _value(*_lookup(module, name))
+
+
+def _source(module: str) -> Path:
+    base = ROOT.joinpath(*module.split("."))
+    return base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
+
+
+@functools.lru_cache(maxsize=None)
+def _tree(module: str) -> ast.Module:
+    path = _source(module)
+    return ast.parse(path.read_text(encoding="utf-8"), str(path))
+
+
+def _lookup(module: str, name: str) -> tuple[str, ast.AST]:
+    """(module, node) where ``name`` is defined, following ``from ... import`` re-exports."""
+    for node in _tree(module).body:
+        if isinstance(node, ast.ClassDef) and node.name == name:
+            return module, node
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == name for t in node.targets):
+            return module, node.value
+        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.target.id == name and node.value:
+            return module, node.value
+        if isinstance(node, ast.ImportFrom):
+            for alias in node.names:
+                if (alias.asname or alias.name) == name:
+                    return _lookup(_absolute(module, node), alias.name)
+    raise NotStatic(f"{module}.{name} not found")
+
+
+def _absolute(module: str, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    package = module.split(".") if _source(module).name == "__init__.py" else module.split(".")[:-1]
+    package = package[: len(package) - (node.level - 1)]
+    return ".".join(package + ([node.module] if node.module else []))
+
+
+def _value(module: str, node: ast.AST):
+    if isinstance(node, ast.ClassDef):
+        fields = {}
+        for stmt in node.body:
+            if (isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and stmt.value is not None
+                    and "ClassVar" not in ast.unparse(stmt.annotation)):
+                try:
+                    fields[stmt.target.id] = _value(module, stmt.value)
+                except NotStatic:
+                    pass
+        return fields
+    try:
+        return ast.literal_eval(node)
+    except (ValueError, TypeError, SyntaxError):
+        pass
+    if isinstance(node, ast.Name):
+        return _value(*_lookup(module, node.id))
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+        keywords = {k.arg: k.value for k in node.keywords}
+        if node.func.id == "field" and "default" in keywords:
+            return _value(module, keywords["default"])
+        if node.func.id == "field" and "default_factory" in keywords:
+            factory = keywords["default_factory"]
+            if isinstance(factory, ast.Lambda):
+                return _value(module, factory.body)
+            if isinstance(factory, ast.Name) and factory.id in ("list", "dict"):
+                return [] if factory.id == "list" else {}
+            return _value(module, factory)
+        if node.func.id in ("list", "tuple") and len(node.args) == 1 and not node.keywords:
+            return (list if node.func.id == "list" else tuple)(_value(module, node.args[0]))
+    raise NotStatic(ast.unparse(node))

@@ -1,0 +1,193 @@
+"""The command line as a user meets it: ``--help`` is fast (no torch import) and shows every default,
+``--print-config`` prints the resolved config and does nothing else, every command takes ``--out``
+and ``--device`` the same way, and a bad option is one ``mesh2tex: error:`` line with exit status 2."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from mesh2tex.cli import COMMANDS, build_parser, main
+from mesh2tex.config import config_to_dict
+from mesh2tex.options import HelpFormatter, show_default, static_defaults
+
+ROOT = Path(__file__).resolve().parents[1]
+ARGVS = [[command] + ([sub] if sub else []) for command, sub in COMMANDS]
+CONFIG_COMMANDS = {  # argv -> the config class --print-config prints
+    ("train", "gan"): "train.gan:TrainGanConfig", ("train", "pose"): "mesh2tex.nn.view_nets:ViewTrainConfig",
+    ("train", "noc"): "mesh2tex.nn.view_nets:ViewTrainConfig", ("train", "nca"): "train.nca:TrainNCAConfig",
+    ("infer", "generate"): "infer.generate:GenerateConfig", ("infer", "transfer"): "mesh2tex.transfer.config:TransferConfig",
+    ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig", ("evaluate", "--protocols"): "infer.protocols:ProtocolConfig",
+    ("evaluate", "--generation"): "infer.generation:GenerationConfig", ("demo",): "infer.demo:DemoConfig",
+}
+DEVICE_COMMANDS = [argv for argv in ARGVS if argv[0] != "prepare"]  # preparation runs on the CPU
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MESH2TEX_PROGRESS": "0"}
+    return subprocess.run([sys.executable, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+
+
+def config_class(target: str):
+    module, name = target.split(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def leaf_parser(argv: list[str]) -> argparse.ArgumentParser:
+    """The parser of the command ``argv`` names."""
+    parser = build_parser(argv)
+    for word in argv:
+        parser = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[word]
+    return parser
+
+
+# ------------------------------------------------------------------------------------------ --help
+def test_help_does_not_import_torch():
+    result = run_cli("-X", "importtime", "-m", "mesh2tex", "train", "gan", "--help")
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "--iters" in result.stdout
+    imported = [line.rsplit("|", 1)[-1].strip() for line in result.stderr.splitlines() if line.startswith("import time:")]
+    assert "mesh2tex.options" in imported  # the import log is there
+    assert not [m for m in imported if m.split(".")[0] in ("torch", "numpy")], "--help imported torch or numpy"
+
+
+def test_every_help_exits_0_without_torch():
+    argvs = [[]] + [[c] for c in sorted({c for c, _ in COMMANDS})] + ARGVS
+    script = ("import json, sys\nfrom mesh2tex.cli import main\ncodes = []\n"
+              f"for argv in {argvs!r}:\n"
+              "    try:\n        main(argv + ['--help'])\n    except SystemExit as e:\n        codes.append(e.code)\n"
+              "print(json.dumps({'codes': codes, 'torch': 'torch' in sys.modules}), file=sys.stderr)")
+    result = run_cli("-c", script)
+    report = json.loads(result.stderr.strip().splitlines()[-1])
+    assert report == {"codes": [0] * len(argvs), "torch": False}, result.stderr[-2000:]
+
+
+@pytest.mark.parametrize("argv", ARGVS, ids=" ".join)
+def test_help_shows_every_default(argv):
+    """Every option with a default shows it, config flags the config's own default (as the imported class has it)."""
+    formatter = HelpFormatter(prog="mesh2tex")
+    for action in leaf_parser(argv)._actions:
+        if not action.option_strings or action.help is argparse.SUPPRESS or isinstance(action, argparse._HelpAction):
+            continue
+        source = getattr(action, "config_source", None)
+        if source is not None:
+            defaults = config_to_dict(config_class(source[0])())
+            keys = source[1] if isinstance(source[1], tuple) else (source[1],)
+            values = []
+            for key in keys:
+                node = defaults
+                for part in key.split("."):
+                    node = node[part]
+                values.append(node)
+            expected = show_default(values if len(values) > 1 else values[0])
+        else:
+            expected = show_default(action.default)
+        text = formatter._get_help_string(action)
+        if expected is not None and "default" not in (action.help or ""):
+            assert text.endswith(f"(default: {expected})"), (action.option_strings, text)
+
+
+@pytest.mark.parametrize("target", sorted(set(CONFIG_COMMANDS.values())))
+def test_static_defaults_are_the_classes_defaults(target):
+    """--help reads the defaults from the source (no torch import): they must be what the class gives."""
+    assert static_defaults(target) == config_to_dict(config_class(target)())
+
+
+# ---------------------------------------------------------------------------------- --print-config
+@pytest.mark.parametrize("argv", sorted(CONFIG_COMMANDS), ids=" ".join)
+def test_print_config_prints_the_defaults_and_does_nothing_else(argv, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, "--print-config"]) == 0
+    printed = yaml.safe_load(capsys.readouterr().out)
+    assert printed == yaml.safe_load(yaml.safe_dump(config_to_dict(config_class(CONFIG_COMMANDS[argv])())))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_print_config_merges_the_config_file_and_the_flags(tmp_path, capsys):
+    (tmp_path / "c.yaml").write_text("batch: 3\niters: 100\ngenerator: {z_dim: 16}\n")
+    assert main(["train", "gan", "--config", str(tmp_path / "c.yaml"), "--iters", "7", "--print-config"]) == 0
+    printed = yaml.safe_load(capsys.readouterr().out)
+    assert (printed["iters"], printed["batch"], printed["generator"]["z_dim"]) == (7, 3, 16)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.yaml").write_text("iters: 5\n")
+    assert main(["train", "gan", "--out", str(run), "--resume", "--print-config"]) == 0  # the run's own config
+    assert yaml.safe_load(capsys.readouterr().out)["iters"] == 5
+    assert main(["demo", "--quick", "--seed", "4", "--print-config"]) == 0
+    printed = yaml.safe_load(capsys.readouterr().out)
+    assert (printed["gan_iters"], printed["seed"]) == (2, 4)
+
+
+def test_print_config_reports_a_bad_value_as_one_line(tmp_path, capsys):
+    assert main(["train", "nca", "--steps", "9,3", "--print-config"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("mesh2tex: error: --steps 9,3")
+
+
+# ---------------------------------------------------------------------------- one command style
+@pytest.mark.parametrize("argv", ARGVS, ids=" ".join)
+def test_every_command_takes_out_and_device_alike(argv):
+    actions = {s: a for a in leaf_parser(argv)._actions for s in a.option_strings}
+    assert actions["--out"].dest == "out"
+    if argv in DEVICE_COMMANDS:
+        assert tuple(actions["--device"].choices) == ("auto", "cpu", "cuda")
+    else:
+        assert "--device" not in actions
+
+
+@pytest.mark.parametrize("argv", DEVICE_COMMANDS, ids=" ".join)
+def test_a_bad_device_is_one_line_and_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--out", "o", "--device", "gpu"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("mesh2tex: error: argument --device: invalid choice: 'gpu'"), err
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["train", "gan", "--out", "o"], "required: --shapes, --images; see 'mesh2tex train gan --help'"),
+    (["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--bogus", "1"], "unrecognized arguments: --bogus 1; see 'mesh2tex train gan --help'"),
+    (["prepare", "shapes", "--input", "x"], "required: --out; see"),  # not '--out/--output': the alias stays hidden
+    (["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--iters", "many"], "argument --iters: invalid int value: 'many'"),
+])
+def test_a_bad_option_is_one_line_naming_the_commands_help(argv, says, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("mesh2tex: error: ") and says in err, err
+
+
+@pytest.mark.parametrize("sub", ["shapes", "images", "synthetic"])
+def test_prepare_keeps_output_as_a_hidden_alias_of_out(sub, capsys):
+    argv = ["prepare", sub] + ([] if sub == "synthetic" else ["--input", "x"])
+    assert build_parser(argv).parse_args(argv + ["--output", "old"]).out == "old"
+    assert build_parser(argv).parse_args(argv + ["--out", "new"]).out == "new"
+    with pytest.raises(SystemExit):
+        main(["prepare", sub, "--help"])
+    assert "--output" not in capsys.readouterr().out
+
+
+def test_backgrounds_named_in_the_options_are_the_commands():
+    from infer.evaluate import BACKGROUNDS
+    from infer.options import BACKGROUNDS as NAMES
+
+    assert sorted(BACKGROUNDS) == sorted(NAMES)
+
+
+
+def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("a GPU is there")
+    assert main(["demo", "--quick", "--device", "cuda", "--out", str(tmp_path / "demo")]) == 2
+    assert "no CUDA device" in capsys.readouterr().err and not (tmp_path / "demo").exists()

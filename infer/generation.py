@@ -211,8 +211,8 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
             images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit)
             sets[row][0].append(images)
             sets[row][1].append(masks)
-        for row, lit in (("oracle", True), ("oracle_unlit", False)):
-            images, masks = material_draws(world, name, views, resolution, cfg.seed, _ORACLE_STREAM, lit)
+        for row, oracle_lit in (("oracle", True), ("oracle_unlit", False)):
+            images, masks = material_draws(world, name, views, resolution, cfg.seed, _ORACLE_STREAM, oracle_lit)
             sets[row][0].append(images)
             sets[row][1].append(masks)
         images, masks = ground_truth_renders(world, name, views, resolution, lit=True)

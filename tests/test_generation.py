@@ -97,6 +97,40 @@ def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp
     assert result["diversity"]["trained"]["pairwise"] == pytest.approx(0, abs=1e-3)
 
 
+@pytest.mark.parametrize("enabled", [True, False])
+def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_path, monkeypatch, enabled):
+    """A generator trained under the light prior is rendered under each view's light on every held-out
+    shape (as the oracle is), together with its material reference; one trained unlit is rendered unlit."""
+    root = world_and_gan
+    from infer import generation
+
+    original_load, original_render, original_draws = generation.load_generator, generation.generator_renders, generation.material_draws
+    seen, draws = [], []
+
+    def load(path, device):
+        generator, meta = original_load(path, device)
+        meta = {**meta, "config": {**meta["config"], "lighting": {**meta["config"]["lighting"], "enabled": enabled}}}
+        return generator, meta
+
+    def render(*args, **kwargs):
+        seen.append(args[6] if len(args) > 6 else kwargs.get("lit", False))
+        return original_render(*args, **kwargs)
+
+    def material(*args, **kwargs):
+        draws.append(kwargs.get("lit", args[6] if len(args) > 6 else False))
+        return original_draws(*args, **kwargs)
+
+    monkeypatch.setattr(generation, "load_generator", load)
+    monkeypatch.setattr(generation, "generator_renders", render)
+    monkeypatch.setattr(generation, "material_draws", material)
+    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
+                                     GenerationConfig(views=2, latents=2, kid_fid=False), log=lambda line: None)
+    assert result["generator_lit"] is enabled
+    assert len(seen) >= 4 * len(result["shapes"]) and all(lit is enabled for lit in seen)
+    per_shape = len(draws) // len(result["shapes"])  # oracle (lit), oracle unlit, then the diversity reference
+    assert draws[:per_shape][:2] == [True, False] and all(d[-1] is enabled for d in [draws[i * per_shape:(i + 1) * per_shape] for i in range(len(result["shapes"]))])
+
+
 def test_command_writes_results_and_refuses_to_overwrite(world_and_gan, tmp_path, capsys):
     root = world_and_gan
     args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--gan",

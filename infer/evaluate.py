@@ -56,7 +56,7 @@ BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
 
 def generation_config(args: argparse.Namespace) -> GenerationConfig:
     return load_config(GenerationConfig, None, {"latents": args.latents, "resolution": args.resolution, "features": args.features,
-                                                "seed": args.seed})
+                                                "seed": args.seed, "lighting": args.gan_lighting})
 
 
 def sets_config(args: argparse.Namespace) -> EvaluateConfig:

@@ -35,7 +35,9 @@ added) learnt albedo under random lights: its rows (trained, untrained, diversit
 under each view's own light, as the oracle and the photos are, and its diversity reference (the
 material sampler) is lit too. A generator trained unlit (older runs, ``lighting.enabled: false``)
 baked its own shading into its colours: its rows are rendered unlit, as it was trained, against the
-lit oracle. ``generator_lit`` in the result says which.
+lit oracle. ``lighting`` lit/unlit forces one way (to compare models trained either way on one
+footing); ``generator_lit`` in the result says which was used. The diversity pose keeps a
+photo-like light: the first view's light turned with the camera to the pose's azimuth.
 """
 
 from __future__ import annotations
@@ -67,6 +69,7 @@ from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, rende
 from mesh2tex.texture import shape_mismatch
 
 ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth")
+LIGHTING_MODES = ("auto", "lit", "unlit")
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 _ORACLE_STREAM = 7927  # seeds the oracle's material draws
 
@@ -82,6 +85,11 @@ class GenerationConfig:
     kid_fid: bool = True  # compute KID and FID (the feature network is most of the cost)
     max_shapes: int = 0  # held-out shapes used, the first K (0: all)
     seed: int = 0  # latents, untrained weights, SWD sampling
+    lighting: str = "auto"  # the generator's rows: auto (lit when it was trained under the light prior), lit or unlit
+
+    def __post_init__(self):
+        if self.lighting not in LIGHTING_MODES:
+            raise ValueError(f"lighting must be one of {', '.join(LIGHTING_MODES)}, got {self.lighting!r}")
 
 
 @dataclass
@@ -136,6 +144,15 @@ def material_draws(world: WorldData, name: str, views, resolution: int, seed: in
 
 
 @torch.no_grad()
+def pose_view(view, azimuth: float, elevation: float, distance: float):
+    """``view`` (a world View record) moved to another camera; its light turns about the vertical axis
+    with the camera, so that it stays where the world's photos have it (beside and above the camera)."""
+    turn = math.radians(azimuth - view.azimuth)
+    x, y, z = view.light
+    light = (x * math.cos(turn) + z * math.sin(turn), y, -x * math.sin(turn) + z * math.cos(turn))
+    return dataclasses.replace(view, azimuth=azimuth, elevation=elevation, distance=distance, light=tuple(round(v, 6) for v in light))
+
+
 def trained_lit(meta: dict) -> bool:
     """Whether a GAN checkpoint's run shaded its renders (``lighting.enabled``); runs from before the
     light prior have no ``lighting`` and were unlit."""
@@ -185,7 +202,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     resolution = cfg.resolution or int(meta["config"]["resolution"])
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
-    lit = trained_lit(meta)
+    lit = trained_lit(meta) if cfg.lighting == "auto" else cfg.lighting == "lit"
     names = world.held_out[: cfg.max_shapes] if cfg.max_shapes > 0 else world.held_out
     shapes = {}
     for name in names:
@@ -219,8 +236,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         sets["ground_truth"][0].append(images)
         sets["ground_truth"][1].append(masks)
         # Diversity: many latents at one pose.
-        pose = dataclasses.replace(views[0], azimuth=cfg.azimuth, elevation=cfg.elevation,
-                                   distance=(world.spec.distance_min + world.spec.distance_max) / 2)
+        pose = pose_view(views[0], cfg.azimuth, cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
         z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_gen)
         for row, generator in (("trained", trained), ("untrained", untrained)):
             images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit)
@@ -269,7 +285,7 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
                        resolution: int, cfg: GenerationConfig, device: torch.device, latents: int = 4, views: int = 4, lit: bool = False) -> None:
     """PNG grid: rows latents (seeds ``cfg.seed*1000 + row``), columns azimuths evenly spaced; the last row the shape's ground truth (lit)."""
     base = sample_views(world.spec, world.indices[name], 1)[0]
-    ring = [dataclasses.replace(base, azimuth=a, elevation=cfg.elevation, distance=(world.spec.distance_min + world.spec.distance_max) / 2)
+    ring = [pose_view(base, float(a), cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
             for a in (np.arange(views) * 360.0 / views + cfg.azimuth)]
     rows = []
     for k in range(latents):

@@ -103,8 +103,10 @@ def evaluate(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("generation (--generation: a GAN against a synthetic world's ground truth)")
     group.add_argument("--generation", action="store_true",
                        help="the generation protocol: --gan against --world's ground truth on the held-out shapes in --shapes")
-    ConfigOptions(group, GENERATION_CONFIG, config_flag=None).add(
-        "--latents", type=int, help="latents per held-out shape for the diversity measures")
+    generation = ConfigOptions(group, GENERATION_CONFIG, config_flag=None)
+    generation.add("--latents", type=int, help="latents per held-out shape for the diversity measures")
+    generation.add("--gan-lighting", key="lighting", choices=["auto", "lit", "unlit"],
+                   help="the generator's rows: lit by each view's light, unlit, or auto (as the GAN was trained)")
 
 
 def _protocols(parser: argparse.ArgumentParser) -> None:

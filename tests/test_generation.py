@@ -141,3 +141,20 @@ def test_command_writes_results_and_refuses_to_overwrite(world_and_gan, tmp_path
     assert "Gap closed" in (tmp_path / "out" / "generation.md").read_text()
     assert main(args) == 2 and "--overwrite" in capsys.readouterr().err
     assert main(args[:5] + args[7:]) == 2 and "--generation needs --gan" in capsys.readouterr().err
+
+
+def test_pose_view_turns_the_light_with_the_camera():
+    """The diversity pose keeps a photo's light where the photo had it relative to the camera."""
+    import math
+
+    from infer.generation import pose_view
+    from mesh2tex.render.shading import light_direction
+    from mesh2tex.synthetic.world import View
+
+    light = light_direction(torch.tensor([100.0 + 40.0]), torch.tensor([50.0]))[0].tolist()
+    view = View(azimuth=100.0, elevation=10.0, distance=1.7, fov=40.0, light=tuple(light), ambient=0.4, background="solid", background_seed=0)
+    moved = pose_view(view, 35.0, 20.0, 1.8)
+    expected = light_direction(torch.tensor([35.0 + 40.0]), torch.tensor([50.0]))[0]
+    assert torch.allclose(torch.tensor(moved.light), expected, atol=1e-5)
+    assert (moved.azimuth, moved.elevation, moved.distance, moved.ambient) == (35.0, 20.0, 1.8, 0.4)
+    assert math.isclose(sum(v * v for v in moved.light), 1.0, abs_tol=1e-5)

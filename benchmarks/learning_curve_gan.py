@@ -57,6 +57,8 @@ def main() -> None:
     parser.add_argument("--max-shapes", type=int, default=0)
     parser.add_argument("--json")
     parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--gan-lighting", choices=["auto", "lit", "unlit"], default="auto",
+                        help="the generator's rows lit, unlit, or as the run was trained (evaluate --generation's option)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     run = Path(args.run)
@@ -65,7 +67,7 @@ def main() -> None:
         sys.exit(f"{run / 'snapshots'}: no generators to evaluate (set snapshot_every in the training config, or pass --checkpoints)")
     paths.sort(key=lambda p: read_checkpoint_meta(p)["meta"]["iteration"])
     seconds = wall_seconds(run)
-    cfg = GenerationConfig(views=args.views, latents=args.latents, kid_fid=False, max_shapes=args.max_shapes)
+    cfg = GenerationConfig(views=args.views, latents=args.latents, kid_fid=False, max_shapes=args.max_shapes, lighting=args.gan_lighting)
     curve = []
     print(f"{'iteration':>9} {'hours':>6} {'objSWD':>7} {'oracle':>7} {'untrained':>9} {'gap':>5} {'gap_hist':>8} "
           f"{'div/photos':>10} {'pair/materials':>14}")

@@ -196,6 +196,16 @@ def _regions(params64, rows, cols):
     return owner, off_r, off_c, rows, cols, p.float()
 
 
+def gather_corners(pos: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
+    """(B,V,4) clip-space positions and (T,3) int64 indices -> (4,3,B*T) corners, component-major,
+    so that every per-(view, triangle) quantity is a contiguous row."""
+    B, V = pos.shape[:2]
+    by_component = pos.detach().permute(2, 0, 1).reshape(-1)  # (4*B*V,)
+    index = (torch.arange(4, device=pos.device)[:, None, None, None] * (B * V)
+             + torch.arange(B, device=pos.device)[:, None] * V + tri.T[:, None, :])
+    return by_component.index_select(0, index.reshape(-1)).view(4, 3, B * tri.shape[0])
+
+
 def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
     """Boxes of every (view, triangle), then the float64 set-up of those that can draw a pixel.
 
@@ -334,11 +344,7 @@ def rasterize(
         if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
 
-        # Component-major layout (4,3,B*T): every per-(view, triangle) quantity is a contiguous row.
-        by_component = pos.detach().permute(2, 0, 1).reshape(-1)  # (4*B*V,)
-        index = (torch.arange(4, device=device)[:, None, None, None] * (B * V)
-                 + torch.arange(B, device=device)[:, None] * V + tri.T[:, None, :])
-        corners = by_component.index_select(0, index.reshape(-1)).view(4, 3, B * T)
+        corners = gather_corners(pos, tri)
         live, row0, col0, rows, cols, params64 = _live_setup(corners, (H, W), cull_backfaces)
         raster = Raster(face_id, bary, depth)
         if live.numel() == 0:

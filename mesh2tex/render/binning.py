@@ -22,22 +22,22 @@ import torch
 # Regions are at most REGION pixels a side (a power of two): the planes of bigger boxes are rebased
 # to each REGION square so that float32 offsets stay small.
 REGION = 64
-# Regions larger than BLOCK x BLOCK (a power of two) go through the coarse pass in blocks of this side.
+# Boxes of at most WHOLE x WHOLE pixels get one stencil each, without a coarse pass: for them a few
+# wasted pixel tests cost less than the coarse pass's per-box work. Larger regions go through the
+# coarse pass in blocks of BLOCK x BLOCK. Both are powers of two.
+WHOLE = 16
 BLOCK = 8
-_BITS = BLOCK.bit_length()  # log2 of a stencil side in [1, BLOCK] is in [0, _BITS)
+_BITS = WHOLE.bit_length()  # log2 of a stencil side in [1, WHOLE] is in [0, _BITS)
 # Launch overhead of one bin, in candidate pixels of work: consecutive bins are merged into one
 # stencil (the largest of their caps) while the padding this adds costs less than that.
 _BIN_OVERHEAD_PAIRS = 16384
-# Relative bound, far above float32 rounding (about 1.2e-7 for two fused multiply-adds), on the
-# error of a pixel's edge function; the coarse pass decides a block only outside it.
-_SLACK = 1e-6
 
 
 def size_bins(rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
     """Bin of each rectangle: its size rounded up to powers of two, ``row_bits * _BITS + col_bits``.
 
     Args:
-        rows, cols: (N,) int64 sizes in [1, BLOCK].
+        rows, cols: (N,) int64 sizes in [1, WHOLE].
     Returns:
         (N,) int64 bin ids in [0, N_BINS).
     """
@@ -101,31 +101,47 @@ def split(rows: torch.Tensor, cols: torch.Tensor, side: int):
             (cols.index_select(0, owner) - off_c).clamp(max=side))
 
 
-def classify_blocks(p: torch.Tensor, off_r, off_c, rows, cols):
-    """Coarse test of blocks against their region's edge functions.
+def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
+    """Per pixel row of each region, the columns its triangle may cover and those it surely covers.
+
+    A stencil rounds edge k at (r, c) as ``fma(step_c, c, at)`` with ``at = fma(step_r, r, ref)``
+    (float32); ``at`` is computed here the same way, once per row. What is left is affine in c and
+    only rounded once, so its sign changes at most once along the row, at ``c = -at / step_c``
+    (computed in float64): each edge bounds the columns on one side. ``maybe`` widens the bounds by
+    a margin far above any rounding and ``sure`` narrows them by it, so a pixel outside ``maybe``
+    never passes the edge tests and one inside ``sure`` always does.
 
     Args:
-        p: (12,N) float32 planes of each block's region (rows as in :class:`Entries`).
-        off_r, off_c: (N,) int64 offset of each block's first pixel from its region's reference.
-        rows, cols: (N,) int64 block sizes.
+        p: (12,N) float32 planes of each region, relative to its origin (rows as in :class:`Entries`).
+        rows, cols: (N,) int64 region sizes.
     Returns:
-        outside, inside: (N,) bool. ``outside``: no pixel of the block passes the edge tests;
-        ``inside``: a full BLOCK x BLOCK block all of whose pixels pass them. Neither: test each pixel.
+        region (R,) index into N and r (R,) row offset of each row; at (3,R) float32 edge functions
+        at column 0 of each row; maybe, sure: (2,R) int64 first and last column (offsets from the
+        region's origin) of each range, last < first when empty.
     """
-    p = p.double()
-    r_lo, c_lo = off_r.double(), off_c.double()
-    r_hi, c_hi = r_lo + (rows - 1), c_lo + (cols - 1)
-    outside = torch.zeros_like(off_r, dtype=torch.bool)
-    inside = (rows == BLOCK) & (cols == BLOCK)
-    for k in range(3):  # an affine function's extremes over a rectangle are at its corners
-        r1, r2 = p[k + 8] * r_lo, p[k + 8] * r_hi
-        c1, c2 = p[k + 4] * c_lo, p[k + 4] * c_hi
-        top = p[k] + torch.maximum(r1, r2) + torch.maximum(c1, c2)
-        bottom = p[k] + torch.minimum(r1, r2) + torch.minimum(c1, c2)
-        slack = _SLACK * (p[k].abs() + torch.maximum(r1.abs(), r2.abs()) + torch.maximum(c1.abs(), c2.abs()))
-        outside |= top < -slack  # NaN and inf planes are never decided here
-        inside &= (bottom >= slack) & torch.isfinite(slack)
-    return outside, inside & ~outside
+    device = rows.device
+    region = torch.repeat_interleave(torch.arange(rows.numel(), device=device), rows)
+    r = torch.arange(region.numel(), device=device) - (torch.cumsum(rows, 0) - rows).index_select(0, region)
+    row_last = (cols - 1).index_select(0, region).double()
+    at = torch.addcmul(p[0:3].index_select(1, region), p[8:11].index_select(1, region), r.float())
+    step = p[4:7].index_select(1, region).double()
+    bound = -at.double() / step
+    lo = torch.where(step > 0, bound, -torch.inf).amax(0)
+    hi = torch.where(step < 0, bound, torch.inf).amin(0)
+    hi = torch.where(((step == 0) & (at < 0)).any(0), -torch.inf, hi)
+    # Never narrow a row on NaN or infinite planes: all of it is tested.
+    undecided = ~torch.isfinite(at.sum(0) + step.sum(0))
+    lo = torch.where(undecided, 0.0, lo).clamp(-1, 1e9)
+    hi = torch.where(undecided, row_last, hi).clamp(-2, 1e9)
+    # Column bounds to integers with a margin; infinities were clamped first.
+    margin = 1e-3
+    first = torch.ceil(lo - margin).clamp(min=0)
+    last = torch.minimum(torch.floor(hi + margin), row_last)
+    sure_first = torch.where(undecided, torch.inf, torch.maximum(torch.ceil(lo + margin), first))
+    sure_last = torch.minimum(torch.floor(hi - margin), last)
+    maybe = torch.stack([first, last]).long()
+    sure = torch.stack([sure_first.clamp(max=1e9), sure_last]).long()
+    return region, r, at, maybe, sure
 
 
 @dataclass
@@ -180,15 +196,15 @@ class DepthBuffer:
         return self.keys.view(self.shape)[:, :H, :W].reshape(-1)
 
 
-def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int, inside=(0, 0)):
+def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int):
     """Depth-test every covered pixel of the entries into ``buffer``.
 
     Each chunk of ``slices`` (from :func:`bin_slices`) shares a power-of-two stencil (cap_rows,
     cap_cols) and is evaluated as a dense (n, cap_rows, cap_cols) grid of edge functions, with no
     per-pixel gathers. Stencil pixels outside an entry's rectangle need no test of their own: only
     pixels inside the triangle pass, and they belong to the same region (same planes, same result)
-    or lie in the buffer's padding. Entries ``inside[0]:inside[1]`` are full blocks taken without
-    edge tests. The hits of several chunks (at most about ``max_pairs``) are depth-tested together.
+    or lie in the buffer's padding. The hits of several chunks (at most about ``max_pairs``) are
+    depth-tested together.
     """
     device = buffer.keys.device
     hits = []  # (entry, row offset, column offset) per chunk
@@ -224,18 +240,46 @@ def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int, inside=(
         if pending >= max_pairs:
             flush()
             pending = 0
-    # Full blocks: every pixel is a hit.
-    step = max(1, max_pairs // (BLOCK * BLOCK))
-    pixel = torch.arange(BLOCK * BLOCK, device=device)
-    for lo in range(inside[0], inside[1], step):
-        hi = min(inside[1], lo + step)
-        entry = torch.arange(lo, hi, device=device).repeat_interleave(BLOCK * BLOCK)
-        local = pixel.repeat(hi - lo)
-        hits.append((entry, entries.off_r.index_select(0, entry) + local // BLOCK,
-                     entries.off_c.index_select(0, entry) + local % BLOCK))
-        pending += (hi - lo) * BLOCK * BLOCK
-        if pending >= max_pairs:
-            flush()
-            pending = 0
     if hits:
         flush()
+
+
+def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: torch.Tensor, max_pairs: int):
+    """Depth-test every covered pixel of the regions into ``buffer``, row by row (the coarse pass
+    for large triangles): pixels in a row's ``sure`` range are taken without edge tests, the few
+    others of its ``maybe`` range (:func:`row_spans`) are tested one by one.
+
+    Args:
+        regions: Entries of N regions (no offsets).
+        rows, cols: (N,) int64 region sizes.
+    """
+    device = rows.device
+    region, r, at, maybe, sure = row_spans(regions.params, rows, cols)
+    R = region.numel()
+    no_sure = sure[1] < sure[0]
+    left_last = torch.where(no_sure, maybe[1], sure[0] - 1)
+    right_first = torch.where(no_sure, maybe[1] + 1, sure[1] + 1)
+    # Three ranges per row, the tested ones first: left of sure, right of sure, sure.
+    starts = torch.cat([maybe[0], right_first, sure[0]])
+    counts = torch.cat([left_last - maybe[0] + 1, maybe[1] - right_first + 1, sure[1] - sure[0] + 1]).clamp(min=0)
+    ends = torch.cumsum(counts, 0)
+    before = ends - counts
+    # Chunks of whole ranges (at most REGION pixels each) of about max_pairs pixels.
+    cuts = torch.arange(max_pairs, max(max_pairs, int(ends[-1])), max_pairs, device=device)
+    bounds = [0, *torch.searchsorted(ends, cuts, right=True).tolist(), 3 * R]
+    step_c = regions.params[4:7]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if a >= b:
+            continue
+        which = torch.repeat_interleave(torch.arange(a, b, device=device), counts[a:b])
+        col = starts.index_select(0, which) + torch.arange(which.numel(), device=device) - (
+            before.index_select(0, which) - before[a])
+        row = which % R
+        n_tested = int(ends[min(b, 2 * R) - 1] - before[a]) if a < 2 * R else 0
+        tested_row, tested_col = row[:n_tested], col[:n_tested]
+        lam = torch.addcmul(at.index_select(1, tested_row),
+                            step_c.index_select(1, region.index_select(0, tested_row)), tested_col.float())
+        passed = torch.nonzero(lam.amin(0) >= 0).squeeze(1)
+        row = torch.cat([tested_row.index_select(0, passed), row[n_tested:]])
+        col = torch.cat([tested_col.index_select(0, passed), col[n_tested:]])
+        buffer.test(regions, region.index_select(0, row), r.index_select(0, row), col)

@@ -35,11 +35,12 @@ from mesh2tex.render.binning import (
     BLOCK,
     N_BINS,
     REGION,
+    WHOLE,
     DepthBuffer,
     Entries,
     bin_slices,
-    classify_blocks,
     draw,
+    draw_spans,
     size_bins,
     split,
 )
@@ -233,7 +234,7 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
 
 
 def _draw_large(buffer: DepthBuffer, params64, base, face, rows, cols, max_pairs: int):
-    """The coarse pass, then the fine pass, for boxes larger than BLOCK x BLOCK pixels.
+    """The coarse pass, then the fine pass, for boxes larger than WHOLE x WHOLE pixels.
 
     Args:
         params64: (12,N) float64 planes relative to each box origin.
@@ -244,28 +245,14 @@ def _draw_large(buffer: DepthBuffer, params64, base, face, rows, cols, max_pairs
     owner, off_r, off_c, r_rows, r_cols, r_params = _regions(params64, rows, cols)
     r_base = base.index_select(0, owner) + off_r * buffer.row_stride + off_c
     r_face = face.index_select(0, owner)
-    # A bounded number of blocks at a time keeps memory flat whatever the triangles' sizes.
-    blocks = torch.cumsum(((r_rows + BLOCK - 1) // BLOCK) * ((r_cols + BLOCK - 1) // BLOCK), 0).tolist()
-    limit = max(1, max_pairs // (BLOCK * BLOCK))
+    # A bounded number of rows at a time keeps memory flat whatever the triangles' sizes.
+    ends = torch.cumsum(r_rows, 0).tolist()
+    limit = max(1, max_pairs // REGION)
     lo = 0
-    while lo < len(blocks):
-        hi = max(lo + 1, bisect.bisect_right(blocks, (blocks[lo - 1] if lo else 0) + limit))
-        region, b_off_r, b_off_c, b_rows, b_cols = split(r_rows[lo:hi], r_cols[lo:hi], BLOCK)
-        region += lo
-        p = r_params.index_select(1, region)
-        outside, inside = classify_blocks(p, b_off_r, b_off_c, b_rows, b_cols)
-        # Undecided blocks sorted by size bin, then the full ones; the outside ones are dropped.
-        bins = torch.where(inside, N_BINS, size_bins(b_rows, b_cols))
-        bins = torch.where(outside, N_BINS + 1, bins)
-        order = torch.argsort(bins, stable=True)
-        counts = torch.bincount(bins, minlength=N_BINS + 2).tolist()
-        n_partial, n_inside = sum(counts[:N_BINS]), counts[N_BINS]
-        keep = order[:n_partial + n_inside]
-        region = region.index_select(0, keep)
-        entries = Entries(p.index_select(1, keep), r_base.index_select(0, region), r_face.index_select(0, region),
-                          b_off_r.index_select(0, keep), b_off_c.index_select(0, keep))
-        draw(buffer, entries, bin_slices(counts[:N_BINS], max_pairs), max_pairs,
-             inside=(n_partial, n_partial + n_inside))
+    while lo < len(ends):
+        hi = max(lo + 1, bisect.bisect_right(ends, (ends[lo - 1] if lo else 0) + limit))
+        draw_spans(buffer, Entries(r_params[:, lo:hi], r_base[lo:hi], r_face[lo:hi]), r_rows[lo:hi],
+                   r_cols[lo:hi], max_pairs)
         lo = hi
 
 
@@ -350,13 +337,13 @@ def rasterize(
         if live.numel() == 0:
             return raster
         face, view = live % T, torch.div(live, T, rounding_mode="floor")
-        buffer = DepthBuffer(B, (H, W), (BLOCK, BLOCK), T, device)
+        buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)
         base = view * (buffer.shape[1] * buffer.row_stride) + row0 * buffer.row_stride + col0
 
-        # Boxes of at most BLOCK x BLOCK pixels are drawn whole, sorted by size bin; larger ones go
+        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, sorted by size bin; larger ones go
         # through the coarse pass.
-        small = (rows <= BLOCK) & (cols <= BLOCK)
-        bins = torch.where(small, size_bins(rows.clamp(max=BLOCK), cols.clamp(max=BLOCK)), N_BINS)
+        small = (rows <= WHOLE) & (cols <= WHOLE)
+        bins = torch.where(small, size_bins(rows.clamp(max=WHOLE), cols.clamp(max=WHOLE)), N_BINS)
         order = torch.argsort(bins, stable=True)
         counts = torch.bincount(bins, minlength=N_BINS + 1).tolist()
         n_small = sum(counts[:N_BINS])

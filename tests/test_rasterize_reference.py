@@ -20,7 +20,7 @@ def bevelled_table(segments: int = 300) -> trimesh.Trimesh:
     top = mf.Manifold.batch_hull([ball.translate((x, y, z)) for x in (-h, h) for y in (-0.28, 0.28) for z in (-h, h)])
     legs = [mf.Manifold.cylinder(0.9, 0.03, 0.03, 96).translate((x, y, -1.2)) for x in (-0.4, 0.4) for y in (-0.2, 0.2)]
     mesh = mf.Manifold.batch_boolean([top, *legs], mf.OpType.Add).to_mesh()
-    return _normalised(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
+    return normalised(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
 
 
 def scan_sphere(frequency: int = 72, seed: int = 0) -> trimesh.Trimesh:
@@ -50,10 +50,13 @@ def scan_sphere(frequency: int = 72, seed: int = 0) -> trimesh.Trimesh:
     directions = rng.normal(size=(12, 3))
     bumps = np.sin(v @ directions.T * 3 + rng.uniform(0, 6, 12)).sum(1) * 0.04
     radius = 1 + bumps + rng.normal(scale=0.004, size=len(v))
-    return _normalised(v / np.linalg.norm(v, axis=1, keepdims=True) * radius[:, None], mesh.faces)
+    return normalised(v / np.linalg.norm(v, axis=1, keepdims=True) * radius[:, None], mesh.faces)
 
 
-def _normalised(vertices, faces) -> trimesh.Trimesh:
+def normalised(vertices, faces) -> trimesh.Trimesh:
+    """The mesh centred with bbox diagonal 1, in float32-representable coordinates (what the
+    rasterizer sees)."""
+    vertices = np.asarray(vertices, dtype=np.float64)
     low, high = vertices.min(0), vertices.max(0)
     vertices = (vertices - (low + high) / 2) / np.linalg.norm(high - low)
     return trimesh.Trimesh(vertices.astype(np.float32).astype(np.float64), np.asarray(faces), process=False)

@@ -106,8 +106,8 @@ def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
 
     A stencil rounds edge k at (r, c) as ``fma(step_c, c, at)`` with ``at = fma(step_r, r, ref)``
     (float32); ``at`` is computed here the same way, once per row. What is left is affine in c and
-    only rounded once, so its sign changes at most once along the row, at ``c = -at / step_c``
-    (computed in float64): each edge bounds the columns on one side. ``maybe`` widens the bounds by
+    only rounded once, so its sign changes at most once along the row, at ``c = -at / step_c``:
+    each edge bounds the columns on one side. ``maybe`` widens the bounds by
     a margin far above any rounding and ``sure`` narrows them by it, so a pixel outside ``maybe``
     never passes the edge tests and one inside ``sure`` always does.
 
@@ -122,10 +122,12 @@ def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
     device = rows.device
     region = torch.repeat_interleave(torch.arange(rows.numel(), device=device), rows)
     r = torch.arange(region.numel(), device=device) - (torch.cumsum(rows, 0) - rows).index_select(0, region)
-    row_last = (cols - 1).index_select(0, region).double()
+    row_last = (cols - 1).index_select(0, region).float()
     at = torch.addcmul(p[0:3].index_select(1, region), p[8:11].index_select(1, region), r.float())
-    step = p[4:7].index_select(1, region).double()
-    bound = -at.double() / step
+    step = p[4:7].index_select(1, region)
+    # float32 suffices: a bound's rounding error (under 1e-5 columns within a region) is far below
+    # the margin, and bounds far outside the region only need to stay outside it.
+    bound = -at / step
     lo = torch.where(step > 0, bound, -torch.inf).amax(0)
     hi = torch.where(step < 0, bound, torch.inf).amin(0)
     hi = torch.where(((step == 0) & (at < 0)).any(0), -torch.inf, hi)
@@ -137,10 +139,10 @@ def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
     margin = 1e-3
     first = torch.ceil(lo - margin).clamp(min=0)
     last = torch.minimum(torch.floor(hi + margin), row_last)
-    sure_first = torch.where(undecided, torch.inf, torch.maximum(torch.ceil(lo + margin), first))
+    sure_first = torch.where(undecided, 1e9, torch.maximum(torch.ceil(lo + margin), first))
     sure_last = torch.minimum(torch.floor(hi - margin), last)
     maybe = torch.stack([first, last]).long()
-    sure = torch.stack([sure_first.clamp(max=1e9), sure_last]).long()
+    sure = torch.stack([sure_first, sure_last]).long()
     return region, r, at, maybe, sure
 
 
@@ -255,7 +257,13 @@ def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: 
     """
     device = rows.device
     region, r, at, maybe, sure = row_spans(regions.params, rows, cols)
+    # Most rows of a sliver thinner than a pixel hold no pixel centre: drop them first.
+    occupied = torch.nonzero(maybe[1] >= maybe[0]).squeeze(1)
+    region, r, at = region.index_select(0, occupied), r.index_select(0, occupied), at.index_select(1, occupied)
+    maybe, sure = maybe.index_select(1, occupied), sure.index_select(1, occupied)
     R = region.numel()
+    if R == 0:
+        return
     no_sure = sure[1] < sure[0]
     left_last = torch.where(no_sure, maybe[1], sure[0] - 1)
     right_first = torch.where(no_sure, maybe[1] + 1, sure[1] + 1)

@@ -208,18 +208,26 @@ def gather_corners(pos: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
 
 
 def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
-    """Boxes of every (view, triangle), then the float64 set-up of those that can draw a pixel.
+    """Boxes of every (view, triangle), then the float64 set-up of those that can draw a pixel,
+    sorted by size bin: each bin is a contiguous slice, the large boxes last.
 
     Args:
         corners: (4,3,N) clip-space vertices (pos's dtype): component, corner, (view, triangle).
     Returns:
         live (L,) int64 index into N of the triangles kept; row0, col0, rows, cols (L,) int64 boxes;
-        params64 (12,L) float64 planes relative to each box origin (see :func:`_edge_setup`).
+        params64 (12,L) float64 planes relative to each box origin (see :func:`_edge_setup`);
+        counts: N_BINS + 1 ints, the live boxes in each size bin (:func:`size_bins`), then the
+        boxes over WHOLE pixels a side.
     """
     row0, col0, rows, cols = (t.view(-1) for t in _pixel_boxes(corners.float()[:, None], resolution))
     # Boxes holding no pixel centre (sub-pixel triangles between centres, off screen, behind the
-    # near plane) are dropped before the set-up, so they cost only their box.
-    live = torch.nonzero(rows * cols > 0).squeeze(1)
+    # near plane) sort last and are dropped before the set-up, so they cost only their box.
+    small = (rows <= WHOLE) & (cols <= WHOLE)
+    bins = torch.where(small, size_bins(rows.clamp(1, WHOLE), cols.clamp(1, WHOLE)), N_BINS)
+    bins = torch.where(rows * cols > 0, bins, N_BINS + 1)
+    live = torch.argsort(bins, stable=True)
+    counts = torch.bincount(bins, minlength=N_BINS + 2).tolist()[:N_BINS + 1]
+    live = live[:sum(counts)]
     row0, col0, rows, cols = (t.index_select(0, live) for t in (row0, col0, rows, cols))
     params64, det = _edge_setup(corners.index_select(2, live).double(), resolution, row0, col0)
     # Degenerate triangles (seen edge-on, or through the eye) and culled ones draw nothing.
@@ -228,9 +236,10 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
         keep &= det > 0
     if not bool(keep.all()):
         keep = torch.nonzero(keep).squeeze(1)
+        counts = torch.bincount(bins.index_select(0, live.index_select(0, keep)), minlength=N_BINS + 1).tolist()
         live, row0, col0, rows, cols = (t.index_select(0, keep) for t in (live, row0, col0, rows, cols))
         params64 = params64.index_select(1, keep)
-    return live, row0, col0, rows, cols, params64
+    return live, row0, col0, rows, cols, params64, counts
 
 
 def _draw_large(buffer: DepthBuffer, params64, base, face, rows, cols, max_pairs: int):
@@ -332,29 +341,20 @@ def rasterize(
             return Raster(face_id, bary, depth)
 
         corners = gather_corners(pos, tri)
-        live, row0, col0, rows, cols, params64 = _live_setup(corners, (H, W), cull_backfaces)
+        live, row0, col0, rows, cols, params64, counts = _live_setup(corners, (H, W), cull_backfaces)
         raster = Raster(face_id, bary, depth)
         if live.numel() == 0:
             return raster
         face, view = live % T, torch.div(live, T, rounding_mode="floor")
         buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)
         base = view * (buffer.shape[1] * buffer.row_stride) + row0 * buffer.row_stride + col0
-
-        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, sorted by size bin; larger ones go
-        # through the coarse pass.
-        small = (rows <= WHOLE) & (cols <= WHOLE)
-        bins = torch.where(small, size_bins(rows.clamp(max=WHOLE), cols.clamp(max=WHOLE)), N_BINS)
-        order = torch.argsort(bins, stable=True)
-        counts = torch.bincount(bins, minlength=N_BINS + 1).tolist()
-        n_small = sum(counts[:N_BINS])
-        if n_small:
-            s = order[:n_small]
-            draw(buffer, Entries(params64.index_select(1, s).float(), base.index_select(0, s),
-                                 face.index_select(0, s)), bin_slices(counts[:N_BINS], max_pairs), max_pairs)
+        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, bin by bin; larger ones (sorted
+        # last) go through the coarse pass.
+        n = sum(counts[:N_BINS])
+        if n:
+            draw(buffer, Entries(params64[:, :n].float(), base[:n], face[:n]), bin_slices(counts[:N_BINS], max_pairs),
+                 max_pairs)
         if counts[N_BINS]:
-            large = order[n_small:]
-            _draw_large(buffer, params64.index_select(1, large), base.index_select(0, large),
-                        face.index_select(0, large), rows.index_select(0, large), cols.index_select(0, large),
-                        max_pairs)
+            _draw_large(buffer, params64[:, n:], base[n:], face[n:], rows[n:], cols[n:], max_pairs)
         resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, row0, col0, params64)
         return raster

@@ -38,7 +38,7 @@ def rasterize_reference(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_b
         if T == 0 or B == 0:
             return raster
         corners = gather_corners(pos, tri.to(device=device, dtype=torch.long))
-        live, row0, col0, rows, cols, params64 = _live_setup(corners, (H, W), cull_backfaces)
+        live, row0, col0, rows, cols, params64, _ = _live_setup(corners, (H, W), cull_backfaces)
         buffer = DepthBuffer(B, (H, W), (0, 0), T, device)
         keys = buffer.keys.view(B, H, W)
         owner, off_r, off_c, r_rows, r_cols, r_params = _regions(params64, rows, cols)

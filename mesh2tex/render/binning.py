@@ -33,6 +33,13 @@ _BITS = WHOLE.bit_length()  # log2 of a stencil side in [1, WHOLE] is in [0, _BI
 _BIN_OVERHEAD_PAIRS = 16384
 
 
+def columns(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """``x[..., index]`` for a (..., N) tensor: (..., n). ``gather`` is several times faster on the
+    CPU than ``index_select`` or indexing along a last dimension."""
+    flat = x.reshape(-1, x.shape[-1])
+    return torch.gather(flat, 1, index.expand(flat.shape[0], -1)).view(*x.shape[:-1], -1)
+
+
 def size_bins(rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
     """Bin of each rectangle: its size rounded up to powers of two, ``row_bits * _BITS + col_bits``.
 
@@ -123,8 +130,8 @@ def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
     region = torch.repeat_interleave(torch.arange(rows.numel(), device=device), rows)
     r = torch.arange(region.numel(), device=device) - (torch.cumsum(rows, 0) - rows).index_select(0, region)
     row_last = (cols - 1).index_select(0, region).float()
-    at = torch.addcmul(p[0:3].index_select(1, region), p[8:11].index_select(1, region), r.float())
-    step = p[4:7].index_select(1, region)
+    at = torch.addcmul(columns(p[0:3], region), columns(p[8:11], region), r.float())
+    step = columns(p[4:7], region)
     # float32 suffices: a bound's rounding error (under 1e-5 columns within a region) is far below
     # the margin, and bounds far outside the region only need to stay outside it.
     bound = -at / step
@@ -259,8 +266,8 @@ def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: 
     region, r, at, maybe, sure = row_spans(regions.params, rows, cols)
     # Most rows of a sliver thinner than a pixel hold no pixel centre: drop them first.
     occupied = torch.nonzero(maybe[1] >= maybe[0]).squeeze(1)
-    region, r, at = region.index_select(0, occupied), r.index_select(0, occupied), at.index_select(1, occupied)
-    maybe, sure = maybe.index_select(1, occupied), sure.index_select(1, occupied)
+    region, r, at = region.index_select(0, occupied), r.index_select(0, occupied), columns(at, occupied)
+    maybe, sure = columns(maybe, occupied), columns(sure, occupied)
     R = region.numel()
     if R == 0:
         return
@@ -285,8 +292,8 @@ def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: 
         row = which % R
         n_tested = int(ends[min(b, 2 * R) - 1] - before[a]) if a < 2 * R else 0
         tested_row, tested_col = row[:n_tested], col[:n_tested]
-        lam = torch.addcmul(at.index_select(1, tested_row),
-                            step_c.index_select(1, region.index_select(0, tested_row)), tested_col.float())
+        lam = torch.addcmul(columns(at, tested_row), columns(step_c, region.index_select(0, tested_row)),
+                            tested_col.float())
         passed = torch.nonzero(lam.amin(0) >= 0).squeeze(1)
         row = torch.cat([tested_row.index_select(0, passed), row[n_tested:]])
         col = torch.cat([tested_col.index_select(0, passed), col[n_tested:]])

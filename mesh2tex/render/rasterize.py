@@ -39,6 +39,7 @@ from mesh2tex.render.binning import (
     DepthBuffer,
     Entries,
     bin_slices,
+    columns,
     draw,
     draw_spans,
     size_bins,
@@ -192,7 +193,7 @@ def _regions(params64, rows, cols):
         params (12,E) float32 rebased (in float64) to the region's origin.
     """
     owner, off_r, off_c, rows, cols = split(rows, cols, REGION)
-    p = params64[:, owner]
+    p = columns(params64, owner)
     p[0:4] += p[4:8] * off_c.double() + p[8:12] * off_r.double()
     return owner, off_r, off_c, rows, cols, p.float()
 
@@ -229,7 +230,7 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
     counts = torch.bincount(bins, minlength=N_BINS + 2).tolist()[:N_BINS + 1]
     live = live[:sum(counts)]
     row0, col0, rows, cols = (t.index_select(0, live) for t in (row0, col0, rows, cols))
-    params64, det = _edge_setup(corners.index_select(2, live).double(), resolution, row0, col0)
+    params64, det = _edge_setup(columns(corners, live).double(), resolution, row0, col0)
     # Degenerate triangles (seen edge-on, or through the eye) and culled ones draw nothing.
     keep = torch.isfinite(1.0 / det)
     if cull_backfaces:
@@ -238,7 +239,7 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
         keep = torch.nonzero(keep).squeeze(1)
         counts = torch.bincount(bins.index_select(0, live.index_select(0, keep)), minlength=N_BINS + 1).tolist()
         live, row0, col0, rows, cols = (t.index_select(0, keep) for t in (live, row0, col0, rows, cols))
-        params64 = params64.index_select(1, keep)
+        params64 = columns(params64, keep)
     return live, row0, col0, rows, cols, params64, counts
 
 
@@ -289,7 +290,7 @@ def resolve_winners(raster: Raster, keys: torch.Tensor, id_bits: int, triangles:
     in_view = covered % (H * W)
     dr = (torch.div(in_view, W, rounding_mode="floor") - row0.index_select(0, winner)).double()
     dc = (in_view % W - col0.index_select(0, winner)).double()
-    p = params64.index_select(1, winner)  # (12,n) float64
+    p = columns(params64, winner)  # (12,n) float64
     lam = [torch.addcmul(torch.addcmul(p[k], p[k + 4], dc), p[k + 8], dr) for k in range(3)]
     z = torch.addcmul(torch.addcmul(p[3], p[7], dc), p[11], dr)
     inv_sum = 1.0 / (lam[0] + lam[1] + lam[2])

@@ -1,4 +1,4 @@
-"""The fast rasterizer (coarse pass over blocks, size bins, stencils) equals the slow reference bit for bit
+"""The fast rasterizer (size bins, stencils, row spans of large triangles) equals the slow reference bit for bit
 on meshes whose triangles differ wildly in size. Also builds the benchmark's meshes of that kind."""
 
 import manifold3d as mf

@@ -1,16 +1,16 @@
-"""The coarse and fine passes of :func:`mesh2tex.render.rasterize`: blocks, size bins, stencils, depth test.
+"""The coarse and fine passes of :func:`mesh2tex.render.rasterize`: size bins, stencils, row spans, depth test.
 
 Vocabulary:
   region  a rectangle of pixels with one *reference pixel* (its origin) and float32 edge and depth
-          planes relative to it; every pixel's edge functions are ``fma(step_c, dc, fma(step_r, dr,
-          ref))`` over its offset (dr, dc) from the reference, so a pixel's coverage depends only on
-          its region, not on how the region is cut up below. Regions are the triangles' pixel boxes,
-          boxes over ``REGION`` pixels a side cut into ``REGION``-pixel squares.
-  block   a ``BLOCK`` x ``BLOCK`` piece of a region (the coarse pass): it is dropped when one edge
-          function is negative over all of it, and taken whole without edge tests when all three
-          are positive over all of it, both with a safety margin far above float32 rounding.
-  entry   a rectangle that gets a dense stencil of per-pixel tests (the fine pass): a small region
-          whole, or a block that the coarse pass could not decide.
+          planes relative to it; a pixel's edge functions are ``fma(step_c, dc, fma(step_r, dr,
+          ref))`` over its offset (dr, dc) from the reference, so its coverage depends only on its
+          region, not on how the region is visited. Regions are the triangles' pixel boxes, boxes
+          over ``REGION`` pixels a side cut into ``REGION``-pixel squares.
+  entry   a rectangle drawn with one dense stencil of per-pixel tests (the fine pass): the boxes
+          of at most ``WHOLE`` x ``WHOLE`` pixels, which are most boxes of most meshes.
+  span    the columns of one pixel row of a larger region that its triangle may cover (the coarse
+          pass): exact up to a margin, so a large triangle costs its covered pixels plus a few
+          per row, whatever its box; pixels well inside the span are taken without tests.
 """
 
 from __future__ import annotations
@@ -22,11 +22,9 @@ import torch
 # Regions are at most REGION pixels a side (a power of two): the planes of bigger boxes are rebased
 # to each REGION square so that float32 offsets stay small.
 REGION = 64
-# Boxes of at most WHOLE x WHOLE pixels get one stencil each, without a coarse pass: for them a few
-# wasted pixel tests cost less than the coarse pass's per-box work. Larger regions go through the
-# coarse pass in blocks of BLOCK x BLOCK. Both are powers of two.
+# Boxes of at most WHOLE x WHOLE pixels (a power of two) get one stencil each, without a coarse
+# pass: for them a few wasted pixel tests cost less than the coarse pass's per-row work.
 WHOLE = 16
-BLOCK = 8
 _BITS = WHOLE.bit_length()  # log2 of a stencil side in [1, WHOLE] is in [0, _BITS)
 # Launch overhead of one bin, in candidate pixels of work: consecutive bins are merged into one
 # stencil (the largest of their caps) while the padding this adds costs less than that.
@@ -155,21 +153,18 @@ def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
 
 @dataclass
 class Entries:
-    """Rectangles to draw, each relative to its region's reference pixel.
+    """Rectangles to draw (boxes or regions), each with planes relative to its origin pixel.
 
     Attributes:
         params: (12,E) float32; rows 0-3: lambda_0, lambda_1, lambda_2 and NDC z at the reference
             pixel; rows 4-7: their change per pixel step right; rows 8-11: per step down.
-        base: (E,) int64 flat index into the depth buffer of the reference pixel.
+        base: (E,) int64 flat index into the depth buffer of the origin pixel.
         face: (E,) int64 triangle index (the low bits of the visibility key).
-        off_r, off_c: (E,) int64 offset of the entry's first pixel from the reference; None for 0.
     """
 
     params: torch.Tensor
     base: torch.Tensor
     face: torch.Tensor
-    off_r: torch.Tensor | None = None
-    off_c: torch.Tensor | None = None
 
 
 class DepthBuffer:
@@ -211,8 +206,8 @@ def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int):
     Each chunk of ``slices`` (from :func:`bin_slices`) shares a power-of-two stencil (cap_rows,
     cap_cols) and is evaluated as a dense (n, cap_rows, cap_cols) grid of edge functions, with no
     per-pixel gathers. Stencil pixels outside an entry's rectangle need no test of their own: only
-    pixels inside the triangle pass, and they belong to the same region (same planes, same result)
-    or lie in the buffer's padding. The hits of several chunks (at most about ``max_pairs``) are
+    pixels inside the triangle pass, and past the image's right or bottom edge they lie in the
+    buffer's padding. The hits of several chunks (at most about ``max_pairs``) are
     depth-tested together.
     """
     device = buffer.keys.device
@@ -225,13 +220,8 @@ def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int):
 
     p = entries.params
     for cap_rows, cap_cols, lo, hi in slices:
-        row_steps = torch.arange(cap_rows, device=device)
-        col_steps = torch.arange(cap_cols, device=device)
-        if entries.off_r is None:
-            rs, cs = row_steps.float(), col_steps.float()
-        else:  # per-entry offsets from the reference: the same products as a region drawn whole
-            rs = (entries.off_r[lo:hi, None] + row_steps).float()
-            cs = (entries.off_c[lo:hi, None] + col_steps).float()[:, None, :]
+        rs = torch.arange(cap_rows, device=device, dtype=torch.float32)
+        cs = torch.arange(cap_cols, device=device, dtype=torch.float32)
 
         def plane(k):  # edge function k over the (n, rows, cols) grid
             per_row = torch.addcmul(p[k, lo:hi, None], p[k + 8, lo:hi, None], rs)
@@ -242,8 +232,6 @@ def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int):
         row_bits, col_bits = cap_rows.bit_length() - 1, cap_cols.bit_length() - 1
         entry = (hit >> (row_bits + col_bits)) + lo
         dr, dc = (hit >> col_bits) & (cap_rows - 1), hit & (cap_cols - 1)
-        if entries.off_r is not None:
-            dr, dc = dr + entries.off_r.index_select(0, entry), dc + entries.off_c.index_select(0, entry)
         hits.append((entry, dr, dc))
         pending += (hi - lo) * cap_rows * cap_cols
         if pending >= max_pairs:
@@ -259,7 +247,7 @@ def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: 
     others of its ``maybe`` range (:func:`row_spans`) are tested one by one.
 
     Args:
-        regions: Entries of N regions (no offsets).
+        regions: Entries of N regions.
         rows, cols: (N,) int64 region sizes.
     """
     device = rows.device

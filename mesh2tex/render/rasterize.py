@@ -11,11 +11,16 @@ Method (homogeneous rasterization, no geometric clipping):
      clipping into new triangles. The set-up runs in float64; the per-pixel tests in float32 relative to
      a reference pixel, so nothing cancels catastrophically.
   2. Per triangle and view, a pixel bounding box (of the triangle clipped to the near plane) gives the
-     candidate pixels. Boxes are sorted into bins by their size rounded up to powers of two (boxes
-     over 64 pixels a side are first split into tiles), so each bin is a contiguous slice evaluated as
-     a dense (n, rows, cols) grid of edge functions, in chunks of at most ``max_pairs`` candidates so
-     memory stays bounded whatever the triangle sizes. The visibility buffer is padded by the largest
-     stencil, so stencil pixels past the image edge need no test; depth is computed at hits only.
+     candidate pixels; boxes holding no pixel centre (sub-pixel triangles between centres, off
+     screen) are dropped before the set-up. Boxes of at most 16x16 pixels (most boxes of most
+     meshes) are sorted into bins by size rounded up to powers of two, and each bin is evaluated as
+     a dense (n, rows, cols) grid of edge functions. Larger boxes (cut into 64-pixel regions) go
+     through a coarse pass by pixel rows: per row, each edge bounds the columns it allows, so only
+     the row's span is visited, and its pixels well inside all three bounds are taken without tests
+     (``binning.row_spans``). A large triangle thus costs its covered pixels plus a few per row,
+     whatever the shape of its box. Everything runs in chunks of at most ``max_pairs`` candidates,
+     so memory stays bounded. The visibility buffer is padded by the largest stencil, so stencil
+     pixels past the image edge need no test; depth is computed at hits only.
   3. Visibility: one ``scatter_reduce('amin')`` per chunk over an int64 key per covered pair, the
      quantised depth in the high bits and the triangle's index in the low bits. Ties go to the lower
      triangle index, so results are deterministic.
@@ -32,7 +37,6 @@ import torch
 
 from mesh2tex.checks import check_shape
 from mesh2tex.render.binning import (
-    BLOCK,
     N_BINS,
     REGION,
     WHOLE,

@@ -1,8 +1,8 @@
 """A slow, direct rasterizer that defines what :func:`mesh2tex.render.rasterize` computes; for tests.
 
 It shares the boxes, the float64 set-up, the regions and the winners' barycentrics with the fast
-path, and replaces everything the fast path does for speed (size bins, the coarse pass over blocks,
-full blocks taken without tests, stencils, chunks, the padded buffer) by a loop over regions, one
+path, and replaces everything the fast path does for speed (size bins, stencils, the coarse pass
+by row spans with pixels taken without tests, chunks, the padded buffer) by a loop over regions, one
 at a time, each tested at every pixel of its rectangle with the same float32 arithmetic and written
 into a depth buffer with ``minimum``. The two must agree bit for bit.
 """

@@ -1,25 +1,34 @@
-"""Speed of mesh2tex.render.rasterize against first-hit ray casting with Embree, side by side.
+"""Speed of mesh2tex.render.rasterize against first-hit ray casting with Embree, side by side, on meshes
+of different character.
 
-Cases (both methods produce face ids and barycentrics for the same pixel centres):
-  single  256x256, one view of a 49,152-triangle mesh
-  batch   8 views at 128x128 of a 12,288-triangle mesh in one call
-  memory  peak memory of a 1024x1024 render of a 98,304-triangle mesh (in a fresh subprocess)
+Meshes (each centred, bbox diagonal 1, seen from distance 1.6 with a 45 degree field of view):
+  torus   the bumpy torus of tests/test_render_raycast.py: 49,152 triangles of nearly equal size
+  table   a box with finely rounded edges on round legs: a few huge triangles beside 48k tiny ones
+  scan    a noisy, irregular blob like a 3D scan: 103,680 triangles, most under a pixel
+  chair   shape 0 of the synthetic world's chairs (mesh2tex.synthetic): panels, rods, bevels
+  car     shape 0 of the synthetic world's cars
+Cases: one view at 256 and 512 pixels, eight views at 128 in one call.
 
-    python benchmarks/bench_rasterize.py [--threads 1] [--repeats 20] [--device cpu|cuda]
+    python benchmarks/bench_rasterize.py [--threads 1] [--repeats 10] [--meshes torus,table]
+        [--previous REV] [--busy 1] [--device cpu|cuda] [--case memory]
 
-Embree (trimesh + embreex) runs on the CPU; its scene is built once before timing, so only the
-ray casts and barycentrics are timed. Times are the minimum over the repeats (median in brackets);
-the ratio is ours / Embree (below 1.0: ours is faster).
+Embree (trimesh + embreex, one thread) builds its scene before timing, so only the ray casts and
+barycentrics are timed. Ours and Embree are timed in alternation, twice, so both see the same load;
+times are the minimum over the repeats (median in brackets); the ratio is ours / Embree (below 1.0:
+ours is faster). ``--previous REV`` also times the rasterizer of git revision REV (its
+mesh2tex/render/rasterize.py, loaded from git) in the same process. ``--busy N`` runs N CPU-bound
+processes (``while True: pass``) during the measurements. The load average is printed before and after.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import resource
+import os
 import subprocess
 import sys
 import time
+import types
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +38,37 @@ from trimesh.ray.ray_pyembree import RayMeshIntersector
 
 from mesh2tex.render import orbit_camera, rasterize, transform_points
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402  the same meshes and rays
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+from test_rasterize_reference import bevelled_table, normalised, scan_sphere  # noqa: E402  the same meshes
+from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402
+
+CASES = {"1x256": (1, 256), "1x512": (1, 512), "8x128": (8, 128)}
+
+
+def world_shape(category: str) -> trimesh.Trimesh:
+    from mesh2tex.synthetic.world import WorldSpec, make_shape
+
+    shape = make_shape(WorldSpec(category=category), 0)
+    return normalised(shape.vertices, shape.faces)
+
+
+MESHES = {
+    "torus": lambda: normalised(bumpy_torus().vertices, bumpy_torus().faces),
+    "table": bevelled_table,
+    "scan": scan_sphere,
+    "chair": lambda: world_shape("chair"),
+    "car": lambda: world_shape("car"),
+}
+
+
+def previous_rasterize(revision: str):
+    """``rasterize`` from mesh2tex/render/rasterize.py at a git revision (with today's imports)."""
+    source = subprocess.run(["git", "show", f"{revision}:mesh2tex/render/rasterize.py"], cwd=ROOT,
+                            check=True, capture_output=True, text=True).stdout
+    module = types.ModuleType(f"rasterize_{revision}")
+    exec(compile(source, f"{revision}:mesh2tex/render/rasterize.py", "exec"), module.__dict__)
+    return module.rasterize
 
 
 def embree_cast(intersector, mesh, origins, directions):
@@ -52,20 +90,25 @@ def timed(fn, repeats):
     return min(times), float(np.median(times))
 
 
-def compare(name, mesh, azimuths, elevations, resolution, repeats, device):
-    camera = orbit_camera(torch.tensor(azimuths), torch.tensor(elevations), distance=2.8, fov=45.0)
+def compare(name, mesh, case, repeats, device, previous=None):
+    views, size = CASES[case]
+    azimuths = [30.0 + 45.0 * i for i in range(views)]
+    elevations = [25.0, -10.0, 35.0, 5.0, 50.0, -25.0, 15.0, 30.0][:views]
+    camera = orbit_camera(torch.tensor(azimuths), torch.tensor(elevations), distance=1.6, fov=45.0)
     vertices = torch.tensor(mesh.vertices, dtype=torch.float32, device=device)
     faces = torch.tensor(mesh.faces, device=device)
-    mvp = camera.mvp.to(device)
+    pos = transform_points(vertices, camera.mvp.to(device))
 
-    def ours():
-        raster = rasterize(transform_points(vertices, mvp), faces, resolution)
-        if device == "cuda":
-            torch.cuda.synchronize()
-        return raster
+    def run(fn):
+        def call():
+            raster = fn(pos, faces, (size, size))
+            if device == "cuda":
+                torch.cuda.synchronize()
+            return raster
+        return call
 
-    rays = [pixel_rays(orbit_camera(a, e, distance=2.8, fov=45.0), resolution)
-            for a, e in zip(azimuths, elevations)]
+    ours = run(rasterize)
+    rays = [pixel_rays(orbit_camera(a, e, distance=1.6, fov=45.0), (size, size)) for a, e in zip(azimuths, elevations)]
     origins = np.concatenate([o for o, _ in rays])
     directions = np.concatenate([d for _, d in rays])
     intersector = RayMeshIntersector(mesh)
@@ -74,26 +117,41 @@ def compare(name, mesh, azimuths, elevations, resolution, repeats, device):
     def embree():
         return embree_cast(intersector, mesh, origins, directions)
 
-    ours(), embree()  # warm-up
+    contenders = {"ours": ours, "embree": embree} | ({"previous": run(previous)} if previous else {})
+    for fn in contenders.values():
+        fn()  # warm-up
     agree = (ours().face_id.reshape(-1).cpu().numpy() == embree()[0]).mean()
-    t_ours, t_embree = [], []
-    for _ in range(2):  # interleave so both see the same machine load
-        t_ours.append(timed(ours, repeats))
-        t_embree.append(timed(embree, repeats))
-    best_ours = min(t_ours)
-    best_embree = min(t_embree)
-    result = {
-        "case": name, "triangles": len(mesh.faces), "views": len(azimuths),
-        "resolution": list(resolution), "device": device, "threads": torch.get_num_threads(),
-        "ours_ms": round(best_ours[0] * 1e3, 2), "ours_median_ms": round(best_ours[1] * 1e3, 2),
-        "embree_ms": round(best_embree[0] * 1e3, 2), "embree_median_ms": round(best_embree[1] * 1e3, 2),
-        "ratio": round(best_ours[0] / best_embree[0], 3), "face_id_agreement": round(float(agree), 5),
-    }
-    print(f"{name:6s} {len(mesh.faces):6d} tris {len(azimuths)} x {resolution[0]}x{resolution[1]}  "
-          f"ours {result['ours_ms']:7.2f} ms ({result['ours_median_ms']:.2f})  "
-          f"embree {result['embree_ms']:7.2f} ms ({result['embree_median_ms']:.2f})  "
-          f"ratio {result['ratio']:.3f}  ids agree {agree:.4%}")
+    times = {key: [] for key in contenders}
+    for _ in range(2):  # alternate so that all see the same machine load
+        for key, fn in contenders.items():
+            times[key].append(timed(fn, repeats))
+    best = {key: min(value) for key, value in times.items()}
+    result = {"mesh": name, "triangles": len(mesh.faces), "case": case, "device": device,
+              "threads": torch.get_num_threads(), "face_id_agreement": round(float(agree), 5),
+              "ratio": round(best["ours"][0] / best["embree"][0], 3)}
+    for key, (low, median) in best.items():
+        result[f"{key}_ms"], result[f"{key}_median_ms"] = round(low * 1e3, 2), round(median * 1e3, 2)
+    line = (f"{name:6s} {len(mesh.faces):6d} tris  {case:5s}  ours {result['ours_ms']:7.2f} ms "
+            f"({result['ours_median_ms']:7.2f})  embree {result['embree_ms']:7.2f} ms ({result['embree_median_ms']:7.2f})  "
+            f"ratio {result['ratio']:5.2f}")
+    if previous:
+        line += f"  previous {result['previous_ms']:7.2f} ms ({result['previous_median_ms']:7.2f})"
+    print(line + f"  ids agree {agree:.3%}", flush=True)
     return result
+
+
+def _status_mib(field: str) -> float:
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) / 1024
+    raise KeyError(field)
+
+
+def _reset_peak_rss() -> float:
+    """Reset the peak resident size (Linux: building the mesh may have set it higher than the
+    render will); returns the current resident size in MiB."""
+    Path("/proc/self/clear_refs").write_text("5")
+    return _status_mib("VmRSS")
 
 
 def memory_case(device):
@@ -102,16 +160,17 @@ def memory_case(device):
     camera = orbit_camera(30.0, 30.0, distance=2.8, fov=45.0)
     vertices = torch.tensor(mesh.vertices, dtype=torch.float32, device=device)
     faces = torch.tensor(mesh.faces, device=device)
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    pos = transform_points(vertices, camera.mvp.to(device))
+    before = _reset_peak_rss()
     if device == "cuda":
         torch.cuda.reset_peak_memory_stats()
     start = time.perf_counter()
-    raster = rasterize(transform_points(vertices, camera.mvp.to(device)), faces, (1024, 1024))
+    raster = rasterize(pos, faces, (1024, 1024))
     if device == "cuda":
         torch.cuda.synchronize()
     seconds = time.perf_counter() - start
     peak = (torch.cuda.max_memory_allocated() / 2**20 if device == "cuda"
-            else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 - before)
+            else _status_mib("VmHWM") - before)
     covered = float((raster.face_id >= 0).float().mean())
     print(json.dumps({"case": "memory", "triangles": len(mesh.faces), "resolution": [1024, 1024],
                       "device": device, "peak_extra_mib": round(peak, 1), "seconds": round(seconds, 3),
@@ -121,24 +180,33 @@ def memory_case(device):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
-    parser.add_argument("--repeats", type=int, default=20)
+    parser.add_argument("--repeats", type=int, default=10)
     parser.add_argument("--device", default="cpu", choices=["cpu", "cuda"])
-    parser.add_argument("--case", default="all", choices=["all", "single", "batch", "memory"])
+    parser.add_argument("--meshes", default=",".join(MESHES), help="comma-separated subset of " + ",".join(MESHES))
+    parser.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of " + ",".join(CASES))
+    parser.add_argument("--previous", default="", help="also time the rasterizer of this git revision")
+    parser.add_argument("--busy", type=int, default=0, help="CPU-bound processes to run meanwhile")
+    parser.add_argument("--case", default="all", choices=["all", "speed", "memory"])
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
     if args.case == "memory":
         memory_case(args.device)
         return
-    results = []
-    if args.case in ("all", "single"):
-        results.append(compare("single", bumpy_torus(192, 128), [30.0], [35.0], (256, 256),
-                               args.repeats, args.device))
-    if args.case in ("all", "batch"):
-        azimuths = [float(a) for a in range(0, 360, 45)]
-        elevations = [20.0, -10.0, 35.0, 5.0, 50.0, -25.0, 15.0, 30.0]
-        results.append(compare("batch", bumpy_torus(96, 64), azimuths, elevations, (128, 128),
-                               args.repeats, args.device))
+    previous = previous_rasterize(args.previous) if args.previous else None
+    meshes = {name: MESHES[name]() for name in args.meshes.split(",")}
+    spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)]
+    try:
+        time.sleep(1.0 if spinners else 0.0)
+        print(f"torch threads {torch.get_num_threads()}, {args.busy} busy processes, "
+              f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
+        results = [compare(name, mesh, case, args.repeats, args.device, previous)
+                   for name, mesh in meshes.items() for case in args.cases.split(",")]
+        print(f"load average after: {os.getloadavg()[0]:.2f}")
+    finally:
+        for process in spinners:
+            process.kill()
+            process.wait()
     if args.case == "all":
         command = [sys.executable, __file__, "--case", "memory", "--device", args.device]
         if args.threads:

@@ -11,11 +11,16 @@ Method (homogeneous rasterization, no geometric clipping):
      clipping into new triangles. The set-up runs in float64; the per-pixel tests in float32 relative to
      a reference pixel, so nothing cancels catastrophically.
   2. Per triangle and view, a pixel bounding box (of the triangle clipped to the near plane) gives the
-     candidate pixels. Boxes are sorted into bins by their size rounded up to powers of two (boxes
-     over 64 pixels a side are first split into tiles), so each bin is a contiguous slice evaluated as
-     a dense (n, rows, cols) grid of edge functions, in chunks of at most ``max_pairs`` candidates so
-     memory stays bounded whatever the triangle sizes. The visibility buffer is padded by the largest
-     stencil, so stencil pixels past the image edge need no test; depth is computed at hits only.
+     candidate pixels; boxes holding no pixel centre (sub-pixel triangles between centres, off
+     screen) are dropped before the set-up. Boxes of at most 16x16 pixels (most boxes of most
+     meshes) are sorted into bins by size rounded up to powers of two, and each bin is evaluated as
+     a dense (n, rows, cols) grid of edge functions. Larger boxes (cut into 64-pixel regions) go
+     through a coarse pass by pixel rows: per row, each edge bounds the columns it allows, so only
+     the row's span is visited, and its pixels well inside all three bounds are taken without tests
+     (``binning.row_spans``). A large triangle thus costs its covered pixels plus a few per row,
+     whatever the shape of its box. Everything runs in chunks of at most ``max_pairs`` candidates,
+     so memory stays bounded. The visibility buffer is padded by the largest stencil, so stencil
+     pixels past the image edge need no test; depth is computed at hits only.
   3. Visibility: one ``scatter_reduce('amin')`` per chunk over an int64 key per covered pair, the
      quantised depth in the high bits and the triangle's index in the low bits. Ties go to the lower
      triangle index, so results are deterministic.
@@ -25,11 +30,25 @@ Method (homogeneous rasterization, no geometric clipping):
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 
 import torch
 
 from mesh2tex.checks import check_shape
+from mesh2tex.render.binning import (
+    N_BINS,
+    REGION,
+    WHOLE,
+    DepthBuffer,
+    Entries,
+    bin_slices,
+    columns,
+    draw,
+    draw_spans,
+    size_bins,
+    split,
+)
 
 # Candidate (triangle, pixel) pairs handled at once; about 130 bytes of temporaries each.
 DEFAULT_MAX_PAIRS = 1 << 21
@@ -167,138 +186,121 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
 
 
 
-# Boxes larger than _TILE x _TILE pixels (rare: big triangles on screen) are split into tiles of at
-# most that size (a power of two); every other box is evaluated whole.
-_TILE = 64
-_N_BITS = _TILE.bit_length()  # log2 of a power-of-two cap is in [0, _N_BITS)
-
-
-def _size_bins(rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
-    """Bin of each box: its size rounded up to powers of two, ``row_bits * _N_BITS + col_bits``.
-
-    Args:
-        rows, cols: (N,) int64 box sizes in [1, _TILE].
-    Returns:
-        (N,) int64 bin ids in [0, _N_BITS**2).
-    """
-    # ceil(log2(size)) is the binary length of size - 1.
-    row_bits = torch.frexp((rows - 1).float()).exponent.long()
-    col_bits = torch.frexp((cols - 1).float()).exponent.long()
-    return row_bits * _N_BITS + col_bits
-
-
-# Launch overhead of one bin, in candidate pixels of work: consecutive bins are merged into one
-# stencil (the largest of their caps) while the padding this adds costs less than that.
-_BIN_OVERHEAD_PAIRS = 16384
-
-
-def _bin_slices(counts: list[int], max_pairs: int):
-    """Chunks of entries sorted by bin: ``(cap_rows, cap_cols, lo, hi)`` with at most ``max_pairs``
-    candidate pixels each (at least one entry).
-
-    Consecutive non-empty bins share one stencil when that is cheaper than a launch of their own;
-    any stencil at least as large as an entry's box gives the same result.
-    """
-    groups = []  # [row_bits, col_bits, lo, hi, own_pairs]
-    start = 0
-    for b, size in enumerate(counts):
-        if size == 0:
-            continue
-        rb, cb = b // _N_BITS, b % _N_BITS
-        own = size << (rb + cb)
-        if groups:
-            g = groups[-1]
-            merged_rb, merged_cb = max(g[0], rb), max(g[1], cb)
-            waste = ((g[3] - g[2] + size) << (merged_rb + merged_cb)) - g[4] - own
-            if waste < _BIN_OVERHEAD_PAIRS:
-                g[0], g[1], g[3], g[4] = merged_rb, merged_cb, start + size, g[4] + own
-                start += size
-                continue
-        groups.append([rb, cb, start, start + size, own])
-        start += size
-    for rb, cb, lo, hi, _ in groups:
-        step = max(1, max_pairs >> (rb + cb))
-        for chunk_lo in range(lo, hi, step):
-            yield 1 << rb, 1 << cb, chunk_lo, min(hi, chunk_lo + step)
-
-
-def _draw_bins(best, params, base_pixel, face, slices, row_stride, id_bits, depth_scale, max_pairs):
-    """Depth-test every candidate pixel of the entries in ``slices`` into ``best``.
-
-    Each chunk of entries shares a power-of-two stencil (cap_rows, cap_cols) and is evaluated as a
-    dense (n, cap_rows, cap_cols) grid of edge functions, with no per-pixel gathers. Stencil pixels
-    outside an entry's box need no test of their own: only pixels inside the triangle pass, and
-    ``best`` is padded so that stencils running past the image's right or bottom edge stay in it.
-    The hits of several chunks (at most about ``max_pairs``) are depth-tested together.
-
-    Args:
-        best: (B*Hp*Wp,) int64 visibility keys of the padded image, updated in place.
-        params: (E,12) float32 edge and depth planes of each entry, relative to its origin pixel.
-        base_pixel: (E,) int64 flat index into ``best`` of each entry's origin pixel.
-        face: (E,) int64 triangle index of each entry (the key's low bits).
-        slices: (cap_rows, cap_cols, lo, hi) chunks from :func:`_bin_slices`.
-        row_stride: Wp, the padded image width.
-    """
-    device = best.device
-    hits = []  # (entry, row offset, column offset) per chunk
-
-    def depth_test():
-        entry, dr, dc = (torch.cat(t) for t in zip(*hits))
-        hits.clear()
-        # Depth at the hits only, with the same arithmetic as a dense plane.
-        q = params.index_select(0, entry)
-        z = torch.addcmul(torch.addcmul(q[:, 3], q[:, 11], dr.float()), q[:, 7], dc.float())
-        pixel = base_pixel.index_select(0, entry) + dr * row_stride + dc
-        key = (((z.double() + 1) * depth_scale).long() << id_bits) | face.index_select(0, entry)
-        key = torch.where(z.abs() <= 1, key, torch.iinfo(torch.long).max)  # near and far planes
-        best.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
-
-    pending = 0
-    for cap_rows, cap_cols, lo, hi in slices:
-        p = params[lo:hi]
-        row_steps = torch.arange(cap_rows, device=device, dtype=torch.float32)
-        col_steps = torch.arange(cap_cols, device=device, dtype=torch.float32)
-
-        def plane(ref, step_c, step_r):  # an affine function over the (n, rows, cols) grid
-            per_row = torch.addcmul(p[:, ref, None], p[:, step_r, None], row_steps)
-            return torch.addcmul(per_row[:, :, None], p[:, step_c, None, None], col_steps)
-
-        lam_min = torch.minimum(torch.minimum(plane(0, 4, 8), plane(1, 5, 9)), plane(2, 6, 10))
-        hit = torch.nonzero(lam_min.view(-1) >= 0).squeeze(1)
-        row_bits, col_bits = cap_rows.bit_length() - 1, cap_cols.bit_length() - 1
-        hits.append(((hit >> (row_bits + col_bits)) + lo, (hit >> col_bits) & (cap_rows - 1),
-                     hit & (cap_cols - 1)))
-        pending += (hi - lo) * cap_rows * cap_cols
-        if pending >= max_pairs:
-            depth_test()
-            pending = 0
-    if hits:
-        depth_test()
-
-
-def _tiles(params64, row0, col0, rows, cols):
-    """Split boxes into tiles of at most _TILE x _TILE pixels.
+def _regions(params64, rows, cols):
+    """Cut pixel boxes into regions of at most REGION x REGION pixels with their own planes.
 
     Args:
         params64: (12,N) float64 from :func:`_edge_setup`, relative to each box origin.
-        row0, col0, rows, cols: (N,) int64 boxes.
+        rows, cols: (N,) int64 box sizes.
     Returns:
-        owner (E,) index into N; row0, col0, rows, cols (E,) of each tile; params (E,12) float32
-        rebased (in float64) to the tile's origin.
+        owner (E,) index into N; off_r, off_c, rows, cols (E,) of each region relative to its box;
+        params (12,E) float32 rebased (in float64) to the region's origin.
     """
-    device = rows.device
-    tiles_r = (rows + _TILE - 1) // _TILE
-    tiles_c = (cols + _TILE - 1) // _TILE
-    n_tiles = tiles_r * tiles_c
-    owner = torch.repeat_interleave(torch.arange(rows.numel(), device=device), n_tiles)
-    k = torch.arange(owner.numel(), device=device) - (torch.cumsum(n_tiles, 0) - n_tiles)[owner]
-    per_row = tiles_c[owner]
-    off_r = torch.div(k, per_row, rounding_mode="floor") * _TILE
-    off_c = (k % per_row) * _TILE
-    p = params64[:, owner]
+    owner, off_r, off_c, rows, cols = split(rows, cols, REGION)
+    p = columns(params64, owner)
     p[0:4] += p[4:8] * off_c.double() + p[8:12] * off_r.double()
-    return (owner, row0[owner] + off_r, col0[owner] + off_c, (rows[owner] - off_r).clamp(max=_TILE),
-            (cols[owner] - off_c).clamp(max=_TILE), p.T.float().contiguous())
+    return owner, off_r, off_c, rows, cols, p.float()
+
+
+def gather_corners(pos: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
+    """(B,V,4) clip-space positions and (T,3) int64 indices -> (4,3,B*T) corners, component-major,
+    so that every per-(view, triangle) quantity is a contiguous row."""
+    B, V = pos.shape[:2]
+    by_component = pos.detach().permute(2, 0, 1).reshape(-1)  # (4*B*V,)
+    index = (torch.arange(4, device=pos.device)[:, None, None, None] * (B * V)
+             + torch.arange(B, device=pos.device)[:, None] * V + tri.T[:, None, :])
+    return by_component.index_select(0, index.reshape(-1)).view(4, 3, B * tri.shape[0])
+
+
+def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
+    """Boxes of every (view, triangle), then the float64 set-up of those that can draw a pixel,
+    sorted by size bin: each bin is a contiguous slice, the large boxes last.
+
+    Args:
+        corners: (4,3,N) clip-space vertices (pos's dtype): component, corner, (view, triangle).
+    Returns:
+        live (L,) int64 index into N of the triangles kept; row0, col0, rows, cols (L,) int64 boxes;
+        params64 (12,L) float64 planes relative to each box origin (see :func:`_edge_setup`);
+        counts: N_BINS + 1 ints, the live boxes in each size bin (:func:`size_bins`), then the
+        boxes over WHOLE pixels a side.
+    """
+    row0, col0, rows, cols = (t.view(-1) for t in _pixel_boxes(corners.float()[:, None], resolution))
+    # Boxes holding no pixel centre (sub-pixel triangles between centres, off screen, behind the
+    # near plane) sort last and are dropped before the set-up, so they cost only their box.
+    small = (rows <= WHOLE) & (cols <= WHOLE)
+    bins = torch.where(small, size_bins(rows.clamp(1, WHOLE), cols.clamp(1, WHOLE)), N_BINS)
+    bins = torch.where(rows * cols > 0, bins, N_BINS + 1)
+    live = torch.argsort(bins, stable=True)
+    counts = torch.bincount(bins, minlength=N_BINS + 2).tolist()[:N_BINS + 1]
+    live = live[:sum(counts)]
+    row0, col0, rows, cols = (t.index_select(0, live) for t in (row0, col0, rows, cols))
+    params64, det = _edge_setup(columns(corners, live).double(), resolution, row0, col0)
+    # Degenerate triangles (seen edge-on, or through the eye) and culled ones draw nothing.
+    keep = torch.isfinite(1.0 / det)
+    if cull_backfaces:
+        keep &= det > 0
+    if not bool(keep.all()):
+        keep = torch.nonzero(keep).squeeze(1)
+        counts = torch.bincount(bins.index_select(0, live.index_select(0, keep)), minlength=N_BINS + 1).tolist()
+        live, row0, col0, rows, cols = (t.index_select(0, keep) for t in (live, row0, col0, rows, cols))
+        params64 = columns(params64, keep)
+    return live, row0, col0, rows, cols, params64, counts
+
+
+def _draw_large(buffer: DepthBuffer, params64, base, face, rows, cols, max_pairs: int):
+    """The coarse pass, then the fine pass, for boxes larger than WHOLE x WHOLE pixels.
+
+    Args:
+        params64: (12,N) float64 planes relative to each box origin.
+        base: (N,) int64 flat index into ``buffer`` of each box origin.
+        face: (N,) int64 triangle index.
+        rows, cols: (N,) int64 box sizes.
+    """
+    owner, off_r, off_c, r_rows, r_cols, r_params = _regions(params64, rows, cols)
+    r_base = base.index_select(0, owner) + off_r * buffer.row_stride + off_c
+    r_face = face.index_select(0, owner)
+    # A bounded number of rows at a time keeps memory flat whatever the triangles' sizes.
+    ends = torch.cumsum(r_rows, 0).tolist()
+    limit = max(1, max_pairs // REGION)
+    lo = 0
+    while lo < len(ends):
+        hi = max(lo + 1, bisect.bisect_right(ends, (ends[lo - 1] if lo else 0) + limit))
+        draw_spans(buffer, Entries(r_params[:, lo:hi], r_base[lo:hi], r_face[lo:hi]), r_rows[lo:hi],
+                   r_cols[lo:hi], max_pairs)
+        lo = hi
+
+
+def resolve_winners(raster: Raster, keys: torch.Tensor, id_bits: int, triangles: int, live, row0, col0, params64):
+    """Fill ``raster`` in place from visibility keys: each covered pixel's winner gets its exact
+    barycentrics and depth, from the float64 set-up (so they are not quantised).
+
+    Args:
+        raster: Raster of (B,H,W) background values.
+        keys: (B*H*W,) int64 keys (:class:`~mesh2tex.render.binning.DepthBuffer`), int64 max: empty.
+        triangles: T, the triangles per view.
+        live: (L,) int64 (view * T + triangle) of each set-up; row0, col0: (L,) its box origin;
+        params64: (12,L) float64 planes relative to the box origin.
+    """
+    B, H, W = raster.face_id.shape
+    covered = torch.nonzero(keys != torch.iinfo(torch.long).max).squeeze(1)
+    if covered.numel() == 0:
+        return
+    triangle = keys.index_select(0, covered) & ((1 << id_bits) - 1)
+    view = torch.div(covered, H * W, rounding_mode="floor")
+    # (view, triangle) -> index of its set-up among the live ones.
+    lookup = torch.full((B * triangles,), -1, dtype=torch.long, device=keys.device)
+    lookup[live] = torch.arange(live.numel(), device=keys.device)
+    winner = lookup.index_select(0, view * triangles + triangle)
+    in_view = covered % (H * W)
+    dr = (torch.div(in_view, W, rounding_mode="floor") - row0.index_select(0, winner)).double()
+    dc = (in_view % W - col0.index_select(0, winner)).double()
+    p = columns(params64, winner)  # (12,n) float64
+    lam = [torch.addcmul(torch.addcmul(p[k], p[k + 4], dc), p[k + 8], dr) for k in range(3)]
+    z = torch.addcmul(torch.addcmul(p[3], p[7], dc), p[11], dr)
+    inv_sum = 1.0 / (lam[0] + lam[1] + lam[2])
+    raster.face_id.view(-1).index_copy_(0, covered, triangle)
+    raster.bary.view(-1, 3).index_copy_(0, covered, (torch.stack(lam, dim=1) * inv_sum[:, None]).float())
+    raster.depth.view(-1).index_copy_(0, covered, z.float())
 
 
 def rasterize(
@@ -343,74 +345,21 @@ def rasterize(
         if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
 
-        # Component-major layout (4,3,B*T): every per-(view, triangle) quantity is a contiguous row.
-        by_component = pos.detach().permute(2, 0, 1).reshape(-1)  # (4*B*V,)
-        index = (torch.arange(4, device=device)[:, None, None, None] * (B * V)
-                 + torch.arange(B, device=device)[:, None] * V + tri.T[:, None, :])
-        corners = by_component.index_select(0, index.reshape(-1)).view(4, 3, B * T)
-        row0, col0, rows, cols = (t.view(-1) for t in _pixel_boxes(corners.float()[:, None], (H, W)))
-        params64, det = _edge_setup(corners.double(), (H, W), row0, col0)  # (12,B*T)
-        # Degenerate triangles (seen edge-on, or through the eye) and culled ones draw nothing.
-        live = (rows * cols > 0) & torch.isfinite(1.0 / det)
-        if cull_backfaces:
-            live &= det > 0
-        big = (rows > _TILE) | (cols > _TILE)
-        # Sort the live boxes by size bin; the big ones (tiled below) and the rest go last.
-        n_bins = _N_BITS * _N_BITS
-        bin_id = torch.where(big, n_bins, _size_bins(rows.clamp(1, _TILE), cols.clamp(1, _TILE)))
-        bin_id = torch.where(live, bin_id, n_bins + 1)
-        order = torch.argsort(bin_id, stable=True)
-        counts = torch.bincount(bin_id, minlength=n_bins + 2).tolist()
-        n_small, n_big = sum(counts[:n_bins]), counts[n_bins]
-        if n_small + n_big == 0:
-            return Raster(face_id, bary, depth)
-        # Rows of (view, triangle) set-ups, for gathers of a few triangles' every parameter.
-        by_triangle = torch.stack(list(params64), dim=1)  # (B*T,12) float64
-        view = torch.arange(B, device=device).repeat_interleave(T)
-
-        # Visibility key: quantised depth (high bits) | triangle index (low bits), so that ties go
-        # to the lower index. ``best`` is padded by the largest stencil in use.
-        id_bits = max(1, int(T).bit_length())
-        depth_scale = 0.5 * float((1 << min(62 - id_bits, 40)) - 1)
-        empty = torch.iinfo(torch.long).max
-        used = [b for b in range(n_bins) if counts[b]]
-        pad_r = _TILE if n_big else 1 << (max(b // _N_BITS for b in used) if used else 0)
-        pad_c = _TILE if n_big else 1 << (max(b % _N_BITS for b in used) if used else 0)
-        Hp, Wp = H + pad_r, W + pad_c
-        best = torch.full((B * Hp * Wp,), empty, dtype=torch.long, device=device)
-
-        small = order[:n_small]
-        base_pixel = view * (Hp * Wp) + row0 * Wp + col0  # (B*T,)
-        _draw_bins(best, by_triangle.index_select(0, small).float(), base_pixel.index_select(0, small),
-                   small % T, _bin_slices(counts[:n_bins], max_pairs), Wp, id_bits, depth_scale, max_pairs)
-        if n_big:
-            large = order[n_small:n_small + n_big]
-            owner, t_row0, t_col0, t_rows, t_cols, t_params = _tiles(
-                params64[:, large], *(t.index_select(0, large) for t in (row0, col0, rows, cols)))
-            t_bin = _size_bins(t_rows, t_cols)
-            t_order = torch.argsort(t_bin, stable=True)
-            t_counts = torch.bincount(t_bin, minlength=n_bins).tolist()
-            t_large = large.index_select(0, owner.index_select(0, t_order))
-            t_base = (view.index_select(0, t_large) * (Hp * Wp) + t_row0.index_select(0, t_order) * Wp
-                      + t_col0.index_select(0, t_order))
-            _draw_bins(best, t_params.index_select(0, t_order), t_base, t_large % T,
-                       _bin_slices(t_counts, max_pairs), Wp, id_bits, depth_scale, max_pairs)
-
-        best = best.view(B, Hp, Wp)[:, :H, :W].reshape(-1)
-        covered = torch.nonzero(best != empty).squeeze(1)
-        if covered.numel() == 0:
-            return Raster(face_id, bary, depth)
-        winner = (best.index_select(0, covered) & ((1 << id_bits) - 1))
-        winner += torch.div(covered, H * W, rounding_mode="floor") * T  # index into B*T
-        # Exact barycentrics and depth of the winner only, from the float64 set-up.
-        in_view = covered % (H * W)
-        dr = (torch.div(in_view, W, rounding_mode="floor") - row0.index_select(0, winner)).double()
-        dc = (in_view % W - col0.index_select(0, winner)).double()
-        p = by_triangle.index_select(0, winner)  # (n,12) float64
-        lam = [torch.addcmul(torch.addcmul(p[:, k], p[:, k + 4], dc), p[:, k + 8], dr) for k in range(3)]
-        z = torch.addcmul(torch.addcmul(p[:, 3], p[:, 7], dc), p[:, 11], dr)
-        inv_sum = 1.0 / (lam[0] + lam[1] + lam[2])
-        face_id.view(-1).index_copy_(0, covered, winner % T)
-        bary.view(-1, 3).index_copy_(0, covered, (torch.stack(lam, dim=1) * inv_sum[:, None]).float())
-        depth.view(-1).index_copy_(0, covered, z.float())
-        return Raster(face_id, bary, depth)
+        corners = gather_corners(pos, tri)
+        live, row0, col0, rows, cols, params64, counts = _live_setup(corners, (H, W), cull_backfaces)
+        raster = Raster(face_id, bary, depth)
+        if live.numel() == 0:
+            return raster
+        face, view = live % T, torch.div(live, T, rounding_mode="floor")
+        buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)
+        base = view * (buffer.shape[1] * buffer.row_stride) + row0 * buffer.row_stride + col0
+        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, bin by bin; larger ones (sorted
+        # last) go through the coarse pass.
+        n = sum(counts[:N_BINS])
+        if n:
+            draw(buffer, Entries(params64[:, :n].float(), base[:n], face[:n]), bin_slices(counts[:N_BINS], max_pairs),
+                 max_pairs)
+        if counts[N_BINS]:
+            _draw_large(buffer, params64[:, n:], base[n:], face[n:], rows[n:], cols[n:], max_pairs)
+        resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, row0, col0, params64)
+        return raster

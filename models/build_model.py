@@ -138,7 +138,7 @@ def main() -> None:
                                      GenerationConfig(views=8, latents=16, kid_fid=False), samples_path=out / "samples.png")
     size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
     card = {
-        "name": out.name, "category": args.category, "world": WORLD, "shapes": SHAPES, "gan": {**GAN, "config": GAN_CONFIG},
+        "name": args.category, "category": args.category, "world": WORLD, "shapes": SHAPES, "gan": {**GAN, "config": GAN_CONFIG},
         "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
         "noc_iterations": args.noc_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
         "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), int(gan_meta["iteration"])),
@@ -149,7 +149,7 @@ def main() -> None:
     (out / "card.json").write_text(json.dumps(card, indent=1, default=float))
     rebuild = f"python models/build_model.py --category {args.category} --work WORK --gan-iters {card['gan_iterations']}"
     (out / "card.md").write_text(
-        f"# Shipped model `{out.name}` ({args.category})\n\n"
+        f"# Shipped model `{args.category}` ({args.category})\n\n"
         f"Texture GAN (EMA generator), pose and NOC networks trained on the synthetic {args.category} world "
         f"({WORLD['shapes'] - WORLD['query_shapes']} training shapes, {WORLD['views']} photos each at {WORLD['resolution']} px; "
         f"{WORLD['query_shapes']} held-out shapes for the figures below). Float16, {size_mb:.1f} MB in all.\n\n"

@@ -1,7 +1,7 @@
 """``mesh2tex train gan``: train the mesh-field texture GAN on prepared shapes and a folder of photos.
 
     mesh2tex train gan --shapes DIR --images DIR --out RUN [--config YAML] [--iters N] [--batch B]
-                       [--views K] [--resolution R] [--device auto|cpu|cuda] [--seed S] [--resume]
+                       [--views K] [--resolution R] [--device auto|cpu|cuda] [--seed S] [--resume [CHECKPOINT]]
 
 Each iteration: B shapes, K random views each (azimuth uniform, elevation in a range, camera
 jitter), one rasterization of the finest level shared by the phases; G main (+ path-length reg
@@ -72,6 +72,7 @@ class TrainGanConfig:
     sample_every: int = 500  # iterations between sample grids under RUN/samples (0: only at the end)
     checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
     snapshot_every: int = 0  # iterations between kept float16 EMA generators under RUN/snapshots (0: none)
+    keep_snapshots: int = 0  # snapshots kept under RUN/snapshots, the newest (0: all)
     sample_shapes: int = 4  # shapes in a sample grid
     generator: GeneratorConfig = field(default_factory=GeneratorConfig)
     discriminator: DiscriminatorConfig = field(default_factory=DiscriminatorConfig)
@@ -82,7 +83,7 @@ class TrainGanConfig:
     lighting: LightConfig = field(default_factory=LightConfig)  # fakes are shaded like photos, so the generator learns albedo
 
     def __post_init__(self):
-        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "sample_shapes": 1,
+        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0, "sample_shapes": 1,
                                      "ema_rampup": 0}, positive=("ema_halflife_images",))
         if self.resolution >= 8:  # smaller ones are refused by build_config, naming --resolution
             self.discriminator.check_resolution(self.resolution)
@@ -187,14 +188,16 @@ class GanTrainer:
                                      {GAN_LOSS: {**self.loss.state_dict(), **self.ada.state_dict()}}, meta, rng_states)
         self.dist.barrier()
 
-    def resume(self) -> None:
+    def resume(self, path: Path) -> None:
+        """Load the training state of ``path``: the run's own checkpoint (continuing it), or another
+        run's (this run starts from its networks, optimizers, loss and augmentation state and iteration)."""
         optimizers = {"g": self.opt_g, "d": self.opt_d}
-        groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, self.modules(), optimizers, self.device)
+        groups, meta = runs.load_training_state(path, KIND, self.modules(), optimizers, self.device)
         changed = runs.apply_learning_rates(optimizers, self.cfg.optim.learning_rates())  # the run's config.yaml rules, not the checkpoint
         if changed and self.dist.is_main:
             print(f"mesh2tex: note: resuming with the learning rates of {self.run.config_path}: {', '.join(changed)}", file=sys.stderr)
         if GAN_LOSS not in groups:
-            raise UserError(f"{self.run.checkpoint_path}: checkpoint has no '{GAN_LOSS}' state")
+            raise UserError(f"{path}: checkpoint has no '{GAN_LOSS}' state")
         self.loss.load_state_dict(groups[GAN_LOSS])
         self.ada.load_state_dict(groups[GAN_LOSS])
         self.iteration = int(meta["iteration"])
@@ -204,7 +207,7 @@ class GanTrainer:
         else:  # another number of processes: fresh, distinct streams per process
             print(f"mesh2tex: note: the checkpoint was written by {len(states)} process(es), this run has {self.dist.world_size}; random streams restart", file=sys.stderr)
             runs.seed_everything(self.cfg.seed + 7919 * self.iteration + 1000003 * self.dist.rank)
-        if self.dist.is_main:
+        if self.dist.is_main and path == self.run.checkpoint_path:
             self.run.metrics.truncate_after("iteration", self.iteration)
 
     # ---------------------------------------------------------------------------------- steps
@@ -283,6 +286,9 @@ class GanTrainer:
         meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
                 "world_size": self.dist.world_size}
         save_inference_checkpoint(path, KIND, self.ema.state_dict(), meta)
+        if self.cfg.keep_snapshots:
+            for old in sorted(path.parent.glob("iter*.safetensors"))[: -self.cfg.keep_snapshots]:
+                old.unlink()
         return path
 
     @torch.no_grad()
@@ -364,24 +370,22 @@ def run(args) -> int:
     distributed = runs.Distributed(cfg.device)
     try:
         device = runs.select_device(cfg.device)
+        run_dir = runs.RunDirectory(args.out)
+        source = runs.start_from(args.resume, run_dir, KIND, note=distributed.is_main)  # checked before the data is read
         shapes, _ = load_shapes(args.shapes)
         images = load_images(args.images, cfg.resolution)
         features = shapes[0].face_features.shape[1]
         if cfg.generator.input_features not in (0, features):
             raise UserError(f"generator.input_features is {cfg.generator.input_features} but the shapes in {args.shapes} have {features} face features")
         cfg.generator.input_features = features
-        run_dir = runs.RunDirectory(args.out)
-        resume = args.resume and run_dir.has_checkpoint()
-        if args.resume and not resume and distributed.is_main:
-            print(f"mesh2tex: note: {run_dir.checkpoint_path} not found; starting a new run", file=sys.stderr)
-        if distributed.is_main and not resume:
+        if distributed.is_main and source is None:
             run_dir.start(cfg, resume=False)
         distributed.barrier()
         trainer = GanTrainer(cfg, shapes, images, run_dir, device, distributed)
-        if resume:
-            trainer.resume()  # before config.yaml is rewritten: a checkpoint that cannot be resumed leaves the run as it was
+        if source is not None:
+            trainer.resume(source)  # before config.yaml is written: a checkpoint that cannot be loaded leaves --out as it was
             if distributed.is_main:
-                run_dir.start(cfg, resume=True)
+                run_dir.start(cfg, resume=source == run_dir.checkpoint_path)
             distributed.barrier()
         trainer.train()
         if distributed.is_main:

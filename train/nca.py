@@ -3,7 +3,7 @@
     mesh2tex train nca --exemplar IMG --out RUN [--mesh sphere|sphere:N|SHAPE.npz|MESH] [--iters N]
                        [--views K] [--resolution R] [--steps MIN,MAX] [--pool P] [--parent CKPT]
                        [--readout linear|lppn] [--vgg-weights PATH] [--config YAML] [--device]
-                       [--seed S] [--resume]
+                       [--seed S] [--resume [CHECKPOINT]]
 
 Each iteration: ``batch`` states drawn from a pool (every ``seed_every`` iterations the first is
 replaced by a fresh seed), a rollout of a random number of steps in [MIN, MAX] with gradients

@@ -1,4 +1,4 @@
-"""Run conventions shared by the trainers (gan, pose, noc).
+"""Run conventions shared by the trainers (gan, pose, noc, nca).
 
 A run directory ``RUN/`` holds:
     config.yaml                 the resolved config (every hyperparameter of the run)
@@ -7,10 +7,12 @@ A run directory ``RUN/`` holds:
     nonfinite.safetensors       only after a NaN/inf loss: the state at the failing iteration
     metrics.jsonl               one JSON object per logged iteration
     samples/                    images the trainer writes while it runs
+    snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators (keep_snapshots: the newest N)
 
 Checkpoints hold modules, optimizers (with their state), EMA copies, RNG states (torch, CUDA, numpy,
 Python; one set per process of a distributed run) and the iteration, so that ``--resume`` continues
-exactly where the run stopped. The pieces live in the library (:mod:`mesh2tex.runtime` for devices,
+exactly where the run stopped; ``--resume CHECKPOINT`` starts a new run from another run's
+(:func:`start_from`). The pieces live in the library (:mod:`mesh2tex.runtime` for devices,
 processes, RNG and EMA; :mod:`mesh2tex.io.checkpoint` for training states); this module keeps the
 run directory and the NaN guard, and names the library pieces for the trainers.
 """
@@ -92,7 +94,8 @@ def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bo
                 raise UserError(f"{run.root}: already holds a run ({CHECKPOINT_NAME}); --resume {path} starts a new run: choose another --out, "
                                 f"or pass --resume alone to continue this one")
             if note:
-                print(f"mesh2tex: note: {run.root} starts from {path} (iteration {header['meta']['iteration']}) with the config of this run",
+                print(f"mesh2tex: note: {run.root} starts from {path} (iteration {header['meta']['iteration']}) with this run's config "
+                      f"(its config.yaml, else --config and the flags), not the checkpoint's",
                       file=sys.stderr)
             return path
     if run.has_checkpoint():

@@ -302,3 +302,26 @@ def test_keep_snapshots_keeps_the_newest(tiny_data, tmp_path, capsys):
     capsys.readouterr()
     assert train(tiny_data, tmp_path / "bad", "--iters", "1", "--config", str(config)) == 2
     assert "keep_snapshots must be at least 0" in capsys.readouterr().err
+
+
+def test_the_held_out_metric_keeps_the_best_generator(tiny_data, tmp_path, capsys):
+    from mesh2tex.io.models import load_generator
+
+    config = tmp_path / "metric.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "metric_every": 2, "metric_photos": 2}))
+    out = tmp_path / "metric"
+    assert train(tiny_data, out, "--iters", "4", "--config", str(config)) == 0
+    measured = [r for r in metrics(out) if "metric_swd" in r]
+    assert [r["iteration"] for r in measured] == [2, 4]
+    assert all(np.isfinite(r["metric_swd"]) and r["metric_swd"] > 0 and np.isfinite(r["metric_diversity"]) for r in measured)
+    best = min(measured, key=lambda r: r["metric_swd"])
+    assert [r["best"] for r in measured] == [True, measured[1]["metric_swd"] < measured[0]["metric_swd"]]
+    generator, meta = load_generator(out / "best.safetensors", torch.device("cpu"))
+    assert meta["iteration"] == best["iteration"] and meta["metric"]["swd"] == best["metric_swd"]
+    _, state = load_checkpoint(out / "checkpoint.safetensors", kind="gan")
+    assert state["best"] == meta["metric"]
+    # Holding out every photo leaves none to train on.
+    config.write_text(yaml.safe_dump({**TINY, "metric_every": 2, "metric_photos": 6}))
+    capsys.readouterr()
+    assert train(tiny_data, tmp_path / "none", "--iters", "2", "--config", str(config)) == 2
+    assert "metric_photos 6" in capsys.readouterr().err and not (tmp_path / "none").exists()

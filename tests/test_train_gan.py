@@ -217,3 +217,111 @@ def test_snapshots_keep_loadable_float16_generators(tiny_data, tmp_path):
     groups, _ = load_checkpoint(out / "checkpoint.safetensors", kind="gan")
     for name, tensor in generator.state_dict().items():
         torch.testing.assert_close(tensor, groups["generator_ema"][name].float(), rtol=2e-3, atol=2e-3)
+
+
+# ------------------------------------------------------------------ --resume PATH and snapshot retention
+def test_a_run_starts_from_another_runs_checkpoint(tiny_data, tmp_path, capsys):
+    """``--resume PATH`` into a new --out reaches the weights of the source run continued in place, and says where it started."""
+    source, other = tmp_path / "source", tmp_path / "other"
+    assert train(tiny_data, source, "--iters", "2") == 0
+    capsys.readouterr()
+    assert train(tiny_data, other, "--iters", "4", "--resume", str(source / "checkpoint.safetensors")) == 0
+    err = capsys.readouterr().err
+    assert f"{other} starts from {source / 'checkpoint.safetensors'} (iteration 2)" in err
+    assert (source / "metrics.jsonl").read_text().count("\n") == 2, "the source run is left as it was"
+    assert train(tiny_data, source, "--iters", "4", "--resume") == 0
+    assert [r["iteration"] for r in metrics(other)] == [3, 4]
+    assert yaml.safe_load((other / "config.yaml").read_text())["iters"] == 4
+    ga, meta_a = load_checkpoint(source / "checkpoint.safetensors", kind="gan")
+    gb, meta_b = load_checkpoint(other / "checkpoint.safetensors", kind="gan")
+    assert meta_a["iteration"] == meta_b["iteration"] == 4
+    for group in ("generator_ema", "generator", "d_field", "d_proxy"):
+        for name, tensor in ga[group].items():
+            torch.testing.assert_close(tensor, gb[group][name], rtol=1e-5, atol=1e-6)
+    # A run folder stands for its checkpoint; the new run then continues with --resume alone.
+    third = tmp_path / "third"
+    assert train(tiny_data, third, "--iters", "5", "--resume", str(other)) == 0
+    assert [r["iteration"] for r in metrics(third)] == [5]
+
+
+@pytest.fixture(scope="module")
+def refused_sources(tiny_data, tmp_path_factory):
+    """Checkpoints a run must not start from: another kind, an inference snapshot, a shipped model, a missing file."""
+    from mesh2tex.io.checkpoint import save_checkpoint
+    from mesh2tex.io.models import save_inference_checkpoint
+
+    root = tmp_path_factory.mktemp("refused")
+    save_checkpoint(root / "pose.safetensors", {"net": {"w": torch.zeros(2)}}, kind="pose",
+                    meta={"iteration": 2, "optimizers": {}, "rng": []})
+    save_inference_checkpoint(root / "snapshot.safetensors", "gan", {"w": torch.zeros(2)}, {"iteration": 2})
+    shipped = Path(__file__).resolve().parents[1] / "models" / "chair" / "generator.safetensors"
+    (root / "text.safetensors").write_text("not a checkpoint")
+    return {"another kind": (root / "pose.safetensors", "a 'pose' checkpoint, expected a 'gan' training checkpoint"),
+            "snapshot": (root / "snapshot.safetensors", "an inference checkpoint (float16 weights without optimizer state"),
+            "shipped": (shipped, "an inference checkpoint"),
+            "not a checkpoint": (root / "text.safetensors", "not a mesh2tex checkpoint"),
+            "missing": (root / "missing.safetensors", "checkpoint not found")}
+
+
+@pytest.mark.parametrize("case", ["another kind", "snapshot", "shipped", "not a checkpoint", "missing"])
+def test_resume_refuses_what_is_not_a_gan_training_checkpoint(case, refused_sources, tiny_data, tmp_path, capsys):
+    path, reason = refused_sources[case]
+    if case == "shipped" and not path.is_file():
+        pytest.skip("no shipped chair model in this checkout")
+    out = tmp_path / "run"
+    capsys.readouterr()
+    assert train(tiny_data, out, "--iters", "2", "--resume", str(path)) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"mesh2tex: error: {path}: ") and reason in err, err
+    assert not out.exists(), "nothing is written to --out"
+
+
+def test_resume_from_another_run_refuses_an_out_that_holds_a_run(tiny_data, tmp_path, capsys):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert train(tiny_data, a, "--iters", "1") == 0
+    assert train(tiny_data, b, "--iters", "1") == 0
+    before = {p.name: p.read_bytes() for p in b.iterdir() if p.is_file()}
+    capsys.readouterr()
+    assert train(tiny_data, b, "--iters", "2", "--resume", str(a / "checkpoint.safetensors")) == 2
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if line.startswith("mesh2tex: error:")]
+    assert len(errors) == 1 and err.endswith(errors[0] + "\n") and "already holds a run" in errors[0]
+    assert {p.name: p.read_bytes() for p in b.iterdir() if p.is_file()} == before
+    # --resume naming the run's own checkpoint continues it, as --resume alone does.
+    assert train(tiny_data, b, "--iters", "2", "--resume", str(b / "checkpoint.safetensors")) == 0
+    assert [r["iteration"] for r in metrics(b)] == [1, 2]
+
+
+def test_keep_snapshots_keeps_the_newest(tiny_data, tmp_path, capsys):
+    config = tmp_path / "keep.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "snapshot_every": 1, "keep_snapshots": 2}))
+    out = tmp_path / "keep"
+    assert train(tiny_data, out, "--iters", "4", "--config", str(config)) == 0
+    assert sorted(p.name for p in (out / "snapshots").iterdir()) == ["iter0000003.safetensors", "iter0000004.safetensors"]
+    config.write_text(yaml.safe_dump({**TINY, "keep_snapshots": -1}))
+    capsys.readouterr()
+    assert train(tiny_data, tmp_path / "bad", "--iters", "1", "--config", str(config)) == 2
+    assert "keep_snapshots must be at least 0" in capsys.readouterr().err
+
+
+def test_the_held_out_metric_keeps_the_best_generator(tiny_data, tmp_path, capsys):
+    from mesh2tex.io.models import load_generator
+
+    config = tmp_path / "metric.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "metric_every": 2, "metric_photos": 2}))
+    out = tmp_path / "metric"
+    assert train(tiny_data, out, "--iters", "4", "--config", str(config)) == 0
+    measured = [r for r in metrics(out) if "metric_swd" in r]
+    assert [r["iteration"] for r in measured] == [2, 4]
+    assert all(np.isfinite(r["metric_swd"]) and r["metric_swd"] > 0 and np.isfinite(r["metric_diversity"]) for r in measured)
+    best = min(measured, key=lambda r: r["metric_swd"])
+    assert [r["best"] for r in measured] == [True, measured[1]["metric_swd"] < measured[0]["metric_swd"]]
+    generator, meta = load_generator(out / "best.safetensors", torch.device("cpu"))
+    assert meta["iteration"] == best["iteration"] and meta["metric"]["swd"] == best["metric_swd"]
+    _, state = load_checkpoint(out / "checkpoint.safetensors", kind="gan")
+    assert state["best"] == meta["metric"]
+    # Holding out every photo leaves none to train on.
+    config.write_text(yaml.safe_dump({**TINY, "metric_every": 2, "metric_photos": 6}))
+    capsys.readouterr()
+    assert train(tiny_data, tmp_path / "none", "--iters", "2", "--config", str(config)) == 2
+    assert "metric_photos 6" in capsys.readouterr().err and not (tmp_path / "none").exists()

@@ -102,3 +102,23 @@ def test_infer_refuses_to_replace_outputs_and_names_bad_input(nca_files, capsys)
     assert "bad.safetensors" in err and "Traceback" not in err
     assert main(args[:-2] + ["--graft", model, "--graft-mask", "import os", "--out", str(nca_files / "y"), "--device", "cpu"]) != 0
     assert "graft mask" in capsys.readouterr().err
+
+
+def test_a_run_starts_from_another_runs_checkpoint(nca_files, capsys):
+    """``--resume PATH`` into a new --out reaches the state of the source run continued in place; a snapshot-like inference model is refused."""
+    source, other = nca_files / "from_source", nca_files / "from_other"
+    assert train(nca_files, source, "--iters", "2") == 0
+    capsys.readouterr()
+    assert train(nca_files, other, "--iters", "4", "--resume", str(source / "checkpoint.safetensors")) == 0
+    assert f"{other} starts from" in capsys.readouterr().err
+    assert train(nca_files, source, "--iters", "4", "--resume") == 0
+    a, meta_a = load_checkpoint(source / "checkpoint.safetensors", kind="nca")
+    b, meta_b = load_checkpoint(other / "checkpoint.safetensors", kind="nca")
+    assert meta_a["iteration"] == meta_b["iteration"] == 4 and meta_a["lineage"] == meta_b["lineage"]
+    for name in a["model"]:
+        torch.testing.assert_close(a["model"][name], b["model"][name], rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(a["pool"]["states"], b["pool"]["states"], rtol=1e-5, atol=1e-6)
+    capsys.readouterr()
+    assert train(nca_files, nca_files / "from_model", "--resume", str(source / "model.safetensors")) == 2
+    assert "not a training checkpoint" in capsys.readouterr().err
+    assert not (nca_files / "from_model").exists()

@@ -163,3 +163,34 @@ def test_cached_views_are_rendered_again_when_the_data_settings_change(tiny_gan,
     assert not view_nets.load_or_render_views(run, shapes, cfg)["gan_textured"].any() and len(calls) == 3
     with np.load(run.root / "views.npz", allow_pickle=False) as cached:
         assert not cached["gan_textured"].any()
+
+
+@pytest.mark.parametrize("kind", ["pose", "noc"])
+def test_a_run_starts_from_another_runs_checkpoint(kind, shapes_dir, tmp_path, capsys):
+    """``--resume PATH`` into a new --out reaches the weights of the source run continued in place; another kind is refused."""
+    from mesh2tex.io.checkpoint import load_checkpoint
+
+    config = tmp_path / "c.yaml"
+    config.write_text("width: 8\nlog_every: 1\ndata:\n  views_per_material: 4\n")
+
+    def train(out, *extra):
+        return main(["train", kind, "--shapes", str(shapes_dir), "--out", str(out), "--config", str(config),
+                     "--samples", "12", "--resolution", "32", "--batch", "4", "--device", "cpu", *extra])
+
+    source, other = tmp_path / "source", tmp_path / "other"
+    assert train(source, "--iters", "2") == 0
+    capsys.readouterr()
+    assert train(other, "--iters", "4", "--resume", str(source / "checkpoint.safetensors")) == 0
+    assert f"{other} starts from" in capsys.readouterr().err
+    assert train(source, "--iters", "4", "--resume") == 0
+    a, _ = load_checkpoint(source / "checkpoint.safetensors", kind=kind)
+    b, meta = load_checkpoint(other / "checkpoint.safetensors", kind=kind)
+    assert meta["iteration"] == 4
+    assert [json.loads(line)["iteration"] for line in (other / "metrics.jsonl").read_text().splitlines()] == [3, 4]
+    for name, tensor in a["net"].items():
+        torch.testing.assert_close(tensor, b["net"][name], rtol=1e-5, atol=1e-6)
+    wrong = "noc" if kind == "pose" else "pose"
+    capsys.readouterr()
+    assert main(["train", wrong, "--shapes", str(shapes_dir), "--out", str(tmp_path / "wrong"), "--resume", str(source)]) == 2
+    assert f"this is a '{kind}' checkpoint, expected a '{wrong}' training checkpoint" in capsys.readouterr().err
+    assert not (tmp_path / "wrong").exists()

@@ -1,7 +1,7 @@
 """``mesh2tex train gan``: train the mesh-field texture GAN on prepared shapes and a folder of photos.
 
     mesh2tex train gan --shapes DIR --images DIR --out RUN [--config YAML] [--iters N] [--batch B]
-                       [--views K] [--resolution R] [--device auto|cpu|cuda] [--seed S] [--resume]
+                       [--views K] [--resolution R] [--device auto|cpu|cuda] [--seed S] [--resume [CHECKPOINT]]
 
 Each iteration: B shapes, K random views each (azimuth uniform, elevation in a range, camera
 jitter), one rasterization of the finest level shared by the phases; G main (+ path-length reg
@@ -28,6 +28,7 @@ from mesh2tex.io.images import images_to_uint8, read_image, save_png
 from mesh2tex.io.models import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, save_inference_checkpoint
 from mesh2tex.losses.augment import AdaptiveAugment, AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
+from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
@@ -72,6 +73,9 @@ class TrainGanConfig:
     sample_every: int = 500  # iterations between sample grids under RUN/samples (0: only at the end)
     checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
     snapshot_every: int = 0  # iterations between kept float16 EMA generators under RUN/snapshots (0: none)
+    keep_snapshots: int = 0  # snapshots kept under RUN/snapshots, the newest (0: all)
+    metric_every: int = 0  # iterations between the held-out metric (SWD, diversity) that picks RUN/best.safetensors (0: none)
+    metric_photos: int = 16  # photos held out of training for the metric, the last by name (only when metric_every > 0)
     sample_shapes: int = 4  # shapes in a sample grid
     generator: GeneratorConfig = field(default_factory=GeneratorConfig)
     discriminator: DiscriminatorConfig = field(default_factory=DiscriminatorConfig)
@@ -82,7 +86,7 @@ class TrainGanConfig:
     lighting: LightConfig = field(default_factory=LightConfig)  # fakes are shaded like photos, so the generator learns albedo
 
     def __post_init__(self):
-        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "sample_shapes": 1,
+        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0, "metric_every": 0, "metric_photos": 1, "sample_shapes": 1,
                                      "ema_rampup": 0}, positive=("ema_halflife_images",))
         if self.resolution >= 8:  # smaller ones are refused by build_config, naming --resolution
             self.discriminator.check_resolution(self.resolution)
@@ -168,6 +172,9 @@ class GanTrainer:
         self.loss = GanLoss(cfg.loss, self.d_field, self.d_proxy, autocast=autocast, augment=augment)
         self.ada = AdaptiveAugment(augment)
         self.images_per_step = cfg.batch * cfg.views * distributed.world_size
+        self.held_out, self.best = None, None  # the metric's photos; {"iteration", "swd", "diversity"} of RUN/best.safetensors
+        if cfg.metric_every:  # run() checks that some photos are left to train on
+            self.images, self.held_out = images[: -cfg.metric_photos], images[-cfg.metric_photos:]
         self.iteration = 0
         self.sample_batch = collate_shapes(shapes[: cfg.sample_shapes]).to(device)
         self.sample_z = torch.randn(self.sample_batch.num_shapes, gcfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed + 12345)).to(device)
@@ -182,29 +189,32 @@ class GanTrainer:
         rng_states = self.dist.gather_objects(runs.rng_to_state())
         if self.dist.is_main:
             meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
-                    GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator)}
+                    GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator), "best": self.best}
             runs.save_training_state(path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d},
                                      {GAN_LOSS: {**self.loss.state_dict(), **self.ada.state_dict()}}, meta, rng_states)
         self.dist.barrier()
 
-    def resume(self) -> None:
+    def resume(self, path: Path) -> None:
+        """Load the training state of ``path``: the run's own checkpoint (continuing it), or another
+        run's (this run starts from its networks, optimizers, loss and augmentation state and iteration)."""
         optimizers = {"g": self.opt_g, "d": self.opt_d}
-        groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, self.modules(), optimizers, self.device)
+        groups, meta = runs.load_training_state(path, KIND, self.modules(), optimizers, self.device)
         changed = runs.apply_learning_rates(optimizers, self.cfg.optim.learning_rates())  # the run's config.yaml rules, not the checkpoint
         if changed and self.dist.is_main:
             print(f"mesh2tex: note: resuming with the learning rates of {self.run.config_path}: {', '.join(changed)}", file=sys.stderr)
         if GAN_LOSS not in groups:
-            raise UserError(f"{self.run.checkpoint_path}: checkpoint has no '{GAN_LOSS}' state")
+            raise UserError(f"{path}: checkpoint has no '{GAN_LOSS}' state")
         self.loss.load_state_dict(groups[GAN_LOSS])
         self.ada.load_state_dict(groups[GAN_LOSS])
         self.iteration = int(meta["iteration"])
+        self.best = meta.get("best") if path == self.run.checkpoint_path else None  # another run's best is not in this one's folder
         states = meta["rng"]
         if len(states) == self.dist.world_size:
             runs.rng_from_state(states[self.dist.rank])
         else:  # another number of processes: fresh, distinct streams per process
             print(f"mesh2tex: note: the checkpoint was written by {len(states)} process(es), this run has {self.dist.world_size}; random streams restart", file=sys.stderr)
             runs.seed_everything(self.cfg.seed + 7919 * self.iteration + 1000003 * self.dist.rank)
-        if self.dist.is_main:
+        if self.dist.is_main and path == self.run.checkpoint_path:
             self.run.metrics.truncate_after("iteration", self.iteration)
 
     # ---------------------------------------------------------------------------------- steps
@@ -283,16 +293,57 @@ class GanTrainer:
         meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
                 "world_size": self.dist.world_size}
         save_inference_checkpoint(path, KIND, self.ema.state_dict(), meta)
+        if self.cfg.keep_snapshots:
+            for old in sorted(path.parent.glob("iter*.safetensors"))[: -self.cfg.keep_snapshots]:
+                old.unlink()
         return path
+
+    def turntable(self, k: int) -> torch.Tensor:
+        """(num_shapes * k, 4, 4) cameras: k azimuths around each sample shape."""
+        azimuth, elevation = turntable_angles(k)
+        n = self.sample_batch.num_shapes
+        return orbit_camera(azimuth.repeat(n), elevation.repeat(n), distance=self.cfg.camera.distance, fov=self.cfg.camera.fov).mvp.to(self.device)
+
+    @torch.no_grad()
+    def measure(self) -> dict[str, float]:
+        """The run's own metric, drawing no random numbers of the run: SWD x 1000 (lower is better) between
+        the objects of EMA renders (the sample shapes, 4 azimuths, 2 fixed latents, no noise) and of
+        the held-out photos, and diversity (higher is better), the mean Delta E between the two
+        latents' renders of each shape and view."""
+        b, k, res = self.sample_batch, 4, self.cfg.resolution
+        mvp = self.turntable(k)
+        z = torch.randn(2, b.num_shapes, self.cfg.generator.z_dim, generator=torch.Generator().manual_seed(self.cfg.seed + 54321))
+        renders = []
+        for latent in z.to(self.device):
+            out = render_field_views(self.ema, b, self.ema.mapping(latent), mvp, (res, res), torch.zeros(len(mvp), 3, device=self.device),
+                                     noise_mode="none")
+            renders.append(((out.images.float() + 1) / 2).clamp(0, 1).cpu())
+        mask = out.mask.float().cpu()
+        photos = self.held_out.float()
+        swd = object_set_swd(torch.cat(renders), mask.repeat(2, 1, 1, 1), photos[:, :3] / 255, (photos[:, 3:] > 127).float(), seed=self.cfg.seed)
+        pairs = []
+        for view in range(len(mvp)):
+            with contextlib.suppress(ValueError):  # a view without object pixels
+                pairs.append(mean_pairwise_delta_e(torch.stack([r[view] for r in renders]), mask[view]))
+        return {"metric_swd": round(swd, 4), "metric_diversity": round(sum(pairs) / len(pairs), 4) if pairs else float("nan")}
+
+    def keep_if_best(self, metric: dict[str, float]) -> bool:
+        """RUN/best.safetensors: the EMA generator (float16, like a snapshot) at the lowest SWD so far."""
+        swd = metric["metric_swd"]
+        if not np.isfinite(swd) or (self.best is not None and swd >= self.best["swd"]):
+            return False
+        self.best = {"iteration": self.iteration, "swd": swd, "diversity": metric["metric_diversity"]}
+        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
+                "world_size": self.dist.world_size, "metric": self.best}
+        save_inference_checkpoint(self.run.root / "best.safetensors", KIND, self.ema.state_dict(), meta)
+        return True
 
     @torch.no_grad()
     def write_samples(self) -> Path:
         """Grid of EMA renders: one row per sample shape, one column per view (white background)."""
         k = 4
         b = self.sample_batch
-        azimuth, elevation = turntable_angles(k)
-        mvp = orbit_camera(azimuth.repeat(b.num_shapes), elevation.repeat(b.num_shapes), distance=self.cfg.camera.distance,
-                           fov=self.cfg.camera.fov).mvp.to(self.device)
+        mvp = self.turntable(k)
         ws = self.ema.mapping(self.sample_z)
         res = self.cfg.resolution
         out = render_field_views(self.ema, b, ws, mvp, (res, res), torch.ones(b.num_shapes * k, 3, device=self.device), noise_mode="none")
@@ -321,7 +372,10 @@ class GanTrainer:
                     bar.update(1)
                     bar.set_postfix({k: f"{v:.3f}" for k, v in logs.items() if k.startswith("loss_g_field") or k.startswith("loss_d_field")})
                 it = self.iteration
-                if main and (it % cfg.log_every == 0 or it == cfg.iters):
+                if main and cfg.metric_every and (it % cfg.metric_every == 0 or it == cfg.iters):
+                    metric = self.measure()
+                    logs.update(metric, best=self.keep_if_best(metric))
+                if main and (it % cfg.log_every == 0 or it == cfg.iters or "best" in logs):
                     self.run.metrics.write({"iteration": it, **logs, **throughput.fields(it), "world_size": self.dist.world_size})
                 if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
                     self.save(self.run.checkpoint_path)
@@ -364,24 +418,25 @@ def run(args) -> int:
     distributed = runs.Distributed(cfg.device)
     try:
         device = runs.select_device(cfg.device)
+        run_dir = runs.RunDirectory(args.out)
+        source = runs.start_from(args.resume, run_dir, KIND, note=distributed.is_main)  # checked before the data is read
         shapes, _ = load_shapes(args.shapes)
         images = load_images(args.images, cfg.resolution)
+        if cfg.metric_every and len(images) <= cfg.metric_photos:
+            raise UserError(f"metric_photos {cfg.metric_photos}: the photo collection has {len(images)} photos, the metric holds out fewer "
+                            f"than that (or set metric_every: 0)")
         features = shapes[0].face_features.shape[1]
         if cfg.generator.input_features not in (0, features):
             raise UserError(f"generator.input_features is {cfg.generator.input_features} but the shapes in {args.shapes} have {features} face features")
         cfg.generator.input_features = features
-        run_dir = runs.RunDirectory(args.out)
-        resume = args.resume and run_dir.has_checkpoint()
-        if args.resume and not resume and distributed.is_main:
-            print(f"mesh2tex: note: {run_dir.checkpoint_path} not found; starting a new run", file=sys.stderr)
-        if distributed.is_main and not resume:
+        if distributed.is_main and source is None:
             run_dir.start(cfg, resume=False)
         distributed.barrier()
         trainer = GanTrainer(cfg, shapes, images, run_dir, device, distributed)
-        if resume:
-            trainer.resume()  # before config.yaml is rewritten: a checkpoint that cannot be resumed leaves the run as it was
+        if source is not None:
+            trainer.resume(source)  # before config.yaml is written: a checkpoint that cannot be loaded leaves --out as it was
             if distributed.is_main:
-                run_dir.start(cfg, resume=True)
+                run_dir.start(cfg, resume=source == run_dir.checkpoint_path)
             distributed.barrier()
         trainer.train()
         if distributed.is_main:

@@ -3,7 +3,7 @@
     mesh2tex train nca --exemplar IMG --out RUN [--mesh sphere|sphere:N|SHAPE.npz|MESH] [--iters N]
                        [--views K] [--resolution R] [--steps MIN,MAX] [--pool P] [--parent CKPT]
                        [--readout linear|lppn] [--vgg-weights PATH] [--config YAML] [--device]
-                       [--seed S] [--resume]
+                       [--seed S] [--resume [CHECKPOINT]]
 
 Each iteration: ``batch`` states drawn from a pool (every ``seed_every`` iterations the first is
 replaced by a fresh seed), a rollout of a random number of steps in [MIN, MAX] with gradients
@@ -231,18 +231,20 @@ class NCATrainer:
                                  {"pool": {"states": self.pool.cpu()}, "exemplar": {"image": self.exemplar_uint8()}},
                                  self.meta(), [runs.rng_to_state()])
 
-    def resume(self) -> None:
-        groups, meta = runs.load_training_state(self.run.checkpoint_path, KIND, {"model": self.model}, {"adam": self.optimizer}, self.device)
+    def resume(self, path: Path) -> None:
+        """Load the training state of ``path``: the run's own checkpoint, or another run's to start from."""
+        groups, meta = runs.load_training_state(path, KIND, {"model": self.model}, {"adam": self.optimizer}, self.device)
         pool = groups["pool"]["states"]
         if pool.shape != self.pool.shape:
-            raise UserError(f"{self.run.checkpoint_path}: its pool is {tuple(pool.shape)}, this config and mesh need {tuple(self.pool.shape)}")
+            raise UserError(f"{path}: its pool is {tuple(pool.shape)}, this config and mesh need {tuple(self.pool.shape)}")
         self.pool = pool.to(self.device)
         self.iteration = int(meta["iteration"])
         self.parent_record = meta.get("parent")
         self.lineage = meta.get("lineage", self.lineage)
         self.generator.set_state(torch.tensor(meta["generator_state"], dtype=torch.uint8))
         runs.rng_from_state(meta["rng"][0])
-        self.run.metrics.truncate_after("iteration", self.iteration)
+        if path == self.run.checkpoint_path:
+            self.run.metrics.truncate_after("iteration", self.iteration)
 
     @torch.no_grad()
     def write_samples(self) -> None:
@@ -309,21 +311,19 @@ def run(args) -> int:
     cfg = build_config(args)
     device = runs.select_device(cfg.device)
     run_dir = runs.RunDirectory(args.out)
-    resume = args.resume and run_dir.has_checkpoint()
-    if args.resume and not resume:
-        print(f"mesh2tex: note: {run_dir.checkpoint_path} not found; starting a new run", file=sys.stderr)
+    source = runs.start_from(args.resume, run_dir, KIND)  # checked before anything is written
     exemplar = load_exemplar(args.exemplar, cfg.exemplar_size)
     parent = None
-    if args.parent and not resume:
+    if args.parent and source is None:
         # A child takes its parent's automaton (sizes, perception, readout): that is what makes the two graftable.
         cfg.nca, parent = load_parent(args.parent)
     vertices, faces = load_surface(cfg.mesh)
     graph = build_cell_graph(vertices, faces, cfg.nca.neighbourhood)
     vgg = load_vgg19(args.vgg_weights, device=device)
-    run_dir.start(cfg, resume=resume)
     trainer = NCATrainer(cfg, exemplar, graph, run_dir, device, vgg, parent=parent, cell_spacing=mean_edge_length(vertices, faces))
-    if resume:
-        trainer.resume()
+    if source is not None:
+        trainer.resume(source)  # before config.yaml is written: a checkpoint that does not fit leaves --out as it was
+    run_dir.start(cfg, resume=source == run_dir.checkpoint_path)
     trainer.train()
     print(f"trained {trainer.iteration} iterations on {graph.num_cells} cells; checkpoint {run_dir.checkpoint_path}")
     return 0

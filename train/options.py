@@ -22,7 +22,16 @@ def gan(parser: argparse.ArgumentParser) -> None:
     config.add("--resolution", type=int, help="render resolution (power of two)")
     config.add("--device", choices=DEVICES, help="where to train")
     config.add("--seed", type=int, help="random seed")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    add_resume(parser, "gan")
+
+
+def add_resume(parser: argparse.ArgumentParser, kind: str, what: str = "the run") -> None:
+    """``--resume`` (continue the run in --out) or ``--resume CHECKPOINT`` (start the run in --out from
+    another run's training checkpoint of ``kind``)."""
+    parser.add_argument("--resume", nargs="?", const=True, default=False, metavar="CHECKPOINT",
+                        help=f"alone: continue {what} in --out from its last checkpoint; with a CHECKPOINT (another 'train {kind}' run's "
+                             f"checkpoint.safetensors, or its folder): start {what} in --out from that checkpoint's networks, optimizer "
+                             f"states and iteration, with --out's config (or --config and the flags)")
 
 
 def _view_network(parser: argparse.ArgumentParser, kind: str) -> None:
@@ -39,7 +48,7 @@ def _view_network(parser: argparse.ArgumentParser, kind: str) -> None:
                     "of the rendered views (default: none, procedural materials only)")
     config.add("--device", choices=DEVICES, help="where to train")
     config.add("--seed", type=int, help="random seed")
-    parser.add_argument("--resume", action="store_true", help=f"continue the {kind} run in --out from its last checkpoint")
+    add_resume(parser, kind, f"the {kind} run")
 
 
 def pose(parser: argparse.ArgumentParser) -> None:
@@ -65,4 +74,4 @@ def nca(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--vgg-weights", help="ImageNet VGG19 weights (default: $MESH2TEX_VGG_WEIGHTS, torch's cache, else random weights)")
     config.add("--device", choices=DEVICES, help="where to train")
     config.add("--seed", type=int, help="random seed")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
+    add_resume(parser, "nca")

@@ -1,4 +1,4 @@
-"""Run conventions shared by the trainers (gan, pose, noc).
+"""Run conventions shared by the trainers (gan, pose, noc, nca).
 
 A run directory ``RUN/`` holds:
     config.yaml                 the resolved config (every hyperparameter of the run)
@@ -7,10 +7,12 @@ A run directory ``RUN/`` holds:
     nonfinite.safetensors       only after a NaN/inf loss: the state at the failing iteration
     metrics.jsonl               one JSON object per logged iteration
     samples/                    images the trainer writes while it runs
+    snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators (keep_snapshots: the newest N)
 
 Checkpoints hold modules, optimizers (with their state), EMA copies, RNG states (torch, CUDA, numpy,
 Python; one set per process of a distributed run) and the iteration, so that ``--resume`` continues
-exactly where the run stopped. The pieces live in the library (:mod:`mesh2tex.runtime` for devices,
+exactly where the run stopped; ``--resume CHECKPOINT`` starts a new run from another run's
+(:func:`start_from`). The pieces live in the library (:mod:`mesh2tex.runtime` for devices,
 processes, RNG and EMA; :mod:`mesh2tex.io.checkpoint` for training states); this module keeps the
 run directory and the NaN guard, and names the library pieces for the trainers.
 """
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -30,14 +33,14 @@ from mesh2tex.config import save_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
-from mesh2tex.io.checkpoint import load_training_state, read_checkpoint_meta, save_training_state  # noqa: F401
+from mesh2tex.io.checkpoint import check_training_checkpoint, load_training_state, read_checkpoint_meta, save_training_state  # noqa: F401
 from mesh2tex.progress import JsonLines
 from mesh2tex.runtime import (Distributed, ema_beta, ema_update, make_ema, peak_memory_gb, rng_from_state,  # noqa: F401
                               rng_to_state, seed_everything, select_device)
 
 __all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "NonFiniteLoss", "RunDirectory", "apply_learning_rates", "check_finite", "dumps_config",
            "ema_beta", "ema_update", "load_training_state", "make_ema", "peak_memory_gb", "rng_from_state", "rng_to_state",
-           "save_training_state", "scalars", "seed_everything", "select_device"]
+           "save_training_state", "scalars", "seed_everything", "select_device", "start_from"]
 
 CHECKPOINT_NAME = "checkpoint.safetensors"
 NONFINITE_NAME = "nonfinite.safetensors"
@@ -69,6 +72,37 @@ class RunDirectory:
         if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again
             self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)
+
+
+def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bool = True) -> Path | None:
+    """The checkpoint a run starts from, checked before anything is written to ``run``.
+
+    ``--resume`` alone (``True``): the run's own checkpoint, which it continues (None, with a note,
+    when there is none yet). ``--resume PATH``: another run's training checkpoint of ``kind`` (a run
+    folder stands for its checkpoint), from which ``run``, which must not hold a run of its own,
+    starts; the header is checked here (kind, optimizer state) and a note names the source. Without
+    ``--resume``: None. ``note``: whether this process prints the notes (the main one of a run)."""
+    if not resume:
+        return None
+    if resume is not True:
+        path = Path(resume)
+        if path.is_dir() and (path / CHECKPOINT_NAME).is_file():
+            path = path / CHECKPOINT_NAME
+        if path.resolve() != run.checkpoint_path.resolve():
+            header = check_training_checkpoint(path, kind)
+            if run.has_checkpoint():
+                raise UserError(f"{run.root}: already holds a run ({CHECKPOINT_NAME}); --resume {path} starts a new run: choose another --out, "
+                                f"or pass --resume alone to continue this one")
+            if note:
+                print(f"mesh2tex: note: {run.root} starts from {path} (iteration {header['meta']['iteration']}) with this run's config "
+                      f"(its config.yaml, else --config and the flags), not the checkpoint's",
+                      file=sys.stderr)
+            return path
+    if run.has_checkpoint():
+        return run.checkpoint_path
+    if note:
+        print(f"mesh2tex: note: {run.checkpoint_path} not found; starting a new run", file=sys.stderr)
+    return None
 
 
 # ------------------------------------------------------------------------------------ NaN guard

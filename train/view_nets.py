@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -235,12 +234,13 @@ def build_view_config(args) -> ViewTrainConfig:
 def run_view_training(args, kind: str) -> int:
     cfg = build_view_config(args)
     device = runs.select_device(cfg.device)
-    shapes, _ = load_shapes(args.shapes)
     run = runs.RunDirectory(args.out)
-    resume = args.resume and run.has_checkpoint()
-    if args.resume and not resume:
-        print(f"mesh2tex: note: {run.checkpoint_path} not found; starting a new run", file=sys.stderr)
-    run.start(cfg, resume=resume)
+    source = runs.start_from(args.resume, run, kind)  # checked before anything is written
+    shapes, _ = load_shapes(args.shapes)
+    if source is not None and source != run.checkpoint_path:  # another run's: loaded once before --out is written, so a misfit leaves it as it was
+        probe = build_network(kind, cfg)
+        runs.load_training_state(source, kind, {VIEW_NET: probe}, {"opt": torch.optim.Adam(probe.parameters(), lr=cfg.lr)}, torch.device("cpu"))
+    run.start(cfg, resume=source == run.checkpoint_path)
     runs.seed_everything(cfg.seed)
     views = load_or_render_views(run, shapes, cfg)
 
@@ -250,8 +250,8 @@ def run_view_training(args, kind: str) -> int:
     net = build_network(kind, cfg).to(device)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     iteration = 0
-    if resume:
-        _, meta = runs.load_training_state(run.checkpoint_path, kind, {VIEW_NET: net}, {"opt": opt}, device)
+    if source is not None:
+        _, meta = runs.load_training_state(source, kind, {VIEW_NET: net}, {"opt": opt}, device)
         iteration = int(meta["iteration"])
         runs.rng_from_state(meta["rng"][0])
         run.metrics.truncate_after("iteration", iteration)

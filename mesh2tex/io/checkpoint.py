@@ -131,6 +131,25 @@ def load_checkpoint(path: str | os.PathLike, kind: str | None = None, map_locati
     return unflatten_state(flat), header["meta"]
 
 
+def check_training_checkpoint(path: str | os.PathLike, kind: str) -> dict[str, Any]:
+    """The header of a training checkpoint of ``kind`` (what :func:`save_training_state` writes), read
+    without loading its tensors; a one-line UserError naming ``path`` for another kind, an inference
+    checkpoint (a snapshot or shipped model: weights without optimizer state) or another format."""
+    header = read_checkpoint_meta(path)
+    if header["format"] != CHECKPOINT_FORMAT:
+        raise UserError(f"{path}: checkpoint format {header['format']} is not supported (expected {CHECKPOINT_FORMAT})")
+    if header["kind"] != kind:
+        raise UserError(f"{path}: this is a '{header['kind']}' checkpoint, expected a '{kind}' training checkpoint")
+    meta = header["meta"]
+    if not isinstance(meta.get("optimizers"), dict):
+        weights = f"{meta['dtype']} " if isinstance(meta.get("dtype"), str) else ""
+        raise UserError(f"{path}: an inference checkpoint ({weights}weights without optimizer state, such as a snapshot or a shipped model), "
+                        f"not a training checkpoint; a run starts only from another run's checkpoint.safetensors")
+    if not isinstance(meta.get("iteration"), int) or not isinstance(meta.get("rng"), list):
+        raise UserError(f"{path}: not a usable training state (no iteration or RNG states)")
+    return header
+
+
 # ------------------------------------------------------------------------------------- state codecs
 def optimizer_to_state(opt: torch.optim.Optimizer) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
     """Optimizer -> (tensors, JSON meta): per-parameter state tensors and the param groups."""

@@ -307,16 +307,21 @@ class GanTrainer:
     @torch.no_grad()
     def measure(self) -> dict[str, float]:
         """The run's own metric, drawing no random numbers of the run: SWD x 1000 (lower is better) between
-        the objects of EMA renders (the sample shapes, 4 azimuths, 2 fixed latents, no noise) and of
+        the objects of EMA renders (the sample shapes, 4 azimuths, 2 fixed latents, no noise, under fixed
+        lights of the run's light prior when it has one) and of
         the held-out photos, and diversity (higher is better), the mean Delta E between the two
         latents' renders of each shape and view."""
         b, k, res = self.sample_batch, 4, self.cfg.resolution
         mvp = self.turntable(k)
         z = torch.randn(2, b.num_shapes, self.cfg.generator.z_dim, generator=torch.Generator().manual_seed(self.cfg.seed + 54321))
+        lights = None
+        if self.cfg.lighting.enabled:  # lit like the photos, with lights fixed for the whole run
+            azimuth = turntable_angles(k)[0].repeat(b.num_shapes)
+            lights = random_lights(azimuth, self.cfg.lighting, torch.Generator().manual_seed(self.cfg.seed + 54322)).to(self.device)
         renders = []
         for latent in z.to(self.device):
             out = render_field_views(self.ema, b, self.ema.mapping(latent), mvp, (res, res), torch.zeros(len(mvp), 3, device=self.device),
-                                     noise_mode="none")
+                                     noise_mode="none", lights=lights)
             renders.append(((out.images.float() + 1) / 2).clamp(0, 1).cpu())
         mask = out.mask.float().cpu()
         photos = self.held_out.float()

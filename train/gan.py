@@ -86,8 +86,9 @@ class TrainGanConfig:
     lighting: LightConfig = field(default_factory=LightConfig)  # fakes are shaded like photos, so the generator learns albedo
 
     def __post_init__(self):
-        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0, "metric_every": 0, "metric_photos": 1, "sample_shapes": 1,
-                                     "ema_rampup": 0}, positive=("ema_halflife_images",))
+        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0,
+                                     "metric_every": 0, "metric_photos": 1, "sample_shapes": 1, "ema_rampup": 0},
+                     positive=("ema_halflife_images",))
         if self.resolution >= 8:  # smaller ones are refused by build_config, naming --resolution
             self.discriminator.check_resolution(self.resolution)
 

@@ -148,7 +148,7 @@ def test_pose_view_turns_the_light_with_the_camera():
     import math
 
     from infer.generation import pose_view
-    from mesh2tex.render.shading import light_direction
+    from mesh2tex.render import orbit_direction as light_direction
     from mesh2tex.synthetic.world import View
 
     light = light_direction(torch.tensor([100.0 + 40.0]), torch.tensor([50.0]))[0].tolist()

@@ -299,11 +299,14 @@ class GanTrainer:
                 old.unlink()
         return path
 
-    def turntable(self, k: int) -> torch.Tensor:
-        """(num_shapes * k, 4, 4) cameras: k azimuths around each sample shape."""
+    def turntable(self, k: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """k azimuths around each sample shape: (num_shapes * k, 4, 4) cameras on the device and their
+        (num_shapes * k,) azimuths in degrees (CPU)."""
         azimuth, elevation = turntable_angles(k)
         n = self.sample_batch.num_shapes
-        return orbit_camera(azimuth.repeat(n), elevation.repeat(n), distance=self.cfg.camera.distance, fov=self.cfg.camera.fov).mvp.to(self.device)
+        azimuth, elevation = azimuth.repeat(n), elevation.repeat(n)
+        mvp = orbit_camera(azimuth, elevation, distance=self.cfg.camera.distance, fov=self.cfg.camera.fov).mvp.to(self.device)
+        return mvp, azimuth
 
     @torch.no_grad()
     def measure(self) -> dict[str, float]:
@@ -313,11 +316,10 @@ class GanTrainer:
         the held-out photos, and diversity (higher is better), the mean Delta E between the two
         latents' renders of each shape and view."""
         b, k, res = self.sample_batch, 4, self.cfg.resolution
-        mvp = self.turntable(k)
+        mvp, azimuth = self.turntable(k)
         z = torch.randn(2, b.num_shapes, self.cfg.generator.z_dim, generator=torch.Generator().manual_seed(self.cfg.seed + 54321))
         lights = None
         if self.cfg.lighting.enabled:  # lit like the photos, with lights fixed for the whole run
-            azimuth = turntable_angles(k)[0].repeat(b.num_shapes)
             lights = random_lights(azimuth, self.cfg.lighting, torch.Generator().manual_seed(self.cfg.seed + 54322)).to(self.device)
         renders = []
         for latent in z.to(self.device):
@@ -349,7 +351,7 @@ class GanTrainer:
         """Grid of EMA renders: one row per sample shape, one column per view (white background)."""
         k = 4
         b = self.sample_batch
-        mvp = self.turntable(k)
+        mvp, _ = self.turntable(k)
         ws = self.ema.mapping(self.sample_z)
         res = self.cfg.resolution
         out = render_field_views(self.ema, b, ws, mvp, (res, res), torch.ones(b.num_shapes * k, 3, device=self.device), noise_mode="none")

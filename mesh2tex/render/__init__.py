@@ -10,7 +10,7 @@ Four primitives in the spirit of nvdiffrast, composed by the caller::
 Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in docs/rendering.md.
 """
 
-from .cameras import Camera, CameraConfig, orbit_camera, perspective, transform_points, turntable_angles
+from .cameras import Camera, CameraConfig, orbit_camera, orbit_direction, perspective, transform_points, turntable_angles
 from .crop import crop_mask, crop_square, object_box
 from .interpolate import face_attribute, interpolate, texture
 from .rasterize import Raster, pixel_centers, rasterize
@@ -47,6 +47,7 @@ __all__ = [
     "interpolate",
     "object_box",
     "orbit_camera",
+    "orbit_direction",
     "perspective",
     "pixel_centers",
     "rasterize",

@@ -101,6 +101,13 @@ def perspective(fov, near=DEFAULT_NEAR, far=DEFAULT_FAR, aspect=1.0, device=None
     return proj
 
 
+def orbit_direction(azimuth: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:
+    """Unit vectors (B, 3) from the origin towards ``azimuth``/``elevation`` (B,) degrees: an orbit
+    camera's eye direction, and the direction of a light placed the same way."""
+    az, el = torch.deg2rad(azimuth), torch.deg2rad(elevation)
+    return torch.stack([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()], dim=-1)
+
+
 def orbit_camera(
     azimuth,
     elevation,
@@ -124,13 +131,13 @@ def orbit_camera(
         of ``azimuth`` when it is a tensor (else CPU). Scalars broadcast against (B,) tensors.
     """
     device = next((t.device for t in (azimuth, elevation, distance, fov) if torch.is_tensor(t)), None)
-    az = torch.deg2rad(_as_batch(azimuth, device))
-    el = torch.deg2rad(_as_batch(elevation, device))
+    az_deg, el_deg = _as_batch(azimuth, device), _as_batch(elevation, device)
     dist = _as_batch(distance, device)
-    B = max(az.numel(), el.numel(), dist.numel(), _as_batch(fov, device).numel())
-    az, el, dist = az.expand(B), el.expand(B), dist.expand(B)
+    B = max(az_deg.numel(), el_deg.numel(), dist.numel(), _as_batch(fov, device).numel())
+    az_deg, el_deg, dist = az_deg.expand(B), el_deg.expand(B), dist.expand(B)
+    az = torch.deg2rad(az_deg)
 
-    back = torch.stack([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()], dim=-1)  # eye +z axis
+    back = orbit_direction(az_deg, el_deg)  # eye +z axis
     position = dist[:, None] * back
     right = torch.stack([az.cos(), torch.zeros_like(az), -az.sin()], dim=-1)
     up = torch.linalg.cross(back, right)

@@ -11,6 +11,7 @@ import torch
 
 from mesh2tex.config import check_fields
 
+from .cameras import orbit_direction
 from .interpolate import face_attribute, interpolate
 from .rasterize import Raster
 
@@ -140,12 +141,6 @@ class Lights:
         return Lights(self.direction.to(device), self.ambient.to(device))
 
 
-def light_direction(azimuth: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:
-    """Unit directions (N, 3) at ``azimuth``/``elevation`` (N,) degrees, the orbit camera's convention."""
-    az, el = torch.deg2rad(azimuth.float()), torch.deg2rad(elevation.float())
-    return torch.stack([torch.cos(el) * torch.sin(az), torch.sin(el), torch.cos(el) * torch.cos(az)], dim=1)
-
-
 def random_lights(camera_azimuth: torch.Tensor, cfg: LightConfig, generator: torch.Generator | None = None) -> Lights:
     """Lights drawn from ``cfg``'s prior for cameras at ``camera_azimuth`` (N,) degrees."""
     n = camera_azimuth.shape[0]
@@ -153,7 +148,7 @@ def random_lights(camera_azimuth: torch.Tensor, cfg: LightConfig, generator: tor
     azimuth = camera_azimuth.float() + (u[:, 0] * 2 - 1) * cfg.azimuth_spread
     elevation = cfg.elevation_min + u[:, 1] * (cfg.elevation_max - cfg.elevation_min)
     ambient = cfg.ambient_min + u[:, 2] * (cfg.ambient_max - cfg.ambient_min)
-    return Lights(light_direction(azimuth, elevation), ambient)
+    return Lights(orbit_direction(azimuth, elevation), ambient)
 
 
 def shade_colors(colors: torch.Tensor, normals: torch.Tensor, direction: torch.Tensor, ambient: torch.Tensor) -> torch.Tensor:

@@ -23,6 +23,7 @@ import torch
 
 from mesh2tex.geometry.features import noc_coordinates
 from mesh2tex.render import (
+    LightConfig,
     composite,
     dilate_texture,
     face_attribute,
@@ -42,6 +43,8 @@ from mesh2tex.synthetic.shapes import CATEGORIES, SyntheticShape, generate_shape
 # Random streams of one shape (the last entry of the rng seed sequence).
 _SHAPE, _MATERIAL, _PHOTOS, _QUERIES = 0, 1, 2, 3
 BACKGROUND_KINDS = ("solid", "gradient", "noise", "photo")
+# The photos' lights; the GAN's light prior (LightConfig's defaults) is the same distribution.
+PHOTO_LIGHTS = LightConfig()
 _BACKGROUND_PHOTOS = ("coffee", "rocket", "hubble_deep_field", "immunohistochemistry", "brick", "grass", "gravel")
 
 
@@ -118,12 +121,12 @@ def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -
         elevation = float(rng.uniform(spec.elevation_min, spec.elevation_max))
         distance = float(rng.uniform(spec.distance_min, spec.distance_max))
         # Light from the camera's side and above, never from behind the object: mild, readable shading.
-        az = math.radians(azimuth + rng.uniform(-70, 70))
-        el = math.radians(rng.uniform(20, 75))
+        az = math.radians(azimuth + rng.uniform(-PHOTO_LIGHTS.azimuth_spread, PHOTO_LIGHTS.azimuth_spread))
+        el = math.radians(rng.uniform(PHOTO_LIGHTS.elevation_min, PHOTO_LIGHTS.elevation_max))
         light = (math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az))
         views.append(View(
             azimuth=round(azimuth, 4), elevation=round(elevation, 4), distance=round(distance, 4), fov=spec.fov,
-            light=tuple(round(v, 5) for v in light), ambient=round(float(rng.uniform(0.35, 0.6)), 4),
+            light=tuple(round(v, 5) for v in light), ambient=round(float(rng.uniform(PHOTO_LIGHTS.ambient_min, PHOTO_LIGHTS.ambient_max)), 4),
             background=BACKGROUND_KINDS[int(rng.integers(len(BACKGROUND_KINDS)))],
             background_seed=int(rng.integers(1 << 31)),
         ))

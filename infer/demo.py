@@ -228,7 +228,7 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     shape = load_shape(report["mesh"], generator, report["settings"].get("faces", 6144), report["settings"].get("seed", 0))
     batch = collate_shapes([shape])
     ws = mean_latent(generator)
-    renders["mean_texture"] = render(generator_surface(generator, generator.synthesize(batch, ws, noise_mode="none").field_features, batch))
+    renders["mean_texture"] = render(generator_surface(generator, generator.synthesize(batch, ws, noise_mode="none"), batch))
     pose = report["pose"]
     try:
         renders["backprojection"] = render(backproject_photo(vertices, faces, truth.photo[0], truth.photo_mask[0, 0], pose["azimuth"],

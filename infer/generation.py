@@ -15,6 +15,11 @@ cameras and the same white background for every row:
                   shapes its colours cover the distribution less well than a draw per view, so a
                   generator can beat it on set metrics (a trained car GAN did, on the object SWD):
                   it is shown, the gap is measured to the oracle
+    flat colour   a simple baseline: the photo set's mean object colour on every pixel of the
+                  generator's silhouettes (what a model that learnt one average colour would score)
+    mean texture  the trained generator's mean texture (``w_avg`` in every style input, lit as the
+                  trained row): what the GAN paints without a latent; a trained row no better than
+                  it has not learnt to use its latent
 
 each against the world's photo set (``images/``): the **object SWD** (x1000: patches of object pixels
 only, pooled per set, :func:`mesh2tex.metrics.generation.object_set_swd`), the whole-image SWD, KID
@@ -56,7 +61,7 @@ from mesh2tex.evaluation.world import load_world, world_spec
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.image_sets import list_images, load_set
 from mesh2tex.io.images import colors_to_uint8, save_png
-from mesh2tex.io.models import load_generator
+from mesh2tex.io.models import load_generator, trained_lit
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
@@ -66,9 +71,9 @@ from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.render import Lights, composite_images, orbit_camera
 from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views
-from mesh2tex.texture import shape_mismatch
+from mesh2tex.texture import mean_latent, shape_mismatch
 
-ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth")
+ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "flat_colour", "mean_texture")
 LIGHTING_MODES = ("auto", "lit", "unlit")
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 _ORACLE_STREAM = 7927  # seeds the oracle's material draws
@@ -153,26 +158,21 @@ def pose_view(view, azimuth: float, elevation: float, distance: float):
     return dataclasses.replace(view, azimuth=azimuth, elevation=elevation, distance=distance, light=tuple(round(v, 6) for v in light))
 
 
-def trained_lit(meta: dict) -> bool:
-    """Whether a GAN checkpoint's run shaded its renders (``lighting.enabled``); runs from before the
-    light prior have no ``lighting`` and were unlit."""
-    return bool(meta.get("config", {}).get("lighting", {}).get("enabled", False))
-
-
 def view_lights(views) -> Lights:
     """The lights of world View records: directions (B, 3) and ambient shares (B,)."""
     return Lights(torch.tensor([v.light for v in views], dtype=torch.float32), torch.tensor([v.ambient for v in views], dtype=torch.float32))
 
 
-def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor,
-                      device: torch.device, lit: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
-    """One latent per view: z (B, z_dim), ``views`` B world View records (their cameras, and with
-    ``lit`` their lights) -> images (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R)."""
+def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor | None,
+                      device: torch.device, lit: bool = False, ws: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """One latent per view: z (B, z_dim), or style inputs ``ws`` (B, num_ws, w_dim) instead; ``views``
+    B world View records (their cameras, and with ``lit`` their lights) -> images (B, 3, R, R) in
+    [0, 1] on white, masks (B, 1, R, R)."""
     b = len(views)
     batch = collate_shapes([shape] * b).to(device)
     camera = orbit_camera(torch.tensor([v.azimuth for v in views]), torch.tensor([v.elevation for v in views]),
                           distance=torch.tensor([v.distance for v in views]), fov=torch.tensor([v.fov for v in views]))
-    ws = generator.mapping(z.to(device))
+    ws = generator.mapping(z.to(device)) if ws is None else ws.to(device)
     out = render_field_views(generator, batch, ws, camera.mvp.to(device), (resolution, resolution),
                              torch.ones(b, 3, device=device), noise_mode="none", lights=view_lights(views).to(device) if lit else None)
     return ((out.images.float() + 1) / 2).clamp(0, 1).cpu(), out.mask.float().cpu()
@@ -217,6 +217,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
 
     photos, photo_masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
     photo_names = list(list_images(world.root / "images", "image"))
+    photo_mean = (photos * photo_masks).sum(dim=(0, 2, 3)) / (photo_masks.sum() * 1.0).clamp_min(1.0)  # (3,) the mean object colour
     z_gen = torch.Generator().manual_seed(cfg.seed + 1)
     sets = {row: ([], []) for row in ROWS}
     diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
@@ -228,6 +229,12 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
             images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit)
             sets[row][0].append(images)
             sets[row][1].append(masks)
+        images, masks = generator_renders(trained, shapes[name], views, resolution, None, device, lit,
+                                          ws=mean_latent(trained).expand(len(views), -1, -1))
+        sets["mean_texture"][0].append(images)
+        sets["mean_texture"][1].append(masks)
+        sets["flat_colour"][0].append(composite_images(photo_mean.reshape(1, 3, 1, 1).expand_as(images), masks, 1.0))
+        sets["flat_colour"][1].append(masks)
         for row, oracle_lit in (("oracle", True), ("oracle_unlit", False)):
             images, masks = material_draws(world, name, views, resolution, cfg.seed, _ORACLE_STREAM, oracle_lit)
             sets[row][0].append(images)
@@ -308,8 +315,11 @@ def generation_markdown(result: dict) -> str:
              "| row | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
     for row in ROWS:
         values = [rows[row].get(n, float("nan")) for n in names]
+        if row not in rows:  # results from before the baseline rows
+            continue
         label = {"oracle": "oracle (world's sampler, a draw per view)", "oracle_unlit": "oracle, unlit",
-                 "ground_truth": "each shape's own ground truth"}.get(row, row)
+                 "ground_truth": "each shape's own ground truth", "flat_colour": "flat colour (the photo set's mean, baseline)",
+                 "mean_texture": "generator's mean texture (w_avg, baseline)"}.get(row, row)
         lines.append(f"| {label} | " + " | ".join(f"{v:.4g}" for v in values) + " |")
     d = result["diversity"]
     gap = result["gap_closed"]

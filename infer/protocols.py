@@ -80,10 +80,11 @@ from mesh2tex.io.checkpoint import checkpoint_digest
 from mesh2tex.io.image_sets import list_images, load_set
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.outputs import guard_outputs
-from mesh2tex.io.models import gan_camera, load_generator
+from mesh2tex.io.models import gan_camera, load_generator, trained_lit
 from mesh2tex.metrics import get_feature_extractor, to_unit
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.generator import FaceTexture
 from mesh2tex.nn.pose import azimuth_error
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
@@ -117,6 +118,7 @@ class ProtocolConfig:
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights for the style losses ('' looks in $TORCH_HOME)
     inception_weights: str = ""  # Inception-v3 weights for KID/FID ('' looks in $TORCH_HOME)
+    transfer: dict = field(default_factory=dict)  # further TransferConfig fields of every transfer (e.g. w_colour, light)
 
     def __post_init__(self):
         unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
@@ -132,13 +134,23 @@ class ProtocolConfig:
             raise UserError(f"--resolution {self.resolution}: must be at least 32")
         if self.latent_iters < 0 or self.refine_iters < 0:
             raise UserError("--latent-iters and --refine-iters must not be negative")
+        own = {"resolution", "latent_iters", "refine_iters", "patch_size", "scales", "patch_scales", "seed", "pose_search", "device",
+               "vgg_weights", "use_noc", "use_patches", "refine"}
+        wrong = sorted(set(self.transfer) - (set(TransferConfig.__dataclass_fields__) - own))
+        if wrong:
+            raise UserError(f"transfer: {', '.join(wrong)} cannot be set there (set the protocol's own field, or choose an ablation); "
+                            f"it takes other TransferConfig fields")
+        try:
+            self.transfer_config()
+        except ValueError as error:
+            raise UserError(f"transfer: {error}") from None
 
     def transfer_config(self, device: str = "auto") -> TransferConfig:
         """The settings of every transfer: :class:`TransferConfig`'s defaults with this config's resolution,
-        iterations, style sizes, pose search, seed and VGG weights (the ablations change it further)."""
+        iterations, style sizes, pose search, seed and VGG weights, then ``transfer`` (the ablations change it further)."""
         return TransferConfig(resolution=self.resolution, latent_iters=self.latent_iters, refine_iters=self.refine_iters,
                               patch_size=self.patch_size, scales=self.scales, patch_scales=self.patch_scales, seed=self.seed,
-                              pose_search=self.pose_search, device=device, vgg_weights=self.vgg_weights)
+                              pose_search=self.pose_search, device=device, vgg_weights=self.vgg_weights, **self.transfer)
 
     def evaluate_config(self) -> EvaluateConfig:
         """The settings of the unconditional protocol's set metrics."""
@@ -197,7 +209,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                           vgg, cfg: ProtocolConfig,
                           pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None,
                           distance: float, fov: float, device: torch.device, out: Path | None, log=print,
-                          cache: "TransferCache | None" = None) -> dict:
+                          cache: "TransferCache | None" = None, generator_lit: bool = False) -> dict:
     """One transfer protocol (``known_pose``, ``unknown_pose`` or ``other_shape``): the baselines of
     ``cfg.baselines`` and every ablation of ``cfg.ablations``, judged alike.
 
@@ -205,7 +217,8 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     the photo's view and ``cfg.unseen_views`` views it does not show, with the photo's light and
     background (``cfg.lighting``), against what the world photographs there (the query photo, then
     the world's own renders). ``shapes``: the prepared shapes by name; ``targets``: query shape ->
-    the shape ``other_shape`` textures; ``cache``: finished transfers are stored there and reused.
+    the shape ``other_shape`` textures; ``cache``: finished transfers are stored there and reused;
+    ``generator_lit``: the GAN was trained under the light prior (see ``TransferConfig.light``).
 
     Returns {"queries": [per-query setup], "methods": {name: {"query": mean scores, "per_query":
     [rows], "seconds": s}}}; scores are named "seen <metric>" and "unseen <metric>".
@@ -289,8 +302,8 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             elif name == "mean_texture":
                 with torch.no_grad():
                     ws = mean_latent(generator).to(device)
-                    features = generator.synthesize(batch.to(device), ws, noise_mode="none").field_features
-                rendered = render(generator_surface(generator, features, batch))
+                    texture = generator.synthesize(batch.to(device), ws, noise_mode="none")
+                rendered = render(generator_surface(generator, texture, batch))
             else:  # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
                 try:
                     surface = backproject_photo(vertices, triangles, truth.photo[0], truth.photo_mask[0, 0], azimuth, elevation,
@@ -308,19 +321,20 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                 raise UserError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
             cached = cache.load(protocol, ablation, query.name) if cache is not None else None
             if cached is not None:  # made by an earlier run into this folder with the same settings
-                features, row = cached
+                texture, row = cached
             else:
                 torch.manual_seed(cfg.seed)
                 candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
                 result = transfer.transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
-                                          show_progress=False)
+                                                   show_progress=False, generator_lit=generator_lit)
                 with torch.no_grad():
-                    features = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none").field_features.cpu()
-                row = {"loss_last": {k: v[-1] for k, v in result.losses.items() if v}, "seconds": round(sum(result.seconds.values()), 2)}
+                    texture = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none")
+                row = {"loss_last": {k: v[-1] for k, v in result.losses.items() if v}, "seconds": round(sum(result.seconds.values()), 2),
+                       **({"light": result.light} if result.light is not None else {})}
                 if cache is not None:
-                    cache.save(protocol, ablation, query.name, features, row)
-            # Stage 2 refines synthesis blocks only: psi is the original's, so the face features are the whole result.
-            keep(ablation, render(generator_surface(generator, features, batch)), dict(row))
+                    cache.save(protocol, ablation, query.name, texture, row)
+            # Stage 2 refines synthesis blocks only: psi is the original's, so the synthesis output is the whole result.
+            keep(ablation, render(generator_surface(generator, texture, batch)), dict(row))
     for entry in methods.values():
         entry["query"] = mean_scores(entry["per_query"])
         entry["seconds"] = round(entry["seconds"], 2)
@@ -340,7 +354,8 @@ class TransferCache:
     and a run with more queries or ablations redoes none of the transfers already made.
 
     ``DIR/transfers/<protocol>/<ablation>/<query>.npz`` holds the result of one transfer, the
-    generator's face features [F_0, C] (float32; with the unchanged psi they are the whole texture, so
+    synthesis output: face features [F_0, C] and face colours [F_0, 3] (float32; with the unchanged
+    psi they are the whole texture, so
     the evaluation can be redone with other metrics, views or lighting without redoing the transfer),
     and its row (JSON: last losses, seconds); ``DIR/transfers/settings.json`` what they were made
     with: every setting that changes a transfer (not the choice of protocols, ablations or number of
@@ -365,20 +380,22 @@ class TransferCache:
     def _path(self, protocol: str, ablation: str, query: str) -> Path:
         return self.root / protocol / ablation / f"{query}.npz"
 
-    def load(self, protocol: str, ablation: str, query: str) -> tuple[torch.Tensor, dict] | None:
-        """(face features [F_0, C], row) of a finished transfer, or None (also for a file of an older
-        layout, which kept only a render: that transfer is made again)."""
+    def load(self, protocol: str, ablation: str, query: str) -> tuple[FaceTexture, dict] | None:
+        """(the synthesis output, row) of a finished transfer, or None (also for a file of an older
+        layout, which kept only a render or only the face features: that transfer is made again)."""
         path = self._path(protocol, ablation, query)
         if not path.is_file():
             return None
         with np.load(path, allow_pickle=False) as data:
-            if "field_features" not in data:
+            if "field_features" not in data or "face_rgb" not in data:
                 return None
-            return torch.from_numpy(data["field_features"]), json.loads(str(data["row"]))
+            texture = FaceTexture(field_features=torch.from_numpy(data["field_features"]), face_rgb=torch.from_numpy(data["face_rgb"]))
+            return texture, json.loads(str(data["row"]))
 
-    def save(self, protocol: str, ablation: str, query: str, field_features: torch.Tensor, row: dict) -> None:
+    def save(self, protocol: str, ablation: str, query: str, texture: FaceTexture, row: dict) -> None:
         with atomic_path(self._path(protocol, ablation, query)) as tmp:
-            np.savez(tmp, field_features=field_features.detach().float().cpu().numpy(), row=np.array(json.dumps(row)))
+            np.savez(tmp, field_features=texture.field_features.detach().float().cpu().numpy(),
+                     face_rgb=texture.face_rgb.detach().float().cpu().numpy(), row=np.array(json.dumps(row)))
 
 
 # ------------------------------------------------------------------------------------------- entry
@@ -430,9 +447,12 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         selection = ("protocols", "ablations", "queries", "baselines", "lighting", "unseen_views", "lowpass_sigma")
         settings = {k: v for k, v in asdict(cfg).items() if k not in selection}
         # Settings that do what the runs before these fields did are left out: their folders still match.
-        for key, default in (("patch_scales", 0), ("pose_search", False)):
+        for key, default in (("patch_scales", 0), ("pose_search", False), ("transfer", {})):
             if settings[key] == default:
                 del settings[key]
+        # Every transfer's resolved settings, so that a changed TransferConfig default never reuses old transfers.
+        settings["transfer_config"] = {k: v for k, v in asdict(cfg.transfer_config()).items() if k != "device"}
+        settings["generator_lit"] = trained_lit(meta)
         cache = TransferCache(out, {"settings": json_ready(settings), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
@@ -446,7 +466,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
             entry = run_unconditional(generator, world, shapes, cfg, extractor, eval_cfg, distance, fov, device, out)
         else:
             entry = run_transfer_protocol(protocol, generator, world, shapes, targets, vgg, cfg, pose_checkpoint,
-                                          noc_checkpoint, distance, fov, device, out, log, cache)
+                                          noc_checkpoint, distance, fov, device, out, log, cache, generator_lit=trained_lit(meta))
             result["comparison"][protocol] = compare_to_full(entry["methods"])
             entry["oracle_loses"] = oracle_check(entry["methods"])
             entry["against_flat_colour"] = flat_colour_targets(entry["methods"])

@@ -41,7 +41,7 @@ from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.images import colors_to_uint8, images_to_uint8, save_png
-from mesh2tex.io.models import gan_camera, is_model_name, load_generator
+from mesh2tex.io.models import gan_camera, is_model_name, load_generator, trained_lit
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
@@ -167,7 +167,7 @@ def run(args) -> int:
     seconds["pose_and_noc"] = round(time.perf_counter() - t, 2)
 
     vgg = load_vgg19(cfg.vgg_weights or None, device=device)
-    result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device)
+    result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, generator_lit=trained_lit(meta))
     seconds.update({f"stage_{k}": v for k, v in result.seconds.items()})
 
     t = time.perf_counter()
@@ -184,6 +184,7 @@ def run(args) -> int:
                  **({"network": list(estimate.network), "silhouette_iou": estimate.silhouette_iou,
                      "network_silhouette_iou": estimate.network_silhouette_iou} if estimate.silhouette_iou is not None else {})},
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
+        "light": result.light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders
         "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in result.losses.items()},
         "seconds": seconds,
         "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},

@@ -175,3 +175,31 @@ def test_glb_round_trip_keeps_face_order_and_texture(tmp_path):
     (tmp_path / "bad.glb").write_bytes(b"not a glb")
     with pytest.raises(ValueError, match="bad.glb"):
         load_glb(tmp_path / "bad.glb")
+
+
+def test_a_generator_texture_is_judged_as_the_generator_paints_it(tiny_gan):
+    """The surface the protocols score for a GAN texture (a transfer, the mean texture) has the colours
+    the generator's own renderer paints: psi's output and the per-face colours it is added to."""
+    from mesh2tex.evaluation import generator_surface
+    from mesh2tex.evaluation.surfaces import SurfacePoints
+    from mesh2tex.geometry.prepared import PreparedShape
+    from mesh2tex.io.models import load_generator
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
+    from mesh2tex.render import orbit_camera
+
+    generator, _ = load_generator(tiny_gan / "run" / "checkpoint.safetensors", torch.device("cpu"))
+    batch = collate_shapes([PreparedShape.load(tiny_gan / "shapes" / "box0.npz")])
+    torch.manual_seed(0)
+    texture = generator.synthesize(batch, generator.mapping(torch.randn(1, generator.cfg.z_dim)), noise_mode="none")
+    texture.face_rgb += torch.linspace(-0.5, 0.5, texture.face_rgb.shape[0])[:, None]  # per-face colours that matter
+    mvp = orbit_camera(torch.tensor([30.0]), torch.tensor([20.0]), distance=2.5).mvp
+    painted = render_field_views(generator, batch, None, mvp, (32, 32), torch.ones(1, 3), texture=texture, noise_mode="none")
+    samples = rasterize_batch(batch, mvp, (32, 32))
+    covered = samples.mask.reshape(-1)
+    points = SurfacePoints(face=samples.triangle_id.reshape(-1)[covered], bary=samples.bary.reshape(-1, 3)[covered],
+                           points=torch.zeros(int(covered.sum()), 3), normals=torch.zeros(int(covered.sum()), 3))
+    judged = generator_surface(generator, texture, batch).colour(points)  # [P, 3] in [0, 1]
+    expected = ((painted.images.permute(0, 2, 3, 1).reshape(-1, 3)[covered] + 1) * 0.5).clamp(0, 1)
+    assert covered.sum() > 50
+    assert torch.allclose(judged, expected.float(), atol=1e-5)

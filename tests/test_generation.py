@@ -65,7 +65,9 @@ def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors", cfg,
                                      samples_path=tmp_path / "grid.png", log=lambda line: None)
     rows = result["rows"]
-    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth"}
+    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "flat_colour", "mean_texture"}
+    # The oracle's textures also beat the simple baseline, one flat colour (the photo set's mean).
+    assert rows["oracle"]["object_swd"] < rows["flat_colour"]["object_swd"]
     # The oracle is fresh photos of the held-out shapes with textures from the world's sampler: it must
     # beat a generator that has not learnt.
     assert rows["oracle"]["object_swd"] < rows["untrained"]["object_swd"]

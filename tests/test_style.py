@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from mesh2tex.errors import UserError
-from mesh2tex.losses.style import (crop_patches, global_style_loss, masked_gram, nearest_noc_pixels, patch_style_loss,
+from mesh2tex.losses.style import (crop_patches, global_style_loss, lowpass_colour_loss, masked_gram, nearest_noc_pixels, patch_style_loss,
                                    sample_patch_pairs, style_grams)
 from mesh2tex.nn.vgg import VGG19_FILE_NAME, VGG19Features, load_vgg19
 
@@ -154,3 +154,27 @@ def test_patch_style_loss_zero_for_matching_patches_and_differentiable(vgg):
     assert loss.item() > 0
     loss.backward()
     assert render.grad.abs().sum() > 0
+
+
+def test_lowpass_colour_loss_pins_colours_where_both_show_the_object_and_nowhere_else():
+    mask = _disk_mask()
+    photo = torch.zeros(1, 3, 64, 64)
+    photo[:, 0] = 0.5
+    assert lowpass_colour_loss(photo.clone(), mask, photo, mask, sigma=2.0) == 0
+    # Colours outside either mask (background, or object pixels the photo does not show) do not count.
+    elsewhere = photo.clone()
+    elsewhere[..., :, :8] = -1.0
+    assert lowpass_colour_loss(elsewhere, mask, photo, mask, sigma=2.0) == 0
+    half = mask.clone()
+    half[..., 32:, :] = 0
+    other_half = photo.clone()
+    other_half[..., 40:, :] = 1.0  # wrong, but where the photo does not show the object, beyond the blur's reach (3 sigma)
+    assert lowpass_colour_loss(other_half, mask, photo, half, sigma=2.0) == 0
+    # A wrong colour on the object is the loss, in [-1, 1] units per channel; the gradient reaches it.
+    render = torch.zeros(1, 3, 64, 64, requires_grad=True)
+    loss = lowpass_colour_loss(render, mask, photo, mask, sigma=2.0)
+    assert loss.item() == pytest.approx(0.5 / 3, rel=1e-5)
+    loss.backward()
+    assert render.grad[0, 0].abs().sum() > 0 and render.grad[0, 1].abs().sum() == 0
+    with pytest.raises(ValueError, match="render is"):
+        lowpass_colour_loss(render, mask, photo[..., :32, :32], mask[..., :32, :32], sigma=2.0)

@@ -125,3 +125,31 @@ def test_style_and_pose_search_settings_are_checked_before_any_work(setup, tmp_p
     assert main(transfer_args(setup, tmp_path / "bad", "--config", str(small))) == 2
     assert "pose_search_step 0" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_lit_generator_learns_the_photos_light_and_the_colour_loss_joins_both_stages(setup, tmp_path):
+    config = tmp_path / "transfer.yaml"
+    config.write_text("w_colour: 2.0\n")
+    out = tmp_path / "out"
+    assert main(transfer_args(setup, out, "--config", str(config))) == 0
+    report = json.loads((out / "report.json").read_text())
+    # The tiny GAN was trained under the light prior (the default), so 'auto' learns a light.
+    assert report["settings"]["light"] == "auto" and set(report["light"]) == {"azimuth_offset", "elevation", "ambient"}
+    assert 0.0 < report["light"]["ambient"] < 1.0
+    assert report["light"] != {"azimuth_offset": 0.0, "elevation": 47.5, "ambient": 0.475}, "the light moved from the prior's middle"
+    config.write_text("w_colour: 2.0\nlight: 'off'\n")
+    assert main(transfer_args(setup, tmp_path / "unlit", "--config", str(config))) == 0
+    assert json.loads((tmp_path / "unlit" / "report.json").read_text())["light"] is None
+
+
+def test_the_learnt_light_starts_at_the_prior_and_turns_with_the_camera():
+    import torch
+
+    from mesh2tex.render import LightConfig, orbit_direction
+    from mesh2tex.transfer.optimise import PhotoLight
+
+    prior = LightConfig()
+    light = PhotoLight(camera_azimuth=120.0, prior=prior).lights()
+    middle = 0.5 * (prior.elevation_min + prior.elevation_max)
+    assert torch.allclose(light.direction, orbit_direction(torch.tensor([120.0]), torch.tensor([middle])), atol=1e-6)
+    assert light.ambient.item() == pytest.approx(0.5 * (prior.ambient_min + prior.ambient_max))

@@ -123,19 +123,19 @@ def material_surface(vertices, faces, face_parts, material) -> Surface:
     return Surface(vertices, faces, colour, parts)
 
 
-def generator_surface(generator, field_features: torch.Tensor, batch, face_parts=None) -> Surface:
+def generator_surface(generator, texture, batch, face_parts=None) -> Surface:
     """psi of ``generator`` on shape 0 of ``batch`` (a ``MeshBatch`` of one prepared shape) with the
-    face features ``field_features`` [F_0, C] (``generator.synthesize(...).field_features``; the
-    transfer's refinement changes only the synthesis blocks, so these features are the whole result)."""
+    generator's output ``texture`` (a ``FaceTexture`` from ``generator.synthesize``: face features
+    [F_0, C] and per-face colours [F_0, 3], which psi's residual output is added to; the transfer's
+    refinement changes only the synthesis blocks, so these two are the whole result)."""
     from mesh2tex.nn.generator import FaceTexture
     from mesh2tex.nn.render_texture import field_colors
 
     if batch.num_shapes != 1:
         raise ValueError(f"generator_surface takes a batch of one shape, got {batch.num_shapes}")
     device = next(generator.parameters()).device
-    features = field_features.detach().to(device)
     faces = batch.shape_triangles(0).cpu()
-    face_texture = FaceTexture(field_features=features, face_rgb=torch.zeros(features.shape[0], 3, device=device))
+    face_texture = FaceTexture(field_features=texture.field_features.detach().to(device), face_rgb=texture.face_rgb.detach().to(device))
     on_device = batch.to(device)
 
     @torch.no_grad()

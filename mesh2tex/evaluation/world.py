@@ -108,7 +108,8 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
     raster = rasterize(transform_points(vertices, camera.mvp), torch.as_tensor(shape.triangles(0)), (side, side))
     mask = crop_mask(raster.face_id[0] >= 0, box, resolution)
-    return TransferView(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask)
+    return TransferView(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask,
+                        azimuth=float(query.azimuth), elevation=float(query.elevation))
 
 
 

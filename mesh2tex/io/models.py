@@ -124,6 +124,12 @@ def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[Textu
     return generator.to(device).eval().requires_grad_(False), meta
 
 
+def trained_lit(meta: dict) -> bool:
+    """Whether a GAN checkpoint's run shaded its renders (``lighting.enabled``); runs from before the
+    light prior have no ``lighting`` and were unlit."""
+    return bool(meta.get("config", {}).get("lighting", {}).get("enabled", False))
+
+
 def gan_camera(meta: dict) -> tuple[float, float]:
     """(distance, fov) of the camera a GAN was trained with, from its checkpoint's metadata
     (``config.camera``; :class:`mesh2tex.render.CameraConfig`'s defaults where it has none)."""

@@ -34,6 +34,7 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.errors import UserError
+from mesh2tex.metrics.appearance import masked_blur
 from mesh2tex.render.shading import composite_images
 
 Grams = list[list[torch.Tensor]]
@@ -209,3 +210,23 @@ def patch_style_loss(vgg, rendered: torch.Tensor, rendered_mask: torch.Tensor, p
     grams = style_grams(vgg, rendered_patches, rendered_masks.to(rendered_patches.dtype), scales)
     # gram_distance averages over the batch of patches; Equation 2 sums over them.
     return gram_distance(grams, target) * pairs.photo_centres.shape[0]
+
+
+def lowpass_colour_loss(rendered: torch.Tensor, rendered_mask: torch.Tensor, photo: torch.Tensor, photo_mask: torch.Tensor,
+                        sigma: float) -> torch.Tensor:
+    """Mean absolute difference of the two images' colours after a Gaussian blur of ``sigma`` pixels
+    of each one's own object pixels (:func:`mesh2tex.metrics.appearance.masked_blur`), over the pixels
+    both masks cover; scalar (0 when the masks do not overlap).
+
+    rendered [1, 3, H, W] in [-1, 1] with rendered_mask [1, 1, H, W]; photo and photo_mask alike, the
+    same size. The blur makes the loss forgive a pose a few pixels off and texture phase, while the
+    colour of each region still has to match: where the style losses (Gram matrices) leave colours
+    free to drift, this term pins them to the photo's. Differentiable w.r.t. ``rendered``.
+    """
+    if rendered.shape[-2:] != photo.shape[-2:]:
+        raise ValueError(f"lowpass_colour_loss: the render is {tuple(rendered.shape[-2:])}, the photo {tuple(photo.shape[-2:])}")
+    both = (rendered_mask * photo_mask).to(rendered.dtype)
+    a = masked_blur(rendered, rendered_mask, sigma).to(rendered.dtype)
+    with torch.no_grad():
+        b = masked_blur(photo, photo_mask, sigma).to(rendered.dtype)
+    return ((a - b).abs() * both).sum() / (both.sum() * rendered.shape[1]).clamp_min(1.0)

@@ -15,6 +15,9 @@ ABLATIONS = {
     "no_refine": {"refine": False},
 }
 
+LIGHT_MODES = ("auto", "learn", "off")
+
+
 @dataclass
 class TransferConfig:
     resolution: int = 128  # side of the photo crop and of the optimised renders
@@ -28,6 +31,9 @@ class TransferConfig:
     patches: int = 2  # patch pairs per iteration (paper: 2)
     patch_size: int = 32  # side of a patch in pixels (paper: 64; at 128 px crops 32 beats it, docs/protocols.md)
     patch_scales: int = 2  # resolution levels of the patch loss alone (0: ``scales``; 2 keeps 32 px patches at a 16 px coarsest level)
+    w_colour: float = 0.0  # weight of the low-pass colour loss: render against photo at the pose, both blurred, where both show the object (0: the paper's style losses alone)
+    colour_sigma: float = 0.03  # the colour loss's Gaussian blur, as a share of the crop side (0.03: 2 px at 64 px)
+    light: str = "auto"  # the photo's light in the renders: learn (a directional light and ambient optimised with the texture, which stays albedo), off (unlit renders), auto (learn when the generator was trained lit)
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
     use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
     refine: bool = True  # stage 2 (False: the "w/o surface features" ablation)
@@ -44,9 +50,11 @@ class TransferConfig:
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
 
     def __post_init__(self):
-        check_fields(self, positive=("lr",), at_least={"w_glob": 0, "w_patch": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1,
+        check_fields(self, positive=("lr",), at_least={"w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1,
                                                        "resolution": 16, "texture_size": 16, "patch_size": 1},
-                     between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8)})
+                     between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8), "colour_sigma": (0.0, 0.5)})
+        if self.light not in LIGHT_MODES:
+            raise ValueError(f"light {self.light!r}: must be one of {', '.join(LIGHT_MODES)}")
 
     @property
     def patch_levels(self) -> int:

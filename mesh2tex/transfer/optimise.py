@@ -3,6 +3,7 @@ style (Mesh2Tex Equation 2, NOC-guided patch pairs)."""
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -10,33 +11,75 @@ import torch
 
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.losses.style import global_style_loss, patch_style_loss, sample_patch_pairs, style_grams
+from mesh2tex.losses.style import global_style_loss, lowpass_colour_loss, patch_style_loss, sample_patch_pairs, style_grams
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import crop_square
+from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction
 from mesh2tex.texture import mean_latent
 from mesh2tex.transfer.config import TransferConfig
 from mesh2tex.transfer.photo import Photo, View
 
 
+class PhotoLight(torch.nn.Module):
+    """The photo's light as the renders learn it: one directional light, placed relative to the camera
+    (azimuth offset and elevation, degrees) as the light prior places it, and an ambient share.
+
+    It starts at the middle of :class:`mesh2tex.render.LightConfig`'s prior (a key light from the
+    camera's side and above). Optimised beside the texture, it takes up the photo's shading, so the
+    texture stays albedo: lit again by any light (the turntable, a GLB in Blender), it is not shaded twice.
+    """
+
+    def __init__(self, camera_azimuth: float, prior: LightConfig | None = None):
+        super().__init__()
+        prior = prior or LightConfig()
+        self.camera_azimuth = float(camera_azimuth)
+        # Angles in radians: with the texture's learning rate (1e-2 per step) a few hundred steps can
+        # turn the light anywhere, which degrees would not allow.
+        self.azimuth_offset = torch.nn.Parameter(torch.zeros(()))
+        self.elevation = torch.nn.Parameter(torch.tensor(math.radians(0.5 * (prior.elevation_min + prior.elevation_max))))
+        ambient = 0.5 * (prior.ambient_min + prior.ambient_max)
+        self.ambient_logit = torch.nn.Parameter(torch.logit(torch.tensor(ambient)))
+
+    def lights(self) -> Lights:
+        """One light (N = 1) for :func:`mesh2tex.nn.render_texture.render_field_views`."""
+        azimuth = torch.rad2deg(self.azimuth_offset) + self.camera_azimuth
+        elevation = torch.rad2deg(self.elevation).clamp(-89.0, 89.0)
+        direction = orbit_direction(azimuth.reshape(1), elevation.reshape(1))
+        return Lights(direction, torch.sigmoid(self.ambient_logit).reshape(1))
+
+    def describe(self) -> dict[str, float]:
+        """The light found, for reports: degrees relative to the camera, the ambient share."""
+        return {"azimuth_offset": round(math.degrees(float(self.azimuth_offset)), 2), "elevation": round(math.degrees(float(self.elevation)), 2),
+                "ambient": round(float(torch.sigmoid(self.ambient_logit)), 4)}
+
+
 @dataclass
 class TransferResult:
     ws: torch.Tensor  # (1, num_ws, w_dim) the optimised latent
-    render: torch.Tensor  # (1, 3, R, R) the final render at the pose, cropped, in [-1, 1]
+    render: torch.Tensor  # (1, 3, R, R) the final render at the pose, cropped, in [-1, 1] (lit by ``light`` when one was learnt)
     losses: dict[str, list[float]] = field(default_factory=dict)  # per stage, one value per iteration
     seconds: dict[str, float] = field(default_factory=dict)  # per stage
+    light: dict[str, float] | None = None  # the learnt light (PhotoLight.describe), None when the renders were unlit
+
+
+def learns_light(cfg: TransferConfig, generator_lit: bool) -> bool:
+    """Whether a transfer learns the photo's light: ``cfg.light`` 'learn', or 'auto' for a generator
+    trained under the light prior (its colours are albedo)."""
+    return cfg.light == "learn" or (cfg.light == "auto" and generator_lit)
 
 
 def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: Photo, view: View,
                      photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig, device: torch.device,
-                     show_progress: bool = True) -> TransferResult:
+                     show_progress: bool = True, generator_lit: bool = False) -> TransferResult:
     """Optimise the texture of ``shape`` to look like ``photo`` (Equation 2, then refinement).
 
     ``generator`` is modified in place by stage 2 (its last ``refine_blocks`` synthesis blocks):
     pass a copy if the original is needed again. ``photo_noc`` (R,R,3) is needed when
-    ``cfg.use_noc`` and ``cfg.use_patches``.
+    ``cfg.use_noc`` and ``cfg.use_patches``. ``generator_lit``: the generator was trained under the
+    light prior (:func:`mesh2tex.io.models.trained_lit`), which ``cfg.light`` 'auto' follows.
+    With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose.
     """
     guided = cfg.use_noc and cfg.use_patches
     if guided and photo_noc is None:
@@ -53,10 +96,13 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         photo_grams = style_grams(vgg, photo_image, photo_mask, cfg.scales)
     grey = torch.zeros(1, 3, device=device)
     pick = torch.Generator().manual_seed(cfg.seed)
+    light = PhotoLight(view.azimuth).to(device) if learns_light(cfg, generator_lit) else None
+    colour_sigma = cfg.colour_sigma * cfg.resolution
 
     def render(ws: torch.Tensor) -> torch.Tensor:
         full = render_field_views(generator, batch, ws, view.mvp.to(device), (view.render_size,) * 2, grey,
-                                  encoded=encoded, noise_mode="none", samples=samples).images
+                                  encoded=encoded, noise_mode="none", samples=samples,
+                                  lights=light.lights() if light is not None else None).images
         return crop_square(full, view.box, cfg.resolution)
 
     def loss_of(image: torch.Tensor, use_global: bool) -> tuple[torch.Tensor, dict[str, float]]:
@@ -66,6 +112,8 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         if cfg.use_patches:
             pairs = sample_patch_pairs(photo_mask[0, 0], render_mask[0, 0], cfg.patches, photo_noc, render_noc, guided=guided, generator=pick)
             parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, cfg.patch_levels)
+        if cfg.w_colour > 0:
+            parts["colour"] = cfg.w_colour * lowpass_colour_loss(image, render_mask, photo_image, photo_mask, colour_sigma)
         total = sum(parts.values())
         return total, {k: float(v.detach()) for k, v in parts.items()}
 
@@ -73,6 +121,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         ws = mean_latent(generator).clone()
     ws.requires_grad_(True)
     result = TransferResult(ws=ws, render=torch.empty(0))
+    light_params = list(light.parameters()) if light is not None else []
 
     def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool) -> None:
         opt = torch.optim.Adam(params, lr=cfg.lr)
@@ -93,17 +142,19 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         result.losses[stage] = history
         result.seconds[stage] = round(time.perf_counter() - start, 2)
 
-    optimise("latent", [ws], cfg.latent_iters, use_global=True)
+    # The light is optimised in both stages: stage 2 changes the colours it has to explain.
+    optimise("latent", [ws] + light_params, cfg.latent_iters, use_global=True)
     if cfg.refine and cfg.refine_iters > 0:
         ws.requires_grad_(False)
         params = generator.last_synthesis_parameters(cfg.refine_blocks)
         for p in params:
             p.requires_grad_(True)
         # Stage 2 uses the patch loss alone (paper); without patches it keeps the global loss.
-        optimise("refine", params, cfg.refine_iters, use_global=not cfg.use_patches)
+        optimise("refine", params + light_params, cfg.refine_iters, use_global=not cfg.use_patches)
         for p in params:
             p.requires_grad_(False)
     with torch.no_grad():
         result.render = render(ws).cpu()
     result.ws = ws.detach()
+    result.light = light.describe() if light is not None else None
     return result

@@ -30,7 +30,8 @@ class View:
     """The mesh seen at the query's pose, cropped like the photo.
 
     mvp (1,4,4) camera; box (top, left, side) of the crop in the full render of side ``render_size``;
-    noc (R,R,3) rendered NOC in [0,1]; mask (1,1,R,R).
+    noc (R,R,3) rendered NOC in [0,1]; mask (1,1,R,R); azimuth, elevation (degrees) of the orbit
+    camera, where a light placed relative to the camera starts.
     """
 
     mvp: torch.Tensor
@@ -38,6 +39,8 @@ class View:
     box: tuple[int, int, int]
     noc: torch.Tensor
     mask: torch.Tensor
+    azimuth: float = 0.0
+    elevation: float = 0.0
 
 
 MIN_PHOTO_SIDE = 16  # the smallest query photo: fewer pixels hold no texture to transfer
@@ -85,4 +88,5 @@ def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distanc
     box = object_box(covered, cfg.margin)
     noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
     noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)
-    return View(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution))
+    return View(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution),
+                azimuth=float(azimuth), elevation=float(elevation))

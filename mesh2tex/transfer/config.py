@@ -7,12 +7,14 @@ from dataclasses import dataclass
 from mesh2tex.config import check_fields
 from mesh2tex.errors import UserError
 
-# Ablation name -> the TransferConfig fields it changes (paper Table 8).
+# Ablation name -> the TransferConfig fields it changes (paper Table 8), and "paper": the paper's
+# own losses and step (style losses alone, unlit renders), without what this project adds.
 ABLATIONS = {
     "full": {},
     "no_noc": {"use_noc": False},
     "no_patches": {"use_patches": False},
     "no_refine": {"refine": False},
+    "paper": {"w_colour": 0.0, "light": "off", "lr": 1e-2, "refine_lr": 0.0},
 }
 
 LIGHT_MODES = ("auto", "learn", "off")
@@ -24,14 +26,15 @@ class TransferConfig:
     latent_iters: int = 100  # stage 1: iterations on the latent w (paper: 100)
     refine_iters: int = 300  # stage 2: iterations on the last two synthesis blocks (paper: 300)
     refine_blocks: int = 2  # synthesis blocks unfrozen in stage 2 (paper: 2)
-    lr: float = 1e-2  # Adam learning rate of both stages (paper: 1e-2)
+    lr: float = 5e-2  # Adam learning rate of stage 1, and of stage 2 unless refine_lr is set (paper: 1e-2 for both)
+    refine_lr: float = 1e-2  # Adam learning rate of stage 2 (0: lr)
     w_glob: float = 1.0  # weight of the global style loss
     w_patch: float = 1.0  # weight of the patch style loss
     scales: int = 3  # resolution levels of the global style loss, and of the patch loss when patch_scales is 0 (paper: 3)
     patches: int = 2  # patch pairs per iteration (paper: 2)
     patch_size: int = 32  # side of a patch in pixels (paper: 64; at 128 px crops 32 beats it, docs/protocols.md)
     patch_scales: int = 2  # resolution levels of the patch loss alone (0: ``scales``; 2 keeps 32 px patches at a 16 px coarsest level)
-    w_colour: float = 0.0  # weight of the low-pass colour loss: render against photo at the pose, both blurred, where both show the object (0: the paper's style losses alone)
+    w_colour: float = 10.0  # weight of the low-pass colour loss: render against photo at the pose, both blurred, where both show the object (0: the paper's style losses alone)
     colour_sigma: float = 0.03  # the colour loss's Gaussian blur, as a share of the crop side (0.03: 2 px at 64 px)
     light: str = "auto"  # the photo's light in the renders: learn (a directional light and ambient optimised with the texture, which stays albedo), off (unlit renders), auto (learn when the generator was trained lit)
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
@@ -50,7 +53,7 @@ class TransferConfig:
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
 
     def __post_init__(self):
-        check_fields(self, positive=("lr",), at_least={"w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1,
+        check_fields(self, positive=("lr",), at_least={"refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1,
                                                        "resolution": 16, "texture_size": 16, "patch_size": 1},
                      between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8), "colour_sigma": (0.0, 0.5)})
         if self.light not in LIGHT_MODES:

@@ -123,8 +123,8 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     result = TransferResult(ws=ws, render=torch.empty(0))
     light_params = list(light.parameters()) if light is not None else []
 
-    def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool) -> None:
-        opt = torch.optim.Adam(params, lr=cfg.lr)
+    def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float) -> None:
+        opt = torch.optim.Adam(params, lr=lr)
         history: list[float] = []
         start = time.perf_counter()
         iterator = progress_bar(range(iters), desc=f"transfer {stage}") if show_progress else range(iters)
@@ -143,14 +143,14 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         result.seconds[stage] = round(time.perf_counter() - start, 2)
 
     # The light is optimised in both stages: stage 2 changes the colours it has to explain.
-    optimise("latent", [ws] + light_params, cfg.latent_iters, use_global=True)
+    optimise("latent", [ws] + light_params, cfg.latent_iters, use_global=True, lr=cfg.lr)
     if cfg.refine and cfg.refine_iters > 0:
         ws.requires_grad_(False)
         params = generator.last_synthesis_parameters(cfg.refine_blocks)
         for p in params:
             p.requires_grad_(True)
         # Stage 2 uses the patch loss alone (paper); without patches it keeps the global loss.
-        optimise("refine", params + light_params, cfg.refine_iters, use_global=not cfg.use_patches)
+        optimise("refine", params + light_params, cfg.refine_iters, use_global=not cfg.use_patches, lr=cfg.refine_lr or cfg.lr)
         for p in params:
             p.requires_grad_(False)
     with torch.no_grad():

@@ -19,7 +19,8 @@ Steps:
    blocks and optimises their weights with ``L_patch`` only. Adam, lr 1e-2 (paper values).
 5. Outputs in ``DIR``: ``textured.glb`` (UV texture baked from psi), ``textured.ply`` (vertex colours),
    ``comparison.png`` (photo | render at the pose | photo NOC | rendered NOC), ``turntable_XX.png`` and
-   ``turntable.gif``, ``report.json`` (pose, losses per stage, seconds per stage, settings).
+   ``turntable.gif`` (lit by the learnt light, turning with the camera, when one was learnt),
+   ``report.json`` (pose, learnt light, losses per stage, seconds per stage, settings).
 
 Ablations of the paper's Table 8: ``--no-noc`` (patch pairs without NOC guidance), ``--no-patches``
 (global loss only; stage 2 then also uses the global loss), ``--no-refine`` (stage 1 only).
@@ -47,7 +48,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
-from mesh2tex.render import composite, composite_images, orbit_camera, turntable_angles
+from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import load_shape, write_textured_mesh
 from mesh2tex.transfer import (Photo, PoseEstimate, TransferConfig, TransferResult, View, check_style_sizes, estimate_pose, load_photo,
@@ -99,10 +100,16 @@ def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, 
 
     frames = []
     k = cfg.turntable_frames
-    mvp = orbit_camera(*turntable_angles(k, elevation), distance=distance, fov=fov).mvp.to(device)
+    azimuths, elevations = turntable_angles(k, elevation)
+    mvp = orbit_camera(azimuths, elevations, distance=distance, fov=fov).mvp.to(device)
+    lights = None
+    if result.light is not None:  # an albedo texture: the turntable keeps the photo's light where it was relative to the camera
+        found = result.light
+        direction = orbit_direction(azimuths + found["azimuth_offset"], torch.full((k,), found["elevation"]))
+        lights = Lights(direction, torch.full((k,), found["ambient"])).to(device)
     size = cfg.resolution * 2
     views = render_field_views(generator, batch, result.ws.to(device), mvp, (size, size), torch.ones(k, 3, device=device),
-                               texture=texture, noise_mode="none")
+                               texture=texture, noise_mode="none", lights=lights)
     for i in range(k):
         frame = to_uint8_image(views.images[i])
         save_png(out / f"turntable_{i:02d}.png", frame)

@@ -15,8 +15,11 @@ Steps:
    the pose. Renders are cropped around the object the same way as the photo, so both images show
    the object at the same scale.
 4. Stage 1 optimises the latent ``w`` (all style inputs of the synthesis network) with
-   ``w_glob * L_glob + w_patch * L_patch`` (Equation 2); stage 2 unfreezes the last two synthesis
-   blocks and optimises their weights with ``L_patch`` only. Adam, lr 1e-2 (paper values).
+   ``w_glob * L_glob + w_patch * L_patch`` (Equation 2) plus ``w_colour * L_colour`` (the low-pass
+   colour loss at the pose, not in the paper); stage 2 unfreezes the last two synthesis blocks and
+   optimises their weights with ``L_patch + w_colour * L_colour``. Adam, lr 0.05 then 0.01 (the
+   paper: 0.01 and the style losses alone). A generator trained lit is rendered under a light
+   optimised with the texture (``light``), so the texture stays albedo.
 5. Outputs in ``DIR``: ``textured.glb`` (UV texture baked from psi), ``textured.ply`` (vertex colours),
    ``comparison.png`` (photo | render at the pose | photo NOC | rendered NOC), ``turntable_XX.png`` and
    ``turntable.gif`` (lit by the learnt light, turning with the camera, when one was learnt),

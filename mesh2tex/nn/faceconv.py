@@ -95,7 +95,7 @@ def neighborhood_matmul(x: torch.Tensor, neighbors: torch.Tensor, weight: torch.
     per_k = x @ weight.transpose(0, 1).reshape(NEIGHBORHOOD * c_out, c_in).t()  # (F, 9*out): face g under kernel position k
     per_k = torch.cat([per_k, per_k.new_zeros(1, NEIGHBORHOOD * c_out)]).view(-1, c_out)  # row 9g+k; row 9F+k: zeros
     rows = torch.where(neighbors >= 0, neighbors, faces) * NEIGHBORHOOD + torch.arange(NEIGHBORHOOD, device=neighbors.device)
-    return per_k.index_select(0, rows.reshape(-1)).view(faces, NEIGHBORHOOD, c_out).sum(1)
+    return row_sums(per_k, rows)
 
 
 def bias_act(x: torch.Tensor, bias: torch.Tensor | None, activation: str = "lrelu", gain: float = 1.0, clamp: float | None = None) -> torch.Tensor:
@@ -235,10 +235,48 @@ def face_unpool(x: torch.Tensor, pool: torch.Tensor, neighbors_fine: torch.Tenso
     if neighbors_fine is None:
         return x[pool]
     present = (neighbors_fine >= 0).to(x.dtype) * x.new_tensor(BLUR_WEIGHTS)  # (F, 9)
-    # The coarse face of each fine neighbour: the copies are read straight from x, never made.
-    coarse = torch.where(neighbors_fine >= 0, pool[neighbors_fine.clamp(min=0)], -1)
-    patches = _gather_rows(x, coarse)  # (F, 9, C)
-    return (patches * present.unsqueeze(2)).sum(1) / present.sum(1, keepdim=True)
+    # The coarse face of each fine neighbour (x's zero row past the end where missing): the copies
+    # are read straight from x, never made.
+    coarse = torch.where(neighbors_fine >= 0, pool[neighbors_fine.clamp(min=0)], x.shape[0])
+    padded = torch.cat([x, x.new_zeros(1, x.shape[1])], dim=0)
+    return row_sums(padded, coarse, present) / present.sum(1, keepdim=True)
+
+
+def row_sums(x: torch.Tensor, index: torch.Tensor, weight: torch.Tensor | None = None) -> torch.Tensor:
+    """out[r] = sum_k weight[r, k] * x[index[r, k]] (weight 1 when None): x (R, C), index (F, K) int64
+    rows of x, weight (F, K) constant -> (F, C).
+
+    The same products, summed in the same order, as ``(x[index] * weight[..., None]).sum(1)``, but
+    with no (F, K, C) intermediate in either direction: forward and backward are each one fused
+    gather and sum (``embedding_bag``), the backward over the transposed index. Twice
+    differentiable (the path-length term needs it; ``embedding_bag``'s own backward is not).
+    """
+    faces, k = index.shape
+    offsets = torch.arange(0, faces * k, k, device=index.device)
+    flat_weight = None if weight is None else weight.reshape(-1).to(x.dtype)
+    return _RowSums.apply(x, index.reshape(-1), offsets, flat_weight)
+
+
+class _RowSums(torch.autograd.Function):
+    """out[b] = sum_{e in bag b} weight[e] * x[column[e]], bag b the entries offsets[b] .. offsets[b+1]-1;
+    its gradient is the same operator transposed (entries sorted by column, bags over x's rows)."""
+
+    @staticmethod
+    def forward(ctx, x: torch.Tensor, column: torch.Tensor, offsets: torch.Tensor, weight: torch.Tensor | None) -> torch.Tensor:
+        ctx.save_for_backward(column, offsets, weight)
+        ctx.rows = x.shape[0]
+        return F.embedding_bag(column, x, offsets, mode="sum", per_sample_weights=weight)
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):
+        column, offsets, weight = ctx.saved_tensors
+        sizes = torch.diff(offsets, append=offsets.new_tensor([column.shape[0]]))
+        bag = torch.repeat_interleave(torch.arange(offsets.shape[0], device=offsets.device), sizes)  # (E,)
+        order = torch.argsort(column, stable=True)  # each row of x gathers its entries in their original order
+        counts = torch.bincount(column, minlength=ctx.rows)
+        t_offsets = torch.cumsum(counts, 0) - counts
+        t_weight = None if weight is None else weight.index_select(0, order)
+        return _RowSums.apply(grad, bag.index_select(0, order), t_offsets, t_weight), None, None, None
 
 
 class FaceResNetBlock(nn.Module):

@@ -2,17 +2,26 @@
 
     python benchmarks/bench_gan_step.py [--iters 8] [--device auto|cpu|cuda] [--faces 6144]
                                         [--batch 2] [--views 4] [--resolution 128] [--config YAML] [--threads N]
+                                        [--previous REV] [--check N]
 
 Two procedural chairs are prepared (quad hierarchy of --faces faces), the trainer is built with the
 default config (or --config) and a random photo set, one warm-up iteration runs, then --iters timed
 iterations. Iterations with the lazy regularisers (path length every 4, R1 every 16) are slower;
 the script prints the mean over main-only iterations, over iterations with the path-length term,
 the amortised mean of the schedule, and its ratio to the 2 s target.
+
+``--previous REV`` builds a second trainer from the ``mesh2tex`` and ``train`` packages of git
+revision REV (``benchmarks/previous.py``) on the same shapes and photos, and times the two in
+alternation (which goes first swaps every iteration), so that both see the same machine load; it
+prints both figures and the speed-up, previous / current. ``--check N`` (with ``--previous``) first
+runs N iterations of each from the same seed and prints the relative difference of every logged
+scalar: the two versions should compute the same losses.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import sys
 import tempfile
@@ -24,13 +33,80 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.config import load_config  # noqa: E402
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.synthetic.shapes import generate_shape  # noqa: E402
-from train import runs  # noqa: E402
-from train.gan import GanTrainer, TrainGanConfig  # noqa: E402
+from previous import Revision  # noqa: E402  (this folder)
 
 TARGET_SECONDS = 2.0
+
+
+class Version:
+    """One version of the trainer: today's packages, or a :class:`Revision`'s."""
+
+    def __init__(self, name: str, revision: Revision | None = None):
+        self.name, self.revision = name, revision
+        with self.active():
+            from mesh2tex.config import load_config
+            from train import runs
+            from train.gan import GanTrainer, TrainGanConfig
+        self.load_config, self.runs, self.GanTrainer, self.TrainGanConfig = load_config, runs, GanTrainer, TrainGanConfig
+
+    def active(self):
+        return self.revision.active() if self.revision else contextlib.nullcontext()
+
+    def trainer(self, args, shapes, folder: str):
+        """A fresh trainer (its constructor seeds every generator) on ``shapes`` and a random photo set."""
+        with self.active():
+            cfg = self.load_config(self.TrainGanConfig, args.config, {"batch": args.batch, "views": args.views, "resolution": args.resolution,
+                                                                      "device": args.device, "iters": 10**9})
+            cfg.generator.input_features = shapes[0].face_features.shape[1]
+            device = self.runs.select_device(cfg.device)
+            rng = np.random.default_rng(0)
+            images = torch.from_numpy(rng.integers(0, 256, (32, 4, cfg.resolution, cfg.resolution), dtype=np.uint8))
+            return self.GanTrainer(cfg, shapes, images, self.runs.RunDirectory(folder), device, self.runs.Distributed("cpu"))
+
+    def step(self, trainer) -> tuple[float, dict[str, float]]:
+        """Seconds of one iteration and its logged scalars."""
+        with self.active():
+            if trainer.device.type == "cuda":
+                torch.cuda.synchronize()
+            start = time.perf_counter()
+            logs = trainer.step()
+            if trainer.device.type == "cuda":
+                torch.cuda.synchronize()
+            return time.perf_counter() - start, logs
+
+
+def check(versions: list[Version], args, shapes, tmp: str) -> None:
+    """Run ``args.check`` seeded iterations of each version; print the largest difference of each logged scalar."""
+    logs, weights = {}, {}
+    for version in versions:
+        trainer = version.trainer(args, shapes, f"{tmp}/check-{version.name}")
+        logs[version.name] = [version.step(trainer)[1] for _ in range(args.check)]
+        weights[version.name] = {name: module.state_dict() for name, module in
+                                 (("generator", trainer.generator), ("d_field", trainer.d_field), ("d_proxy", trainer.d_proxy))}
+        del trainer
+    old, new = (logs[v.name] for v in versions)
+    print(f"agreement of the logged scalars (rounded to 1e-6), |previous - current| relative to |previous|: in the first "
+          f"iteration (same weights) and the largest over {args.check} (Adam's normalised steps amplify rounding differences)")
+    for key in old[0]:
+        a = np.array([step[key] for step in old if key in step])
+        b = np.array([step[key] for step in new if key in step])
+        rel = np.abs(a - b) / np.maximum(np.abs(a), 1e-12)
+        print(f"  {key:18s} first {rel[0]:.2g}  largest {rel.max():.2g}")
+    a, b = (weights[v.name] for v in versions)
+    for name in a:
+        diff = max(float((a[name][k].float() - b[name][k].float()).abs().max()) for k in a[name])
+        print(f"  {name} weights after {args.check} iterations: largest |previous - current| {diff:.2g}")
+
+
+def summary(times: list[tuple[float, bool]], pl_interval: int) -> tuple[float, float, float, int, int]:
+    """(main-only mean, path-length mean, amortised mean, n main, n path-length) of (seconds, had path length) pairs."""
+    main_only = [s for s, pl in times if not pl]
+    with_pl = [s for s, pl in times if pl]
+    m = statistics.mean(main_only) if main_only else float("nan")
+    p = statistics.mean(with_pl) if with_pl else m
+    return m, p, m + (p - m) / pl_interval, len(main_only), len(with_pl)
 
 
 def main() -> None:
@@ -43,9 +119,13 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=128)
     parser.add_argument("--config")
     parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
+    parser.add_argument("--previous", default="", help="also time the trainer of this git revision, in alternation")
+    parser.add_argument("--check", type=int, default=0, help="with --previous: compare the logged losses of this many seeded iterations first")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.check and not args.previous:
+        parser.error("--check needs --previous")
 
     t0 = time.perf_counter()
     shapes = []
@@ -54,38 +134,38 @@ def main() -> None:
         shapes.append(prepare_shape(mesh.vertices, mesh.faces, face_count=args.faces, levels=5, seed=0))
     print(f"prepared 2 chairs in {time.perf_counter() - t0:.1f} s; finest faces {[s.face_counts[0] for s in shapes]}")
 
-    cfg = load_config(TrainGanConfig, args.config, {"batch": args.batch, "views": args.views, "resolution": args.resolution,
-                                                     "device": args.device, "iters": 10**9})
-    cfg.generator.input_features = shapes[0].face_features.shape[1]
-    device = runs.select_device(cfg.device)
-    rng = np.random.default_rng(0)
-    images = torch.from_numpy(rng.integers(0, 256, (32, 4, cfg.resolution, cfg.resolution), dtype=np.uint8))
+    versions = [Version("current")]
+    if args.previous:
+        versions.insert(0, Version(f"previous {args.previous}", Revision(args.previous)))
     with tempfile.TemporaryDirectory() as tmp:
-        trainer = GanTrainer(cfg, shapes, images, runs.RunDirectory(tmp), device, runs.Distributed("cpu"))
-        params = sum(p.numel() for p in trainer.generator.parameters())
-        dparams = sum(p.numel() for p in trainer.d_field.parameters())
-        print(f"device {device}, threads {torch.get_num_threads()}, generator {params / 1e6:.2f} M parameters, each discriminator {dparams / 1e6:.2f} M")
-        trainer.step()  # warm-up (iteration 0 runs every regulariser)
-        main_only, with_pl = [], []
-        for _ in range(args.iters):
-            due = {phase for phase, _ in trainer.loss.phases(trainer.iteration)}
-            if device.type == "cuda":
-                torch.cuda.synchronize()
-            start = time.perf_counter()
-            trainer.step()
-            if device.type == "cuda":
-                torch.cuda.synchronize()
-            seconds = time.perf_counter() - start
-            (with_pl if "Greg" in due else main_only).append(seconds)
-        peak = runs.peak_memory_gb(device)
-    lc = cfg.loss
-    m = statistics.mean(main_only) if main_only else float("nan")
-    p = statistics.mean(with_pl) if with_pl else m
-    amortised = m + (p - m) / lc.pl_interval
-    print(f"seconds per iteration: main phases {m:.3f} (n={len(main_only)}), with path-length reg {p:.3f} (n={len(with_pl)}), "
-          f"amortised {amortised:.3f}")
-    print(f"peak memory {peak:.2f} GB ({'CUDA allocator' if device.type == 'cuda' else 'process RSS'})")
-    print(f"ratio to the {TARGET_SECONDS:.0f} s target: {amortised / TARGET_SECONDS:.2f}")
+        if args.check:
+            check(versions, args, shapes, tmp)
+        trainers = [v.trainer(args, shapes, f"{tmp}/{i}") for i, v in enumerate(versions)]
+        first = trainers[-1]
+        params = sum(p.numel() for p in first.generator.parameters())
+        dparams = sum(p.numel() for p in first.d_field.parameters())
+        print(f"device {first.device}, threads {torch.get_num_threads()}, generator {params / 1e6:.2f} M parameters, each discriminator {dparams / 1e6:.2f} M")
+        for version, trainer in zip(versions, trainers):
+            version.step(trainer)  # warm-up (iteration 0 runs every regulariser)
+        times: list[list[tuple[float, bool]]] = [[] for _ in versions]
+        for i in range(args.iters):
+            due = {phase for phase, _ in first.loss.phases(first.iteration)}
+            order = list(range(len(versions)))
+            for k in order[::-1] if i % 2 else order:
+                times[k].append((versions[k].step(trainers[k])[0], "Greg" in due))
+        peak = versions[-1].runs.peak_memory_gb(first.device)
+    pl_interval = first.cfg.loss.pl_interval
+    for version, t in zip(versions, times):
+        m, p, amortised, n_m, n_p = summary(t, pl_interval)
+        print(f"{version.name}: seconds per iteration: main phases {m:.3f} (n={n_m}), with path-length reg {p:.3f} (n={n_p}), "
+              f"amortised {amortised:.3f}")
+    if len(versions) == 2:
+        old, new = (summary(t, pl_interval) for t in times)
+        print(f"speed-up previous / current: main phases {old[0] / new[0]:.2f}, with path-length reg {old[1] / new[1]:.2f}, "
+              f"amortised {old[2] / new[2]:.2f}")
+    both = " (both versions)" if len(versions) == 2 else ""
+    print(f"peak memory {peak:.2f} GB ({'CUDA allocator' if first.device.type == 'cuda' else 'process RSS'}){both}")
+    print(f"ratio to the {TARGET_SECONDS:.0f} s target: {summary(times[-1], pl_interval)[2] / TARGET_SECONDS:.2f}")
 
 
 if __name__ == "__main__":

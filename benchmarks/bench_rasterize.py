@@ -15,8 +15,8 @@ Cases: one view at 256 and 512 pixels, eight views at 128 in one call.
 Embree (trimesh + embreex, one thread) builds its scene before timing, so only the ray casts and
 barycentrics are timed. Ours and Embree are timed in alternation, twice, so both see the same load;
 times are the minimum over the repeats (median in brackets); the ratio is ours / Embree (below 1.0:
-ours is faster). ``--previous REV`` also times the rasterizer of git revision REV (its
-mesh2tex/render/rasterize.py, loaded from git) in the same process. ``--busy N`` runs N CPU-bound
+ours is faster). ``--previous REV`` also times the rasterizer of git revision REV (its mesh2tex
+package, extracted by ``benchmarks/previous.py``) in the same process. ``--busy N`` runs N CPU-bound
 processes (``while True: pass``) during the measurements. The load average is printed before and after.
 """
 
@@ -28,7 +28,6 @@ import os
 import subprocess
 import sys
 import time
-import types
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +41,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 from test_rasterize_reference import bevelled_table, normalised, scan_sphere  # noqa: E402  the same meshes
 from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402
+
+from previous import Revision  # noqa: E402  (this folder)
 
 CASES = {"1x256": (1, 256), "1x512": (1, 512), "8x128": (8, 128)}
 
@@ -63,12 +64,11 @@ MESHES = {
 
 
 def previous_rasterize(revision: str):
-    """``rasterize`` from mesh2tex/render/rasterize.py at a git revision (with today's imports)."""
-    source = subprocess.run(["git", "show", f"{revision}:mesh2tex/render/rasterize.py"], cwd=ROOT,
-                            check=True, capture_output=True, text=True).stdout
-    module = types.ModuleType(f"rasterize_{revision}")
-    exec(compile(source, f"{revision}:mesh2tex/render/rasterize.py", "exec"), module.__dict__)
-    return module.rasterize
+    """``rasterize`` of the mesh2tex package at a git revision (its binning and all)."""
+    old = Revision(revision)
+    rasterize = old.module("mesh2tex.render.rasterize").rasterize
+    rasterize.revision = old  # keeps the extracted files while the function lives
+    return rasterize
 
 
 def embree_cast(intersector, mesh, origins, directions):

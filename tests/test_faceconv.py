@@ -10,8 +10,8 @@ import torch
 
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.nn.faceconv import (FaceConv, FaceResNetBlock, ModulatedFaceConv, face_pool, face_unpool,
-                                  gather_neighborhood)
+from mesh2tex.nn.faceconv import (LRELU_GAIN, FaceConv, FaceResNetBlock, FullyConnected, ModulatedFaceConv, bias_act,
+                                  face_pool, face_unpool, gather_neighborhood, neighborhood_matmul, row_sums)
 
 
 def quad_neighborhoods(quads: np.ndarray) -> np.ndarray:
@@ -186,3 +186,59 @@ def test_collate_offsets_indices_and_keeps_missing():
     assert torch.equal(batch.quads[96:], torch.as_tensor(b.quads[0]) + len(a.vertices[0]))
     assert batch.shape_index[1].tolist() == [0] * 24 + [1] * 24
     assert torch.equal(batch.shape_triangles(1), torch.as_tensor(b.triangles(0)))
+
+
+def test_fused_activation_equals_the_separate_operations_to_second_order():
+    """The LeakyReLU path of bias_act runs in one buffer with its own backward: values, gradients and
+    the gradients of gradients (R1, path length) are those of the plain operations, clamp included."""
+    torch.manual_seed(3)
+    for shape, clamp in (((6, 5), None), ((3, 4, 5, 5), 1.0)):
+        x = torch.randn(shape, requires_grad=True)
+        b = torch.randn(shape[1], requires_grad=True)
+        g = torch.randn(shape)
+        results = []
+        for fused in (True, False):
+            if fused:
+                y = bias_act(x, b, "lrelu", gain=0.5**0.5, clamp=clamp)
+            else:
+                y = torch.nn.functional.leaky_relu(x + b.reshape([1, -1] + [1] * (x.dim() - 2)), 0.2) * (LRELU_GAIN * 0.5**0.5)
+                y = y if clamp is None else y.clamp(-clamp, clamp)
+            gx, gb = torch.autograd.grad(y, [x, b], g, create_graph=True)
+            second = torch.autograd.grad((gx.square() * x).sum() + gb.square().sum(), [x, b], allow_unused=True)
+            results.append([y, gx, gb] + [torch.zeros_like(t) if s is None else s for s, t in zip(second, (x, b))])
+        assert clamp is None or (results[0][0].abs() == clamp).any()  # the clamp did bite
+        for fused, plain in zip(*results):
+            assert torch.equal(fused, plain)
+    xd = torch.randn(2, 3, 4, 4, dtype=torch.float64, requires_grad=True)
+    bd = torch.randn(3, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradgradcheck(lambda x, b: bias_act(x, b, "lrelu", clamp=1.5), (xd, bd))
+
+
+def test_narrow_face_convolution_multiplies_before_gathering_with_the_same_result():
+    shape = cube_shape(3)
+    neighbors = torch.as_tensor(shape.neighbors[0])  # with missing corner neighbours
+    torch.manual_seed(4)
+    x = torch.randn(shape.face_counts[0], 6, dtype=torch.float64, requires_grad=True)
+    weight = torch.randn(2, 9, 6, dtype=torch.float64, requires_grad=True)  # 6 -> 2: products first
+    out = neighborhood_matmul(x, neighbors, weight)
+    torch.testing.assert_close(out, gather_neighborhood(x, neighbors).flatten(1) @ weight.flatten(1).t())
+    assert torch.autograd.gradgradcheck(lambda x, w: neighborhood_matmul(x, neighbors, w), (x, weight))
+
+
+def test_row_sums_and_unpooling_are_twice_differentiable():
+    shape = cube_shape(3)
+    pool, neighbors = torch.as_tensor(shape.pool[0]), torch.as_tensor(shape.neighbors[0])
+    torch.manual_seed(5)
+    coarse = torch.randn(24, 3, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradgradcheck(lambda x: face_unpool(x, pool, neighbors), (coarse,))
+    index = torch.randint(0, 24, (40, 5))
+    weight = torch.rand(40, 5, dtype=torch.float64)
+    torch.testing.assert_close(row_sums(coarse, index, weight), (coarse[index] * weight[..., None]).sum(1))
+    assert torch.autograd.gradgradcheck(lambda x: row_sums(x, index, weight), (coarse,))
+
+
+def test_fully_connected_shared_columns_equal_the_concatenated_input():
+    torch.manual_seed(6)
+    layer = FullyConnected(7, 4, activation="lrelu")
+    x, shared = torch.randn(10, 5), torch.randn(1, 2)
+    torch.testing.assert_close(layer(x, shared=shared), layer(torch.cat([x, shared.expand(10, -1)], dim=1)))

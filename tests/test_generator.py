@@ -145,6 +145,22 @@ def test_discriminator_resolutions():
         Discriminator(48)
 
 
+def test_discriminator_downsampling_blurs_then_strides():
+    """A down layer blurs with [1,3,3,1] (zero padded) and then strides; the 1x1 skip blurs only the
+    pixels it reads, which is the same as blurring everything and striding."""
+    from mesh2tex.nn.discriminator import Conv2dLayer
+
+    torch.manual_seed(7)
+    x = torch.randn(2, 3, 16, 16)
+    for kernel in (1, 3):
+        layer = Conv2dLayer(3, 5, kernel, activation="linear", down=True, bias=False)
+        pad = (kernel - 1) // 2 + 1
+        blurred = torch.nn.functional.conv2d(torch.nn.functional.pad(x, [pad] * 4), layer.blur.expand(3, 1, 4, 4), groups=3)
+        expected = torch.nn.functional.conv2d(blurred, layer.weight * layer.weight_gain, stride=2)
+        torch.testing.assert_close(layer(x), expected)
+        assert layer(x).shape == (2, 5, 8, 8)
+
+
 def test_discriminator_judges_fakes_apart_from_reals():
     """The minibatch standard deviation is the discriminator's one view of diversity: the fakes'
     logits in the D loss must not depend on which reals share the step."""

@@ -53,8 +53,10 @@ class Conv2dLayer(nn.Module):
             kernel = self.blur.to(x.dtype).expand(c, 1, 4, 4)
             # Pad so that the strided conv after the blur sees the aligned window (as upfirdn2d does).
             pad = (w.shape[-1] - 1) // 2 + 1
-            x = F.conv2d(F.pad(x, [pad, pad, pad, pad]), kernel, groups=c)
-            x = F.conv2d(x, w, stride=2)
+            if w.shape[-1] == 1:  # a 1x1 conv at stride 2 reads every other blurred pixel: blur only those
+                x = F.conv2d(F.conv2d(x, kernel, padding=pad, groups=c, stride=2), w)
+            else:
+                x = F.conv2d(F.conv2d(x, kernel, padding=pad, groups=c), w, stride=2)
         else:
             x = F.conv2d(x, w, padding=self.padding)
         return bias_act(x, self.bias, self.activation, gain=gain, clamp=self.clamp)

@@ -105,5 +105,5 @@ class NeuralField(nn.Module):
         """features: (P, C) blended vertex features, bary: (P, 3) -> (P, 3) RGB."""
         coords = local_coordinates(bary, self.coords).to(features.dtype)
         local = self.feature_branch(torch.cat([features, coords], dim=1))
-        aux = self.aux_branch(self.aux_latent.unsqueeze(0).to(features.dtype)).expand(local.shape[0], -1)
-        return self.head(torch.cat([local, aux], dim=1))
+        aux = self.aux_branch(self.aux_latent.unsqueeze(0).to(features.dtype))  # (1, hidden), the same for every point
+        return self.head[1:](self.head[0](local, shared=aux))  # the head's input is [local ‖ aux]

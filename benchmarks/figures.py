@@ -10,6 +10,10 @@
         rows: seeds; columns: views; from the seed{S}_view{V}.png files of 'infer generate'
     python benchmarks/figures.py rows --row A.png,B.gif:3,... [--row ...] --out FILE.png
         any images, one --row per row; FILE.gif:K is frame K of a GIF (the growth.gif of 'infer nca')
+    python benchmarks/figures.py screenshot demo_out/report.html [--width 1200] [--height 2400] [--scale 1] --out FILE.png
+        the page as headless Chromium shows it (the demo's self-contained report), white space below the
+        content cropped; needs a Chromium or Chrome binary (Debian: apt-get install chromium), else it
+        stops with that message; --browser PATH names one
 
 Every tile is resized to --size pixels (default: the first tile's height) and framed by --pad white
 pixels. The docs give, next to each image, the commands that made its folders and the line of this
@@ -20,13 +24,20 @@ from __future__ import annotations
 
 import argparse
 import re
+import shutil
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 PANEL_GAP = 16  # white pixels between panels
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome")
+# Headless, offline and stateless: no sandbox (root in containers), no GPU, no network side traffic.
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+                  "--disable-component-update", "--disable-sync", "--hide-scrollbars")
 
 
 def read_tile(spec: str) -> Image.Image:
@@ -101,6 +112,45 @@ def generate_rows(folder: Path, seeds: list[int] | None, views: list[int] | None
     return [[read_tile(str(folder / f"seed{s}_view{v}.png")) for v in views] for s in seeds]
 
 
+def find_browser(name: str | None) -> str:
+    """The Chromium (or Chrome) executable: ``name`` (a path or a command), else the first of BROWSERS on PATH."""
+    for candidate in ([name] if name else BROWSERS):
+        found = shutil.which(candidate)
+        if found:
+            return found
+    wanted = name or " / ".join(BROWSERS)
+    sys.exit(f"figures: error: no {wanted} executable found; install Chromium (Debian/Ubuntu: apt-get install chromium) "
+             f"or pass --browser PATH")
+
+
+def screenshot(page: Path, out: Path, width: int, height: int, browser: str | None = None, scale: float = 1.0,
+               margin: int = 24) -> Image.Image:
+    """``page`` (an HTML file) rendered by headless Chromium in a ``width`` x ``height`` window (CSS
+    pixels) at ``scale`` image pixels per CSS pixel, the uniform rows below its content cropped
+    (``margin`` pixels kept)."""
+    if not page.is_file():
+        sys.exit(f"figures: error: {page}: no such file (a demo's report.html: 'mesh2tex demo --out DIR' writes DIR/report.html)")
+    executable = find_browser(browser)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="figures-chromium-") as profile:
+        shot = Path(profile) / "shot.png"
+        command = [executable, *CHROMIUM_FLAGS, f"--force-device-scale-factor={scale:g}", f"--user-data-dir={profile}/profile", f"--screenshot={shot}",
+                   f"--window-size={width},{height}", page.resolve().as_uri()]
+        try:
+            result = subprocess.run(command, capture_output=True, text=True, timeout=120)
+        except subprocess.TimeoutExpired:
+            sys.exit(f"figures: error: {executable} took more than 120 s to render {page}")
+        if not shot.is_file():
+            detail = (result.stderr.strip().splitlines() or ["no output"])[-1]
+            sys.exit(f"figures: error: {executable} wrote no screenshot of {page} (exit {result.returncode}: {detail})")
+        image = Image.open(shot).convert("RGB")
+        image.load()
+    pixels = np.asarray(image).astype(np.int16)
+    differs = np.abs(pixels - pixels[-1:, :1]).max(axis=(1, 2)) > 8  # rows unlike the page's background at the bottom
+    bottom = int(np.nonzero(differs)[0].max()) + 1 + margin if differs.any() else image.height
+    return image.crop((0, 0, image.width, min(bottom, image.height)))
+
+
 def numbers(text: str | None) -> list[int] | None:
     return None if text is None else [int(t) for t in text.split(",") if t.strip()]
 
@@ -123,7 +173,21 @@ def main(argv: list[str] | None = None) -> int:
         sub.add_argument("--out", required=True, help="the PNG to write")
         sub.add_argument("--size", type=int, help="tile side in pixels (default: the first tile's height)")
         sub.add_argument("--pad", type=int, default=2, help="white pixels around each tile")
+    shot = kinds.add_parser("screenshot", help="an HTML page (the demo's report.html) as headless Chromium shows it")
+    shot.add_argument("page", help="the HTML file, e.g. demo_out/report.html")
+    shot.add_argument("--out", required=True, help="the PNG to write")
+    shot.add_argument("--width", type=int, default=1200, help="window width in pixels")
+    shot.add_argument("--height", type=int, default=2400, help="window height in pixels (the page below it is cut)")
+    shot.add_argument("--scale", type=float, default=1.0, help="image pixels per CSS pixel (0.6: a smaller image of the same layout)")
+    shot.add_argument("--browser", help="Chromium or Chrome executable (default: the first of chromium, chromium-browser, google-chrome on PATH)")
     args = parser.parse_args(argv)
+    if args.kind == "screenshot":
+        if not 0.1 <= args.scale <= 4 or args.width < 100 or args.height < 100:
+            sys.exit("figures: error: --scale must be within 0.1-4 and --width, --height at least 100")
+        image = screenshot(Path(args.page), Path(args.out), args.width, args.height, args.browser, args.scale)
+        image.save(args.out, optimize=True)
+        print(f"{args.out}: {image.width}x{image.height}, {Path(args.out).stat().st_size // 1024} KiB")
+        return 0
     if args.kind == "protocols":
         tiles = protocol_rows(Path(args.folder), [c for c in args.columns.split(",") if c], args.view)
     elif args.kind == "generate":

@@ -4,7 +4,9 @@ Inputs are mesh files (.obj .ply .off .stl .glb .gltf) and folders searched recu
 ShapeNetCore v2 layout ``<synset>/<id>/models/model_normalized.obj`` included (such a shape is named
 ``<synset>_<id>``). One ``<name>.npz`` per shape goes to ``--out`` with ``index.json`` listing every
 input, its status (ok or failed), the reason of a failure, per level the faces, the ratio to the finer
-level and the method that made it, warnings (a level made by a fallback) and seconds.
+level and the method that made it, warnings (a level made by a fallback, a hierarchy too coarse to keep
+the shape's parts), ``coarseness`` (how far the input's surface lies from the finest level, see
+:func:`mesh2tex.geometry.prepare.coarseness_check`) and seconds.
 Finished shapes are skipped on a re-run, so an interrupted run resumes. Exit status 0 when every
 input succeeded, 2 when any failed.
 """
@@ -107,7 +109,7 @@ def prepare_one(path: str, output: str, faces: int, levels: int, seed: int, max_
         levels = shape.metadata["levels"]
         record.update(status="ok", reason="", face_counts=shape.face_counts, methods=[level["method"] for level in levels],
                       levels=[{"faces": level["faces"], "ratio": level["ratio"], "method": level["method"]} for level in levels],
-                      warnings=list(shape.metadata["warnings"]))
+                      warnings=list(shape.metadata["warnings"]), coarseness=shape.metadata["coarseness"])
     except UserError as error:
         message = str(error)
         record.update(status="failed", reason=message if message.startswith(path) else f"{path}: {message}", face_counts=[])
@@ -180,7 +182,8 @@ def run(args) -> int:
             write_json(index_path, {"settings": settings, "shapes": ordered,
                                     "ok": sum(r["status"] == "ok" for r in ordered),
                                     "failed": sum(r["status"] == "failed" for r in ordered),
-                                    "with_warnings": sum(bool(r.get("warnings")) for r in ordered)})
+                                    "with_warnings": sum(bool(r.get("warnings")) for r in ordered),
+                                    "too_coarse": sum(bool((r.get("coarseness") or {}).get("too_coarse")) for r in ordered)})
 
     def finish(record: dict, bar) -> None:
         records[record["source"]] = record

@@ -43,7 +43,7 @@ from mesh2tex.evaluation import (METRIC_TITLES, METRICS, ScoreSettings, backproj
                                  other_views, photo_mean_colour, render_for_comparison, score_views, seen_and_unseen,
                                  textured_surface)
 from mesh2tex.evaluation.world import load_query_truth, reference_renders
-from mesh2tex.io.assets import load_glb
+from mesh2tex.io.assets import TEXTURE_FORMATS, load_glb
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import load_generator, models_root
 from mesh2tex.nn.batch import collate_shapes
@@ -77,6 +77,7 @@ class DemoConfig:
     latent_iters: int = 60  # transfer stage 1 iterations (paper: 100)
     refine_iters: int = 120  # transfer stage 2 iterations (paper: 300)
     texture_size: int = 512  # baked UV texture of the GLB
+    texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
     query: int = 0  # which query photo of the world to texture (index into the sorted queries)
     eval_views: int = 8  # views per held-out shape of the GAN renders compared with the photos (generation protocol)
     eval_latents: int = 8  # latents per held-out shape for the diversity measures
@@ -155,7 +156,8 @@ def run_pipeline(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
             "--mask", str(world / query["mask"]), "--pose", "auto", "--pose-checkpoint", str(out / "pose" / "checkpoint.safetensors"),
             "--noc-checkpoint", str(out / "noc" / "checkpoint.safetensors"), "--out", str(transfer),
             "--resolution", str(cfg.transfer_resolution), "--latent-iters", str(cfg.latent_iters),
-            "--refine-iters", str(cfg.refine_iters), "--seed", str(cfg.seed), "--device", device, "--overwrite"], log)
+            "--refine-iters", str(cfg.refine_iters), "--texture-format", cfg.texture_format, "--seed", str(cfg.seed),
+            "--device", device, "--overwrite"], log)
     return seconds
 
 
@@ -408,8 +410,11 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
 
 
 def build_config(args) -> DemoConfig:
-    """The demo config: its defaults, then --config, then --quick's budget and --seed."""
-    return load_config(DemoConfig, args.config, {**(QUICK if args.quick else {}), "seed": args.seed})
+    """The demo config: its defaults, then --config, then --quick's budget, --seed and --texture-format."""
+    cfg = load_config(DemoConfig, args.config, {**(QUICK if args.quick else {}), "seed": args.seed, "texture_format": args.texture_format})
+    if cfg.texture_format not in TEXTURE_FORMATS:
+        raise UserError(f"texture_format {cfg.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+    return cfg
 
 
 def run(args) -> int:

@@ -1,7 +1,8 @@
 """``mesh2tex infer generate``: texture a mesh from random latent codes with a trained GAN.
 
     mesh2tex infer generate --checkpoint RUN/checkpoint.safetensors --mesh MESH_OR_NPZ --out DIR
-                            [--seeds 0,1,2] [--views 8] [--resolution 512] [--texture-size 1024] [--overwrite]
+                            [--seeds 0,1,2] [--views 8] [--resolution 512] [--texture-size 1024]
+                            [--texture-format png|jpeg|webp] [--overwrite]
 
 ``--config YAML`` sets any field of :class:`GenerateConfig` (the flags override it).
 
@@ -21,6 +22,7 @@ import torch
 
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
+from mesh2tex.io.assets import TEXTURE_FORMATS
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import gan_camera, load_generator
 from mesh2tex.io.outputs import guard_outputs
@@ -37,6 +39,7 @@ class GenerateConfig:
     views: int = 8  # orbit views per seed, azimuths evenly spaced
     resolution: int = 512  # side of the rendered views
     texture_size: int = 1024  # side of the UV texture baked into each GLB
+    texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
     elevation: float = 20.0  # elevation of the orbit views, degrees
     truncation: float = 1.0  # truncation psi of the latent (1: none)
     faces: int = 6144  # finest quad count when a raw mesh is prepared on the fly
@@ -47,6 +50,8 @@ class GenerateConfig:
             raise UserError("--seeds: give at least one seed")
         if self.views < 1 or self.resolution < 8 or self.texture_size < 16:
             raise UserError("--views must be >= 1, --resolution >= 8 and --texture-size >= 16")
+        if self.texture_format not in TEXTURE_FORMATS:
+            raise UserError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
 
 
 def output_names(cfg: GenerateConfig) -> list[str]:
@@ -68,7 +73,7 @@ def build_config(args) -> GenerateConfig:
     """The config's defaults, then ``--config``, then the flags given."""
     return load_config(GenerateConfig, args.config, {
         "seeds": None if args.seeds is None else parse_seeds(args.seeds), "views": args.views, "resolution": args.resolution,
-        "texture_size": args.texture_size, "elevation": args.elevation, "truncation": args.truncation, "faces": args.faces,
+        "texture_size": args.texture_size, "texture_format": args.texture_format, "elevation": args.elevation, "truncation": args.truncation, "faces": args.faces,
         "device": args.device})
 
 
@@ -95,6 +100,6 @@ def run(args) -> int:
                 raise UserError(f"{args.checkpoint}: the generator's colours for seed {seed} are not finite (damaged weights?)")
             for v, image in enumerate(images_to_uint8(views.images)):
                 save_png(out / f"seed{seed}_view{v}.png", image)
-            write_textured_mesh(out / f"seed{seed}.glb", out / f"seed{seed}.ply", generator, texture, batch, cfg.texture_size)
+            write_textured_mesh(out / f"seed{seed}.glb", out / f"seed{seed}.ply", generator, texture, batch, cfg.texture_size, cfg.texture_format)
             print(f"seed {seed}: {cfg.views} views, {out / f'seed{seed}.glb'}, {out / f'seed{seed}.ply'}")
     return 0

@@ -143,7 +143,8 @@ def run(args) -> int:
             return model.colors(state, graph.triangles, triangle_id.to(device), bary.to(device))
 
         verts, tris, uv, texture, _ = bake_surface_colors(graph.positions, graph.triangles, colors_at, args.texture_size)
-        save_glb(out / "textured.glb", verts.numpy(), tris.numpy(), uv.numpy(), texture, smooth_vertex_normals(verts.numpy(), tris.numpy()))
+        save_glb(out / "textured.glb", verts.numpy(), tris.numpy(), uv.numpy(), texture, smooth_vertex_normals(verts.numpy(), tris.numpy()),
+                 texture_format=args.texture_format)
         vertex_rgb = colors_to_uint8(model.vertex_colors(state)[0])
         save_ply(out / "textured.ply", positions, graph.triangles.cpu().numpy(), vertex_rgb)
     save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import argparse
 
-from mesh2tex.options import DEVICES, ConfigOptions, add_device, add_out, add_print_config, config_default, static_value
+from mesh2tex.options import (DEVICES, ConfigOptions, add_device, add_out, add_print_config, add_texture_format, config_default,
+                              static_value)
 
 SETS_CONFIG = "mesh2tex.metrics.evaluate:EvaluateConfig"
 PROTOCOL_CONFIG = "infer.protocols:ProtocolConfig"
@@ -23,6 +24,7 @@ def generate(parser: argparse.ArgumentParser) -> None:
     config.add("--views", type=int, help="orbit views per seed")
     config.add("--resolution", type=int, help="render resolution")
     config.add("--texture-size", type=int, help="baked UV texture size")
+    add_texture_format(parser, config)
     config.add("--elevation", type=float, help="elevation of the orbit views, degrees")
     config.add("--truncation", type=float, help="truncation psi of the latent (1: none)")
     config.add("--faces", type=int, help="finest quad count when preparing a raw mesh")
@@ -44,6 +46,7 @@ def transfer(parser: argparse.ArgumentParser) -> None:
     config.add("--resolution", type=int, help="side of the photo crop and the renders")
     config.add("--latent-iters", type=int, help="stage 1 iterations")
     config.add("--refine-iters", type=int, help="stage 2 iterations")
+    add_texture_format(parser)
     parser.add_argument("--no-noc", action="store_true", help="ablation: patch pairs without NOC guidance")
     parser.add_argument("--no-patches", action="store_true", help="ablation: global style loss only")
     parser.add_argument("--no-refine", action="store_true", help="ablation: optimise the latent only")
@@ -69,6 +72,7 @@ def nca(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--views", type=int, default=4, help="renders around the mesh")
     parser.add_argument("--resolution", type=int, default=256, help="render resolution")
     parser.add_argument("--texture-size", type=int, default=1024, help="baked texture size")
+    add_texture_format(parser)
     parser.add_argument("--frames", type=int, default=24, help="frames of growth.gif (0: no GIF)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the asynchronous updates")
     parser.add_argument("--vgg-weights", help="VGG19 weights for the report's style loss")
@@ -133,4 +137,5 @@ def demo(parser: argparse.ArgumentParser) -> None:
     config = ConfigOptions(parser, "infer.demo:DemoConfig", what="the demo config")
     parser.add_argument("--quick", action="store_true", help="a smoke-test budget (a minute or two): every stage runs, nothing learns much")
     config.add("--seed", type=int, help="master seed")
+    add_texture_format(parser, config)
     add_device(parser, help="where every stage runs")

@@ -87,11 +87,11 @@ def noc_to_uint8(noc: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
 @torch.no_grad()
 def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, result: TransferResult, photo: Photo,
                   view: View, photo_noc: torch.Tensor | None, distance: float, fov: float, elevation: float,
-                  cfg: TransferConfig, device: torch.device) -> dict[str, str]:
+                  cfg: TransferConfig, device: torch.device, texture_format: str = "png") -> dict[str, str]:
     """textured.glb/.ply, comparison.png, turntable frames and GIF; returns {what: file name}."""
     batch = collate_shapes([shape]).to(device)
     texture = generator.synthesize(batch, result.ws.to(device), noise_mode="none")
-    write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size)
+    write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size, texture_format)
 
     white_photo = composite_images(photo.image, photo.mask, 1.0)
     white_render = composite_images(result.render, view.mask, 1.0)
@@ -182,7 +182,7 @@ def run(args) -> int:
 
     t = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    files = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device)
+    files = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device, args.texture_format)
     save_png(out / "photo_crop.png", to_uint8_image(photo.image))
     save_png(out / "render_at_pose.png", to_uint8_image(result.render))
     seconds["outputs"] = round(time.perf_counter() - t, 2)
@@ -198,7 +198,7 @@ def run(args) -> int:
         "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in result.losses.items()},
         "seconds": seconds,
         "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
-        "settings": asdict(cfg),
+        "settings": {**asdict(cfg), "texture_format": args.texture_format},
         "files": {**files, "photo_crop": "photo_crop.png", "render_at_pose": "render_at_pose.png"},
     }
     write_json(out / "report.json", report)

@@ -10,7 +10,8 @@ them from the source with ``ast`` (literal values, nested configs, names of modu
 * :class:`Parser` prints a bad option as one line, ``mesh2tex: error: ...``, and exits with status 2.
 * :class:`HelpFormatter` appends ``(default: X)`` to every option's help: the argparse default, or for
   a flag that overrides a config field (:meth:`ConfigOptions.add`) that field's default.
-* :func:`add_out` and :func:`add_device`: ``--out DIR`` and ``--device auto|cpu|cuda`` alike everywhere.
+* :func:`add_out` and :func:`add_device`: ``--out DIR`` and ``--device auto|cpu|cuda`` alike everywhere;
+  :func:`add_texture_format`: ``--texture-format png|jpeg|webp`` on every command that writes a GLB.
 """
 
 from __future__ import annotations
@@ -77,6 +78,17 @@ def add_out(parser, help: str, *, required: bool = True, default: str | None = N
 def add_device(parser, help: str = "where to run", default: str | None = "auto") -> argparse.Action:
     """``--device auto|cpu|cuda`` (auto: CUDA when available)."""
     return parser.add_argument("--device", choices=DEVICES, default=default, help=help)
+
+
+def add_texture_format(parser, config: "ConfigOptions | None" = None, key: str = "texture_format") -> argparse.Action:
+    """``--texture-format png|jpeg|webp``: how the baked texture is embedded in the GLBs written
+    (:data:`mesh2tex.io.assets.TEXTURE_FORMATS`); with ``config``, it overrides that config's field ``key``."""
+    kwargs = dict(choices=static_value("mesh2tex.io.assets:TEXTURE_FORMATS"),
+                  help="image format of the GLB's texture: png (lossless), jpeg or webp (lossy, smaller; "
+                       "webp needs a viewer with EXT_texture_webp)")
+    if config is not None:
+        return config.add("--texture-format", key=key, **kwargs)
+    return parser.add_argument("--texture-format", default="png", **kwargs)
 
 
 class ConfigOptions:

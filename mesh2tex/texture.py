@@ -7,6 +7,7 @@ generator is :func:`mesh2tex.io.models.load_generator`.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,20 +24,23 @@ from mesh2tex.render.uv import bake_surface_colors
 
 
 def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0) -> PreparedShape:
-    """A prepared shape from .npz, or a mesh file prepared on the fly; checked against the generator."""
+    """A prepared shape from .npz, or a mesh file prepared on the fly (with a one-line warning on stderr
+    when ``face_count`` is too coarse to keep its parts); checked against the generator."""
     path = Path(path)
     levels = generator.cfg.num_levels
     if path.suffix.lower() == ".npz":
         shape = PreparedShape.load(path)
     else:
         from mesh2tex.geometry.mesh_io import load_mesh
-        from mesh2tex.geometry.prepare import prepare_shape
+        from mesh2tex.geometry.prepare import coarseness_warning, prepare_shape
 
         vertices, faces = load_mesh(path)
         try:
             shape = prepare_shape(vertices, faces, face_count=face_count, levels=levels, seed=seed, source=str(path))
         except UserError as error:  # name the mesh the problem is in
             raise (error if str(error).startswith(str(path)) else UserError(f"{path}: {error}")) from None
+        for warning in coarseness_warning(shape.metadata["coarseness"]):
+            print(f"mesh2tex: warning: {path}: {warning}", file=sys.stderr)
     problem = shape_mismatch(shape, generator)
     if problem:
         raise UserError(f"{path}: has {problem}")
@@ -97,10 +101,12 @@ def vertex_colors(generator: TextureGenerator, texture: FaceTexture, batch: Mesh
 
 @torch.no_grad()
 def write_textured_mesh(glb_path: str | Path, ply_path: str | Path, generator: TextureGenerator, texture: FaceTexture,
-                        batch: MeshBatch, texture_size: int) -> None:
+                        batch: MeshBatch, texture_size: int, texture_format: str = "png") -> None:
     """Shape 0 of ``batch`` with ``texture``: a GLB with the texture baked into a ``texture_size``
-    square UV map (:func:`bake_texture`) and a PLY with :func:`vertex_colors`."""
+    square UV map (:func:`bake_texture`), embedded as ``texture_format`` (png, jpeg or webp; see
+    :func:`mesh2tex.io.assets.save_glb`), and a PLY with :func:`vertex_colors`."""
     verts, faces, uv, image, _ = bake_texture(generator, texture, batch, texture_size)
-    save_glb(glb_path, verts.numpy(), faces.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), faces.numpy()))
+    save_glb(glb_path, verts.numpy(), faces.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), faces.numpy()),
+             texture_format=texture_format)
     save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
              vertex_colors(generator, texture, batch))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from mesh2tex.io.assets import glb_bytes, save_glb, save_obj, save_ply
+from mesh2tex.io.assets import TEXTURE_FORMATS, glb_bytes, load_glb, save_glb, save_obj, save_ply
 
 
 def _quad():
@@ -56,6 +56,53 @@ def test_glb_structure_is_aligned_and_declares_bounds():
     position = document["accessors"][document["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
     assert position["min"] == [0, 0, 0] and position["max"] == [1, 1, 0]
     assert document["images"][0]["mimeType"] == "image/png"
+
+
+def _glb_document(data: bytes) -> dict:
+    (json_length,) = struct.unpack_from("<I", data, 12)
+    return json.loads(data[20 : 20 + json_length])
+
+
+def _noisy_texture(size: int = 128, noise: float = 24.0) -> np.ndarray:
+    """A colour gradient with per-texel noise: lossless PNG cannot squeeze it, lossy formats can."""
+    ramp = np.linspace(0, 1, size)
+    smooth = np.stack([np.add.outer(ramp, ramp) * 100, np.outer(ramp, 1 - ramp) * 600, np.tile(ramp * 200, (size, 1))], axis=2)
+    noisy = smooth + np.random.default_rng(0).normal(0, noise, smooth.shape)
+    return np.clip(noisy + 28, 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("texture_format, mime_type", [("png", "image/png"), ("jpeg", "image/jpeg"), ("webp", "image/webp")])
+def test_glb_embeds_its_texture_in_the_format_asked(tmp_path, texture_format, mime_type):
+    vertices, faces, uv, _ = _quad()
+    texture = _noisy_texture(noise=4.0)
+    path = tmp_path / f"quad_{texture_format}.glb"
+    save_glb(path, vertices, faces, uv, texture, texture_format=texture_format)
+    document = _glb_document(path.read_bytes())
+    assert document["images"] == [{"bufferView": 3, "mimeType": mime_type}]
+    if texture_format == "webp":  # glTF core knows PNG and JPEG only: WebP comes through its extension, declared required
+        assert document["extensionsUsed"] == document["extensionsRequired"] == ["EXT_texture_webp"]
+        assert document["textures"][0]["extensions"] == {"EXT_texture_webp": {"source": 0}}
+    else:
+        assert "extensionsRequired" not in document and document["textures"][0]["source"] == 0
+    mesh = _only_geometry(trimesh.load(path))  # trimesh finds the texture in every format
+    assert mesh.visual.material.baseColorTexture.format == texture_format.upper()
+    _, _, loaded_uv, image = load_glb(path)
+    np.testing.assert_allclose(loaded_uv, uv, atol=1e-6)
+    error = np.abs(image.astype(float) - texture).mean()
+    assert error == 0 if texture_format == "png" else error < 4.0  # lossy, but the same picture
+
+
+def test_lossy_texture_formats_make_smaller_glbs_on_a_noisy_texture():
+    vertices, faces, uv, _ = _quad()
+    texture = _noisy_texture(256)
+    size = {f: len(glb_bytes(vertices, faces, uv, texture, texture_format=f)) for f in TEXTURE_FORMATS}
+    assert size["jpeg"] < size["png"] / 2 and size["webp"] < size["png"] / 2, size
+
+
+def test_glb_refuses_an_unknown_texture_format():
+    vertices, faces, uv, texture = _quad()
+    with pytest.raises(ValueError, match="texture format 'gif'"):
+        glb_bytes(vertices, faces, uv, texture, texture_format="gif")
 
 
 def test_glb_rejects_mismatched_inputs(tmp_path):

@@ -143,6 +143,28 @@ def test_every_command_takes_out_and_device_alike(argv):
         assert "--device" not in actions
 
 
+GLB_COMMANDS = [["infer", "generate"], ["infer", "transfer"], ["infer", "nca"], ["demo"]]  # every command that writes a textured GLB
+
+
+@pytest.mark.parametrize("argv", GLB_COMMANDS, ids=" ".join)
+def test_every_command_writing_a_glb_takes_the_texture_format_alike(argv):
+    from mesh2tex.io.assets import TEXTURE_FORMATS
+
+    action = next(a for a in leaf_parser(argv)._actions if "--texture-format" in a.option_strings)
+    assert tuple(action.choices) == TEXTURE_FORMATS
+    assert HelpFormatter("mesh2tex")._get_help_string(action).endswith("(default: png)")
+
+
+def test_a_texture_format_from_a_config_file_is_checked(tmp_path, capsys):
+    (tmp_path / "c.yaml").write_text("texture_format: gif\n")
+    for argv in (["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"], ["demo"]):
+        assert main([*argv, "--config", str(tmp_path / "c.yaml"), "--print-config"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "texture_format 'gif': choose one of png, jpeg, webp" in err, err
+    assert main(["demo", "--texture-format", "webp", "--print-config"]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["texture_format"] == "webp"
+
+
 @pytest.mark.parametrize("argv", DEVICE_COMMANDS, ids=" ".join)
 def test_a_bad_device_is_one_line_and_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as exit_info:

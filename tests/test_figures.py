@@ -50,3 +50,12 @@ def test_generate_grid_is_seeds_by_views_and_a_missing_folder_is_one_line(tmp_pa
     assert [int(grid[5 + 10 * r, 5 + 10 * c, 0]) for r in range(2) for c in range(2)] == [0, 2, 10, 12]
     missing = figures("generate", tmp_path / "nowhere", "--out", tmp_path / "x.png")
     assert missing.returncode != 0 and missing.stderr.strip().count("\n") == 0 and "nowhere" in missing.stderr
+
+
+def test_screenshot_without_a_browser_says_how_to_get_one(tmp_path):
+    """The report screenshot needs Chromium; without it the script says so in one line (no browser is run here)."""
+    page = tmp_path / "report.html"
+    page.write_text("<html><body>report</body></html>")
+    result = figures("screenshot", page, "--browser", tmp_path / "no-such-chromium", "--out", tmp_path / "shot.png")
+    assert result.returncode != 0 and not (tmp_path / "shot.png").exists()
+    assert result.stderr.strip().count("\n") == 0 and "install Chromium (Debian/Ubuntu: apt-get install chromium)" in result.stderr

@@ -39,6 +39,28 @@ def test_generate_writes_renders_glb_and_ply(trained, tmp_path):
     assert not np.array_equal(np.asarray(Image.open(out / "seed0_view0.png")), np.asarray(Image.open(out / "seed5_view0.png")))
 
 
+def test_generate_embeds_the_texture_format_asked(trained, tmp_path):
+    out = tmp_path / "gen"
+    assert main(["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh", str(trained / "shapes" / "box0.npz"),
+                 "--out", str(out), "--seeds", "1", "--views", "1", "--resolution", "16", "--texture-size", "64",
+                 "--texture-format", "jpeg", "--device", "cpu"]) == 0
+    mesh = next(iter(trimesh.load(out / "seed1.glb").geometry.values()))
+    assert mesh.visual.material.baseColorTexture.format == "JPEG" and mesh.visual.material.baseColorTexture.size == (64, 64)
+
+
+def test_a_mesh_prepared_on_the_fly_too_coarsely_is_one_warning(trained, tmp_path, capsys):
+    from mesh2tex.synthetic.shapes import generate_shape
+
+    chair = generate_shape("chair", np.random.default_rng(0))
+    mesh = tmp_path / "chair.obj"
+    trimesh.Trimesh(chair.vertices, chair.faces, process=False).export(mesh)
+    assert main(["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh", str(mesh),
+                 "--faces", "96", "--out", str(tmp_path / "gen"), "--seeds", "0", "--views", "1", "--resolution", "16",
+                 "--texture-size", "16", "--device", "cpu"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "too coarse" in line]
+    assert len(warnings) == 1 and warnings[0].startswith(f"mesh2tex: warning: {mesh}: 96 faces are too coarse for this shape"), warnings
+
+
 def test_baked_texture_matches_the_field(trained, tmp_path):
     """The GLB's texture, looked up at a triangle's centroid uv, is psi at that triangle's centroid."""
     out = tmp_path / "gen"

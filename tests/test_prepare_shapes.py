@@ -153,3 +153,28 @@ def test_quadriflow_past_its_memory_budget_is_a_quad_remesh_error():
     ball = trimesh.creation.icosphere(3)
     with pytest.raises(QuadRemeshError, match="memory budget of 0.01 GiB"):
         quadriflow(ball.vertices, ball.faces, 96, memory_gb=0.01)
+
+
+def test_a_hierarchy_too_coarse_for_a_chair_is_one_warning_and_recorded(tmp_path, capsys):
+    """At 96 quads a chair loses parts (its seat melts into a blob): one warning line naming the file, the
+    face count and a larger count to use, and the measure in index.json and the .npz; at 1536 none."""
+    from mesh2tex.geometry.prepare import DEVIATION_LIMIT
+    from mesh2tex.synthetic.shapes import generate_shape
+
+    chair = generate_shape("chair", np.random.default_rng(0))
+    mesh = tmp_path / "chair.obj"
+    trimesh.Trimesh(chair.vertices, chair.faces, process=False).export(mesh)
+    for faces, levels in ((96, 3), (1536, 3)):
+        out = tmp_path / f"shapes{faces}"
+        assert main(["prepare", "shapes", "--input", str(mesh), "--out", str(out), "--faces", str(faces), "--levels", str(levels)]) == 0
+        coarse = [line for line in capsys.readouterr().err.splitlines() if "too coarse" in line]
+        index = json.loads((out / "index.json").read_text())
+        record = index["shapes"][0]["coarseness"]
+        assert PreparedShape.load(out / "chair.npz").metadata["coarseness"] == record
+        if faces == 96:
+            assert len(coarse) == 1 and coarse[0].startswith(f"mesh2tex: warning: {mesh}: 96 faces are too coarse"), coarse
+            assert f"at least {record['suggested_faces']} faces" in coarse[0] and record["suggested_faces"] > 96
+            assert record["too_coarse"] and record["deviation"] > DEVIATION_LIMIT and index["too_coarse"] == 1
+        else:
+            assert coarse == [] and not record["too_coarse"] and record["deviation"] < DEVIATION_LIMIT / 2
+            assert record["suggested_faces"] is None and index["too_coarse"] == 0

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 import torch
+import trimesh
 import yaml
 from PIL import Image
 
@@ -74,13 +75,15 @@ def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, capsys):
     out = nca_files / "graft"
     assert main(["infer", "nca", "--checkpoint", str(parent), "--graft", str(nca_files / "child" / "model.safetensors"),
                  "--mesh", "sphere:4", "--out", str(out), "--steps", "6", "--views", "2", "--resolution", "32",
-                 "--texture-size", "64", "--frames", "3", "--regrow", "y > 0.5", "--device", "cpu"]) == 0
+                 "--texture-size", "64", "--texture-format", "webp", "--frames", "3", "--regrow", "y > 0.5", "--device", "cpu"]) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["lineage"] is None and report["cells"] == 6 * 16 + 2
     for name in ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "view_0.png", "view_1.png"):
         assert (out / name).is_file(), name
     with Image.open(out / "growth.gif") as gif:
         assert gif.n_frames == 6  # 3 of the growth, 3 of the regrowth
+    glb = next(iter(trimesh.load(out / "textured.glb").geometry.values()))
+    assert glb.visual.material.baseColorTexture.format == "WEBP"
     state, _ = load_checkpoint(out / "state.safetensors")
     assert state["cells"]["state"].shape == (6 * 16 + 2, 6)
     assert np.isfinite(report["style_loss"])

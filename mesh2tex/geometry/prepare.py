@@ -5,16 +5,22 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.clean import clean_mesh, decimate, normalize
 from mesh2tex.geometry.features import face_features, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
+from mesh2tex.geometry.levelset import surface_samples
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.geometry.quadremesh import Budget, QuadRemeshError, remesh_hierarchy
+from mesh2tex.geometry.quadremesh import Budget, QuadRemeshError, quads_to_triangles, remesh_hierarchy
 
 # QuadriFlow's run time grows with the input; more triangles than this add nothing at 6144 quads
 MAX_INPUT_TRIANGLES = 100_000
+# A finest level is too coarse for its shape when more than 1 % of the input's surface lies farther than
+# 5 % of the bounding-box diagonal from it: a part (a seat, a leg) was lost or melted into a blob.
+DEVIATION_QUANTILE = 0.99
+DEVIATION_LIMIT = 0.05
 
 
 def level_face_counts(face_count: int, levels: int) -> list[int]:
@@ -44,7 +50,8 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         max_memory_gb: address-space limit of each QuadriFlow process, GiB. None: no limit.
     Returns:
         a :class:`PreparedShape` in the normalised frame (bbox centre 0, diagonal 1); its metadata
-        holds the transform from the input frame, the method used per level, seconds and seeds.
+        holds the transform from the input frame, the method used per level, seconds, seeds and
+        ``coarseness`` (:func:`coarseness_check`; a too coarse hierarchy also gets a warning).
     Raises:
         UserError: the mesh is unusable (no area, no quad mesh possible), or its budget was spent, with the reason.
     """
@@ -70,6 +77,7 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
 
     level_vertices = [r.vertices for r in results]
     level_quads = [r.quads for r in results]
+    coarseness = coarseness_check(clean_v, clean_f, level_vertices[0], level_quads[0], face_count)
     neighbors = [face_neighborhoods(v, q) for v, q in zip(level_vertices, level_quads)]
     pool = [pooling_map(level_vertices[l], level_quads[l], level_vertices[l + 1], level_quads[l + 1]) for l in range(levels - 1)]
     features, names = face_features(level_vertices[0], level_quads[0])
@@ -83,7 +91,8 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
                     "ratio": None if l == 0 else round(len(results[l - 1].quads) / len(r.quads), 3),
                     "method": r.method, "warnings": r.warnings, "seconds": r.seconds, "attempts": r.attempts}
                    for l, r in enumerate(results)],
-        "warnings": [f"level {l}: {w}" for l, r in enumerate(results) for w in r.warnings],
+        "warnings": [f"level {l}: {w}" for l, r in enumerate(results) for w in r.warnings] + coarseness_warning(coarseness),
+        "coarseness": coarseness,
         "seed": int(seed),
         "seeds": sorted({int(a["method"].split("seed=")[1].rstrip(")")) for r in results for a in r.attempts if "seed=" in a["method"]}),
         "seconds": {"clean": round(seconds_clean, 3), "remesh": round(seconds_remesh, 3), "total": round(time.perf_counter() - start, 3)},
@@ -98,3 +107,51 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         noc=noc_coordinates(level_vertices[0]),
         metadata=metadata,
     )
+
+
+def surface_deviation(vertices: np.ndarray, triangles: np.ndarray, quad_vertices: np.ndarray, quads: np.ndarray,
+                      quantile: float = DEVIATION_QUANTILE, max_points: int = 20_000) -> float:
+    """The distance within which ``quantile`` of the input's surface lies from the quad mesh (in the
+    units of the vertices: bounding-box diagonals in the normalised frame).
+
+    The input surface is sampled about every 0.01 (at most ``max_points`` points, a fixed subset) and
+    the quad mesh's triangles every 0.004; distances are point to nearest sample, so they read at most
+    about 0.003 high. vertices: (V, 3), triangles: (T, 3) the input; quad_vertices: (V', 3), quads: (F, 4).
+    """
+    diagonal = float(np.linalg.norm(np.ptp(np.asarray(vertices, dtype=np.float64), axis=0))) or 1.0
+    probes = surface_samples(vertices, triangles, 0.01 * diagonal)
+    if len(probes) > max_points:
+        probes = probes[np.random.default_rng(0).choice(len(probes), max_points, replace=False)]
+    target = surface_samples(np.asarray(quad_vertices, dtype=np.float64), quads_to_triangles(np.asarray(quads)), 0.004 * diagonal)
+    distance, _ = cKDTree(target).query(probes, k=1)
+    return float(np.quantile(distance, quantile))
+
+
+def coarseness_check(vertices: np.ndarray, triangles: np.ndarray, quad_vertices: np.ndarray, quads: np.ndarray,
+                     face_count: int) -> dict:
+    """Whether a finest level of ``face_count`` requested quads keeps the shape's parts.
+
+    ``deviation``: :func:`surface_deviation` of the input (normalised, bbox diagonal 1) from the
+    finest level, in bbox diagonals; ``too_coarse`` when it exceeds :data:`DEVIATION_LIMIT`. Then
+    ``suggested_faces`` is the smallest ``face_count * 4**k`` at which the deviation, taken to shrink
+    in proportion to the quad edge (halving per factor 4; measured on the synthetic chairs, it falls
+    faster than that once the lost parts come back), is within the limit; None when not too coarse.
+    """
+    deviation = surface_deviation(vertices, triangles, quad_vertices, quads)
+    too_coarse = deviation > DEVIATION_LIMIT
+    suggested = None
+    if too_coarse:
+        k = max(1, int(np.ceil(np.log2(deviation / DEVIATION_LIMIT))))
+        suggested = int(face_count * 4**k)
+    return {"deviation": round(deviation, 4), "quantile": DEVIATION_QUANTILE, "limit": DEVIATION_LIMIT,
+            "requested_faces": int(face_count), "faces": int(len(quads)), "too_coarse": bool(too_coarse), "suggested_faces": suggested}
+
+
+def coarseness_warning(coarseness: dict) -> list[str]:
+    """[] or the one-line warning of a too coarse hierarchy (:func:`coarseness_check`'s record)."""
+    if not coarseness.get("too_coarse"):
+        return []
+    share = round(100 * (1 - coarseness["quantile"]))
+    return [f"{coarseness['requested_faces']} faces are too coarse for this shape: {share} % of its surface lies more than "
+            f"{100 * coarseness['deviation']:.0f} % of its size from the {coarseness['faces']}-quad mesh (parts lost); "
+            f"suggested: at least {coarseness['suggested_faces']} faces"]

@@ -1,5 +1,5 @@
-"""Writers for textured assets: GLB with an embedded PNG base-colour texture, PLY with vertex colours
-(and :func:`load_glb`, the reader of such a GLB).
+"""Writers for textured assets: GLB with an embedded base-colour texture (PNG, JPEG or WebP), PLY with
+vertex colours (and :func:`load_glb`, the reader of such a GLB).
 
 Both write atomically (``mesh2tex.io.atomic``) and take numpy arrays or torch tensors.
 UV convention at this boundary is the trimesh / OpenGL one: u to the right, v up, (0, 0) the
@@ -22,6 +22,14 @@ from mesh2tex.io.atomic import write_bytes
 _FLOAT, _UINT32 = 5126, 5125  # glTF component types
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 _LINEAR, _LINEAR_MIPMAP_LINEAR, _CLAMP_TO_EDGE = 9729, 9987, 33071
+
+# The texture formats a GLB can embed (``--texture-format``): PNG (lossless, the default) and JPEG are
+# core glTF 2.0; WebP needs the EXT_texture_webp extension, declared required (no PNG fallback is
+# stored, so a viewer without WebP support refuses the file instead of showing it untextured).
+TEXTURE_FORMATS = ("png", "jpeg", "webp")
+MIME_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "webp": "image/webp"}
+LOSSY_QUALITY = 90  # JPEG and WebP quality (Pillow's 0-100 scale)
+WEBP_EXTENSION = "EXT_texture_webp"
 
 
 def _array(value, dtype, name: str, columns: int | None = None) -> np.ndarray:
@@ -48,7 +56,24 @@ def png_bytes(image_rgb_uint8) -> bytes:
     return buffer.getvalue()
 
 
-def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh") -> bytes:
+def image_bytes(image_rgb_uint8, texture_format: str = "png") -> bytes:
+    """(H, W, 3) uint8 -> file bytes in ``texture_format`` (one of :data:`TEXTURE_FORMATS`; JPEG and
+    WebP lossy at :data:`LOSSY_QUALITY`, an alpha channel dropped for JPEG)."""
+    if texture_format not in TEXTURE_FORMATS:
+        raise ValueError(f"texture format {texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+    if texture_format == "png":
+        return png_bytes(image_rgb_uint8)
+    image = _array(image_rgb_uint8, np.uint8, "texture")
+    if image.ndim != 3 or image.shape[2] not in (3, 4):
+        raise ValueError(f"texture must have shape (H, W, 3) or (H, W, 4), got {image.shape}")
+    if texture_format == "jpeg":
+        image = image[:, :, :3]
+    buffer = io.BytesIO()
+    Image.fromarray(image).save(buffer, format=texture_format.upper(), quality=LOSSY_QUALITY)
+    return buffer.getvalue()
+
+
+def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh", texture_format: str = "png") -> bytes:
     """A binary glTF 2.0 file holding one textured triangle mesh; see :func:`save_glb`."""
     positions = _array(vertices, np.float32, "vertices", 3)
     triangles = _array(faces, np.int64, "faces", 3)
@@ -57,7 +82,7 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
         raise ValueError(f"uv has {len(texcoords)} rows but there are {len(positions)} vertices (one uv per vertex)")
     _check_faces(triangles, len(positions))
     texcoords[:, 1] = 1.0 - texcoords[:, 1]  # glTF's v points down the image
-    image = png_bytes(texture_rgb_uint8)
+    image = image_bytes(texture_rgb_uint8, texture_format)
 
     blobs = [positions.tobytes(), texcoords.tobytes(), triangles.astype(np.uint32).tobytes()]
     attributes = {"POSITION": 0, "TEXCOORD_0": 1}
@@ -90,6 +115,9 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
         binary += blob
         binary += b"\x00" * (-len(binary) % 4)  # every view starts 4-byte aligned
 
+    texture = {"sampler": 0, "source": 0}
+    if texture_format == "webp":  # the image is named by the extension only (no core-format fallback)
+        texture = {"sampler": 0, "extensions": {WEBP_EXTENSION: {"source": 0}}}
     document = {
         "asset": {"version": "2.0", "generator": "mesh2tex"},
         "scene": 0,
@@ -98,13 +126,15 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
         "meshes": [{"name": name, "primitives": [{"attributes": attributes, "indices": 2, "material": 0, "mode": 4}]}],
         "materials": [{"name": f"{name}_material", "doubleSided": True,
                        "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0}}],
-        "textures": [{"sampler": 0, "source": 0}],
+        "textures": [texture],
         "samplers": [{"magFilter": _LINEAR, "minFilter": _LINEAR_MIPMAP_LINEAR, "wrapS": _CLAMP_TO_EDGE, "wrapT": _CLAMP_TO_EDGE}],
-        "images": [{"bufferView": len(buffer_views) - 1, "mimeType": "image/png"}],
+        "images": [{"bufferView": len(buffer_views) - 1, "mimeType": MIME_TYPES[texture_format]}],
         "accessors": accessors,
         "bufferViews": buffer_views,
         "buffers": [{"byteLength": len(binary)}],
     }
+    if texture_format == "webp":
+        document["extensionsUsed"] = document["extensionsRequired"] = [WEBP_EXTENSION]
     text = json.dumps(document, separators=(",", ":")).encode("utf-8")
     text += b" " * (-len(text) % 4)
     total = 12 + 8 + len(text) + 8 + len(binary)
@@ -115,15 +145,19 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
     ])
 
 
-def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh") -> None:
-    """Write a textured triangle mesh as GLB (glTF 2.0 binary) with the texture embedded as PNG.
+def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh",
+             texture_format: str = "png") -> None:
+    """Write a textured triangle mesh as GLB (glTF 2.0 binary) with the texture embedded as
+    ``texture_format``: "png" (lossless), "jpeg" or "webp" (lossy, quality :data:`LOSSY_QUALITY`; WebP
+    through the EXT_texture_webp extension, declared required).
 
     vertices: (V, 3) float, faces: (T, 3) int (counter-clockwise seen from outside), uv: (V, 2) float
     in [0, 1], v up (one uv per vertex: split vertices on UV seams, as ``unwrap_uv`` returns them),
     texture_rgb_uint8: (H, W, 3) uint8, row 0 the top of the image; vertex_normals: optional (V, 3)
-    for smooth shading (without them viewers shade flat). Loads in trimesh, Blender and three.js.
+    for smooth shading (without them viewers shade flat). Loads in trimesh, Blender and three.js (WebP:
+    in viewers that support EXT_texture_webp, such as three.js's GLTFLoader and Blender 4.x).
     """
-    write_bytes(path, glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals, name))
+    write_bytes(path, glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals, name, texture_format))
 
 
 def smooth_vertex_normals(vertices, faces) -> np.ndarray:

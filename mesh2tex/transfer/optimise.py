@@ -51,8 +51,9 @@ class PhotoLight(torch.nn.Module):
 
     def describe(self) -> dict[str, float]:
         """The light found, for reports: degrees relative to the camera, the ambient share."""
-        return {"azimuth_offset": round(math.degrees(float(self.azimuth_offset)), 2), "elevation": round(math.degrees(float(self.elevation)), 2),
-                "ambient": round(float(torch.sigmoid(self.ambient_logit)), 4)}
+        with torch.no_grad():
+            return {"azimuth_offset": round(math.degrees(self.azimuth_offset.item()), 2), "elevation": round(math.degrees(self.elevation.item()), 2),
+                    "ambient": round(torch.sigmoid(self.ambient_logit).item(), 4)}
 
 
 @dataclass

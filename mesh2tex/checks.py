@@ -7,7 +7,12 @@ the argument, the shape it needs and the shape it has, instead of an index error
 
 A shape is a sequence of ints (that size), strings (a named size: every use of the name in one
 ``sizes`` must agree) and None (any size). Several shapes are alternatives, e.g. ``(B, V, 4)`` or
-``(V, 4)``.
+``(V, 4)``. ``dtype="float"`` or ``"int"`` also asks for a dtype family (a TypeError otherwise):
+
+    sizes = check_shape(pos, "rasterize: pos", ("B", "V", 4), ("V", 4), dtype="float")
+
+The checks read shapes and dtypes only: no device synchronisation, nothing that depends on the
+values, so they cost microseconds and may stand at the top of every public function.
 """
 
 from __future__ import annotations
@@ -17,6 +22,12 @@ from typing import Sequence
 import torch
 
 Shape = Sequence[int | str | None]
+
+# dtype families: name -> (test, how a message calls it)
+_DTYPES = {
+    "float": (lambda d: d.is_floating_point, "a floating-point"),
+    "int": (lambda d: not d.is_floating_point and not d.is_complex and d != torch.bool, "an integer"),
+}
 
 
 def _text(shape: Shape) -> str:
@@ -37,7 +48,8 @@ def _matches(actual: tuple[int, ...], shape: Shape, sizes: dict[str, tuple[int, 
     return None
 
 
-def check_shape(tensor, name: str, *shapes: Shape, sizes: dict[str, tuple[int, str]] | None = None) -> dict[str, tuple[int, str]]:
+def check_shape(tensor, name: str, *shapes: Shape, sizes: dict[str, tuple[int, str]] | None = None,
+                dtype: str | None = None) -> dict[str, tuple[int, str]]:
     """Raise unless ``tensor`` is a tensor of one of ``shapes``; returns ``sizes`` with the named sizes it fixed.
 
     Args:
@@ -45,13 +57,16 @@ def check_shape(tensor, name: str, *shapes: Shape, sizes: dict[str, tuple[int, s
         name: how the message names it, e.g. ``"rasterize: pos"``.
         shapes: one or more alternative shapes (ints, size names, None for any size).
         sizes: {size name: (size, argument that fixed it)} shared by the checks of one call.
+        dtype: None (any), "float" (any floating-point dtype) or "int" (any integer dtype, not bool).
     Raises:
-        TypeError: ``tensor`` is not a ``torch.Tensor``.
+        TypeError: ``tensor`` is not a ``torch.Tensor``, or not of the ``dtype`` family.
         ValueError: its shape fits none of ``shapes``.
     """
     sizes = {} if sizes is None else sizes
     if not isinstance(tensor, torch.Tensor):
         raise TypeError(f"{name} must be a torch.Tensor of shape {' or '.join(_text(s) for s in shapes)}, got {type(tensor).__name__}")
+    if dtype is not None and not _DTYPES[dtype][0](tensor.dtype):
+        raise TypeError(f"{name} must be {_DTYPES[dtype][1]} tensor, got {str(tensor.dtype).replace('torch.', '')}")
     actual = tuple(tensor.shape)
     reasons = []
     for shape in shapes:
@@ -64,3 +79,10 @@ def check_shape(tensor, name: str, *shapes: Shape, sizes: dict[str, tuple[int, s
         reasons.append(reason)
     expected = " or ".join(_text(s) + r for s, r in zip(shapes, reasons))
     raise ValueError(f"{name} must have shape {expected}, got {_text(actual)}")
+
+
+def check_type(value, name: str, kind: type):
+    """Raise TypeError unless ``value`` is a ``kind`` (e.g. a :class:`~mesh2tex.render.Raster`), naming the argument."""
+    if not isinstance(value, kind):
+        raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+    return value

@@ -40,7 +40,7 @@ def test_rasterize_and_interpolate_name_the_wrong_argument():
         rasterize(pos, tri[0], (8, 8))
     with pytest.raises(ValueError, match="rasterize: resolution must be"):
         rasterize(pos, tri, (8,))
-    with pytest.raises(ValueError, match=r"interpolate: attr must have shape \[V, C\] or \[\*, V, C\], got \[3\]"):
+    with pytest.raises(ValueError, match=r"interpolate: attr must have shape \[V, C\] or \[1, V, C\] or \[B, V, C\], got \[3\]"):
         interpolate(torch.rand(3), raster, tri)
     with pytest.raises(ValueError, match=r"texture: uv must have shape \[B, H, W, 2\]"):
         texture(torch.rand(3, 4, 4), torch.rand(1, 8, 8, 3))

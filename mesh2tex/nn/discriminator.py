@@ -9,6 +9,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from mesh2tex.checks import check_shape
 from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.faceconv import FullyConnected, bias_act
 
@@ -110,6 +111,8 @@ class Discriminator(nn.Module):
         return torch.cat([x, y], dim=1)
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
+        """images (N, in_channels, R, R) float -> logits (N,)."""
+        check_shape(images, "Discriminator: images", (None, self.fromrgb.weight.shape[1], self.resolution, self.resolution), dtype="float")
         x = self.fromrgb(images)
         for block in self.blocks:
             x = block(x)

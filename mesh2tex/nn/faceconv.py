@@ -30,7 +30,8 @@ LRELU_GAIN = math.sqrt(2.0)
 
 def gather_neighborhood(x: torch.Tensor, neighbors: torch.Tensor) -> torch.Tensor:
     """x: (F, C) face features, neighbors: (F, 9) int64 with -1 missing -> (F, 9, C), zeros where missing."""
-    check_shape(neighbors, "gather_neighborhood: neighbors", ("F", NEIGHBORHOOD), sizes=check_shape(x, "gather_neighborhood: x", ("F", "C")))
+    sizes = check_shape(x, "gather_neighborhood: x", ("F", "C"))
+    check_shape(neighbors, "gather_neighborhood: neighbors", ("F", NEIGHBORHOOD), sizes=sizes, dtype="int")
     return _gather_rows(x, neighbors)
 
 
@@ -152,7 +153,8 @@ class FaceConv(nn.Module):
 
     def forward(self, x: torch.Tensor, neighbors: torch.Tensor) -> torch.Tensor:
         """x: (F, in) float, neighbors: (F, 9) int64 -> (F, out)."""
-        check_shape(neighbors, "FaceConv: neighbors", ("F", NEIGHBORHOOD), sizes=check_shape(x, "FaceConv: x", ("F", self.weight.shape[2])))
+        sizes = check_shape(x, "FaceConv: x", ("F", self.weight.shape[2]), dtype="float")
+        check_shape(neighbors, "FaceConv: neighbors", ("F", NEIGHBORHOOD), sizes=sizes, dtype="int")
         w = (self.weight * self.weight_gain).to(x.dtype)  # (out, 9, in)
         return bias_act(neighborhood_matmul(x, neighbors, w), self.bias, self.activation)
 
@@ -190,11 +192,11 @@ class ModulatedFaceConv(nn.Module):
         ``noise_mode``: "random" adds fresh per-face Gaussian noise scaled by a learnt strength,
         "none" adds nothing (deterministic output).
         """
-        sizes = check_shape(x, "ModulatedFaceConv: x", ("F", self.in_channels))
-        check_shape(sample_index, "ModulatedFaceConv: sample_index", ("F",), sizes=sizes)
+        sizes = check_shape(x, "ModulatedFaceConv: x", ("F", self.in_channels), dtype="float")
+        check_shape(sample_index, "ModulatedFaceConv: sample_index", ("F",), sizes=sizes, dtype="int")
         if self.kernel_size != 1:
-            check_shape(neighbors, "ModulatedFaceConv: neighbors", ("F", NEIGHBORHOOD), sizes=sizes)
-        check_shape(w, "ModulatedFaceConv: w", ("B", self.affine.weight.shape[1]))
+            check_shape(neighbors, "ModulatedFaceConv: neighbors", ("F", NEIGHBORHOOD), sizes=sizes, dtype="int")
+        check_shape(w, "ModulatedFaceConv: w", ("B", self.affine.weight.shape[1]), dtype="float")
         styles = self.affine(w)  # (B, in)
         weight = self.weight * self.weight_gain  # (out, k, in)
         x = x * styles[sample_index].to(x.dtype)
@@ -216,7 +218,7 @@ def face_pool(x: torch.Tensor, pool: torch.Tensor, num_coarse: int, mode: str = 
 
     ``mode`` "max" or "mean" over the fine faces that map to each coarse face.
     """
-    check_shape(pool, "face_pool: pool", ("F",), sizes=check_shape(x, "face_pool: x", ("F", "C")))
+    check_shape(pool, "face_pool: pool", ("F",), sizes=check_shape(x, "face_pool: x", ("F", "C")), dtype="int")
     index = pool.unsqueeze(1).expand_as(x)
     out = x.new_zeros(num_coarse, x.shape[1])
     reduce = {"max": "amax", "mean": "mean"}[mode]
@@ -229,9 +231,9 @@ def face_unpool(x: torch.Tensor, pool: torch.Tensor, neighbors_fine: torch.Tenso
     leave blocky steps. x: (F_{l+1}, C), pool: (F_l,), neighbors_fine: (F_l, 9) or None (no blur) -> (F_l, C).
     """
     check_shape(x, "face_unpool: x", (None, "C"))
-    sizes = check_shape(pool, "face_unpool: pool", ("F",))
+    sizes = check_shape(pool, "face_unpool: pool", ("F",), dtype="int")
     if neighbors_fine is not None:
-        check_shape(neighbors_fine, "face_unpool: neighbors_fine", ("F", NEIGHBORHOOD), sizes=sizes)
+        check_shape(neighbors_fine, "face_unpool: neighbors_fine", ("F", NEIGHBORHOOD), sizes=sizes, dtype="int")
     if neighbors_fine is None:
         return x[pool]
     present = (neighbors_fine >= 0).to(x.dtype) * x.new_tensor(BLUR_WEIGHTS)  # (F, 9)
@@ -289,7 +291,8 @@ class FaceResNetBlock(nn.Module):
         self.skip = FullyConnected(in_channels, out_channels) if in_channels != out_channels else None
 
     def forward(self, x: torch.Tensor, neighbors: torch.Tensor) -> torch.Tensor:
-        """x: (F, in) -> (F, out)."""
+        """x: (F, in) float, neighbors: (F, 9) int64 -> (F, out)."""
+        check_shape(x, "FaceResNetBlock: x", (None, self.conv0.weight.shape[2]))
         y = self.conv1(self.conv0(x, neighbors), neighbors)
         skip = x if self.skip is None else self.skip(x)
         return (y + skip) * math.sqrt(0.5)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from mesh2tex.checks import check_shape
 from mesh2tex.nn.faceconv import FullyConnected
 
 COORDINATE_MODES = ("raw", "sorted_cdf")
@@ -57,8 +58,9 @@ def local_coordinates(bary: torch.Tensor, mode: str) -> torch.Tensor:
 def vertex_features(face_features: torch.Tensor, quads: torch.Tensor, num_vertices: int) -> torch.Tensor:
     """Mean feature of the quad faces incident to each vertex.
 
-    face_features: (F, C), quads: (F, 4) int64 -> (V, C); a vertex used by no face gets zeros.
+    face_features: (F, C) float, quads: (F, 4) int64 -> (V, C); a vertex used by no face gets zeros.
     """
+    check_shape(quads, "vertex_features: quads", ("F", 4), sizes=check_shape(face_features, "vertex_features: face_features", ("F", "C"), dtype="float"), dtype="int")
     index = quads.reshape(-1)
     summed = face_features.new_zeros(num_vertices, face_features.shape[1])
     summed = summed.index_add(0, index, face_features.repeat_interleave(4, dim=0))
@@ -102,7 +104,9 @@ class NeuralField(nn.Module):
             self.head[-1].weight.mul_(output_init)
 
     def forward(self, features: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-        """features: (P, C) blended vertex features, bary: (P, 3) -> (P, 3) RGB."""
+        """features: (P, C) blended vertex features, bary: (P, 3) float -> (P, 3) RGB."""
+        points = check_shape(features, "NeuralField: features", ("P", self.feature_branch[0].weight.shape[1] - 3), dtype="float")
+        check_shape(bary, "NeuralField: bary", ("P", 3), sizes=points, dtype="float")
         coords = local_coordinates(bary, self.coords).to(features.dtype)
         local = self.feature_branch(torch.cat([features, coords], dim=1))
         aux = self.aux_branch(self.aux_latent.unsqueeze(0).to(features.dtype))  # (1, hidden), the same for every point

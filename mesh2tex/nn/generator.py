@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import torch
 from torch import nn
 
+from mesh2tex.checks import check_shape, check_type
 from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, FullyConnected, ModulatedFaceConv, face_pool, face_unpool
@@ -92,6 +93,8 @@ class MappingNetwork(nn.Module):
         self.register_buffer("w_avg", torch.zeros(w_dim))
 
     def forward(self, z: torch.Tensor, truncation_psi: float = 1.0, update_w_avg: bool = False) -> torch.Tensor:
+        """z (B, z_dim) float -> ws (B, num_ws, w_dim)."""
+        check_shape(z, "MappingNetwork: z", (None, self.net[0].weight.shape[1]), dtype="float")
         z = z * (z.square().mean(dim=1, keepdim=True) + 1e-8).rsqrt()  # normalise the second moment
         w = self.net(z)
         if update_w_avg:
@@ -195,15 +198,18 @@ class TextureGenerator(nn.Module):
         self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords, cfg.field_output_init)
 
     def synthesize(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random") -> FaceTexture:
-        """Per-face texture for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim), one row per shape.
+        """Per-face texture for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim) float, one row per shape
+        (B = ``batch.num_shapes``).
 
         ``encoded``: the encoder's output for this batch, if already computed (it does not depend on ws).
         """
+        check_type(batch, "TextureGenerator.synthesize: batch", MeshBatch)
+        shapes = {"B": (batch.num_shapes, "batch")}
+        check_shape(ws, "TextureGenerator.synthesize: ws", ("B", self.num_ws, self.cfg.w_dim), ("B", self.cfg.w_dim), sizes=shapes, dtype="float")
         if ws.dim() == 2:
             ws = ws.unsqueeze(1).expand(-1, self.num_ws, -1)
-        if ws.shape[0] != batch.num_shapes or ws.shape[1] != self.num_ws:
-            raise ValueError(f"ws must be ({batch.num_shapes}, {self.num_ws}, w_dim), got {tuple(ws.shape)}")
         if encoded is None:
+            check_shape(batch.face_features, "TextureGenerator.synthesize: batch.face_features", (None, self.cfg.input_features))
             encoded = self.encoder(batch)
         if self.cfg.kind == "nca":
             states = self.nca(batch, ws[:, 0], encoded[0], noise_mode)  # (V, C)
@@ -230,6 +236,8 @@ class TextureGenerator(nn.Module):
 
     def forward(self, batch: MeshBatch, z: torch.Tensor, truncation_psi: float = 1.0, noise_mode: str = "random", update_w_avg: bool = False):
         """z: (B, z_dim), one per shape -> (FaceTexture, ws (B, num_ws, w_dim))."""
+        check_type(batch, "TextureGenerator: batch", MeshBatch)
+        check_shape(z, "TextureGenerator: z", ("B", self.cfg.z_dim), sizes={"B": (batch.num_shapes, "batch")}, dtype="float")
         ws = self.mapping(z, truncation_psi, update_w_avg)
         return self.synthesize(batch, ws, noise_mode=noise_mode), ws
 

@@ -38,6 +38,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from mesh2tex.checks import check_shape, check_type
 from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.field import sorted_cdf_coordinates, vertex_features
 from mesh2tex.render.shading import vertex_normals
@@ -301,21 +302,34 @@ class MeshNCA(nn.Module):
             return torch.zeros(shape, device=device)
         return torch.rand(shape, generator=generator).to(device) - 0.5
 
+    def _check_state(self, method: str, state: torch.Tensor, graph: CellGraph | None = None) -> None:
+        """state (B, V, C) float with C = cfg.channels (and V = graph.num_cells when a graph is given)."""
+        cells = None
+        if graph is not None:
+            cells = check_type(graph, f"MeshNCA.{method}: graph", CellGraph).num_cells
+        check_shape(state, f"MeshNCA.{method}: state", (None, cells, self.cfg.channels), dtype="float")
+
     def delta(self, state: torch.Tensor, graph: CellGraph, angle: float | torch.Tensor = 0.0) -> torch.Tensor:
-        """The deterministic update ds (B, V, C) of every cell."""
+        """The deterministic update ds (B, V, C) of every cell: state (B, V, C) float, V = ``graph.num_cells``;
+        ``angle`` a float or (V,) radians (see :meth:`CellGraph.directions`)."""
+        self._check_state("delta", state, graph)
+        if torch.is_tensor(angle):
+            check_shape(angle, "MeshNCA.delta: angle", (), (graph.num_cells,))
         z = perceive(state, graph, self.cfg.sh_order, self.cfg.nominal_valence, angle)
         return self.update(torch.cat([z, state], dim=-1))
 
     def step(self, state: torch.Tensor, graph: CellGraph, angle: float | torch.Tensor = 0.0,
              graft: tuple["MeshNCA", torch.Tensor] | None = None, generator: torch.Generator | None = None) -> torch.Tensor:
-        """One asynchronous step: state (B, V, C) -> (B, V, C).
+        """One asynchronous step: state (B, V, C) float -> (B, V, C), V = ``graph.num_cells``.
 
         ``graft``: (other automaton of the same lineage, alpha (V,) in [0, 1]): the update becomes
         alpha * other's + (1 - alpha) * this one's, cell by cell (MeshNCA's grafting).
         """
+        self._check_state("step", state, graph)
         ds = self.delta(state, graph, angle)
         if graft is not None:
             other, alpha = graft
+            check_shape(alpha, "MeshNCA.step: graft alpha", (graph.num_cells,))
             a = alpha.to(ds.dtype).reshape(1, -1, 1)
             ds = (1 - a) * ds + a * other.delta(state, graph, angle)
         fire = torch.rand(state.shape[:2], generator=generator, device=state.device)  # a generator on state's device
@@ -332,9 +346,15 @@ class MeshNCA(nn.Module):
                sample: torch.Tensor | None = None) -> torch.Tensor:
         """RGB (P, 3) in about [-1, 1] at P surface points.
 
-        state (B, V, C); triangles (T, 3); triangle_id (P,) and bary (P, 3) locate the points;
-        sample (P,) the state each point reads (None: all read state 0).
+        state (B, V, C) float; triangles (T, 3) int64; triangle_id (P,) int64 and bary (P, 3) float
+        locate the points; sample (P,) int64 the state each point reads (None: all read state 0).
         """
+        self._check_state("colors", state)
+        check_shape(triangles, "MeshNCA.colors: triangles", (None, 3), dtype="int")
+        points = check_shape(triangle_id, "MeshNCA.colors: triangle_id", ("P",), dtype="int")
+        check_shape(bary, "MeshNCA.colors: bary", ("P", 3), sizes=points, dtype="float")
+        if sample is not None:
+            check_shape(sample, "MeshNCA.colors: sample", ("P",), sizes=points, dtype="int")
         corners = triangles[triangle_id]  # (P, 3)
         if sample is None:
             corner_states = state[0][corners]
@@ -343,7 +363,8 @@ class MeshNCA(nn.Module):
         return self.readout(corner_states, bary.to(state.dtype))
 
     def vertex_colors(self, state: torch.Tensor) -> torch.Tensor:
-        """(B, V, 3) colours at the cells themselves (a point at a vertex: barycentrics (1, 0, 0))."""
+        """(B, V, 3) colours at the cells themselves (a point at a vertex: barycentrics (1, 0, 0)) of state (B, V, C)."""
+        self._check_state("vertex_colors", state)
         b, v, c = state.shape
         corners = state.reshape(b * v, 1, c).expand(b * v, 3, c)
         bary = torch.tensor([1.0, 0.0, 0.0], dtype=state.dtype, device=state.device).expand(b * v, 3)
@@ -395,6 +416,8 @@ class ConditionedNCA(nn.Module):
         ``noise_mode`` "none" fixes which cells fire at each step (a seeded draw), so that inference
         is deterministic; "random" draws them afresh.
         """
+        check_shape(w, "ConditionedNCA: w", (batch.num_shapes, self.from_w.in_features), dtype="float")
+        check_shape(geometry, "ConditionedNCA: geometry", (batch.quads.shape[0], self.from_geometry.in_features), dtype="float")
         device = w.device
         graph = build_cell_graph(batch.vertices.detach().cpu().numpy(), batch.quads.cpu().numpy(), self.neighbourhood).to(device)
         counts = (batch.vertex_offsets[1:] - batch.vertex_offsets[:-1]).to(device)

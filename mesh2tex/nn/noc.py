@@ -17,6 +17,8 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
+
 
 def _double_conv(in_channels: int, out_channels: int) -> nn.Sequential:
     return nn.Sequential(
@@ -44,6 +46,8 @@ class NocUNet(nn.Module):
         self.head = nn.Conv2d(widths[0], out_channels, 1)
 
     def forward(self, images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
+        sizes = check_shape(images, "NocUNet: images", ("B", self.encoders[0][0].in_channels - 1, "H", "W"), dtype="float")
+        check_shape(masks, "NocUNet: masks", ("B", 1, "H", "W"), sizes=sizes)
         height, width = images.shape[-2:]
         multiple = 2 ** self.depth
         pad_h, pad_w = (-height) % multiple, (-width) % multiple

@@ -24,6 +24,8 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
+
 
 @dataclass
 class PoseBins:
@@ -142,6 +144,7 @@ class PoseNet(nn.Module):
         self.elevation_head = nn.Sequential(nn.Linear(feature_dim, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, self.bins.elevation_bins))
 
     def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        check_shape(images, "PoseNet: images", (None, self.backbone.stem[0].in_channels, None, None), dtype="float")
         features = self.refine(self.backbone(images))
         return self.azimuth_head(features), self.elevation_head(features)
 

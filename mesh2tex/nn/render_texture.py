@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import torch
 
+from mesh2tex.checks import check_shape, check_type
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.field import blend_vertex_features, vertex_features
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
@@ -52,10 +53,7 @@ def rasterize_batch(batch: MeshBatch, mvp: torch.Tensor, resolution: tuple[int, 
 
     mvp: (N, 4, 4) float32, N a multiple of ``batch.num_shapes``.
     """
-    n = mvp.shape[0]
-    if n % batch.num_shapes:
-        raise ValueError(f"{n} cameras cannot be split evenly over {batch.num_shapes} shapes")
-    k = n // batch.num_shapes
+    k = _views_per_item("rasterize_batch", batch, mvp)
     ids, barys = [], []
     for s in range(batch.num_shapes):
         pos = transform_points(batch.shape_vertices(s), mvp[s * k : (s + 1) * k])
@@ -66,13 +64,24 @@ def rasterize_batch(batch: MeshBatch, mvp: torch.Tensor, resolution: tuple[int, 
     return SurfaceSamples(torch.cat(ids), torch.cat(barys))
 
 
+def _views_per_item(function: str, batch: MeshBatch, mvp: torch.Tensor, items: int | None = None, what: str = "shapes") -> int:
+    """K = N / B for ``mvp`` (N, 4, 4) float over B = ``items`` (default: the batch's shapes), checked."""
+    if items is None:
+        items = check_type(batch, f"{function}: batch", MeshBatch).num_shapes
+    check_shape(mvp, f"{function}: mvp", (None, 4, 4), dtype="float")
+    if mvp.shape[0] % items:
+        raise ValueError(f"{function}: mvp holds {mvp.shape[0]} cameras, which cannot be split evenly over {items} {what}")
+    return mvp.shape[0] // items
+
+
 def field_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-    """psi at surface points: triangle_id (P,) batch triangle indices, bary (P, 3) -> RGB (P, 3).
+    """psi at surface points: triangle_id (P,) int64 batch triangle indices, bary (P, 3) float -> RGB (P, 3).
 
     With ``field_residual`` (the default) psi's output is added to the barycentric blend of the
     proxy's vertex colours (the mean face colour around each vertex), so the colour at a point
     starts from the latent-dependent per-face texture and psi adds detail within the faces.
     """
+    check_shape(bary, "field_colors: bary", ("P", 3), sizes=check_shape(triangle_id, "field_colors: triangle_id", ("P",), dtype="int"), dtype="float")
     features = texture.field_features
     residual = generator.cfg.field_residual
     if residual:
@@ -99,6 +108,7 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
                        noise_mode: str = "random", samples: SurfaceSamples | None = None, lights: Lights | None = None) -> RenderedViews:
     """Render the texture that ``generator`` makes for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim).
 
+    ``ws`` may be None when ``texture`` is given.
     mvp: (N, 4, 4) camera matrices (``orbit_camera(...).mvp``), K = N / B views per shape;
     background: (N, 3) solid colours or (N, 3, H, W) images in [-1, 1];
     proxy: also render the per-face colours; texture / encoded / samples: reuse what was computed;
@@ -106,6 +116,16 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     Differentiable with respect to ws and every generator parameter.
     """
     h, w = int(resolution[0]), int(resolution[1])
+    _views_per_item("render_field_views", batch, mvp)
+    views = {"N": (mvp.shape[0], "mvp")}
+    check_shape(background, "render_field_views: background", ("N", 3), ("N", 3, h, w), sizes=views, dtype="float")
+    if texture is None and ws is None:
+        raise ValueError("render_field_views: ws is needed when no texture is given")
+    if samples is not None:
+        check_shape(samples.triangle_id, "render_field_views: samples.triangle_id", ("N", h, w), sizes=views)
+    if lights is not None:
+        check_shape(lights.direction, "render_field_views: lights.direction", ("N", 3), sizes=views)
+        check_shape(lights.ambient, "render_field_views: lights.ambient", ("N",), sizes=views)
     if texture is None:
         texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode)
     if samples is None:
@@ -143,13 +163,14 @@ def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: to
                   background: float | torch.Tensor = 0.0) -> StateViews:
     """Render B states of one mesh with K = N / B cameras each (views s*K .. s*K+K-1 show state s).
 
-    state (B, V, C); mvp (N, 4, 4); background a float, (N, 3) colours or (N, 3, H, W) images in
-    [-1, 1]. The readout is evaluated only at covered pixels. Differentiable with respect to the
+    state (B, V, C) float, V = ``graph.num_cells``; mvp (N, 4, 4); background a float, (N, 3) colours
+    or (N, 3, H, W) images in [-1, 1]. The readout is evaluated only at covered pixels. Differentiable with respect to the
     states and the readout's parameters.
     """
+    check_type(graph, "render_states: graph", CellGraph)
+    check_shape(state, "render_states: state", (None, graph.num_cells, None), dtype="float")
+    _views_per_item("render_states", None, mvp, state.shape[0], "states")
     n, b = mvp.shape[0], state.shape[0]
-    if n % b:
-        raise ValueError(f"{n} cameras cannot be split evenly over {b} states")
     h = w = int(resolution)
     raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (h, w))
     covered = raster.face_id >= 0  # (N, H, W)

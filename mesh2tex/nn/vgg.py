@@ -29,6 +29,7 @@ from pathlib import Path
 import torch
 import torch.nn as nn
 
+from mesh2tex.checks import check_shape
 from mesh2tex.errors import UserError
 
 # torchvision's VGG19 "features" layout: channel counts, "M" for a 2x2 max pool.
@@ -111,7 +112,9 @@ class VGG19Features(nn.Module):
         self.source = "uninitialised"
 
     def forward(self, images: torch.Tensor, depth: int = len(STYLE_CONV_LAYERS)) -> list[torch.Tensor]:
-        """The first ``depth`` style activations (all five by default); the trunk stops after the last one asked for."""
+        """images (N, 3, H, W) float in [-1, 1] -> the first ``depth`` style activations (all five by default);
+        the trunk stops after the last one asked for."""
+        check_shape(images, "VGG19Features: images", (None, 3, None, None), dtype="float")
         x = ((images + 1.0) * 0.5 - self.mean) / self.std
         outputs = []
         last = self.output_indices[depth - 1]

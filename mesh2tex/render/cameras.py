@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import torch
 
+from mesh2tex.checks import check_shape
 from mesh2tex.config import check_fields
 
 DEFAULT_DISTANCE = 2.5  # world units; a unit-sized object fills most of the frame at the default fov (the GAN's own camera: CameraConfig)
@@ -101,9 +102,19 @@ def perspective(fov, near=DEFAULT_NEAR, far=DEFAULT_FAR, aspect=1.0, device=None
     return proj
 
 
+def _check_batch_args(function: str, **values) -> None:
+    """Tensor arguments of an orbit camera are 0-d, (1,) or (B,) with one B; floats pass unchecked."""
+    sizes: dict[str, tuple[int, str]] = {}
+    for name, value in values.items():
+        if torch.is_tensor(value):
+            check_shape(value, f"{function}: {name}", (), (1,), ("B",), sizes=sizes)
+
+
 def orbit_direction(azimuth: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:
     """Unit vectors (B, 3) from the origin towards ``azimuth``/``elevation`` (B,) degrees: an orbit
     camera's eye direction, and the direction of a light placed the same way."""
+    check_shape(elevation, "orbit_direction: elevation", ("B",), sizes=check_shape(azimuth, "orbit_direction: azimuth", ("B",), dtype="float"),
+                dtype="float")
     az, el = torch.deg2rad(azimuth), torch.deg2rad(elevation)
     return torch.stack([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()], dim=-1)
 
@@ -120,16 +131,18 @@ def orbit_camera(
     """Batched orbit cameras looking at the origin (see the module docstring for the convention).
 
     Args:
-        azimuth: degrees, float or (B,) tensor.
+        azimuth: degrees, float or (B,) tensor (a 0-d or (1,) tensor counts as a float).
         elevation: degrees, float or (B,) tensor, in [-90, 90].
         distance: float or (B,) tensor, distance from the origin.
         fov: vertical field of view in degrees, float or (B,) tensor.
         near, far: clip distances, floats or (B,) tensors.
+        Tensor arguments of length B must agree on B (ValueError naming the argument otherwise).
         aspect: image width / height.
     Returns:
         Camera with (B,4,4) ``view``, ``proj``, ``mvp`` and (B,3) ``position``, float32, on the device
         of ``azimuth`` when it is a tensor (else CPU). Scalars broadcast against (B,) tensors.
     """
+    _check_batch_args("orbit_camera", azimuth=azimuth, elevation=elevation, distance=distance, fov=fov, near=near, far=far)
     device = next((t.device for t in (azimuth, elevation, distance, fov) if torch.is_tensor(t)), None)
     az_deg, el_deg = _as_batch(azimuth, device), _as_batch(elevation, device)
     dist = _as_batch(distance, device)
@@ -163,11 +176,15 @@ def transform_points(vertices: torch.Tensor, mvp: torch.Tensor) -> torch.Tensor:
 
     Args:
         vertices: (V,3) shared by all views, or (B,V,3), float.
-        mvp: (B,4,4) or (4,4) float.
+        mvp: (B,4,4) or (4,4) float; a batch of 1 (vertices or mvp) broadcasts over the other's B.
     Returns:
         (B,V,4) clip-space positions, the ``pos`` input of :func:`mesh2tex.render.rasterize`.
         Differentiable with respect to both inputs.
     """
+    sizes = check_shape(vertices, "transform_points: vertices", ("V", 3), ("B", "V", 3), dtype="float")
+    if sizes.get("B", (None,))[0] == 1:
+        del sizes["B"]  # one set of vertices broadcasts over every camera
+    check_shape(mvp, "transform_points: mvp", (4, 4), (1, 4, 4), ("B", 4, 4), sizes=sizes, dtype="float")
     if mvp.dim() == 2:
         mvp = mvp[None]
     homogeneous = torch.cat([vertices, torch.ones_like(vertices[..., :1])], dim=-1)

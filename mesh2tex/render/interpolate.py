@@ -9,19 +9,25 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from mesh2tex.checks import check_shape
+from mesh2tex.checks import check_shape, check_type
 
 from .rasterize import Raster
 
 
+def check_per_view(value: torch.Tensor, raster: Raster, name: str, *shape) -> None:
+    """Check ``raster`` and a float ``value`` of ``shape`` shared by all views, or one per view ((1,)+shape or
+    (B,)+shape, B the raster's batch), for the public functions that take both; ``name`` as "function: argument"."""
+    check_type(raster, name.partition(":")[0] + ": raster", Raster)
+    batch = {"B": (raster.face_id.shape[0], "raster")}
+    check_shape(value, name, shape, (1, *shape), ("B", *shape), sizes=batch, dtype="float")
+
+
 def _batched(attr: torch.Tensor, batch: int) -> torch.Tensor:
-    """(N,C) or (B|1,N,C) -> (B,N,C) without copying shared attributes."""
+    """(N,C) or (B|1,N,C) -> (B,N,C) without copying shared attributes (shapes checked by the caller)."""
     if attr.dim() == 2:
         attr = attr[None]
     if attr.shape[0] == 1 and batch != 1:
         attr = attr.expand(batch, *attr.shape[1:])
-    if attr.shape[0] != batch:
-        raise ValueError(f"attribute batch {attr.shape[0]} does not match raster batch {batch}")
     return attr
 
 
@@ -36,14 +42,14 @@ def interpolate(attr: torch.Tensor, raster: Raster, tri: torch.Tensor) -> torch.
     """Interpolate per-vertex attributes with the raster's perspective-correct barycentrics.
 
     Args:
-        attr: (V,C) shared by all views, or (B,V,C), float.
+        attr: (V,C) shared by all views, or (B,V,C) (or (1,V,C)), float.
         raster: from :func:`mesh2tex.render.rasterize`, (B,H,W) face ids.
         tri: (T,3) int64, the triangles that were rasterized.
     Returns:
         (B,H,W,C) in the dtype of ``attr``, 0 on background; differentiable with respect to ``attr``.
     """
-    check_shape(attr, "interpolate: attr", ("V", "C"), (None, "V", "C"))
-    check_shape(tri, "interpolate: tri", ("T", 3))
+    check_per_view(attr, raster, "interpolate: attr", "V", "C")
+    check_shape(tri, "interpolate: tri", ("T", 3), dtype="int")
     B = raster.face_id.shape[0]
     attr = _batched(attr, B)
     tri = tri.to(device=raster.face_id.device, dtype=torch.long)
@@ -58,12 +64,12 @@ def face_attribute(attr: torch.Tensor, raster: Raster) -> torch.Tensor:
     """Look up per-face attributes at every pixel.
 
     Args:
-        attr: (T,C) shared by all views, or (B,T,C).
+        attr: (T,C) shared by all views, or (B,T,C) (or (1,T,C)), float.
         raster: from :func:`mesh2tex.render.rasterize`.
     Returns:
         (B,H,W,C), 0 on background; differentiable with respect to ``attr``.
     """
-    check_shape(attr, "face_attribute: attr", ("T", "C"), (None, "T", "C"))
+    check_per_view(attr, raster, "face_attribute: attr", "T", "C")
     B = raster.face_id.shape[0]
     attr = _batched(attr, B)
     mask = raster.face_id >= 0
@@ -75,7 +81,7 @@ def texture(image: torch.Tensor, uv: torch.Tensor, mode: str = "bilinear") -> to
     """Sample a texture image at UV coordinates.
 
     Args:
-        image: (C,Ht,Wt) shared by all views, or (B,C,Ht,Wt), float.
+        image: (C,Ht,Wt) shared by all views, or (B,C,Ht,Wt) (or (1,C,Ht,Wt)), float.
         uv: (B,H,W,2) in [0,1]: u to the right, v UP (v = 0 is the bottom row of the image, the
             trimesh / OpenGL convention). Texel centres sit at ((k + 0.5) / Wt, 1 - (r + 0.5) / Ht).
             Coordinates outside [0,1] read the border texel.
@@ -83,8 +89,8 @@ def texture(image: torch.Tensor, uv: torch.Tensor, mode: str = "bilinear") -> to
     Returns:
         (B,H,W,C), differentiable with respect to ``image`` and ``uv``.
     """
-    check_shape(image, "texture: image", ("C", "Ht", "Wt"), (None, "C", "Ht", "Wt"))
-    check_shape(uv, "texture: uv", ("B", "H", "W", 2))
+    sizes = check_shape(uv, "texture: uv", ("B", "H", "W", 2), dtype="float")
+    check_shape(image, "texture: image", ("C", "Ht", "Wt"), (1, "C", "Ht", "Wt"), ("B", "C", "Ht", "Wt"), sizes=sizes, dtype="float")
     if image.dim() == 3:
         image = image[None]
     B = uv.shape[0]

@@ -328,10 +328,10 @@ def rasterize(
         on the device of ``pos``. The nearest surface (smallest NDC z) wins; surface points outside
         -1 <= z <= 1 (in front of the near plane or beyond the far plane) are not drawn.
     """
-    check_shape(pos, "rasterize: pos", ("B", "V", 4), ("V", 4))
-    check_shape(tri, "rasterize: tri", ("T", 3))
-    if len(resolution) != 2:
-        raise ValueError(f"rasterize: resolution must be (H, W), got {tuple(resolution)}")
+    check_shape(pos, "rasterize: pos", ("B", "V", 4), ("V", 4), dtype="float")
+    check_shape(tri, "rasterize: tri", ("T", 3), dtype="int")
+    if not hasattr(resolution, "__len__") or len(resolution) != 2:
+        raise ValueError(f"rasterize: resolution must be (H, W), got {resolution!r}")
     H, W = int(resolution[0]), int(resolution[1])
     with torch.no_grad():
         if pos.dim() == 2:

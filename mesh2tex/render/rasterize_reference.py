@@ -26,8 +26,8 @@ def rasterize_reference(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_b
     Returns:
         Raster with ``face_id`` (B,H,W) int64, ``bary`` (B,H,W,3) float32, ``depth`` (B,H,W) float32.
     """
-    check_shape(pos, "rasterize_reference: pos", ("B", "V", 4), ("V", 4))
-    check_shape(tri, "rasterize_reference: tri", ("T", 3))
+    check_shape(pos, "rasterize_reference: pos", ("B", "V", 4), ("V", 4), dtype="float")
+    check_shape(tri, "rasterize_reference: tri", ("T", 3), dtype="int")
     H, W = int(resolution[0]), int(resolution[1])
     with torch.no_grad():
         pos = pos[None] if pos.dim() == 2 else pos

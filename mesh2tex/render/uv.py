@@ -6,6 +6,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
 from mesh2tex.io.images import images_to_uint8
 
 from .rasterize import Raster, rasterize
@@ -15,18 +16,20 @@ def uv_rasterize(uv: torch.Tensor, tri: torch.Tensor, resolution) -> Raster:
     """Rasterize a mesh at its UV coordinates: texel (row r, column k) of an (H,W) texture image.
 
     Args:
-        uv: (V,2) float in [0,1]; u to the right, v UP (v = 0 is the bottom row of the image, the
+        uv: (V,2) float in [0,1], tensor or array; u to the right, v UP (v = 0 is the bottom row of the image, the
             convention of :func:`mesh2tex.render.texture`), so the texel centre of row r, column k is
             at u = (k + 0.5) / W, v = 1 - (r + 0.5) / H.
-        tri: (T,3) int64 triangles indexing ``uv``.
+        tri: (T,3) int64 triangles indexing ``uv``, tensor or array.
         resolution: (H, W) of the texture image.
     Returns:
         Raster of batch 1: for every texel the triangle under its centre and the barycentrics there,
         so ``interpolate(vertex_positions, raster, tri)`` gives the surface point of each texel.
     """
-    uv = torch.as_tensor(uv)
+    uv, tri = torch.as_tensor(uv), torch.as_tensor(tri)
+    check_shape(uv, "uv_rasterize: uv", ("V", 2), dtype="float")
+    check_shape(tri, "uv_rasterize: tri", ("T", 3), dtype="int")
     pos = torch.cat([uv * 2 - 1, torch.zeros_like(uv[:, :1]), torch.ones_like(uv[:, :1])], dim=1)
-    return rasterize(pos[None], torch.as_tensor(tri), resolution)
+    return rasterize(pos[None], tri, resolution)
 
 
 def dilate_texture(image: torch.Tensor, mask: torch.Tensor, pixels: int) -> torch.Tensor:
@@ -36,12 +39,16 @@ def dilate_texture(image: torch.Tensor, mask: torch.Tensor, pixels: int) -> torc
 
     Args:
         image: (C,H,W) or (B,C,H,W) float texture.
-        mask: (H,W) or (B,1,H,W), bool or float, True/1 where the texture is defined.
+        mask: (H,W), (B,H,W) or (B,1,H,W) (B = 1 for a (C,H,W) image), bool or float, True/1 where the
+            texture is defined.
         pixels: number of texels to grow by.
     Returns:
         Tensor shaped like ``image``: defined texels unchanged, up to ``pixels`` texels around them
         filled, the rest as in ``image``.
     """
+    sizes = check_shape(image, "dilate_texture: image", ("C", "H", "W"), ("B", "C", "H", "W"), dtype="float")
+    sizes.setdefault("B", (1, "image"))
+    check_shape(mask, "dilate_texture: mask", ("H", "W"), ("B", "H", "W"), ("B", 1, "H", "W"), sizes=sizes)
     squeeze = image.dim() == 3
     images = image[None] if squeeze else image
     filled = mask.to(images.dtype).reshape(-1, 1, *images.shape[-2:])
@@ -90,7 +97,7 @@ def bake_surface_colors(vertices: torch.Tensor, triangles: torch.Tensor, colors_
     """Bake a colour function of surface points into a UV texture over a fresh atlas.
 
     Args:
-        vertices: (V,3) float, triangles: (T,3) int64 of the mesh.
+        vertices: (V,3) float, triangles: (T,3) int64 of the mesh (tensors).
         colors_at: ``colors_at(triangle_id (P,), bary (P,3)) -> (P,3)`` RGB in [-1, 1], the colour at
             P surface points given as a triangle of ``triangles`` and barycentrics in its corner order.
         size: texture side in texels; dilate: texels of padding around each chart.
@@ -99,6 +106,8 @@ def bake_surface_colors(vertices: torch.Tensor, triangles: torch.Tensor, colors_
         coverage (size,size) bool), CPU tensors/arrays; faces keep the order and corners of
         ``triangles`` (vertices are split on seams), so texel colours equal ``colors_at`` exactly.
     """
+    check_shape(vertices, "bake_surface_colors: vertices", ("V", 3), dtype="float")
+    check_shape(triangles, "bake_surface_colors: triangles", ("T", 3), dtype="int")
     triangles = triangles.cpu()
     new_vertices, faces, uv, vertex_map = unwrap_uv(vertices.cpu(), triangles)
     if not torch.equal(vertex_map[faces], triangles):

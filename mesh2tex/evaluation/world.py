@@ -103,6 +103,8 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
     side = photo_mask.shape[0]
     if photo_mask.shape[1] != side:
         raise UserError(f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}")
+    if not photo_mask.any():
+        raise UserError(f"{query.mask}: the query's object mask is empty")
     box = object_box(photo_mask, margin)
     camera = orbit_camera(torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)

@@ -194,3 +194,38 @@ def test_a_run_starts_from_another_runs_checkpoint(kind, shapes_dir, tmp_path, c
     assert main(["train", wrong, "--shapes", str(shapes_dir), "--out", str(tmp_path / "wrong"), "--resume", str(source)]) == 2
     assert f"this is a '{kind}' checkpoint, expected a '{wrong}' training checkpoint" in capsys.readouterr().err
     assert not (tmp_path / "wrong").exists()
+
+
+def test_logged_numbers_go_to_tensorboard_as_well_when_it_is_there(tiny_gan, tmp_path, monkeypatch):
+    """Every number of metrics.jsonl reaches TensorBoard (tag = key, step = iteration) when a writer
+    is available; MESH2TEX_TENSORBOARD=0 turns it off."""
+    from train import runs
+
+    class Recorder:
+        def __init__(self):
+            self.scalars = []
+
+        def add_scalar(self, tag, value, step):
+            self.scalars.append((tag, value, step))
+
+        def flush(self):
+            pass
+
+    writers = []
+    monkeypatch.setattr(runs, "tensorboard_writer", lambda folder: writers.append(Recorder()) or writers[-1])
+    run = tmp_path / "noc"
+    assert main(["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--out", str(run), "--config", str(_tiny_config(tmp_path)),
+                 "--samples", "8", "--resolution", "16", "--batch", "4", "--iters", "2", "--device", "cpu"]) == 0
+    records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    # "time" is metrics.jsonl's own stamp; TensorBoard keeps its own wall time.
+    expected = [(k, v, r["iteration"]) for r in records for k, v in r.items() if k not in ("iteration", "time") and isinstance(v, (int, float))]
+    assert len(writers) == 1 and sorted(writers[0].scalars) == sorted(expected)
+    monkeypatch.undo()  # the real writer again, with the variable set: none is made
+    monkeypatch.setenv("MESH2TEX_TENSORBOARD", "0")
+    assert runs.tensorboard_writer(tmp_path / "tb") is None
+
+
+def _tiny_config(tmp_path):
+    config = tmp_path / "tiny.yaml"
+    config.write_text("width: 4\n")
+    return config

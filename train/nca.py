@@ -276,7 +276,7 @@ class NCATrainer:
                 bar.set_postfix({"style": f"{logs['loss_style']:.3f}"})
                 it = self.iteration
                 if it % cfg.log_every == 0 or it == cfg.iters:
-                    self.run.metrics.write({"iteration": it, **{k: round(v, 6) for k, v in logs.items()}, **throughput.fields(it)})
+                    self.run.log({"iteration": it, **{k: round(v, 6) for k, v in logs.items()}, **throughput.fields(it)})
                 if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
                     self.save(self.run.checkpoint_path)
                 if cfg.sample_every and it % cfg.sample_every == 0 and it < cfg.iters:

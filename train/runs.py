@@ -6,6 +6,8 @@ A run directory ``RUN/`` holds:
                                 a kill during a save leaves the previous one intact)
     nonfinite.safetensors       only after a NaN/inf loss: the state at the failing iteration
     metrics.jsonl               one JSON object per logged iteration
+    tensorboard/                the same numbers as TensorBoard scalars, when the ``tensorboard``
+                                package is installed (``pip install tensorboard``; MESH2TEX_TENSORBOARD=0 turns it off)
     samples/                    images the trainer writes while it runs
     snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators (keep_snapshots: the newest N)
 
@@ -57,6 +59,21 @@ class RunDirectory:
         self.nonfinite_path = self.root / NONFINITE_NAME
         self.samples_dir = self.root / "samples"
         self.metrics = JsonLines(self.root / "metrics.jsonl")
+        self.tensorboard_dir = self.root / "tensorboard"
+        self._scalars = None  # the TensorBoard writer, made by the first log()
+
+    def log(self, record: dict[str, Any]) -> None:
+        """One logged iteration (``record["iteration"]`` and numbers): a line of metrics.jsonl, and the
+        numbers as TensorBoard scalars (tag = key, step = iteration) when TensorBoard is available."""
+        self.metrics.write(record)
+        if self._scalars is None:
+            self._scalars = tensorboard_writer(self.tensorboard_dir) or False
+        if self._scalars:
+            step = int(record["iteration"])
+            for key, value in record.items():
+                if key != "iteration" and isinstance(value, (int, float)) and not isinstance(value, bool):
+                    self._scalars.add_scalar(key, value, step)
+            self._scalars.flush()
 
     def has_checkpoint(self) -> bool:
         return self.checkpoint_path.is_file()
@@ -72,6 +89,19 @@ class RunDirectory:
         if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again
             self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)
+
+
+def tensorboard_writer(folder: Path):
+    """A ``torch.utils.tensorboard.SummaryWriter`` writing into ``folder``, or None when the
+    ``tensorboard`` package is not installed or ``MESH2TEX_TENSORBOARD`` is 0 (metrics.jsonl holds
+    every number either way; TensorBoard is a viewer, not a record)."""
+    if os.environ.get("MESH2TEX_TENSORBOARD", "1") == "0":
+        return None
+    try:
+        from torch.utils.tensorboard import SummaryWriter
+    except ImportError:  # torch raises it when the tensorboard package is missing
+        return None
+    return SummaryWriter(log_dir=str(folder))
 
 
 def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bool = True) -> Path | None:

@@ -280,7 +280,7 @@ def run_view_training(args, kind: str) -> int:
             bar.set_postfix(loss=f"{float(loss.detach()):.4f}")
             if iteration % cfg.log_every == 0 or iteration == cfg.iters:
                 speed = throughput.fields(iteration)  # before validating: the validation counts towards the next interval
-                run.metrics.write({"iteration": iteration, "loss": round(float(loss.detach()), 6),
+                run.log({"iteration": iteration, "loss": round(float(loss.detach()), 6),
                                    **validate(kind, net, views, val_index, cfg, device), **speed})
             if cfg.checkpoint_every and iteration % cfg.checkpoint_every == 0:
                 save(run.checkpoint_path)

@@ -62,7 +62,7 @@ class DemoConfig:
     faces: int = 1536  # finest quad count of the prepared shapes (the library default is 6144)
     levels: int = 4  # levels of the quad hierarchy
     workers: int = 2  # processes of 'prepare shapes'
-    gan_iters: int = 900  # GAN iterations (the demo world's learning curve in docs/gan.md)
+    gan_iters: int = 1200  # GAN iterations (the demo world's learning curves in docs/gan.md)
     gan_resolution: int = 64  # GAN render resolution
     gan_views: int = 4  # views per shape and GAN iteration
     gan_channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first

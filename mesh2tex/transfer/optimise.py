@@ -24,7 +24,7 @@ from mesh2tex.transfer.photo import Photo, View
 
 class PhotoLight(torch.nn.Module):
     """The photo's light as the renders learn it: one directional light, placed relative to the camera
-    (azimuth offset and elevation, degrees) as the light prior places it, and an ambient share.
+    (an azimuth offset and an elevation) as the light prior places it, and an ambient share.
 
     It starts at the middle of :class:`mesh2tex.render.LightConfig`'s prior (a key light from the
     camera's side and above). Optimised beside the texture, it takes up the photo's shading, so the
@@ -35,8 +35,8 @@ class PhotoLight(torch.nn.Module):
         super().__init__()
         prior = prior or LightConfig()
         self.camera_azimuth = float(camera_azimuth)
-        # Angles in radians: with the texture's learning rate (1e-2 per step) a few hundred steps can
-        # turn the light anywhere, which degrees would not allow.
+        # Angles in radians (reported in degrees): with the texture's learning rates (0.01-0.05 per
+        # step) a few hundred steps can turn the light anywhere, which degrees would not allow.
         self.azimuth_offset = torch.nn.Parameter(torch.zeros(()))
         self.elevation = torch.nn.Parameter(torch.tensor(math.radians(0.5 * (prior.elevation_min + prior.elevation_max))))
         ambient = 0.5 * (prior.ambient_min + prior.ambient_max)
@@ -150,7 +150,8 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         params = generator.last_synthesis_parameters(cfg.refine_blocks)
         for p in params:
             p.requires_grad_(True)
-        # Stage 2 uses the patch loss alone (paper); without patches it keeps the global loss.
+        # Stage 2 uses the patch loss without the global one (paper), plus the colour loss when it is on;
+        # without patches it keeps the global loss.
         optimise("refine", params + light_params, cfg.refine_iters, use_global=not cfg.use_patches, lr=cfg.refine_lr or cfg.lr)
         for p in params:
             p.requires_grad_(False)

@@ -283,3 +283,52 @@ def test_lit_renders_are_the_albedo_scaled_by_lambert_shading():
                               lights=Lights(direction, ambient))
     (out.images.sum() + out.proxy.sum()).backward()
     assert all(p.grad is not None for p in gen.synthesis.parameters())
+
+
+def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_target():
+    """Mode seeking (loss.diversity_weight): the ratio is zero for a collapsed generator; a few steps of
+    the term alone raise it; once it is over diversity_target the term adds no gradient."""
+    from mesh2tex.losses.gan import GanLoss, GanLossConfig, mode_seeking_ratio
+    from mesh2tex.nn.render_texture import render_proxy_views
+
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(), tiny_batch()
+    mvp = views()
+    samples = rasterize_batch(batch, mvp, (16, 16))
+    background, z = torch.zeros(4, 3), torch.randn(2, 16)
+    mask = samples.mask.unsqueeze(1).float()
+    proxy = render_proxy_views(gen.synthesize(batch, gen.mapping(z), noise_mode="none"), batch, samples, background)
+    assert float(mode_seeking_ratio(proxy, proxy, mask, z, torch.randn(2, 16)).detach()) == 0.0
+    # the proxy path alone equals render_field_views' proxy images
+    full = render_field_views(gen, batch, gen.mapping(z), mvp, (16, 16), background, proxy=True, samples=samples, noise_mode="none")
+    torch.testing.assert_close(proxy, full.proxy)
+
+    def generate(z_):
+        out = render_field_views(gen, batch, gen.mapping(z_), mvp, (16, 16), background, proxy=True, samples=samples, noise_mode="none")
+        return out.images, out.proxy, None
+
+    def proxy_of(z_):
+        return render_proxy_views(gen.synthesize(batch, gen.mapping(z_), noise_mode="none"), batch, samples, background), mask
+
+    class Zero(torch.nn.Module):  # a discriminator with no opinion: only the diversity term moves the generator
+        def forward(self, x):
+            return x.sum(dim=[1, 2, 3]) * 0.0
+
+    def ratio():
+        torch.manual_seed(1)
+        with torch.no_grad():
+            zs = torch.randn(8, 2, 16)
+            return sum(float(mode_seeking_ratio(proxy_of(a)[0], proxy_of(b)[0], mask, a, b)) for a, b in zip(zs[:4], zs[4:])) / 4
+
+    loss = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_target=10.0), Zero(), Zero())
+    opt = torch.optim.Adam(gen.parameters(), lr=1e-2)
+    before = ratio()
+    for _ in range(10):
+        opt.zero_grad()
+        logs = loss.accumulate_gradients("Gmain", generate, torch.randn(2, 16), torch.zeros(4, 3, 16, 16), proxy_of=proxy_of)
+        opt.step()
+    assert "mode_seeking" in logs and ratio() > 1.5 * before
+    reached = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_target=0.0), Zero(), Zero())
+    opt.zero_grad()
+    reached.accumulate_gradients("Gmain", generate, torch.randn(2, 16), torch.zeros(4, 3, 16, 16), proxy_of=proxy_of)
+    assert all(p.grad is None or float(p.grad.abs().max()) == 0.0 for p in gen.parameters())

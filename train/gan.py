@@ -32,7 +32,7 @@ from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
-from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
+from mesh2tex.nn.render_texture import rasterize_batch, render_field_views, render_proxy_views
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import CameraConfig, LightConfig, composite_images, orbit_camera, random_lights, turntable_angles
 from train import runs
@@ -240,11 +240,18 @@ class GanTrainer:
         z_d = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
         g = self.generator
 
+        encoded = []  # the latest generate's encoder output, which proxy_of reuses (it does not depend on the latent)
+
         def generate(z, update_w_avg=False):
             ws = g.mapping(z, update_w_avg=update_w_avg)
+            encoded[:] = g.encoder(batch)
             out = render_field_views(g, batch, ws, mvp, (cfg.resolution, cfg.resolution), fake_background, proxy=True, samples=samples,
-                                     lights=lights)
+                                     lights=lights, encoded=encoded)
             return out.images, out.proxy, ws
+
+        def proxy_of(z):
+            texture = g.synthesize(batch, g.mapping(z), encoded=encoded)
+            return render_proxy_views(texture, batch, samples, fake_background, lights), samples.mask.unsqueeze(1).float()
 
         logs: dict[str, torch.Tensor] = {}
         phases = self.loss.phases(self.iteration)
@@ -260,7 +267,7 @@ class GanTrainer:
                     continue
                 z = z_g if group == "G" else z_d
                 fn = (lambda z_: generate(z_, update_w_avg=True)) if phase == "Gmain" else generate
-                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain))
+                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of))
             bad = None
             try:
                 runs.check_finite(logs, self.iteration)

@@ -3,6 +3,7 @@
 Two discriminators judge the generator: ``d_field`` sees psi renders, ``d_proxy`` the per-face
 colour renders. Losses (StyleGAN2):
     G main:  softplus(-D_field(fake)) + proxy_weight * softplus(-D_proxy(proxy))    (non-saturating)
+    G div:   diversity_weight * max(0, diversity_target - d), d the mode-seeking ratio (below), in G main
     G reg:   path-length regularisation on psi renders, every ``pl_interval`` steps, scaled by it
     D main:  softplus(D(fake)) + softplus(-D(real)) for both discriminators
     D reg:   R1 = gamma/2 |grad_x D(real)|^2 for both, every ``r1_interval`` steps, scaled by it
@@ -11,6 +12,11 @@ Every image a discriminator sees, real or fake and in every phase, first goes th
 (differentiable, :mod:`mesh2tex.losses.augment`). Fakes and reals go through the discriminators in
 separate calls: the minibatch standard deviation layer must see groups of fakes only or reals only,
 or a collapsed generator (every latent the same texture) would look as diverse as the photos.
+
+The diversity term is the mode-seeking regulariser of MSGAN / DSGAN (Mao et al. 2019, Yang et al.
+2019) on the cheap proxy path: the same shapes, views, backgrounds and lights rendered from a second
+latent z', d = mean |proxy(z) - proxy(z')| over object pixels and channels / mean |z - z'|. It pushes
+different latents apart until d reaches ``diversity_target`` and then leaves the generator alone.
 """
 
 from __future__ import annotations
@@ -37,14 +43,29 @@ class GanLossConfig:
     pl_interval: int = 4  # lazy path-length regularisation: every this many iterations
     pl_decay: float = 0.01  # running-mean decay of the path lengths
     proxy_weight: float = 1.0  # weight of the proxy (per-face colour) adversarial loss
+    diversity_weight: float = 1.0  # mode-seeking term on the proxy renders of two latents (0 disables)
+    diversity_target: float = 0.3  # the term stops pushing once d (mean abs proxy difference / mean abs latent difference) reaches it
 
     def __post_init__(self):
-        check_fields(self, at_least={"r1_gamma": 0, "pl_weight": 0, "proxy_weight": 0, "r1_interval": 1, "pl_interval": 1},
+        check_fields(self, at_least={"r1_gamma": 0, "pl_weight": 0, "proxy_weight": 0, "r1_interval": 1, "pl_interval": 1,
+                                     "diversity_weight": 0, "diversity_target": 0},
                      between={"pl_decay": (0.0, 1.0)})
 
 
 # generate(z) -> (psi images (N,3,H,W), proxy images (N,3,H,W) or None, ws (B,num_ws,w_dim))
 GenerateFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]]
+# proxy_of(z) -> (proxy images (N,3,H,W) of latents z on the same shapes, views, backgrounds and lights as
+# generate's, object mask (N,1,H,W) float 0/1)
+ProxyFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
+
+
+def mode_seeking_ratio(proxy_a: torch.Tensor, proxy_b: torch.Tensor, mask: torch.Tensor, z_a: torch.Tensor, z_b: torch.Tensor) -> torch.Tensor:
+    """d = mean |proxy_a - proxy_b| over object pixels and channels / mean |z_a - z_b|: a scalar, 0 for a collapsed generator.
+
+    proxy_a, proxy_b: (N, 3, H, W) renders of latents z_a, z_b (B, z_dim) of the same views; mask (N, 1, H, W).
+    """
+    image_distance = ((proxy_a - proxy_b).abs().float() * mask).sum() / (3 * mask.sum()).clamp(min=1.0)
+    return image_distance / (z_a - z_b).abs().mean().clamp(min=1e-8)
 
 
 class GanLoss:
@@ -70,10 +91,12 @@ class GanLoss:
             out.append(("Dreg", float(self.cfg.r1_interval)))
         return out
 
-    def accumulate_gradients(self, phase: str, generate: GenerateFn, z: torch.Tensor, real: torch.Tensor, gain: float = 1.0) -> dict[str, torch.Tensor]:
+    def accumulate_gradients(self, phase: str, generate: GenerateFn, z: torch.Tensor, real: torch.Tensor, gain: float = 1.0,
+                             proxy_of: ProxyFn | None = None) -> dict[str, torch.Tensor]:
         """Back-propagate the loss of ``phase`` (scaled by ``gain``); returns detached scalars to log.
 
-        z: (B, z_dim) latents, real: (N, 3, H, W) real images in [-1, 1].
+        z: (B, z_dim) latents, real: (N, 3, H, W) real images in [-1, 1]; proxy_of: renders a second
+        latent's proxy for the diversity term (G main, when ``diversity_weight`` > 0).
         """
         logs: dict[str, torch.Tensor] = {}
         if phase == "Gmain":
@@ -85,6 +108,14 @@ class GanLoss:
                     loss_proxy = F.softplus(-self.d_proxy(self.augment(proxy))).mean()
                     logs["loss_g_proxy"] = loss_proxy.detach()
                     loss = loss + self.cfg.proxy_weight * loss_proxy
+                if self.cfg.diversity_weight > 0:
+                    if proxy is None or proxy_of is None:
+                        raise ValueError("GanLoss: diversity_weight > 0 needs proxy renders and proxy_of")
+                    z_other = torch.randn_like(z)
+                    proxy_other, mask = proxy_of(z_other)
+                    ratio = mode_seeking_ratio(proxy, proxy_other, mask, z, z_other)
+                    logs["mode_seeking"] = ratio.detach()
+                    loss = loss + self.cfg.diversity_weight * F.relu(self.cfg.diversity_target - ratio)
             (loss * gain).backward()
         elif phase == "Greg":
             images, _, ws = generate(z)

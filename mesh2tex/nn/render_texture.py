@@ -130,24 +130,47 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
         texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode)
     if samples is None:
         samples = rasterize_batch(batch, mvp, (h, w))
-    n = mvp.shape[0]
+    background, flat_index, triangle_id, bary = _covered_pixels(samples, background)
+    colors = _shade(field_colors(generator, texture, batch, triangle_id, bary), batch, triangle_id, flat_index, lights, h * w)
+    images = paint_pixels(background, flat_index, colors)
+    proxy_images = None
+    if proxy:
+        proxy_colors = _shade(texture.face_rgb[triangle_id // 2], batch, triangle_id, flat_index, lights, h * w)
+        proxy_images = paint_pixels(background, flat_index, proxy_colors)
+    return RenderedViews(images=images, proxy=proxy_images, mask=samples.mask.unsqueeze(1).to(images.dtype))
+
+
+def render_proxy_views(texture: FaceTexture, batch: MeshBatch, samples: SurfaceSamples, background: torch.Tensor,
+                       lights: Lights | None = None) -> torch.Tensor:
+    """The proxy path alone: each covered pixel of ``samples`` (N views) takes its quad's per-face colour
+    ``texture.face_rgb``, shaded by ``lights`` like :func:`render_field_views`; no psi evaluated.
+
+    background: (N, 3) or (N, 3, H, W) in [-1, 1] -> (N, 3, H, W).
+    """
+    n, h, w = samples.triangle_id.shape
+    check_shape(background, "render_proxy_views: background", (n, 3), (n, 3, h, w), dtype="float")
+    background, flat_index, triangle_id, _ = _covered_pixels(samples, background)
+    colors = _shade(texture.face_rgb[triangle_id // 2], batch, triangle_id, flat_index, lights, h * w)
+    return paint_pixels(background, flat_index, colors)
+
+
+def _covered_pixels(samples: SurfaceSamples, background: torch.Tensor):
+    """(background (N, 3, H, W), flat pixel indices (P,), batch triangle ids (P,), barycentrics (P, 3)) of the covered pixels."""
+    n, h, w = samples.triangle_id.shape
     if background.dim() == 2:
         background = background[:, :, None, None].expand(n, 3, h, w)
-    mask = samples.mask
-    flat_index = mask.reshape(-1).nonzero().squeeze(1)
-    triangle_id = samples.triangle_id.reshape(-1)[flat_index]
-    bary = samples.bary.reshape(-1, 3)[flat_index]
-    colors = field_colors(generator, texture, batch, triangle_id, bary)
-    proxy_colors = texture.face_rgb[triangle_id // 2] if proxy else None
-    if lights is not None:
-        view = flat_index // (h * w)
-        normals = quad_normals(batch.vertices, batch.quads)[triangle_id // 2].to(colors.dtype)
-        direction, ambient = lights.direction[view].to(colors.dtype), lights.ambient[view].to(colors.dtype)
-        colors = shade_colors(colors, normals, direction, ambient)
-        proxy_colors = shade_colors(proxy_colors, normals, direction, ambient) if proxy else None
-    images = paint_pixels(background, flat_index, colors)
-    proxy_images = paint_pixels(background, flat_index, proxy_colors) if proxy else None
-    return RenderedViews(images=images, proxy=proxy_images, mask=mask.unsqueeze(1).to(images.dtype))
+    flat_index = samples.mask.reshape(-1).nonzero().squeeze(1)
+    return background, flat_index, samples.triangle_id.reshape(-1)[flat_index], samples.bary.reshape(-1, 3)[flat_index]
+
+
+def _shade(colors: torch.Tensor, batch: MeshBatch, triangle_id: torch.Tensor, flat_index: torch.Tensor, lights: Lights | None,
+           pixels_per_view: int) -> torch.Tensor:
+    """Colours (P, 3) of covered pixels shaded by each pixel's view's light (Lambert, flat quad normals); unlit: as they are."""
+    if lights is None:
+        return colors
+    view = flat_index // pixels_per_view
+    normals = quad_normals(batch.vertices, batch.quads)[triangle_id // 2].to(colors.dtype)
+    return shade_colors(colors, normals, lights.direction[view].to(colors.dtype), lights.ambient[view].to(colors.dtype))
 
 
 @dataclass

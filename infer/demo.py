@@ -156,7 +156,7 @@ def run_pipeline(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
             "--mask", str(world / query["mask"]), "--pose", "auto", "--pose-checkpoint", str(out / "pose" / "checkpoint.safetensors"),
             "--noc-checkpoint", str(out / "noc" / "checkpoint.safetensors"), "--out", str(transfer),
             "--resolution", str(cfg.transfer_resolution), "--latent-iters", str(cfg.latent_iters),
-            "--refine-iters", str(cfg.refine_iters), "--texture-format", cfg.texture_format, "--seed", str(cfg.seed),
+            "--refine-iters", str(cfg.refine_iters), "--texture-size", str(cfg.texture_size), "--texture-format", cfg.texture_format, "--seed", str(cfg.seed),
             "--device", device, "--overwrite"], log)
     return seconds
 

@@ -46,6 +46,7 @@ def transfer(parser: argparse.ArgumentParser) -> None:
     config.add("--resolution", type=int, help="side of the photo crop and the renders")
     config.add("--latent-iters", type=int, help="stage 1 iterations")
     config.add("--refine-iters", type=int, help="stage 2 iterations")
+    config.add("--texture-size", type=int, help="side of the UV texture baked into textured.glb")
     add_texture_format(parser)
     parser.add_argument("--no-noc", action="store_true", help="ablation: patch pairs without NOC guidance")
     parser.add_argument("--no-patches", action="store_true", help="ablation: global style loss only")

@@ -1,7 +1,7 @@
 """``mesh2tex infer transfer``: texture a mesh after one photo (Mesh2Tex section 3.3).
 
     mesh2tex infer transfer --checkpoint GAN --mesh MESH --image IMG [--mask M] [--pose auto|AZ,EL]
-                            [--pose-checkpoint P] [--noc-checkpoint N] --out DIR
+                            [--pose-checkpoint P] [--noc-checkpoint N] --out DIR [--texture-size 1024]
                             [--no-noc] [--no-patches] [--no-refine] [--no-pose-search] [--config YAML] [--overwrite]
 
 Steps:
@@ -130,7 +130,7 @@ def output_names(cfg: TransferConfig) -> list[str]:
 
 # -------------------------------------------------------------------------------------------- stage
 def build_config(args) -> TransferConfig:
-    overrides = {"resolution": args.resolution, "latent_iters": args.latent_iters, "refine_iters": args.refine_iters,
+    overrides = {"resolution": args.resolution, "latent_iters": args.latent_iters, "refine_iters": args.refine_iters, "texture_size": args.texture_size,
                  "device": args.device, "seed": args.seed, "vgg_weights": args.vgg_weights,
                  "use_noc": False if args.no_noc else None, "use_patches": False if args.no_patches else None,
                  "refine": False if args.no_refine else None, "pose_search": False if args.no_pose_search else None}

@@ -41,7 +41,7 @@ def transfer_args(root, out, *extra):
 
 def test_transfer_writes_a_textured_asset_and_a_report(setup, tmp_path):
     out = tmp_path / "out"
-    assert main(transfer_args(setup, out, "--texture-format", "jpeg")) == 0
+    assert main(transfer_args(setup, out, "--texture-format", "jpeg", "--texture-size", "48")) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["pose"] == {"azimuth": 30.0, "elevation": 20.0, "source": "given", "distance": report["pose"]["distance"],
                               "fov": report["pose"]["fov"]}
@@ -52,6 +52,7 @@ def test_transfer_writes_a_textured_asset_and_a_report(setup, tmp_path):
     scene = trimesh.load(out / "textured.glb")
     mesh = next(iter(scene.geometry.values())) if isinstance(scene, trimesh.Scene) else scene
     assert mesh.visual.material.baseColorTexture.format == "JPEG" and report["settings"]["texture_format"] == "jpeg"
+    assert mesh.visual.material.baseColorTexture.size == (48, 48)
     assert Image.open(out / "turntable.gif").n_frames == 12
     assert Image.open(out / "comparison.png").size == (4 * 64, 64)
 

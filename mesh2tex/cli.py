@@ -14,6 +14,7 @@ import argparse
 import errno
 import importlib
 import os
+import signal
 import sys
 
 from mesh2tex.errors import UserError
@@ -131,11 +132,18 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
 def console() -> int:
     """The ``mesh2tex`` console script: :func:`main` with torch's thread count chosen for the machine's
     load (:func:`mesh2tex.runtime.choose_threads`). ``main`` itself leaves threads alone, so that a
     program or test calling it keeps its own setting."""
     argv = sys.argv[1:]
+    # `kill PID` (what schedulers and `timeout` send) stops a run as Ctrl-C does: the long stages save
+    # their checkpoint, and the same command resumes. A shell starts background jobs with SIGINT ignored.
+    signal.signal(signal.SIGTERM, _interrupt)
     if not any(a in ("-h", "--help", "--version") for a in argv) and argv:
         from mesh2tex.runtime import configure_threads
 

@@ -62,15 +62,22 @@ def gan_run_dir(checkpoint: Path) -> Path:
 
 
 def training_seconds(run_dir: Path, until: int) -> float | None:
-    """Seconds a training run spent stepping, from its metrics.jsonl (iterations / iterations per second)."""
+    """Seconds a training run spent stepping, from its metrics.jsonl (iterations / iterations per second).
+
+    Only this run's own iterations count: a run that started from another run's checkpoint at
+    iteration N logs its first record at N + log_every, and the N iterations before are not its own."""
     path = run_dir / "metrics.jsonl"
     if not path.is_file():
         return None
-    total, last = 0.0, 0
+    config = run_dir / "config.yaml"
+    log_every = int((yaml.safe_load(config.read_text()) or {}).get("log_every", 10)) if config.is_file() else 10
+    total, last = 0.0, None
     for line in path.read_text().splitlines():
         record = json.loads(line)
         if record["iteration"] > until:
             break
+        if last is None:
+            last = max(0, record["iteration"] - log_every)
         if record.get("iters_per_second"):
             total += (record["iteration"] - last) / record["iters_per_second"]
         last = record["iteration"]

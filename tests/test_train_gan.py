@@ -325,3 +325,25 @@ def test_the_held_out_metric_keeps_the_best_generator(tiny_data, tmp_path, capsy
     capsys.readouterr()
     assert train(tiny_data, tmp_path / "none", "--iters", "2", "--config", str(config)) == 2
     assert "metric_photos 6" in capsys.readouterr().err and not (tmp_path / "none").exists()
+
+
+def test_kill_stops_a_run_with_its_checkpoint_saved(tiny_data, tmp_path):
+    """SIGTERM (``kill PID``, a scheduler's stop) saves the checkpoint as Ctrl-C does; the same command resumes."""
+    import signal
+    import time
+
+    out = tmp_path / "killed"
+    env = {**os.environ, "MESH2TEX_PROGRESS": "0", "OMP_NUM_THREADS": "1"}
+    cmd = [sys.executable, "-m", "mesh2tex", "train", "gan", "--shapes", str(tiny_data / "shapes"), "--images", str(tiny_data / "photos"),
+           "--out", str(out), "--config", str(tiny_data / "tiny.yaml"), "--batch", "1", "--views", "2", "--resolution", "16",
+           "--device", "cpu", "--iters", "100000"]
+    process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and not ((out / "metrics.jsonl").is_file() and len(metrics(out)) >= 3):
+        time.sleep(0.2)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr[-2000:]
+    assert "interrupted; re-run the same command to resume" in stderr
+    _, meta = load_checkpoint(out / "checkpoint.safetensors")
+    assert meta["iteration"] >= 3 and meta["iteration"] >= metrics(out)[-1]["iteration"]

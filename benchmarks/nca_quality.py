@@ -12,6 +12,8 @@ Rows:
   oracle         with --exemplar-name (one of mesh2tex.synthetic.exemplars): the exemplar's own pattern
                  as a solid texture on the sphere at the exemplar's pixel scale, evaluated per pixel
                  (what a perfect texture would score; a loss that does not rank it first is suspect)
+  vertex oracle  with --exemplar-name: the same pattern sampled at the vertices only and shown through
+                 a linear readout (what the mesh's cell spacing leaves of it; not a bound)
   flat           the exemplar's mean colour on every vertex
   vertex noise   each vertex the colour of a random exemplar pixel
   SWD            object patches of the renders against patches of the exemplar (x1000, lower is better)
@@ -88,6 +90,21 @@ class Judge:
         return float(np.mean([float(style_loss(self.vgg, views.images, mask, self.features, generator=torch.Generator().manual_seed(s)))
                               for s in range(3)]))
 
+    @staticmethod
+    def pattern_scale(exemplar_pixels: float) -> float:
+        """World units -> pattern units: the render's pixels per world unit at the mesh (distance 3.2,
+        fov 40) over the exemplar's pixels per pattern unit."""
+        return RESOLUTION / (2 * 3.2 * np.tan(np.radians(20.0))) / exemplar_pixels
+
+    @torch.no_grad()
+    def vertex_oracle_loss(self, name: str, graph, exemplar_pixels: float) -> float:
+        """The style loss of the exemplar's pattern sampled at the vertices, through a linear readout."""
+        from mesh2tex.synthetic.exemplars import EXEMPLARS
+
+        points = graph.positions.double().numpy() * self.pattern_scale(exemplar_pixels)
+        rgb = torch.from_numpy(EXEMPLARS[name](points, graph.normals.double().numpy())).float() * 2 - 1
+        return self.loss(*color_model(rgb), graph)
+
     @torch.no_grad()
     def oracle_loss(self, name: str, graph, exemplar_pixels: float) -> float:
         """The style loss of the exemplar's pattern painted per pixel on the mesh at the exemplar's scale
@@ -99,9 +116,7 @@ class Judge:
         points = interpolate(graph.positions, raster, graph.triangles)  # (N, H, W, 3)
         normals = torch.nn.functional.normalize(interpolate(graph.normals, raster, graph.triangles), dim=-1)
         mask = (raster.face_id >= 0)
-        # World units per pixel of the render at the mesh (distance 3.2, fov 40), over exemplar units per pixel.
-        pixels_per_unit = RESOLUTION / (2 * 3.2 * np.tan(np.radians(20.0)))
-        scale = pixels_per_unit / exemplar_pixels
+        scale = self.pattern_scale(exemplar_pixels)
         rgb = EXEMPLARS[name](points[mask].double().numpy() * scale, normals[mask].double().numpy())
         images = torch.ones(self.mvp.shape[0], RESOLUTION, RESOLUTION, 3)
         images[mask] = torch.from_numpy(rgb).float()
@@ -175,6 +190,7 @@ def main() -> int:
     results["vertex_noise"] = judge.loss(noise[0], noise[1], graph)
     if args.exemplar_name:
         results["oracle"] = judge.oracle_loss(args.exemplar_name, graph, exemplar.shape[0] / args.exemplar_extent)
+        results["vertex_oracle"] = judge.vertex_oracle_loss(args.exemplar_name, graph, exemplar.shape[0] / args.exemplar_extent)
     best_baseline = min(results["flat"], results["vertex_noise"])
     results["ratio_to_untrained"] = results["trained"] / results["untrained"]
     results["ratio_to_best_baseline"] = results["trained"] / best_baseline

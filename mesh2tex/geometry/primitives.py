@@ -70,7 +70,7 @@ def subdivide_quads(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray
     return new_vertices.astype(np.float32), np.stack(children, axis=1).reshape(-1, 4)
 
 
-DEFAULT_SPHERE_SUBDIVISIONS = 24  # 3,458 vertices
+DEFAULT_SPHERE_SUBDIVISIONS = 32  # 6,146 vertices: the automaton's training sphere (docs/nca.md: why not 24)
 
 
 def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -9,8 +9,8 @@ Writes into DIR: ``view_K.png`` renders, ``textured.glb`` (the readout baked int
 an xatlas atlas, opens in Blender), ``textured.ply`` (per-vertex colours), ``growth.gif`` (the
 texture growing from the seed, a quarter turn of the camera), ``state.safetensors`` (the final cell
 states and positions) and ``report.json`` (settings, timings, the style loss of the renders against
-the exemplar). ``--graft`` blends the updates of a second model of the same lineage by a mask on
-the mesh; ``--regrow`` zeroes the cells of a region after growth and grows them back (the frames
+the exemplar). ``--graft`` blends the updates, and the colour readouts, of a second model of the same lineage by
+a mask on the mesh; ``--regrow`` zeroes the cells of a region after growth and grows them back (the frames
 of the regrowth follow in the GIF).
 """
 
@@ -104,7 +104,7 @@ def run(args) -> int:
     def frame(state, index, total):
         azimuth = 30.0 + 90.0 * index / max(total - 1, 1)
         mvp = orbit_camera(azimuth, 20.0, distance=distance, fov=fov).mvp.to(device)
-        frames.append(images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0).images)[0])
+        frames.append(images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0, graft=graft).images)[0])
 
     state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(args.seed))
     total_frames = len(frames_at) * (2 if damage is not None else 1)
@@ -128,7 +128,7 @@ def run(args) -> int:
             raise UserError(f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps")
 
         mvp = orbit_camera(*turntable_angles(args.views, 20.0, start=30.0), distance=distance, fov=fov).mvp.to(device)
-        views = render_states(model, state, graph, mvp, args.resolution, background=1.0)
+        views = render_states(model, state, graph, mvp, args.resolution, background=1.0, graft=graft)
         for k, image in enumerate(images_to_uint8(views.images)):
             save_png(out / f"view_{k}.png", image)
         style = None
@@ -140,12 +140,12 @@ def run(args) -> int:
                                      generator=torch.Generator().manual_seed(0)))
 
         def colors_at(triangle_id, bary):
-            return model.colors(state, graph.triangles, triangle_id.to(device), bary.to(device))
+            return model.colors(state, graph.triangles, triangle_id.to(device), bary.to(device), graft=graft)
 
         verts, tris, uv, texture, _ = bake_surface_colors(graph.positions, graph.triangles, colors_at, args.texture_size)
         save_glb(out / "textured.glb", verts.numpy(), tris.numpy(), uv.numpy(), texture, smooth_vertex_normals(verts.numpy(), tris.numpy()),
                  texture_format=args.texture_format)
-        vertex_rgb = colors_to_uint8(model.vertex_colors(state)[0])
+        vertex_rgb = colors_to_uint8(model.vertex_colors(state, graft=graft)[0])
         save_ply(out / "textured.ply", positions, graph.triangles.cpu().numpy(), vertex_rgb)
     save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
                     meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": args.steps})

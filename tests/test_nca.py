@@ -126,6 +126,37 @@ def test_graft_blends_the_updates_of_two_models_by_the_mask():
     assert torch.allclose(grafted[0, right], b.step(state, graph)[0, right], atol=1e-6)
 
 
+@pytest.mark.parametrize("readout", ["linear", "lppn"])
+def test_a_grafted_growth_is_read_by_each_sides_own_readout(readout):
+    """Cells grown by the grafted model take its colours (a child fine-tuned from a parent learns its own
+    readout); the two readouts blend where the mask does, and renders, baking and vertex colours agree."""
+    vertices, quads = cube_sphere(4)
+    graph = build_cell_graph(vertices, quads)
+    torch.manual_seed(0)
+    a, b = MeshNCA(NCAConfig(readout=readout)), MeshNCA(NCAConfig(readout=readout))
+    state = torch.randn(1, graph.num_cells, 16) * 0.3
+    alpha = torch.from_numpy(region_weights("smoothstep(0.2, 0.6, x)", graph.positions.numpy())).float()
+    triangle_id = torch.arange(0, len(graph.triangles), 3)
+    bary = torch.rand(len(triangle_id), 3)
+    bary = bary / bary.sum(1, keepdim=True)
+    with torch.no_grad():
+        grafted = a.colors(state, graph.triangles, triangle_id, bary, graft=(b, alpha))
+        own, other = a.colors(state, graph.triangles, triangle_id, bary), b.colors(state, graph.triangles, triangle_id, bary)
+        weight = (alpha[graph.triangles[triangle_id]] * bary).sum(1, keepdim=True)
+        torch.testing.assert_close(grafted, (1 - weight) * own + weight * other)
+        left, right = (weight == 0).squeeze(1), (weight == 1).squeeze(1)
+        assert left.any() and right.any()
+        torch.testing.assert_close(grafted[left], own[left])
+        torch.testing.assert_close(grafted[right], other[right])
+        vertex = a.vertex_colors(state, graft=(b, alpha))
+        torch.testing.assert_close(vertex, (1 - alpha[None, :, None]) * a.vertex_colors(state) + alpha[None, :, None] * b.vertex_colors(state))
+        mvp = orbit_camera(torch.tensor([100.0, 280.0]), 10.0, distance=3.2).mvp
+        views = render_states(a, state.expand(2, -1, -1), graph, mvp, 24, graft=(b, alpha))
+        plain = render_states(a, state.expand(2, -1, -1), graph, mvp, 24)
+        assert (views.images[0] - plain.images[0]).abs().max() > 1e-3  # the +x side (alpha 1) is read by b
+        torch.testing.assert_close(views.images[1], plain.images[1])  # the -x side (alpha 0) by a
+
+
 def test_cube_sphere_is_closed_outward_and_subdivision_welds():
     vertices, quads = cube_sphere(5)
     assert vertices.shape == (6 * 25 + 2, 3) and quads.shape == (150, 4)

@@ -343,11 +343,13 @@ class MeshNCA(nn.Module):
         return state
 
     def colors(self, state: torch.Tensor, triangles: torch.Tensor, triangle_id: torch.Tensor, bary: torch.Tensor,
-               sample: torch.Tensor | None = None) -> torch.Tensor:
+               sample: torch.Tensor | None = None, graft: tuple["MeshNCA", torch.Tensor] | None = None) -> torch.Tensor:
         """RGB (P, 3) in about [-1, 1] at P surface points.
 
         state (B, V, C) float; triangles (T, 3) int64; triangle_id (P,) int64 and bary (P, 3) float
         locate the points; sample (P,) int64 the state each point reads (None: all read state 0).
+        ``graft``: (other automaton, alpha (V,)) as in :meth:`step`: where cells grew by the other's
+        rule they are read by its readout too, the two blended by alpha interpolated at the point.
         """
         self._check_state("colors", state)
         check_shape(triangles, "MeshNCA.colors: triangles", (None, 3), dtype="int")
@@ -360,15 +362,29 @@ class MeshNCA(nn.Module):
             corner_states = state[0][corners]
         else:
             corner_states = state[sample[:, None], corners]
-        return self.readout(corner_states, bary.to(state.dtype))
+        bary = bary.to(state.dtype)
+        rgb = self.readout(corner_states, bary)
+        if graft is None:
+            return rgb
+        other, alpha = graft
+        check_shape(alpha, "MeshNCA.colors: graft alpha", (state.shape[1],))
+        a = (alpha.to(state.dtype)[corners] * bary).sum(-1, keepdim=True)  # (P, 1)
+        return (1 - a) * rgb + a * other.readout(corner_states, bary)
 
-    def vertex_colors(self, state: torch.Tensor) -> torch.Tensor:
-        """(B, V, 3) colours at the cells themselves (a point at a vertex: barycentrics (1, 0, 0)) of state (B, V, C)."""
+    def vertex_colors(self, state: torch.Tensor, graft: tuple["MeshNCA", torch.Tensor] | None = None) -> torch.Tensor:
+        """(B, V, 3) colours at the cells themselves (a point at a vertex: barycentrics (1, 0, 0)) of state (B, V, C);
+        ``graft`` as in :meth:`colors`."""
         self._check_state("vertex_colors", state)
         b, v, c = state.shape
         corners = state.reshape(b * v, 1, c).expand(b * v, 3, c)
         bary = torch.tensor([1.0, 0.0, 0.0], dtype=state.dtype, device=state.device).expand(b * v, 3)
-        return self.readout(corners, bary).reshape(b, v, 3)
+        rgb = self.readout(corners, bary).reshape(b, v, 3)
+        if graft is None:
+            return rgb
+        other, alpha = graft
+        check_shape(alpha, "MeshNCA.vertex_colors: graft alpha", (v,))
+        a = alpha.to(state.dtype).reshape(1, v, 1)
+        return (1 - a) * rgb + a * other.readout(corners, bary).reshape(b, v, 3)
 
 
 def overflow_penalty(state: torch.Tensor, rgb: torch.Tensor | None = None) -> torch.Tensor:

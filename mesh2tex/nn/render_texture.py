@@ -183,11 +183,12 @@ class StateViews:
 
 
 def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: torch.Tensor, resolution: int,
-                  background: float | torch.Tensor = 0.0) -> StateViews:
+                  background: float | torch.Tensor = 0.0, graft: tuple[MeshNCA, torch.Tensor] | None = None) -> StateViews:
     """Render B states of one mesh with K = N / B cameras each (views s*K .. s*K+K-1 show state s).
 
     state (B, V, C) float, V = ``graph.num_cells``; mvp (N, 4, 4); background a float, (N, 3) colours
-    or (N, 3, H, W) images in [-1, 1]. The readout is evaluated only at covered pixels. Differentiable with respect to the
+    or (N, 3, H, W) images in [-1, 1]; graft: a grafted growth's (other model, alpha (V,)), whose
+    readouts are blended as :meth:`MeshNCA.colors` does. The readout is evaluated only at covered pixels. Differentiable with respect to the
     states and the readout's parameters.
     """
     check_type(graph, "render_states: graph", CellGraph)
@@ -201,7 +202,7 @@ def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: to
     triangle_id = raster.face_id.reshape(-1)[flat_index]
     bary = raster.bary.reshape(-1, 3)[flat_index]
     sample = flat_index // (h * w) // (n // b)
-    colors = model.colors(state, graph.triangles, triangle_id, bary, sample)
+    colors = model.colors(state, graph.triangles, triangle_id, bary, sample, graft=graft)
     background = torch.as_tensor(background, dtype=colors.dtype, device=colors.device)
     if background.dim() == 0:
         background = background.expand(n, 3)

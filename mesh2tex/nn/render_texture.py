@@ -10,6 +10,7 @@ views), and the proxy path colours each covered pixel with its quad's per-face c
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import torch
 
@@ -131,12 +132,9 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     if samples is None:
         samples = rasterize_batch(batch, mvp, (h, w))
     background, flat_index, triangle_id, bary = _covered_pixels(samples, background)
-    colors = _shade(field_colors(generator, texture, batch, triangle_id, bary), batch, triangle_id, flat_index, lights, h * w)
-    images = paint_pixels(background, flat_index, colors)
-    proxy_images = None
-    if proxy:
-        proxy_colors = _shade(texture.face_rgb[triangle_id // 2], batch, triangle_id, flat_index, lights, h * w)
-        proxy_images = paint_pixels(background, flat_index, proxy_colors)
+    shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
+    images = paint_pixels(background, flat_index, shade(field_colors(generator, texture, batch, triangle_id, bary)))
+    proxy_images = paint_pixels(background, flat_index, shade(texture.face_rgb[triangle_id // 2])) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=samples.mask.unsqueeze(1).to(images.dtype))
 
 
@@ -150,8 +148,8 @@ def render_proxy_views(texture: FaceTexture, batch: MeshBatch, samples: SurfaceS
     n, h, w = samples.triangle_id.shape
     check_shape(background, "render_proxy_views: background", (n, 3), (n, 3, h, w), dtype="float")
     background, flat_index, triangle_id, _ = _covered_pixels(samples, background)
-    colors = _shade(texture.face_rgb[triangle_id // 2], batch, triangle_id, flat_index, lights, h * w)
-    return paint_pixels(background, flat_index, colors)
+    shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
+    return paint_pixels(background, flat_index, shade(texture.face_rgb[triangle_id // 2]))
 
 
 def _covered_pixels(samples: SurfaceSamples, background: torch.Tensor):
@@ -163,14 +161,16 @@ def _covered_pixels(samples: SurfaceSamples, background: torch.Tensor):
     return background, flat_index, samples.triangle_id.reshape(-1)[flat_index], samples.bary.reshape(-1, 3)[flat_index]
 
 
-def _shade(colors: torch.Tensor, batch: MeshBatch, triangle_id: torch.Tensor, flat_index: torch.Tensor, lights: Lights | None,
-           pixels_per_view: int) -> torch.Tensor:
-    """Colours (P, 3) of covered pixels shaded by each pixel's view's light (Lambert, flat quad normals); unlit: as they are."""
+def _pixel_lighting(batch: MeshBatch, triangle_id: torch.Tensor, flat_index: torch.Tensor, lights: Lights | None,
+                    pixels_per_view: int) -> Callable[[torch.Tensor], torch.Tensor]:
+    """shade(colours (P, 3)) for the covered pixels: Lambert under each pixel's view's light with flat quad
+    normals, gathered once and shared by every colour shaded at these pixels; unlit: the identity."""
     if lights is None:
-        return colors
+        return lambda colors: colors
     view = flat_index // pixels_per_view
-    normals = quad_normals(batch.vertices, batch.quads)[triangle_id // 2].to(colors.dtype)
-    return shade_colors(colors, normals, lights.direction[view].to(colors.dtype), lights.ambient[view].to(colors.dtype))
+    normals = quad_normals(batch.vertices, batch.quads)[triangle_id // 2]
+    direction, ambient = lights.direction[view], lights.ambient[view]
+    return lambda colors: shade_colors(colors, normals.to(colors.dtype), direction.to(colors.dtype), ambient.to(colors.dtype))
 
 
 @dataclass

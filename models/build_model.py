@@ -1,13 +1,14 @@
 """Rebuild a shipped model from nothing: world, shapes, GAN, pose and NOC networks, export, evaluation, card.
 
-    python models/build_model.py --category chair|car --work WORK [--gan-iters 3000] [--out models/chair]
+    python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out models/chair]
                                  [--pose-iters 1500] [--noc-iters 400] [--device auto] [--from-gan CKPT] [--views-gan CKPT]
 
 Every stage resumes (re-run the same command after an interruption): the world and the shapes are
-skipped when present, the GAN, pose and NOC runs continue with --resume. ``--gan-iters`` is the total,
-so a larger value continues a finished run. ``--from-gan`` takes the GAN (and the iteration count
-in its metadata) from an existing run instead of training one: the run must have been trained with
-this script's settings (``GAN_CONFIG``, WORLD, SHAPES below) for the card to be true.
+skipped when present, the GAN, pose and NOC runs continue with --resume. ``--gan-iters`` is the total
+(default: the category's recipe in ``RECIPES``), so a larger value continues a finished run.
+``--from-gan`` takes the GAN (and the iteration count in its metadata) from an existing run instead
+of training one: the run must have been trained with this script's settings (``GAN_CONFIG``,
+``RECIPES``, WORLD, SHAPES below) for the card to be true.
 
 The model folder gets generator.safetensors, pose.safetensors, noc.safetensors (float16 inference
 checkpoints, :mod:`mesh2tex.io.models`), card.json (settings, commands, iterations, hardware, wall
@@ -43,6 +44,14 @@ GAN_CONFIG = {
     "generator": {"encoder_channels": [32, 48, 64, 64], "synthesis_channels": [32, 48, 64, 64]},
     "discriminator": {"channel_base": 1024},
     "optim": {"lr_field": 0.0012},
+}
+# What differs between the shipped models. The chair's GAN ran its first 3500 iterations without the
+# diversity term (it did not exist yet) and then went on with it; loss.diversity_start gives the same
+# run in one go (tests/test_train_gan.py checks the equivalence). The pose and NOC networks learn from
+# views half textured by the GAN's snapshot at views_gan_iteration.
+RECIPES = {
+    "chair": {"gan_iters": 6000, "loss": {"diversity_start": 3500}, "views_gan_iteration": 2500},
+    "car": {"gan_iters": 3000, "loss": {}, "views_gan_iteration": 1500},
 }
 VIEWS = {"samples": 1536, "resolution": 64, "batch": 32, "seed": 0, "config": {"width": 16, "log_every": 25, "checkpoint_every": 100}}
 
@@ -89,14 +98,19 @@ def main() -> None:
     parser.add_argument("--category", choices=["chair", "car"], required=True)
     parser.add_argument("--work", required=True, help="folder for the world, shapes and runs (kept, resumable)")
     parser.add_argument("--out", help="model folder (default models/<category>)")
-    parser.add_argument("--gan-iters", type=int, default=3000)
+    parser.add_argument("--gan-iters", type=int, help="GAN iterations in all (default: the category's recipe)")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
     parser.add_argument("--note", default="", help="a line for the card (e.g. how busy the machine was)")
-    parser.add_argument("--views-gan", help="the GAN that textures half of the pose and NOC training views (default: the model's own)")
+    parser.add_argument("--views-gan", help="the GAN that textures half of the pose and NOC training views "
+                        "(default: the model's own run, its snapshot at the recipe's views_gan_iteration)")
     args = parser.parse_args()
+    recipe = RECIPES[args.category]
+    gan_config = {**GAN_CONFIG, "loss": recipe["loss"]} if recipe["loss"] else GAN_CONFIG
+    if args.gan_iters is None:
+        args.gan_iters = recipe["gan_iters"]
     work = Path(args.work)
     out = Path(args.out) if args.out else ROOT / "models" / args.category
     out.mkdir(parents=True, exist_ok=True)
@@ -123,11 +137,13 @@ def main() -> None:
                         f"--seed {GAN['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it")
     else:
         gan_yaml = work / "gan.yaml"
-        gan_yaml.write_text(yaml.safe_dump(GAN_CONFIG, sort_keys=False))
+        gan_yaml.write_text(yaml.safe_dump(gan_config, sort_keys=False))
         run(["train", "gan", "--shapes", str(work / "shapes" / "train"), "--images", str(world), "--out", str(work / "gan"),
              "--config", str(gan_yaml), "--iters", str(args.gan_iters), "--resolution", str(GAN["resolution"]),
              "--views", str(GAN["views"]), "--seed", str(GAN["seed"]), "--device", args.device, "--resume"], commands)
         gan_ckpt = work / "gan" / "checkpoint.safetensors"
+        if not args.views_gan and recipe["views_gan_iteration"] < args.gan_iters:
+            args.views_gan = str(work / "gan" / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors")
     views_yaml = work / "views.yaml"
     views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
     views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt
@@ -145,7 +161,7 @@ def main() -> None:
                                      GenerationConfig(views=8, latents=16, kid_fid=False), samples_path=out / "samples.png")
     size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
     card = {
-        "name": args.category, "category": args.category, "world": WORLD, "shapes": SHAPES, "gan": {**GAN, "config": GAN_CONFIG},
+        "name": args.category, "category": args.category, "world": WORLD, "shapes": SHAPES, "gan": {**GAN, "config": gan_config},
         "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
         "noc_iterations": args.noc_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
         "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), int(gan_meta["iteration"])),
@@ -154,7 +170,8 @@ def main() -> None:
         "generation": result,
     }
     (out / "card.json").write_text(json.dumps(card, indent=1, default=float))
-    rebuild = f"python models/build_model.py --category {args.category} --work WORK --gan-iters {card['gan_iterations']}"
+    rebuild = f"python models/build_model.py --category {args.category} --work WORK" + (
+        "" if card["gan_iterations"] == recipe["gan_iters"] else f" --gan-iters {card['gan_iterations']}")
     (out / "card.md").write_text(
         f"# Shipped model `{args.category}` ({args.category})\n\n"
         f"Texture GAN (EMA generator), pose and NOC networks trained on the synthetic {args.category} world "

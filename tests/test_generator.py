@@ -332,3 +332,15 @@ def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_t
     opt.zero_grad()
     reached.accumulate_gradients("Gmain", generate, torch.randn(2, 16), torch.zeros(4, 3, 16, 16), proxy_of=proxy_of)
     assert all(p.grad is None or float(p.grad.abs().max()) == 0.0 for p in gen.parameters())
+
+
+def test_the_diversity_term_runs_from_its_start_every_interval_scaled_by_it():
+    """loss.diversity_start / diversity_interval: lazy mode seeking, as lazy R1 (gain = interval)."""
+    from mesh2tex.losses.gan import GanLoss, GanLossConfig
+
+    lazy = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_start=5, diversity_interval=4), None, None)
+    assert [lazy.diversity_gain(i) for i in range(4, 14)] == [0, 4, 0, 0, 0, 4, 0, 0, 0, 4]
+    assert [GanLoss(GanLossConfig(), None, None).diversity_gain(i) for i in range(3)] == [1, 1, 1]
+    assert GanLoss(GanLossConfig(diversity_weight=0.0), None, None).diversity_gain(0) == 0
+    with pytest.raises(ValueError, match="diversity_interval"):
+        GanLossConfig(diversity_interval=0)

@@ -95,6 +95,34 @@ def test_resume_reproduces_the_uninterrupted_run(tiny_data, tmp_path):
         torch.testing.assert_close(tensor, gb["generator_ema"][name], rtol=1e-5, atol=1e-6)
 
 
+def test_a_late_diversity_term_is_the_run_without_it_resumed_with_it(tiny_data, tmp_path):
+    """``loss.diversity_start: S`` in one run gives the two-run recipe the shipped chair was trained by:
+    S iterations without the term, then a run resumed from that checkpoint with it."""
+    def config(name, loss):
+        path = tmp_path / name
+        path.write_text(yaml.safe_dump({**TINY, "loss": {**TINY["loss"], **loss}}))
+        return str(path)
+
+    late = config("late.yaml", {"diversity_weight": 1.0, "diversity_target": 10.0, "diversity_start": 2})
+    without = config("without.yaml", {"diversity_weight": 0.0})
+    with_term = config("with.yaml", {"diversity_weight": 1.0, "diversity_target": 10.0})
+    one, first, second = tmp_path / "one", tmp_path / "first", tmp_path / "second"
+    assert train(tiny_data, one, "--iters", "4", "--config", late) == 0
+    assert train(tiny_data, first, "--iters", "2", "--config", without) == 0
+    assert train(tiny_data, second, "--iters", "4", "--config", with_term, "--resume", str(first / "checkpoint.safetensors")) == 0
+    a, b = metrics(one), metrics(second)
+    assert [r["iteration"] for r in b] == [3, 4] and [r["iteration"] for r in a] == [1, 2, 3, 4]
+    assert "mode_seeking" not in a[1] and "mode_seeking" in a[2]
+    for ra, rb in zip(a[2:], b):
+        for key in rb:
+            if key.startswith(("loss_", "r1_", "pl_", "mode_seeking")):
+                assert ra[key] == pytest.approx(rb[key], rel=1e-5, abs=1e-6), (ra["iteration"], key)
+    ga, _ = load_checkpoint(one / "checkpoint.safetensors")
+    gb, _ = load_checkpoint(second / "checkpoint.safetensors")
+    for name, tensor in ga["generator_ema"].items():
+        torch.testing.assert_close(tensor, gb["generator_ema"][name], rtol=1e-5, atol=1e-6)
+
+
 def test_resume_applies_the_run_configs_learning_rates(tiny_data, tmp_path, capsys):
     """The NaN message's advice (lower the rates in RUN/config.yaml, --resume) works: the resumed
     optimizers use the config's rates, not the checkpoint's, and say so; a torn last metrics line is dropped."""

@@ -255,6 +255,7 @@ class GanTrainer:
 
         logs: dict[str, torch.Tensor] = {}
         phases = self.loss.phases(self.iteration)
+        diversity_gain = self.loss.diversity_gain(self.iteration)
         g_params = list(g.parameters())
         d_params = list(self.d_field.parameters()) + list(self.d_proxy.parameters())
         for group, params, opt in (("G", g_params, self.opt_g), ("D", d_params, self.opt_d)):
@@ -267,7 +268,7 @@ class GanTrainer:
                     continue
                 z = z_g if group == "G" else z_d
                 fn = (lambda z_: generate(z_, update_w_avg=True)) if phase == "Gmain" else generate
-                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of))
+                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of, diversity_gain=diversity_gain))
             bad = None
             try:
                 runs.check_finite(logs, self.iteration)

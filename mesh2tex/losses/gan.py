@@ -4,6 +4,7 @@ Two discriminators judge the generator: ``d_field`` sees psi renders, ``d_proxy`
 colour renders. Losses (StyleGAN2):
     G main:  softplus(-D_field(fake)) + proxy_weight * softplus(-D_proxy(proxy))    (non-saturating)
     G div:   diversity_weight * max(0, diversity_target - d), d the mode-seeking ratio (below), in G main
+             from iteration ``diversity_start`` on, every ``diversity_interval`` steps, scaled by it
     G reg:   path-length regularisation on psi renders, every ``pl_interval`` steps, scaled by it
     D main:  softplus(D(fake)) + softplus(-D(real)) for both discriminators
     D reg:   R1 = gamma/2 |grad_x D(real)|^2 for both, every ``r1_interval`` steps, scaled by it
@@ -17,6 +18,10 @@ The diversity term is the mode-seeking regulariser of MSGAN / DSGAN (Mao et al. 
 2019) on the cheap proxy path: the same shapes, views, backgrounds and lights rendered from a second
 latent z', d = mean |proxy(z) - proxy(z')| over object pixels and channels / mean |z - z'|. It pushes
 different latents apart until d reaches ``diversity_target`` and then leaves the generator alone.
+It costs a second synthesis forward and backward; applied lazily (``diversity_interval`` > 1, its
+gain scaled by the interval as R1's is) it costs that much less. Until ``diversity_start`` it draws
+no second latent at all, so a run that starts the term late is, step for step, the run without the
+term resumed with it (the chair model was trained that way, in two runs).
 """
 
 from __future__ import annotations
@@ -45,10 +50,13 @@ class GanLossConfig:
     proxy_weight: float = 1.0  # weight of the proxy (per-face colour) adversarial loss
     diversity_weight: float = 1.0  # mode-seeking term on the proxy renders of two latents (0 disables)
     diversity_target: float = 0.3  # the term stops pushing once d (mean abs proxy difference / mean abs latent difference) reaches it
+    diversity_start: int = 0  # the first iteration (0-based) with the term
+    diversity_interval: int = 1  # lazy mode seeking: every this many iterations from diversity_start, scaled by it
 
     def __post_init__(self):
         check_fields(self, at_least={"r1_gamma": 0, "pl_weight": 0, "proxy_weight": 0, "r1_interval": 1, "pl_interval": 1,
-                                     "diversity_weight": 0, "diversity_target": 0},
+                                     "diversity_weight": 0, "diversity_target": 0, "diversity_start": 0,
+                                     "diversity_interval": 1},
                      between={"pl_decay": (0.0, 1.0)})
 
 
@@ -91,12 +99,20 @@ class GanLoss:
             out.append(("Dreg", float(self.cfg.r1_interval)))
         return out
 
+    def diversity_gain(self, iteration: int) -> float:
+        """The diversity term's gain in G main at ``iteration`` (0-based): 0 when it does not run."""
+        cfg = self.cfg
+        if cfg.diversity_weight == 0 or iteration < cfg.diversity_start or (iteration - cfg.diversity_start) % cfg.diversity_interval:
+            return 0.0
+        return float(cfg.diversity_interval)
+
     def accumulate_gradients(self, phase: str, generate: GenerateFn, z: torch.Tensor, real: torch.Tensor, gain: float = 1.0,
-                             proxy_of: ProxyFn | None = None) -> dict[str, torch.Tensor]:
+                             proxy_of: ProxyFn | None = None, diversity_gain: float = 1.0) -> dict[str, torch.Tensor]:
         """Back-propagate the loss of ``phase`` (scaled by ``gain``); returns detached scalars to log.
 
         z: (B, z_dim) latents, real: (N, 3, H, W) real images in [-1, 1]; proxy_of: renders a second
-        latent's proxy for the diversity term (G main, when ``diversity_weight`` > 0).
+        latent's proxy for the diversity term (G main, when ``diversity_weight`` and ``diversity_gain``
+        are > 0; the trainer passes :meth:`diversity_gain` of the iteration).
         """
         logs: dict[str, torch.Tensor] = {}
         if phase == "Gmain":
@@ -108,14 +124,14 @@ class GanLoss:
                     loss_proxy = F.softplus(-self.d_proxy(self.augment(proxy))).mean()
                     logs["loss_g_proxy"] = loss_proxy.detach()
                     loss = loss + self.cfg.proxy_weight * loss_proxy
-                if self.cfg.diversity_weight > 0:
+                if self.cfg.diversity_weight > 0 and diversity_gain > 0:
                     if proxy is None or proxy_of is None:
                         raise ValueError("GanLoss: diversity_weight > 0 needs proxy renders and proxy_of")
                     z_other = torch.randn_like(z)
                     proxy_other, mask = proxy_of(z_other)
                     ratio = mode_seeking_ratio(proxy, proxy_other, mask, z, z_other)
                     logs["mode_seeking"] = ratio.detach()
-                    loss = loss + self.cfg.diversity_weight * F.relu(self.cfg.diversity_target - ratio)
+                    loss = loss + diversity_gain * self.cfg.diversity_weight * F.relu(self.cfg.diversity_target - ratio)
             (loss * gain).backward()
         elif phase == "Greg":
             images, _, ws = generate(z)

@@ -8,14 +8,18 @@ Two procedural chairs are prepared (quad hierarchy of --faces faces), the traine
 default config (or --config) and a random photo set, one warm-up iteration runs, then --iters timed
 iterations. Iterations with the lazy regularisers (path length every 4, R1 every 16) are slower;
 the script prints the mean over main-only iterations, over iterations with the path-length term,
-the amortised mean of the schedule, and its ratio to the 2 s target.
+the amortised mean of the schedule, the plain mean over all timed iterations (which amortises every
+lazy term, the diversity term's included, when --iters is a multiple of their intervals), and the
+ratio to the 2 s target.
 
 ``--previous REV`` builds a second trainer from the ``mesh2tex`` and ``train`` packages of git
 revision REV (``benchmarks/previous.py``) on the same shapes and photos, and times the two in
 alternation (which goes first swaps every iteration), so that both see the same machine load; it
 prints both figures and the speed-up, previous / current. ``--check N`` (with ``--previous``) first
 runs N iterations of each from the same seed and prints the relative difference of every logged
-scalar: the two versions should compute the same losses.
+scalar: the two versions should compute the same losses. ``--previous-config YAML`` gives the
+previous version its own config (default: --config's), so that ``--previous HEAD --config lazy.yaml``
+times two settings of one revision side by side.
 """
 
 from __future__ import annotations
@@ -54,10 +58,10 @@ class Version:
     def active(self):
         return self.revision.active() if self.revision else contextlib.nullcontext()
 
-    def trainer(self, args, shapes, folder: str):
+    def trainer(self, args, shapes, folder: str, config: str | None = None):
         """A fresh trainer (its constructor seeds every generator) on ``shapes`` and a random photo set."""
         with self.active():
-            cfg = self.load_config(self.TrainGanConfig, args.config, {"batch": args.batch, "views": args.views, "resolution": args.resolution,
+            cfg = self.load_config(self.TrainGanConfig, config, {"batch": args.batch, "views": args.views, "resolution": args.resolution,
                                                                       "device": args.device, "iters": 10**9})
             cfg.generator.input_features = shapes[0].face_features.shape[1]
             device = self.runs.select_device(cfg.device)
@@ -81,7 +85,7 @@ def check(versions: list[Version], args, shapes, tmp: str) -> None:
     """Run ``args.check`` seeded iterations of each version; print the largest difference of each logged scalar."""
     logs, weights = {}, {}
     for version in versions:
-        trainer = version.trainer(args, shapes, f"{tmp}/check-{version.name}")
+        trainer = version.trainer(args, shapes, f"{tmp}/check-{version.name}", args.config)
         logs[version.name] = [version.step(trainer)[1] for _ in range(args.check)]
         weights[version.name] = {name: module.state_dict() for name, module in
                                  (("generator", trainer.generator), ("d_field", trainer.d_field), ("d_proxy", trainer.d_proxy))}
@@ -120,6 +124,7 @@ def main() -> None:
     parser.add_argument("--config")
     parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     parser.add_argument("--previous", default="", help="also time the trainer of this git revision, in alternation")
+    parser.add_argument("--previous-config", help="with --previous: that version's config (default: --config)")
     parser.add_argument("--check", type=int, default=0, help="with --previous: compare the logged losses of this many seeded iterations first")
     args = parser.parse_args()
     if args.threads:
@@ -140,7 +145,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         if args.check:
             check(versions, args, shapes, tmp)
-        trainers = [v.trainer(args, shapes, f"{tmp}/{i}") for i, v in enumerate(versions)]
+        configs = [args.previous_config or args.config, args.config][-len(versions):]
+        trainers = [v.trainer(args, shapes, f"{tmp}/{i}", c) for i, (v, c) in enumerate(zip(versions, configs))]
         first = trainers[-1]
         params = sum(p.numel() for p in first.generator.parameters())
         dparams = sum(p.numel() for p in first.d_field.parameters())
@@ -158,11 +164,12 @@ def main() -> None:
     for version, t in zip(versions, times):
         m, p, amortised, n_m, n_p = summary(t, pl_interval)
         print(f"{version.name}: seconds per iteration: main phases {m:.3f} (n={n_m}), with path-length reg {p:.3f} (n={n_p}), "
-              f"amortised {amortised:.3f}")
+              f"amortised {amortised:.3f}, mean of all {len(t)} {statistics.mean(s for s, _ in t):.3f}")
     if len(versions) == 2:
         old, new = (summary(t, pl_interval) for t in times)
+        mean_old, mean_new = (statistics.mean(s for s, _ in t) for t in times)
         print(f"speed-up previous / current: main phases {old[0] / new[0]:.2f}, with path-length reg {old[1] / new[1]:.2f}, "
-              f"amortised {old[2] / new[2]:.2f}")
+              f"amortised {old[2] / new[2]:.2f}, mean of all {mean_old / mean_new:.2f}")
     both = " (both versions)" if len(versions) == 2 else ""
     print(f"peak memory {peak:.2f} GB ({'CUDA allocator' if first.device.type == 'cuda' else 'process RSS'}){both}")
     print(f"ratio to the {TARGET_SECONDS:.0f} s target: {summary(times[-1], pl_interval)[2] / TARGET_SECONDS:.2f}")

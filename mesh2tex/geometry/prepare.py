@@ -13,7 +13,8 @@ from mesh2tex.geometry.features import face_features, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
 from mesh2tex.geometry.levelset import surface_samples
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.geometry.quadremesh import Budget, QuadRemeshError, quads_to_triangles, remesh_hierarchy
+from mesh2tex.geometry.prepared import quads_to_triangles
+from mesh2tex.geometry.quadremesh import Budget, QuadRemeshError, remesh_hierarchy
 
 # QuadriFlow's run time grows with the input; more triangles than this add nothing at 6144 quads
 MAX_INPUT_TRIANGLES = 100_000

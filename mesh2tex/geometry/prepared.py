@@ -37,6 +37,18 @@ MAX_UNCOMPRESSED_BYTES = 1 << 30
 MAX_LEVELS = 16
 
 
+def quads_to_triangles(quads):
+    """(F, 4) quads -> (2F, 3) triangles: quad f gives (a, b, c) as 2f and (a, c, d) as 2f + 1.
+
+    The project's one quad split (prepared shapes, mesh batches, renders, exports all index it).
+    A torch tensor stays a tensor on its device (this module does not import torch, so it checks by
+    duck type); anything else becomes an int64 numpy array.
+    """
+    if not hasattr(quads, "device"):
+        quads = np.asarray(quads, dtype=np.int64)
+    return quads[:, [0, 1, 2, 0, 2, 3]].reshape(-1, 3)
+
+
 @dataclass
 class PreparedShape:
     """Plain arrays of a prepared shape; see the module docstring for shapes and meaning."""
@@ -63,8 +75,7 @@ class PreparedShape:
 
         Triangle ``2 f`` and ``2 f + 1`` belong to quad ``f``.
         """
-        q = self.quads[level]
-        return np.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
+        return quads_to_triangles(self.quads[level])
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the record atomically as an uncompressed-pickle-free .npz."""

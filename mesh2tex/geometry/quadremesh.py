@@ -43,6 +43,7 @@ from scipy.spatial import cKDTree
 from mesh2tex.geometry.clean import decimate, isotropic_remesh, triangle_areas
 from mesh2tex.geometry.hierarchy import orient_coherently
 from mesh2tex.geometry.levelset import marching_cubes, solid_field, surface_net_quads, surface_samples
+from mesh2tex.geometry.prepared import quads_to_triangles
 
 
 class QuadRemeshError(RuntimeError):
@@ -201,12 +202,6 @@ def remove_unreferenced(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.nda
         return np.zeros((0, 3)), faces.reshape(0, faces.shape[1] if faces.ndim == 2 else 4)
     used, inverse = np.unique(faces.reshape(-1), return_inverse=True)
     return np.asarray(vertices)[used], inverse.reshape(faces.shape).astype(np.int64)
-
-
-def quads_to_triangles(quads: np.ndarray) -> np.ndarray:
-    """(F, 4) quads -> (2F, 3) triangles: quad f gives (a, b, c) as 2f and (a, c, d) as 2f + 1."""
-    quads = np.asarray(quads, dtype=np.int64)
-    return np.stack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
 
 
 def signed_volume(vertices: np.ndarray, triangles: np.ndarray) -> float:

@@ -9,12 +9,12 @@ of level ``l`` belongs to, which is how per-sample styles reach per-face layers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import torch
 
-from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.geometry.prepared import PreparedShape, quads_to_triangles
 
 
 @dataclass
@@ -42,6 +42,7 @@ class MeshBatch:
     quads: torch.Tensor
     vertex_offsets: torch.Tensor
     face_features: torch.Tensor
+    _triangles: torch.Tensor | None = field(default=None, repr=False, compare=False)  # cache of triangles()
 
     @property
     def num_levels(self) -> int:
@@ -55,9 +56,12 @@ class MeshBatch:
         return int(self.vertices.shape[0])
 
     def triangles(self) -> torch.Tensor:
-        """(2 F_0, 3) int64 batch vertex indices; triangle 2f and 2f+1 are the halves (a,b,c), (a,c,d) of quad f."""
-        q = self.quads
-        return torch.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], dim=1).reshape(-1, 3)
+        """(2 F_0, 3) int64 batch vertex indices; triangle 2f and 2f+1 are the halves (a,b,c), (a,c,d) of quad f.
+
+        Computed once per batch (a render of psi asks for it every call)."""
+        if self._triangles is None:
+            self._triangles = quads_to_triangles(self.quads)
+        return self._triangles
 
     def shape_vertices(self, s: int) -> torch.Tensor:
         """(V_s, 3) float32 vertices of shape ``s``."""
@@ -66,13 +70,14 @@ class MeshBatch:
     def shape_triangles(self, s: int) -> torch.Tensor:
         """(2 F_0s, 3) int64 triangles of shape ``s`` indexing :meth:`shape_vertices` (local indices)."""
         f0, f1 = int(self.face_offsets[0][s]), int(self.face_offsets[0][s + 1])
-        q = self.quads[f0:f1] - self.vertex_offsets[s]
-        return torch.stack([q[:, [0, 1, 2]], q[:, [0, 2, 3]]], dim=1).reshape(-1, 3)
+        return quads_to_triangles(self.quads[f0:f1] - self.vertex_offsets[s])
 
     def to(self, device) -> "MeshBatch":
         """The same batch with every tensor on ``device``."""
         moved = {}
         for f in fields(self):
+            if f.name == "_triangles":
+                continue
             value = getattr(self, f.name)
             if isinstance(value, torch.Tensor):
                 value = value.to(device)

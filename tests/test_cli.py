@@ -17,6 +17,7 @@ import yaml
 
 from mesh2tex.cli import COMMANDS, build_parser, main
 from mesh2tex.config import config_to_dict
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.options import HelpFormatter, show_default, static_defaults
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -213,3 +214,29 @@ def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
         pytest.skip("a GPU is there")
     assert main(["demo", "--quick", "--device", "cuda", "--out", str(tmp_path / "demo")]) == 2
     assert "no CUDA device" in capsys.readouterr().err and not (tmp_path / "demo").exists()
+
+
+# ----------------------------------------------------------------------------------- errors
+@pytest.mark.parametrize("error, code", [(InputError("m.obj: the mesh has no faces"), 2), (UserError("--pool 0: too small", exit_code=4), 4)])
+def test_input_and_user_errors_are_one_line(error, code, monkeypatch, capsys):
+    """The library's InputError (a ValueError) and a command's UserError end as one line and their exit status."""
+    import infer.generate
+
+    def run(args):
+        raise error
+
+    monkeypatch.setattr(infer.generate, "run", run)
+    assert main(["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"]) == code
+    assert capsys.readouterr().err == f"mesh2tex: error: {error}\n"
+    assert issubclass(InputError, ValueError)
+
+
+def test_any_other_value_error_is_a_bug_with_its_traceback(monkeypatch):
+    import infer.generate
+
+    def run(args):
+        raise ValueError("an index three calls deep")
+
+    monkeypatch.setattr(infer.generate, "run", run)
+    with pytest.raises(ValueError, match="three calls deep"):
+        main(["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"])

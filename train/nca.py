@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from mesh2tex.config import check_fields, config_from_dict, load_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
 from mesh2tex.io.images import colors_to_uint8, images_to_uint8, load_image, save_png
@@ -128,6 +128,8 @@ def build_config(args) -> TrainNCAConfig:
         if args.readout:
             cfg.nca.readout = args.readout
             cfg.nca.__post_init__()
+    except InputError:  # the config file's own error, which names it
+        raise
     except ValueError as error:
         raise UserError(f"config: {error}") from None
     return cfg

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
 
@@ -132,7 +132,7 @@ def main() -> None:
         start, cpu_start = time.perf_counter(), _cpu_seconds()
         try:
             shape = prepare_shape(vertices, faces, face_count=args.faces, levels=args.levels, source=name)
-        except UserError as error:
+        except InputError as error:
             records.append({"name": name, "triangles": int(len(faces)), "status": "failed", "reason": str(error),
                             "seconds": round(time.perf_counter() - start, 2)})
             print(f"{name:20s} FAILED {records[-1]['seconds']:6.2f} s  {error}", flush=True)

@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import is_image_file, load_image, load_mask, save_png
 from mesh2tex.photos import estimate_mask, square_crop
@@ -57,7 +57,7 @@ def prepare_image(path: Path, relative: Path, name: str, output: Path, size: int
         save_png(output / "images" / f"{name}.png", image)
         save_png(output / "masks" / f"{name}.png", out_mask)
         record.update(status="ok", reason="", mask=source, coverage=round(float(out_mask.mean()), 4))
-    except UserError as error:
+    except (UserError, InputError) as error:  # the mask check here, or the library reading the photo
         record.update(status="failed", reason=str(error))
     except Exception as error:  # unforeseen: reported, the batch goes on
         record.update(status="failed", reason=f"{path}: unexpected {error.__class__.__name__}: {error}")

@@ -23,7 +23,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import locked, write_json
 from mesh2tex.progress import JsonLines, progress_bar
 
@@ -110,7 +110,7 @@ def prepare_one(path: str, output: str, faces: int, levels: int, seed: int, max_
         record.update(status="ok", reason="", face_counts=shape.face_counts, methods=[level["method"] for level in levels],
                       levels=[{"faces": level["faces"], "ratio": level["ratio"], "method": level["method"]} for level in levels],
                       warnings=list(shape.metadata["warnings"]), coarseness=shape.metadata["coarseness"])
-    except UserError as error:
+    except InputError as error:
         message = str(error)
         record.update(status="failed", reason=message if message.startswith(path) else f"{path}: {message}", face_counts=[])
     except Exception as error:  # a bug or an unforeseen input: reported, the batch goes on

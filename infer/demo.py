@@ -48,6 +48,7 @@ from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import load_generator, models_root
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.view_nets import VIEWS_NAME
+from mesh2tex.options import config_overrides
 from mesh2tex.progress import JsonLines
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import load_shape, mean_latent
@@ -411,7 +412,7 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
 
 def build_config(args) -> DemoConfig:
     """The demo config: its defaults, then --config, then --quick's budget, --seed and --texture-format."""
-    cfg = load_config(DemoConfig, args.config, {**(QUICK if args.quick else {}), "seed": args.seed, "texture_format": args.texture_format})
+    cfg = load_config(DemoConfig, args.config, {**(QUICK if args.quick else {}), **config_overrides(args)})
     if cfg.texture_format not in TEXTURE_FORMATS:
         raise UserError(f"texture_format {cfg.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
     return cfg

@@ -37,6 +37,7 @@ import warnings
 from dataclasses import asdict
 
 from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
+from infer.options import GENERATION_CONFIG, SETS_CONFIG
 from infer.protocols import protocol_config, run_protocols_command
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
@@ -45,6 +46,7 @@ from mesh2tex.io.image_sets import list_images, load_pairs, load_set
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, markdown_table
+from mesh2tex.options import config_overrides
 from mesh2tex.runtime import select_device
 
 BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
@@ -55,14 +57,13 @@ BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
 
 
 def generation_config(args: argparse.Namespace) -> GenerationConfig:
-    return load_config(GenerationConfig, None, {"latents": args.latents, "resolution": args.resolution, "features": args.features,
-                                                "seed": args.seed, "lighting": args.gan_lighting})
+    """Its own flags, then --resolution and the flags it shares with the sets mode."""
+    return load_config(GenerationConfig, None, config_overrides(args, GENERATION_CONFIG, computed={
+        "resolution": args.resolution, "features": args.features, "seed": args.seed}))
 
 
 def sets_config(args: argparse.Namespace) -> EvaluateConfig:
-    return load_config(EvaluateConfig, None, {
-        "resolution": args.resolution, "features": args.features, "kid_subsets": args.kid_subsets,
-        "kid_subset_size": args.kid_subset_size, "background": args.background, "seed": args.seed})
+    return load_config(EvaluateConfig, None, config_overrides(args, SETS_CONFIG, computed={"resolution": args.resolution}))
 
 
 def build_config(args: argparse.Namespace):

@@ -28,6 +28,7 @@ from mesh2tex.io.models import gan_camera, load_generator
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import render_field_views
+from mesh2tex.options import config_overrides
 from mesh2tex.render import orbit_camera, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, load_shape, write_textured_mesh
@@ -71,10 +72,8 @@ def parse_seeds(text: str) -> list[int]:
 
 def build_config(args) -> GenerateConfig:
     """The config's defaults, then ``--config``, then the flags given."""
-    return load_config(GenerateConfig, args.config, {
-        "seeds": None if args.seeds is None else parse_seeds(args.seeds), "views": args.views, "resolution": args.resolution,
-        "texture_size": args.texture_size, "texture_format": args.texture_format, "elevation": args.elevation, "truncation": args.truncation, "faces": args.faces,
-        "device": args.device})
+    return load_config(GenerateConfig, args.config, config_overrides(args, computed={
+        "seeds": None if args.seeds is None else parse_seeds(args.seeds)}))
 
 
 def run(args) -> int:

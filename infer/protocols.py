@@ -65,6 +65,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from infer.options import PROTOCOL_CONFIG
 from mesh2tex import transfer
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
@@ -88,6 +89,7 @@ from mesh2tex.nn.generator import FaceTexture
 from mesh2tex.nn.pose import azimuth_error
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
+from mesh2tex.options import config_overrides
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, load_shape, mean_latent
@@ -491,14 +493,12 @@ def _split(text: str | None) -> list[str] | None:
 
 def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
     """The protocol config: its defaults, then ``--protocol-config``, then the flags given."""
-    return load_config(ProtocolConfig, args.protocol_config, {
-        "latent_iters": args.latent_iters, "refine_iters": args.refine_iters, "queries": args.queries,
-        "protocols": _split(args.only), "ablations": _split(args.ablations), "resolution": args.resolution,
-        "lighting": getattr(args, "lighting", None), "unseen_views": getattr(args, "unseen_views", None),
-        "baselines": _split(getattr(args, "baselines", None)),
-        "features": args.features, "kid_subsets": args.kid_subsets, "seed": args.seed,
+    return load_config(ProtocolConfig, args.protocol_config, config_overrides(args, PROTOCOL_CONFIG, computed={
+        "protocols": _split(args.only), "ablations": _split(args.ablations), "baselines": _split(args.baselines),
+        # the options evaluate's other modes share
+        "resolution": args.resolution, "features": args.features, "kid_subsets": args.kid_subsets, "seed": args.seed,
         "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
-        "inception_weights": args.inception_weights})
+        "inception_weights": args.inception_weights}))
 
 
 def run_protocols_command(args: argparse.Namespace) -> int:

@@ -51,6 +51,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
+from mesh2tex.options import config_overrides
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import load_shape, write_textured_mesh
@@ -130,10 +131,9 @@ def output_names(cfg: TransferConfig) -> list[str]:
 
 # -------------------------------------------------------------------------------------------- stage
 def build_config(args) -> TransferConfig:
-    overrides = {"resolution": args.resolution, "latent_iters": args.latent_iters, "refine_iters": args.refine_iters, "texture_size": args.texture_size,
-                 "device": args.device, "seed": args.seed, "vgg_weights": args.vgg_weights,
-                 "use_noc": False if args.no_noc else None, "use_patches": False if args.no_patches else None,
-                 "refine": False if args.no_refine else None, "pose_search": False if args.no_pose_search else None}
+    overrides = config_overrides(args, computed={  # the ablation switches turn a field off
+        "use_noc": False if args.no_noc else None, "use_patches": False if args.no_patches else None,
+        "refine": False if args.no_refine else None, "pose_search": False if args.no_pose_search else None})
     cfg = load_config(TransferConfig, args.config, overrides)
     check_style_sizes(cfg)
     if cfg.latent_iters < 0 or cfg.refine_iters < 0:

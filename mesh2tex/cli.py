@@ -17,7 +17,7 @@ import os
 import signal
 import sys
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.options import HelpFormatter, Parser
 
 # (command, subcommand or None) -> (stage module, one-line help)
@@ -113,9 +113,9 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(args, "print_config", False):
             return print_config(stage, args)
         return int(stage.run(args) or 0)
-    except UserError as error:
+    except (UserError, InputError) as error:  # a command's refusal, or bad input the library found
         print(f"mesh2tex: error: {error}", file=sys.stderr)
-        return error.exit_code
+        return getattr(error, "exit_code", 2)
     except OSError as error:
         # a path the user gave that cannot be used (a file where a folder is needed, no permission, a full
         # disk): the environment, not a bug; anything else keeps its traceback

@@ -27,7 +27,7 @@ from typing import Any, TypeVar
 
 import yaml
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.atomic import write_text
 
 T = TypeVar("T")
@@ -55,18 +55,18 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
         hint = hints[f.name]
         if dataclasses.is_dataclass(hint):
             if not isinstance(value, dict):
-                raise UserError(f"{where}: '{f.name}' must be a mapping")
+                raise InputError(f"{where}: '{f.name}' must be a mapping")
             value = config_from_dict(hint, value, f"{where}.{f.name}")
         else:
             value = _coerce(value, hint, f"{where}.{f.name}")
         kwargs[f.name] = value
     if data:
         known = ", ".join(f.name for f in dataclasses.fields(cls))
-        raise UserError(f"{where}: unknown key(s) {sorted(str(k) for k in data)}; known keys: {known}")
+        raise InputError(f"{where}: unknown key(s) {sorted(str(k) for k in data)}; known keys: {known}")
     try:
         return cls(**kwargs)
     except (ValueError, TypeError) as error:
-        raise UserError(f"{where}: {error}") from None
+        raise InputError(f"{where}: {error}") from None
 
 
 def _coerce(value, hint, where: str):
@@ -84,27 +84,27 @@ def _coerce(value, hint, where: str):
             try:
                 value = float(value.strip())
             except ValueError:
-                raise UserError(f"{where}: expected a number, got {value!r}") from None
+                raise InputError(f"{where}: expected a number, got {value!r}") from None
         if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise UserError(f"{where}: expected a number, got {value!r}")
+            raise InputError(f"{where}: expected a number, got {value!r}")
         try:
             number = float(value)
         except OverflowError:  # an integer beyond any float
             number = math.inf
         if not math.isfinite(number):
-            raise UserError(f"{where}: expected a finite number, got {value!r}")
+            raise InputError(f"{where}: expected a finite number, got {value!r}")
         return number
     if hint in (int, str, bool):
         if not isinstance(value, hint) or (hint is int and isinstance(value, bool)):
-            raise UserError(f"{where}: expected {hint.__name__}, got {value!r}")
+            raise InputError(f"{where}: expected {hint.__name__}, got {value!r}")
         if hint is int and not -2**63 <= value < 2**63:  # seeds and counts alike: beyond 64 bits is a typo
-            raise UserError(f"{where}: {value} is out of range (a 64-bit integer)")
+            raise InputError(f"{where}: {value} is out of range (a 64-bit integer)")
         return value
     if origin in (list, tuple):
         if not isinstance(value, (list, tuple)):
-            raise UserError(f"{where}: expected a list, got {value!r}")
+            raise InputError(f"{where}: expected a list, got {value!r}")
         if args and args[-1] is not Ellipsis and origin is tuple and len(args) != len(value):
-            raise UserError(f"{where}: expected {len(args)} values, got {len(value)}")
+            raise InputError(f"{where}: expected {len(args)} values, got {len(value)}")
         if args:
             element = (lambda i: args[0]) if origin is list or args[-1] is Ellipsis else (lambda i: args[i])
             value = [_coerce(v, element(i), f"{where}[{i}]") for i, v in enumerate(value)]
@@ -144,17 +144,17 @@ def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: 
     if path is not None:
         path = Path(path)
         if not path.is_file():
-            raise UserError(f"{path}: config file not found")
+            raise InputError(f"{path}: config file not found")
         try:
             loaded = yaml.safe_load(path.read_text(encoding="utf-8"))
         except UnicodeDecodeError as error:
-            raise UserError(f"{path}: not UTF-8 text (byte {error.start}); save the config as UTF-8") from None
+            raise InputError(f"{path}: not UTF-8 text (byte {error.start}); save the config as UTF-8") from None
         except yaml.YAMLError as error:
-            raise UserError(f"{path}: not valid YAML ({error.__class__.__name__})") from None
+            raise InputError(f"{path}: not valid YAML ({error.__class__.__name__})") from None
         except RecursionError:
-            raise UserError(f"{path}: nested too deeply to be a config") from None
+            raise InputError(f"{path}: nested too deeply to be a config") from None
         if loaded is not None and not isinstance(loaded, dict):
-            raise UserError(f"{path}: the config must be a mapping")
+            raise InputError(f"{path}: the config must be a mapping")
         data = loaded or {}
     for key, value in (overrides or {}).items():
         if value is None:
@@ -164,7 +164,7 @@ def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: 
         for part in parents:
             node = node.setdefault(part, {})
             if not isinstance(node, dict):
-                raise UserError(f"{path or 'config'}: '{part}' must be a mapping")
+                raise InputError(f"{path or 'config'}: '{part}' must be a mapping")
         node[leaf] = value
     return config_from_dict(cls, data, str(path) if path else "config")
 

@@ -1,8 +1,23 @@
-"""The one error type a user sees as a single line (and a non-zero exit) instead of a traceback."""
+"""The two errors a user sees as a single line (and a non-zero exit) instead of a traceback.
+
+The library raises :class:`InputError`, a ``ValueError``, so that a program calling it catches bad
+input as it catches any other bad value; the commands (``data_prep``, ``train``, ``infer``) raise
+:class:`UserError` for a bad option or combination of options. ``mesh2tex/cli.py`` prints either as
+``mesh2tex: error: <message>``.
+"""
+
+
+class InputError(ValueError):
+    """Bad input data or a bad request: the message names the file or the option and what is wrong.
+
+    The command line prints it as one line and exits with status 2; any other ValueError that
+    escapes is a bug and keeps its traceback.
+    """
 
 
 class UserError(Exception):
-    """Bad input or a bad request: the message names the file or the option and what is wrong.
+    """A command's refusal of what it was asked (an option, a combination of options, a run folder):
+    the message names the option or the file and what is wrong.
 
     The command-line entry point prints ``mesh2tex: error: <message>`` and exits with ``exit_code``.
     Anything else that escapes is a bug and keeps its traceback.

@@ -10,6 +10,8 @@ them from the source with ``ast`` (literal values, nested configs, names of modu
 * :class:`Parser` prints a bad option as one line, ``mesh2tex: error: ...``, and exits with status 2.
 * :class:`HelpFormatter` appends ``(default: X)`` to every option's help: the argparse default, or for
   a flag that overrides a config field (:meth:`ConfigOptions.add`) that field's default.
+* :class:`ConfigOptions` declares which flag overrides which config field; :func:`config_overrides`
+  gives a command the overrides of every flag it declared.
 * :func:`add_out` and :func:`add_device`: ``--out DIR`` and ``--device auto|cpu|cuda`` alike everywhere;
   :func:`add_texture_format`: ``--texture-format png|jpeg|webp`` on every command that writes a GLB.
 """
@@ -91,14 +93,25 @@ def add_texture_format(parser, config: "ConfigOptions | None" = None, key: str =
     return parser.add_argument("--texture-format", default="png", **kwargs)
 
 
+# The attribute of the parsed arguments that holds {config: {dest: field key}}: every flag ConfigOptions
+# declared, so that config_overrides() passes each of them on and none is forgotten.
+CONFIG_FLAGS = "_config_flags"
+
+
 class ConfigOptions:
     """The options of a command with a config dataclass ``config`` (``"module:Class"``): ``--config YAML``
     (``config_flag``; None: none), ``--print-config`` (unless ``print_config`` is False), and flags that
-    each override one field and show its default in ``--help``."""
+    each override one field and show its default in ``--help``. The command turns the parsed flags
+    into the overrides of its config with :func:`config_overrides`."""
 
     def __init__(self, parser, config: str, *, config_flag: str | None = "--config", print_config: bool = True,
                  what: str = "the config"):
         self.parser, self.config = parser, config
+        declared = parser.get_default(CONFIG_FLAGS)
+        if declared is None:  # the first config of this parser (an argument group shares its parser's defaults)
+            declared = {}
+            parser.set_defaults(**{CONFIG_FLAGS: declared})
+        self.flags: dict[str, str | tuple[str, ...]] = declared.setdefault(config, {})
         if config_flag:
             parser.add_argument(config_flag, metavar="YAML", help=f"YAML file with any fields of {what} (the flags given override it)")
         if print_config and config_flag:
@@ -106,10 +119,38 @@ class ConfigOptions:
 
     def add(self, *flags, key: str | tuple[str, ...] | None = None, **kwargs) -> argparse.Action:
         """``parser.add_argument(*flags, **kwargs)`` for the field ``key`` (dotted; default: the flag's
-        name; a tuple: fields shown comma-separated, as ``--steps MIN,MAX``)."""
+        name; a tuple: fields shown comma-separated, as ``--steps MIN,MAX``, whose values the command
+        computes from the flag's text and gives :func:`config_overrides`)."""
         action = self.parser.add_argument(*flags, **kwargs)
         action.config_source = (self.config, key or action.dest)
+        self.flags[action.dest] = key or action.dest
         return action
+
+
+def config_overrides(args: argparse.Namespace, config: str | None = None, computed: dict | None = None) -> dict:
+    """The overrides of ``config`` ("module:Class"; None: the command's only config) for
+    :func:`mesh2tex.config.load_config`: {field key: value} of every flag :meth:`ConfigOptions.add`
+    declared for it (None where it was not given, which ``load_config`` skips), then ``computed``
+    (values the command derives from its flags: a parsed list, a flag of another config), which
+    replace a flag's raw value. A flag with a tuple of fields must have all of them in ``computed``.
+    """
+    declared = getattr(args, CONFIG_FLAGS, None) or {}
+    if config is None:
+        if len(declared) != 1:
+            raise ValueError(f"name the config: this command declares flags for {sorted(declared) or 'none'}")
+        (config,) = declared
+    if config not in declared:
+        raise ValueError(f"no flags are declared for {config}")
+    computed = dict(computed or {})
+    overrides = {}
+    for dest, key in declared[config].items():
+        if isinstance(key, tuple):  # a flag whose text sets several fields: the command parses it
+            if any(k not in computed for k in key):
+                raise ValueError(f"the flag of {dest!r} sets {', '.join(key)}: give their values in computed")
+            continue
+        overrides[key] = getattr(args, dest)
+    overrides.update(computed)
+    return overrides
 
 
 def add_print_config(parser) -> argparse.Action:

@@ -11,7 +11,7 @@ from typing import Any, Iterable
 
 from tqdm.auto import tqdm
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 
 def progress_bar(iterable: Iterable | None = None, total: int | None = None, desc: str = "", initial: int = 0, **kwargs) -> tqdm:
@@ -39,7 +39,7 @@ class JsonLines:
 
     def read(self) -> list[dict[str, Any]]:
         """The records written so far. A torn last line (the process was killed while writing it) is
-        left out; any other line that is not a JSON object is a UserError naming the file and line."""
+        left out; any other line that is not a JSON object is an InputError naming the file and line."""
         if not self.path.exists():
             return []
         lines = self.path.read_text(encoding="utf-8", errors="replace").splitlines()
@@ -54,7 +54,7 @@ class JsonLines:
             if not isinstance(record, dict):
                 if number == len(lines):
                     break
-                raise UserError(f"{self.path}: line {number} is not a JSON record; remove it to go on")
+                raise InputError(f"{self.path}: line {number} is not a JSON record; remove it to go on")
             records.append(record)
         return records
 

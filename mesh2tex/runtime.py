@@ -19,7 +19,7 @@ import torch
 import torch.distributed as dist
 from torch import nn
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 
 # ----------------------------------------------------------------------------------------- threads
@@ -61,9 +61,9 @@ def select_device(name: str) -> torch.device:
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"
     if name == "cuda" and not torch.cuda.is_available():
-        raise UserError("--device cuda: no CUDA device is available (use --device cpu or auto)")
+        raise InputError("--device cuda: no CUDA device is available (use --device cpu or auto)")
     if name not in ("cpu", "cuda"):
-        raise UserError(f"--device {name}: expected auto, cpu or cuda")
+        raise InputError(f"--device {name}: expected auto, cpu or cuda")
     if name == "cuda" and dist.is_available() and dist.is_initialized():
         return torch.device("cuda", int(os.environ.get("LOCAL_RANK", 0)))
     return torch.device(name)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.images import colors_to_uint8
@@ -37,13 +37,13 @@ def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, s
         vertices, faces = load_mesh(path)
         try:
             shape = prepare_shape(vertices, faces, face_count=face_count, levels=levels, seed=seed, source=str(path))
-        except UserError as error:  # name the mesh the problem is in
-            raise (error if str(error).startswith(str(path)) else UserError(f"{path}: {error}")) from None
+        except InputError as error:  # name the mesh the problem is in
+            raise (error if str(error).startswith(str(path)) else InputError(f"{path}: {error}")) from None
         for warning in coarseness_warning(shape.metadata["coarseness"]):
             print(f"mesh2tex: warning: {path}: {warning}", file=sys.stderr)
     problem = shape_mismatch(shape, generator)
     if problem:
-        raise UserError(f"{path}: has {problem}")
+        raise InputError(f"{path}: has {problem}")
     return shape
 
 

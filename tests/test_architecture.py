@@ -1,7 +1,8 @@
 """The layout rules of docs/architecture.md, read from the source files with ``ast`` (nothing is imported):
 the stage packages (``data_prep``, ``train``, ``infer``) never import one another, the library
 (``mesh2tex``) imports no stage, no two modules import each other (directly or around a loop, at
-module level or inside a function), and no source file is longer than 600 lines."""
+module level or inside a function), the library raises no ``UserError`` (the command line's error:
+the library's is ``InputError``, a ``ValueError``), and no source file is longer than 600 lines."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LIBRARY = "mesh2tex"
 STAGES = ("data_prep", "train", "infer")
 MAX_LINES = 600
+USER_ERROR_MODULES = {"mesh2tex.cli", "mesh2tex.errors"}  # the command line's own error, and where it is defined
 
 
 def module_files(root: Path = ROOT) -> dict[str, Path]:
@@ -136,6 +138,37 @@ def test_the_checks_find_what_they_forbid():
              "mesh2tex.e": {"mesh2tex.f"}, "mesh2tex.f": {"mesh2tex.d"}}
     assert cross_package_imports(graph) == ["infer.a -> train.b", "mesh2tex.c -> infer.a"]
     assert import_cycles(graph) == [["infer.a", "mesh2tex.c"], ["mesh2tex.d", "mesh2tex.e", "mesh2tex.f"]]
+
+
+def user_error_lines(source: str) -> list[int]:
+    """The lines of ``source`` that import, raise or otherwise name ``UserError``."""
+    lines = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.Name):
+            names = [node.id]
+        elif isinstance(node, ast.Attribute):  # errors.UserError
+            names = [node.attr]
+        else:
+            continue
+        if "UserError" in names:
+            lines.append(node.lineno)
+    return sorted(lines)
+
+
+def test_the_library_raises_no_user_error():
+    """A program calling the library catches its bad-input errors as ValueError; turning them into the
+    one-line ``mesh2tex: error:`` is the command line's job (mesh2tex/cli.py)."""
+    uses = [f"{path.relative_to(ROOT)}:{line}" for name, path in module_files().items()
+            if top(name) == LIBRARY and name not in USER_ERROR_MODULES for line in user_error_lines(path.read_text())]
+    assert uses == [], "the library raises InputError (mesh2tex/errors.py)"
+
+
+def test_the_user_error_check_finds_what_it_forbids():
+    source = ("from mesh2tex.errors import InputError, UserError\nimport mesh2tex.errors as e\n\n"
+              "def f():\n    raise e.UserError('x')\n\ndef g():\n    raise InputError('y')\n")
+    assert user_error_lines(source) == [1, 5]
 
 
 def test_no_source_file_is_longer_than_600_lines():

@@ -17,6 +17,7 @@ import yaml
 
 from mesh2tex.cli import COMMANDS, build_parser, main
 from mesh2tex.config import config_to_dict
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.options import HelpFormatter, show_default, static_defaults
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -213,3 +214,85 @@ def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
         pytest.skip("a GPU is there")
     assert main(["demo", "--quick", "--device", "cuda", "--out", str(tmp_path / "demo")]) == 2
     assert "no CUDA device" in capsys.readouterr().err and not (tmp_path / "demo").exists()
+
+
+# --------------------------------------------------------------------------- config flags
+def flag_value(action: argparse.Action, default):
+    """(text for the command line, the field's value it must give) of a config flag: anything but the default."""
+    from infer.protocols import ABLATIONS, BASELINES, PROTOCOLS
+    from mesh2tex.io.models import resolve_checkpoint
+
+    lists = {"--only": PROTOCOLS, "--ablations": ABLATIONS, "--baselines": BASELINES}  # comma-separated names
+    flag = action.option_strings[0]
+    if flag in lists:
+        name = list(lists[flag])[-1]
+        return name, [name]
+    if flag == "--seeds":
+        return "3,4", [3, 4]
+    if flag == "--steps":
+        return "3,5", [3, 5]
+    if flag == "--gan":  # a checkpoint that must exist: a shipped model's name, resolved to its file
+        return "chair", str(resolve_checkpoint("chair", "gan"))
+    if action.choices:
+        choice = next(c for c in action.choices if c != default)
+        return choice, choice
+    if action.type is int:
+        value = default * 2 if default else 3  # doubled: a power of two stays one
+        return str(value), value
+    if action.type is float:
+        value = default / 2 if default else 0.5
+        return str(value), value
+    return "elsewhere", "elsewhere"
+
+
+def field(config: dict, key: str | tuple[str, ...]):
+    if isinstance(key, tuple):
+        return [field(config, k) for k in key]
+    for part in key.split("."):
+        config = config[part]
+    return config
+
+
+@pytest.mark.parametrize("argv", sorted(CONFIG_COMMANDS), ids=" ".join)
+def test_every_config_flag_reaches_its_field(argv, tmp_path, monkeypatch, capsys):
+    """A flag declared for a config field and left out of the command's overrides would be silently
+    ignored (it once was: --texture-size of infer transfer): set each to another value, print the config."""
+    monkeypatch.chdir(tmp_path)
+    target = CONFIG_COMMANDS[argv]
+    defaults = config_to_dict(config_class(target)())
+    flags = [a for a in leaf_parser([w for w in argv if not w.startswith("-")])._actions
+             if getattr(a, "config_source", (None,))[0] == target]
+    assert flags, f"{target} declares no flags"
+    for action in flags:
+        key = action.config_source[1]
+        text, expected = flag_value(action, field(defaults, key))
+        assert main([*argv, action.option_strings[0], text, "--print-config"]) == 0, capsys.readouterr().err
+        printed = yaml.safe_load(capsys.readouterr().out)
+        assert field(printed, key) == expected, (action.option_strings[0], key)
+        assert field(printed, key) != field(defaults, key) or isinstance(key, tuple)
+
+
+# ----------------------------------------------------------------------------------- errors
+@pytest.mark.parametrize("error, code", [(InputError("m.obj: the mesh has no faces"), 2), (UserError("--pool 0: too small", exit_code=4), 4)])
+def test_input_and_user_errors_are_one_line(error, code, monkeypatch, capsys):
+    """The library's InputError (a ValueError) and a command's UserError end as one line and their exit status."""
+    import infer.generate
+
+    def run(args):
+        raise error
+
+    monkeypatch.setattr(infer.generate, "run", run)
+    assert main(["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"]) == code
+    assert capsys.readouterr().err == f"mesh2tex: error: {error}\n"
+    assert issubclass(InputError, ValueError)
+
+
+def test_any_other_value_error_is_a_bug_with_its_traceback(monkeypatch):
+    import infer.generate
+
+    def run(args):
+        raise ValueError("an index three calls deep")
+
+    monkeypatch.setattr(infer.generate, "run", run)
+    with pytest.raises(ValueError, match="three calls deep"):
+        main(["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"])

@@ -7,7 +7,7 @@ import torch
 
 from mesh2tex.cli import main
 from mesh2tex.config import load_config, save_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.checkpoint import load_checkpoint, read_checkpoint_meta, save_checkpoint
 
@@ -39,14 +39,14 @@ def test_checkpoint_round_trip_and_kind_check(tmp_path):
     groups, meta = load_checkpoint(path, kind="gan")
     assert meta == {"iteration": 7}
     assert torch.equal(groups["model"]["w"], weights["w"])
-    with pytest.raises(UserError, match="expected a 'pose' checkpoint"):
+    with pytest.raises(InputError, match="expected a 'pose' checkpoint"):
         load_checkpoint(path, kind="pose")
 
 
 def test_garbage_checkpoint_is_a_user_error(tmp_path):
     path = tmp_path / "junk.safetensors"
     path.write_bytes(b"\x00" * 64)
-    with pytest.raises(UserError, match="junk.safetensors"):
+    with pytest.raises(InputError, match="junk.safetensors"):
         read_checkpoint_meta(path)
 
 
@@ -69,7 +69,7 @@ def test_config_yaml_overrides_and_unknown_keys(tmp_path):
     save_config(cfg, tmp_path / "resolved.yaml")
     assert load_config(Outer, tmp_path / "resolved.yaml") == cfg
     yaml_path.write_text("itres: 9\n")
-    with pytest.raises(UserError, match="itres"):
+    with pytest.raises(InputError, match="itres"):
         load_config(Outer, yaml_path)
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.clean import clean_mesh, normalize
 from mesh2tex.geometry.features import face_features, fundamental_forms, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, orient_coherently, pooling_map
@@ -211,14 +211,14 @@ def test_load_mesh_merges_scene_parts_and_reads_every_format(tmp_path):
 def test_load_mesh_rejects_bad_files_with_the_reason(tmp_path, content, expected):
     path = tmp_path / ("bad.ply" if b"\x00" in content else "bad.obj")
     path.write_bytes(content)
-    with pytest.raises(UserError) as error:
+    with pytest.raises(InputError) as error:
         load_mesh(path)
     assert str(path) in str(error.value) and expected in str(error.value)
 
 
 def test_prepare_shape_rejects_a_mesh_without_area():
     vertices = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], dtype=float)
-    with pytest.raises(UserError):
+    with pytest.raises(InputError):
         prepare_shape(vertices, np.array([[0, 1, 2]]), face_count=96, levels=2)
 
 

@@ -10,7 +10,7 @@ import trimesh
 
 import mesh2tex.geometry.quadremesh as quadremesh
 from mesh2tex.cli import main
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.hierarchy import edge_neighbors, face_neighborhoods
 from mesh2tex.geometry.levelset import SolidField, make_well_composed, solid_field, surface_net_quads, surface_samples
 from mesh2tex.geometry.prepare import prepare_shape
@@ -138,7 +138,7 @@ def test_a_level_nothing_can_make_fails_the_shape_with_the_reasons(monkeypatch):
 
     monkeypatch.setattr(quadremesh, "quadriflow", broken)
     monkeypatch.setattr(quadremesh, "surface_net_quads", lambda field: (np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)))
-    with pytest.raises(UserError) as error:
+    with pytest.raises(InputError) as error:
         prepare_shape(box.vertices, box.faces, face_count=96, levels=2)
     message = str(error.value)
     assert "level 0" in message and "signal 11" in message and "empty result" in message

@@ -9,7 +9,7 @@ import torch
 from PIL import Image
 
 from mesh2tex.cli import main
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.metrics import (InceptionV3Features, color_histogram_distance, fid, get_feature_extractor, kid, load_inception,
                               masked_psnr, masked_ssim, swd)
 
@@ -83,7 +83,7 @@ def test_weight_free_features_are_named_for_what_they_are(tmp_path, monkeypatch)
         extractor = get_feature_extractor("auto")
     assert extractor.name == "randvgg"
     assert extractor.metric_name("kid") == "kid_randvgg" and extractor.metric_name("fid") == "fid_randvgg"
-    with pytest.raises(UserError, match="no Inception-v3 weights"):
+    with pytest.raises(InputError, match="no Inception-v3 weights"):
         get_feature_extractor("inception")
 
 
@@ -99,11 +99,11 @@ def test_inception_loads_a_weight_file_written_by_the_test(tmp_path):
     assert torch.equal(loaded.Mixed_7c.branch_pool.conv.weight, model.Mixed_7c.branch_pool.conv.weight)
     extractor = get_feature_extractor("auto", inception_weights=path)
     assert extractor.name == "" and extractor.metric_name("kid") == "kid"
-    with pytest.raises(UserError, match="holds inception weights, not tvinception"):
+    with pytest.raises(InputError, match="holds inception weights, not tvinception"):
         get_feature_extractor("tvinception", inception_weights=path)
     del state["Mixed_5b.branch1x1.conv.weight"]
     torch.save(state, tmp_path / "broken.pth")
-    with pytest.raises(UserError, match="broken.pth: not Inception-v3 weights: missing 1 key"):
+    with pytest.raises(InputError, match="broken.pth: not Inception-v3 weights: missing 1 key"):
         load_inception(tmp_path / "broken.pth")
 
 
@@ -174,7 +174,7 @@ def test_set_colour_histograms_compare_object_pixels_not_backgrounds():
     # Disjoint object colours are as far apart as histograms get, however much white surrounds them.
     assert pooled_histogram_distance(large_red, large_blue, large_mask, blue_mask, 8) == {"color_hist_tv": pytest.approx(1.0)}
     assert pooled_histogram_distance(small_red, large_blue, small_mask, blue_mask, 8) == {"color_hist_tv": pytest.approx(1.0)}
-    with pytest.raises(UserError, match="no object pixel"):
+    with pytest.raises(InputError, match="no object pixel"):
         pooled_histogram_distance(large_red, large_blue, torch.zeros_like(large_mask), blue_mask, 8)
 
 

@@ -38,14 +38,14 @@ def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny
 
 
 def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch):
-    from mesh2tex.errors import UserError
+    from mesh2tex.errors import InputError
     import pytest
 
     models = tmp_path / "models"
     (models / "tiny").mkdir(parents=True)
     export_inference_checkpoint(tiny_gan / "run" / "checkpoint.safetensors", "gan", models / "tiny" / MODEL_FILES["gan"])
     monkeypatch.setenv("MESH2TEX_MODELS", str(models))
-    with pytest.raises(UserError, match="has no pose network"):
+    with pytest.raises(InputError, match="has no pose network"):
         resolve_checkpoint("tiny", "pose")
     assert resolve_checkpoint(str(tiny_gan / "run" / "checkpoint.safetensors"), "gan").is_file()
 

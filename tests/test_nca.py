@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.primitives import cube_sphere, load_surface, subdivide_quads
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.nn.nca import MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
@@ -179,7 +179,7 @@ def test_load_surface_normalises_to_the_unit_ball(tmp_path):
     assert faces.shape[1] == 3
     assert np.isclose(np.linalg.norm(vertices, axis=1).max(), 1.0)
     assert load_surface("sphere:3")[1].shape == (54, 4)
-    with pytest.raises(UserError, match="sphere:N"):
+    with pytest.raises(InputError, match="sphere:N"):
         load_surface("sphere:x")
 
 
@@ -190,9 +190,9 @@ def test_region_weights_from_expressions_and_files(tmp_path):
     np.save(tmp_path / "mask.npy", np.array([0.2, 0.5, 2.0]))
     assert np.allclose(region_weights(str(tmp_path / "mask.npy"), positions), [0.2, 0.5, 1.0])
     for bad in ("__import__('os').system('true')", "x.real", "open('f')", "x >"):
-        with pytest.raises(UserError, match="graft mask"):
+        with pytest.raises(InputError, match="graft mask"):
             region_weights(bad, positions)
-    with pytest.raises(UserError, match="3 vertices"):
+    with pytest.raises(InputError, match="3 vertices"):
         np.save(tmp_path / "short.npy", np.zeros(2))
         region_weights(str(tmp_path / "short.npy"), positions)
 

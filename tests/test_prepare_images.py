@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from mesh2tex.cli import main
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.images import load_image, save_png
 
 
@@ -48,7 +48,7 @@ def test_load_image_normalises_grayscale_16bit_palette_and_rgba(tmp_path):
 def test_load_image_rejects_corrupt_files(tmp_path, content):
     path = tmp_path / "bad.png"
     path.write_bytes(content)
-    with pytest.raises(UserError) as error:
+    with pytest.raises(InputError) as error:
         load_image(path)
     assert str(path) in str(error.value)
 

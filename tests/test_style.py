@@ -5,7 +5,7 @@ import warnings
 import pytest
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.losses.style import (crop_patches, global_style_loss, lowpass_colour_loss, masked_gram, nearest_noc_pixels, patch_style_loss,
                                    sample_patch_pairs, style_grams)
 from mesh2tex.nn.vgg import VGG19_FILE_NAME, VGG19Features, load_vgg19
@@ -52,13 +52,13 @@ def test_vgg_loads_a_weight_file_from_the_torch_cache(tmp_path, monkeypatch):
 def test_vgg_rejects_a_wrong_file_with_a_clear_error(tmp_path):
     wrong = tmp_path / "not_vgg.pth"
     torch.save({"features.0.weight": torch.zeros(8, 3, 3, 3), "features.0.bias": torch.zeros(8)}, wrong)
-    with pytest.raises(UserError, match="not_vgg.pth: not VGG19 weights"):
+    with pytest.raises(InputError, match="not_vgg.pth: not VGG19 weights"):
         load_vgg19(wrong)
     text = tmp_path / "notes.pth"
     text.write_text("hello")
-    with pytest.raises(UserError, match="notes.pth: not a readable VGG19 weight file"):
+    with pytest.raises(InputError, match="notes.pth: not a readable VGG19 weight file"):
         load_vgg19(text)
-    with pytest.raises(UserError, match="missing.pth: VGG19 weight file not found"):
+    with pytest.raises(InputError, match="missing.pth: VGG19 weight file not found"):
         load_vgg19(tmp_path / "missing.pth")
 
 
@@ -127,7 +127,7 @@ def test_unguided_pairs_are_random_object_pixels_and_empty_masks_fail():
     pairs = sample_patch_pairs(photo_mask, render_mask, 50, guided=False, generator=torch.Generator().manual_seed(0))
     assert bool(render_mask[pairs.render_centres[:, 0], pairs.render_centres[:, 1]].all())
     assert len({tuple(c) for c in pairs.render_centres.tolist()}) > 10
-    with pytest.raises(UserError, match="mask is empty"):
+    with pytest.raises(InputError, match="mask is empty"):
         sample_patch_pairs(torch.zeros(32, 32), render_mask, 2, guided=False)
 
 

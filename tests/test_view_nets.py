@@ -8,7 +8,7 @@ import torch
 import trimesh
 
 from mesh2tex.cli import main
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepare import prepare_shape
 from mesh2tex.io.models import load_view_network
 from mesh2tex.nn.view_nets import ViewDataConfig
@@ -77,7 +77,7 @@ def test_train_resume_and_load(kind, shapes_dir, tmp_path):
     out = net(image) if kind == "pose" else net(image, torch.ones(1, 1, 32, 32))
     assert (out[0].shape == (1, 12)) if kind == "pose" else (out.shape == (1, 3, 32, 32))
     other = "noc" if kind == "pose" else "pose"
-    with pytest.raises(UserError, match=f"expected a '{other}' checkpoint"):
+    with pytest.raises(InputError, match=f"expected a '{other}' checkpoint"):
         load_view_network(run / "checkpoint.safetensors", other)
 
 

@@ -33,6 +33,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views, render_proxy_views
+from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import CameraConfig, LightConfig, composite_images, orbit_camera, random_lights, turntable_angles
 from train import runs
@@ -411,8 +412,7 @@ class GanTrainer:
 
 
 def build_config(args) -> TrainGanConfig:
-    overrides = {"iters": args.iters, "batch": args.batch, "views": args.views, "resolution": args.resolution,
-                 "device": args.device, "seed": args.seed}
+    overrides = config_overrides(args)
     run_config = Path(args.out) / "config.yaml"
     if args.resume and run_config.is_file():
         if args.config:

@@ -33,6 +33,7 @@ from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
 from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
+from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
@@ -114,23 +115,13 @@ def parse_steps(text: str | None) -> tuple[int, int] | None:
 
 def build_config(args) -> TrainNCAConfig:
     steps = parse_steps(args.steps)
-    overrides = {"iters": args.iters, "views": args.views, "resolution": args.resolution, "pool": args.pool,
-                 "device": args.device, "seed": args.seed, "mesh": args.mesh,
-                 "steps_min": steps[0] if steps else None, "steps_max": steps[1] if steps else None}
+    overrides = config_overrides(args, computed={"steps_min": steps[0] if steps else None, "steps_max": steps[1] if steps else None})
     run_config = Path(args.out) / "config.yaml"
-    try:
-        if args.resume and run_config.is_file():
-            if args.config:
-                print(f"mesh2tex: note: resuming uses {run_config}; --config {args.config} is ignored", file=sys.stderr)
-            cfg = load_config(TrainNCAConfig, run_config, overrides)
-        else:
-            cfg = load_config(TrainNCAConfig, args.config, overrides)
-        if args.readout:
-            cfg.nca.readout = args.readout
-            cfg.nca.__post_init__()
-    except ValueError as error:
-        raise UserError(f"config: {error}") from None
-    return cfg
+    if args.resume and run_config.is_file():
+        if args.config:
+            print(f"mesh2tex: note: resuming uses {run_config}; --config {args.config} is ignored", file=sys.stderr)
+        return load_config(TrainNCAConfig, run_config, overrides)
+    return load_config(TrainNCAConfig, args.config, overrides)
 
 
 # ------------------------------------------------------------------------------------------ data

@@ -37,6 +37,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.noc import noc_error, noc_loss
 from mesh2tex.nn.pose import pose_accuracy, pose_loss
 from mesh2tex.nn.view_nets import VIEWS_NAME, ViewDataConfig, ViewTrainConfig, build_network
+from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square, object_box
 from mesh2tex.synthetic.materials import random_material
@@ -211,9 +212,7 @@ def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], inde
 
 # ---------------------------------------------------------------------------------------- stage
 def build_view_config(args) -> ViewTrainConfig:
-    overrides = {"iters": args.iters, "batch": args.batch, "device": args.device, "seed": args.seed,
-                 "data.samples": args.samples, "data.resolution": args.resolution, "data.category": args.category,
-                 "data.gan_checkpoint": args.gan}
+    overrides = config_overrides(args)
     run_config = Path(args.out) / "config.yaml"
     source = run_config if args.resume and run_config.is_file() else args.config
     cfg = load_config(ViewTrainConfig, source, overrides)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.evaluation.compare import ComparisonRender, images_to_unit, render_for_comparison
 from mesh2tex.evaluation.surfaces import Surface, material_surface, textured_surface
 from mesh2tex.geometry.prepared import PreparedShape
@@ -54,18 +54,18 @@ def load_world(root: str | Path, max_queries: int = 0) -> World:
     root = Path(root)
     index_path = root / "index.json"
     if not index_path.is_file():
-        raise UserError(f"{root}: not a synthetic world (no index.json; make one with 'mesh2tex prepare synthetic')")
+        raise InputError(f"{root}: not a synthetic world (no index.json; make one with 'mesh2tex prepare synthetic')")
     try:
         index = json.loads(index_path.read_text())
     except json.JSONDecodeError as error:
-        raise UserError(f"{index_path}: not valid JSON ({error.msg})") from None
+        raise InputError(f"{index_path}: not valid JSON ({error.msg})") from None
     if index.get("format") != "mesh2tex-synthetic-world":
-        raise UserError(f"{index_path}: not a mesh2tex synthetic world index (format {index.get('format')!r})")
+        raise InputError(f"{index_path}: not a mesh2tex synthetic world index (format {index.get('format')!r})")
     if not index.get("complete", False):
-        raise UserError(f"{root}: the world is incomplete; finish it with 'mesh2tex prepare synthetic' (it resumes)")
+        raise InputError(f"{root}: the world is incomplete; finish it with 'mesh2tex prepare synthetic' (it resumes)")
     entries = index.get("queries") or []
     if not entries:
-        raise UserError(f"{index_path}: the world has no query photos (prepare it with --query-views above 0)")
+        raise InputError(f"{index_path}: the world has no query photos (prepare it with --query-views above 0)")
     queries = []
     for entry in entries:
         sidecar = root / entry["sidecar"] if "sidecar" in entry else None
@@ -73,7 +73,7 @@ def load_world(root: str | Path, max_queries: int = 0) -> World:
         image, mask = root / entry["image"], root / entry["mask"]
         for path in (image, mask):
             if not path.is_file():
-                raise UserError(f"{path}: query file missing (listed in {index_path})")
+                raise InputError(f"{path}: query file missing (listed in {index_path})")
         queries.append(Query(name=image.stem, image=image, mask=mask, shape=truth["shape"],
                              azimuth=float(truth["azimuth"]), elevation=float(truth["elevation"]),
                              distance=float(truth["distance"]), fov=float(truth["fov"]), record=truth))
@@ -87,7 +87,7 @@ def other_shape_name(name: str, available: list[str]) -> str:
     """The transfer target for a query of shape ``name``: the next available shape by name (cyclic), never ``name``."""
     others = sorted(set(available) - {name})
     if not others:
-        raise UserError(f"transfer to another shape needs a second prepared shape besides {name}")
+        raise InputError(f"transfer to another shape needs a second prepared shape besides {name}")
     later = [n for n in others if n > name]
     return later[0] if later else others[0]
 
@@ -102,9 +102,9 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
     photo_mask = np.asarray(load_mask(query.mask), dtype=bool)
     side = photo_mask.shape[0]
     if photo_mask.shape[1] != side:
-        raise UserError(f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}")
+        raise InputError(f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}")
     if not photo_mask.any():
-        raise UserError(f"{query.mask}: the query's object mask is empty")
+        raise InputError(f"{query.mask}: the query's object mask is empty")
     box = object_box(photo_mask, margin)
     camera = orbit_camera(torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 
 @dataclass
@@ -50,16 +50,16 @@ def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
     Returns:
         (V, 3) float64 normalised vertices and the :class:`Normalization` that made them.
     Raises:
-        UserError: all vertices coincide (zero-size bounding box), or the coordinates overflow.
+        InputError: all vertices coincide (zero-size bounding box), or the coordinates overflow.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     low, high = vertices.min(axis=0), vertices.max(axis=0)
     with np.errstate(over="ignore", invalid="ignore"):
         diagonal = float(np.linalg.norm(high - low))
     if not np.isfinite(diagonal):
-        raise UserError(f"the mesh's coordinates are too large to normalise (up to {np.abs(vertices).max():.3g})")
+        raise InputError(f"the mesh's coordinates are too large to normalise (up to {np.abs(vertices).max():.3g})")
     if diagonal <= 1e-12:
-        raise UserError("the mesh has a zero-size bounding box")
+        raise InputError("the mesh has a zero-size bounding box")
     transform = Normalization(center=(low + high) / 2.0, scale=1.0 / diagonal)
     return transform.apply(vertices), transform
 
@@ -87,7 +87,7 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, max_hole_edges: int = 30
     Returns:
         (V', 3) float64 vertices and (T', 3) int64 faces.
     Raises:
-        UserError: nothing with area is left.
+        InputError: nothing with area is left.
     """
     import pymeshlab
 
@@ -96,7 +96,7 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, max_hole_edges: int = 30
     # faces with a repeated index have no area and would confuse pymeshlab's topology filters
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
     if len(faces) == 0:
-        raise UserError("every face is degenerate (repeated vertex)")
+        raise InputError("every face is degenerate (repeated vertex)")
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=vertices, face_matrix=faces.astype(np.int32)))
     _apply_filter(ms, "meshing_remove_duplicate_vertices")
@@ -115,7 +115,7 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, max_hole_edges: int = 30
     out_vertices = np.asarray(mesh.vertex_matrix(), dtype=np.float64)
     out_faces = np.asarray(mesh.face_matrix(), dtype=np.int64)
     if len(out_faces) == 0 or triangle_areas(out_vertices, out_faces).sum() <= 0:
-        raise UserError("no faces with area are left after repair")
+        raise InputError("no faces with area are left after repair")
     return out_vertices, out_faces
 
 

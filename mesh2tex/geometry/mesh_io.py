@@ -2,7 +2,7 @@
 
 ``load_mesh`` reads .obj .ply .off .stl .glb .gltf with trimesh, merges every part of a scene
 (applying each node's transform), triangulates polygons and rejects anything that is not a usable
-surface with a :class:`~mesh2tex.errors.UserError` that says why.
+surface with a :class:`~mesh2tex.errors.InputError` that says why.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 
@@ -47,22 +47,22 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     Returns:
         vertices: (V, 3) float64; faces: (T, 3) int64 indices into ``vertices``.
     Raises:
-        UserError: the file is missing, empty, unreadable, not a mesh, a point cloud, has no faces,
+        InputError: the file is missing, empty, unreadable, not a mesh, a point cloud, has no faces,
         or has a vertex with non-finite coordinates.
     """
     import trimesh
 
     path = Path(path)
     if path.is_symlink() and not path.exists():
-        raise UserError(f"{path}: a broken or looping symbolic link")
+        raise InputError(f"{path}: a broken or looping symbolic link")
     if not path.exists():
-        raise UserError(f"{path}: file not found")
+        raise InputError(f"{path}: file not found")
     if path.is_dir():
-        raise UserError(f"{path}: is a folder, not a mesh file")
+        raise InputError(f"{path}: is a folder, not a mesh file")
     if not is_mesh_file(path):
-        raise UserError(f"{path}: unsupported mesh format '{path.suffix}' (expected one of {' '.join(MESH_SUFFIXES)})")
+        raise InputError(f"{path}: unsupported mesh format '{path.suffix}' (expected one of {' '.join(MESH_SUFFIXES)})")
     if path.stat().st_size == 0:
-        raise UserError(f"{path}: empty file")
+        raise InputError(f"{path}: empty file")
     try:
         # materials and textures are irrelevant to the geometry and slow to read
         loaded = trimesh.load(str(path), process=False, skip_materials=True)
@@ -70,7 +70,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         message = str(error).strip().splitlines()[0] if str(error).strip() else error.__class__.__name__
         if isinstance(error, ImportError):  # trimesh reaches for an optional decoder when the bytes are no known format
             message = f"not a valid {path.suffix.lower()} file"
-        raise UserError(f"{path}: cannot be read as a mesh ({message})") from None
+        raise InputError(f"{path}: cannot be read as a mesh ({message})") from None
 
     vertex_blocks, face_blocks, offset = [], [], 0
     point_cloud_parts = 0
@@ -91,15 +91,15 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         offset += len(vertices)
     if not face_blocks:
         if point_cloud_parts:
-            raise UserError(f"{path}: is a point cloud (vertices but no faces); a surface mesh is needed")
-        raise UserError(f"{path}: contains no faces")
+            raise InputError(f"{path}: is a point cloud (vertices but no faces); a surface mesh is needed")
+        raise InputError(f"{path}: contains no faces")
     vertices = np.concatenate(vertex_blocks)
     faces = np.concatenate(face_blocks)
     if faces.min() < 0 or faces.max() >= len(vertices):
-        raise UserError(f"{path}: face indices refer to vertices that do not exist")
+        raise InputError(f"{path}: face indices refer to vertices that do not exist")
     finite = np.isfinite(vertices).all(axis=1)
     if not finite.all():  # a damaged file: dropping its faces would change the shape without a word
         used = int((~finite[faces]).any(axis=1).sum())
-        raise UserError(f"{path}: {int((~finite).sum())} vertex(es) with non-finite (NaN or infinite) coordinates, "
+        raise InputError(f"{path}: {int((~finite).sum())} vertex(es) with non-finite (NaN or infinite) coordinates, "
                         f"used by {used} of {len(faces)} faces")
     return vertices, faces

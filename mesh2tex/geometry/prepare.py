@@ -7,7 +7,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.clean import clean_mesh, decimate, normalize
 from mesh2tex.geometry.features import face_features, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
@@ -27,10 +27,10 @@ DEVIATION_LIMIT = 0.05
 def level_face_counts(face_count: int, levels: int) -> list[int]:
     """Target quad counts, finest first, divided by 4 per level: 6144, 5 -> [6144, 1536, 384, 96, 24]."""
     if face_count < 1 or levels < 1:
-        raise UserError(f"face count ({face_count}) and levels ({levels}) must be positive")
+        raise InputError(f"face count ({face_count}) and levels ({levels}) must be positive")
     counts = [int(round(face_count / 4**level)) for level in range(levels)]
     if counts[-1] < 4:
-        raise UserError(f"{levels} levels from {face_count} faces leave fewer than 4 faces at the coarsest level")
+        raise InputError(f"{levels} levels from {face_count} faces leave fewer than 4 faces at the coarsest level")
     return counts
 
 
@@ -54,7 +54,7 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         holds the transform from the input frame, the method used per level, seconds, seeds and
         ``coarseness`` (:func:`coarseness_check`; a too coarse hierarchy also gets a warning).
     Raises:
-        UserError: the mesh is unusable (no area, no quad mesh possible), or its budget was spent, with the reason.
+        InputError: the mesh is unusable (no area, no quad mesh possible), or its budget was spent, with the reason.
     """
     start = time.perf_counter()
     budget = Budget(seconds=max_seconds, memory_gb=max_memory_gb)
@@ -62,7 +62,7 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
-        raise UserError("the mesh has no triangles")
+        raise InputError("the mesh has no triangles")
     used = np.unique(faces)
     normalized, transform = normalize(vertices[used])
     remapped = np.searchsorted(used, faces)
@@ -73,7 +73,7 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
     try:
         results = remesh_hierarchy(clean_v, clean_f, targets, seed=seed, timeout=timeout, budget=budget)
     except QuadRemeshError as error:
-        raise UserError(str(error)) from None
+        raise InputError(str(error)) from None
     seconds_remesh = time.perf_counter() - start - seconds_clean
 
     level_vertices = [r.vertices for r in results]

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.atomic import atomic_path
 
 SCHEMA_VERSION = 1
@@ -123,7 +123,7 @@ class PreparedShape:
     @classmethod
     def load(cls, path: str | os.PathLike) -> "PreparedShape":
         """Read a record written by :meth:`save`; a damaged, foreign or inconsistent file (see
-        :meth:`validate`), or one that would inflate beyond ``MAX_UNCOMPRESSED_BYTES``, is a :class:`UserError`."""
+        :meth:`validate`), or one that would inflate beyond ``MAX_UNCOMPRESSED_BYTES``, is a :class:`InputError`."""
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as data:
@@ -136,7 +136,7 @@ class PreparedShape:
                 if not isinstance(metadata, dict):
                     raise ValueError("its metadata is not a JSON mapping")
                 if metadata.get("schema_version") != SCHEMA_VERSION:
-                    raise UserError(f"{path}: prepared-shape schema {metadata.get('schema_version')} is not supported (expected {SCHEMA_VERSION}); re-run 'mesh2tex prepare shapes'")
+                    raise InputError(f"{path}: prepared-shape schema {metadata.get('schema_version')} is not supported (expected {SCHEMA_VERSION}); re-run 'mesh2tex prepare shapes'")
                 levels = metadata.get("num_levels")
                 if not isinstance(levels, int) or not 1 <= levels <= MAX_LEVELS:
                     raise ValueError(f"num_levels {levels!r} is not a level count")
@@ -152,33 +152,33 @@ class PreparedShape:
                 )
             shape.validate()
             return shape
-        except UserError:
+        except InputError:
             raise
         except FileNotFoundError:
-            raise UserError(f"{path}: prepared shape not found") from None
+            raise InputError(f"{path}: prepared shape not found") from None
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error, RecursionError) as error:
-            raise UserError(f"{path}: not a valid prepared shape ({error.__class__.__name__}: {error})") from None
+            raise InputError(f"{path}: not a valid prepared shape ({error.__class__.__name__}: {error})") from None
 
 
 def shape_paths(folder: str | os.PathLike) -> dict[str, Path]:
-    """{name: path} of the prepared shapes (``<name>.npz``) in ``folder``, sorted by name; UserError
+    """{name: path} of the prepared shapes (``<name>.npz``) in ``folder``, sorted by name; InputError
     when the folder is missing or holds none."""
     folder = Path(folder)
     if not folder.is_dir():
-        raise UserError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
+        raise InputError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
     found = {p.stem: p for p in sorted(folder.glob("*.npz")) if not p.name.startswith(".")}  # hidden: half-written by an old version
     if not found:
-        raise UserError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
+        raise InputError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
     return found
 
 
 def load_shapes(folder: str | os.PathLike) -> tuple[list[PreparedShape], list[str]]:
     """All prepared shapes of ``folder`` (:func:`shape_paths`) and their names; they must share levels and
-    feature columns (UserError naming the first that does not)."""
+    feature columns (InputError naming the first that does not)."""
     paths = list(shape_paths(folder).values())
     shapes = [PreparedShape.load(p) for p in paths]
     first = shapes[0]
     for path, shape in zip(paths, shapes):
         if shape.num_levels != first.num_levels or list(shape.feature_names) != list(first.feature_names):
-            raise UserError(f"{path}: levels or face features differ from {paths[0].name}; prepare all shapes with the same settings")
+            raise InputError(f"{path}: levels or face features differ from {paths[0].name}; prepare all shapes with the same settings")
     return shapes, [p.stem for p in paths]

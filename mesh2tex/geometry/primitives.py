@@ -81,14 +81,14 @@ def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]
     finest quads) or a mesh file (its triangles, merged and cleaned by :func:`load_mesh`).
     ``subdivide``: split every face into four that many times (denser cells, a finer texture).
     Returns vertices (V, 3) float32 and faces (F, 4) quads or (F, 3) triangles int64. Bad input
-    raises :class:`UserError` naming the file.
+    raises :class:`InputError` naming the file.
     """
-    from mesh2tex.errors import UserError
+    from mesh2tex.errors import InputError
 
     if spec == "sphere" or spec.startswith("sphere:"):
         count = spec.partition(":")[2] or str(DEFAULT_SPHERE_SUBDIVISIONS)
         if not count.isdigit() or int(count) < 1:
-            raise UserError(f"--mesh {spec}: expected sphere or sphere:N with N >= 1 subdivisions")
+            raise InputError(f"--mesh {spec}: expected sphere or sphere:N with N >= 1 subdivisions")
         vertices, faces = cube_sphere(int(count))
     elif spec.endswith(".npz"):
         from mesh2tex.geometry.prepared import PreparedShape
@@ -102,7 +102,7 @@ def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     if faces.shape[0] == 0:
-        raise UserError(f"{spec}: the mesh has no faces")
+        raise InputError(f"{spec}: the mesh has no faces")
     for _ in range(int(subdivide)):
         if faces.shape[1] == 4:
             vertices, faces = subdivide_quads(vertices, faces)
@@ -114,7 +114,7 @@ def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]
     vertices = vertices - (lo + hi) / 2
     radius = np.linalg.norm(vertices, axis=1).max()
     if not np.isfinite(radius) or radius <= 0:
-        raise UserError(f"{spec}: the mesh has no extent (all vertices at one point, or non-finite positions)")
+        raise InputError(f"{spec}: the mesh has no extent (all vertices at one point, or non-finite positions)")
     return (vertices / radius).astype(np.float32), faces.astype(np.int64)
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 
 def _sigmoid(x):
@@ -63,9 +63,9 @@ def expression_weights(expression: str, positions: np.ndarray) -> np.ndarray:
         with np.errstate(all="ignore"):
             value = np.broadcast_to(np.asarray(_evaluate(tree, names), dtype=np.float64), (positions.shape[0],))
     except (SyntaxError, ValueError, TypeError) as error:
-        raise UserError(f"graft mask {expression!r}: {error} (use x, y, z, numbers, + - * / **, comparisons and {', '.join(sorted(FUNCTIONS))})") from None
+        raise InputError(f"graft mask {expression!r}: {error} (use x, y, z, numbers, + - * / **, comparisons and {', '.join(sorted(FUNCTIONS))})") from None
     if not np.all(np.isfinite(value)):
-        raise UserError(f"graft mask {expression!r}: not finite at some vertices")
+        raise InputError(f"graft mask {expression!r}: not finite at some vertices")
     return np.clip(value, 0.0, 1.0).astype(np.float32)
 
 
@@ -74,15 +74,15 @@ def region_weights(spec: str, positions: np.ndarray) -> np.ndarray:
     path = Path(spec)
     if path.suffix in (".npy", ".txt", ".csv") or path.is_file():
         if not path.is_file():
-            raise UserError(f"{path}: graft mask file not found")
+            raise InputError(f"{path}: graft mask file not found")
         try:
             values = np.load(path, allow_pickle=False) if path.suffix == ".npy" else np.loadtxt(path, delimiter="," if path.suffix == ".csv" else None)
         except (OSError, ValueError) as error:
-            raise UserError(f"{path}: not a readable per-vertex mask ({error})") from None
+            raise InputError(f"{path}: not a readable per-vertex mask ({error})") from None
         values = np.asarray(values, dtype=np.float64).reshape(-1)
         if values.shape[0] != positions.shape[0]:
-            raise UserError(f"{path}: {values.shape[0]} values for a mesh of {positions.shape[0]} vertices")
+            raise InputError(f"{path}: {values.shape[0]} values for a mesh of {positions.shape[0]} vertices")
         if not np.all(np.isfinite(values)):
-            raise UserError(f"{path}: the mask holds non-finite values")
+            raise InputError(f"{path}: the mask holds non-finite values")
         return np.clip(values, 0.0, 1.0).astype(np.float32)
     return expression_weights(spec, positions)

@@ -21,7 +21,7 @@ from safetensors.torch import load_file, save_file
 
 from torch import nn
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.atomic import atomic_path
 
 CHECKPOINT_FORMAT = 1
@@ -64,10 +64,10 @@ def save_checkpoint(path: str | os.PathLike, groups: dict[str, dict[str, torch.T
 
 def checkpoint_digest(path: str | os.PathLike, what: str = "checkpoint") -> str:
     """SHA-256 prefix (16 hex digits) of a file's bytes: the identity of a checkpoint wherever it lies
-    (a moved one keeps it, a retrained one does not). UserError naming ``what`` when it is missing."""
+    (a moved one keeps it, a retrained one does not). InputError naming ``what`` when it is missing."""
     path = Path(path)
     if not path.is_file():
-        raise UserError(f"{path}: {what} not found")
+        raise InputError(f"{path}: {what} not found")
     return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 
 
@@ -86,11 +86,11 @@ def check_header(header: Any) -> dict[str, Any]:
 
 
 def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:
-    """The JSON header ({format, kind, meta}) of a checkpoint, without loading its tensors; UserError
+    """The JSON header ({format, kind, meta}) of a checkpoint, without loading its tensors; InputError
     for anything that is not a checkpoint this module wrote (checked against :func:`check_header`)."""
     path = Path(path)
     if not path.is_file():
-        raise UserError(f"{path}: checkpoint not found")
+        raise InputError(f"{path}: checkpoint not found")
     try:
         with open(path, "rb") as handle:
             size = int.from_bytes(handle.read(8), "little")
@@ -106,14 +106,14 @@ def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:
     except (ValueError, UnicodeDecodeError, RecursionError, OSError) as error:
         reason = "nested too deeply" if isinstance(error, RecursionError) else (
             str(error) if type(error) is ValueError else error.__class__.__name__)
-        raise UserError(f"{path}: not a mesh2tex checkpoint ({reason})") from None
+        raise InputError(f"{path}: not a mesh2tex checkpoint ({reason})") from None
 
 
 def meta_mapping(meta: dict[str, Any], key: str, path: str | os.PathLike) -> dict[str, Any]:
-    """``meta[key]``, a mapping; UserError naming ``path`` when the checkpoint has none."""
+    """``meta[key]``, a mapping; InputError naming ``path`` when the checkpoint has none."""
     value = meta.get(key)
     if not isinstance(value, dict):
-        raise UserError(f"{path}: not a usable checkpoint (its metadata has no '{key}' mapping)")
+        raise InputError(f"{path}: not a usable checkpoint (its metadata has no '{key}' mapping)")
     return value
 
 
@@ -121,32 +121,32 @@ def load_checkpoint(path: str | os.PathLike, kind: str | None = None, map_locati
     """Load a checkpoint; returns (tensor groups, meta). ``kind`` checks the checkpoint's kind."""
     header = read_checkpoint_meta(path)
     if header.get("format") != CHECKPOINT_FORMAT:
-        raise UserError(f"{path}: checkpoint format {header.get('format')} is not supported (expected {CHECKPOINT_FORMAT})")
+        raise InputError(f"{path}: checkpoint format {header.get('format')} is not supported (expected {CHECKPOINT_FORMAT})")
     if kind is not None and header.get("kind") != kind:
-        raise UserError(f"{path}: this is a '{header.get('kind')}' checkpoint, expected a '{kind}' checkpoint")
+        raise InputError(f"{path}: this is a '{header.get('kind')}' checkpoint, expected a '{kind}' checkpoint")
     try:
         flat = load_file(str(path), device=map_location)
     except (SafetensorError, OSError) as error:
-        raise UserError(f"{path}: damaged checkpoint ({error})") from None
+        raise InputError(f"{path}: damaged checkpoint ({error})") from None
     return unflatten_state(flat), header["meta"]
 
 
 def check_training_checkpoint(path: str | os.PathLike, kind: str) -> dict[str, Any]:
     """The header of a training checkpoint of ``kind`` (what :func:`save_training_state` writes), read
-    without loading its tensors; a one-line UserError naming ``path`` for another kind, an inference
+    without loading its tensors; a one-line InputError naming ``path`` for another kind, an inference
     checkpoint (a snapshot or shipped model: weights without optimizer state) or another format."""
     header = read_checkpoint_meta(path)
     if header["format"] != CHECKPOINT_FORMAT:
-        raise UserError(f"{path}: checkpoint format {header['format']} is not supported (expected {CHECKPOINT_FORMAT})")
+        raise InputError(f"{path}: checkpoint format {header['format']} is not supported (expected {CHECKPOINT_FORMAT})")
     if header["kind"] != kind:
-        raise UserError(f"{path}: this is a '{header['kind']}' checkpoint, expected a '{kind}' training checkpoint")
+        raise InputError(f"{path}: this is a '{header['kind']}' checkpoint, expected a '{kind}' training checkpoint")
     meta = header["meta"]
     if not isinstance(meta.get("optimizers"), dict):
         weights = f"{meta['dtype']} " if isinstance(meta.get("dtype"), str) else ""
-        raise UserError(f"{path}: an inference checkpoint ({weights}weights without optimizer state, such as a snapshot or a shipped model), "
+        raise InputError(f"{path}: an inference checkpoint ({weights}weights without optimizer state, such as a snapshot or a shipped model), "
                         f"not a training checkpoint; a run starts only from another run's checkpoint.safetensors")
     if not isinstance(meta.get("iteration"), int) or not isinstance(meta.get("rng"), list):
-        raise UserError(f"{path}: not a usable training state (no iteration or RNG states)")
+        raise InputError(f"{path}: not a usable training state (no iteration or RNG states)")
     return header
 
 
@@ -207,18 +207,19 @@ def load_training_state(path: Path, kind: str, modules: dict[str, nn.Module], op
     groups, meta = load_checkpoint(path, kind=kind)
     for name, module in modules.items():
         if name not in groups:
-            raise UserError(f"{path}: checkpoint has no '{name}' weights")
+            raise InputError(f"{path}: checkpoint has no '{name}' weights")
         try:
             module.load_state_dict(groups[name])
         except RuntimeError as error:
-            raise UserError(f"{path}: '{name}' weights do not fit this config ({str(error).splitlines()[0]})") from None
+            raise InputError(f"{path}: '{name}' weights do not fit this config ({str(error).splitlines()[0]})") from None
         module.to(device)
     saved = meta_mapping(meta, "optimizers", path)
     if not isinstance(meta.get("rng"), list) or not isinstance(meta.get("iteration"), int) or not all(map(_rng_state_like, meta["rng"])):
-        raise UserError(f"{path}: not a usable training state (no iteration, or RNG states of another form)")
+        raise InputError(f"{path}: not a usable training state (no iteration, or RNG states of another form)")
     for name, opt in optimizers.items():
+        state = meta_mapping(saved, name, path)  # outside the try: its InputError is a ValueError with its own message
         try:
-            optimizer_from_state(opt, groups.get(f"optim_{name}", {}), meta_mapping(saved, name, path))
+            optimizer_from_state(opt, groups.get(f"optim_{name}", {}), state)
         except (KeyError, ValueError, TypeError, AttributeError) as error:
-            raise UserError(f"{path}: the '{name}' optimizer state does not fit this config ({error})") from None
+            raise InputError(f"{path}: the '{name}' optimizer state does not fit this config ({error})") from None
     return groups, meta

@@ -13,13 +13,13 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.images import IMAGE_SUFFIXES, is_image_file, load_image, load_mask
 from mesh2tex.render.shading import composite_images
 
 
 def image_tensor(path: str | Path) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """RGB [3, H, W] float in [0, 1] and alpha [1, H, W] (None without an alpha channel); UserError if not an image."""
+    """RGB [3, H, W] float in [0, 1] and alpha [1, H, W] (None without an alpha channel); InputError if not an image."""
     rgb, alpha = load_image(path)
     rgb = torch.from_numpy(np.array(rgb)).permute(2, 0, 1).contiguous().float() / 255.0
     return rgb, (None if alpha is None else torch.from_numpy(np.array(alpha))[None].float() / 255.0)
@@ -31,18 +31,18 @@ def mask_tensor(path: str | Path) -> torch.Tensor:
 
 
 def list_images(folder: str | Path, what: str) -> dict[str, Path]:
-    """{file stem: path} of the image files in ``folder`` (sorted); UserError if missing, empty or ambiguous."""
+    """{file stem: path} of the image files in ``folder`` (sorted); InputError if missing, empty or ambiguous."""
     folder = Path(folder)
     if not folder.is_dir():
-        raise UserError(f"{folder}: {what} folder not found")
+        raise InputError(f"{folder}: {what} folder not found")
     found: dict[str, Path] = {}
     for path in sorted(folder.iterdir()):
         if is_image_file(path) and path.is_file():
             if path.stem in found:
-                raise UserError(f"{folder}: two {what} files share the name '{path.stem}' ({found[path.stem].name}, {path.name})")
+                raise InputError(f"{folder}: two {what} files share the name '{path.stem}' ({found[path.stem].name}, {path.name})")
             found[path.stem] = path
     if not found:
-        raise UserError(f"{folder}: no {what} images ({', '.join(IMAGE_SUFFIXES)})")
+        raise InputError(f"{folder}: no {what} images ({', '.join(IMAGE_SUFFIXES)})")
     return found
 
 
@@ -74,7 +74,7 @@ def load_set(folder: str | Path, what: str, resolution: int, background: float,
         mask = _mask_for(stem, alpha, masks)
         if mask is not None:
             if mask.shape[-2:] != rgb.shape[-2:]:
-                raise UserError(f"{masks[stem] if masks and stem in masks else path}: mask size {tuple(mask.shape[-2:])} differs from the image's {tuple(rgb.shape[-2:])}")
+                raise InputError(f"{masks[stem] if masks and stem in masks else path}: mask size {tuple(mask.shape[-2:])} differs from the image's {tuple(rgb.shape[-2:])}")
             rgb = composite_images(rgb, mask, background)
             object_masks.append((square_resize(mask.reshape(1, *mask.shape[-2:]), resolution) > 0.5).float())
         images.append(square_resize(rgb, resolution))
@@ -82,12 +82,12 @@ def load_set(folder: str | Path, what: str, resolution: int, background: float,
 
 
 def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str, Path] | None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, list[str]]:
-    """Renders and images matched by file stem, with masks; UserError for unmatched names or size mismatches."""
+    """Renders and images matched by file stem, with masks; InputError for unmatched names or size mismatches."""
     renders = list_images(renders_dir, "render")
     images = list_images(images_dir, "image")
     missing = sorted(set(renders) - set(images))
     if missing:
-        raise UserError(f"{images_dir}: no image for render(s) {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} (pairs match by file name)")
+        raise InputError(f"{images_dir}: no image for render(s) {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} (pairs match by file name)")
     names = sorted(renders)
     render_list, image_list, mask_list = [], [], []
     any_mask = False
@@ -95,7 +95,7 @@ def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str,
         render, render_alpha = image_tensor(renders[name])
         image, image_alpha = image_tensor(images[name])
         if render.shape != image.shape:
-            raise UserError(f"{images[name]}: size {tuple(image.shape[-2:])} differs from its render's {tuple(render.shape[-2:])}")
+            raise InputError(f"{images[name]}: size {tuple(image.shape[-2:])} differs from its render's {tuple(render.shape[-2:])}")
         if masks is not None and name in masks:
             mask = mask_tensor(masks[name])
         elif render_alpha is not None or image_alpha is not None:
@@ -104,12 +104,12 @@ def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str,
         else:
             mask = None
         if mask is not None and mask.shape[-2:] != render.shape[-2:]:
-            raise UserError(f"{masks[name] if masks is not None and name in masks else images[name]}: mask size {tuple(mask.shape[-2:])} "
+            raise InputError(f"{masks[name] if masks is not None and name in masks else images[name]}: mask size {tuple(mask.shape[-2:])} "
                             f"differs from the render's {tuple(render.shape[-2:])}")
         any_mask = any_mask or mask is not None
         render_list.append(render)
         image_list.append(image)
         mask_list.append(mask if mask is not None else torch.ones_like(render[:1]))
     if len({tuple(r.shape) for r in render_list}) > 1:
-        raise UserError(f"{renders_dir}: renders of different sizes; paired metrics need one size")
+        raise InputError(f"{renders_dir}: renders of different sizes; paired metrics need one size")
     return torch.stack(render_list), torch.stack(image_list), torch.stack(mask_list) if any_mask else None, names

@@ -10,7 +10,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.atomic import atomic_path
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".gif")
@@ -35,28 +35,28 @@ def _to_uint8(array: np.ndarray) -> np.ndarray:
 
 def read_image(path: str | os.PathLike, convert: Callable):
     """``convert(image)`` of the PIL image in ``path``, decoded in full; every failure to read it
-    (missing, empty, not an image, truncated, corrupt, a decompression bomb) is a UserError naming the file."""
+    (missing, empty, not an image, truncated, corrupt, a decompression bomb) is an InputError naming the file."""
     from PIL import Image, UnidentifiedImageError
 
     path = Path(path)
     if not path.is_file():
-        raise UserError(f"{path}: image not found")
+        raise InputError(f"{path}: image not found")
     if path.stat().st_size == 0:
-        raise UserError(f"{path}: empty file")
+        raise InputError(f"{path}: empty file")
     try:
         with Image.open(path) as image:
             image.load()
             return convert(image)
-    except UserError:
+    except InputError:
         raise
     except UnidentifiedImageError:
-        raise UserError(f"{path}: not a readable image (not an image, or an unsupported format)") from None
+        raise InputError(f"{path}: not a readable image (not an image, or an unsupported format)") from None
     except Image.DecompressionBombError:
-        raise UserError(f"{path}: image too large (over {Image.MAX_IMAGE_PIXELS * 2} pixels: a decompression bomb?)") from None
+        raise InputError(f"{path}: image too large (over {Image.MAX_IMAGE_PIXELS * 2} pixels: a decompression bomb?)") from None
     except (OSError, ValueError, SyntaxError) as error:
-        raise UserError(f"{path}: corrupt image ({error})") from None
+        raise InputError(f"{path}: corrupt image ({error})") from None
     except Exception as error:  # a damaged file can make a PIL decoder fail in many ways (struct.error, IndexError, ...)
-        raise UserError(f"{path}: corrupt image ({error.__class__.__name__}: {error})") from None
+        raise InputError(f"{path}: corrupt image ({error.__class__.__name__}: {error})") from None
 
 
 def _to_array(image) -> np.ndarray:
@@ -88,12 +88,12 @@ def load_image(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
         rgb: (H, W, 3) uint8; alpha: (H, W) uint8, or None when the file has no alpha channel
         (a palette with a transparent entry counts as alpha).
     Raises:
-        UserError: missing, empty, corrupt or not an image (:func:`read_image`).
+        InputError: missing, empty, corrupt or not an image (:func:`read_image`).
     """
     path = Path(path)
     array = read_image(path, _to_array)
     if array.ndim != 3 or array.shape[0] == 0 or array.shape[1] == 0:
-        raise UserError(f"{path}: image has no pixels")
+        raise InputError(f"{path}: image has no pixels")
     array = _to_uint8(array)
     if array.shape[2] == 4:
         return np.ascontiguousarray(array[..., :3]), np.ascontiguousarray(array[..., 3])

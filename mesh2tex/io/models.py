@@ -30,7 +30,7 @@ from pathlib import Path
 import torch
 
 from mesh2tex.config import config_from_dict
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.io.checkpoint import load_checkpoint, meta_mapping, save_checkpoint
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.nca import MeshNCA, NCAConfig
@@ -70,7 +70,7 @@ def is_model_name(value: str | os.PathLike) -> bool:
 def resolve_checkpoint(value: str | os.PathLike, kind: str) -> Path:
     """A checkpoint path as given, or the ``kind`` checkpoint of the shipped model named ``value``.
 
-    Raises UserError for an unknown model name (listing the shipped ones) or a model without that kind.
+    Raises InputError for an unknown model name (listing the shipped ones) or a model without that kind.
     """
     if kind not in MODEL_FILES:
         raise ValueError(f"unknown checkpoint kind {kind!r}; expected one of {', '.join(MODEL_FILES)}")
@@ -79,10 +79,10 @@ def resolve_checkpoint(value: str | os.PathLike, kind: str) -> Path:
     names = list_models()
     if str(value) not in names:
         shipped = ", ".join(names) if names else f"none in {models_root()}"
-        raise UserError(f"{value}: no such checkpoint file or shipped model (shipped models: {shipped})")
+        raise InputError(f"{value}: no such checkpoint file or shipped model (shipped models: {shipped})")
     path = models_root() / str(value) / MODEL_FILES[kind]
     if not path.is_file():
-        raise UserError(f"{path}: the shipped model '{value}' has no {kind} network")
+        raise InputError(f"{path}: the shipped model '{value}' has no {kind} network")
     return path
 
 
@@ -92,7 +92,7 @@ def export_inference_checkpoint(source: str | os.PathLike, kind: str, target: st
     groups, meta = load_checkpoint(source, kind=kind)
     group = INFERENCE_GROUPS[kind]
     if group not in groups:
-        raise UserError(f"{source}: no '{group}' weights in this {kind} checkpoint")
+        raise InputError(f"{source}: no '{group}' weights in this {kind} checkpoint")
     kept = {k: v for k, v in meta.items() if k != "rng"}
     kept["exported_from"] = {"file": Path(source).name}
     return save_inference_checkpoint(target, kind, groups[group], kept, half)
@@ -120,7 +120,7 @@ def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[Textu
     try:
         generator.load_state_dict(groups[GENERATOR_EMA])
     except (KeyError, RuntimeError) as error:
-        raise UserError(f"{path}: generator weights missing or damaged ({str(error).splitlines()[0]})") from None
+        raise InputError(f"{path}: generator weights missing or damaged ({str(error).splitlines()[0]})") from None
     return generator.to(device).eval().requires_grad_(False), meta
 
 
@@ -140,7 +140,7 @@ def gan_camera(meta: dict) -> tuple[float, float]:
     try:
         checked = CameraConfig(distance=float(camera.get("distance", default.distance)), fov=float(camera.get("fov", default.fov)))
     except (TypeError, ValueError) as error:
-        raise UserError(f"the checkpoint's config.camera is not usable ({error})") from None
+        raise InputError(f"the checkpoint's config.camera is not usable ({error})") from None
     return checked.distance, checked.fov
 
 
@@ -154,7 +154,7 @@ def load_view_network(path: str | os.PathLike, kind: str, device: torch.device |
     try:
         net.load_state_dict(groups[VIEW_NET])
     except (KeyError, RuntimeError) as error:
-        raise UserError(f"{path}: the {kind} weights do not fit its config ({str(error).splitlines()[0]})") from None
+        raise InputError(f"{path}: the {kind} weights do not fit its config ({str(error).splitlines()[0]})") from None
     return net.to(device).eval(), cfg
 
 
@@ -162,20 +162,17 @@ def load_nca(path: str | os.PathLike, device="cpu"):
     """A trained cellular automaton from a ``train nca`` checkpoint (training or exported).
 
     Returns (model :class:`mesh2tex.nn.nca.MeshNCA` in eval mode on ``device``, meta, exemplar
-    (H, W, 3) uint8 or None). Raises UserError naming ``path`` for a missing, foreign or damaged file.
+    (H, W, 3) uint8 or None). Raises InputError naming ``path`` for a missing, foreign or damaged file.
     """
     groups, meta = load_checkpoint(path, kind="nca")
     if "model" not in groups or "nca" not in meta:
-        raise UserError(f"{path}: the nca checkpoint holds no automaton")
-    try:
-        cfg = config_from_dict(NCAConfig, meta["nca"], where=f"{path} nca")
-    except ValueError as error:
-        raise UserError(f"{path}: {error}") from None
+        raise InputError(f"{path}: the nca checkpoint holds no automaton")
+    cfg = config_from_dict(NCAConfig, meta["nca"], where=f"{path} nca")  # its errors name the file
     model = MeshNCA(cfg)
     try:
         model.load_state_dict({k: v.float() for k, v in groups["model"].items()})
     except RuntimeError as error:
-        raise UserError(f"{path}: the automaton weights do not fit its config ({str(error).splitlines()[0]})") from None
+        raise InputError(f"{path}: the automaton weights do not fit its config ({str(error).splitlines()[0]})") from None
     exemplar = groups.get("exemplar", {}).get("image")
     exemplar = None if exemplar is None else exemplar.permute(1, 2, 0).numpy()
     return model.to(device).eval(), meta, exemplar

@@ -7,19 +7,19 @@ import os
 from pathlib import Path
 from typing import Iterable
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 
 def guard_outputs(out: str | os.PathLike, names: Iterable[str], overwrite: bool) -> Path:
-    """Refuse (UserError, before any work) when a file ``out/<name>`` a command would write already
+    """Refuse (InputError, before any work) when a file ``out/<name>`` a command would write already
     exists, unless ``overwrite``; returns ``out`` as a Path. Nothing is created here."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise UserError(f"{out}: --out is a file, not a folder")
+        raise InputError(f"{out}: --out is a file, not a folder")
     if overwrite:
         return out
     existing = [name for name in names if (out / name).exists()]
     if existing:
         shown = ", ".join(existing[:4]) + (f" and {len(existing) - 4} more" if len(existing) > 4 else "")
-        raise UserError(f"{out}: already holds {shown}; pass --overwrite to replace them, or choose another --out")
+        raise InputError(f"{out}: already holds {shown}; pass --overwrite to replace them, or choose another --out")
     return out

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.metrics.appearance import masked_blur
 from mesh2tex.render.shading import composite_images
 
@@ -130,7 +130,7 @@ def _object_pixels(mask: torch.Tensor, what: str) -> torch.Tensor:
     mask = mask.reshape(mask.shape[-2:])
     pixels = torch.nonzero(mask > 0.5)
     if pixels.shape[0] == 0:
-        raise UserError(f"the {what} mask is empty: there is no object pixel to centre a style patch on")
+        raise InputError(f"the {what} mask is empty: there is no object pixel to centre a style patch on")
     return pixels
 
 
@@ -160,7 +160,7 @@ def sample_patch_pairs(photo_mask: torch.Tensor, render_mask: torch.Tensor, num_
     photo_noc: the photo's predicted NOC [H, W, 3]; render_noc: the render's NOC [H', W', 3].
     guided=True (needs both NOC maps): photo centres uniform over the photo's object; each render
     centre is the rendered object pixel with the nearest NOC. guided=False: both centres uniform over
-    their own object (the ablation without NOC). Raises UserError if a mask is empty.
+    their own object (the ablation without NOC). Raises InputError if a mask is empty.
     """
     photo_centres = random_object_pixels(photo_mask, num_patches, generator, "photo's object")
     if guided:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.metrics.distribution import fid, kid
 from mesh2tex.metrics.features import FeatureExtractor, get_feature_extractor
 from mesh2tex.metrics.image import color_histogram_distance, color_histograms, masked_psnr, masked_ssim
@@ -49,7 +49,7 @@ def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: Featur
     """
     config = config or EvaluateConfig()
     if renders.shape[0] < 2 or images.shape[0] < 2:
-        raise UserError(f"set metrics need at least 2 renders and 2 images (got {renders.shape[0]} and {images.shape[0]})")
+        raise InputError(f"set metrics need at least 2 renders and 2 images (got {renders.shape[0]} and {images.shape[0]})")
     metrics: dict[str, float] = {}
     if kid_fid:
         extractor = extractor or get_feature_extractor(config.features)
@@ -78,7 +78,7 @@ def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, rende
     else:
         name = "color_hist_tv"
         if render_masks.sum() == 0 or image_masks.sum() == 0:
-            raise UserError("set colour histograms: one of the sets has no object pixel (all masks empty)")
+            raise InputError("set colour histograms: one of the sets has no object pixel (all masks empty)")
 
     def pooled(x: torch.Tensor, masks: torch.Tensor | None) -> torch.Tensor:
         def stacked(t: torch.Tensor) -> torch.Tensor:  # [N, C, H, W] -> one [1, C, N*H, W] image
@@ -99,10 +99,10 @@ def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Ten
     """
     config = config or EvaluateConfig()
     if renders.shape != images.shape:
-        raise UserError(f"paired metrics need renders and images of one shape, got {tuple(renders.shape)} and {tuple(images.shape)}")
+        raise InputError(f"paired metrics need renders and images of one shape, got {tuple(renders.shape)} and {tuple(images.shape)}")
     if masks is not None and bool((masks.flatten(1).sum(1) == 0).any()):
         empty = int((masks.flatten(1).sum(1) == 0).nonzero()[0])
-        raise UserError(f"the mask of pair '{names[empty] if names else empty}' is empty")
+        raise InputError(f"the mask of pair '{names[empty] if names else empty}' is empty")
     psnr = masked_psnr(renders, images, masks)
     ssim = masked_ssim(renders, images, masks)
     histogram = color_histogram_distance(renders, images, masks, bins=config.histogram_bins)

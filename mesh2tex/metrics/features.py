@@ -26,7 +26,7 @@ from typing import Callable
 import torch
 import torch.nn.functional as F
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.metrics.inception import FID_INCEPTION_URL, INCEPTION_FILE_NAMES, find_inception_weights, load_inception
 from mesh2tex.nn.vgg import VGG19Features, find_vgg19_weights, load_vgg19, torch_hub_checkpoint_dir
 
@@ -76,21 +76,21 @@ def get_feature_extractor(name: str = "auto", inception_weights: str | os.PathLi
 
     ``auto``: the Inception-v3 of ``inception_weights`` / $MESH2TEX_INCEPTION_WEIGHTS / torchvision's
     cache when one is found (variant read from the file), else ``randvgg`` with a warning.
-    ``inception``/``tvinception`` need such a file (UserError if none, or if it is the other variant);
+    ``inception``/``tvinception`` need such a file (InputError if none, or if it is the other variant);
     ``vgg`` needs ImageNet VGG19 weights (see :mod:`mesh2tex.nn.vgg`); ``randvgg`` needs nothing.
     """
     if name not in EXTRACTOR_NAMES:
-        raise UserError(f"unknown feature extractor '{name}' (choose from {', '.join(EXTRACTOR_NAMES)})")
+        raise InputError(f"unknown feature extractor '{name}' (choose from {', '.join(EXTRACTOR_NAMES)})")
     if name in ("auto", "inception", "tvinception"):
         found = find_inception_weights(inception_weights)
         if found is None and name != "auto":
-            raise UserError(f"no Inception-v3 weights found for '{name}': pass --inception-weights PATH or put one of "
+            raise InputError(f"no Inception-v3 weights found for '{name}': pass --inception-weights PATH or put one of "
                             f"{', '.join(INCEPTION_FILE_NAMES)} in {torch_hub_checkpoint_dir()}")
         if found is not None:
             model = load_inception(found, device)
             variant = "inception" if model.fid_variant else "tvinception"
             if name != "auto" and name != variant:
-                raise UserError(f"{found}: holds {variant} weights, not {name} weights")
+                raise InputError(f"{found}: holds {variant} weights, not {name} weights")
             parameter = next(model.parameters())
             description = ("FID Inception-v3 pool3 features" if model.fid_variant else "torchvision Inception-v3 pool features") + f" ({found})"
             return FeatureExtractor("" if model.fid_variant else "tvinception", description, lambda x: model(x.to(parameter)))
@@ -101,7 +101,7 @@ def get_feature_extractor(name: str = "auto", inception_weights: str | os.PathLi
         name = "randvgg"
     if name == "vgg":
         if find_vgg19_weights(vgg_weights) is None:
-            raise UserError("the 'vgg' feature extractor needs ImageNet VGG19 weights: pass --vgg-weights PATH "
+            raise InputError("the 'vgg' feature extractor needs ImageNet VGG19 weights: pass --vgg-weights PATH "
                             f"or put vgg19-dcbb9e9d.pth in {torch_hub_checkpoint_dir()}")
         vgg = load_vgg19(vgg_weights, device)
         return FeatureExtractor("vgg", f"ImageNet VGG19 style-layer channel means and stds ({vgg.source})", vgg_statistics(vgg))

@@ -23,7 +23,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.nn.vgg import find_weight_file, read_state_dict
 
 INCEPTION_FILE_NAMES = ("pt_inception-2015-12-05-6726825d.pth", "inception_v3_google-0cc3c7bd.pth", "inception_v3_google-1a9a5a14.pth")
@@ -203,28 +203,28 @@ class InceptionV3Features(nn.Module):
 
 def find_inception_weights(path: str | os.PathLike | None = None) -> Path | None:
     """The Inception weight file: ``path``, else $MESH2TEX_INCEPTION_WEIGHTS, else a known file name in
-    ``$TORCH_HOME/hub/checkpoints``; None if none exists. A given path that does not exist is a UserError."""
+    ``$TORCH_HOME/hub/checkpoints``; None if none exists. A given path that does not exist is an InputError."""
     return find_weight_file(path, "MESH2TEX_INCEPTION_WEIGHTS", INCEPTION_FILE_NAMES, "Inception-v3")
 
 
 def load_inception(path: str | os.PathLike, device: str | torch.device = "cpu") -> InceptionV3Features:
     """Inception-v3 features with the weights in ``path`` (either variant); frozen, eval mode.
 
-    Raises UserError naming the file when it is not an Inception-v3 state dict.
+    Raises InputError naming the file when it is not an Inception-v3 state dict.
     """
     path = Path(path)
     state = read_state_dict(path, "Inception-v3")
     classes = state.get("fc.weight", torch.empty(0, 0)).shape[0]
     if classes not in (1000, 1008):
-        raise UserError(f"{path}: not Inception-v3 weights (no 'fc.weight' with 1000 or 1008 classes)")
+        raise InputError(f"{path}: not Inception-v3 weights (no 'fc.weight' with 1000 or 1008 classes)")
     model = InceptionV3Features(fid_variant=classes == 1008)
     own = model.state_dict()
     missing = [k for k in own if k not in state and not k.endswith("num_batches_tracked")]
     if missing:
-        raise UserError(f"{path}: not Inception-v3 weights: missing {len(missing)} key(s), e.g. '{missing[0]}'")
+        raise InputError(f"{path}: not Inception-v3 weights: missing {len(missing)} key(s), e.g. '{missing[0]}'")
     for key, tensor in own.items():
         if key in state and tuple(state[key].shape) != tuple(tensor.shape):
-            raise UserError(f"{path}: not Inception-v3 weights: '{key}' has shape {tuple(state[key].shape)}, expected {tuple(tensor.shape)}")
+            raise InputError(f"{path}: not Inception-v3 weights: '{key}' has shape {tuple(state[key].shape)}, expected {tuple(tensor.shape)}")
     model.load_state_dict({k: state[k] for k in own if k in state}, strict=False)
     model.source = str(path)
     model = model.to(device).eval()

@@ -17,7 +17,7 @@ not needed. With no file, a **random-weight VGG19** (fixed seed, Kaiming-normal 
 with a warning: random deep filters still measure texture statistics (colour, local frequency and
 orientation), so Gram-matrix style losses keep working, but they are less perceptual than the
 ImageNet features, and transfer results lose fine detail. An explicit path that does not hold VGG19
-weights is a :class:`~mesh2tex.errors.UserError`, never a silent fallback.
+weights is a :class:`~mesh2tex.errors.InputError`, never a silent fallback.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import torch
 import torch.nn as nn
 
 from mesh2tex.checks import check_shape
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 # torchvision's VGG19 "features" layout: channel counts, "M" for a 2x2 max pool.
 VGG19_LAYOUT = [64, 64, "M", 128, 128, "M", 256, 256, 256, 256, "M", 512, 512, 512, 512, "M", 512, 512, 512, 512, "M"]
@@ -55,10 +55,10 @@ def torch_hub_checkpoint_dir() -> Path:
 def read_state_dict(path: Path, what: str) -> dict[str, torch.Tensor]:
     """A tensor state dict from a ``.pth`` (``torch.load(weights_only=True)``) or ``.safetensors`` file.
 
-    Raises UserError naming ``path`` when the file cannot be read as a state dict of tensors.
+    Raises InputError naming ``path`` when the file cannot be read as a state dict of tensors.
     """
     if not path.is_file():
-        raise UserError(f"{path}: {what} weight file not found")
+        raise InputError(f"{path}: {what} weight file not found")
     try:
         if path.suffix == ".safetensors":
             from safetensors.torch import load_file
@@ -67,11 +67,11 @@ def read_state_dict(path: Path, what: str) -> dict[str, torch.Tensor]:
         else:
             state = torch.load(str(path), map_location="cpu", weights_only=True)
     except Exception as error:  # torch.load raises many types for a file that is not a checkpoint
-        raise UserError(f"{path}: not a readable {what} weight file ({error.__class__.__name__})") from None
+        raise InputError(f"{path}: not a readable {what} weight file ({error.__class__.__name__})") from None
     if isinstance(state, dict) and "state_dict" in state and isinstance(state["state_dict"], dict):
         state = state["state_dict"]
     if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
-        raise UserError(f"{path}: not a {what} state dict (expected a mapping of names to tensors)")
+        raise InputError(f"{path}: not a {what} state dict (expected a mapping of names to tensors)")
     return state
 
 
@@ -139,18 +139,18 @@ class VGG19Features(nn.Module):
         self.source = f"random (seed {seed})"
 
     def load_imagenet(self, path: str | os.PathLike) -> None:
-        """Load torchvision-layout VGG19 weights from ``path``; UserError if it is not such a file."""
+        """Load torchvision-layout VGG19 weights from ``path``; InputError if it is not such a file."""
         path = Path(path)
         state = read_state_dict(path, "VGG19")
         own = self.features.state_dict()
         wanted = {f"features.{k}": v for k, v in own.items()}
         missing = [k for k in wanted if k not in state]
         if missing:
-            raise UserError(f"{path}: not VGG19 weights: missing {len(missing)} key(s), e.g. '{missing[0]}' "
+            raise InputError(f"{path}: not VGG19 weights: missing {len(missing)} key(s), e.g. '{missing[0]}' "
                             f"(expected torchvision's vgg19 state dict, file {VGG19_FILE_NAME})")
         for key, tensor in wanted.items():
             if tuple(state[key].shape) != tuple(tensor.shape):
-                raise UserError(f"{path}: not VGG19 weights: '{key}' has shape {tuple(state[key].shape)}, "
+                raise InputError(f"{path}: not VGG19 weights: '{key}' has shape {tuple(state[key].shape)}, "
                                 f"expected {tuple(tensor.shape)}")
         self.features.load_state_dict({k: state[f"features.{k}"].float() for k in own})
         self.pretrained = True
@@ -161,13 +161,13 @@ def find_weight_file(path: str | os.PathLike | None, env_var: str, file_names: t
     """A local weight file: ``path``, else ``$env_var``, else the first of ``file_names`` present in
     torchvision's cache ``$TORCH_HOME/hub/checkpoints``; None if there is none.
 
-    A path given explicitly (argument or environment variable) that does not exist is a UserError.
+    A path given explicitly (argument or environment variable) that does not exist is an InputError.
     """
     explicit = path if path is not None else os.environ.get(env_var) or None
     if explicit is not None:
         explicit = Path(explicit)
         if not explicit.is_file():
-            raise UserError(f"{explicit}: {what} weight file not found")
+            raise InputError(f"{explicit}: {what} weight file not found")
         return explicit
     for name in file_names:
         candidate = torch_hub_checkpoint_dir() / name

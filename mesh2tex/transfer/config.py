@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mesh2tex.config import check_fields
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 
 # Ablation name -> the TransferConfig fields it changes (paper Table 8), and "paper": the paper's
 # own losses and step (style losses alone, unlit renders), without what this project adds.
@@ -66,13 +66,13 @@ class TransferConfig:
 
 
 def check_style_sizes(cfg: TransferConfig) -> None:
-    """UserError unless the crop and the patches keep 16 pixels at the coarsest level of their style losses."""
+    """InputError unless the crop and the patches keep 16 pixels at the coarsest level of their style losses."""
     if cfg.scales < 1 or cfg.patch_scales < 0:
-        raise UserError(f"scales {cfg.scales}, patch_scales {cfg.patch_scales}: scales must be at least 1, patch_scales at least 0")
+        raise InputError(f"scales {cfg.scales}, patch_scales {cfg.patch_scales}: scales must be at least 1, patch_scales at least 0")
     smallest = 16 * 2 ** (cfg.scales - 1)
     if cfg.resolution < smallest:
-        raise UserError(f"--resolution {cfg.resolution}: must be at least {smallest} for {cfg.scales} style scales")
+        raise InputError(f"--resolution {cfg.resolution}: must be at least {smallest} for {cfg.scales} style scales")
     patch = min(cfg.patch_size, cfg.resolution)  # a patch is clipped to the crop
     if cfg.use_patches and patch < 16 * 2 ** (cfg.patch_levels - 1):
-        raise UserError(f"patch_size {cfg.patch_size}: a patch of {patch} px keeps fewer than 16 px at its "
+        raise InputError(f"patch_size {cfg.patch_size}: a patch of {patch} px keeps fewer than 16 px at its "
                         f"{cfg.patch_levels} style scales; use larger patches or fewer patch_scales")

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.losses.style import global_style_loss, lowpass_colour_loss, patch_style_loss, sample_patch_pairs, style_grams
 from mesh2tex.nn.batch import collate_shapes
@@ -84,7 +84,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     """
     guided = cfg.use_noc and cfg.use_patches
     if guided and photo_noc is None:
-        raise UserError("NOC-guided patches need the photo's NOC: give --noc-checkpoint, or --no-noc")
+        raise InputError("NOC-guided patches need the photo's NOC: give --noc-checkpoint, or --no-noc")
     batch = collate_shapes([shape]).to(device)
     generator = generator.to(device).requires_grad_(False)
     encoded = [e.detach() for e in generator.encoder(batch)]
@@ -132,7 +132,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         for _ in iterator:
             total, parts = loss_of(render(ws), use_global)
             if not torch.isfinite(total):
-                raise UserError(f"transfer {stage}: the style loss became {float(total)}; lower the learning rate (lr)")
+                raise InputError(f"transfer {stage}: the style loss became {float(total)}; lower the learning rate (lr)")
             opt.zero_grad(set_to_none=True)
             total.backward()
             opt.step()

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.photos import estimate_mask
@@ -52,12 +52,12 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
     the mask came from (the ``mask_path`` file, the alpha channel, or a GrabCut estimate)."""
     rgb, alpha = load_image(image_path)
     if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
-        raise UserError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
+        raise InputError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
                         f"{MIN_PHOTO_SIDE}x{MIN_PHOTO_SIDE}")
     if mask_path is not None:
         mask = load_mask(mask_path)
         if mask.shape != rgb.shape[:2]:
-            raise UserError(f"{mask_path}: mask is {mask.shape[1]}x{mask.shape[0]}, the photo {rgb.shape[1]}x{rgb.shape[0]}")
+            raise InputError(f"{mask_path}: mask is {mask.shape[1]}x{mask.shape[0]}, the photo {rgb.shape[1]}x{rgb.shape[0]}")
         source = str(mask_path)
     elif alpha is not None and (alpha < 128).any():
         mask, source = alpha >= 128, "alpha channel"
@@ -65,7 +65,7 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
         mask, source = estimate_mask(rgb), "estimated (GrabCut)"
     mask = np.asarray(mask, dtype=bool)
     if mask.sum() < 16:
-        raise UserError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")
+        raise InputError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")
     box = object_box(mask, cfg.margin)
     image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
     image = crop_square(image, box, cfg.resolution, fill=1.0)
@@ -84,7 +84,7 @@ def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distanc
     raster = rasterize(transform_points(vertices, camera.mvp), triangles, (size, size))
     covered = (raster.face_id[0] >= 0).numpy()
     if covered.sum() < 16:
-        raise UserError(f"the mesh is not visible at azimuth {azimuth}, elevation {elevation} (distance {distance})")
+        raise InputError(f"the mesh is not visible at azimuth {azimuth}, elevation {elevation} (distance {distance})")
     box = object_box(covered, cfg.margin)
     noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
     noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)

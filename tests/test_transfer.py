@@ -76,6 +76,22 @@ def test_latent_stage_lowers_the_style_loss(setup, tmp_path):
     assert min(curve[-3:]) < curve[0]
 
 
+def test_several_starts_begin_at_the_best_one(setup, tmp_path):
+    """latent_starts: stage 1 begins at the start whose render scores lowest, so its first loss is at
+    most the mean latent's (with latent_space w, one latent shared by every style input, as well)."""
+    def first_loss(name, settings):
+        config = tmp_path / f"{name}.yaml"
+        config.write_text(settings)
+        assert main(transfer_args(setup, tmp_path / name, "--no-refine", "--latent-iters", "2", "--config", str(config))) == 0
+        report = json.loads((tmp_path / name / "report.json").read_text())
+        return report["losses"]["latent"]["curve"][0], report["settings"]
+
+    mean_start, _ = first_loss("mean", "latent_starts: 1\n")
+    best_start, settings = first_loss("starts", "latent_starts: 4\nlatent_space: w\n")
+    assert settings["latent_starts"] == 4 and settings["latent_space"] == "w"
+    assert best_start <= mean_start + 1e-6
+
+
 def test_ablation_flags_change_the_run(setup, tmp_path):
     out = tmp_path / "out"
     assert main(transfer_args(setup, out, "--no-noc", "--no-patches", "--no-refine")) == 0

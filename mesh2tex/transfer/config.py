@@ -18,6 +18,7 @@ ABLATIONS = {
 }
 
 LIGHT_MODES = ("auto", "learn", "off")
+LATENT_SPACES = ("w_plus", "w")
 
 
 @dataclass
@@ -26,6 +27,8 @@ class TransferConfig:
     latent_iters: int = 100  # stage 1: iterations on the latent w (paper: 100)
     refine_iters: int = 300  # stage 2: iterations on the last two synthesis blocks (paper: 300)
     refine_blocks: int = 2  # synthesis blocks unfrozen in stage 2 (paper: 2)
+    latent_space: str = "w_plus"  # stage 1 optimises one w per style input (w_plus, the paper's) or one w shared by all of them (w: stays on the generator's manifold)
+    latent_starts: int = 1  # candidate starts of stage 1: the mean latent and latent_starts - 1 seeded samples (truncation 0.7); the one whose render scores the lowest loss is kept
     lr: float = 5e-2  # Adam learning rate of stage 1, and of stage 2 unless refine_lr is set (paper: 1e-2 for both)
     refine_lr: float = 1e-2  # Adam learning rate of stage 2 (0: lr)
     w_glob: float = 1.0  # weight of the global style loss
@@ -53,9 +56,11 @@ class TransferConfig:
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
 
     def __post_init__(self):
-        check_fields(self, positive=("lr",), at_least={"refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1,
+        check_fields(self, positive=("lr",), at_least={"refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1, "latent_starts": 1,
                                                        "resolution": 16, "texture_size": 16, "patch_size": 1},
                      between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8), "colour_sigma": (0.0, 0.5)})
+        if self.latent_space not in LATENT_SPACES:
+            raise ValueError(f"latent_space {self.latent_space!r}: must be one of {', '.join(LATENT_SPACES)}")
         if self.light not in LIGHT_MODES:
             raise ValueError(f"light {self.light!r}: must be one of {', '.join(LIGHT_MODES)}")
 

@@ -106,7 +106,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
                                   lights=light.lights() if light is not None else None).images
         return crop_square(full, view.box, cfg.resolution)
 
-    def loss_of(image: torch.Tensor, use_global: bool) -> tuple[torch.Tensor, dict[str, float]]:
+    def loss_of(image: torch.Tensor, use_global: bool, pick: torch.Generator = pick) -> tuple[torch.Tensor, dict[str, float]]:
         parts: dict[str, torch.Tensor] = {}
         if use_global:
             parts["global"] = cfg.w_glob * global_style_loss(vgg, image, render_mask, target_grams=photo_grams, scales=cfg.scales)
@@ -118,9 +118,24 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         total = sum(parts.values())
         return total, {k: float(v.detach()) for k, v in parts.items()}
 
+    num_ws = generator.num_ws
     with torch.no_grad():
-        ws = mean_latent(generator).clone()
+        starts = [mean_latent(generator)]
+        if cfg.latent_starts > 1:
+            z = torch.randn(cfg.latent_starts - 1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed)).to(device)
+            starts += list(generator.mapping(z, truncation_psi=0.7).split(1))  # each (1, num_ws, w_dim)
+            # Score each start as stage 1 will see it; the patch pairs are drawn from their own generator
+            # so that the run's later pairs do not depend on how many starts were tried.
+            scores = [float(loss_of(render(w.expand(1, num_ws, -1)), use_global=True, pick=torch.Generator().manual_seed(cfg.seed))[0])
+                      for w in starts]
+            starts = [starts[min(range(len(scores)), key=scores.__getitem__)]]
+        # (1, num_ws, w_dim) for w_plus; (1, 1, w_dim) shared by every style input for w
+        ws = (starts[0][:, :1] if cfg.latent_space == "w" else starts[0].expand(1, num_ws, -1)).clone()
     ws.requires_grad_(True)
+
+    def styles() -> torch.Tensor:
+        return ws.expand(1, num_ws, -1)
+
     result = TransferResult(ws=ws, render=torch.empty(0))
     light_params = list(light.parameters()) if light is not None else []
 
@@ -130,7 +145,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         start = time.perf_counter()
         iterator = progress_bar(range(iters), desc=f"transfer {stage}") if show_progress else range(iters)
         for _ in iterator:
-            total, parts = loss_of(render(ws), use_global)
+            total, parts = loss_of(render(styles()), use_global)
             if not torch.isfinite(total):
                 raise InputError(f"transfer {stage}: the style loss became {float(total)}; lower the learning rate (lr)")
             opt.zero_grad(set_to_none=True)
@@ -156,7 +171,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         for p in params:
             p.requires_grad_(False)
     with torch.no_grad():
-        result.render = render(ws).cpu()
-    result.ws = ws.detach()
+        result.render = render(styles()).cpu()
+    result.ws = styles().detach().clone()
     result.light = light.describe() if light is not None else None
     return result

@@ -3,7 +3,7 @@ watertight.
 
 The fast passes evaluate each triangle's edge functions in float32, relative to a reference pixel,
 scaled by :func:`band_scale` so that a value outside ``[-1, 1]`` (the *band*) has the sign of the
-exact edge function. Pixels within the band of an edge (a few thousandths of a pixel from it, or
+exact edge function. Pixels within the band of an edge (a small fraction of a pixel from it, or
 exactly on it) are decided here, from the clip-space vertices alone, whichever triangle asks:
 
     E(r, c) = (v_j x v_k) . (U, V, W*H),   v = (x, y, w),   U = (2c + 1 - W) H,   V = (H - 2r - 1) W,

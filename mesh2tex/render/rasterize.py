@@ -11,7 +11,7 @@ Method (homogeneous rasterization, no geometric clipping):
      clipping into new triangles. The set-up runs in float64; the per-pixel tests in float32 relative to
      a reference pixel, so nothing cancels catastrophically. Coverage is watertight: the float32 edge
      values are scaled so that outside [-1, 1] their sign is certain (``edges.band_scale``); the few
-     pixels within that band of an edge (a few thousandths of a pixel, or exactly on it) are decided
+     pixels within that band of an edge (a small fraction of a pixel from it, or on it) are decided
      from the vertices in exact arithmetic (``edges.EdgeTest``), where the two triangles of a shared
      edge take opposite sides, and a centre exactly on an edge goes to the triangle that holds it
      shifted right, then down, by an infinitesimal (the top-left rule): drawn exactly once.
@@ -306,8 +306,8 @@ def _draw_large(buffer: DepthBuffer, setups: Setups, first: int, base, face, max
     lo = 0
     while lo < len(ends):
         hi = max(lo + 1, bisect.bisect_right(ends, (ends[lo - 1] if lo else 0) + limit))
-        draw_spans(buffer, Entries(r_params[:, lo:hi], r_base[lo:hi], r_face[lo:hi], r_setup[lo:hi]), r_rows[lo:hi],
-                   r_cols[lo:hi], max_pairs)
+        regions = Entries(r_params[:, lo:hi], r_base[lo:hi], r_face[lo:hi], r_setup[lo:hi])
+        draw_spans(buffer, regions, r_rows[lo:hi], r_cols[lo:hi], max_pairs)
         lo = hi
 
 
@@ -404,8 +404,8 @@ def rasterize(
             draw(buffer, entries, bin_slices(counts[:N_BINS], max_pairs), max_pairs)
         if counts[N_BINS]:
             _draw_large(buffer, setups, n, base[n:], face[n:], max_pairs)
-        # The few pixels the float32 edge values leave undecided (on an edge, or within a few
-        # thousandths of a pixel of one), all at once.
+        # The few pixels the float32 edge values leave undecided (on an edge, or a small fraction
+        # of a pixel from one), all at once.
         buffer.settle(EdgeTest(corners, live, setups.front, (H, W)))
         resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, setups.row0, setups.col0,
                         setups.params64)

@@ -7,17 +7,21 @@ Meshes (each centred, bbox diagonal 1, seen from distance 1.6 with a 45 degree f
   scan    a noisy, irregular blob like a 3D scan: 103,680 triangles, most under a pixel
   chair   shape 0 of the synthetic world's chairs (mesh2tex.synthetic): panels, rods, bevels
   car     shape 0 of the synthetic world's cars
-Cases: one view at 256 and 512 pixels, eight views at 128 in one call.
+Cases: one view at 256 and 512 pixels, eight views at 128 in one call. ``--cameras axis`` looks
+along the axes instead (azimuths 0, 90, 180, 270, elevations 0 and 90): symmetric views that put
+many pixel centres exactly on edges, where coverage is decided by the exact edge test.
 
     python benchmarks/bench_rasterize.py [--threads 1] [--repeats 10] [--meshes torus,table]
-        [--previous REV] [--busy 1] [--device cpu|cuda] [--case memory]
+        [--previous REV] [--busy 1] [--device cpu|cuda] [--case memory] [--cameras axis] [--clock cpu]
 
 Embree (trimesh + embreex, one thread) builds its scene before timing, so only the ray casts and
 barycentrics are timed. Ours and Embree are timed in alternation, twice, so both see the same load;
 times are the minimum over the repeats (median in brackets); the ratio is ours / Embree (below 1.0:
-ours is faster). ``--previous REV`` also times the rasterizer of git revision REV (its mesh2tex
-package, extracted by ``benchmarks/previous.py``) in the same process. ``--busy N`` runs N CPU-bound
-processes (``while True: pass``) during the measurements. The load average is printed before and after.
+ours is faster). ``--clock cpu`` times with this process's CPU time instead of the wall clock: on a
+machine shared with other jobs it leaves out the time spent descheduled. ``--previous REV`` also
+times the rasterizer of git revision REV (its mesh2tex package, extracted by
+``benchmarks/previous.py``) in the same process. ``--busy N`` runs N CPU-bound processes (``while
+True: pass``) during the measurements. The load average is printed before and after.
 """
 
 from __future__ import annotations
@@ -45,6 +49,11 @@ from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402
 from previous import Revision  # noqa: E402  (this folder)
 
 CASES = {"1x256": (1, 256), "1x512": (1, 512), "8x128": (8, 128)}
+CAMERAS = {  # (azimuths, elevations) of up to eight views, degrees
+    "orbit": ([30.0 + 45.0 * i for i in range(8)], [25.0, -10.0, 35.0, 5.0, 50.0, -25.0, 15.0, 30.0]),
+    "axis": ([0.0, 90.0, 180.0, 270.0, 0.0, 90.0, 180.0, 270.0], [0.0, 0.0, 0.0, 0.0, 90.0, 90.0, 0.0, 0.0]),
+}
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
 def world_shape(category: str) -> trimesh.Trimesh:
@@ -81,19 +90,18 @@ def embree_cast(intersector, mesh, origins, directions):
     return face_id, bary
 
 
-def timed(fn, repeats):
+def timed(fn, repeats, clock=time.perf_counter):
     times = []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start = clock()
         fn()
-        times.append(time.perf_counter() - start)
+        times.append(clock() - start)
     return min(times), float(np.median(times))
 
 
-def compare(name, mesh, case, repeats, device, previous=None):
+def compare(name, mesh, case, repeats, device, previous=None, cameras="orbit", clock="wall"):
     views, size = CASES[case]
-    azimuths = [30.0 + 45.0 * i for i in range(views)]
-    elevations = [25.0, -10.0, 35.0, 5.0, 50.0, -25.0, 15.0, 30.0][:views]
+    azimuths, elevations = (angles[:views] for angles in CAMERAS[cameras])
     camera = orbit_camera(torch.tensor(azimuths), torch.tensor(elevations), distance=1.6, fov=45.0)
     vertices = torch.tensor(mesh.vertices, dtype=torch.float32, device=device)
     faces = torch.tensor(mesh.faces, device=device)
@@ -124,10 +132,11 @@ def compare(name, mesh, case, repeats, device, previous=None):
     times = {key: [] for key in contenders}
     for _ in range(2):  # alternate so that all see the same machine load
         for key, fn in contenders.items():
-            times[key].append(timed(fn, repeats))
+            times[key].append(timed(fn, repeats, CLOCKS[clock]))
     best = {key: min(value) for key, value in times.items()}
     result = {"mesh": name, "triangles": len(mesh.faces), "case": case, "device": device,
-              "threads": torch.get_num_threads(), "face_id_agreement": round(float(agree), 5),
+              "threads": torch.get_num_threads(), "cameras": cameras, "clock": clock,
+              "face_id_agreement": round(float(agree), 5),
               "ratio": round(best["ours"][0] / best["embree"][0], 3)}
     for key, (low, median) in best.items():
         result[f"{key}_ms"], result[f"{key}_median_ms"] = round(low * 1e3, 2), round(median * 1e3, 2)
@@ -187,6 +196,8 @@ def main():
     parser.add_argument("--previous", default="", help="also time the rasterizer of this git revision")
     parser.add_argument("--busy", type=int, default=0, help="CPU-bound processes to run meanwhile")
     parser.add_argument("--case", default="all", choices=["all", "speed", "memory"])
+    parser.add_argument("--cameras", default="orbit", choices=list(CAMERAS), help="orbit views, or along the axes")
+    parser.add_argument("--clock", default="wall", choices=list(CLOCKS), help="wall time, or this process's CPU time")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -200,7 +211,7 @@ def main():
         time.sleep(1.0 if spinners else 0.0)
         print(f"torch threads {torch.get_num_threads()}, {args.busy} busy processes, "
               f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
-        results = [compare(name, mesh, case, args.repeats, args.device, previous)
+        results = [compare(name, mesh, case, args.repeats, args.device, previous, args.cameras, args.clock)
                    for name, mesh in meshes.items() for case in args.cases.split(",")]
         print(f"load average after: {os.getloadavg()[0]:.2f}")
     finally:

@@ -106,3 +106,25 @@ def test_scan_sphere_and_table_are_what_the_benchmark_says():
     table = bevelled_table(32)
     areas = table.area_faces
     assert areas.max() > 1000 * np.median(areas)
+
+
+@pytest.mark.parametrize("name", ["cube_sphere_7", "box", "grid_box"])
+def test_fast_rasterizer_equals_reference_with_centres_on_edges(name, monkeypatch):
+    """Axis-aligned views of closed meshes put pixel centres exactly on edges and vertices, where the
+    fast path's float32 planes cannot decide and the exact test (and its tie rule) does; near views
+    make the faces large enough for the coarse pass by rows."""
+    from test_render import closed_meshes
+
+    import mesh2tex.render.edges as edges
+
+    exact = []
+    signs = edges.exact_edge_signs
+    monkeypatch.setattr(edges, "exact_edge_signs", lambda c, *a: exact.append(c.shape[1]) or signs(c, *a))
+    vertices, faces = closed_meshes()[name]
+    camera = orbit_camera(torch.tensor([0.0, 90.0, 45.0, 180.0]), torch.tensor([0.0, 0.0, 90.0, -45.0]),
+                          distance=torch.tensor([2.0, 1.1, 2.5, 3.0]), fov=45.0)
+    pos = transform_points(vertices, camera.mvp)
+    for resolution, max_pairs in (((25, 25), 1 << 21), ((64, 48), 3000)):
+        fast = rasterize(pos, faces, resolution, max_pairs=max_pairs)
+        assert_bitwise(fast, rasterize_reference(pos, faces, resolution))
+    assert sum(exact) > 10  # the exact test decided pixels on edges

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 import torch
+import trimesh
 
 from mesh2tex.render import (
     composite,
@@ -187,9 +188,6 @@ def test_batch_views_chunks_and_tiles_agree():
     assert torch.equal(small_chunks.bary, whole.bary)
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: edge functions are not watertight; a pixel centre exactly on a shared "
-                   "edge can be missed by both triangles when their float32 planes round differently (here in a batch, "
-                   "not one by one), and the far side shows through")
 def test_a_closed_mesh_has_no_cracks_where_pixel_centres_fall_on_shared_edges():
     """Watertightness: on a closed convex mesh every covered pixel shows the near side, and a batch equals
     its views one by one, even where symmetric views put pixel centres exactly on edges."""
@@ -209,6 +207,80 @@ def test_a_closed_mesh_has_no_cracks_where_pixel_centres_fall_on_shared_edges():
         towards_camera = centres[seen] @ camera.position[k]
         assert bool((towards_camera > 0).all()), f"view {k}: {int((towards_camera <= 0).sum())} pixels show the far side"
         assert torch.equal(single.face_id[0], whole.face_id[k])
+
+
+def closed_meshes():
+    """Closed, outward-facing meshes with many edges through pixel centres in axis-aligned views:
+    cube-spheres (quads split on one diagonal), a box of 12 triangles, and one whose faces are grids
+    of coplanar triangles."""
+    from mesh2tex.geometry.primitives import cube_sphere
+
+    meshes = {}
+    for n in (4, 7):
+        vertices, quads = cube_sphere(n)
+        quads = torch.as_tensor(np.asarray(quads), dtype=torch.long)
+        meshes[f"cube_sphere_{n}"] = (torch.as_tensor(np.asarray(vertices), dtype=torch.float32),
+                                      torch.cat([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
+    box = trimesh.creation.box((1.0, 0.8, 0.6))
+    meshes["box"] = (torch.tensor(box.vertices, dtype=torch.float32), torch.tensor(box.faces))
+    box = box.subdivide().subdivide()
+    meshes["grid_box"] = (torch.tensor(box.vertices, dtype=torch.float32), torch.tensor(box.faces))
+    return meshes
+
+
+@pytest.mark.parametrize("name", ["cube_sphere_4", "cube_sphere_7", "box", "grid_box"])
+def test_closed_meshes_show_only_front_faces_from_symmetric_and_random_cameras(name):
+    """Watertightness as a property: from outside a closed mesh every pixel ray first enters it through
+    a front face, so no covered pixel may show a back face; the front faces alone and the back faces
+    alone cover the same pixels (each set tiles the silhouette, and on the silhouette both follow the
+    same tie rule); and a batch equals its views one by one. Axis-aligned cameras put many pixel
+    centres exactly on edges and vertices, at odd resolutions on the image centre too."""
+    vertices, tri = closed_meshes()[name]
+    rng = np.random.default_rng(7)
+    views = [(a, e) for a in (0.0, 45.0, 90.0, 180.0, 270.0) for e in (0.0, 45.0, 90.0, -90.0)]
+    views += [tuple(rng.uniform([0, -80], [360, 80])) for _ in range(6)]
+    azimuth, elevation = (torch.tensor(t) for t in zip(*views))
+    corners = vertices[tri]
+    normal = torch.linalg.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    for resolution, distance in (((24, 24), 3.2), ((25, 25), 2.0), ((31, 40), 2.6)):
+        camera = orbit_camera(azimuth, elevation, distance=distance, fov=45.0, aspect=resolution[1] / resolution[0])
+        pos = transform_points(vertices, camera.mvp)
+        raster = rasterize(pos, tri, resolution)
+        for k in range(len(views)):
+            seen = raster.face_id[k][raster.mask[k]]
+            facing = ((camera.position[k] - corners[seen, 0]) * normal[seen]).sum(1)
+            back_faces = int((facing <= 0).sum())
+            assert back_faces == 0, f"view {views[k]}, {resolution}: {back_faces} pixels show back faces"
+        front = rasterize(pos, tri, resolution, cull_backfaces=True)
+        back = rasterize(pos, tri[:, [0, 2, 1]], resolution, cull_backfaces=True)
+        assert torch.equal(front.face_id, raster.face_id)
+        assert torch.equal(front.mask, back.mask)
+        for k in (0, 1, 5, 10):
+            assert torch.equal(rasterize(pos[k], tri, resolution).face_id[0], raster.face_id[k])
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_pixel_centres_on_edges_and_vertices_are_drawn_once_by_the_top_left_rule(dtype, clockwise):
+    """A square split into a fan of 8 triangles around a pixel centre, every edge through pixel
+    centres (exactly: clip x, y are even integers and w = 9 at 9x9 pixels). Each centre inside the
+    square, on a shared edge or on the shared vertex, is covered by exactly one triangle; on the
+    outline, centres on the left and top sides are drawn, those on the right and bottom are not (the
+    top-left rule: a centre belongs to the triangle that holds it shifted right, then down, by an
+    infinitesimal)."""
+    ring = [(6, 0), (6, 6), (0, 6), (-6, 6), (-6, 0), (-6, -6), (0, -6), (6, -6)]
+    pos = torch.tensor([[0, 0, 0, 9]] + [[x, y, 0, 9] for x, y in ring], dtype=dtype)
+    tri = torch.tensor([[0, 1 + i, 1 + (i + 1) % 8] for i in range(8)])
+    if clockwise:
+        tri = tri[:, [0, 2, 1]]
+    H = W = 9
+    # Pixel (row i, column j) has its centre at clip x = 2j - 8, y = 8 - 2i (times 1 / w).
+    cols, rows = torch.meshgrid(torch.arange(W), torch.arange(H), indexing="xy")
+    x, y = 2 * cols - 8, 8 - 2 * rows
+    expected = (x >= -6) & (x < 6) & (y > -6) & (y <= 6)
+    count = sum(rasterize(pos, tri[t:t + 1], (H, W)).mask[0].long() for t in range(8))
+    assert torch.equal(count, expected.long())
+    assert torch.equal(rasterize(pos, tri, (H, W)).mask[0], expected)
 
 
 def test_orbit_camera_convention():

@@ -3,14 +3,15 @@
 Vocabulary:
   region  a rectangle of pixels with one *reference pixel* (its origin) and float32 edge and depth
           planes relative to it; a pixel's edge functions are ``fma(step_c, dc, fma(step_r, dr,
-          ref))`` over its offset (dr, dc) from the reference, so its coverage depends only on its
-          region, not on how the region is visited. Regions are the triangles' pixel boxes, boxes
-          over ``REGION`` pixels a side cut into ``REGION``-pixel squares.
+          ref))`` over its offset (dr, dc) from the reference. Regions are the triangles' pixel
+          boxes, boxes over ``REGION`` pixels a side cut into ``REGION``-pixel squares.
   entry   a rectangle drawn with one dense stencil of per-pixel tests (the fine pass): the boxes
           of at most ``WHOLE`` x ``WHOLE`` pixels, which are most boxes of most meshes.
   span    the columns of one pixel row of a larger region that its triangle may cover (the coarse
           pass): exact up to a margin, so a large triangle costs its covered pixels plus a few
           per row, whatever its box; pixels well inside the span are taken without tests.
+  band    edge values (scaled per edge, :func:`~mesh2tex.render.edges.band_scale`) in [-1, 1], whose
+          sign float32 cannot vouch for: such pixels are set aside and decided exactly.
 """
 
 from __future__ import annotations
@@ -109,12 +110,13 @@ def split(rows: torch.Tensor, cols: torch.Tensor, side: int):
 def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
     """Per pixel row of each region, the columns its triangle may cover and those it surely covers.
 
-    A stencil rounds edge k at (r, c) as ``fma(step_c, c, at)`` with ``at = fma(step_r, r, ref)``
-    (float32); ``at`` is computed here the same way, once per row. What is left is affine in c and
-    only rounded once, so its sign changes at most once along the row, at ``c = -at / step_c``:
-    each edge bounds the columns on one side. ``maybe`` widens the bounds by
-    a margin far above any rounding and ``sure`` narrows them by it, so a pixel outside ``maybe``
-    never passes the edge tests and one inside ``sure`` always does.
+    The edge planes are scaled so that a value outside [-1, 1] has the sign of the exact edge
+    function (:func:`~mesh2tex.render.edges.band_scale`). Along a row, edge k is affine in the
+    column: ``at + step_c * c`` with ``at = fma(step_r, r, ref)`` (float32, once per row), so it is at
+    least -1 on one side of ``c = (-1 - at) / step_c`` and above 1 on one side of ``(1 - at) /
+    step_c``. ``maybe`` takes the columns at least -1 for all edges, widened by a margin far above
+    the rounding of these bounds, and ``sure`` those above 1, narrowed by it: a pixel outside
+    ``maybe`` is outside the triangle and one inside ``sure`` is inside, whatever the rounding.
 
     Args:
         p: (12,N) float32 planes of each region, relative to its origin (rows as in :class:`Entries`).
@@ -130,22 +132,26 @@ def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
     row_last = (cols - 1).index_select(0, region).float()
     at = torch.addcmul(columns(p[0:3], region), columns(p[8:11], region), r.float())
     step = columns(p[4:7], region)
-    # float32 suffices: a bound's rounding error (under 1e-5 columns within a region) is far below
-    # the margin, and bounds far outside the region only need to stay outside it.
-    bound = -at / step
-    lo = torch.where(step > 0, bound, -torch.inf).amax(0)
-    hi = torch.where(step < 0, bound, torch.inf).amin(0)
-    hi = torch.where(((step == 0) & (at < 0)).any(0), -torch.inf, hi)
+    rising, falling, flat = step > 0, step < 0, step == 0
+    # float32 suffices: a bound's rounding error (under 1e-4 columns within a region) is far below
+    # the margin, and bounds far outside the region only need to stay outside it. Row 0: where
+    # the values reach -1, row 1: where they reach 1.
+    bound = (torch.tensor([[[-1.0]], [[1.0]]], device=device) - at) / step  # (2,3,R)
+    lo = torch.where(rising, bound, -torch.inf).amax(1)
+    hi = torch.where(falling, bound, torch.inf).amin(1)
+    flat_out = torch.stack([(flat & (at < -1)).any(0), (flat & (at <= 1)).any(0)])
+    (lo, sure_lo), (hi, sure_hi) = lo, torch.where(flat_out, -torch.inf, hi)
     # Never narrow a row on NaN or infinite planes: all of it is tested.
     undecided = ~torch.isfinite(at.sum(0) + step.sum(0))
     lo = torch.where(undecided, 0.0, lo).clamp(-1, 1e9)
     hi = torch.where(undecided, row_last, hi).clamp(-2, 1e9)
+    sure_lo, sure_hi = sure_lo.clamp(-1, 1e9), sure_hi.clamp(-2, 1e9)
     # Column bounds to integers with a margin; infinities were clamped first.
     margin = 1e-3
     first = torch.ceil(lo - margin).clamp(min=0)
     last = torch.minimum(torch.floor(hi + margin), row_last)
-    sure_first = torch.where(undecided, 1e9, torch.maximum(torch.ceil(lo + margin), first))
-    sure_last = torch.minimum(torch.floor(hi - margin), last)
+    sure_first = torch.where(undecided, 1e9, torch.maximum(torch.ceil(sure_lo + margin), first))
+    sure_last = torch.minimum(torch.floor(sure_hi - margin), last)
     maybe = torch.stack([first, last]).long()
     sure = torch.stack([sure_first, sure_last]).long()
     return region, r, at, maybe, sure
@@ -156,15 +162,18 @@ class Entries:
     """Rectangles to draw (boxes or regions), each with planes relative to its origin pixel.
 
     Attributes:
-        params: (12,E) float32; rows 0-3: lambda_0, lambda_1, lambda_2 and NDC z at the reference
-            pixel; rows 4-7: their change per pixel step right; rows 8-11: per step down.
+        params: (12,E) float32; rows 0-3: lambda_0, lambda_1, lambda_2 (each times its band scale,
+            :func:`~mesh2tex.render.edges.band_scale`) and NDC z at the reference pixel; rows 4-7:
+            their change per pixel step right; rows 8-11: per step down.
         base: (E,) int64 flat index into the depth buffer of the origin pixel.
         face: (E,) int64 triangle index (the low bits of the visibility key).
+        setup: (E,) int64 index of the triangle's set-up (for :class:`~mesh2tex.render.edges.EdgeTest`).
     """
 
     params: torch.Tensor
     base: torch.Tensor
     face: torch.Tensor
+    setup: torch.Tensor
 
 
 class DepthBuffer:
@@ -183,16 +192,41 @@ class DepthBuffer:
         self.empty = torch.iinfo(torch.long).max
         self.keys = torch.full((views * self.shape[1] * self.shape[2],), self.empty, dtype=torch.long,
                                device=device)
+        self.undecided = []  # (pixel, key, setup) of the pixels left to settle()
 
-    def test(self, entries: Entries, entry, dr, dc):
-        """Depth-test pixels at offsets (dr, dc) (each (n,) int64) from the reference of ``entry``."""
+    def test(self, entries: Entries, entry, dr, dc, band=None):
+        """Depth-test pixels at offsets (dr, dc) (each (n,) int64) from the reference of ``entry``.
+
+        ``band``: (n,) bool or None, pixels whose coverage the float32 edge values leave open: they
+        are set aside for :meth:`settle` instead.
+        """
         q = entries.params
         z = torch.addcmul(torch.addcmul(q[3].index_select(0, entry), q[11].index_select(0, entry), dr.float()),
                           q[7].index_select(0, entry), dc.float())
         pixel = entries.base.index_select(0, entry) + dr * self.row_stride + dc
         key = (((z.double() + 1) * self.depth_scale).long() << self.id_bits) | entries.face.index_select(0, entry)
-        key = torch.where(z.abs() <= 1, key, self.empty)  # near and far planes
+        drawn = z.abs() <= 1  # near and far planes
+        if band is not None:
+            undecided = torch.nonzero(band & drawn).squeeze(1)
+            if undecided.numel():
+                self.undecided.append((pixel.index_select(0, undecided), key.index_select(0, undecided),
+                                       entries.setup.index_select(0, entry.index_select(0, undecided))))
+                drawn &= ~band
+        key = torch.where(drawn, key, self.empty)
         self.keys.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
+
+    def settle(self, edges):
+        """Decide the pixels set aside by :meth:`test` with the exact edge test (``edges``, an
+        :class:`~mesh2tex.render.edges.EdgeTest`), all at once, and depth-test those covered."""
+        if not self.undecided:
+            return
+        pixel, key, setup = (torch.cat(t) for t in zip(*self.undecided))
+        self.undecided = []
+        in_view = pixel % (self.shape[1] * self.row_stride)
+        row = torch.div(in_view, self.row_stride, rounding_mode="floor")
+        covered = torch.nonzero(edges.inside(setup, row, in_view % self.row_stride)).squeeze(1)
+        self.keys.scatter_reduce_(0, pixel.index_select(0, covered), key.index_select(0, covered), reduce="amin",
+                                  include_self=True)
 
     def image(self, resolution) -> torch.Tensor:
         """(B*H*W,) int64 keys without the padding."""
@@ -205,13 +239,14 @@ def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int):
 
     Each chunk of ``slices`` (from :func:`bin_slices`) shares a power-of-two stencil (cap_rows,
     cap_cols) and is evaluated as a dense (n, cap_rows, cap_cols) grid of edge functions, with no
-    per-pixel gathers. Stencil pixels outside an entry's rectangle need no test of their own: only
-    pixels inside the triangle pass, and past the image's right or bottom edge they lie in the
-    buffer's padding. The hits of several chunks (at most about ``max_pairs``) are
-    depth-tested together.
+    per-pixel gathers. A pixel whose smallest (scaled) edge value is above 1 is covered, below -1
+    not; the few in between are left to :meth:`DepthBuffer.settle`.
+    Stencil pixels outside an entry's rectangle need no test of their own: only pixels inside the
+    triangle pass, and past the image's right or bottom edge they lie in the buffer's padding. The
+    hits of several chunks (at most about ``max_pairs``) are depth-tested together.
     """
     device = buffer.keys.device
-    hits = []  # (entry, row offset, column offset) per chunk
+    hits = []  # (entry, row offset, column offset, in the band) per chunk
     pending = 0
 
     def flush():
@@ -227,12 +262,12 @@ def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int):
             per_row = torch.addcmul(p[k, lo:hi, None], p[k + 8, lo:hi, None], rs)
             return torch.addcmul(per_row[:, :, None], p[k + 4, lo:hi, None, None], cs)
 
-        lam_min = torch.minimum(torch.minimum(plane(0), plane(1)), plane(2))
-        hit = torch.nonzero(lam_min.view(-1) >= 0).squeeze(1)
+        lam_min = torch.minimum(torch.minimum(plane(0), plane(1)), plane(2)).view(-1)
+        hit = torch.nonzero(lam_min >= -1).squeeze(1)
         row_bits, col_bits = cap_rows.bit_length() - 1, cap_cols.bit_length() - 1
         entry = (hit >> (row_bits + col_bits)) + lo
         dr, dc = (hit >> col_bits) & (cap_rows - 1), hit & (cap_cols - 1)
-        hits.append((entry, dr, dc))
+        hits.append((entry, dr, dc, lam_min.index_select(0, hit) <= 1))
         pending += (hi - lo) * cap_rows * cap_cols
         if pending >= max_pairs:
             flush()
@@ -244,7 +279,8 @@ def draw(buffer: DepthBuffer, entries: Entries, slices, max_pairs: int):
 def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: torch.Tensor, max_pairs: int):
     """Depth-test every covered pixel of the regions into ``buffer``, row by row (the coarse pass
     for large triangles): pixels in a row's ``sure`` range are taken without edge tests, the few
-    others of its ``maybe`` range (:func:`row_spans`) are tested one by one.
+    others of its ``maybe`` range (:func:`row_spans`) are tested one by one (those in the band are
+    left to :meth:`DepthBuffer.settle`).
 
     Args:
         regions: Entries of N regions.
@@ -281,8 +317,10 @@ def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: 
         n_tested = int(ends[min(b, 2 * R) - 1] - before[a]) if a < 2 * R else 0
         tested_row, tested_col = row[:n_tested], col[:n_tested]
         lam = torch.addcmul(columns(at, tested_row), columns(step_c, region.index_select(0, tested_row)),
-                            tested_col.float())
-        passed = torch.nonzero(lam.amin(0) >= 0).squeeze(1)
+                            tested_col.float()).amin(0)
+        passed = torch.nonzero(lam >= -1).squeeze(1)
+        band = torch.cat([lam.index_select(0, passed) <= 1, torch.zeros(row.numel() - n_tested, dtype=torch.bool,
+                                                                       device=device)])
         row = torch.cat([tested_row.index_select(0, passed), row[n_tested:]])
         col = torch.cat([tested_col.index_select(0, passed), col[n_tested:]])
-        buffer.test(regions, region.index_select(0, row), r.index_select(0, row), col)
+        buffer.test(regions, region.index_select(0, row), r.index_select(0, row), col, band)

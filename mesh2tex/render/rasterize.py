@@ -9,7 +9,12 @@ Method (homogeneous rasterization, no geometric clipping):
      in front of the camera, w > 0) and ``-1 <= z <= 1`` (near and far planes, tested per pixel). This
      is exact for triangles that cross the near plane or reach behind the camera: no garbage, no
      clipping into new triangles. The set-up runs in float64; the per-pixel tests in float32 relative to
-     a reference pixel, so nothing cancels catastrophically.
+     a reference pixel, so nothing cancels catastrophically. Coverage is watertight: the float32 edge
+     values are scaled so that outside [-1, 1] their sign is certain (``edges.band_scale``); the few
+     pixels within that band of an edge (a small fraction of a pixel from it, or on it) are decided
+     from the vertices in exact arithmetic (``edges.EdgeTest``), where the two triangles of a shared
+     edge take opposite sides, and a centre exactly on an edge goes to the triangle that holds it
+     shifted right, then down, by an infinitesimal (the top-left rule): drawn exactly once.
   2. Per triangle and view, a pixel bounding box (of the triangle clipped to the near plane) gives the
      candidate pixels; boxes holding no pixel centre (sub-pixel triangles between centres, off
      screen) are dropped before the set-up. Boxes of at most 16x16 pixels (most boxes of most
@@ -23,7 +28,8 @@ Method (homogeneous rasterization, no geometric clipping):
      pixels past the image edge need no test; depth is computed at hits only.
   3. Visibility: one ``scatter_reduce('amin')`` per chunk over an int64 key per covered pair, the
      quantised depth in the high bits and the triangle's index in the low bits. Ties go to the lower
-     triangle index, so results are deterministic.
+     triangle index, so results are deterministic. The band's pixels are set aside and depth-tested
+     together once the exact test has decided them (``DepthBuffer.settle``).
   4. Only the winning triangle of each pixel gets its barycentrics and depth computed (float64, cast to
      float32), so they are not quantised.
 """
@@ -36,6 +42,7 @@ from dataclasses import dataclass
 import torch
 
 from mesh2tex.checks import check_shape
+from mesh2tex.render.edges import EdgeTest, band_scale
 from mesh2tex.render.binning import (
     N_BINS,
     REGION,
@@ -186,20 +193,29 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
 
 
 
-def _regions(params64, rows, cols):
+def _regions(params64, scale, rows, cols):
     """Cut pixel boxes into regions of at most REGION x REGION pixels with their own planes.
 
     Args:
         params64: (12,N) float64 from :func:`_edge_setup`, relative to each box origin.
+        scale: (3,N) float32 band scale of the edge planes (:func:`~mesh2tex.render.edges.band_scale`).
         rows, cols: (N,) int64 box sizes.
     Returns:
         owner (E,) index into N; off_r, off_c, rows, cols (E,) of each region relative to its box;
-        params (12,E) float32 rebased (in float64) to the region's origin.
+        params (12,E) float32 rebased (in float64) to the region's origin, edge planes scaled.
     """
     owner, off_r, off_c, rows, cols = split(rows, cols, REGION)
     p = columns(params64, owner)
     p[0:4] += p[4:8] * off_c.double() + p[8:12] * off_r.double()
-    return owner, off_r, off_c, rows, cols, p.float()
+    return owner, off_r, off_c, rows, cols, _scaled(p, columns(scale, owner))
+
+
+def _scaled(params64, scale):
+    """(12,N) float64 planes -> float32 with the edge planes (not depth) multiplied by their band
+    scale (3,N), so that the band of uncertain values is [-1, 1] for every edge."""
+    p = params64.float()
+    p.view(3, 4, -1)[:, :3] *= scale
+    return p
 
 
 def gather_corners(pos: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
@@ -212,17 +228,37 @@ def gather_corners(pos: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
     return by_component.index_select(0, index.reshape(-1)).view(4, 3, B * tri.shape[0])
 
 
-def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
-    """Boxes of every (view, triangle), then the float64 set-up of those that can draw a pixel,
-    sorted by size bin: each bin is a contiguous slice, the large boxes last.
+@dataclass
+class Setups:
+    """The live (view, triangle) pairs of a call, those whose box holds a pixel centre and that are
+    not degenerate (or culled), sorted by size bin: each bin a contiguous slice, the large boxes last.
+
+    Attributes:
+        live: (L,) int64 index into the (view, triangle) pairs (view * T + triangle).
+        row0, col0, rows, cols: (L,) int64 pixel boxes.
+        params64: (12,L) float64 planes relative to each box origin (see :func:`_edge_setup`).
+        scale: (3,L) float32 band scale of each edge plane (:func:`~mesh2tex.render.edges.band_scale`).
+        front: (L,) bool, counter-clockwise in NDC (positive determinant).
+        counts: N_BINS + 1 ints, the live boxes in each size bin (:func:`size_bins`), then the boxes
+            over WHOLE pixels a side.
+    """
+
+    live: torch.Tensor
+    row0: torch.Tensor
+    col0: torch.Tensor
+    rows: torch.Tensor
+    cols: torch.Tensor
+    params64: torch.Tensor
+    scale: torch.Tensor
+    front: torch.Tensor
+    counts: list[int]
+
+
+def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool) -> Setups:
+    """Boxes of every (view, triangle), then the float64 set-up of those that can draw a pixel.
 
     Args:
         corners: (4,3,N) clip-space vertices (pos's dtype): component, corner, (view, triangle).
-    Returns:
-        live (L,) int64 index into N of the triangles kept; row0, col0, rows, cols (L,) int64 boxes;
-        params64 (12,L) float64 planes relative to each box origin (see :func:`_edge_setup`);
-        counts: N_BINS + 1 ints, the live boxes in each size bin (:func:`size_bins`), then the
-        boxes over WHOLE pixels a side.
     """
     row0, col0, rows, cols = (t.view(-1) for t in _pixel_boxes(corners.float()[:, None], resolution))
     # Boxes holding no pixel centre (sub-pixel triangles between centres, off screen, behind the
@@ -234,7 +270,9 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
     counts = torch.bincount(bins, minlength=N_BINS + 2).tolist()[:N_BINS + 1]
     live = live[:sum(counts)]
     row0, col0, rows, cols = (t.index_select(0, live) for t in (row0, col0, rows, cols))
-    params64, det = _edge_setup(columns(corners, live).double(), resolution, row0, col0)
+    clip = columns(corners, live)
+    size = clip.abs().amax((0, 1))
+    params64, det = _edge_setup(clip.double(), resolution, row0, col0)
     # Degenerate triangles (seen edge-on, or through the eye) and culled ones draw nothing.
     keep = torch.isfinite(1.0 / det)
     if cull_backfaces:
@@ -242,31 +280,34 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool):
     if not bool(keep.all()):
         keep = torch.nonzero(keep).squeeze(1)
         counts = torch.bincount(bins.index_select(0, live.index_select(0, keep)), minlength=N_BINS + 1).tolist()
-        live, row0, col0, rows, cols = (t.index_select(0, keep) for t in (live, row0, col0, rows, cols))
+        live, row0, col0, rows, cols, det, size = (t.index_select(0, keep)
+                                                   for t in (live, row0, col0, rows, cols, det, size))
         params64 = columns(params64, keep)
-    return live, row0, col0, rows, cols, params64, counts
+    scale = band_scale(params64, size, det, rows, cols)
+    return Setups(live, row0, col0, rows, cols, params64, scale, det > 0, counts)
 
 
-def _draw_large(buffer: DepthBuffer, params64, base, face, rows, cols, max_pairs: int):
-    """The coarse pass, then the fine pass, for boxes larger than WHOLE x WHOLE pixels.
+def _draw_large(buffer: DepthBuffer, setups: Setups, first: int, base, face, max_pairs: int):
+    """The coarse pass, then the fine pass, for the boxes larger than WHOLE x WHOLE pixels: the
+    set-ups from index ``first`` on.
 
     Args:
-        params64: (12,N) float64 planes relative to each box origin.
-        base: (N,) int64 flat index into ``buffer`` of each box origin.
+        base: (N,) int64 flat index into ``buffer`` of each box origin (of the set-ups from ``first``).
         face: (N,) int64 triangle index.
-        rows, cols: (N,) int64 box sizes.
     """
-    owner, off_r, off_c, r_rows, r_cols, r_params = _regions(params64, rows, cols)
+    owner, off_r, off_c, r_rows, r_cols, r_params = _regions(
+        setups.params64[:, first:], setups.scale[:, first:], setups.rows[first:], setups.cols[first:])
     r_base = base.index_select(0, owner) + off_r * buffer.row_stride + off_c
     r_face = face.index_select(0, owner)
+    r_setup = owner + first
     # A bounded number of rows at a time keeps memory flat whatever the triangles' sizes.
     ends = torch.cumsum(r_rows, 0).tolist()
     limit = max(1, max_pairs // REGION)
     lo = 0
     while lo < len(ends):
         hi = max(lo + 1, bisect.bisect_right(ends, (ends[lo - 1] if lo else 0) + limit))
-        draw_spans(buffer, Entries(r_params[:, lo:hi], r_base[lo:hi], r_face[lo:hi]), r_rows[lo:hi],
-                   r_cols[lo:hi], max_pairs)
+        regions = Entries(r_params[:, lo:hi], r_base[lo:hi], r_face[lo:hi], r_setup[lo:hi])
+        draw_spans(buffer, regions, r_rows[lo:hi], r_cols[lo:hi], max_pairs)
         lo = hi
 
 
@@ -346,10 +387,29 @@ def rasterize(
             return Raster(face_id, bary, depth)
 
         corners = gather_corners(pos, tri)
-        live, row0, col0, rows, cols, params64, counts = _live_setup(corners, (H, W), cull_backfaces)
+        setups = _live_setup(corners, (H, W), cull_backfaces)
         raster = Raster(face_id, bary, depth)
-        if live.numel() == 0:
+        if setups.live.numel() == 0:
             return raster
+        live, counts = setups.live, setups.counts
+        face, view = live % T, torch.div(live, T, rounding_mode="floor")
+        buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)
+        base = view * (buffer.shape[1] * buffer.row_stride) + setups.row0 * buffer.row_stride + setups.col0
+        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, bin by bin; larger ones (sorted
+        # last) go through the coarse pass.
+        n = sum(counts[:N_BINS])
+        if n:
+            entries = Entries(_scaled(setups.params64[:, :n], setups.scale[:, :n]), base[:n], face[:n],
+                              torch.arange(n, device=device))
+            draw(buffer, entries, bin_slices(counts[:N_BINS], max_pairs), max_pairs)
+        if counts[N_BINS]:
+            _draw_large(buffer, setups, n, base[n:], face[n:], max_pairs)
+        # The few pixels the float32 edge values leave undecided (on an edge, or a small fraction
+        # of a pixel from one), all at once.
+        buffer.settle(EdgeTest(corners, live, setups.front, (H, W)))
+        resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, setups.row0, setups.col0,
+                        setups.params64)
+        return raster
         face, view = live % T, torch.div(live, T, rounding_mode="floor")
         buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)
         base = view * (buffer.shape[1] * buffer.row_stride) + row0 * buffer.row_stride + col0

@@ -78,6 +78,19 @@ def test_train_writes_config_checkpoint_metrics_samples(tiny_data, tmp_path):
     assert train(tiny_data, out, "--iters", "3") == 2
 
 
+def test_lazy_terms_are_logged_with_their_last_value(tiny_data, tmp_path):
+    """A lazy term (path length and R1 every 2 steps here) that never runs on a logged step still
+    shows in metrics.jsonl, with the value of its last run."""
+    config = tmp_path / "log2.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "log_every": 2, "loss": {**TINY["loss"], "diversity_interval": 2}}))
+    out = tmp_path / "run"
+    assert train(tiny_data, out, "--iters", "4", "--config", str(config)) == 0
+    records = metrics(out)
+    assert [r["iteration"] for r in records] == [2, 4]  # the steps logged are 1 and 3; the lazy terms ran at 0 and 2
+    for key in ("pl_penalty", "r1_field", "mode_seeking"):
+        assert all(key in r for r in records), key
+
+
 def test_resume_reproduces_the_uninterrupted_run(tiny_data, tmp_path):
     full, part = tmp_path / "full", tmp_path / "part"
     assert train(tiny_data, full, "--iters", "4") == 0

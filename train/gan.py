@@ -375,6 +375,7 @@ class GanTrainer:
         main = self.dist.is_main
         bar = progress_bar(total=cfg.iters, initial=self.iteration, desc="train gan") if main else None
         throughput = runs.Throughput(self.iteration, self.device)
+        latest: dict[str, float] = {}
         try:
             while self.iteration < cfg.iters:
                 try:
@@ -388,6 +389,8 @@ class GanTrainer:
                 if bar is not None:
                     bar.update(1)
                     bar.set_postfix({k: f"{v:.3f}" for k, v in logs.items() if k.startswith("loss_g_field") or k.startswith("loss_d_field")})
+                latest.update(logs)  # the lazy terms (path length, R1, mode seeking) keep their last value between runs
+                logs = dict(latest)
                 it = self.iteration
                 if main and cfg.metric_every and (it % cfg.metric_every == 0 or it == cfg.iters):
                     metric = self.measure()

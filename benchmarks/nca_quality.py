@@ -1,6 +1,6 @@
 """How well a trained mesh cellular automaton textures meshes, against its exemplar and simple baselines.
 
-    python benchmarks/nca_quality.py --model RUN/model.safetensors [--meshes CHAIR.npz CAR.npz]
+    python benchmarks/nca_quality.py --model RUN/model.safetensors [--meshes CHAIR.npz CAR.npz [--splits 1 2]]
         [--graft OTHER/model.safetensors] [--child CHILD_RUN --scratch SCRATCH_RUN] [--out FILE.json]
 
 All style losses are the training loss (:func:`mesh2tex.losses.ot_style.style_loss`, the model's VGG
@@ -25,7 +25,8 @@ Rows:
                  and it differs by over sqrt(2), after splitting the faces to match it (matched, as
                  ``infer nca --subdivide auto`` does); with --exemplar-name also the oracle's and the
                  vertex oracle's ratio (the same pattern on that mesh against on the sphere: how much
-                 of the rise the mesh itself causes)
+                 of the rise the mesh itself causes); with --splits, also each --meshes file split
+                 that many times
   graft          with --graft: per side of the seam x = 0 (cells with |x| > 0.3), the style loss against
                  each exemplar
   lineage        with --child and --scratch (two runs on one exemplar, the child from --parent MODEL):
@@ -174,6 +175,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", required=True)
     parser.add_argument("--meshes", nargs="*", default=[], help="unseen meshes (prepared .npz or mesh files)")
+    parser.add_argument("--splits", nargs="*", type=int, default=[], help="also run on each of --meshes split into four this many times")
     parser.add_argument("--graft", help="a second model of the same lineage")
     parser.add_argument("--child", help="run folder trained with --parent MODEL")
     parser.add_argument("--scratch", help="run folder trained on the child's exemplar from scratch")
@@ -238,6 +240,13 @@ def main() -> int:
                               "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"]}
             if args.exemplar_name:
                 row["matched"]["vertex_oracle_ratio"] = judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels) / results["vertex_oracle"]
+        if spec in args.meshes:
+            for count in args.splits:
+                fine = sphere_graph(model, spec, subdivide=count)
+                row[f"split_{count}"] = {"cells": fine.num_cells, "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"]}
+                if args.exemplar_name:
+                    row[f"split_{count}"]["vertex_oracle_ratio"] = (judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels)
+                                                                    / results["vertex_oracle"])
         unseen[Path(spec).stem] = row
     results["unseen"] = unseen
 

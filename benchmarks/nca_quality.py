@@ -1,6 +1,6 @@
 """How well a trained mesh cellular automaton textures meshes, against its exemplar and simple baselines.
 
-    python benchmarks/nca_quality.py --model RUN/model.safetensors [--meshes CHAIR.npz CAR.npz]
+    python benchmarks/nca_quality.py --model RUN/model.safetensors [--meshes CHAIR.npz CAR.npz [--splits 1 2]]
         [--graft OTHER/model.safetensors] [--child CHILD_RUN --scratch SCRATCH_RUN] [--out FILE.json]
 
 All style losses are the training loss (:func:`mesh2tex.losses.ot_style.style_loss`, the model's VGG
@@ -20,7 +20,13 @@ Rows:
   stability      300 steps (5x the 60) against 60; the largest |state|
   regrowth       after 60 steps the quarter of the cells with the largest x zeroed, 60 more steps,
                  against 120 undamaged steps
-  unseen meshes  each --meshes file and a finer sphere (sphere:48) against the training sphere
+  unseen meshes  each --meshes file and a finer sphere (sphere:48) against the training sphere: at the
+                 mesh's own cells (native) and, where the model records its training cell spacing
+                 and it differs by over sqrt(2), after splitting the faces to match it (matched, as
+                 ``infer nca --subdivide auto`` does); with --exemplar-name also the oracle's and the
+                 vertex oracle's ratio (the same pattern on that mesh against on the sphere: how much
+                 of the rise the mesh itself causes); with --splits, also each --meshes file split
+                 that many times
   graft          with --graft: per side of the seam x = 0 (cells with |x| > 0.3), the style loss against
                  each exemplar
   lineage        with --child and --scratch (two runs on one exemplar, the child from --parent MODEL):
@@ -42,7 +48,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.geometry.primitives import load_surface  # noqa: E402
+from mesh2tex.geometry.primitives import density_subdivisions, load_surface, mean_edge_length  # noqa: E402
 from mesh2tex.io.models import load_nca  # noqa: E402
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd  # noqa: E402
@@ -143,9 +149,15 @@ def grow(model: MeshNCA, graph, steps: int, seed: int = 0, state=None) -> torch.
     return state
 
 
-def sphere_graph(model: MeshNCA, spec: str = "sphere"):
-    vertices, faces = load_surface(spec)
+def sphere_graph(model: MeshNCA, spec: str = "sphere", subdivide: int = 0):
+    vertices, faces = load_surface(spec, subdivide=subdivide)
     return build_cell_graph(vertices, faces, model.cfg.neighbourhood)
+
+
+def matched_subdivisions(spec: str, cell_spacing: float) -> tuple[int, float]:
+    """(the splits that match the training cell spacing, the mesh's own edge length over it; 0 when unknown)."""
+    spacing = mean_edge_length(*load_surface(spec))
+    return density_subdivisions(spacing, cell_spacing), spacing / cell_spacing if cell_spacing > 0 else 0.0
 
 
 def first_reaching(metrics: Path, target: float, window: int = 50) -> int | None:
@@ -163,6 +175,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", required=True)
     parser.add_argument("--meshes", nargs="*", default=[], help="unseen meshes (prepared .npz or mesh files)")
+    parser.add_argument("--splits", nargs="*", type=int, default=[], help="also run on each of --meshes split into four this many times")
     parser.add_argument("--graft", help="a second model of the same lineage")
     parser.add_argument("--child", help="run folder trained with --parent MODEL")
     parser.add_argument("--scratch", help="run folder trained on the child's exemplar from scratch")
@@ -212,9 +225,29 @@ def main() -> int:
     results["regrowth_ratio"] = judge.loss(model, regrown, graph) / judge.loss(model, undamaged, graph)
 
     unseen = {}
+    cell_spacing = float(meta.get("cell_spacing", 0.0))
+    exemplar_pixels = exemplar.shape[0] / args.exemplar_extent
     for spec in ["sphere:48", *args.meshes]:
         g = sphere_graph(model, spec)
-        unseen[Path(spec).stem] = {"cells": g.num_cells, "ratio": judge.loss(model, grow(model, g, STEPS), g) / results["trained"]}
+        subdivisions, edge_ratio = matched_subdivisions(spec, cell_spacing)
+        row = {"cells": g.num_cells, "edge_ratio": round(edge_ratio, 3), "ratio": judge.loss(model, grow(model, g, STEPS), g) / results["trained"]}
+        if args.exemplar_name:
+            row["oracle_ratio"] = judge.oracle_loss(args.exemplar_name, g, exemplar_pixels) / results["oracle"]
+            row["vertex_oracle_ratio"] = judge.vertex_oracle_loss(args.exemplar_name, g, exemplar_pixels) / results["vertex_oracle"]
+        if subdivisions:
+            fine = sphere_graph(model, spec, subdivide=subdivisions)
+            row["matched"] = {"subdivisions": subdivisions, "cells": fine.num_cells,
+                              "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"]}
+            if args.exemplar_name:
+                row["matched"]["vertex_oracle_ratio"] = judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels) / results["vertex_oracle"]
+        if spec in args.meshes:
+            for count in args.splits:
+                fine = sphere_graph(model, spec, subdivide=count)
+                row[f"split_{count}"] = {"cells": fine.num_cells, "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"]}
+                if args.exemplar_name:
+                    row[f"split_{count}"]["vertex_oracle_ratio"] = (judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels)
+                                                                    / results["vertex_oracle"])
+        unseen[Path(spec).stem] = row
     results["unseen"] = unseen
 
     if args.graft:

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from mesh2tex.errors import UserError
-from mesh2tex.geometry.primitives import load_surface, mean_edge_length
+from mesh2tex.geometry.primitives import density_subdivisions, load_surface, mean_edge_length
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.atomic import atomic_path, write_json
@@ -45,17 +45,13 @@ OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "r
 
 
 def choose_subdivisions(value: str, vertices: np.ndarray, faces: np.ndarray, cell_spacing: float) -> int:
-    """--subdivide: a number, or "auto": halve the edges (at most 3 times) while they are over 1.5x the training mesh's."""
+    """--subdivide: a number, or "auto": the split count whose edges come nearest to the training mesh's
+    (``cell_spacing``, the model's metadata; 0 for a model without it, which runs on the mesh as it is)."""
     if value != "auto":
         if not value.isdigit() or int(value) > 4:
             raise UserError(f"--subdivide {value}: expected auto or a number 0..4")
         return int(value)
-    if cell_spacing <= 0:
-        return 0
-    spacing, count = mean_edge_length(vertices, faces), 0
-    while spacing > 1.5 * cell_spacing and count < 3:
-        spacing, count = spacing / 2, count + 1
-    return count
+    return density_subdivisions(mean_edge_length(vertices, faces), cell_spacing)
 
 
 def run(args) -> int:
@@ -79,9 +75,11 @@ def run(args) -> int:
         lineage_note = lineage(meta, other_meta)
 
     vertices, faces = load_surface(args.mesh)
-    subdivisions = choose_subdivisions(args.subdivide, vertices, faces, float(meta.get("cell_spacing", 0.0)))
+    cell_spacing = float(meta.get("cell_spacing", 0.0))
+    subdivisions = choose_subdivisions(args.subdivide, vertices, faces, cell_spacing)
     if subdivisions:
         vertices, faces = load_surface(args.mesh, subdivide=subdivisions)
+    edge_ratio = mean_edge_length(vertices, faces) / cell_spacing if cell_spacing > 0 else None
     graph = build_cell_graph(vertices, faces, model.cfg.neighbourhood).to(device)
     positions = graph.positions.cpu().numpy()
     graft = None
@@ -154,12 +152,15 @@ def run(args) -> int:
         with atomic_path(out / "growth.gif") as tmp:
             pictures[0].save(tmp, format="GIF", save_all=True, append_images=pictures[1:], duration=100, loop=0)
     report = {"checkpoint": str(args.checkpoint), "mesh": args.mesh, "cells": graph.num_cells, "subdivisions": subdivisions,
+              "edge_ratio": None if edge_ratio is None else round(edge_ratio, 3),
               "steps": args.steps, "regrow": args.regrow, "graft": args.graft, "graft_mask": args.graft_mask if args.graft else None,
               "lineage": lineage_note, "angle_degrees": args.angle, "seconds": round(time.perf_counter() - started, 2),
               "ms_per_step": round(1000 * step_seconds / (args.steps * len(phases)), 3), "style_loss": style,
               "files": [f"view_{k}.png" for k in range(args.views)] + [n for n in OUTPUTS if (out / n).exists()]}
     write_json(out / "report.json", report)
-    print(f"{graph.num_cells} cells, {args.steps} steps ({report['ms_per_step']} ms each): {out / 'textured.glb'}"
+    density = f"faces split into four {subdivisions}x" if subdivisions else "the mesh as it is"
+    density += "; the model records no training cell spacing" if edge_ratio is None else f", edges {edge_ratio:.2f}x the training mesh's"
+    print(f"{graph.num_cells} cells ({density}), {args.steps} steps ({report['ms_per_step']} ms each): {out / 'textured.glb'}"
           + (f"; style loss {style:.3f}" if style is not None else ""))
     if lineage_note:
         print(f"mesh2tex: note: {lineage_note}")

@@ -69,7 +69,7 @@ def nca(parser: argparse.ArgumentParser) -> None:
                         help="where the --graft model grows: an expression in x, y, z (the mesh in the unit ball) or a per-vertex .npy/.txt file")
     parser.add_argument("--regrow", help="after growth, zero the cells where this expression (or file) is above 0.5 and grow them back")
     parser.add_argument("--angle", type=float, default=0.0, help="texture orientation: degrees about each vertex normal")
-    parser.add_argument("--subdivide", default="auto", help="split faces into four N times; auto matches the training mesh's cell spacing")
+    parser.add_argument("--subdivide", default="auto", help="split faces into four N times (0: the mesh as it is); auto: the count whose edges come nearest the training mesh's")
     parser.add_argument("--views", type=int, default=4, help="renders around the mesh")
     parser.add_argument("--resolution", type=int, default=256, help="render resolution")
     parser.add_argument("--texture-size", type=int, default=1024, help="baked texture size")

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from mesh2tex.errors import InputError
-from mesh2tex.geometry.primitives import cube_sphere, load_surface, subdivide_quads
+from mesh2tex.geometry.primitives import cube_sphere, density_subdivisions, load_surface, mean_edge_length, subdivide_quads
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.nn.nca import MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
 from mesh2tex.nn.render_texture import render_states
@@ -181,6 +181,51 @@ def test_load_surface_normalises_to_the_unit_ball(tmp_path):
     assert load_surface("sphere:3")[1].shape == (54, 4)
     with pytest.raises(InputError, match="sphere:N"):
         load_surface("sphere:x")
+
+
+def _edge_counts(faces: np.ndarray) -> np.ndarray:
+    edges = np.sort(np.stack([faces, np.roll(faces, -1, 1)], -1).reshape(-1, 2), axis=1)
+    return np.unique(edges, axis=0, return_counts=True)[1]
+
+
+def test_subdivision_keeps_the_surface_and_closed_meshes_closed(tmp_path):
+    import trimesh
+
+    # Quads: the cube-sphere's grid pushed out to the cube has planar quads lying on the cube's faces.
+    vertices, quads = cube_sphere(3)
+    vertices = vertices / np.abs(vertices).max(axis=1, keepdims=True)
+    fine_v, fine_q = subdivide_quads(vertices, quads)
+    np.testing.assert_allclose(np.abs(fine_v).max(axis=1), 1.0, atol=1e-6)  # every new vertex on the cube
+    assert np.all(_edge_counts(fine_q) == 2)
+    cube = trimesh.Trimesh(fine_v, np.concatenate([fine_q[:, :3], fine_q[:, [0, 2, 3]]]), process=False)
+    assert np.isclose(cube.area, 24.0) and np.isclose(cube.volume, 8.0, rtol=1e-5)  # outward, nothing added or lost
+
+    # Triangles (a mesh file): load_surface's splits put new vertices on the original triangles.
+    trimesh.creation.icosphere(1).export(tmp_path / "ico.obj")
+    coarse_v, coarse_f = load_surface(str(tmp_path / "ico.obj"))
+    for level in (1, 2):
+        fine_v, fine_f = load_surface(str(tmp_path / "ico.obj"), subdivide=level)
+        assert fine_f.shape == (coarse_f.shape[0] * 4**level, 3)
+        triangles = np.repeat(coarse_v[coarse_f][None], len(fine_v), 0).reshape(-1, 3, 3)
+        points = np.repeat(fine_v, len(coarse_f), 0)
+        distance = np.linalg.norm(trimesh.triangles.closest_point(triangles, points) - points, axis=1).reshape(len(fine_v), -1)
+        assert distance.min(axis=1).max() < 1e-5  # each new vertex lies on an original triangle
+        fine = trimesh.Trimesh(fine_v, fine_f, process=False)
+        assert fine.is_watertight and np.isclose(fine.volume, trimesh.Trimesh(coarse_v, coarse_f).volume, rtol=1e-5)
+        assert np.isclose(mean_edge_length(fine_v, fine_f), mean_edge_length(coarse_v, coarse_f) / 2**level, rtol=0.05)
+
+
+def test_density_rule_picks_the_split_count_nearest_the_training_spacing():
+    assert [density_subdivisions(r, 1.0) for r in (0.3, 1.0, 1.4, 1.5, 2.0, 2.9, 3.0, 8.0, 100.0)] == [0, 0, 0, 1, 1, 2, 2, 3, 3]
+    assert density_subdivisions(5.0, 0.0) == 0  # a model without the record: the mesh as it is
+    # sphere:8 has edges 4x the training sphere's (sphere:32): two splits bring them level.
+    target = mean_edge_length(*load_surface("sphere"))
+    coarse = load_surface("sphere:8")
+    level = density_subdivisions(mean_edge_length(*coarse), target)
+    assert level == 2
+    fine = load_surface("sphere:8", subdivide=level)
+    assert fine[0].shape[0] == load_surface("sphere")[0].shape[0]
+    assert abs(np.log2(mean_edge_length(*fine) / target)) < 0.5
 
 
 def test_region_weights_from_expressions_and_files(tmp_path):

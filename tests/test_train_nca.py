@@ -125,3 +125,26 @@ def test_a_run_starts_from_another_runs_checkpoint(nca_files, capsys):
     assert train(nca_files, nca_files / "from_model", "--resume", str(source / "model.safetensors")) == 2
     assert "not a training checkpoint" in capsys.readouterr().err
     assert not (nca_files / "from_model").exists()
+
+
+def test_infer_matches_the_training_cell_spacing_and_old_models_run_as_is(nca_files, capsys):
+    """A coarse mesh is split until its edges come nearest the training sphere's (sphere:1 against sphere:3:
+    2.4x, one split leaves 1.2x, two 0.6x); a model saved without the training spacing still loads and
+    runs on the mesh as it is."""
+    from mesh2tex.io.checkpoint import save_checkpoint
+
+    model = nca_files / "straight" / "model.safetensors"
+    groups, meta = load_checkpoint(model, kind="nca")
+    assert meta["cell_spacing"] > 0
+    old = nca_files / "old_model.safetensors"
+    save_checkpoint(old, groups, kind="nca", meta={k: v for k, v in meta.items() if k != "cell_spacing"})
+    common = ["--mesh", "sphere:1", "--steps", "2", "--views", "1", "--resolution", "32", "--texture-size", "32", "--frames", "0", "--device", "cpu"]
+    capsys.readouterr()
+    for checkpoint, extra, cells, splits in ((model, [], 6 * 4 + 2, 1), (model, ["--subdivide", "0"], 8, 0), (old, [], 8, 0)):
+        out = nca_files / f"density_{checkpoint.stem}_{len(extra)}"
+        assert main(["infer", "nca", "--checkpoint", str(checkpoint), "--out", str(out), *common, *extra]) == 0
+        report = json.loads((out / "report.json").read_text())
+        assert (report["cells"], report["subdivisions"]) == (cells, splits)
+        line = capsys.readouterr().out
+        assert line.startswith(f"{cells} cells (")
+        assert ("records no training cell spacing" in line) == (checkpoint == old)

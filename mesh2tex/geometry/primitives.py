@@ -123,3 +123,17 @@ def mean_edge_length(vertices: np.ndarray, faces: np.ndarray) -> float:
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces)
     return float(np.linalg.norm(v[f] - v[np.roll(f, -1, axis=1)], axis=-1).mean())
+
+
+def density_subdivisions(spacing: float, target: float, most: int = 3) -> int:
+    """How many times to split a mesh's faces into four so that its mean edge length comes nearest to ``target``.
+
+    Each split halves the edges, so the answer is the halving count whose spacing is nearest to the
+    target on a log scale: a mesh stays as it is up to sqrt(2) times the target's spacing. A mesh
+    finer than the target is never coarsened. ``target`` <= 0 (unknown) gives 0; at most ``most``.
+    Both spacings must be measured in the same frame (:func:`load_surface`'s unit ball, the frame
+    the automaton is rendered in, so equal spacing means equal cells per pixel).
+    """
+    if target <= 0 or spacing <= 0:
+        return 0
+    return int(min(max(round(np.log2(spacing / target)), 0), most))

@@ -40,6 +40,7 @@ from torch import nn
 
 from mesh2tex.checks import check_shape, check_type
 from mesh2tex.config import MAX_CHANNELS, check_fields
+from mesh2tex.geometry.prepared import quads_to_triangles
 from mesh2tex.nn.field import sorted_cdf_coordinates, vertex_features
 from mesh2tex.render.shading import vertex_normals
 
@@ -162,7 +163,7 @@ def build_cell_graph(vertices, faces, neighbourhood: str = "edges") -> CellGraph
     receiver = np.concatenate([edges[:, 0], edges[:, 1]])
     sender = np.concatenate([edges[:, 1], edges[:, 0]])
     degree = np.bincount(receiver, minlength=vertices.shape[0]).astype(np.float32)
-    triangles = faces if faces.shape[1] == 3 else np.stack([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]], axis=1).reshape(-1, 3)
+    triangles = faces if faces.shape[1] == 3 else quads_to_triangles(faces)
     pos = torch.from_numpy(vertices)
     tri = torch.from_numpy(triangles)
     return CellGraph(positions=pos, normals=vertex_normals(pos, tri), triangles=tri,

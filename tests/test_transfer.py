@@ -170,3 +170,43 @@ def test_the_learnt_light_starts_at_the_prior_and_turns_with_the_camera():
     middle = 0.5 * (prior.elevation_min + prior.elevation_max)
     assert torch.allclose(light.direction, orbit_direction(torch.tensor([120.0]), torch.tensor([middle])), atol=1e-6)
     assert light.ambient.item() == pytest.approx(0.5 * (prior.ambient_min + prior.ambient_max))
+
+
+def test_the_anchor_covers_only_surfaces_the_photo_does_not_show(tiny_gan):
+    """unseen_anchors: at the photo's own pose nothing is left to anchor; around it, the surfaces the
+    photo's view does not see are, and the albedo there is the current texture's."""
+    import torch
+
+    from mesh2tex.geometry.prepared import PreparedShape
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.render_texture import rasterize_batch
+    from mesh2tex.transfer.config import TransferConfig
+    from mesh2tex.transfer.optimise import unseen_anchors
+    from mesh2tex.transfer.photo import view_at_pose
+
+    shape = PreparedShape.load(tiny_gan / "shapes" / "box0.npz")
+    cfg = TransferConfig(resolution=32, anchor_views=12, w_anchor=1.0)
+    view = view_at_pose(shape, 30.0, 20.0, 2.5, 40.0, cfg)
+    batch = collate_shapes([shape])
+    samples = rasterize_batch(batch, view.mvp, (view.render_size, view.render_size))
+    calls = []
+
+    def albedo(ws, at, at_samples):
+        calls.append(at.azimuth)
+        return torch.full((1, 3, 32, 32), 0.5)
+
+    anchors = unseen_anchors(shape, view, batch, samples, cfg, torch.device("cpu"), albedo, lambda: None)
+    azimuths = [round(at.azimuth % 360) for at, _, _, _ in anchors]
+    assert 30 not in azimuths, "the photo's own view shows nothing the photo does not"
+    assert 210 in azimuths and len(anchors) >= 6  # the far side is anchored
+    assert all(float(mask.sum()) >= 16 and set(mask.unique().tolist()) <= {0.0, 1.0} for _, _, mask, _ in anchors)
+    assert sorted(calls) == sorted(at.azimuth for at, _, _, _ in anchors)
+
+
+def test_a_transfer_with_the_anchor_runs_both_stages(setup, tmp_path):
+    config = tmp_path / "anchor.yaml"
+    config.write_text("w_anchor: 5.0\nanchor_views: 3\n")
+    out = tmp_path / "out"
+    assert main(transfer_args(setup, out, "--config", str(config))) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["settings"]["w_anchor"] == 5.0 and len(report["losses"]["refine"]["curve"]) == 3

@@ -39,6 +39,8 @@ class TransferConfig:
     patch_scales: int = 2  # resolution levels of the patch loss alone (0: ``scales``; 2 keeps 32 px patches at a 16 px coarsest level)
     w_colour: float = 10.0  # weight of the low-pass colour loss: render against photo at the pose, both blurred, where both show the object (0: the paper's style losses alone)
     colour_sigma: float = 0.03  # the colour loss's Gaussian blur, as a share of the crop side (0.03: 2 px at 64 px)
+    w_anchor: float = 0.0  # stage 2: weight of the low-pass colour loss that keeps the surfaces the photo does not show as stage 1 painted them (0: off)
+    anchor_views: int = 6  # views of those surfaces for w_anchor, evenly spaced in azimuth from 30 degrees after the photo's; one per stage-2 iteration, in turn
     light: str = "auto"  # the photo's light in the renders: learn (a directional light and ambient optimised with the texture, which stays albedo), off (unlit renders), auto (learn when the generator was trained lit)
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
     use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
@@ -56,7 +58,7 @@ class TransferConfig:
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
 
     def __post_init__(self):
-        check_fields(self, positive=("lr",), at_least={"refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1, "latent_starts": 1,
+        check_fields(self, positive=("lr",), at_least={"refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1, "latent_starts": 1, "w_anchor": 0, "anchor_views": 1,
                                                        "resolution": 16, "texture_size": 16, "patch_size": 1},
                      between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8), "colour_sigma": (0.0, 0.5)})
         if self.latent_space not in LATENT_SPACES:

@@ -19,7 +19,7 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction
 from mesh2tex.texture import mean_latent
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.photo import Photo, View
+from mesh2tex.transfer.photo import Photo, View, view_at_pose
 
 
 class PhotoLight(torch.nn.Module):
@@ -106,6 +106,12 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
                                   lights=light.lights() if light is not None else None).images
         return crop_square(full, view.box, cfg.resolution)
 
+    def render_unlit(ws: torch.Tensor, at: View, at_samples) -> torch.Tensor:
+        """(1, 3, R, R) albedo of the texture at another view, cropped as that view's object."""
+        full = render_field_views(generator, batch, ws, at.mvp.to(device), (at.render_size,) * 2, grey,
+                                  encoded=encoded, noise_mode="none", samples=at_samples).images
+        return crop_square(full, at.box, cfg.resolution)
+
     def loss_of(image: torch.Tensor, use_global: bool, pick: torch.Generator = pick) -> tuple[torch.Tensor, dict[str, float]]:
         parts: dict[str, torch.Tensor] = {}
         if use_global:
@@ -139,13 +145,17 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     result = TransferResult(ws=ws, render=torch.empty(0))
     light_params = list(light.parameters()) if light is not None else []
 
-    def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float) -> None:
+    def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float, anchors=()) -> None:
         opt = torch.optim.Adam(params, lr=lr)
         history: list[float] = []
         start = time.perf_counter()
         iterator = progress_bar(range(iters), desc=f"transfer {stage}") if show_progress else range(iters)
-        for _ in iterator:
+        for i in iterator:
             total, parts = loss_of(render(styles()), use_global)
+            if anchors:
+                at, at_samples, mask, target = anchors[i % len(anchors)]
+                anchor = cfg.w_anchor * lowpass_colour_loss(render_unlit(styles(), at, at_samples), mask, target, mask, colour_sigma)
+                total = total + anchor
             if not torch.isfinite(total):
                 raise InputError(f"transfer {stage}: the style loss became {float(total)}; lower the learning rate (lr)")
             opt.zero_grad(set_to_none=True)
@@ -165,9 +175,11 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         params = generator.last_synthesis_parameters(cfg.refine_blocks)
         for p in params:
             p.requires_grad_(True)
+        anchors = unseen_anchors(shape, view, batch, samples, cfg, device, render_unlit, styles) if cfg.w_anchor > 0 else []
         # Stage 2 uses the patch loss without the global one (paper), plus the colour loss when it is on;
         # without patches it keeps the global loss.
-        optimise("refine", params + light_params, cfg.refine_iters, use_global=not cfg.use_patches, lr=cfg.refine_lr or cfg.lr)
+        optimise("refine", params + light_params, cfg.refine_iters, use_global=not cfg.use_patches, lr=cfg.refine_lr or cfg.lr,
+                 anchors=anchors)
         for p in params:
             p.requires_grad_(False)
     with torch.no_grad():
@@ -175,3 +187,31 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     result.ws = styles().detach().clone()
     result.light = light.describe() if light is not None else None
     return result
+
+
+@torch.no_grad()
+def unseen_anchors(shape: PreparedShape, view: View, batch, samples, cfg: TransferConfig, device: torch.device, render_unlit, styles) -> list:
+    """The surfaces the photo does not show, as stage 1 painted them: for each of ``cfg.anchor_views``
+    views around the object (the photo's elevation, azimuths from 30 degrees after the photo's), a tuple
+    (view, its surface samples, mask (1,1,R,R) of the pixels whose triangle the photo's view does not
+    see, albedo (1,3,R,R) of the current texture there). Views that show no such pixel are left out.
+
+    Stage 2 fits the last synthesis blocks to the photo's side alone and nothing holds the other sides;
+    the low-pass colour loss against these renders (``cfg.w_anchor``) keeps them on the generator's
+    prior that stage 1 chose, while the photo's side is refined.
+    """
+    if view.distance <= 0:
+        raise ValueError("unseen_anchors: the view records no camera distance (build it with view_at_pose)")
+    seen = torch.zeros(batch.triangles().shape[0], dtype=torch.bool, device=device)
+    seen[samples.triangle_id[samples.triangle_id >= 0]] = True
+    anchors = []
+    for k in range(cfg.anchor_views):
+        azimuth = view.azimuth + 30.0 + 360.0 * k / cfg.anchor_views
+        at = view_at_pose(shape, azimuth, view.elevation, view.distance, view.fov, cfg)
+        at_samples = rasterize_batch(batch, at.mvp.to(device), (at.render_size, at.render_size))
+        ids = at_samples.triangle_id
+        unseen = ((ids >= 0) & ~seen[ids.clamp_min(0)]).float().unsqueeze(1)  # (1,1,S,S)
+        mask = (crop_square(unseen, at.box, cfg.resolution) > 0.5).float()
+        if mask.sum() >= 16:
+            anchors.append((at, at_samples, mask, render_unlit(styles(), at, at_samples)))
+    return anchors

@@ -30,8 +30,8 @@ class View:
     """The mesh seen at the query's pose, cropped like the photo.
 
     mvp (1,4,4) camera; box (top, left, side) of the crop in the full render of side ``render_size``;
-    noc (R,R,3) rendered NOC in [0,1]; mask (1,1,R,R); azimuth, elevation (degrees) of the orbit
-    camera, where a light placed relative to the camera starts.
+    noc (R,R,3) rendered NOC in [0,1]; mask (1,1,R,R); azimuth, elevation (degrees), distance and
+    fov of the orbit camera, where a light placed relative to the camera starts.
     """
 
     mvp: torch.Tensor
@@ -41,6 +41,8 @@ class View:
     mask: torch.Tensor
     azimuth: float = 0.0
     elevation: float = 0.0
+    distance: float = 0.0  # of the orbit camera (0: not recorded)
+    fov: float = 0.0
 
 
 MIN_PHOTO_SIDE = 16  # the smallest query photo: fewer pixels hold no texture to transfer
@@ -89,4 +91,4 @@ def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distanc
     noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
     noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)
     return View(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution),
-                azimuth=float(azimuth), elevation=float(elevation))
+                azimuth=float(azimuth), elevation=float(elevation), distance=float(distance), fov=float(fov))

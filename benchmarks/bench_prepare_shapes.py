@@ -30,8 +30,8 @@ from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
 
 
-def _box(size, center):
-    return trimesh.creation.box(size).apply_translation(center)
+def _box(size, centre):
+    return trimesh.creation.box(size).apply_translation(centre)
 
 
 def built_shapes() -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -46,9 +46,9 @@ def built_shapes() -> dict[str, tuple[np.ndarray, np.ndarray]]:
     # disconnected parts: twelve spheres and boxes scattered, not touching
     parts = []
     for k in range(12):
-        center = rng.uniform(-1.5, 1.5, 3)
-        parts.append(trimesh.creation.icosphere(2, radius=rng.uniform(0.1, 0.3)).apply_translation(center) if k % 2
-                     else _box(rng.uniform(0.1, 0.5, 3), center))
+        centre = rng.uniform(-1.5, 1.5, 3)
+        parts.append(trimesh.creation.icosphere(2, radius=rng.uniform(0.1, 0.3)).apply_translation(centre) if k % 2
+                     else _box(rng.uniform(0.1, 0.5, 3), centre))
     out["scattered_parts"] = trimesh.util.concatenate(parts)
     # holes and open boundaries: an open tube, a sphere with a large opening, a single sheet
     tube = trimesh.creation.cylinder(0.3, 1.5, sections=48)

@@ -67,7 +67,7 @@ def views_mvp(count: int = 8) -> torch.Tensor:
     return orbit_camera(azimuth, elevation, distance=3.2, fov=40.0).mvp
 
 
-def color_model(rgb: torch.Tensor) -> tuple[MeshNCA, torch.Tensor]:
+def colour_model(rgb: torch.Tensor) -> tuple[MeshNCA, torch.Tensor]:
     """A readout that shows fixed per-vertex colours: a 3-channel automaton whose readout is the identity."""
     model = MeshNCA(NCAConfig(channels=3))
     with torch.no_grad():
@@ -109,7 +109,7 @@ class Judge:
 
         points = graph.positions.double().numpy() * self.pattern_scale(exemplar_pixels)
         rgb = torch.from_numpy(EXEMPLARS[name](points, graph.normals.double().numpy())).float() * 2 - 1
-        return self.loss(*color_model(rgb), graph)
+        return self.loss(*colour_model(rgb), graph)
 
     @torch.no_grad()
     def oracle_loss(self, name: str, graph, exemplar_pixels: float) -> float:
@@ -197,8 +197,8 @@ def main() -> int:
     untrained = MeshNCA(model.cfg)
     results["untrained"] = judge.loss(untrained, grow(untrained, graph, STEPS), graph)
     pixels = torch.from_numpy(exemplar.reshape(-1, 3)).float() / 127.5 - 1
-    flat = color_model(pixels.mean(0).expand(graph.num_cells, 3).clone())
-    noise = color_model(pixels[torch.randint(pixels.shape[0], (graph.num_cells,), generator=torch.Generator().manual_seed(0))])
+    flat = colour_model(pixels.mean(0).expand(graph.num_cells, 3).clone())
+    noise = colour_model(pixels[torch.randint(pixels.shape[0], (graph.num_cells,), generator=torch.Generator().manual_seed(0))])
     results["flat"] = judge.loss(flat[0], flat[1], graph)
     results["vertex_noise"] = judge.loss(noise[0], noise[1], graph)
     if args.exemplar_name:
@@ -260,7 +260,7 @@ def main() -> int:
             for _ in range(STEPS):
                 state = model.step(state, graph, graft=(other, alpha), generator=generator)
         # Pixel side masks: render the side of each vertex as a colour.
-        side, side_state = color_model(torch.stack([alpha] * 3, 1) * 2 - 1)
+        side, side_state = colour_model(torch.stack([alpha] * 3, 1) * 2 - 1)
         side_views = render_states(side, side_state, graph, judge.mvp, RESOLUTION)
         right = (side_views.images[:, :1] > 0.4).float()
         left = (side_views.images[:, :1] < -0.4).float()

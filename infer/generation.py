@@ -60,7 +60,7 @@ from mesh2tex.errors import UserError
 from mesh2tex.evaluation.world import load_world, world_spec
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.image_sets import list_images, load_set
-from mesh2tex.io.images import colors_to_uint8, save_png
+from mesh2tex.io.images import colours_to_uint8, save_png
 from mesh2tex.io.models import load_generator, trained_lit
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
@@ -301,7 +301,7 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     rows.append(ground_truth_renders(world, name, ring, resolution, lit=True)[0])
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)
-    save_png(path, colors_to_uint8(grid, signed=False))
+    save_png(path, colours_to_uint8(grid, signed=False))
 
 
 def generation_markdown(result: dict) -> str:

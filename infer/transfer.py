@@ -44,7 +44,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import atomic_path, write_json
-from mesh2tex.io.images import colors_to_uint8, images_to_uint8, save_png
+from mesh2tex.io.images import colours_to_uint8, images_to_uint8, save_png
 from mesh2tex.io.models import gan_camera, is_model_name, load_generator, trained_lit
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
@@ -82,7 +82,7 @@ def to_uint8_image(image: torch.Tensor) -> np.ndarray:
 def noc_to_uint8(noc: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
     """(H,W,3) NOC in [0,1] and a (…,H,W) mask -> (H,W,3) uint8, white background."""
     m = mask.reshape(noc.shape[:2] + (1,)).cpu()
-    return colors_to_uint8(composite(noc.cpu().clamp(0, 1)[None], m[None], 1.0)[0], signed=False)
+    return colours_to_uint8(composite(noc.cpu().clamp(0, 1)[None], m[None], 1.0)[0], signed=False)
 
 
 @torch.no_grad()

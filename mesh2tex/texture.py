@@ -16,11 +16,11 @@ import torch
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
-from mesh2tex.io.images import colors_to_uint8
+from mesh2tex.io.images import colours_to_uint8
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
-from mesh2tex.nn.render_texture import field_colors
-from mesh2tex.render.uv import bake_surface_colors
+from mesh2tex.nn.render_texture import field_colours
+from mesh2tex.render.uv import bake_surface_colours
 
 
 def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0) -> PreparedShape:
@@ -70,33 +70,33 @@ def mean_latent(generator: TextureGenerator) -> torch.Tensor:
 
 @torch.no_grad()
 def bake_texture(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, size: int, dilate: int = 8):
-    """Bake psi into a UV texture for shape 0 of ``batch`` (:func:`mesh2tex.render.uv.bake_surface_colors`).
+    """Bake psi into a UV texture for shape 0 of ``batch`` (:func:`mesh2tex.render.uv.bake_surface_colours`).
 
     Returns (vertices (V', 3) float32, faces (T, 3) int64, uv (V', 2) float32, texture (size, size, 3)
     uint8, coverage (size, size) bool). Faces keep the order of ``batch.triangles()``.
     """
     device = texture.face_rgb.device
 
-    def colors_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-        return field_colors(generator, texture, batch, triangle_id.to(device), bary.to(device))
+    def colours_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+        return field_colours(generator, texture, batch, triangle_id.to(device), bary.to(device))
 
-    return bake_surface_colors(batch.shape_vertices(0), batch.shape_triangles(0), colors_at, size, dilate)
+    return bake_surface_colours(batch.shape_vertices(0), batch.shape_triangles(0), colours_at, size, dilate)
 
 
 @torch.no_grad()
-def vertex_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch) -> np.ndarray:
+def vertex_colours(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch) -> np.ndarray:
     """(V, 3) uint8 colours of shape 0's finest vertices: psi at each corner of each incident triangle, averaged."""
     triangles = batch.shape_triangles(0)
     t = triangles.shape[0]
     triangle_id = torch.arange(t, device=triangles.device).repeat_interleave(3) + 2 * int(batch.face_offsets[0][0])
     bary = torch.eye(3, device=triangles.device).repeat(t, 1)
-    colors = field_colors(generator, texture, batch, triangle_id, bary).float()  # (3T, 3)
+    colours = field_colours(generator, texture, batch, triangle_id, bary).float()  # (3T, 3)
     v = batch.shape_vertices(0).shape[0]
     index = triangles.reshape(-1)
-    summed = torch.zeros(v, 3, device=colors.device).index_add_(0, index, colors)
-    counts = torch.zeros(v, device=colors.device).index_add_(0, index, torch.ones_like(index, dtype=torch.float32))
+    summed = torch.zeros(v, 3, device=colours.device).index_add_(0, index, colours)
+    counts = torch.zeros(v, device=colours.device).index_add_(0, index, torch.ones_like(index, dtype=torch.float32))
     mean = summed / counts.clamp(min=1).unsqueeze(1)
-    return colors_to_uint8(mean)
+    return colours_to_uint8(mean)
 
 
 @torch.no_grad()
@@ -104,9 +104,9 @@ def write_textured_mesh(glb_path: str | Path, ply_path: str | Path, generator: T
                         batch: MeshBatch, texture_size: int, texture_format: str = "png") -> None:
     """Shape 0 of ``batch`` with ``texture``: a GLB with the texture baked into a ``texture_size``
     square UV map (:func:`bake_texture`), embedded as ``texture_format`` (png, jpeg or webp; see
-    :func:`mesh2tex.io.assets.save_glb`), and a PLY with :func:`vertex_colors`."""
+    :func:`mesh2tex.io.assets.save_glb`), and a PLY with :func:`vertex_colours`."""
     verts, faces, uv, image, _ = bake_texture(generator, texture, batch, texture_size)
     save_glb(glb_path, verts.numpy(), faces.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), faces.numpy()),
              texture_format=texture_format)
     save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
-             vertex_colors(generator, texture, batch))
+             vertex_colours(generator, texture, batch))

@@ -10,19 +10,19 @@ import numpy as np
 import torch
 
 from mesh2tex.io.atomic import json_ready
-from mesh2tex.io.images import colors_to_uint8, images_to_uint8
+from mesh2tex.io.images import colours_to_uint8, images_to_uint8
 from mesh2tex.render import composite, composite_images
 
 
 def test_colours_become_uint8_clamped_and_rounded_half_to_even():
     signed = torch.tensor([-2.0, -1.0, 0.0, 1.0, 3.0, 1 / 127.5 - 1])
-    assert colors_to_uint8(signed).tolist() == [0, 0, 128, 255, 255, 1]  # 0 -> 127.5 -> 128 (half to even)
+    assert colours_to_uint8(signed).tolist() == [0, 0, 128, 255, 255, 1]  # 0 -> 127.5 -> 128 (half to even)
     unit = torch.tensor([-0.5, 0.0, 0.5, 1.0, 2.0, 2.5 / 255])
-    assert colors_to_uint8(unit, signed=False).tolist() == [0, 0, 128, 255, 255, 2]  # 2.5 -> 2 (half to even)
+    assert colours_to_uint8(unit, signed=False).tolist() == [0, 0, 128, 255, 255, 2]  # 2.5 -> 2 (half to even)
     images = torch.rand(2, 3, 4, 5) * 2 - 1
     out = images_to_uint8(images)
     assert out.shape == (2, 4, 5, 3) and out.dtype == np.uint8
-    assert np.array_equal(out[1, 2, 3], colors_to_uint8(images[1, :, 2, 3]))
+    assert np.array_equal(out[1, 2, 3], colours_to_uint8(images[1, :, 2, 3]))
 
 
 def test_compositing_is_one_formula_in_both_layouts():

@@ -120,9 +120,9 @@ def test_features_match_the_sphere_curvature(prepared):
     size = np.sqrt((forms["E"] + forms["G"]) / 2)
     stored = shape.face_features[:, names.index("mean_curvature")]
     assert np.allclose(stored, np.arcsinh(forms["H"] * size), atol=1e-5), "stored curvature is asinh(H s)"
-    centers = shape.vertices[0][shape.quads[0]].mean(axis=1)
+    centres = shape.vertices[0][shape.quads[0]].mean(axis=1)
     normals = shape.face_features[:, [names.index(n) for n in ("normal_x", "normal_y", "normal_z")]]
-    outward = np.einsum("ij,ij->i", normals, centers / np.linalg.norm(centers, axis=1, keepdims=True))
+    outward = np.einsum("ij,ij->i", normals, centres / np.linalg.norm(centres, axis=1, keepdims=True))
     assert (outward > 0.9).mean() > 0.95, "normals face outwards"
 
 
@@ -244,9 +244,9 @@ def test_features_do_not_depend_on_how_each_quad_is_listed(prepared):
         assert np.allclose(face_features(v, q[:, ::-1])[0], base, atol=1e-4), name
         # the features still carry the orientation: normals face outwards on the sphere
         if name == "sphere":
-            centers = v[q].mean(axis=1)
+            centres = v[q].mean(axis=1)
             normals = base[:, [names.index(n) for n in ("normal_x", "normal_y", "normal_z")]]
-            assert (np.einsum("ij,ij->i", normals, centers) > 0).mean() > 0.95
+            assert (np.einsum("ij,ij->i", normals, centres) > 0).mean() > 0.95
 
 
 def test_orient_coherently_restores_the_outward_orientation_of_every_part():

@@ -10,7 +10,7 @@ from PIL import Image
 
 from mesh2tex.cli import main
 from mesh2tex.errors import InputError
-from mesh2tex.metrics import (InceptionV3Features, color_histogram_distance, fid, get_feature_extractor, kid, load_inception,
+from mesh2tex.metrics import (InceptionV3Features, colour_histogram_distance, fid, get_feature_extractor, kid, load_inception,
                               masked_psnr, masked_ssim, swd)
 
 
@@ -70,10 +70,10 @@ def test_paired_metrics():
     assert torch.isinf(masked_psnr(other_background, images, masks)).all()
     noisy = (images + 0.05 * torch.randn(2, 3, 32, 32, generator=generator)).clamp(0, 1)
     assert (masked_psnr(noisy, images) > 20).all() and (masked_psnr(noisy, images) < 40).all()
-    assert torch.allclose(color_histogram_distance(images, images), torch.zeros(2, dtype=torch.float64))
+    assert torch.allclose(colour_histogram_distance(images, images), torch.zeros(2, dtype=torch.float64))
     red, blue = torch.zeros(1, 3, 8, 8), torch.zeros(1, 3, 8, 8)
     red[:, 0], blue[:, 2] = 1.0, 1.0
-    assert float(color_histogram_distance(red, blue)) == pytest.approx(1.0)
+    assert float(colour_histogram_distance(red, blue)) == pytest.approx(1.0)
 
 
 def test_weight_free_features_are_named_for_what_they_are(tmp_path, monkeypatch):

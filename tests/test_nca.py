@@ -10,7 +10,7 @@ from mesh2tex.geometry.regions import region_weights
 from mesh2tex.nn.nca import MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.render import orbit_camera
-from mesh2tex.render.uv import bake_surface_colors
+from mesh2tex.render.uv import bake_surface_colours
 
 
 def grid_mesh(n: int):
@@ -140,16 +140,16 @@ def test_a_grafted_growth_is_read_by_each_sides_own_readout(readout):
     bary = torch.rand(len(triangle_id), 3)
     bary = bary / bary.sum(1, keepdim=True)
     with torch.no_grad():
-        grafted = a.colors(state, graph.triangles, triangle_id, bary, graft=(b, alpha))
-        own, other = a.colors(state, graph.triangles, triangle_id, bary), b.colors(state, graph.triangles, triangle_id, bary)
+        grafted = a.colours(state, graph.triangles, triangle_id, bary, graft=(b, alpha))
+        own, other = a.colours(state, graph.triangles, triangle_id, bary), b.colours(state, graph.triangles, triangle_id, bary)
         weight = (alpha[graph.triangles[triangle_id]] * bary).sum(1, keepdim=True)
         torch.testing.assert_close(grafted, (1 - weight) * own + weight * other)
         left, right = (weight == 0).squeeze(1), (weight == 1).squeeze(1)
         assert left.any() and right.any()
         torch.testing.assert_close(grafted[left], own[left])
         torch.testing.assert_close(grafted[right], other[right])
-        vertex = a.vertex_colors(state, graft=(b, alpha))
-        torch.testing.assert_close(vertex, (1 - alpha[None, :, None]) * a.vertex_colors(state) + alpha[None, :, None] * b.vertex_colors(state))
+        vertex = a.vertex_colours(state, graft=(b, alpha))
+        torch.testing.assert_close(vertex, (1 - alpha[None, :, None]) * a.vertex_colours(state) + alpha[None, :, None] * b.vertex_colours(state))
         mvp = orbit_camera(torch.tensor([100.0, 280.0]), 10.0, distance=3.2).mvp
         views = render_states(a, state.expand(2, -1, -1), graph, mvp, 24, graft=(b, alpha))
         plain = render_states(a, state.expand(2, -1, -1), graph, mvp, 24)
@@ -250,15 +250,15 @@ def test_baked_texels_equal_the_readout(readout):
     model = MeshNCA(NCAConfig(channels=6, hidden=8, readout=readout))
     state = torch.rand(1, graph.num_cells, 6) * 1.6 - 0.8
 
-    def colors_at(triangle_id, bary):
-        return model.colors(state, graph.triangles, triangle_id, bary)
+    def colours_at(triangle_id, bary):
+        return model.colours(state, graph.triangles, triangle_id, bary)
 
     with torch.no_grad():
-        _, faces, uv, texture, covered = bake_surface_colors(graph.positions, graph.triangles, colors_at, 64, dilate=0)
+        _, faces, uv, texture, covered = bake_surface_colours(graph.positions, graph.triangles, colours_at, 64, dilate=0)
         from mesh2tex.render import uv_rasterize
 
         raster = uv_rasterize(uv, faces, (64, 64))
-        expected = colors_at(raster.face_id[0][covered], raster.bary[0][covered]).clamp(-1, 1)
+        expected = colours_at(raster.face_id[0][covered], raster.bary[0][covered]).clamp(-1, 1)
     baked = torch.from_numpy(texture)[covered].float() / 127.5 - 1
     assert covered.float().mean() > 0.3
     assert (baked - expected).abs().max() <= 1.0 / 255 + 1e-6

@@ -13,7 +13,7 @@ from mesh2tex.render import (
     face_attribute,
     interpolate,
     orbit_camera,
-    pixel_centers,
+    pixel_centres,
     rasterize,
     render_mask,
     render_noc,
@@ -50,7 +50,7 @@ def test_single_triangle_coverage_bary_and_depth(device):
     corners = np.array([[-0.7, -0.6], [0.8, -0.2], [-0.1, 0.9]])
     pos = torch.tensor([[x, y, 0.25, 1.0] for x, y in corners], device=device)
     raster = rasterize(pos, torch.tensor([[0, 1, 2]]), (37, 53))
-    centres = pixel_centers((37, 53), dtype=torch.float64).reshape(-1, 2).numpy()
+    centres = pixel_centres((37, 53), dtype=torch.float64).reshape(-1, 2).numpy()
     expected = inside_triangle(centres, *corners).reshape(37, 53)
     covered = (raster.face_id[0] == 0).cpu().numpy()
     assert (covered == expected).mean() > 0.999 and covered.sum() > 300
@@ -71,7 +71,7 @@ def test_pixel_centre_convention():
     pos = torch.tensor([[x - d, y - d, 0, 1], [x + d, y - d, 0, 1], [x, y + d, 0, 1.0]])
     raster = rasterize(pos, torch.tensor([[0, 1, 2]]), (H, W))
     assert torch.nonzero(raster.face_id[0] >= 0).tolist() == [[2, 5]]
-    assert torch.allclose(pixel_centers((H, W))[2, 5], torch.tensor([x, y]))
+    assert torch.allclose(pixel_centres((H, W))[2, 5], torch.tensor([x, y]))
 
 
 def test_nearest_of_two_overlapping_triangles_wins_in_any_order():
@@ -80,7 +80,7 @@ def test_nearest_of_two_overlapping_triangles_wins_in_any_order():
     pos = torch.tensor(near_tri + far_tri)
     for tri, near_id in ((torch.tensor([[0, 1, 2], [3, 4, 5]]), 0), (torch.tensor([[3, 4, 5], [0, 1, 2]]), 1)):
         raster = rasterize(pos, tri, (64, 64))
-        centres = pixel_centers((64, 64), dtype=torch.float64).reshape(-1, 2).numpy()
+        centres = pixel_centres((64, 64), dtype=torch.float64).reshape(-1, 2).numpy()
         in_near = inside_triangle(centres, *np.array(near_tri)[:, :2]).reshape(64, 64)
         in_far = inside_triangle(centres, *np.array(far_tri)[:, :2]).reshape(64, 64)
         face = raster.face_id[0].numpy()
@@ -108,7 +108,7 @@ def test_cube_faces_seen_from_orbit_cameras(device):
         assert seen == visible
     # The front face of the cube projects to a centred square of half-size 0.5 / (2.5 tan 20deg).
     half = 0.5 / (2.5 * math.tan(math.radians(20.0)))
-    centres = pixel_centers((96, 96))
+    centres = pixel_centres((96, 96))
     expected = (centres.abs() < half).all(-1)
     assert ((raster.face_id[0].cpu() >= 0) == expected).float().mean() > 0.995
     # Culling back faces changes nothing for a closed, outward-facing mesh.
@@ -136,7 +136,7 @@ def test_triangles_crossing_the_near_plane_or_behind_the_camera():
     raster = rasterize(pos, tri, (H, W))
     assert not (raster.face_id == 1).any()  # the second triangle is behind the camera
     # Reference: rays from the near plane through every pixel centre, intersected with the plane y = -0.3.
-    centres = pixel_centers((H, W), dtype=torch.float64).reshape(-1, 2)
+    centres = pixel_centres((H, W), dtype=torch.float64).reshape(-1, 2)
     inverse = torch.linalg.inv(camera.mvp[0].double())
     ones = torch.ones(len(centres), 1, dtype=torch.float64)
     near = torch.cat([centres, -ones, ones], 1) @ inverse.T
@@ -167,7 +167,7 @@ def test_perspective_correct_interpolation_reprojects_to_pixel_centres():
     ndc = (clip[:, :2] / clip[:, 3:]).reshape(40, 40, 2)
     m = raster.mask[0]
     assert m.sum() > 400
-    assert torch.allclose(ndc[m], pixel_centers((40, 40), dtype=torch.float64)[m], atol=1e-9)
+    assert torch.allclose(ndc[m], pixel_centres((40, 40), dtype=torch.float64)[m], atol=1e-9)
     assert torch.allclose(raster.depth[0][m].double(), (clip[:, 2] / clip[:, 3]).reshape(40, 40)[m],
                           atol=1e-6)
 

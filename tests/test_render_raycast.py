@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from mesh2tex.render import orbit_camera, pixel_centers, rasterize, transform_points
+from mesh2tex.render import orbit_camera, pixel_centres, rasterize, transform_points
 
 trimesh = pytest.importorskip("trimesh")
 pytest.importorskip("embreex")
@@ -27,7 +27,7 @@ def bumpy_torus(major_sections: int = 192, minor_sections: int = 128) -> "trimes
 def pixel_rays(camera, resolution):
     """Origins (on the near plane) and unit directions (float64) of the rays through the pixel
     centres of one camera, from the inverse of its mvp matrix."""
-    centres = pixel_centers(resolution, dtype=torch.float64).reshape(-1, 2).numpy()
+    centres = pixel_centres(resolution, dtype=torch.float64).reshape(-1, 2).numpy()
     inverse = np.linalg.inv(camera.mvp[0].double().numpy())
     ones = np.ones(len(centres))
     near = np.c_[centres, -ones, ones] @ inverse.T

@@ -21,8 +21,8 @@ from mesh2tex.nn.generator import GeneratorConfig, MappingNetwork, TextureGenera
 from mesh2tex.nn.nca import ConditionedNCA, MeshNCA, NCAConfig, build_cell_graph
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseNet
-from mesh2tex.nn.render_texture import field_colors, rasterize_batch, render_field_views, render_states
-from mesh2tex.render.uv import bake_surface_colors
+from mesh2tex.nn.render_texture import field_colours, rasterize_batch, render_field_views, render_states
+from mesh2tex.render.uv import bake_surface_colours
 from test_faceconv import cube_shape
 from test_nca import grid_mesh
 from test_render import cube
@@ -119,9 +119,9 @@ CASES = {
     "shade_lambert light_dir": (lambda w: render.shade_lambert(torch.rand(2, 4, 4, 3), torch.rand(2, 4, 4, 3), torch.rand(2, 3), torch.rand(2, 1, 1, 1)),
                                 lambda w: render.shade_lambert(torch.rand(2, 4, 4, 3), torch.rand(2, 4, 4, 3), [0.0, 1.0]),
                                 ValueError, r"shade_lambert: light_dir must have shape \[3\] or \[1, 3\] or \[B, 3\], got \[2\]"),
-    "shade_colors ambient": (lambda w: render.shade_colors(torch.rand(5, 3), torch.rand(5, 3), torch.rand(5, 3), torch.rand(5)),
-                             lambda w: render.shade_colors(torch.rand(5, 3), torch.rand(5, 3), torch.rand(5, 3), torch.rand(4)),
-                             ValueError, r"shade_colors: ambient must have shape \[P\] \(P = 5 from colors\), got \[4\]"),
+    "shade_colours ambient": (lambda w: render.shade_colours(torch.rand(5, 3), torch.rand(5, 3), torch.rand(5, 3), torch.rand(5)),
+                              lambda w: render.shade_colours(torch.rand(5, 3), torch.rand(5, 3), torch.rand(5, 3), torch.rand(4)),
+                              ValueError, r"shade_colours: ambient must have shape \[P\] \(P = 5 from colours\), got \[4\]"),
     "random_lights azimuth": (lambda w: render.random_lights(torch.zeros(4), render.LightConfig()),
                               lambda w: render.random_lights(torch.zeros(4, 1), render.LightConfig()),
                               ValueError, r"random_lights: camera_azimuth must have shape \[N\], got \[4, 1\]"),
@@ -155,9 +155,9 @@ CASES = {
     "dilate_texture mask": (lambda w: render.dilate_texture(torch.rand(3, 8, 8), torch.ones(1, 8, 8), 1),
                             lambda w: render.dilate_texture(torch.rand(3, 8, 8), torch.ones(8, 7), 1),
                             ValueError, r"dilate_texture: mask must have shape \[H, W\] \(W = 8 from image\)"),
-    "bake_surface_colors triangles": (None,
-                                      lambda w: bake_surface_colors(w.v, w.tri.float(), None, 8),
-                                      TypeError, r"bake_surface_colors: triangles must be an integer tensor"),
+    "bake_surface_colours triangles": (None,
+                                       lambda w: bake_surface_colours(w.v, w.tri.float(), None, 8),
+                                       TypeError, r"bake_surface_colours: triangles must be an integer tensor"),
     # mesh2tex.nn
     "FaceResNetBlock x": (lambda w: FaceResNetBlock(4, 6)(torch.rand(5, 4), torch.full((5, 9), -1)),
                           lambda w: FaceResNetBlock(4, 6)(torch.rand(5, 3), torch.full((5, 9), -1)),
@@ -186,9 +186,9 @@ CASES = {
     "rasterize_batch mvp": (lambda w: rasterize_batch(w.batch, w.mvp, (8, 8)),
                             lambda w: rasterize_batch(w.batch, w.mvp[0], (8, 8)),
                             ValueError, r"rasterize_batch: mvp must have shape \[\*, 4, 4\], got \[4, 4\]"),
-    "field_colors bary": (lambda w: field_colors(w.gen, w.gen.synthesize(w.batch, w.ws), w.batch, torch.arange(3), torch.rand(3, 3)),
-                          lambda w: field_colors(w.gen, w.gen.synthesize(w.batch, w.ws), w.batch, torch.arange(3), torch.rand(4, 3)),
-                          ValueError, r"field_colors: bary must have shape \[P, 3\] \(P = 3 from triangle_id\), got \[4, 3\]"),
+    "field_colours bary": (lambda w: field_colours(w.gen, w.gen.synthesize(w.batch, w.ws), w.batch, torch.arange(3), torch.rand(3, 3)),
+                           lambda w: field_colours(w.gen, w.gen.synthesize(w.batch, w.ws), w.batch, torch.arange(3), torch.rand(4, 3)),
+                           ValueError, r"field_colours: bary must have shape \[P, 3\] \(P = 3 from triangle_id\), got \[4, 3\]"),
     "NeuralField features": (lambda w: NeuralField(6, hidden=8, aux_dim=4)(torch.rand(5, 6), torch.rand(5, 3)),
                              lambda w: NeuralField(6, hidden=8, aux_dim=4)(torch.rand(5, 7), torch.rand(5, 3)),
                              ValueError, r"NeuralField: features must have shape \[P, 6\], got \[5, 7\]"),
@@ -213,12 +213,12 @@ CASES = {
     "MeshNCA.delta angle": (lambda w: w.nca.delta(w.state, w.graph, angle=torch.rand(16)),
                             lambda w: w.nca.delta(w.state, w.graph, angle=torch.rand(3)),
                            ValueError, r"MeshNCA.delta: angle must have shape \[\] or \[16\], got \[3\]"),
-    "MeshNCA.colors bary": (lambda w: w.nca.colors(w.state, w.graph.triangles, torch.arange(3), torch.rand(3, 3), torch.zeros(3, dtype=torch.long)),
-                            lambda w: w.nca.colors(w.state, w.graph.triangles, torch.arange(3), torch.rand(3, 2)),
-                            ValueError, r"MeshNCA.colors: bary must have shape \[P, 3\], got \[3, 2\]"),
-    "MeshNCA.vertex_colors state": (lambda w: w.nca.vertex_colors(w.state),
-                                    lambda w: w.nca.vertex_colors(w.state[0]),
-                                    ValueError, r"MeshNCA.vertex_colors: state must have shape \[\*, \*, 4\], got \[16, 4\]"),
+    "MeshNCA.colours bary": (lambda w: w.nca.colours(w.state, w.graph.triangles, torch.arange(3), torch.rand(3, 3), torch.zeros(3, dtype=torch.long)),
+                             lambda w: w.nca.colours(w.state, w.graph.triangles, torch.arange(3), torch.rand(3, 2)),
+                             ValueError, r"MeshNCA.colours: bary must have shape \[P, 3\], got \[3, 2\]"),
+    "MeshNCA.vertex_colours state": (lambda w: w.nca.vertex_colours(w.state),
+                                     lambda w: w.nca.vertex_colours(w.state[0]),
+                                     ValueError, r"MeshNCA.vertex_colours: state must have shape \[\*, \*, 4\], got \[16, 4\]"),
     "render_states state": (lambda w: render_states(w.nca, w.state, w.graph, w.mvp, 8),
                             lambda w: render_states(w.nca, w.state[:, :3], w.graph, w.mvp, 8),
                             ValueError, r"render_states: state must have shape \[\*, 16, \*\], got \[2, 3, 4\]"),

@@ -28,7 +28,7 @@ from mesh2tex.config import check_fields, config_from_dict, load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
-from mesh2tex.io.images import colors_to_uint8, images_to_uint8, load_image, save_png
+from mesh2tex.io.images import colours_to_uint8, images_to_uint8, load_image, save_png
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
 from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
@@ -190,7 +190,7 @@ class NCATrainer:
         mvp = random_cameras(cfg, cfg.batch * cfg.views, self.generator).to(self.device)
         views = render_states(self.model, state, self.graph, mvp, cfg.resolution)
         style = style_loss(self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator)
-        overflow = overflow_penalty(state, self.model.vertex_colors(state))
+        overflow = overflow_penalty(state, self.model.vertex_colours(state))
         loss = style + cfg.overflow_weight * overflow
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
@@ -215,7 +215,7 @@ class NCATrainer:
 
     def exemplar_uint8(self) -> torch.Tensor:
         """(3, H, W) uint8: the exemplar as the model saw it, kept in every checkpoint."""
-        return torch.from_numpy(colors_to_uint8(self.exemplar.image[0]))
+        return torch.from_numpy(colours_to_uint8(self.exemplar.image[0]))
 
     def save(self, path: Path) -> None:
         runs.save_training_state(path, KIND, {"model": self.model}, {"adam": self.optimizer},

@@ -43,7 +43,7 @@ from mesh2tex.render import crop_square, object_box
 from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views, unit_to_uint8
-from mesh2tex.texture import latent, shape_mismatch, vertex_colors
+from mesh2tex.texture import latent, shape_mismatch, vertex_colours as field_vertex_colours  # _GanTextures.vertex_colours shadows the name
 from train import runs
 
 # --------------------------------------------------------------------------------------- data
@@ -139,7 +139,7 @@ class _GanTextures:
             self.encoded[index] = self.generator.encoder(batch)
         ws = latent(self.generator, latent_seed, self.device)
         texture = self.generator.synthesize(batch, ws, encoded=self.encoded[index], noise_mode="none")
-        return vertex_colors(self.generator, texture, batch).astype(np.float32) / 255.0
+        return field_vertex_colours(self.generator, texture, batch).astype(np.float32) / 255.0
 
 
 def data_fingerprint(cfg: ViewTrainConfig) -> str:

@@ -129,7 +129,7 @@ def generator_surface(generator, texture, batch, face_parts=None) -> Surface:
     [F_0, C] and per-face colours [F_0, 3], which psi's residual output is added to; the transfer's
     refinement changes only the synthesis blocks, so these two are the whole result)."""
     from mesh2tex.nn.generator import FaceTexture
-    from mesh2tex.nn.render_texture import field_colors
+    from mesh2tex.nn.render_texture import field_colours
 
     if batch.num_shapes != 1:
         raise ValueError(f"generator_surface takes a batch of one shape, got {batch.num_shapes}")
@@ -142,7 +142,7 @@ def generator_surface(generator, texture, batch, face_parts=None) -> Surface:
     def colour(p: SurfacePoints) -> torch.Tensor:
         if p.face.numel() == 0:
             return torch.zeros(0, 3)
-        rgb = field_colors(generator, face_texture, on_device, p.face.to(device), p.bary.to(device)).float().cpu()
+        rgb = field_colours(generator, face_texture, on_device, p.face.to(device), p.bary.to(device)).float().cpu()
         return ((rgb + 1.0) * 0.5).clamp(0, 1)
 
     return Surface(batch.shape_vertices(0).cpu(), faces, colour, face_parts)

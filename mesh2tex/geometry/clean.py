@@ -17,28 +17,28 @@ from mesh2tex.errors import InputError
 
 @dataclass
 class Normalization:
-    """The similarity ``normalized = (original - center) * scale``."""
+    """The similarity ``normalized = (original - centre) * scale``."""
 
-    center: np.ndarray  # (3,) float64, bounding-box centre of the original mesh
+    centre: np.ndarray  # (3,) float64, bounding-box centre of the original mesh
     scale: float  # 1 / bounding-box diagonal of the original mesh
 
     def apply(self, vertices: np.ndarray) -> np.ndarray:
         """(V, 3) original coordinates -> (V, 3) normalised coordinates."""
-        return (np.asarray(vertices, dtype=np.float64) - self.center) * self.scale
+        return (np.asarray(vertices, dtype=np.float64) - self.centre) * self.scale
 
     def invert(self, vertices: np.ndarray) -> np.ndarray:
         """(V, 3) normalised coordinates -> (V, 3) original coordinates."""
-        return np.asarray(vertices, dtype=np.float64) / self.scale + self.center
+        return np.asarray(vertices, dtype=np.float64) / self.scale + self.centre
 
     def matrix(self) -> np.ndarray:
         """(4, 4) float64 homogeneous matrix of :meth:`apply`."""
         m = np.eye(4) * self.scale
         m[3, 3] = 1.0
-        m[:3, 3] = -self.center * self.scale
+        m[:3, 3] = -self.centre * self.scale
         return m
 
     def to_json(self) -> dict:
-        return {"center": [float(c) for c in self.center], "scale": float(self.scale), "matrix": self.matrix().tolist(),
+        return {"center": [float(c) for c in self.centre], "scale": float(self.scale), "matrix": self.matrix().tolist(),
                 "meaning": "normalized = (original - center) * scale"}
 
 
@@ -60,7 +60,7 @@ def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
         raise InputError(f"the mesh's coordinates are too large to normalise (up to {np.abs(vertices).max():.3g})")
     if diagonal <= 1e-12:
         raise InputError("the mesh has a zero-size bounding box")
-    transform = Normalization(center=(low + high) / 2.0, scale=1.0 / diagonal)
+    transform = Normalization(centre=(low + high) / 2.0, scale=1.0 / diagonal)
     return transform.apply(vertices), transform
 
 

@@ -86,7 +86,7 @@ def face_neighborhoods(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     return np.concatenate([faces[:, None], ordered], axis=1)
 
 
-def face_centers(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
+def face_centres(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """(F, 3) float64 mean of each quad's four vertices."""
     return np.asarray(vertices, dtype=np.float64)[np.asarray(quads)].mean(axis=1)
 
@@ -106,19 +106,19 @@ def pooling_map(fine_vertices: np.ndarray, fine_quads: np.ndarray, coarse_vertic
     Raises:
         ValueError: the coarse level has more faces than the fine one.
     """
-    fine_centers = face_centers(fine_vertices, fine_quads)
-    coarse_centers = face_centers(coarse_vertices, coarse_quads)
-    n_fine, n_coarse = len(fine_centers), len(coarse_centers)
+    fine_centres = face_centres(fine_vertices, fine_quads)
+    coarse_centres = face_centres(coarse_vertices, coarse_quads)
+    n_fine, n_coarse = len(fine_centres), len(coarse_centres)
     if n_coarse > n_fine:
         raise ValueError(f"the coarse level has more faces ({n_coarse}) than the fine one ({n_fine})")
-    _, assignment = cKDTree(coarse_centers).query(fine_centers, k=1)
+    _, assignment = cKDTree(coarse_centres).query(fine_centres, k=1)
     assignment = np.asarray(assignment, dtype=np.int64)
     counts = np.bincount(assignment, minlength=n_coarse)
-    fine_tree = cKDTree(fine_centers)
+    fine_tree = cKDTree(fine_centres)
     for coarse in np.flatnonzero(counts == 0):
         k = min(candidates, n_fine)
         while True:
-            _, nearest = fine_tree.query(coarse_centers[coarse], k=k)
+            _, nearest = fine_tree.query(coarse_centres[coarse], k=k)
             nearest = np.atleast_1d(nearest)
             movable = [i for i in nearest if counts[assignment[i]] > 1]
             if movable or k == n_fine:

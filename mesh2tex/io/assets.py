@@ -199,13 +199,13 @@ def load_glb(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarra
             np.asarray(visual.uv, dtype=np.float32), np.asarray(image.convert("RGB"), dtype=np.uint8))
 
 
-def ply_bytes(vertices, faces, vertex_colors_uint8) -> bytes:
+def ply_bytes(vertices, faces, vertex_colours_uint8) -> bytes:
     """A binary little-endian PLY with per-vertex RGB colours; see :func:`save_ply`."""
     positions = _array(vertices, np.float32, "vertices", 3)
     triangles = _array(faces, np.int64, "faces", 3)
-    colors = _array(vertex_colors_uint8, np.uint8, "vertex_colors_uint8")
-    if colors.ndim != 2 or colors.shape[1] not in (3, 4) or len(colors) != len(positions):
-        raise ValueError(f"vertex_colors_uint8 must have shape ({len(positions)}, 3), got {colors.shape}")
+    colours = _array(vertex_colours_uint8, np.uint8, "vertex_colours_uint8")
+    if colours.ndim != 2 or colours.shape[1] not in (3, 4) or len(colours) != len(positions):
+        raise ValueError(f"vertex_colours_uint8 must have shape ({len(positions)}, 3), got {colours.shape}")
     _check_faces(triangles, len(positions))
     header = (
         "ply\nformat binary_little_endian 1.0\ncomment written by mesh2tex\n"
@@ -214,18 +214,18 @@ def ply_bytes(vertices, faces, vertex_colors_uint8) -> bytes:
         f"element face {len(triangles)}\nproperty list uchar int vertex_indices\nend_header\n"
     ).encode("ascii")
     vertex_records = np.empty(len(positions), dtype=[("p", "<f4", 3), ("c", "u1", 3)])
-    vertex_records["p"], vertex_records["c"] = positions, colors[:, :3]
+    vertex_records["p"], vertex_records["c"] = positions, colours[:, :3]
     face_records = np.empty(len(triangles), dtype=[("n", "u1"), ("i", "<i4", 3)])
     face_records["n"], face_records["i"] = 3, triangles
     return header + vertex_records.tobytes() + face_records.tobytes()
 
 
-def save_ply(path: str | os.PathLike, vertices, faces, vertex_colors_uint8) -> None:
+def save_ply(path: str | os.PathLike, vertices, faces, vertex_colours_uint8) -> None:
     """Write a triangle mesh with per-vertex colours as binary PLY.
 
-    vertices: (V, 3) float, faces: (T, 3) int, vertex_colors_uint8: (V, 3) uint8 (or (V, 4); alpha dropped).
+    vertices: (V, 3) float, faces: (T, 3) int, vertex_colours_uint8: (V, 3) uint8 (or (V, 4); alpha dropped).
     """
-    write_bytes(path, ply_bytes(vertices, faces, vertex_colors_uint8))
+    write_bytes(path, ply_bytes(vertices, faces, vertex_colours_uint8))
 
 
 def obj_text(vertices, faces, face_groups=None) -> str:

@@ -121,13 +121,13 @@ def save_png(path: str | os.PathLike, image: np.ndarray) -> None:
         Image.fromarray(image).save(tmp, format="PNG")
 
 
-def colors_to_uint8(colors: torch.Tensor, signed: bool = True) -> np.ndarray:
+def colours_to_uint8(colours: torch.Tensor, signed: bool = True) -> np.ndarray:
     """Float colours in [-1, 1] (``signed``) or [0, 1] -> uint8 of the same shape (clamped, rounded half to even)."""
-    colors = colors.detach().float()
-    scaled = (colors.clamp(-1, 1) + 1) * 127.5 if signed else colors.clamp(0, 1) * 255
+    colours = colours.detach().float()
+    scaled = (colours.clamp(-1, 1) + 1) * 127.5 if signed else colours.clamp(0, 1) * 255
     return scaled.round().to(torch.uint8).cpu().numpy()
 
 
 def images_to_uint8(images: torch.Tensor, signed: bool = True) -> np.ndarray:
     """Images [..., 3, H, W] float in [-1, 1] (``signed``) or [0, 1] -> uint8 [..., H, W, 3] (channels last)."""
-    return colors_to_uint8(images.movedim(-3, -1), signed)
+    return colours_to_uint8(images.movedim(-3, -1), signed)

@@ -63,7 +63,7 @@ def _applied(n: int, p: float, device: torch.device) -> torch.Tensor:
     return (torch.rand(n, 1, 1, 1, device=device) < p).float()
 
 
-def augment_color(x: torch.Tensor, p: float = 1.0) -> torch.Tensor:
+def augment_colour(x: torch.Tensor, p: float = 1.0) -> torch.Tensor:
     """Random brightness, saturation and contrast. x: (N, C, H, W) in [-1, 1] -> same shape."""
     n, dev = x.shape[0], x.device
     on = _applied(n, p, dev).to(x.dtype)
@@ -130,7 +130,7 @@ class DiffAugment:
         c, p = self.cfg, self.p
         for name in self.transforms:
             if name == "color":
-                x = augment_color(x, p)
+                x = augment_colour(x, p)
             elif name == "translation":
                 x = augment_translation(x, c.translation_ratio, p)
             else:

@@ -6,17 +6,17 @@ Sets (renders against a photo collection):
     substitute such as ``randvgg``; see :mod:`mesh2tex.metrics.features`);
     :func:`swd` / :func:`swd_per_level`, sliced Wasserstein distance on Laplacian-pyramid patches (no weights).
 Pairs (render and reference with exactly the same geometry and pose):
-    :func:`masked_psnr`, :func:`masked_ssim`, :func:`color_histogram_distance`.
+    :func:`masked_psnr`, :func:`masked_ssim`, :func:`colour_histogram_distance`.
 """
 
 from mesh2tex.metrics.distribution import fid, kid
 from mesh2tex.metrics.features import EXTRACTOR_NAMES, FeatureExtractor, get_feature_extractor
-from mesh2tex.metrics.image import color_histogram_distance, color_histograms, masked_psnr, masked_ssim, to_unit
+from mesh2tex.metrics.image import colour_histogram_distance, colour_histograms, masked_psnr, masked_ssim, to_unit
 from mesh2tex.metrics.inception import InceptionV3Features, find_inception_weights, load_inception
 from mesh2tex.metrics.swd import swd, swd_per_level
 
 __all__ = [
-    "EXTRACTOR_NAMES", "FeatureExtractor", "InceptionV3Features", "color_histogram_distance", "color_histograms",
+    "EXTRACTOR_NAMES", "FeatureExtractor", "InceptionV3Features", "colour_histogram_distance", "colour_histograms",
     "fid", "find_inception_weights", "get_feature_extractor", "kid", "load_inception", "masked_psnr", "masked_ssim",
     "swd", "swd_per_level", "to_unit",
 ]

@@ -14,7 +14,7 @@ import torch
 from mesh2tex.errors import InputError
 from mesh2tex.metrics.distribution import fid, kid
 from mesh2tex.metrics.features import FeatureExtractor, get_feature_extractor
-from mesh2tex.metrics.image import color_histogram_distance, color_histograms, masked_psnr, masked_ssim
+from mesh2tex.metrics.image import colour_histogram_distance, colour_histograms, masked_psnr, masked_ssim
 from mesh2tex.metrics.swd import swd_per_level
 
 
@@ -84,7 +84,7 @@ def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, rende
         def stacked(t: torch.Tensor) -> torch.Tensor:  # [N, C, H, W] -> one [1, C, N*H, W] image
             return t.transpose(0, 1).reshape(1, t.shape[1], -1, t.shape[-1])
 
-        return color_histograms(stacked(x), None if masks is None else stacked(masks), bins)[0]
+        return colour_histograms(stacked(x), None if masks is None else stacked(masks), bins)[0]
 
     return {name: float(0.5 * (pooled(renders, render_masks) - pooled(images, image_masks)).abs().sum())}
 
@@ -105,7 +105,7 @@ def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Ten
         raise InputError(f"the mask of pair '{names[empty] if names else empty}' is empty")
     psnr = masked_psnr(renders, images, masks)
     ssim = masked_ssim(renders, images, masks)
-    histogram = color_histogram_distance(renders, images, masks, bins=config.histogram_bins)
+    histogram = colour_histogram_distance(renders, images, masks, bins=config.histogram_bins)
     names = names or [str(i) for i in range(renders.shape[0])]
     per_pair = [{"name": name, "psnr_masked": float(p), "ssim_masked": float(s), "color_hist_tv": float(h)}
                 for name, p, s, h in zip(names, psnr, ssim, histogram)]

@@ -39,7 +39,7 @@ def masked_ssim(images: torch.Tensor, references: torch.Tensor, masks: torch.Ten
     return (ssim_map.double() * weights).sum(dim=(1, 2, 3)) / (weights.sum(dim=(1, 2, 3)) * images.shape[1])
 
 
-def color_histograms(images: torch.Tensor, masks: torch.Tensor | None = None, bins: int = 8) -> torch.Tensor:
+def colour_histograms(images: torch.Tensor, masks: torch.Tensor | None = None, bins: int = 8) -> torch.Tensor:
     """Joint RGB histograms of the masked pixels, ``bins`` per channel, normalised to sum 1: [B, bins^3]."""
     weights = _weights(images, masks)[:, 0].reshape(images.shape[0], -1).double()
     quantised = (images.clamp(0, 1) * bins).long().clamp_max(bins - 1)  # [B, 3, H, W]
@@ -49,11 +49,11 @@ def color_histograms(images: torch.Tensor, masks: torch.Tensor | None = None, bi
     return histograms / histograms.sum(dim=1, keepdim=True).clamp_min(1e-12)
 
 
-def color_histogram_distance(images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor | None = None,
+def colour_histogram_distance(images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor | None = None,
                              reference_masks: torch.Tensor | None = None, bins: int = 8) -> torch.Tensor:
     """Total-variation distance (half the L1 distance) between joint RGB histograms (``bins`` per channel)
     of the masked pixels: 0 for the same colour distribution, 1 for disjoint colours. The two images may
     have different masks (``reference_masks`` defaults to ``masks``) and even sizes."""
     reference_masks = masks if reference_masks is None else reference_masks
-    difference = color_histograms(images, masks, bins) - color_histograms(references, reference_masks, bins)
+    difference = colour_histograms(images, masks, bins) - colour_histograms(references, reference_masks, bins)
     return 0.5 * difference.abs().sum(dim=1)

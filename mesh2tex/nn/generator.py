@@ -13,7 +13,7 @@ to read the latent-free, face-to-face noisy geometry channels and ignore F_c: ev
 gets the same texture. With ``field_residual`` psi's output is a residual on the barycentric blend of
 the proxy colours rgb_0 (mean face colour around each vertex): the texture starts from the
 latent-dependent per-face colours, which the proxy discriminator trains directly, and psi adds the
-detail within faces (see :func:`mesh2tex.nn.render_texture.field_colors`).
+detail within faces (see :func:`mesh2tex.nn.render_texture.field_colours`).
 
 With ``kind: nca`` a mesh cellular automaton on the finest vertices replaces the synthesis U-Net
 (:class:`mesh2tex.nn.nca.ConditionedNCA`): each cell is conditioned on w and on the encoder's E_0,

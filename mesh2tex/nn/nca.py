@@ -343,7 +343,7 @@ class MeshNCA(nn.Module):
             state = self.step(state, graph, **kwargs)
         return state
 
-    def colors(self, state: torch.Tensor, triangles: torch.Tensor, triangle_id: torch.Tensor, bary: torch.Tensor,
+    def colours(self, state: torch.Tensor, triangles: torch.Tensor, triangle_id: torch.Tensor, bary: torch.Tensor,
                sample: torch.Tensor | None = None, graft: tuple["MeshNCA", torch.Tensor] | None = None) -> torch.Tensor:
         """RGB (P, 3) in about [-1, 1] at P surface points.
 
@@ -352,12 +352,12 @@ class MeshNCA(nn.Module):
         ``graft``: (other automaton, alpha (V,)) as in :meth:`step`: where cells grew by the other's
         rule they are read by its readout too, the two blended by alpha interpolated at the point.
         """
-        self._check_state("colors", state)
-        check_shape(triangles, "MeshNCA.colors: triangles", (None, 3), dtype="int")
-        points = check_shape(triangle_id, "MeshNCA.colors: triangle_id", ("P",), dtype="int")
-        check_shape(bary, "MeshNCA.colors: bary", ("P", 3), sizes=points, dtype="float")
+        self._check_state("colours", state)
+        check_shape(triangles, "MeshNCA.colours: triangles", (None, 3), dtype="int")
+        points = check_shape(triangle_id, "MeshNCA.colours: triangle_id", ("P",), dtype="int")
+        check_shape(bary, "MeshNCA.colours: bary", ("P", 3), sizes=points, dtype="float")
         if sample is not None:
-            check_shape(sample, "MeshNCA.colors: sample", ("P",), sizes=points, dtype="int")
+            check_shape(sample, "MeshNCA.colours: sample", ("P",), sizes=points, dtype="int")
         corners = triangles[triangle_id]  # (P, 3)
         if sample is None:
             corner_states = state[0][corners]
@@ -368,14 +368,14 @@ class MeshNCA(nn.Module):
         if graft is None:
             return rgb
         other, alpha = graft
-        check_shape(alpha, "MeshNCA.colors: graft alpha", (state.shape[1],))
+        check_shape(alpha, "MeshNCA.colours: graft alpha", (state.shape[1],))
         a = (alpha.to(state.dtype)[corners] * bary).sum(-1, keepdim=True)  # (P, 1)
         return (1 - a) * rgb + a * other.readout(corner_states, bary)
 
-    def vertex_colors(self, state: torch.Tensor, graft: tuple["MeshNCA", torch.Tensor] | None = None) -> torch.Tensor:
+    def vertex_colours(self, state: torch.Tensor, graft: tuple["MeshNCA", torch.Tensor] | None = None) -> torch.Tensor:
         """(B, V, 3) colours at the cells themselves (a point at a vertex: barycentrics (1, 0, 0)) of state (B, V, C);
-        ``graft`` as in :meth:`colors`."""
-        self._check_state("vertex_colors", state)
+        ``graft`` as in :meth:`colours`."""
+        self._check_state("vertex_colours", state)
         b, v, c = state.shape
         corners = state.reshape(b * v, 1, c).expand(b * v, 3, c)
         bary = torch.tensor([1.0, 0.0, 0.0], dtype=state.dtype, device=state.device).expand(b * v, 3)
@@ -383,7 +383,7 @@ class MeshNCA(nn.Module):
         if graft is None:
             return rgb
         other, alpha = graft
-        check_shape(alpha, "MeshNCA.vertex_colors: graft alpha", (v,))
+        check_shape(alpha, "MeshNCA.vertex_colours: graft alpha", (v,))
         a = alpha.to(state.dtype).reshape(1, v, 1)
         return (1 - a) * rgb + a * other.readout(corners, bary).reshape(b, v, 3)
 

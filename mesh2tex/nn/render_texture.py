@@ -19,7 +19,7 @@ from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.field import blend_vertex_features, vertex_features
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
 from mesh2tex.nn.nca import CellGraph, MeshNCA
-from mesh2tex.render import Lights, quad_normals, rasterize, shade_colors, transform_points
+from mesh2tex.render import Lights, quad_normals, rasterize, shade_colours, transform_points
 
 
 @dataclass
@@ -75,14 +75,14 @@ def _views_per_item(function: str, batch: MeshBatch, mvp: torch.Tensor, items: i
     return mvp.shape[0] // items
 
 
-def field_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+def field_colours(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
     """psi at surface points: triangle_id (P,) int64 batch triangle indices, bary (P, 3) float -> RGB (P, 3).
 
     With ``field_residual`` (the default) psi's output is added to the barycentric blend of the
     proxy's vertex colours (the mean face colour around each vertex), so the colour at a point
     starts from the latent-dependent per-face texture and psi adds detail within the faces.
     """
-    check_shape(bary, "field_colors: bary", ("P", 3), sizes=check_shape(triangle_id, "field_colors: triangle_id", ("P",), dtype="int"), dtype="float")
+    check_shape(bary, "field_colours: bary", ("P", 3), sizes=check_shape(triangle_id, "field_colours: triangle_id", ("P",), dtype="int"), dtype="float")
     features = texture.field_features
     residual = generator.cfg.field_residual
     if residual:
@@ -94,11 +94,11 @@ def field_colors(generator: TextureGenerator, texture: FaceTexture, batch: MeshB
     return generator.field(blended[:, :-3], bary) + blended[:, -3:]
 
 
-def paint_pixels(background: torch.Tensor, flat_index: torch.Tensor, colors: torch.Tensor) -> torch.Tensor:
+def paint_pixels(background: torch.Tensor, flat_index: torch.Tensor, colours: torch.Tensor) -> torch.Tensor:
     """background (N, 3, H, W); colours (P, 3) at flat pixel indices into N*H*W -> (N, 3, H, W)."""
     n, _, h, w = background.shape
-    flat = background.permute(0, 2, 3, 1).reshape(-1, 3).to(colors.dtype)
-    flat = flat.index_put((flat_index,), colors)
+    flat = background.permute(0, 2, 3, 1).reshape(-1, 3).to(colours.dtype)
+    flat = flat.index_put((flat_index,), colours)
     # contiguous(): channels-last inputs to the CPU conv backward of small networks can corrupt the heap.
     return flat.reshape(n, h, w, 3).permute(0, 3, 1, 2).contiguous()
 
@@ -133,7 +133,7 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
         samples = rasterize_batch(batch, mvp, (h, w))
     background, flat_index, triangle_id, bary = _covered_pixels(samples, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
-    images = paint_pixels(background, flat_index, shade(field_colors(generator, texture, batch, triangle_id, bary)))
+    images = paint_pixels(background, flat_index, shade(field_colours(generator, texture, batch, triangle_id, bary)))
     proxy_images = paint_pixels(background, flat_index, shade(texture.face_rgb[triangle_id // 2])) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=samples.mask.unsqueeze(1).to(images.dtype))
 
@@ -166,11 +166,11 @@ def _pixel_lighting(batch: MeshBatch, triangle_id: torch.Tensor, flat_index: tor
     """shade(colours (P, 3)) for the covered pixels: Lambert under each pixel's view's light with flat quad
     normals, gathered once and shared by every colour shaded at these pixels; unlit: the identity."""
     if lights is None:
-        return lambda colors: colors
+        return lambda colours: colours
     view = flat_index // pixels_per_view
     normals = quad_normals(batch.vertices, batch.quads)[triangle_id // 2]
     direction, ambient = lights.direction[view], lights.ambient[view]
-    return lambda colors: shade_colors(colors, normals.to(colors.dtype), direction.to(colors.dtype), ambient.to(colors.dtype))
+    return lambda colours: shade_colours(colours, normals.to(colours.dtype), direction.to(colours.dtype), ambient.to(colours.dtype))
 
 
 @dataclass
@@ -188,7 +188,7 @@ def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: to
 
     state (B, V, C) float, V = ``graph.num_cells``; mvp (N, 4, 4); background a float, (N, 3) colours
     or (N, 3, H, W) images in [-1, 1]; graft: a grafted growth's (other model, alpha (V,)), whose
-    readouts are blended as :meth:`MeshNCA.colors` does. The readout is evaluated only at covered pixels. Differentiable with respect to the
+    readouts are blended as :meth:`MeshNCA.colours` does. The readout is evaluated only at covered pixels. Differentiable with respect to the
     states and the readout's parameters.
     """
     check_type(graph, "render_states: graph", CellGraph)
@@ -202,11 +202,11 @@ def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: to
     triangle_id = raster.face_id.reshape(-1)[flat_index]
     bary = raster.bary.reshape(-1, 3)[flat_index]
     sample = flat_index // (h * w) // (n // b)
-    colors = model.colors(state, graph.triangles, triangle_id, bary, sample, graft=graft)
-    background = torch.as_tensor(background, dtype=colors.dtype, device=colors.device)
+    colours = model.colours(state, graph.triangles, triangle_id, bary, sample, graft=graft)
+    background = torch.as_tensor(background, dtype=colours.dtype, device=colours.device)
     if background.dim() == 0:
         background = background.expand(n, 3)
     if background.dim() == 2:
         background = background[:, :, None, None].expand(n, 3, h, w)
-    images = paint_pixels(background, flat_index, colors)
+    images = paint_pixels(background, flat_index, colours)
     return StateViews(images=images, mask=covered.unsqueeze(1).to(images.dtype))

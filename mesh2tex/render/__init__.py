@@ -13,7 +13,7 @@ Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in do
 from .cameras import Camera, CameraConfig, orbit_camera, orbit_direction, perspective, transform_points, turntable_angles
 from .crop import crop_mask, crop_square, object_box
 from .interpolate import face_attribute, interpolate, texture
-from .rasterize import Raster, pixel_centers, rasterize
+from .rasterize import Raster, pixel_centres, rasterize
 from .shading import (
     LightConfig,
     Lights,
@@ -25,7 +25,7 @@ from .shading import (
     quad_normals,
     random_lights,
     render_normals,
-    shade_colors,
+    shade_colours,
     shade_lambert,
     vertex_normals,
 )
@@ -49,14 +49,14 @@ __all__ = [
     "orbit_camera",
     "orbit_direction",
     "perspective",
-    "pixel_centers",
+    "pixel_centres",
     "rasterize",
     "render_mask",
     "render_noc",
     "quad_normals",
     "random_lights",
     "render_normals",
-    "shade_colors",
+    "shade_colours",
     "shade_lambert",
     "texture",
     "transform_points",

@@ -90,7 +90,7 @@ class Raster:
         return tuple(self.face_id.shape[1:3])
 
 
-def pixel_centers(resolution, device=None, dtype=torch.float32) -> torch.Tensor:
+def pixel_centres(resolution, device=None, dtype=torch.float32) -> torch.Tensor:
     """NDC coordinates of the pixel centres: (H,W,2), x = (2j+1)/W - 1, y = 1 - (2i+1)/H."""
     H, W = resolution
     x = (2 * torch.arange(W, device=device, dtype=torch.float64) + 1) / W - 1

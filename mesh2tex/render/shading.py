@@ -174,16 +174,16 @@ def random_lights(camera_azimuth: torch.Tensor, cfg: LightConfig, generator: tor
     return Lights(orbit_direction(azimuth, elevation), ambient)
 
 
-def shade_colors(colors: torch.Tensor, normals: torch.Tensor, direction: torch.Tensor, ambient: torch.Tensor) -> torch.Tensor:
+def shade_colours(colours: torch.Tensor, normals: torch.Tensor, direction: torch.Tensor, ambient: torch.Tensor) -> torch.Tensor:
     """Lambert shading of network colours at P points: colours (P, 3) in [-1, 1] (albedo 0..1 mapped),
     unit normals (P, 3), light direction (P, 3), ambient (P,) -> shaded colours (P, 3) in [-1, 1].
     Two-sided, as :func:`shade_lambert` (which it applies to the albedo)."""
-    sizes = check_shape(colors, "shade_colors: colors", ("P", 3), dtype="float")
+    sizes = check_shape(colours, "shade_colours: colours", ("P", 3), dtype="float")
     for name, value in (("normals", normals), ("direction", direction)):
-        check_shape(value, f"shade_colors: {name}", ("P", 3), sizes=sizes, dtype="float")
-    check_shape(ambient, "shade_colors: ambient", ("P",), sizes=sizes, dtype="float")
-    albedo = (colors + 1) * 0.5
-    shaded = shade_lambert(albedo[:, None, None], normals[:, None, None], direction, ambient.reshape(-1, 1, 1, 1).to(colors.dtype))
+        check_shape(value, f"shade_colours: {name}", ("P", 3), sizes=sizes, dtype="float")
+    check_shape(ambient, "shade_colours: ambient", ("P",), sizes=sizes, dtype="float")
+    albedo = (colours + 1) * 0.5
+    shaded = shade_lambert(albedo[:, None, None], normals[:, None, None], direction, ambient.reshape(-1, 1, 1, 1).to(colours.dtype))
     return shaded[:, 0, 0] * 2 - 1
 
 

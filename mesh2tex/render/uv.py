@@ -93,28 +93,28 @@ def unwrap_uv(vertices, faces):
     return result
 
 
-def bake_surface_colors(vertices: torch.Tensor, triangles: torch.Tensor, colors_at, size: int, dilate: int = 8):
+def bake_surface_colours(vertices: torch.Tensor, triangles: torch.Tensor, colours_at, size: int, dilate: int = 8):
     """Bake a colour function of surface points into a UV texture over a fresh atlas.
 
     Args:
         vertices: (V,3) float, triangles: (T,3) int64 of the mesh (tensors).
-        colors_at: ``colors_at(triangle_id (P,), bary (P,3)) -> (P,3)`` RGB in [-1, 1], the colour at
+        colours_at: ``colours_at(triangle_id (P,), bary (P,3)) -> (P,3)`` RGB in [-1, 1], the colour at
             P surface points given as a triangle of ``triangles`` and barycentrics in its corner order.
         size: texture side in texels; dilate: texels of padding around each chart.
     Returns:
         (vertices (V',3) float32, faces (T,3) int64, uv (V',2) float32, texture (size,size,3) uint8,
         coverage (size,size) bool), CPU tensors/arrays; faces keep the order and corners of
-        ``triangles`` (vertices are split on seams), so texel colours equal ``colors_at`` exactly.
+        ``triangles`` (vertices are split on seams), so texel colours equal ``colours_at`` exactly.
     """
-    check_shape(vertices, "bake_surface_colors: vertices", ("V", 3), dtype="float")
-    check_shape(triangles, "bake_surface_colors: triangles", ("T", 3), dtype="int")
+    check_shape(vertices, "bake_surface_colours: vertices", ("V", 3), dtype="float")
+    check_shape(triangles, "bake_surface_colours: triangles", ("T", 3), dtype="int")
     triangles = triangles.cpu()
     new_vertices, faces, uv, vertex_map = unwrap_uv(vertices.cpu(), triangles)
     if not torch.equal(vertex_map[faces], triangles):
         raise RuntimeError("unwrap_uv changed the face order or corners; baking needs them kept")
     raster = uv_rasterize(uv, faces, (size, size))
     covered = raster.face_id[0] >= 0
-    colors = torch.zeros(size, size, 3)
-    colors[covered] = colors_at(raster.face_id[0][covered], raster.bary[0][covered]).float().cpu()
-    image = dilate_texture(colors.permute(2, 0, 1), covered[None].float(), dilate).reshape(3, size, size)
+    colours = torch.zeros(size, size, 3)
+    colours[covered] = colours_at(raster.face_id[0][covered], raster.bary[0][covered]).float().cpu()
+    image = dilate_texture(colours.permute(2, 0, 1), covered[None].float(), dilate).reshape(3, size, size)
     return new_vertices.float(), faces, uv.float(), images_to_uint8(image), covered

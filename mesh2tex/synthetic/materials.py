@@ -20,7 +20,7 @@ import numpy as np
 
 from mesh2tex.synthetic.shapes import PART_ID, PART_NAMES
 
-Color = tuple[float, float, float]
+Colour = tuple[float, float, float]
 
 # Palettes (sRGB in [0, 1]) by role.
 FABRIC = ((0.62, 0.12, 0.12), (0.14, 0.24, 0.48), (0.22, 0.40, 0.25), (0.78, 0.62, 0.30), (0.45, 0.45, 0.48),
@@ -40,14 +40,14 @@ def _c(values) -> np.ndarray:
     return np.asarray(values, dtype=np.float64)
 
 
-def _mix(a: Color, b: Color, t: np.ndarray) -> np.ndarray:
+def _mix(a: Colour, b: Colour, t: np.ndarray) -> np.ndarray:
     """(N,) weights -> (N, 3): a where t = 0, b where t = 1."""
     t = np.clip(t, 0.0, 1.0)[:, None]
     return _c(a)[None] * (1 - t) + _c(b)[None] * t
 
 
-def _round(color) -> list[float]:
-    return [round(float(v), 3) for v in color]
+def _round(colour) -> list[float]:
+    return [round(float(v), 3) for v in colour]
 
 
 class Pattern:
@@ -71,7 +71,7 @@ class Pattern:
 
 @dataclass
 class Solid(Pattern):
-    color: Color
+    color: Colour
 
     def __call__(self, points, normals):
         return np.broadcast_to(_c(self.color), (len(points), 3)).copy()
@@ -81,9 +81,9 @@ class Solid(Pattern):
 class Stripes(Pattern):
     """Bands across ``axis`` (a unit 3-vector), ``frequency`` bands per unit length, ``duty`` the share of a."""
 
-    color_a: Color
-    color_b: Color
-    axis: Color
+    color_a: Colour
+    color_b: Colour
+    axis: Colour
     frequency: float
     duty: float = 0.5
 
@@ -96,8 +96,8 @@ class Stripes(Pattern):
 class Checker(Pattern):
     """A 3D checkerboard of cubes of side ``size``."""
 
-    color_a: Color
-    color_b: Color
+    color_a: Colour
+    color_b: Colour
     size: float
 
     def __call__(self, points, normals):
@@ -110,8 +110,8 @@ class Checker(Pattern):
 class Noise(Pattern):
     """Fractal value noise between two colours; ``threshold`` > 0 gives a two-tone camouflage."""
 
-    color_a: Color
-    color_b: Color
+    color_a: Colour
+    color_b: Colour
     scale: float  # lattice cells per unit length of the first octave
     octaves: int = 3
     seed: int = 0
@@ -128,9 +128,9 @@ class Noise(Pattern):
 class WoodGrain(Pattern):
     """Growth rings around an axis through the origin, distorted by noise."""
 
-    light: Color
-    dark: Color
-    axis: Color  # the grain direction (unit)
+    light: Colour
+    dark: Colour
+    axis: Colour  # the grain direction (unit)
     rings: float  # rings per unit of radius
     seed: int = 0
 
@@ -149,8 +149,8 @@ class WoodGrain(Pattern):
 class Weave(Pattern):
     """A plain fabric weave (threads over and under), projected triplanarly."""
 
-    color_a: Color
-    color_b: Color
+    color_a: Colour
+    color_b: Colour
     frequency: float  # threads per unit length
 
     def __call__(self, points, normals):
@@ -169,8 +169,8 @@ class Photo(Pattern):
     """A grayscale photograph bundled with scikit-image (brick, grass, gravel), tinted, triplanar."""
 
     image: str
-    dark: Color
-    light: Color
+    dark: Colour
+    light: Colour
     tile: float  # world units covered by one copy of the image
 
     def __call__(self, points, normals):
@@ -316,15 +316,15 @@ def _pick(rng: np.random.Generator, options):
     return options[int(rng.integers(len(options)))]
 
 
-def _jitter(rng: np.random.Generator, color, amount: float = 0.06) -> Color:
-    return tuple(float(v) for v in np.clip(_c(color) + rng.uniform(-amount, amount, 3), 0, 1))
+def _jitter(rng: np.random.Generator, colour, amount: float = 0.06) -> Colour:
+    return tuple(float(v) for v in np.clip(_c(colour) + rng.uniform(-amount, amount, 3), 0, 1))
 
 
-def _shade(color, factor: float) -> Color:
-    return tuple(float(v) for v in np.clip(_c(color) * factor, 0, 1))
+def _shade(colour, factor: float) -> Colour:
+    return tuple(float(v) for v in np.clip(_c(colour) * factor, 0, 1))
 
 
-def _random_axis(rng: np.random.Generator) -> Color:
+def _random_axis(rng: np.random.Generator) -> Colour:
     axis = np.zeros(3)
     axis[int(rng.integers(3))] = 1.0
     axis += rng.normal(0, 0.15, 3)
@@ -353,7 +353,7 @@ def random_upholstery(rng: np.random.Generator) -> Pattern:
     return Noise(_shade(base, 0.55), base, float(rng.uniform(4, 12)), 4, int(rng.integers(1 << 16)))
 
 
-def random_photo(rng: np.random.Generator, tint: Color) -> Photo:
+def random_photo(rng: np.random.Generator, tint: Colour) -> Photo:
     """A photographic texture tinted from dark to ``tint``-light."""
     name = _pick(rng, PHOTO_IMAGES)
     light = tuple(float(v) for v in np.clip(_c(tint) * 0.5 + 0.5, 0, 1))

@@ -154,15 +154,15 @@ def _rounded_rect(width: float, height: float, radius: float, segments: int = 24
     return inner.offset(radius, mf.JoinType.Round, circular_segments=segments)
 
 
-def box(size, center) -> mf.Manifold:
-    """Axis-aligned box of ``size`` (x, y, z) centred at ``center``."""
-    return mf.Manifold.cube(tuple(float(s) for s in size), True).translate(tuple(float(c) for c in center))
+def box(size, centre) -> mf.Manifold:
+    """Axis-aligned box of ``size`` (x, y, z) centred at ``centre``."""
+    return mf.Manifold.cube(tuple(float(s) for s in size), True).translate(tuple(float(c) for c in centre))
 
 
-def slab(width: float, depth: float, thickness: float, radius: float, center) -> mf.Manifold:
+def slab(width: float, depth: float, thickness: float, radius: float, centre) -> mf.Manifold:
     """A horizontal plate (x width, z depth, y thickness) with rounded vertical edges."""
     solid = mf.Manifold.extrude(_rounded_rect(width, depth, radius), thickness)
-    return _place(solid, _Z_TO_Y, np.asarray(center, dtype=np.float64) - [0, thickness / 2, 0])
+    return _place(solid, _Z_TO_Y, np.asarray(centre, dtype=np.float64) - [0, thickness / 2, 0])
 
 
 def panel(width: float, height: float, thickness: float, radius: float) -> mf.Manifold:

@@ -176,3 +176,58 @@ def test_no_source_file_is_longer_than_600_lines():
     long = {str(p.relative_to(ROOT)): n for folder in folders for p in sorted((ROOT / folder).rglob("*.py"))
             if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert long == {}, "split a long file by job"
+
+
+# One spelling in identifiers: the project writes British "colour" and "centre". The names below are kept
+# because the project does not own them; each is where its definition is, with why.
+SPELLING_FOLDERS = (LIBRARY, *STAGES, "tests", "benchmarks", "models")
+AMERICAN = ("color", "center")
+KEPT_SPELLINGS = {
+    # Pattern dataclass fields: describe() writes them as keys of each world's ground-truth material JSON
+    ("mesh2tex/synthetic/materials.py", "color"): "persisted key",
+    ("mesh2tex/synthetic/materials.py", "color_a"): "persisted key",
+    ("mesh2tex/synthetic/materials.py", "color_b"): "persisted key",
+    # Blender's Python API (scene.render.image_settings.color_mode), set in the Blender-side script
+    ("benchmarks/blender_scene.py", "color_mode"): "external name",
+}
+
+
+def defined_names(source: str) -> list[tuple[int, str]]:
+    """(line, name) of every name ``source`` defines: functions, classes, arguments, assigned names and
+    attributes (``x = ``, ``self.x = ``, loop, ``with`` and comprehension targets, class fields), import
+    aliases and exception names. Names only used (a library's attribute read, a keyword argument) are not."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            found.append((node.lineno, node.name))
+        elif isinstance(node, ast.arg):
+            found.append((node.lineno, node.arg))
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            found.append((node.lineno, node.id))
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            found.append((node.lineno, node.attr))
+        elif isinstance(node, ast.alias) and node.asname:
+            found.append((node.lineno, node.asname))
+        elif isinstance(node, ast.ExceptHandler) and node.name:
+            found.append((node.lineno, node.name))
+    return sorted(found)
+
+
+def american_spellings(source: str) -> list[tuple[int, str]]:
+    return [(line, name) for line, name in defined_names(source) if any(word in name.lower() for word in AMERICAN)]
+
+
+def test_identifiers_spell_colour_and_centre():
+    found = {(str(p.relative_to(ROOT)), name): line for folder in SPELLING_FOLDERS for p in sorted((ROOT / folder).rglob("*.py"))
+             for line, name in american_spellings(p.read_text())}
+    assert sorted(f"{path}:{line}: {name}" for (path, name), line in found.items() if (path, name) not in KEPT_SPELLINGS) == [], \
+        "spell project identifiers 'colour' and 'centre' (or add an external or persisted name to KEPT_SPELLINGS)"
+    assert sorted(set(KEPT_SPELLINGS) - set(found)) == [], "a kept name is gone: drop it from KEPT_SPELLINGS"
+
+
+def test_the_spelling_check_finds_what_it_forbids():
+    source = ("import numpy as colorful\n\nclass Colors:\n    color_a: int\n\n    def centers(self, center, *colors):\n"
+              "        self.colour = 1\n        self.centerline = [c for c in center]\n        for tint_color in colors:\n"
+              "            pass\n        return image.vertex_colors, f(color=1)\n")
+    assert american_spellings(source) == [(1, "colorful"), (3, "Colors"), (4, "color_a"), (6, "center"), (6, "centers"),
+                                          (6, "colors"), (8, "centerline"), (9, "tint_color")]

@@ -142,8 +142,9 @@ def main() -> None:
              "--config", str(gan_yaml), "--iters", str(args.gan_iters), "--resolution", str(GAN["resolution"]),
              "--views", str(GAN["views"]), "--seed", str(GAN["seed"]), "--device", args.device, "--resume"], commands)
         gan_ckpt = work / "gan" / "checkpoint.safetensors"
-        if not args.views_gan and recipe["views_gan_iteration"] < args.gan_iters:
-            args.views_gan = str(work / "gan" / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors")
+    snapshot = gan_run_dir(gan_ckpt) / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors"
+    if not args.views_gan and snapshot.is_file():  # else the GAN itself (a run shorter than the recipe's iteration)
+        args.views_gan = str(snapshot)
     views_yaml = work / "views.yaml"
     views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
     views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt

@@ -60,3 +60,27 @@ def test_the_shipped_models_load(monkeypatch):
         assert generator.cfg.input_features > 0 and meta["iteration"] > 0
         for kind in ("pose", "noc"):
             load_view_network(name, kind)
+
+
+def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card():
+    """models/build_model.py's recipes load as train gan configs, and each shipped card's iteration
+    count is its recipe's (the rebuild command on the card has no --gan-iters)."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    from mesh2tex.config import load_config
+    from train.gan import TrainGanConfig
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")
+    build_model = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build_model)
+    for category, recipe in build_model.RECIPES.items():
+        overrides = {f"loss.{key}": value for key, value in recipe["loss"].items()}
+        cfg = load_config(TrainGanConfig, None, {**overrides, "snapshot_every": build_model.GAN_CONFIG["snapshot_every"]})
+        assert recipe["views_gan_iteration"] % cfg.snapshot_every == 0  # the views' snapshot is kept
+        card = json.loads((root / "models" / category / "card.json").read_text())
+        assert card["gan_iterations"] == recipe["gan_iters"]
+        assert card["views_gan_iteration"] == recipe["views_gan_iteration"]
+    assert build_model.RECIPES["chair"]["loss"]["diversity_start"] == 3500

@@ -221,11 +221,11 @@ def _scaled(params64, scale):
 def gather_corners(pos: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
     """(B,V,4) clip-space positions and (T,3) int64 indices -> (4,3,B*T) corners, component-major,
     so that every per-(view, triangle) quantity is a contiguous row."""
-    B, V = pos.shape[:2]
-    by_component = pos.detach().permute(2, 0, 1).reshape(-1)  # (4*B*V,)
-    index = (torch.arange(4, device=pos.device)[:, None, None, None] * (B * V)
-             + torch.arange(B, device=pos.device)[:, None] * V + tri.T[:, None, :])
-    return by_component.index_select(0, index.reshape(-1)).view(4, 3, B * tri.shape[0])
+    B, T = pos.shape[0], tri.shape[0]
+    # Gather whole (x, y, z, w) rows first, then transpose: no (4, 3, B, T) index tensor to build
+    # (77 MB for 8 views of 100k triangles), and the same values, bit for bit.
+    rows = pos.detach().index_select(1, tri.T.reshape(-1))  # (B, 3*T, 4), corner-major
+    return rows.view(B, 3, T, 4).permute(3, 1, 0, 2).reshape(4, 3, B * T)
 
 
 @dataclass

@@ -410,16 +410,3 @@ def rasterize(
         resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, setups.row0, setups.col0,
                         setups.params64)
         return raster
-        face, view = live % T, torch.div(live, T, rounding_mode="floor")
-        buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)
-        base = view * (buffer.shape[1] * buffer.row_stride) + row0 * buffer.row_stride + col0
-        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, bin by bin; larger ones (sorted
-        # last) go through the coarse pass.
-        n = sum(counts[:N_BINS])
-        if n:
-            draw(buffer, Entries(params64[:, :n].float(), base[:n], face[:n]), bin_slices(counts[:N_BINS], max_pairs),
-                 max_pairs)
-        if counts[N_BINS]:
-            _draw_large(buffer, params64[:, n:], base[n:], face[n:], rows[n:], cols[n:], max_pairs)
-        resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, row0, col0, params64)
-        return raster

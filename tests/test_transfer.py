@@ -39,6 +39,14 @@ def transfer_args(root, out, *extra):
             "--pose", "30,20", "--out", str(out), *FAST, *extra]
 
 
+def transfer_report(root, out, settings, *extra):
+    """Run a transfer into ``out`` with ``settings`` (TransferConfig YAML) as --config; its report.json."""
+    config = out.parent / f"{out.name}.yaml"
+    config.write_text(settings)
+    assert main(transfer_args(root, out, "--config", str(config), *extra)) == 0
+    return json.loads((out / "report.json").read_text())
+
+
 def test_transfer_writes_a_textured_asset_and_a_report(setup, tmp_path):
     out = tmp_path / "out"
     assert main(transfer_args(setup, out, "--texture-format", "jpeg", "--texture-size", "48")) == 0
@@ -80,10 +88,7 @@ def test_several_starts_begin_at_the_best_one(setup, tmp_path):
     """latent_starts: stage 1 begins at the start whose render scores lowest, so its first loss is at
     most the mean latent's (with latent_space w, one latent shared by every style input, as well)."""
     def first_loss(name, settings):
-        config = tmp_path / f"{name}.yaml"
-        config.write_text(settings)
-        assert main(transfer_args(setup, tmp_path / name, "--no-refine", "--latent-iters", "2", "--config", str(config))) == 0
-        report = json.loads((tmp_path / name / "report.json").read_text())
+        report = transfer_report(setup, tmp_path / name, settings, "--no-refine", "--latent-iters", "2")
         return report["losses"]["latent"]["curve"][0], report["settings"]
 
     mean_start, _ = first_loss("mean", "latent_starts: 1\n")
@@ -145,18 +150,12 @@ def test_style_and_pose_search_settings_are_checked_before_any_work(setup, tmp_p
 
 
 def test_a_lit_generator_learns_the_photos_light_and_the_colour_loss_joins_both_stages(setup, tmp_path):
-    config = tmp_path / "transfer.yaml"
-    config.write_text("w_colour: 2.0\n")
-    out = tmp_path / "out"
-    assert main(transfer_args(setup, out, "--config", str(config))) == 0
-    report = json.loads((out / "report.json").read_text())
+    report = transfer_report(setup, tmp_path / "out", "w_colour: 2.0\n")
     # The tiny GAN was trained under the light prior (the default), so 'auto' learns a light.
     assert report["settings"]["light"] == "auto" and set(report["light"]) == {"azimuth_offset", "elevation", "ambient"}
     assert 0.0 < report["light"]["ambient"] < 1.0
     assert report["light"] != {"azimuth_offset": 0.0, "elevation": 47.5, "ambient": 0.475}, "the light moved from the prior's middle"
-    config.write_text("w_colour: 2.0\nlight: 'off'\n")
-    assert main(transfer_args(setup, tmp_path / "unlit", "--config", str(config))) == 0
-    assert json.loads((tmp_path / "unlit" / "report.json").read_text())["light"] is None
+    assert transfer_report(setup, tmp_path / "unlit", "w_colour: 2.0\nlight: 'off'\n")["light"] is None
 
 
 def test_the_learnt_light_starts_at_the_prior_and_turns_with_the_camera():
@@ -204,9 +203,5 @@ def test_the_anchor_covers_only_surfaces_the_photo_does_not_show(tiny_gan):
 
 
 def test_a_transfer_with_the_anchor_runs_both_stages(setup, tmp_path):
-    config = tmp_path / "anchor.yaml"
-    config.write_text("w_anchor: 5.0\nanchor_views: 3\n")
-    out = tmp_path / "out"
-    assert main(transfer_args(setup, out, "--config", str(config))) == 0
-    report = json.loads((out / "report.json").read_text())
+    report = transfer_report(setup, tmp_path / "out", "w_anchor: 5.0\nanchor_views: 3\n")
     assert report["settings"]["w_anchor"] == 5.0 and len(report["losses"]["refine"]["curve"]) == 3

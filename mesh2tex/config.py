@@ -42,9 +42,14 @@ def config_to_dict(cfg) -> dict[str, Any]:
     return dataclasses.asdict(cfg)
 
 
-def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "config") -> T:
+def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "config", base: T | None = None) -> T:
     """Build ``cls`` from a nested dict; unknown keys, wrong types and values a config's own checks
-    (its ``__post_init__``, raising ValueError) refuse are user errors naming the key."""
+    (its ``__post_init__``, raising ValueError) refuse are user errors naming the key.
+
+    The keys ``data`` leaves out keep the values of ``base`` (None: the class's defaults). A nested
+    config starts from its field's default, so that a field such as
+    ``transfer: TransferConfig = field(default_factory=lambda: TransferConfig(scales=2))`` keeps
+    ``scales`` 2 when the YAML sets only other keys of ``transfer``."""
     data = dict(data or {})
     hints = typing.get_type_hints(cls)
     kwargs = {}
@@ -56,7 +61,8 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
         if dataclasses.is_dataclass(hint):
             if not isinstance(value, dict):
                 raise InputError(f"{where}: '{f.name}' must be a mapping")
-            value = config_from_dict(hint, value, f"{where}.{f.name}")
+            value = config_from_dict(hint, value, f"{where}.{f.name}",
+                                     getattr(base, f.name) if base is not None else _field_default(f))
         else:
             value = _coerce(value, hint, f"{where}.{f.name}")
         kwargs[f.name] = value
@@ -64,9 +70,16 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
         known = ", ".join(f.name for f in dataclasses.fields(cls))
         raise InputError(f"{where}: unknown key(s) {sorted(str(k) for k in data)}; known keys: {known}")
     try:
-        return cls(**kwargs)
+        return cls(**kwargs) if base is None else dataclasses.replace(base, **kwargs)
     except (ValueError, TypeError) as error:
         raise InputError(f"{where}: {error}") from None
+
+
+def _field_default(f: dataclasses.Field):
+    """The default of a dataclass field (a new one from its factory), None when it has none."""
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return None if f.default is dataclasses.MISSING else f.default
 
 
 def _coerce(value, hint, where: str):

@@ -136,11 +136,6 @@ def build_config(args) -> TransferConfig:
         "refine": False if args.no_refine else None, "pose_search": False if args.no_pose_search else None})
     cfg = load_config(TransferConfig, args.config, overrides)
     check_style_sizes(cfg)
-    if cfg.latent_iters < 0 or cfg.refine_iters < 0:
-        raise UserError("--latent-iters and --refine-iters must not be negative")
-    if not 0 < cfg.pose_search_step <= 90 or cfg.pose_search_elevations < 1:
-        raise UserError(f"pose_search_step {cfg.pose_search_step}, pose_search_elevations {cfg.pose_search_elevations}: "
-                        "the step must be in (0, 90] degrees and at least one elevation bin searched")
     return cfg
 
 

@@ -58,13 +58,16 @@ class TransferConfig:
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
 
     def __post_init__(self):
-        check_fields(self, positive=("lr",), at_least={"refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1, "latent_starts": 1, "w_anchor": 0, "anchor_views": 1,
+        check_fields(self, positive=("lr",), at_least={"latent_iters": 0, "refine_iters": 0, "refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1, "latent_starts": 1, "w_anchor": 0, "anchor_views": 1,
                                                        "resolution": 16, "texture_size": 16, "patch_size": 1},
                      between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8), "colour_sigma": (0.0, 0.5)})
         if self.latent_space not in LATENT_SPACES:
             raise ValueError(f"latent_space {self.latent_space!r}: must be one of {', '.join(LATENT_SPACES)}")
         if self.light not in LIGHT_MODES:
             raise ValueError(f"light {self.light!r}: must be one of {', '.join(LIGHT_MODES)}")
+        if not 0 < self.pose_search_step <= 90 or self.pose_search_elevations < 1:
+            raise ValueError(f"pose_search_step {self.pose_search_step}, pose_search_elevations {self.pose_search_elevations}: "
+                             "the step must be in (0, 90] degrees and at least one elevation bin searched")
 
     @property
     def patch_levels(self) -> int:

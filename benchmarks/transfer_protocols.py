@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -36,12 +37,12 @@ def main() -> None:
     parser.add_argument("--only", default=",".join(PROTOCOLS))
     parser.add_argument("--out", help="keep protocols.json/.md and renders here (default: a temporary folder)")
     args = parser.parse_args()
-    cfg = ProtocolConfig(protocols=args.only.split(","), latent_iters=args.latent_iters, refine_iters=args.refine_iters,
-                         queries=args.queries, device="cpu")
+    transfer = replace(ProtocolConfig().transfer, latent_iters=args.latent_iters, refine_iters=args.refine_iters)
+    cfg = ProtocolConfig(protocols=args.only.split(","), queries=args.queries, device="cpu", transfer=transfer)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="protocols_"))
     result = run_protocols(args.world, args.shapes, args.gan, args.pose, args.noc, cfg, out, log=lambda line: None)
     queries = result["counts"]["queries"]
-    print(f"{queries} queries, {cfg.latent_iters} + {cfg.refine_iters} iterations at {cfg.resolution} px; results in {out}")
+    print(f"{queries} queries, {cfg.transfer.latent_iters} + {cfg.transfer.refine_iters} iterations at {cfg.resolution} px; results in {out}")
     for name, entry in result["protocols"].items():
         print(f"{name}: {entry['seconds']:.1f} s")
         if "methods" not in entry:
@@ -50,7 +51,7 @@ def main() -> None:
         full_seconds = methods.get("full", {}).get("seconds")
         for method, row in methods.items():
             if method in ABLATIONS:
-                iters = cfg.latent_iters + (cfg.refine_iters if method != "no_refine" else 0)
+                iters = cfg.transfer.latent_iters + (cfg.transfer.refine_iters if method != "no_refine" else 0)
                 cost = f", {row['seconds'] / max(queries * iters, 1):.3f} s/iteration"
                 cost += f", x{row['seconds'] / full_seconds:.2f} of full" if full_seconds else ""
             else:

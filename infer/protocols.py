@@ -59,7 +59,7 @@ import shutil
 import sys
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -96,18 +96,17 @@ from mesh2tex.texture import latent, load_shape, mean_latent
 from mesh2tex.transfer import ABLATIONS, TransferConfig, check_style_sizes, estimate_pose, load_photo, predict_noc, view_at_pose
 
 
+# TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations set.
+SHARED = ("resolution", "seed", "device", "vgg_weights")
+ABLATED = ("use_noc", "use_patches", "refine")
+
+
 @dataclass
 class ProtocolConfig:
     protocols: list[str] = field(default_factory=lambda: list(PROTOCOLS))  # which protocols to run
     ablations: list[str] = field(default_factory=lambda: list(ABLATIONS))  # which ablations of each transfer protocol
     queries: int = 0  # query photos used (first K in the world's order; 0: all)
     resolution: int = 64  # side of the photo crops, renders and set-metric images
-    latent_iters: int = 100  # transfer stage 1 iterations (paper: 100)
-    refine_iters: int = 300  # transfer stage 2 iterations (paper: 300)
-    patch_size: int = 32  # style patch side at ``resolution`` (paper: 64 px patches in larger crops)
-    scales: int = 2  # style-loss pyramid levels (paper: 3; 2 keeps a 16 px coarsest level for 32 px patches)
-    patch_scales: int = 0  # pyramid levels of the patch loss alone (0: ``scales``)
-    pose_search: bool = True  # unknown_pose, other_shape: silhouette search around the pose network's answer (as infer transfer)
     baselines: list[str] = field(default_factory=lambda: list(BASELINES))  # simple methods judged beside the transfers
     lighting: str = "photo"  # render every method with the photo's light ('photo') or unlit, as albedo ('albedo')
     unseen_views: int = 4  # views the photo does not show, evenly spaced in azimuth after the photo's
@@ -120,7 +119,10 @@ class ProtocolConfig:
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights for the style losses ('' looks in $TORCH_HOME)
     inception_weights: str = ""  # Inception-v3 weights for KID/FID ('' looks in $TORCH_HOME)
-    transfer: dict = field(default_factory=dict)  # further TransferConfig fields of every transfer (e.g. w_colour, light)
+    # Every transfer's settings, which the ablations change; its resolution, seed, device and vgg_weights are the fields
+    # above. 2 style scales, the patch loss's the same: 32 px patches keep a 16 px coarsest level (paper: 3 scales, 64 px
+    # patches in larger crops).
+    transfer: TransferConfig = field(default_factory=lambda: TransferConfig(resolution=64, scales=2, patch_scales=0))
 
     def __post_init__(self):
         unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
@@ -134,25 +136,19 @@ class ProtocolConfig:
             raise UserError(f"unseen_views {self.unseen_views}, lowpass_sigma {self.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
         if self.resolution < 32:
             raise UserError(f"--resolution {self.resolution}: must be at least 32")
-        if self.latent_iters < 0 or self.refine_iters < 0:
-            raise UserError("--latent-iters and --refine-iters must not be negative")
-        own = {"resolution", "latent_iters", "refine_iters", "patch_size", "scales", "patch_scales", "seed", "pose_search", "device",
-               "vgg_weights", "use_noc", "use_patches", "refine"}
-        wrong = sorted(set(self.transfer) - (set(TransferConfig.__dataclass_fields__) - own))
+        default = next(f for f in fields(self) if f.name == "transfer").default_factory()
+        shared = {name: getattr(self, name) for name in SHARED}
+        wrong = [name for name, value in shared.items() if getattr(self.transfer, name) not in (value, getattr(default, name))]
         if wrong:
-            raise UserError(f"transfer: {', '.join(wrong)} cannot be set there (set the protocol's own field, or choose an ablation); "
-                            f"it takes other TransferConfig fields")
-        try:
-            self.transfer_config()
-        except ValueError as error:
-            raise UserError(f"transfer: {error}") from None
+            raise UserError(f"transfer: {', '.join(wrong)} cannot be set there: set the protocol's own {', '.join(wrong)}")
+        ablated = [name for name in ABLATED if getattr(self.transfer, name) != getattr(default, name)]
+        if ablated:
+            raise UserError(f"transfer: {', '.join(ablated)} cannot be set there: choose an ablation (--ablations)")
+        self.transfer = replace(self.transfer, **shared)
 
     def transfer_config(self, device: str = "auto") -> TransferConfig:
-        """The settings of every transfer: :class:`TransferConfig`'s defaults with this config's resolution,
-        iterations, style sizes, pose search, seed and VGG weights, then ``transfer`` (the ablations change it further)."""
-        return TransferConfig(resolution=self.resolution, latent_iters=self.latent_iters, refine_iters=self.refine_iters,
-                              patch_size=self.patch_size, scales=self.scales, patch_scales=self.patch_scales, seed=self.seed,
-                              pose_search=self.pose_search, device=device, vgg_weights=self.vgg_weights, **self.transfer)
+        """The settings of every transfer (the ablations change them further), on ``device``."""
+        return replace(self.transfer, device=device)
 
     def evaluate_config(self) -> EvaluateConfig:
         """The settings of the unconditional protocol's set metrics."""
@@ -248,7 +244,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                        "true_azimuth": query.azimuth, "true_elevation": query.elevation,
                        "azimuth_error": round(float(azimuth_error(azimuth, query.azimuth)), 3),
                        "elevation_error": round(abs(elevation - query.elevation), 3)})
-        if network_pose is not None and cfg.pose_search:
+        if network_pose is not None and cfg.transfer.pose_search:
             setups[-1]["network_azimuth_error"] = round(float(azimuth_error(network_pose[0], query.azimuth)), 3)
 
         # The ground truth, and one render function for every method.
@@ -351,6 +347,35 @@ def _strip(images: torch.Tensor) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------ resume
+# The fingerprint keeps the layout it had when these TransferConfig fields were fields of ProtocolConfig itself and
+# ``transfer`` held only the other fields a config set, so that the folders of those runs still match.
+FORMER_FIELDS = ("latent_iters", "refine_iters", "patch_size", "scales", "patch_scales", "pose_search")
+
+
+def cache_settings(cfg: ProtocolConfig, generator_lit: bool) -> dict:
+    """The settings a :class:`TransferCache` is made with: every setting of ``cfg`` that changes a transfer, not
+    which transfers run or how they are judged (protocols, ablations, queries, baselines, lighting, unseen_views,
+    lowpass_sigma: a cached transfer is re-judged), with every transfer's resolved settings (``transfer_config``,
+    so that a changed TransferConfig default never reuses old transfers) and whether the GAN was trained lit."""
+    transfer = asdict(cfg.transfer)
+    own = {name: transfer[name] for name in FORMER_FIELDS}
+    # Settings that do what the runs before these fields did are left out: their folders still match.
+    if own["patch_scales"] == 0:
+        del own["patch_scales"]
+    if not own["pose_search"]:
+        del own["pose_search"]
+    judged = ("protocols", "ablations", "queries", "baselines", "lighting", "unseen_views", "lowpass_sigma")
+    settings = {"resolution": cfg.resolution, **own,
+                **{k: v for k, v in asdict(cfg).items() if k not in (*judged, "resolution", "transfer")}}
+    defaults = asdict(TransferConfig())
+    further = {k: v for k, v in transfer.items() if k not in (*FORMER_FIELDS, *SHARED, *ABLATED) and v != defaults[k]}
+    if further:
+        settings["transfer"] = further
+    settings["transfer_config"] = {k: v for k, v in asdict(cfg.transfer_config()).items() if k != "device"}
+    settings["generator_lit"] = generator_lit
+    return settings
+
+
 class TransferCache:
     """Finished transfers of protocol runs into one folder: an interrupted run resumes where it stopped,
     and a run with more queries or ablations redoes none of the transfers already made.
@@ -371,7 +396,7 @@ class TransferCache:
     def __init__(self, out: Path, fingerprint: dict, overwrite: bool = False):
         self.root = out / "transfers"
         settings = self.root / "settings.json"
-        if settings.is_file() and json.loads(settings.read_text()) != fingerprint:
+        if settings.is_file() and _comparable(json.loads(settings.read_text())) != _comparable(fingerprint):
             if not overwrite:
                 raise UserError(f"{out}: holds transfers made with other settings or checkpoints ({settings}); "
                                 "use the same settings to reuse them, or pass --overwrite to discard them")
@@ -398,6 +423,13 @@ class TransferCache:
         with atomic_path(self._path(protocol, ablation, query)) as tmp:
             np.savez(tmp, field_features=texture.field_features.detach().float().cpu().numpy(),
                      face_rgb=texture.face_rgb.detach().float().cpu().numpy(), row=np.array(json.dumps(row)))
+
+
+def _comparable(fingerprint: dict) -> dict:
+    """A fingerprint without ``settings.transfer`` (the TransferConfig fields a config set, beside the former
+    ones), which ``settings.transfer_config`` holds resolved: a folder made with a field set to its default matches."""
+    settings = {k: v for k, v in fingerprint.get("settings", {}).items() if k != "transfer"}
+    return {**fingerprint, "settings": settings}
 
 
 # ------------------------------------------------------------------------------------------- entry
@@ -445,17 +477,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         out.mkdir(parents=True, exist_ok=True)
         inputs = {"world": str(Path(world_dir).resolve()), "shapes": str(Path(shapes_dir).resolve()),
                   "gan": _file_digest(gan_checkpoint), "pose": _file_digest(pose_checkpoint), "noc": _file_digest(noc_checkpoint)}
-        # Which transfers run, and how they are judged, not how each one runs: a cached transfer is re-judged.
-        selection = ("protocols", "ablations", "queries", "baselines", "lighting", "unseen_views", "lowpass_sigma")
-        settings = {k: v for k, v in asdict(cfg).items() if k not in selection}
-        # Settings that do what the runs before these fields did are left out: their folders still match.
-        for key, default in (("patch_scales", 0), ("pose_search", False), ("transfer", {})):
-            if settings[key] == default:
-                del settings[key]
-        # Every transfer's resolved settings, so that a changed TransferConfig default never reuses old transfers.
-        settings["transfer_config"] = {k: v for k, v in asdict(cfg.transfer_config()).items() if k != "device"}
-        settings["generator_lit"] = trained_lit(meta)
-        cache = TransferCache(out, {"settings": json_ready(settings), "inputs": inputs}, overwrite)
+        cache = TransferCache(out, {"settings": json_ready(cache_settings(cfg, trained_lit(meta))), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
               "noc_checkpoint": str(noc_checkpoint) if noc_checkpoint else None,

@@ -35,7 +35,7 @@ def setup(tmp_path_factory):
     for kind in ("pose", "noc"):
         assert main(["train", kind, "--shapes", str(shapes), "--out", str(root / kind), "--config", str(root / "view.yaml"),
                      "--iters", "2", "--samples", "8", "--resolution", "32", "--batch", "4", "--device", "cpu"]) == 0
-    (root / "protocols.yaml").write_text("latents: 1\nviews: 2\nresolution: 32\npatch_size: 16\nscales: 1\n")
+    _yaml(root / "protocols.yaml")
     return root, index
 
 
@@ -230,6 +230,53 @@ def test_markdown_marks_the_best_value_and_says_which_way_is_better():
     assert "seen per-part ΔE 0.44 of the flat colour's, lower on 1 of 1 queries" in table
 
 
-def _yaml(path, **fields):
-    path.write_text(yaml.safe_dump({"latents": 1, "views": 2, "resolution": 32, "patch_size": 16, "scales": 1, **fields}))
+def _yaml(path, transfer=None, **fields):
+    path.write_text(yaml.safe_dump({"latents": 1, "views": 2, "resolution": 32, **fields,
+                                    "transfer": {"patch_size": 16, "scales": 1, **(transfer or {})}}))
     return path
+
+
+def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, capsys):
+    """``transfer:`` holds every TransferConfig field; keys it leaves out keep the protocol's defaults (2 scales),
+    not TransferConfig's; an unknown key, a field the protocol owns and an ablation's switch are one-line errors."""
+    from mesh2tex.config import load_config
+    from infer.protocols import ProtocolConfig
+
+    cfg = load_config(ProtocolConfig, _yaml(tmp_path / "p.yaml", transfer={"w_anchor": 10, "latent_iters": 7}))
+    assert (cfg.transfer.w_anchor, cfg.transfer.latent_iters, cfg.transfer.scales, cfg.transfer.patch_scales) == (10.0, 7, 1, 0)
+    assert cfg.transfer.resolution == cfg.resolution == 32, "the transfer's resolution is the protocol's"
+    assert load_config(ProtocolConfig, overrides={"transfer.w_colour": 1}).transfer.scales == 2
+    for fields, says in (({"w_anchr": 1}, "unknown key(s) ['w_anchr']"), ({"seed": 3}, "transfer: seed cannot be set there"),
+                         ({"use_noc": False}, "choose an ablation")):
+        assert main(protocol_args(tmp_path, tmp_path / "o", "--protocol-config", str(_yaml(tmp_path / "bad.yaml", transfer=fields)))) == 2
+        err = capsys.readouterr().err
+        assert says in err and err.count("\n") == 1, err
+    assert main(["evaluate", "--protocols", "--latent-iters", "9", "--print-config"]) == 0
+    assert yaml.safe_load(capsys.readouterr().out)["transfer"]["latent_iters"] == 9
+
+
+def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):
+    """The settings finished transfers are kept with (``transfers/settings.json``) are those the runs made
+    before the transfer's settings were nested wrote for the same settings, so their folders still resume."""
+    from dataclasses import asdict
+
+    from infer.protocols import ProtocolConfig, TransferCache, cache_settings
+    from mesh2tex.config import config_from_dict
+    from mesh2tex.errors import UserError
+
+    cfg = config_from_dict(ProtocolConfig, {"device": "cpu", "transfer": {"latent_iters": 50, "refine_iters": 150, "w_anchor": 10.0}})
+    settings = cache_settings(cfg, True)
+    assert settings.pop("transfer_config") == {k: v for k, v in asdict(cfg.transfer).items() if k != "device"}
+    assert settings == {"resolution": 64, "latent_iters": 50, "refine_iters": 150, "patch_size": 32, "scales": 2, "pose_search": True,
+                        "latents": 4, "views": 6, "features": "auto", "kid_subsets": 100, "seed": 0, "device": "cpu", "vgg_weights": "",
+                        "inception_weights": "", "transfer": {"w_anchor": 10.0}, "generator_lit": True}
+    plain = cache_settings(config_from_dict(ProtocolConfig, {"transfer": {"patch_scales": 2, "pose_search": False}}), False)
+    assert plain["patch_scales"] == 2 and "pose_search" not in plain and "transfer" not in plain
+
+    fingerprint = {"settings": cache_settings(cfg, True), "inputs": {"gan": "abc"}}
+    TransferCache(tmp_path, fingerprint)
+    # A folder whose config set a field to its default (an older run's ``transfer: {w_colour: 10.0}``) still matches.
+    TransferCache(tmp_path, {**fingerprint, "settings": {**fingerprint["settings"], "transfer": {"w_anchor": 10.0, "w_colour": 10.0}}})
+    other = config_from_dict(ProtocolConfig, {"device": "cpu", "transfer": {"latent_iters": 50, "refine_iters": 150, "w_anchor": 5.0}})
+    with pytest.raises(UserError, match="other settings"):
+        TransferCache(tmp_path, {"settings": cache_settings(other, True), "inputs": {"gan": "abc"}})

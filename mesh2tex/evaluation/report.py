@@ -73,7 +73,7 @@ def protocols_markdown(result: dict) -> str:
     """The results as markdown: one table per protocol (rows: the oracle, the baselines, the ablations
     of the paper's Table 8 and the full method), then the paired comparisons with the full method."""
     lines = ["# mesh2tex evaluate --protocols", ""]
-    s = result["settings"]
+    s = {**result["settings"], **result["settings"].get("transfer", {})}  # the transfer's settings nested, or (older runs) beside
     lines.append(f"World `{result['world']}`, GAN `{result['gan']}`; {result['counts']['queries']} queries; "
                  f"transfer {s['latent_iters']} + {s['refine_iters']} iterations at {s['resolution']} px, "
                  f"style scales {s.get('scales', '?')}, patches {s['patch_size']} px at {s.get('patch_scales') or s.get('scales', '?')} "

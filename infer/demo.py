@@ -36,7 +36,7 @@ import yaml
 
 from infer.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.cli import main as cli_main
-from mesh2tex.config import load_config, save_config
+from mesh2tex.config import check_fields, load_config, save_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import atomic_path, write_json, write_text
 from mesh2tex.evaluation import (METRIC_TITLES, METRICS, ScoreSettings, backproject_photo, common_mask, flat_surface, generator_surface,
@@ -55,6 +55,56 @@ from mesh2tex.texture import load_shape, mean_latent
 
 
 @dataclass
+class DemoGanConfig:
+    iters: int = 1200  # GAN iterations (the demo world's learning curves in docs/gan.md)
+    resolution: int = 64  # GAN render resolution
+    views: int = 4  # views per shape and GAN iteration
+    channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first: one per level
+    discriminator_base: int = 1024  # discriminator width: min(base / resolution, 128) channels (library default 2048)
+    lr_field: float = 0.0012  # psi's learning rate (library default and paper 1e-4, over 50k iterations)
+    tiny_networks: bool = False  # networks a few channels wide (the --quick smoke test)
+
+    def __post_init__(self):
+        check_fields(self, at_least={"iters": 0, "resolution": 8, "views": 1, "channels": 1, "discriminator_base": 1}, positive=("lr_field",))
+
+
+@dataclass
+class DemoViewNetsConfig:
+    samples: int = 1536  # rendered views for the pose and NOC networks (rendered once, shared by both)
+    resolution: int = 64  # their input size
+    width: int = 16  # their channel width
+    pose_iters: int = 1500  # pose network steps (held-out accuracy levels off after about 1000; docs/transfer.md)
+    noc_iters: int = 400  # NOC network steps
+
+    def __post_init__(self):
+        check_fields(self, at_least={"samples": 1, "resolution": 8, "width": 1, "pose_iters": 0, "noc_iters": 0})
+
+
+@dataclass
+class DemoTransferConfig:
+    query: int = 0  # which query photo of the world to texture (index into the sorted queries, modulo their number)
+    resolution: int = 64  # side of the transfer renders
+    latent_iters: int = 60  # stage 1 iterations (paper: 100)
+    refine_iters: int = 120  # stage 2 iterations (paper: 300)
+    texture_size: int = 512  # baked UV texture of the GLB
+    texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
+
+    def __post_init__(self):
+        check_fields(self, at_least={"resolution": 16, "latent_iters": 0, "refine_iters": 0, "texture_size": 16})
+        if self.texture_format not in TEXTURE_FORMATS:
+            raise ValueError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+
+
+@dataclass
+class DemoGenerationConfig:
+    views: int = 8  # views per held-out shape of the GAN renders compared with the photos (generation protocol)
+    latents: int = 8  # latents per held-out shape for the diversity measures
+
+    def __post_init__(self):
+        check_fields(self, at_least={"views": 1, "latents": 2})
+
+
+@dataclass
 class DemoConfig:
     seed: int = 0  # master seed of every stage
     shapes: int = 12  # procedural chairs (a quarter held out for queries)
@@ -63,33 +113,32 @@ class DemoConfig:
     faces: int = 1536  # finest quad count of the prepared shapes (the library default is 6144)
     levels: int = 4  # levels of the quad hierarchy
     workers: int = 2  # processes of 'prepare shapes'
-    gan_iters: int = 1200  # GAN iterations (the demo world's learning curves in docs/gan.md)
-    gan_resolution: int = 64  # GAN render resolution
-    gan_views: int = 4  # views per shape and GAN iteration
-    gan_channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first
-    gan_discriminator_base: int = 1024  # discriminator width: min(base / resolution, 128) channels (library default 2048)
-    gan_lr_field: float = 0.0012  # psi's learning rate (library default and paper 1e-4, over 50k iterations)
-    view_samples: int = 1536  # rendered views for the pose and NOC networks (rendered once, shared by both)
-    view_resolution: int = 64  # their input size
-    view_width: int = 16  # their channel width
-    pose_iters: int = 1500  # pose network steps (held-out accuracy levels off after about 1000; docs/transfer.md)
-    noc_iters: int = 400  # NOC network steps
-    transfer_resolution: int = 64  # side of the transfer renders
-    latent_iters: int = 60  # transfer stage 1 iterations (paper: 100)
-    refine_iters: int = 120  # transfer stage 2 iterations (paper: 300)
-    texture_size: int = 512  # baked UV texture of the GLB
-    texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
-    query: int = 0  # which query photo of the world to texture (index into the sorted queries)
-    eval_views: int = 8  # views per held-out shape of the GAN renders compared with the photos (generation protocol)
-    eval_latents: int = 8  # latents per held-out shape for the diversity measures
-    tiny_networks: bool = False  # GAN networks a few channels wide (the --quick smoke test)
+    gan: DemoGanConfig = field(default_factory=DemoGanConfig)  # 'train gan'
+    view_nets: DemoViewNetsConfig = field(default_factory=DemoViewNetsConfig)  # 'train pose' and 'train noc'
+    transfer: DemoTransferConfig = field(default_factory=DemoTransferConfig)  # 'infer transfer'
+    generation: DemoGenerationConfig = field(default_factory=DemoGenerationConfig)  # the generation protocol of the report
+
+    def __post_init__(self):
+        if len(self.gan.channels) != self.levels:
+            raise ValueError(f"gan.channels has {len(self.gan.channels)} entries, the demo's hierarchy has {self.levels} levels")
 
 
 QUICK = {  # a smoke-test budget: every stage runs, nothing learns much
-    "shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1, "gan_iters": 2,
-    "gan_resolution": 32, "gan_views": 1, "gan_channels": [8, 8, 8], "view_samples": 16, "view_resolution": 32,
-    "view_width": 4, "pose_iters": 2, "noc_iters": 2, "latent_iters": 3, "refine_iters": 2, "texture_size": 64,
-    "eval_views": 2, "eval_latents": 2, "tiny_networks": True,
+    "shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1,
+    "gan.iters": 2, "gan.resolution": 32, "gan.views": 1, "gan.channels": [8, 8, 8], "gan.tiny_networks": True,
+    "view_nets.samples": 16, "view_nets.resolution": 32, "view_nets.width": 4, "view_nets.pose_iters": 2, "view_nets.noc_iters": 2,
+    "transfer.latent_iters": 3, "transfer.refine_iters": 2, "transfer.texture_size": 64, "generation.views": 2, "generation.latents": 2,
+}
+
+# The flat names of the settings a demo folder recorded (demo_config.yaml) before they were nested: such a folder still resumes.
+FORMER_NAMES = {
+    "gan_iters": "gan.iters", "gan_resolution": "gan.resolution", "gan_views": "gan.views", "gan_channels": "gan.channels",
+    "gan_discriminator_base": "gan.discriminator_base", "gan_lr_field": "gan.lr_field", "tiny_networks": "gan.tiny_networks",
+    "view_samples": "view_nets.samples", "view_resolution": "view_nets.resolution", "view_width": "view_nets.width",
+    "pose_iters": "view_nets.pose_iters", "noc_iters": "view_nets.noc_iters", "query": "transfer.query",
+    "transfer_resolution": "transfer.resolution", "latent_iters": "transfer.latent_iters", "refine_iters": "transfer.refine_iters",
+    "texture_size": "transfer.texture_size", "texture_format": "transfer.texture_format",
+    "eval_views": "generation.views", "eval_latents": "generation.latents",
 }
 
 
@@ -106,13 +155,11 @@ def _stage(name: str, argv: list[str], log: JsonLines) -> float:
 
 
 def _gan_config(cfg: DemoConfig) -> dict:
-    channels = list(cfg.gan_channels)
-    if len(channels) != cfg.levels:
-        raise UserError(f"gan_channels has {len(channels)} entries, the demo's hierarchy has {cfg.levels} levels")
+    channels = list(cfg.gan.channels)
     gan = {"sample_every": 0, "checkpoint_every": 50, "log_every": 10,
            "generator": {"encoder_channels": channels, "synthesis_channels": channels},
-           "discriminator": {"channel_base": cfg.gan_discriminator_base}, "optim": {"lr_field": cfg.gan_lr_field}}
-    if cfg.tiny_networks:
+           "discriminator": {"channel_base": cfg.gan.discriminator_base}, "optim": {"lr_field": cfg.gan.lr_field}}
+    if cfg.gan.tiny_networks:
         gan["generator"].update({"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "field_hidden": 16, "aux_latent_dim": 8})
         gan["discriminator"] = {"channel_base": 64, "channel_max": 16}
     return gan
@@ -138,17 +185,17 @@ def run_pipeline(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
     write_text(gan_yaml, yaml.safe_dump(_gan_config(cfg), sort_keys=False))
     seconds["train gan"] = _stage("train gan", [
         "train", "gan", "--shapes", str(out / "shapes" / "train"), "--images", str(world), "--out", str(out / "gan"),
-        "--config", str(gan_yaml), "--iters", str(cfg.gan_iters), "--resolution", str(cfg.gan_resolution),
-        "--views", str(cfg.gan_views), "--seed", str(cfg.seed), "--device", device, "--resume"], log)
+        "--config", str(gan_yaml), "--iters", str(cfg.gan.iters), "--resolution", str(cfg.gan.resolution),
+        "--views", str(cfg.gan.views), "--seed", str(cfg.seed), "--device", device, "--resume"], log)
     views_yaml = out / "view_nets_config.yaml"
-    write_text(views_yaml, yaml.safe_dump({"width": cfg.view_width, "log_every": 25, "checkpoint_every": 100}))
-    for kind, iters in (("pose", cfg.pose_iters), ("noc", cfg.noc_iters)):
+    write_text(views_yaml, yaml.safe_dump({"width": cfg.view_nets.width, "log_every": 25, "checkpoint_every": 100}))
+    for kind, iters in (("pose", cfg.view_nets.pose_iters), ("noc", cfg.view_nets.noc_iters)):
         share_views(out / "pose" / VIEWS_NAME, out / kind / VIEWS_NAME)
         seconds[f"train {kind}"] = _stage(f"train {kind}", [
             "train", kind, "--shapes", str(out / "shapes" / "train"), "--out", str(out / kind), "--config", str(views_yaml),
-            "--iters", str(iters), "--samples", str(cfg.view_samples), "--resolution", str(cfg.view_resolution),
+            "--iters", str(iters), "--samples", str(cfg.view_nets.samples), "--resolution", str(cfg.view_nets.resolution),
             "--batch", "32", "--seed", str(cfg.seed), "--device", device, "--gan", str(out / "gan" / "checkpoint.safetensors"), "--resume"], log)
-    query = pick_query(world, cfg.query)
+    query = pick_query(world, cfg.transfer.query)
     transfer = out / "transfer"
     if not (transfer / "report.json").is_file():
         seconds["infer transfer"] = _stage("infer transfer", [
@@ -156,8 +203,9 @@ def run_pipeline(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
             "--mesh", str(out / "shapes" / "query" / f"{query['shape']}.npz"), "--image", str(world / query["image"]),
             "--mask", str(world / query["mask"]), "--pose", "auto", "--pose-checkpoint", str(out / "pose" / "checkpoint.safetensors"),
             "--noc-checkpoint", str(out / "noc" / "checkpoint.safetensors"), "--out", str(transfer),
-            "--resolution", str(cfg.transfer_resolution), "--latent-iters", str(cfg.latent_iters),
-            "--refine-iters", str(cfg.refine_iters), "--texture-size", str(cfg.texture_size), "--texture-format", cfg.texture_format, "--seed", str(cfg.seed),
+            "--resolution", str(cfg.transfer.resolution), "--latent-iters", str(cfg.transfer.latent_iters),
+            "--refine-iters", str(cfg.transfer.refine_iters), "--texture-size", str(cfg.transfer.texture_size),
+            "--texture-format", cfg.transfer.texture_format, "--seed", str(cfg.seed),
             "--device", device, "--overwrite"], log)
     return seconds
 
@@ -256,7 +304,7 @@ def generation_metrics(out: Path, cfg: DemoConfig, device: str = "auto") -> dict
     untrained and oracle rows against the photos, the gap closed and the diversity across latents;
     writes the samples grid ``gan/generation_samples.png`` (rows latents, columns views, last row the
     ground truth)."""
-    gen_cfg = GenerationConfig(views=cfg.eval_views, latents=cfg.eval_latents, kid_fid=False, seed=cfg.seed)
+    gen_cfg = GenerationConfig(views=cfg.generation.views, latents=cfg.generation.latents, kid_fid=False, seed=cfg.seed)
     return run_generation_protocol(out / "world", out / "shapes" / "query", out / "gan" / "checkpoint.safetensors", gen_cfg,
                                    select_device(device), samples_path=out / "gan" / "generation_samples.png", log=lambda line: None)
 
@@ -388,7 +436,7 @@ table{{border-collapse:collapse;margin:0.5em 0}} td,th{{border:1px solid #ccc;pa
 <h1>mesh2tex demo</h1>
 <p>A held-out chair mesh (<code>{esc(query['shape'])}</code>, never seen in training) textured after a held-out query photo
 (<code>{esc(query['image'])}</code>), with pose and NOC predicted by the networks trained here.
-Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} transfer iterations on the CPU
+Budget: {cfg.gan.iters} GAN iterations, {cfg.transfer.latent_iters} + {cfg.transfer.refine_iters} transfer iterations on the CPU
 (the paper: 50k GAN iterations on two GPUs, 100 + 300 transfer iterations).</p>
 <h2>Query and result</h2>
 <p>photo crop | render of the result at the used pose | predicted photo NOC | rendered mesh NOC</p>
@@ -412,10 +460,15 @@ Budget: {cfg.gan_iters} GAN iterations, {cfg.latent_iters} + {cfg.refine_iters} 
 
 def build_config(args) -> DemoConfig:
     """The demo config: its defaults, then --config, then --quick's budget, --seed and --texture-format."""
-    cfg = load_config(DemoConfig, args.config, {**(QUICK if args.quick else {}), **config_overrides(args)})
-    if cfg.texture_format not in TEXTURE_FORMATS:
-        raise UserError(f"texture_format {cfg.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
-    return cfg
+    return load_config(DemoConfig, args.config, {**(QUICK if args.quick else {}), **config_overrides(args)})
+
+
+def saved_config(path: Path) -> DemoConfig:
+    """The settings a demo folder recorded (``demo_config.yaml``), also of the flat layout before they were nested."""
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: not a demo's settings; choose another --out")
+    return load_config(DemoConfig, None, {FORMER_NAMES.get(key, key): value for key, value in data.items()})
 
 
 def run(args) -> int:
@@ -423,7 +476,7 @@ def run(args) -> int:
     saved = out / "demo_config.yaml"
     cfg = build_config(args)
     select_device(args.device)  # --device cuda without a GPU is refused before any stage runs
-    if saved.is_file() and load_config(DemoConfig, saved) != cfg:
+    if saved.is_file() and saved_config(saved) != cfg:
         raise UserError(f"{out}: holds a demo run with other settings ({saved}); resume it with the same options or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     save_config(cfg, saved)
@@ -433,9 +486,9 @@ def run(args) -> int:
     seconds: dict[str, float] = {}
     for record in JsonLines(out / "demo_log.jsonl").read():
         seconds[record["stage"]] = round(seconds.get(record["stage"], 0.0) + record["seconds"], 1)
-    query = pick_query(out / "world", cfg.query)
+    query = pick_query(out / "world", cfg.transfer.query)
     t = time.perf_counter()
-    metrics = {"transfer": transfer_metrics(out / "world", out / "transfer", query, cfg.transfer_resolution),
+    metrics = {"transfer": transfer_metrics(out / "world", out / "transfer", query, cfg.transfer.resolution),
                "generation": generation_metrics(out, cfg, args.device)}
     seconds["metrics"] = round(time.perf_counter() - t, 1)
     seconds["demo total (this run)"] = round(time.perf_counter() - start, 1)

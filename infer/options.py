@@ -138,5 +138,5 @@ def demo(parser: argparse.ArgumentParser) -> None:
     config = ConfigOptions(parser, "infer.demo:DemoConfig", what="the demo config")
     parser.add_argument("--quick", action="store_true", help="a smoke-test budget (a minute or two): every stage runs, nothing learns much")
     config.add("--seed", type=int, help="master seed")
-    add_texture_format(parser, config)
+    add_texture_format(parser, config, key="transfer.texture_format")
     add_device(parser, help="where every stage runs")

@@ -124,7 +124,7 @@ def test_print_config_merges_the_config_file_and_the_flags(tmp_path, capsys):
     assert yaml.safe_load(capsys.readouterr().out)["iters"] == 5
     assert main(["demo", "--quick", "--seed", "4", "--print-config"]) == 0
     printed = yaml.safe_load(capsys.readouterr().out)
-    assert (printed["gan_iters"], printed["seed"]) == (2, 4)
+    assert (printed["gan"]["iters"], printed["gan"]["channels"], printed["seed"]) == (2, [8, 8, 8], 4)
 
 
 def test_print_config_reports_a_bad_value_as_one_line(tmp_path, capsys):
@@ -158,12 +158,13 @@ def test_every_command_writing_a_glb_takes_the_texture_format_alike(argv):
 
 def test_a_texture_format_from_a_config_file_is_checked(tmp_path, capsys):
     (tmp_path / "c.yaml").write_text("texture_format: gif\n")
-    for argv in (["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"], ["demo"]):
-        assert main([*argv, "--config", str(tmp_path / "c.yaml"), "--print-config"]) == 2
+    (tmp_path / "demo.yaml").write_text("transfer: {texture_format: gif}\n")
+    for argv, config in ((["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"], "c.yaml"), (["demo"], "demo.yaml")):
+        assert main([*argv, "--config", str(tmp_path / config), "--print-config"]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "texture_format 'gif': choose one of png, jpeg, webp" in err, err
     assert main(["demo", "--texture-format", "webp", "--print-config"]) == 0
-    assert yaml.safe_load(capsys.readouterr().out)["texture_format"] == "webp"
+    assert yaml.safe_load(capsys.readouterr().out)["transfer"]["texture_format"] == "webp"
 
 
 @pytest.mark.parametrize("argv", DEVICE_COMMANDS, ids=" ".join)

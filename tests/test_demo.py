@@ -32,3 +32,22 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     assert main(["demo", "--out", str(out), "--quick"]) == 0, "a second run resumes from what is there"
     assert read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"] == iteration
     assert main(["demo", "--out", str(out)]) == 2, "a run with other settings does not mix into this folder"
+
+
+def test_settings_recorded_before_they_were_nested_still_resume(tmp_path):
+    """A demo folder records its settings (demo_config.yaml) and refuses other ones; a folder recorded
+    with the flat names (gan_iters, view_samples, latent_iters ...) reads as the same nested settings."""
+    import yaml
+
+    from infer.demo import QUICK, DemoConfig, saved_config
+    from mesh2tex.config import load_config
+
+    flat = {"shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1, "gan_iters": 2,
+            "gan_resolution": 32, "gan_views": 1, "gan_channels": [8, 8, 8], "view_samples": 16, "view_resolution": 32,
+            "view_width": 4, "pose_iters": 2, "noc_iters": 2, "latent_iters": 3, "refine_iters": 2, "texture_size": 64,
+            "eval_views": 2, "eval_latents": 2, "tiny_networks": True, "transfer_resolution": 64, "texture_format": "png", "query": 0}
+    (tmp_path / "demo_config.yaml").write_text(yaml.safe_dump(flat))
+    quick = load_config(DemoConfig, None, QUICK)
+    assert saved_config(tmp_path / "demo_config.yaml") == quick
+    (tmp_path / "demo_config.yaml").write_text(yaml.safe_dump({**flat, "gan_iters": 3}))
+    assert saved_config(tmp_path / "demo_config.yaml") != quick

@@ -18,6 +18,7 @@ Plus:
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import zipfile
@@ -73,9 +74,16 @@ class PreparedShape:
     def triangles(self, level: int = 0) -> np.ndarray:
         """(2 F_l, 3) int64: each quad (a, b, c, d) split into (a, b, c) and (a, c, d).
 
-        Triangle ``2 f`` and ``2 f + 1`` belong to quad ``f``.
+        Triangle ``2 f`` and ``2 f + 1`` belong to quad ``f``. Split once per level, on first use (not
+        to be changed in place; ``torch.as_tensor`` of it shares its memory).
         """
-        return quads_to_triangles(self.quads[level])
+        if level not in self._triangles:
+            self._triangles[level] = quads_to_triangles(self.quads[level])
+        return self._triangles[level]
+
+    @functools.cached_property
+    def _triangles(self) -> dict[int, np.ndarray]:
+        return {}
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the record atomically as an uncompressed-pickle-free .npz."""

@@ -88,7 +88,7 @@ def vertex_colours(generator: TextureGenerator, texture: FaceTexture, batch: Mes
     """(V, 3) uint8 colours of shape 0's finest vertices: psi at each corner of each incident triangle, averaged."""
     triangles = batch.shape_triangles(0)
     t = triangles.shape[0]
-    triangle_id = torch.arange(t, device=triangles.device).repeat_interleave(3) + 2 * int(batch.face_offsets[0][0])
+    triangle_id = torch.arange(t, device=triangles.device).repeat_interleave(3) + 2 * batch.face_ranges[0][0]
     bary = torch.eye(3, device=triangles.device).repeat(t, 1)
     colours = field_colours(generator, texture, batch, triangle_id, bary).float()  # (3T, 3)
     v = batch.shape_vertices(0).shape[0]

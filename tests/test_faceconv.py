@@ -188,6 +188,25 @@ def test_collate_offsets_indices_and_keeps_missing():
     assert torch.equal(batch.shape_triangles(1), torch.as_tensor(b.triangles(0)))
 
 
+def test_derived_geometry_is_computed_once_and_agrees_with_the_offsets():
+    """The batch's and the prepared shape's derived geometry (triangles, per-shape ranges, each vertex's
+    shape) is what the offsets say, and a second call returns the same object instead of deriving it again."""
+    a, b = cube_shape(3), cube_shape(3, seed=2)
+    batch = collate_shapes([a, b])
+    faces, vertices = len(a.quads[0]), len(a.vertices[0])
+    assert batch.face_ranges == [(0, faces), (faces, 2 * faces)] and batch.vertex_ranges == [(0, vertices), (vertices, 2 * vertices)]
+    assert batch.vertex_shape.tolist() == [0] * vertices + [1] * vertices
+    for s in (0, 1):
+        first = 2 * batch.face_ranges[s][0]
+        local = batch.triangles()[first:first + 2 * faces] - batch.vertex_ranges[s][0]
+        assert torch.equal(batch.shape_triangles(s), local)
+        assert batch.shape_triangles(s) is batch.shape_triangles(s)
+        assert torch.equal(batch.shape_vertices(s), batch.vertices[batch.vertex_ranges[s][0]:batch.vertex_ranges[s][1]])
+    assert batch.triangles() is batch.triangles() and a.triangles(0) is a.triangles(0)
+    moved = batch.to("cpu")
+    assert moved.triangles() is not batch.triangles() and torch.equal(moved.triangles(), batch.triangles())
+
+
 def test_fused_activation_equals_the_separate_operations_to_second_order():
     """The LeakyReLU path of bias_act runs in one buffer with its own backward: values, gradients and
     the gradients of gradients (R1, path length) are those of the plain operations, clamp included."""

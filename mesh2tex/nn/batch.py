@@ -9,7 +9,8 @@ of level ``l`` belongs to, which is how per-sample styles reach per-face layers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+import functools
+from dataclasses import dataclass, fields
 
 import numpy as np
 import torch
@@ -31,6 +32,10 @@ class MeshBatch:
         quads           int64 (F_0, 4)   batch vertex indices of each finest quad
         vertex_offsets  int64 (S+1,)
         face_features   float32 (F_0, C) geometric input features
+
+    Derived once per batch, on first use (as trimesh caches a mesh's properties; :meth:`to` starts
+    afresh): :meth:`triangles`, :meth:`shape_triangles`, :attr:`face_ranges`, :attr:`vertex_ranges`,
+    :attr:`vertex_shape`. The tensors are not to be changed in place.
     """
 
     num_shapes: int
@@ -42,7 +47,6 @@ class MeshBatch:
     quads: torch.Tensor
     vertex_offsets: torch.Tensor
     face_features: torch.Tensor
-    _triangles: torch.Tensor | None = field(default=None, repr=False, compare=False)  # cache of triangles()
 
     @property
     def num_levels(self) -> int:
@@ -56,28 +60,52 @@ class MeshBatch:
         return int(self.vertices.shape[0])
 
     def triangles(self) -> torch.Tensor:
-        """(2 F_0, 3) int64 batch vertex indices; triangle 2f and 2f+1 are the halves (a,b,c), (a,c,d) of quad f.
-
-        Computed once per batch (a render of psi asks for it every call)."""
-        if self._triangles is None:
-            self._triangles = quads_to_triangles(self.quads)
+        """(2 F_0, 3) int64 batch vertex indices; triangle 2f and 2f+1 are the halves (a,b,c), (a,c,d) of quad f."""
         return self._triangles
+
+    @functools.cached_property
+    def _triangles(self) -> torch.Tensor:
+        return quads_to_triangles(self.quads)
+
+    @functools.cached_property
+    def face_ranges(self) -> list[tuple[int, int]]:
+        """(first, end) of each shape's finest faces in the batch: shape s has faces ``first : end`` (Python ints)."""
+        offsets = self.face_offsets[0].tolist()
+        return list(zip(offsets[:-1], offsets[1:]))
+
+    @functools.cached_property
+    def vertex_ranges(self) -> list[tuple[int, int]]:
+        """(first, end) of each shape's vertices in the batch (Python ints)."""
+        offsets = self.vertex_offsets.tolist()
+        return list(zip(offsets[:-1], offsets[1:]))
+
+    @functools.cached_property
+    def vertex_shape(self) -> torch.Tensor:
+        """(V,) int64: the shape (sample) of each vertex, on the device of ``vertex_offsets``."""
+        counts = self.vertex_offsets[1:] - self.vertex_offsets[:-1]
+        return torch.repeat_interleave(torch.arange(self.num_shapes, device=counts.device), counts)
 
     def shape_vertices(self, s: int) -> torch.Tensor:
         """(V_s, 3) float32 vertices of shape ``s``."""
-        return self.vertices[int(self.vertex_offsets[s]) : int(self.vertex_offsets[s + 1])]
+        first, end = self.vertex_ranges[s]
+        return self.vertices[first:end]
 
     def shape_triangles(self, s: int) -> torch.Tensor:
-        """(2 F_0s, 3) int64 triangles of shape ``s`` indexing :meth:`shape_vertices` (local indices)."""
-        f0, f1 = int(self.face_offsets[0][s]), int(self.face_offsets[0][s + 1])
-        return quads_to_triangles(self.quads[f0:f1] - self.vertex_offsets[s])
+        """(2 F_0s, 3) int64 triangles of shape ``s`` indexing :meth:`shape_vertices` (local indices);
+        its triangle t is the batch's triangle ``2 * face_ranges[s][0] + t``."""
+        if s not in self._shape_triangles:
+            f0, f1 = self.face_ranges[s]
+            self._shape_triangles[s] = quads_to_triangles(self.quads[f0:f1] - self.vertex_offsets[s])
+        return self._shape_triangles[s]
+
+    @functools.cached_property
+    def _shape_triangles(self) -> dict[int, torch.Tensor]:
+        return {}
 
     def to(self, device) -> "MeshBatch":
         """The same batch with every tensor on ``device``."""
         moved = {}
         for f in fields(self):
-            if f.name == "_triangles":
-                continue
             value = getattr(self, f.name)
             if isinstance(value, torch.Tensor):
                 value = value.to(device)

@@ -437,8 +437,7 @@ class ConditionedNCA(nn.Module):
         check_shape(geometry, "ConditionedNCA: geometry", (batch.quads.shape[0], self.from_geometry.in_features), dtype="float")
         device = w.device
         graph = build_cell_graph(batch.vertices.detach().cpu().numpy(), batch.quads.cpu().numpy(), self.neighbourhood).to(device)
-        counts = (batch.vertex_offsets[1:] - batch.vertex_offsets[:-1]).to(device)
-        shape_of_vertex = torch.repeat_interleave(torch.arange(batch.num_shapes, device=device), counts)
+        shape_of_vertex = batch.vertex_shape.to(device)
         vertex_geometry = vertex_features(geometry.to(w.dtype), batch.quads, batch.num_vertices)
         condition = torch.cat([self.from_w(w)[shape_of_vertex], self.from_geometry(vertex_geometry)], dim=1)[None]  # (1, V, 2c)
         generator = torch.Generator(device=device).manual_seed(0) if noise_mode == "none" else None

@@ -59,7 +59,7 @@ def rasterize_batch(batch: MeshBatch, mvp: torch.Tensor, resolution: tuple[int, 
     for s in range(batch.num_shapes):
         pos = transform_points(batch.shape_vertices(s), mvp[s * k : (s + 1) * k])
         raster = rasterize(pos, batch.shape_triangles(s), resolution)
-        first = 2 * int(batch.face_offsets[0][s])
+        first = 2 * batch.face_ranges[s][0]
         ids.append(torch.where(raster.face_id >= 0, raster.face_id + first, raster.face_id))
         barys.append(raster.bary)
     return SurfaceSamples(torch.cat(ids), torch.cat(barys))

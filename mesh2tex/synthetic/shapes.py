@@ -14,12 +14,15 @@ A chair stands on y = min y; a car's wheels touch y = min y.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import manifold3d as mf
 import numpy as np
+
+from mesh2tex.geometry.features import noc_coordinates
 
 # One integer id per part name for every category, so face labels mean the same everywhere.
 PART_NAMES: tuple[str, ...] = (
@@ -50,6 +53,11 @@ class SyntheticShape:
     def part_names(self) -> list[str]:
         """Names of the parts present, in PART_NAMES order."""
         return [PART_NAMES[i] for i in np.unique(self.face_parts)]
+
+    @functools.cached_property
+    def noc(self) -> np.ndarray:
+        """(V, 3) float32 NOC of the vertices (``mesh2tex.geometry.features.noc_coordinates``), computed once."""
+        return noc_coordinates(self.vertices)
 
 
 def generate_shape(category: str, rng: np.random.Generator) -> SyntheticShape:

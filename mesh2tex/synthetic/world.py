@@ -21,7 +21,6 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import torch
 
-from mesh2tex.geometry.features import noc_coordinates
 from mesh2tex.render import (
     LightConfig,
     composite,
@@ -180,7 +179,7 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[V
     background = torch.stack([torch.as_tensor(random_background(v.background, v.background_seed, big)) for v in views])
     mask = covered[..., None].float()
     rgb = composite(shaded, mask, background)
-    noc = render_noc(torch.as_tensor(noc_coordinates(shape.vertices)), raster, faces)
+    noc = render_noc(torch.as_tensor(shape.noc), raster, faces)
 
     rgb, coverage, noc = (_box_down(t, supersample) for t in (rgb, mask, noc))
     noc = noc / coverage.clamp_min(1e-6)  # the mean NOC of the covered sub-pixels

@@ -131,7 +131,7 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
         texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode)
     if samples is None:
         samples = rasterize_batch(batch, mvp, (h, w))
-    background, flat_index, triangle_id, bary = _covered_pixels(samples, background)
+    background, flat_index, triangle_id, bary = _covered_pixels(samples.triangle_id, samples.bary, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
     images = paint_pixels(background, flat_index, shade(field_colours(generator, texture, batch, triangle_id, bary)))
     proxy_images = paint_pixels(background, flat_index, shade(texture.face_rgb[triangle_id // 2])) if proxy else None
@@ -147,18 +147,22 @@ def render_proxy_views(texture: FaceTexture, batch: MeshBatch, samples: SurfaceS
     """
     n, h, w = samples.triangle_id.shape
     check_shape(background, "render_proxy_views: background", (n, 3), (n, 3, h, w), dtype="float")
-    background, flat_index, triangle_id, _ = _covered_pixels(samples, background)
+    background, flat_index, triangle_id, _ = _covered_pixels(samples.triangle_id, samples.bary, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
     return paint_pixels(background, flat_index, shade(texture.face_rgb[triangle_id // 2]))
 
 
-def _covered_pixels(samples: SurfaceSamples, background: torch.Tensor):
-    """(background (N, 3, H, W), flat pixel indices (P,), batch triangle ids (P,), barycentrics (P, 3)) of the covered pixels."""
-    n, h, w = samples.triangle_id.shape
+def _covered_pixels(triangle_id: torch.Tensor, bary: torch.Tensor, background: torch.Tensor):
+    """The covered pixels of N views: triangle_id (N, H, W) int64 (-1 on background), bary (N, H, W, 3) and
+    background () grey, (N, 3) colours or (N, 3, H, W) -> (background (N, 3, H, W), flat pixel indices (P,),
+    triangle ids (P,), barycentrics (P, 3))."""
+    n, h, w = triangle_id.shape
+    if background.dim() == 0:
+        background = background.expand(n, 3)
     if background.dim() == 2:
         background = background[:, :, None, None].expand(n, 3, h, w)
-    flat_index = samples.mask.reshape(-1).nonzero().squeeze(1)
-    return background, flat_index, samples.triangle_id.reshape(-1)[flat_index], samples.bary.reshape(-1, 3)[flat_index]
+    flat_index = (triangle_id >= 0).reshape(-1).nonzero().squeeze(1)
+    return background, flat_index, triangle_id.reshape(-1)[flat_index], bary.reshape(-1, 3)[flat_index]
 
 
 def _pixel_lighting(batch: MeshBatch, triangle_id: torch.Tensor, flat_index: torch.Tensor, lights: Lights | None,
@@ -197,16 +201,10 @@ def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: to
     n, b = mvp.shape[0], state.shape[0]
     h = w = int(resolution)
     raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (h, w))
-    covered = raster.face_id >= 0  # (N, H, W)
-    flat_index = covered.reshape(-1).nonzero().squeeze(1)
-    triangle_id = raster.face_id.reshape(-1)[flat_index]
-    bary = raster.bary.reshape(-1, 3)[flat_index]
+    # A float stays exact until paint_pixels gives the background the readout's dtype.
+    background = torch.as_tensor(background, dtype=None if torch.is_tensor(background) else torch.float64, device=state.device)
+    background, flat_index, triangle_id, bary = _covered_pixels(raster.face_id, raster.bary, background)
     sample = flat_index // (h * w) // (n // b)
     colours = model.colours(state, graph.triangles, triangle_id, bary, sample, graft=graft)
-    background = torch.as_tensor(background, dtype=colours.dtype, device=colours.device)
-    if background.dim() == 0:
-        background = background.expand(n, 3)
-    if background.dim() == 2:
-        background = background[:, :, None, None].expand(n, 3, h, w)
     images = paint_pixels(background, flat_index, colours)
-    return StateViews(images=images, mask=covered.unsqueeze(1).to(images.dtype))
+    return StateViews(images=images, mask=(raster.face_id >= 0).unsqueeze(1).to(images.dtype))

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from mesh2tex.errors import UserError
-from mesh2tex.geometry.primitives import density_subdivisions, load_surface, mean_edge_length
+from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.atomic import atomic_path, write_json
@@ -74,11 +74,12 @@ def run(args) -> int:
             raise UserError(f"{args.graft}: its automaton config differs from {args.checkpoint}'s; only models of one lineage can be grafted")
         lineage_note = lineage(meta, other_meta)
 
-    vertices, faces = load_surface(args.mesh)
+    surface = read_surface(args.mesh)  # read once: the subdivided mesh is made from the same arrays
+    vertices, faces = unit_surface(*surface, name=args.mesh)
     cell_spacing = float(meta.get("cell_spacing", 0.0))
     subdivisions = choose_subdivisions(args.subdivide, vertices, faces, cell_spacing)
     if subdivisions:
-        vertices, faces = load_surface(args.mesh, subdivide=subdivisions)
+        vertices, faces = unit_surface(*surface, subdivide=subdivisions, name=args.mesh)
     edge_ratio = mean_edge_length(vertices, faces) / cell_spacing if cell_spacing > 0 else None
     graph = build_cell_graph(vertices, faces, model.cfg.neighbourhood).to(device)
     positions = graph.positions.cpu().numpy()

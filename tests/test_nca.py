@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from mesh2tex.errors import InputError
-from mesh2tex.geometry.primitives import cube_sphere, density_subdivisions, load_surface, mean_edge_length, subdivide_quads
+from mesh2tex.geometry.primitives import (cube_sphere, density_subdivisions, load_surface, mean_edge_length, read_surface,
+                                          subdivide_quads, unit_surface)
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.nn.nca import MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
 from mesh2tex.nn.render_texture import render_states
@@ -213,6 +214,22 @@ def test_subdivision_keeps_the_surface_and_closed_meshes_closed(tmp_path):
         fine = trimesh.Trimesh(fine_v, fine_f, process=False)
         assert fine.is_watertight and np.isclose(fine.volume, trimesh.Trimesh(coarse_v, coarse_f).volume, rtol=1e-5)
         assert np.isclose(mean_edge_length(fine_v, fine_f), mean_edge_length(coarse_v, coarse_f) / 2**level, rtol=0.05)
+
+
+def test_a_surface_read_once_gives_each_subdivision_without_being_changed(tmp_path):
+    """infer nca reads the mesh once, measures it, then subdivides the same arrays: they must come out unchanged."""
+    import trimesh
+
+    trimesh.creation.icosphere(1).export(tmp_path / "ico.obj")
+    for spec in (str(tmp_path / "ico.obj"), "sphere:3"):
+        surface = read_surface(spec)
+        kept = [array.copy() for array in surface]
+        for level in (0, 1, 2):
+            vertices, faces = unit_surface(*surface, subdivide=level, name=spec)
+            assert faces.shape[0] == kept[1].shape[0] * 4**level and np.isclose(np.linalg.norm(vertices, axis=1).max(), 1.0)
+        assert all(np.array_equal(a, b) and a.dtype == b.dtype for a, b in zip(surface, kept))
+    with pytest.raises(InputError, match="flat.obj: the mesh has no extent"):
+        unit_surface(np.zeros((3, 3)), np.array([[0, 1, 2]]), name="flat.obj")
 
 
 def test_density_rule_picks_the_split_count_nearest_the_training_spacing():

@@ -75,7 +75,7 @@ DEFAULT_SPHERE_SUBDIVISIONS = 32  # 6,146 vertices: the automaton's training sph
 
 def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The mesh a cellular automaton runs on, normalised to the unit ball (bounding-box centre at the
-    origin, farthest vertex at distance 1).
+    origin, farthest vertex at distance 1): :func:`unit_surface` of :func:`read_surface`.
 
     ``spec``: "sphere" or "sphere:N" (a cube-sphere of N subdivisions), a prepared shape (.npz: its
     finest quads) or a mesh file (its triangles, merged and cleaned by :func:`load_mesh`).
@@ -83,6 +83,12 @@ def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]
     Returns vertices (V, 3) float32 and faces (F, 4) quads or (F, 3) triangles int64. Bad input
     raises :class:`InputError` naming the file.
     """
+    return unit_surface(*read_surface(spec), subdivide=subdivide, name=spec)
+
+
+def read_surface(spec: str) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh ``spec`` names (see :func:`load_surface`) as it is: vertices (V, 3) float64, faces (F, 4)
+    or (F, 3) int64, at least one. Read it once and give it to :func:`unit_surface` for each subdivision."""
     from mesh2tex.errors import InputError
 
     if spec == "sphere" or spec.startswith("sphere:"):
@@ -103,6 +109,15 @@ def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]
     faces = np.asarray(faces, dtype=np.int64)
     if faces.shape[0] == 0:
         raise InputError(f"{spec}: the mesh has no faces")
+    return vertices, faces
+
+
+def unit_surface(vertices: np.ndarray, faces: np.ndarray, subdivide: int = 0, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """A mesh of :func:`read_surface` with every face split into four ``subdivide`` times, then normalised
+    to the unit ball: vertices (V', 3) float32, faces int64 (the inputs are not changed). InputError
+    naming ``name`` for a mesh without extent."""
+    from mesh2tex.errors import InputError
+
     for _ in range(int(subdivide)):
         if faces.shape[1] == 4:
             vertices, faces = subdivide_quads(vertices, faces)
@@ -114,7 +129,7 @@ def load_surface(spec: str, subdivide: int = 0) -> tuple[np.ndarray, np.ndarray]
     vertices = vertices - (lo + hi) / 2
     radius = np.linalg.norm(vertices, axis=1).max()
     if not np.isfinite(radius) or radius <= 0:
-        raise InputError(f"{spec}: the mesh has no extent (all vertices at one point, or non-finite positions)")
+        raise InputError(f"{name}: the mesh has no extent (all vertices at one point, or non-finite positions)")
     return (vertices / radius).astype(np.float32), faces.astype(np.int64)
 
 

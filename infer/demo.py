@@ -27,6 +27,7 @@ import html
 import json
 import shutil
 import time
+import typing
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -104,6 +105,18 @@ class DemoGenerationConfig:
         check_fields(self, at_least={"views": 1, "latents": 2})
 
 
+# The flat names of the settings a demo folder recorded (demo_config.yaml) before they were nested: such a folder still resumes.
+FORMER_NAMES = {
+    "gan_iters": "gan.iters", "gan_resolution": "gan.resolution", "gan_views": "gan.views", "gan_channels": "gan.channels",
+    "gan_discriminator_base": "gan.discriminator_base", "gan_lr_field": "gan.lr_field", "tiny_networks": "gan.tiny_networks",
+    "view_samples": "view_nets.samples", "view_resolution": "view_nets.resolution", "view_width": "view_nets.width",
+    "pose_iters": "view_nets.pose_iters", "noc_iters": "view_nets.noc_iters", "query": "transfer.query",
+    "transfer_resolution": "transfer.resolution", "latent_iters": "transfer.latent_iters", "refine_iters": "transfer.refine_iters",
+    "texture_size": "transfer.texture_size", "texture_format": "transfer.texture_format",
+    "eval_views": "generation.views", "eval_latents": "generation.latents",
+}
+
+
 @dataclass
 class DemoConfig:
     seed: int = 0  # master seed of every stage
@@ -118,6 +131,8 @@ class DemoConfig:
     transfer: DemoTransferConfig = field(default_factory=DemoTransferConfig)  # 'infer transfer'
     generation: DemoGenerationConfig = field(default_factory=DemoGenerationConfig)  # the generation protocol of the report
 
+    MOVED_KEYS: typing.ClassVar[dict[str, str]] = FORMER_NAMES  # a --config of the flat layout is told where each key went
+
     def __post_init__(self):
         if len(self.gan.channels) != self.levels:
             raise ValueError(f"gan.channels has {len(self.gan.channels)} entries, the demo's hierarchy has {self.levels} levels")
@@ -130,16 +145,6 @@ QUICK = {  # a smoke-test budget: every stage runs, nothing learns much
     "transfer.latent_iters": 3, "transfer.refine_iters": 2, "transfer.texture_size": 64, "generation.views": 2, "generation.latents": 2,
 }
 
-# The flat names of the settings a demo folder recorded (demo_config.yaml) before they were nested: such a folder still resumes.
-FORMER_NAMES = {
-    "gan_iters": "gan.iters", "gan_resolution": "gan.resolution", "gan_views": "gan.views", "gan_channels": "gan.channels",
-    "gan_discriminator_base": "gan.discriminator_base", "gan_lr_field": "gan.lr_field", "tiny_networks": "gan.tiny_networks",
-    "view_samples": "view_nets.samples", "view_resolution": "view_nets.resolution", "view_width": "view_nets.width",
-    "pose_iters": "view_nets.pose_iters", "noc_iters": "view_nets.noc_iters", "query": "transfer.query",
-    "transfer_resolution": "transfer.resolution", "latent_iters": "transfer.latent_iters", "refine_iters": "transfer.refine_iters",
-    "texture_size": "transfer.texture_size", "texture_format": "transfer.texture_format",
-    "eval_views": "generation.views", "eval_latents": "generation.latents",
-}
 
 
 def _stage(name: str, argv: list[str], log: JsonLines) -> float:

@@ -58,6 +58,7 @@ import json
 import shutil
 import sys
 import time
+import typing
 import warnings
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -99,6 +100,8 @@ from mesh2tex.transfer import ABLATIONS, TransferConfig, check_style_sizes, esti
 # TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations set.
 SHARED = ("resolution", "seed", "device", "vgg_weights")
 ABLATED = ("use_noc", "use_patches", "refine")
+# TransferConfig fields that were ProtocolConfig's own before it nested a TransferConfig.
+FORMER_FIELDS = ("latent_iters", "refine_iters", "patch_size", "scales", "patch_scales", "pose_search")
 
 
 @dataclass
@@ -123,6 +126,9 @@ class ProtocolConfig:
     # above. 2 style scales, the patch loss's the same: 32 px patches keep a 16 px coarsest level (paper: 3 scales, 64 px
     # patches in larger crops).
     transfer: TransferConfig = field(default_factory=lambda: TransferConfig(resolution=64, scales=2, patch_scales=0))
+
+    # Keys of older protocol configs that now live under ``transfer`` (named by the unknown-key error).
+    MOVED_KEYS: typing.ClassVar[dict[str, str]] = {name: f"transfer.{name}" for name in FORMER_FIELDS}
 
     def __post_init__(self):
         unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
@@ -347,9 +353,8 @@ def _strip(images: torch.Tensor) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------ resume
-# The fingerprint keeps the layout it had when these TransferConfig fields were fields of ProtocolConfig itself and
-# ``transfer`` held only the other fields a config set, so that the folders of those runs still match.
-FORMER_FIELDS = ("latent_iters", "refine_iters", "patch_size", "scales", "patch_scales", "pose_search")
+# The fingerprint keeps the layout it had when FORMER_FIELDS were fields of ProtocolConfig itself and ``transfer``
+# held only the other fields a config set, so that the folders of those runs still match.
 
 
 def cache_settings(cfg: ProtocolConfig, generator_lit: bool) -> dict:

@@ -67,6 +67,11 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
             value = _coerce(value, hint, f"{where}.{f.name}")
         kwargs[f.name] = value
     if data:
+        # A config class may name keys that moved (MOVED_KEYS: old key -> its new dotted place).
+        moved = getattr(cls, "MOVED_KEYS", {})
+        if any(key in moved for key in data):
+            places = ", ".join(f"{key} -> {moved[key]}" for key in sorted(data, key=str) if key in moved)
+            raise InputError(f"{where}: key(s) moved: {places}")
         known = ", ".join(f.name for f in dataclasses.fields(cls))
         raise InputError(f"{where}: unknown key(s) {sorted(str(k) for k in data)}; known keys: {known}")
     try:

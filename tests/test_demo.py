@@ -4,8 +4,10 @@ import json
 import re
 
 import numpy as np
+import pytest
 
 from mesh2tex.cli import main
+from mesh2tex.errors import InputError
 from mesh2tex.io.checkpoint import read_checkpoint_meta
 
 
@@ -51,3 +53,7 @@ def test_settings_recorded_before_they_were_nested_still_resume(tmp_path):
     assert saved_config(tmp_path / "demo_config.yaml") == quick
     (tmp_path / "demo_config.yaml").write_text(yaml.safe_dump({**flat, "gan_iters": 3}))
     assert saved_config(tmp_path / "demo_config.yaml") != quick
+    # A hand-written --config of the flat layout is told where its keys went.
+    (tmp_path / "flat.yaml").write_text(yaml.safe_dump({"view_width": 4, "gan_iters": 5, "seed": 1}))
+    with pytest.raises(InputError, match=r"key\(s\) moved: gan_iters -> gan.iters, view_width -> view_nets.width$"):
+        load_config(DemoConfig, tmp_path / "flat.yaml")

@@ -253,6 +253,9 @@ def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, ca
         assert says in err and err.count("\n") == 1, err
     assert main(["evaluate", "--protocols", "--latent-iters", "9", "--print-config"]) == 0
     assert yaml.safe_load(capsys.readouterr().out)["transfer"]["latent_iters"] == 9
+    # A config of the layout before the nesting is told where its keys went.
+    assert main(protocol_args(tmp_path, tmp_path / "o", "--protocol-config", str(_yaml(tmp_path / "old.yaml", latent_iters=5)))) == 2
+    assert "key(s) moved: latent_iters -> transfer.latent_iters" in capsys.readouterr().err
 
 
 def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):

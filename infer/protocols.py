@@ -100,8 +100,9 @@ from mesh2tex.transfer import ABLATIONS, TransferConfig, check_style_sizes, esti
 # TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations set.
 SHARED = ("resolution", "seed", "device", "vgg_weights")
 ABLATED = ("use_noc", "use_patches", "refine")
-# TransferConfig fields that were ProtocolConfig's own before it nested a TransferConfig.
+# TransferConfig and EvaluateConfig fields that were ProtocolConfig's own before it nested them.
 FORMER_FIELDS = ("latent_iters", "refine_iters", "patch_size", "scales", "patch_scales", "pose_search")
+FORMER_EVALUATE_FIELDS = ("features", "kid_subsets")
 
 
 @dataclass
@@ -116,8 +117,6 @@ class ProtocolConfig:
     lowpass_sigma: float = 3.0  # Gaussian blur of the low-pass PSNR, in pixels of the world's photos
     latents: int = 4  # unconditional: random latents per held-out shape
     views: int = 6  # unconditional: orbit views per latent (paper: 6)
-    features: str = "auto"  # KID/FID features: auto, inception, tvinception, vgg or randvgg
-    kid_subsets: int = 100  # KID random subsets
     seed: int = 0  # seed of the transfers, the unconditional latents and the set metrics
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights for the style losses ('' looks in $TORCH_HOME)
@@ -126,9 +125,13 @@ class ProtocolConfig:
     # above. 2 style scales, the patch loss's the same: 32 px patches keep a 16 px coarsest level (paper: 3 scales, 64 px
     # patches in larger crops).
     transfer: TransferConfig = field(default_factory=lambda: TransferConfig(resolution=64, scales=2, patch_scales=0))
+    # The unconditional protocol's set metrics (KID/FID features, KID subsets, SWD sampling); its resolution and seed are
+    # the fields above.
+    evaluate: EvaluateConfig = field(default_factory=lambda: EvaluateConfig(resolution=64))
 
     # Keys of older protocol configs that now live under ``transfer`` (named by the unknown-key error).
-    MOVED_KEYS: typing.ClassVar[dict[str, str]] = {name: f"transfer.{name}" for name in FORMER_FIELDS}
+    MOVED_KEYS: typing.ClassVar[dict[str, str]] = ({name: f"transfer.{name}" for name in FORMER_FIELDS}
+                                                   | {name: f"evaluate.{name}" for name in FORMER_EVALUATE_FIELDS})
 
     def __post_init__(self):
         unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
@@ -142,15 +145,23 @@ class ProtocolConfig:
             raise UserError(f"unseen_views {self.unseen_views}, lowpass_sigma {self.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
         if self.resolution < 32:
             raise UserError(f"--resolution {self.resolution}: must be at least 32")
-        default = next(f for f in fields(self) if f.name == "transfer").default_factory()
-        shared = {name: getattr(self, name) for name in SHARED}
-        wrong = [name for name, value in shared.items() if getattr(self.transfer, name) not in (value, getattr(default, name))]
-        if wrong:
-            raise UserError(f"transfer: {', '.join(wrong)} cannot be set there: set the protocol's own {', '.join(wrong)}")
-        ablated = [name for name in ABLATED if getattr(self.transfer, name) != getattr(default, name)]
+        self.transfer = self._shared_into("transfer", SHARED)
+        ablated = [name for name in ABLATED if getattr(self.transfer, name) != getattr(self._default("transfer"), name)]
         if ablated:
             raise UserError(f"transfer: {', '.join(ablated)} cannot be set there: choose an ablation (--ablations)")
-        self.transfer = replace(self.transfer, **shared)
+        self.evaluate = self._shared_into("evaluate", ("resolution", "seed"))
+
+    def _default(self, name: str):
+        return next(f for f in fields(self) if f.name == name).default_factory()
+
+    def _shared_into(self, name: str, shared: tuple[str, ...]):
+        """The nested config ``name`` with the protocol's own values of ``shared``; a value set there that differs is refused
+        (one left at the nested config's default cannot be told from one not set, and takes the protocol's)."""
+        nested, default = getattr(self, name), self._default(name)
+        wrong = [key for key in shared if getattr(nested, key) not in (getattr(self, key), getattr(default, key))]
+        if wrong:
+            raise UserError(f"{name}: {', '.join(wrong)} cannot be set there: set the protocol's own {', '.join(wrong)}")
+        return replace(nested, **{key: getattr(self, key) for key in shared})
 
     def transfer_config(self, device: str = "auto") -> TransferConfig:
         """The settings of every transfer (the ablations change them further), on ``device``."""
@@ -158,7 +169,7 @@ class ProtocolConfig:
 
     def evaluate_config(self) -> EvaluateConfig:
         """The settings of the unconditional protocol's set metrics."""
-        return EvaluateConfig(resolution=self.resolution, features=self.features, kid_subsets=self.kid_subsets, seed=self.seed)
+        return self.evaluate
 
 
 # ---------------------------------------------------------------------------------- unconditional
@@ -370,8 +381,8 @@ def cache_settings(cfg: ProtocolConfig, generator_lit: bool) -> dict:
     if not own["pose_search"]:
         del own["pose_search"]
     judged = ("protocols", "ablations", "queries", "baselines", "lighting", "unseen_views", "lowpass_sigma")
-    settings = {"resolution": cfg.resolution, **own,
-                **{k: v for k, v in asdict(cfg).items() if k not in (*judged, "resolution", "transfer")}}
+    settings = {"resolution": cfg.resolution, **own, **{name: getattr(cfg.evaluate, name) for name in FORMER_EVALUATE_FIELDS},
+                **{k: v for k, v in asdict(cfg).items() if k not in (*judged, "resolution", "transfer", "evaluate")}}
     defaults = asdict(TransferConfig())
     further = {k: v for k, v in transfer.items() if k not in (*FORMER_FIELDS, *SHARED, *ABLATED) and v != defaults[k]}
     if further:
@@ -472,7 +483,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     eval_cfg = cfg.evaluate_config()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        extractor = get_feature_extractor(cfg.features, cfg.inception_weights or None, cfg.vgg_weights or None, device)
+        extractor = get_feature_extractor(cfg.evaluate.features, cfg.inception_weights or None, cfg.vgg_weights or None, device)
         vgg = load_vgg19(cfg.vgg_weights or None, device=device) if transfers else None
     notes = sorted({str(w.message) for w in caught})
     for note in notes:
@@ -523,7 +534,7 @@ def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
     return load_config(ProtocolConfig, args.protocol_config, config_overrides(args, PROTOCOL_CONFIG, computed={
         "protocols": _split(args.only), "ablations": _split(args.ablations), "baselines": _split(args.baselines),
         # the options evaluate's other modes share
-        "resolution": args.resolution, "features": args.features, "kid_subsets": args.kid_subsets, "seed": args.seed,
+        "resolution": args.resolution, "evaluate.features": args.features, "evaluate.kid_subsets": args.kid_subsets, "seed": args.seed,
         "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
         "inception_weights": args.inception_weights}))
 

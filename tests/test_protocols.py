@@ -240,6 +240,7 @@ def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, ca
     """``transfer:`` holds every TransferConfig field; keys it leaves out keep the protocol's defaults (2 scales),
     not TransferConfig's; an unknown key, a field the protocol owns and an ablation's switch are one-line errors."""
     from mesh2tex.config import load_config
+    from mesh2tex.metrics.evaluate import EvaluateConfig
     from infer.protocols import ProtocolConfig
 
     cfg = load_config(ProtocolConfig, _yaml(tmp_path / "p.yaml", transfer={"w_anchor": 10, "latent_iters": 7}))
@@ -256,6 +257,11 @@ def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, ca
     # A config of the layout before the nesting is told where its keys went.
     assert main(protocol_args(tmp_path, tmp_path / "o", "--protocol-config", str(_yaml(tmp_path / "old.yaml", latent_iters=5)))) == 2
     assert "key(s) moved: latent_iters -> transfer.latent_iters" in capsys.readouterr().err
+    # The set metrics' settings nest the same way, and take the protocol's resolution and seed.
+    cfg = load_config(ProtocolConfig, overrides={"resolution": 48, "seed": 3, "evaluate.kid_subsets": 7})
+    assert cfg.evaluate_config() == EvaluateConfig(resolution=48, seed=3, kid_subsets=7)
+    assert main(protocol_args(tmp_path, tmp_path / "o", "--protocol-config", str(_yaml(tmp_path / "bad.yaml", evaluate={"seed": 5})))) == 2
+    assert "evaluate: seed cannot be set there" in capsys.readouterr().err
 
 
 def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):

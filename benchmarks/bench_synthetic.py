@@ -14,7 +14,7 @@ import time
 
 import torch
 
-from mesh2tex.synthetic.world import WorldSpec, bake_texture, make_material, make_shape, render_views, sample_views
+from mesh2tex.synthetic.world import WorldSpec, bake_material, make_material, make_shape, render_views, sample_views
 
 
 def main() -> None:
@@ -28,7 +28,7 @@ def main() -> None:
     args = parser.parse_args()
     spec = WorldSpec(category=args.category, shapes=args.shapes, views=args.views, resolution=args.resolution,
                      supersample=args.supersample, texture_size=args.texture_size)
-    bake_texture(make_shape(spec, 0), make_material(spec, 0), 64)  # warm-up: imports, bundled images
+    bake_material(make_shape(spec, 0), make_material(spec, 0), 64)  # warm-up: imports, bundled images
     seconds = {"shapes and materials": 0.0, "photos": 0.0, "texture bake": 0.0}
     triangles = 0
     for i in range(spec.shapes):
@@ -40,7 +40,7 @@ def main() -> None:
         render_views(shape, material, sample_views(spec, i, spec.views), spec.resolution, spec.supersample)
         seconds["photos"] += time.perf_counter() - t
         t = time.perf_counter()
-        bake_texture(shape, material, spec.texture_size)
+        bake_material(shape, material, spec.texture_size)
         seconds["texture bake"] += time.perf_counter() - t
     total = sum(seconds.values())
     print(f"{spec.shapes} {spec.category}s (mean {triangles / spec.shapes:.0f} triangles), {spec.views} photos each at "

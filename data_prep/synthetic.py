@@ -124,7 +124,7 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
     """Write the mesh, the textured GLB and the photos (or queries) of shape ``index`` that are missing."""
     from mesh2tex.io.assets import save_glb, save_obj
     from mesh2tex.synthetic.shapes import PART_NAMES
-    from mesh2tex.synthetic.world import View, bake_texture, make_material, make_shape, render_views
+    from mesh2tex.synthetic.world import PhotoSetup, bake_material, make_material, make_shape, render_views
 
     name = spec.shape_name(index)
     shape = make_shape(spec, index)
@@ -135,7 +135,7 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
         save_obj(mesh_path, shape.vertices, shape.faces, [PART_NAMES[p] for p in shape.face_parts])
         wrote.append("mesh")
     if not glb_path.exists():
-        baked = bake_texture(shape, material, spec.texture_size)
+        baked = bake_material(shape, material, spec.texture_size)
         save_glb(glb_path, baked.vertices, baked.faces, baked.uv, baked.texture, name=name)
         wrote.append("textured")
 
@@ -145,7 +145,7 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
 
     todo = [r for r in records if not finished(r)]
     if todo:
-        views = [View(**{k: (tuple(r[k]) if k == "light" else r[k]) for k in View.__dataclass_fields__}) for r in todo]
+        views = [PhotoSetup(**{k: (tuple(r[k]) if k == "light" else r[k]) for k in PhotoSetup.__dataclass_fields__}) for r in todo]
         rendered = render_views(shape, material, views, spec.resolution, spec.supersample)
         for b, record in enumerate(todo):
             save_png(output / record["image"], rendered["rgb"][b])

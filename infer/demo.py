@@ -240,7 +240,7 @@ TRANSFER_METHODS = {  # name -> title in the report; every method judged alike (
 
 def render_glb_at_pose(glb: Path, views: list, size: int, lighting: str = "photo"):
     """A textured GLB (as the pipeline writes it) rendered by ``mesh2tex.evaluation.render_for_comparison``
-    at ``views`` (``mesh2tex.synthetic.world.View``): a ``ComparisonRender`` (rgb [B,3,S,S] in [0,1], mask, parts)."""
+    at ``views`` (``mesh2tex.synthetic.world.PhotoSetup``): a ``ComparisonRender`` (rgb [B,3,S,S] in [0,1], mask, parts)."""
     try:
         vertices, faces, uv, image = load_glb(glb)
     except ValueError as error:

@@ -123,7 +123,7 @@ def _white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor,
 
 
 def ground_truth_renders(world: WorldData, name: str, views, resolution: int, lit: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
-    """The shape's own ground-truth material at ``views`` (world View records) on white; ``lit``
+    """The shape's own ground-truth material at ``views`` (world PhotoSetup records) on white; ``lit``
     False renders the albedo (ambient 1). -> images (B, 3, R, R) in [0, 1], masks (B, 1, R, R)."""
     index = world.indices[name]
     if not lit:
@@ -150,7 +150,7 @@ def material_draws(world: WorldData, name: str, views, resolution: int, seed: in
 
 @torch.no_grad()
 def pose_view(view, azimuth: float, elevation: float, distance: float):
-    """``view`` (a world View record) moved to another camera; its light turns about the vertical axis
+    """``view`` (a world PhotoSetup record) moved to another camera; its light turns about the vertical axis
     with the camera, so that it stays where the world's photos have it (beside and above the camera)."""
     turn = math.radians(azimuth - view.azimuth)
     x, y, z = view.light
@@ -159,14 +159,14 @@ def pose_view(view, azimuth: float, elevation: float, distance: float):
 
 
 def view_lights(views) -> Lights:
-    """The lights of world View records: directions (B, 3) and ambient shares (B,)."""
+    """The lights of world PhotoSetup records: directions (B, 3) and ambient shares (B,)."""
     return Lights(torch.tensor([v.light for v in views], dtype=torch.float32), torch.tensor([v.ambient for v in views], dtype=torch.float32))
 
 
 def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor | None,
                       device: torch.device, lit: bool = False, ws: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """One latent per view: z (B, z_dim), or style inputs ``ws`` (B, num_ws, w_dim) instead; ``views``
-    B world View records (their cameras, and with ``lit`` their lights) -> images (B, 3, R, R) in
+    B world PhotoSetup records (their cameras, and with ``lit`` their lights) -> images (B, 3, R, R) in
     [0, 1] on white, masks (B, 1, R, R)."""
     b = len(views)
     batch = collate_shapes([shape] * b).to(device)

@@ -55,7 +55,7 @@ from mesh2tex.options import config_overrides
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import load_shape, write_textured_mesh
-from mesh2tex.transfer import (Photo, PoseEstimate, TransferConfig, TransferResult, View, check_style_sizes, estimate_pose, load_photo,
+from mesh2tex.transfer import (FramedView, Photo, PoseEstimate, TransferConfig, TransferResult, check_style_sizes, estimate_pose, load_photo,
                                predict_noc, transfer_texture, view_at_pose)
 
 
@@ -87,7 +87,7 @@ def noc_to_uint8(noc: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
 
 @torch.no_grad()
 def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, result: TransferResult, photo: Photo,
-                  view: View, photo_noc: torch.Tensor | None, distance: float, fov: float, elevation: float,
+                  view: FramedView, photo_noc: torch.Tensor | None, distance: float, fov: float, elevation: float,
                   cfg: TransferConfig, device: torch.device, texture_format: str = "png") -> dict[str, str]:
     """textured.glb/.ply, comparison.png, turntable frames and GIF; returns {what: file name}."""
     batch = collate_shapes([shape]).to(device)

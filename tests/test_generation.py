@@ -151,10 +151,10 @@ def test_pose_view_turns_the_light_with_the_camera():
 
     from infer.generation import pose_view
     from mesh2tex.render import orbit_direction as light_direction
-    from mesh2tex.synthetic.world import View
+    from mesh2tex.synthetic.world import PhotoSetup
 
     light = light_direction(torch.tensor([100.0 + 40.0]), torch.tensor([50.0]))[0].tolist()
-    view = View(azimuth=100.0, elevation=10.0, distance=1.7, fov=40.0, light=tuple(light), ambient=0.4, background="solid", background_seed=0)
+    view = PhotoSetup(azimuth=100.0, elevation=10.0, distance=1.7, fov=40.0, light=tuple(light), ambient=0.4, background="solid", background_seed=0)
     moved = pose_view(view, 35.0, 20.0, 1.8)
     expected = light_direction(torch.tensor([35.0 + 40.0]), torch.tensor([50.0]))[0]
     assert torch.allclose(torch.tensor(moved.light), expected, atol=1e-5)

@@ -7,7 +7,7 @@ anti-aliasing as the synthetic world's photos (``mesh2tex.synthetic.world.render
 ground truth rendered this way reproduces the photo and wins every metric. ``lighting="albedo"``
 renders every candidate (and reference) unlit instead.
 
-Views are ``mesh2tex.synthetic.world.View`` records (camera, light, ambient, background), the ones the
+Views are ``mesh2tex.synthetic.world.PhotoSetup`` records (camera, light, ambient, background), the ones the
 world's query sidecars hold; :func:`other_views` turns the photo's view into the views it does not
 show (the same camera and light turned about the vertical axis).
 
@@ -56,7 +56,7 @@ class ComparisonRender:
 
 
 def other_views(view, azimuth_offsets=(72.0, 144.0, 216.0, 288.0)) -> list:
-    """The views a photo does not show: ``view`` (a ``mesh2tex.synthetic.world.View``) turned about
+    """The views a photo does not show: ``view`` (a ``mesh2tex.synthetic.world.PhotoSetup``) turned about
     the vertical axis by each offset (degrees), its light turned with it (the same lighting relative
     to the camera), elevation, distance, ambient and background unchanged."""
     views = []
@@ -80,7 +80,7 @@ def render_for_comparison(surface: Surface, views: list, resolution: int, supers
                           lighting: str = "photo") -> ComparisonRender:
     """Render ``surface`` at ``views`` exactly as the synthetic world renders its photos.
 
-    ``views``: ``mesh2tex.synthetic.world.View`` records (camera, light, ambient, background kind and
+    ``views``: ``mesh2tex.synthetic.world.PhotoSetup`` records (camera, light, ambient, background kind and
     seed). The mesh is rasterized at ``resolution * supersample``; each covered sub-pixel takes the
     surface's albedo, Lambert-shaded with the view's flat face normals, light and ambient
     (``lighting="photo"``) or left unlit (``"albedo"``), over the view's background

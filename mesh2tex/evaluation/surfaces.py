@@ -165,7 +165,7 @@ def backprojected_surface(vertices, faces, image: torch.Tensor, mask: torch.Tens
     image [3, R, R] in [0, 1] and mask [R, R] {0, 1}: the photo cropped around its object, as the
     transfer sees it; ``mvp`` [1, 4, 4] or [4, 4] the camera, ``render_size`` the side of the full
     render it frames and ``box`` (top, left, side) the square of that render the crop shows (an
-    ``mesh2tex.transfer.View``: true or estimated pose). A surface point the camera sees (it is within
+    ``mesh2tex.transfer.FramedView``: true or estimated pose). A surface point the camera sees (it is within
     ``tolerance`` of the surface point its pixel shows, and the photo's mask covers it) takes the
     photo's colour at its projection (bilinear over object pixels only); any other point takes the
     colour of the nearest such seen point.

@@ -22,7 +22,7 @@ from mesh2tex.evaluation.surfaces import Surface, material_surface, textured_sur
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
-from mesh2tex.transfer.photo import View as TransferView
+from mesh2tex.transfer.photo import FramedView
 
 
 @dataclass
@@ -93,8 +93,8 @@ def other_shape_name(name: str, available: list[str]) -> str:
 
 
 @torch.no_grad()
-def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin: float) -> TransferView:
-    """The query's true camera, framed like its photo crop: a :class:`mesh2tex.transfer.View` whose render,
+def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin: float) -> FramedView:
+    """The query's true camera, framed like its photo crop: a :class:`mesh2tex.transfer.FramedView` whose render,
     cropped with the photo's own box, is pixel-aligned with the cropped photo (exact geometry).
 
     Its ``mask`` (1,1,R,R) is where the shape covers the crop; its ``noc`` is left empty.
@@ -110,7 +110,7 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
     raster = rasterize(transform_points(vertices, camera.mvp), torch.as_tensor(shape.triangles(0)), (side, side))
     mask = crop_mask(raster.face_id[0] >= 0, box, resolution)
-    return TransferView(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask,
+    return FramedView(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask,
                         azimuth=float(query.azimuth), elevation=float(query.elevation))
 
 
@@ -201,10 +201,10 @@ def _load_shape_truth(root: str, settings: str, name: str) -> ShapeTruth:
 
 def load_query_truth(root: str | Path, index: dict, sidecar: dict) -> QueryTruth:
     """A query (its sidecar, as in ``index["queries"]`` or ``queries/<q>.json``) and its ground truth."""
-    from mesh2tex.synthetic.world import View
+    from mesh2tex.synthetic.world import PhotoSetup
 
     root = Path(root)
-    view = View(**{k: (tuple(sidecar[k]) if k == "light" else sidecar[k]) for k in View.__dataclass_fields__})
+    view = PhotoSetup(**{k: (tuple(sidecar[k]) if k == "light" else sidecar[k]) for k in PhotoSetup.__dataclass_fields__})
     rgb, _ = load_image(root / sidecar["image"])
     mask = np.asarray(load_mask(root / sidecar["mask"]), dtype=bool)
     photo = images_to_unit(rgb)

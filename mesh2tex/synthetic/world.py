@@ -90,7 +90,7 @@ class WorldSpec:
 
 
 @dataclass(frozen=True)
-class View:
+class PhotoSetup:
     """One photo's camera, light and background (JSON-serialisable via ``asdict``)."""
 
     azimuth: float  # degrees
@@ -111,7 +111,7 @@ def make_material(spec: WorldSpec, index: int) -> Material:
     return random_material(spec.category, spec.rng(index, _MATERIAL))
 
 
-def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -> list[View]:
+def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -> list[PhotoSetup]:
     """``count`` random views of shape ``index`` (photos, or queries when ``query``)."""
     rng = spec.rng(index, _QUERIES if query else _PHOTOS)
     views = []
@@ -123,7 +123,7 @@ def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -
         az = math.radians(azimuth + rng.uniform(-PHOTO_LIGHTS.azimuth_spread, PHOTO_LIGHTS.azimuth_spread))
         el = math.radians(rng.uniform(PHOTO_LIGHTS.elevation_min, PHOTO_LIGHTS.elevation_max))
         light = (math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az))
-        views.append(View(
+        views.append(PhotoSetup(
             azimuth=round(azimuth, 4), elevation=round(elevation, 4), distance=round(distance, 4), fov=spec.fov,
             light=tuple(round(v, 5) for v in light), ambient=round(float(rng.uniform(PHOTO_LIGHTS.ambient_min, PHOTO_LIGHTS.ambient_max)), 4),
             background=BACKGROUND_KINDS[int(rng.integers(len(BACKGROUND_KINDS)))],
@@ -136,7 +136,7 @@ def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -
 # Rendering
 
 
-def render_views(shape: SyntheticShape, material: Material | None, views: list[View], resolution: int, supersample: int = 2,
+def render_views(shape: SyntheticShape, material: Material | None, views: list[PhotoSetup], resolution: int, supersample: int = 2,
                  *, vertex_colours: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Render ``views`` of the textured shape over their backgrounds.
 
@@ -268,7 +268,7 @@ class BakedMesh:
     texture: np.ndarray
 
 
-def bake_texture(shape: SyntheticShape, material: Material, size: int = 512, padding: int = 4) -> BakedMesh:
+def bake_material(shape: SyntheticShape, material: Material, size: int = 512, padding: int = 4) -> BakedMesh:
     """Unwrap the shape (xatlas) and evaluate ``material`` at every texel's surface point.
 
     Texels outside the charts are filled by dilating the charts ``padding`` pixels, so bilinear

@@ -9,12 +9,12 @@ pose network's beliefs and the silhouette search (:func:`estimate_pose`), the NO
 
 from mesh2tex.transfer.config import ABLATIONS, TransferConfig, check_style_sizes
 from mesh2tex.transfer.optimise import TransferResult, transfer_texture
-from mesh2tex.transfer.photo import Photo, View, load_photo, view_at_pose
+from mesh2tex.transfer.photo import FramedView, Photo, load_photo, view_at_pose
 from mesh2tex.transfer.pose import (PoseBeliefs, PoseEstimate, estimate_pose, pose_network_beliefs, predict_noc, predict_pose,
                                     search_pose, silhouette_iou)
 
 __all__ = [
-    "ABLATIONS", "Photo", "PoseBeliefs", "PoseEstimate", "TransferConfig", "TransferResult", "View", "check_style_sizes", "estimate_pose",
+    "ABLATIONS", "FramedView", "Photo", "PoseBeliefs", "PoseEstimate", "TransferConfig", "TransferResult", "check_style_sizes", "estimate_pose",
     "load_photo", "pose_network_beliefs", "predict_noc", "predict_pose", "search_pose", "silhouette_iou", "transfer_texture",
     "view_at_pose",
 ]

@@ -19,7 +19,7 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction
 from mesh2tex.texture import mean_latent
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.photo import Photo, View, view_at_pose
+from mesh2tex.transfer.photo import FramedView, Photo, view_at_pose
 
 
 class PhotoLight(torch.nn.Module):
@@ -71,7 +71,7 @@ def learns_light(cfg: TransferConfig, generator_lit: bool) -> bool:
     return cfg.light == "learn" or (cfg.light == "auto" and generator_lit)
 
 
-def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: Photo, view: View,
+def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: Photo, view: FramedView,
                      photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig, device: torch.device,
                      show_progress: bool = True, generator_lit: bool = False) -> TransferResult:
     """Optimise the texture of ``shape`` to look like ``photo`` (Equation 2, then refinement).
@@ -106,7 +106,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
                                   lights=light.lights() if light is not None else None).images
         return crop_square(full, view.box, cfg.resolution)
 
-    def render_unlit(ws: torch.Tensor, at: View, at_samples) -> torch.Tensor:
+    def render_unlit(ws: torch.Tensor, at: FramedView, at_samples) -> torch.Tensor:
         """(1, 3, R, R) albedo of the texture at another view, cropped as that view's object."""
         full = render_field_views(generator, batch, ws, at.mvp.to(device), (at.render_size,) * 2, grey,
                                   encoded=encoded, noise_mode="none", samples=at_samples).images
@@ -190,7 +190,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
 
 
 @torch.no_grad()
-def unseen_anchors(shape: PreparedShape, view: View, batch, samples, cfg: TransferConfig, device: torch.device, render_unlit, styles) -> list:
+def unseen_anchors(shape: PreparedShape, view: FramedView, batch, samples, cfg: TransferConfig, device: torch.device, render_unlit, styles) -> list:
     """The surfaces the photo does not show, as stage 1 painted them: for each of ``cfg.anchor_views``
     views around the object (the photo's elevation, azimuths from 30 degrees after the photo's), a tuple
     (view, its surface samples, mask (1,1,R,R) of the pixels whose triangle the photo's view does not

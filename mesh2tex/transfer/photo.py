@@ -26,7 +26,7 @@ class Photo:
 
 
 @dataclass
-class View:
+class FramedView:
     """The mesh seen at the query's pose, cropped like the photo.
 
     mvp (1,4,4) camera; box (top, left, side) of the crop in the full render of side ``render_size``;
@@ -75,10 +75,10 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
 
 
 @torch.no_grad()
-def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig) -> View:
+def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig) -> FramedView:
     """Rasterize the finest level of ``shape`` at the pose (degrees; ``distance``, ``fov`` of the orbit
     camera) at ``cfg.render_oversample`` times R = ``cfg.resolution``, find the object's square crop
-    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`View` (noc (R,R,3), mask (1,1,R,R))."""
+    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`FramedView` (noc (R,R,3), mask (1,1,R,R))."""
     size = int(round(cfg.resolution * cfg.render_oversample))
     camera = orbit_camera(torch.tensor([azimuth]), torch.tensor([elevation]), distance=distance, fov=fov)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
@@ -90,5 +90,5 @@ def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distanc
     box = object_box(covered, cfg.margin)
     noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
     noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)
-    return View(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution),
+    return FramedView(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution),
                 azimuth=float(azimuth), elevation=float(elevation), distance=float(distance), fov=float(fov))

@@ -2,7 +2,8 @@
 the stage packages (``data_prep``, ``train``, ``infer``) never import one another, the library
 (``mesh2tex``) imports no stage, no two modules import each other (directly or around a loop, at
 module level or inside a function), the library raises no ``UserError`` (the command line's error:
-the library's is ``InputError``, a ``ValueError``), and no source file is longer than 600 lines."""
+the library's is ``InputError``, a ``ValueError``), no source file is longer than 600 lines, and a public
+name is defined in one module (or says why it is shared)."""
 
 from __future__ import annotations
 
@@ -231,3 +232,41 @@ def test_the_spelling_check_finds_what_it_forbids():
               "            pass\n        return image.vertex_colors, f(color=1)\n")
     assert american_spellings(source) == [(1, "colorful"), (3, "Colors"), (4, "color_a"), (6, "center"), (6, "centers"),
                                           (6, "colors"), (8, "centerline"), (9, "tint_color")]
+
+
+# Public names defined at module level in more than one module, each for a stated reason; any other repeat is a name
+# with two meanings (or one job written twice).
+SHARED_NAMES = {
+    "run": "every command's entry point (docs/architecture.md, 'a command')",
+    "build_config": "every configured command's config, for --print-config",
+    "output_names": "the files each of infer transfer and infer generate writes into --out",
+    "nca": "the options of 'train nca' and 'infer nca', each in its package's options.py",
+    "random_cameras": "each trainer's own distribution of training views (the GAN's jittered, the automaton's seeded)",
+    "quad_normals": "the prepared features' float64 NumPy form (geometry.features) and the renderer's torch form",
+    "vertex_normals": "the same: quads in NumPy for the prepared features, triangles in torch for shading",
+}
+
+
+def public_definitions(root: Path = ROOT) -> dict[str, list[str]]:
+    """{name: [module, ...]} of the public classes and functions defined at module level."""
+    found: dict[str, list[str]] = {}
+    for module, path in module_files(root).items():
+        for node in ast.parse(path.read_text(), str(path)).body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and not node.name.startswith("_"):
+                found.setdefault(node.name, []).append(module)
+    return found
+
+
+def test_a_public_name_means_one_thing():
+    repeated = {name: modules for name, modules in public_definitions().items() if len(modules) > 1}
+    assert sorted(set(repeated) - set(SHARED_NAMES)) == [], \
+        f"defined in more than one module: {({n: m for n, m in repeated.items() if n not in SHARED_NAMES})}; rename one, or say why in SHARED_NAMES"
+    assert sorted(set(SHARED_NAMES) - set(repeated)) == [], "a shared name is defined once now: drop it from SHARED_NAMES"
+
+
+def test_the_name_check_finds_what_it_forbids(tmp_path):
+    for package in (LIBRARY, *STAGES):
+        (tmp_path / package).mkdir()
+    (tmp_path / LIBRARY / "a.py").write_text("class View:\n    pass\n\ndef _helper():\n    pass\n")
+    (tmp_path / "infer" / "b.py").write_text("def View():\n    pass\n\ndef _helper():\n    pass\n")
+    assert public_definitions(tmp_path) == {"View": [f"{LIBRARY}.a", "infer.b"]}

@@ -10,7 +10,7 @@ from PIL import Image
 
 from mesh2tex.cli import main
 from mesh2tex.render import face_normals
-from mesh2tex.synthetic.materials import PART_NAMES, Photo, random_material
+from mesh2tex.synthetic.materials import PART_NAMES, PhotoPattern, random_material
 from mesh2tex.synthetic.shapes import PART_ID, generate_shape
 
 SEEDS = range(8)
@@ -92,7 +92,7 @@ def test_photographic_textures_come_from_bundled_images():
     normals = rng.normal(size=(500, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     for name in ("brick", "grass", "gravel"):
-        rgb = Photo(name, (0.1, 0.1, 0.1), (0.9, 0.8, 0.7), 0.4)(points, normals)
+        rgb = PhotoPattern(name, (0.1, 0.1, 0.1), (0.9, 0.8, 0.7), 0.4)(points, normals)
         assert rgb.std() > 0.05 and 0 <= rgb.min() and rgb.max() <= 1
 
 

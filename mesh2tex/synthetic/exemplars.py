@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mesh2tex.synthetic.materials import Checker, Noise, Pattern, Photo, Stripes, Weave, WoodGrain
+from mesh2tex.synthetic.materials import Checker, Noise, Pattern, PhotoPattern, Stripes, Weave, WoodGrain
 
 # name -> pattern on the unit square (coordinates in [0, 1]^2, z = 0)
 EXEMPLARS: dict[str, Pattern] = {
@@ -18,7 +18,7 @@ EXEMPLARS: dict[str, Pattern] = {
     "weave": Weave((0.20, 0.42, 0.30), (0.85, 0.80, 0.62), frequency=14.0),
     "wood": WoodGrain((0.80, 0.60, 0.38), (0.45, 0.27, 0.12), (0.0, 1.0, 0.0), rings=14.0, seed=3),
     "camouflage": Noise((0.30, 0.36, 0.18), (0.62, 0.55, 0.35), scale=7.0, octaves=3, seed=5, threshold=0.5),
-    "brick": Photo("brick", (0.35, 0.12, 0.08), (0.92, 0.62, 0.45), tile=1.0),
+    "brick": PhotoPattern("brick", (0.35, 0.12, 0.08), (0.92, 0.62, 0.45), tile=1.0),
 }
 
 

@@ -14,6 +14,7 @@ as JSON (:meth:`describe`) so a world records the ground-truth material of each 
 from __future__ import annotations
 
 import functools
+import typing
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -59,7 +60,7 @@ class Pattern:
     def describe(self) -> dict:
         """JSON-serialisable description: the kind and its parameters."""
         data = asdict(self) if hasattr(self, "__dataclass_fields__") else {}
-        out = {"kind": type(self).__name__.lower()}
+        out = {"kind": getattr(self, "KIND", type(self).__name__.lower())}
         for key, value in data.items():
             if isinstance(value, tuple) and value and isinstance(value[0], float):
                 value = _round(value)
@@ -165,8 +166,10 @@ class Weave(Pattern):
 
 
 @dataclass
-class Photo(Pattern):
+class PhotoPattern(Pattern):
     """A grayscale photograph bundled with scikit-image (brick, grass, gravel), tinted, triplanar."""
+
+    KIND: typing.ClassVar[str] = "photo"  # the kind the world's records name it by
 
     image: str
     dark: Colour
@@ -353,11 +356,11 @@ def random_upholstery(rng: np.random.Generator) -> Pattern:
     return Noise(_shade(base, 0.55), base, float(rng.uniform(4, 12)), 4, int(rng.integers(1 << 16)))
 
 
-def random_photo(rng: np.random.Generator, tint: Colour) -> Photo:
+def random_photo(rng: np.random.Generator, tint: Colour) -> PhotoPattern:
     """A photographic texture tinted from dark to ``tint``-light."""
     name = _pick(rng, PHOTO_IMAGES)
     light = tuple(float(v) for v in np.clip(_c(tint) * 0.5 + 0.5, 0, 1))
-    return Photo(name, _shade(tint, 0.35), light, float(rng.uniform(0.25, 0.6)))
+    return PhotoPattern(name, _shade(tint, 0.35), light, float(rng.uniform(0.25, 0.6)))
 
 
 def random_wood(rng: np.random.Generator) -> WoodGrain:
@@ -428,6 +431,6 @@ def random_material(category: str, rng: np.random.Generator) -> Material:
 
 
 __all__ = [
-    "Pattern", "Solid", "Stripes", "Checker", "Noise", "WoodGrain", "Weave", "Photo", "UpFacing", "Material",
+    "Pattern", "Solid", "Stripes", "Checker", "Noise", "WoodGrain", "Weave", "PhotoPattern", "UpFacing", "Material",
     "fractal_noise", "triplanar", "photo_image", "random_material", "PART_NAMES",
 ]

@@ -5,7 +5,9 @@
 #   2. a chair-world GAN run of TRAIN_MINUTES minutes (64 px, the shipped model's config) with snapshots,
 #      then its learning curve through the generation protocol: benchmarks/learning_curve_gan.py
 #   3. texture transfer timing: benchmarks/bench_transfer.py
-#   4. the cellular automaton: a NCA_ITERS-iteration train nca on a stripes exemplar, its seconds per
+#   4. rendering on the device against the CPU (8 views at 256 and 512 px, forward and backward, and their
+#      agreement): benchmarks/bench_render_device.py
+#   5. the cellular automaton: a NCA_ITERS-iteration train nca on a stripes exemplar, its seconds per
 #      iteration, and its quality and step time: benchmarks/nca_quality.py
 # Runs in under 10 minutes on one H200 with the defaults; on a CPU it runs too (slowly: lower TRAIN_MINUTES).
 #   OUT=device_out TRAIN_MINUTES=4 bash benchmarks/device_check.sh
@@ -25,6 +27,9 @@ if ! $PY -c "import mesh2tex" 2>/dev/null; then
   log "installing"
   $PY -m pip install -q -e . >> "$OUT/log.txt" 2>&1
 fi
+
+log "rendering on the device against the CPU"
+$PY benchmarks/bench_render_device.py --repeats 10 > "$OUT/render_device.txt" 2>&1 || true
 
 log "GAN step at the paper's settings"
 $PY benchmarks/bench_gan_step.py --device "$DEVICE" --faces 6144 --batch 2 --views 8 --resolution 256 --iters 6 \
@@ -64,4 +69,4 @@ $PY benchmarks/nca_quality.py --model "$OUT/nca/model.safetensors" --exemplar-na
   > "$OUT/nca_quality.txt" 2>&1 || true
 rm -rf "$W"
 log "done"
-tail -n 3 "$OUT"/gan_step_*.txt "$OUT/curve.txt" "$OUT/nca/metrics.jsonl" "$OUT/nca_quality.txt"
+tail -n 3 "$OUT/render_device.txt" "$OUT"/gan_step_*.txt "$OUT/curve.txt" "$OUT/nca/metrics.jsonl" "$OUT/nca_quality.txt"

@@ -188,6 +188,29 @@ def test_batch_views_chunks_and_tiles_agree():
     assert torch.equal(small_chunks.bary, whole.bary)
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+def test_cuda_renders_what_the_cpu_renders():
+    """On a GPU the same views give the same face ids (bar a few pixels where float rounding of the
+    depth key differs), the same barycentrics, and the same gradients through interpolate."""
+    from test_render_raycast import bumpy_torus
+
+    mesh = bumpy_torus(96, 64)
+    camera = orbit_camera(torch.tensor([30.0 + 45.0 * i for i in range(8)]), torch.tensor([20.0] * 8), distance=3.6, fov=45.0)
+    results = {}
+    for device in ("cpu", "cuda"):
+        vertices = torch.tensor(mesh.vertices, dtype=torch.float32, device=device)
+        faces = torch.tensor(mesh.faces, device=device)
+        colours = torch.rand(len(mesh.vertices), 3, generator=torch.Generator().manual_seed(0)).to(device).requires_grad_(True)
+        raster = rasterize(transform_points(vertices, camera.mvp.to(device)), faces, (256, 256))
+        interpolate(colours, raster, faces).mean().backward()
+        results[device] = (raster.face_id.cpu(), raster.bary.cpu(), colours.grad.cpu())
+    (cpu_ids, cpu_bary, cpu_grad), (gpu_ids, gpu_bary, gpu_grad) = results["cpu"], results["cuda"]
+    same = cpu_ids == gpu_ids
+    assert same.float().mean() > 0.9999
+    assert (cpu_bary - gpu_bary)[same].abs().max() < 1e-4
+    assert torch.allclose(cpu_grad, gpu_grad, atol=1e-6, rtol=1e-3)
+
+
 def test_a_closed_mesh_has_no_cracks_where_pixel_centres_fall_on_shared_edges():
     """Watertightness: on a closed convex mesh every covered pixel shows the near side, and a batch equals
     its views one by one, even where symmetric views put pixel centres exactly on edges."""

@@ -146,7 +146,6 @@ QUICK = {  # a smoke-test budget: every stage runs, nothing learns much
 }
 
 
-
 def _stage(name: str, argv: list[str], log: JsonLines) -> float:
     """Run one CLI stage in-process; a failure stops the demo with the stage's name."""
     print(f"\n== demo: {name}: mesh2tex {' '.join(argv)}", flush=True)

@@ -69,3 +69,14 @@ def make_tiny_world(root, views: int, resolution: int, query_views: int) -> dict
         vertices, faces = load_mesh(world / "meshes" / f"{name}.obj")
         prepare_shape(vertices, faces, face_count=96, levels=3, seed=0).save(shapes / f"{name}.npz")
     return index
+
+
+@pytest.fixture(params=["compiled", "vectorised"])
+def raster_path(request, monkeypatch):
+    """Runs a test on both CPU paths of ``mesh2tex.render.rasterize``: the compiled loop
+    (``mesh2tex.render.kernels``) and the vectorised passes (the CUDA path, and the fallback)."""
+    if request.param == "vectorised":
+        monkeypatch.setenv("MESH2TEX_RASTER_KERNEL", "torch")
+    else:
+        pytest.importorskip("numba")
+    return request.param

@@ -89,7 +89,7 @@ def assert_bitwise(a, b):
 
 @pytest.mark.parametrize("name", ["table", "giants"])
 @pytest.mark.parametrize("dtype,cull,max_pairs", [(torch.float32, False, 1 << 21), (torch.float64, True, 2000)])
-def test_fast_rasterizer_equals_reference(meshes, name, dtype, cull, max_pairs):
+def test_fast_rasterizer_equals_reference(meshes, name, dtype, cull, max_pairs, raster_path):
     vertices, faces = meshes[name]
     # Close cameras put the giants and the table's faces across the near plane and the whole image.
     camera = orbit_camera(torch.tensor([20.0, 140.0, 260.0]), torch.tensor([30.0, -15.0, 70.0]),
@@ -109,7 +109,7 @@ def test_scan_sphere_and_table_are_what_the_benchmark_says():
 
 
 @pytest.mark.parametrize("name", ["cube_sphere_7", "box", "grid_box"])
-def test_fast_rasterizer_equals_reference_with_centres_on_edges(name, monkeypatch):
+def test_fast_rasterizer_equals_reference_with_centres_on_edges(name, monkeypatch, raster_path):
     """Axis-aligned views of closed meshes put pixel centres exactly on edges and vertices, where the
     fast path's float32 planes cannot decide and the exact test (and its tie rule) does; near views
     make the faces large enough for the coarse pass by rows."""

@@ -172,7 +172,7 @@ def test_perspective_correct_interpolation_reprojects_to_pixel_centres():
                           atol=1e-6)
 
 
-def test_batch_views_chunks_and_tiles_agree():
+def test_batch_views_chunks_and_tiles_agree(raster_path):
     """A batch equals its views rasterized one by one; tiny chunks and large triangles change nothing."""
     v, tri = cube()
     camera = orbit_camera(torch.tensor([10.0, 100.0, 250.0]), torch.tensor([20.0, -30.0, 60.0]),

@@ -1,4 +1,6 @@
-"""A vectorised triangle rasterizer in pure PyTorch (CPU and CUDA, no compiled extension).
+"""A triangle rasterizer: vectorised PyTorch passes (CUDA, and the CPU fallback) and, on the CPU, the
+same computation as one compiled loop (:mod:`mesh2tex.render.kernels`, numba) that gives the same
+result bit for bit. No C++ or CUDA extension to build.
 
 Method (homogeneous rasterization, no geometric clipping):
   1. Per triangle, the 2D-homogeneous edge functions ``lambda_i(p) = e_i . (x, y, 1) / det`` with
@@ -42,6 +44,7 @@ from dataclasses import dataclass
 import torch
 
 from mesh2tex.checks import check_shape
+from mesh2tex.render import kernels
 from mesh2tex.render.edges import EdgeTest, band_scale
 from mesh2tex.render.binning import (
     N_BINS,
@@ -311,6 +314,32 @@ def _draw_large(buffer: DepthBuffer, setups: Setups, first: int, base, face, max
         lo = hi
 
 
+def _draw_vectorised(buffer: DepthBuffer, corners: torch.Tensor, triangles: int, resolution,
+                     cull_backfaces: bool, max_pairs: int):
+    """Draw every (view, triangle) pair of ``corners`` (4,3,N) into ``buffer`` with the vectorised
+    passes (CUDA, or the CPU without the compiled loop of :mod:`mesh2tex.render.kernels`).
+
+    Returns:
+        live (L,) int64 (view * T + triangle), row0, col0 (L,) int64 box origins, params64 (12,L)
+        float64 planes relative to them, front (L,) bool: the set-ups that can draw.
+    """
+    setups = _live_setup(corners, resolution, cull_backfaces)
+    live, counts = setups.live, setups.counts
+    if live.numel():
+        face, view = live % triangles, torch.div(live, triangles, rounding_mode="floor")
+        base = view * (buffer.shape[1] * buffer.row_stride) + setups.row0 * buffer.row_stride + setups.col0
+        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, bin by bin; larger ones (sorted
+        # last) go through the coarse pass.
+        n = sum(counts[:N_BINS])
+        if n:
+            entries = Entries(_scaled(setups.params64[:, :n], setups.scale[:, :n]), base[:n], face[:n],
+                              torch.arange(n, device=live.device))
+            draw(buffer, entries, bin_slices(counts[:N_BINS], max_pairs), max_pairs)
+        if counts[N_BINS]:
+            _draw_large(buffer, setups, n, base[n:], face[n:], max_pairs)
+    return live, setups.row0, setups.col0, setups.params64, setups.front
+
+
 def resolve_winners(raster: Raster, keys: torch.Tensor, id_bits: int, triangles: int, live, row0, col0, params64):
     """Fill ``raster`` in place from visibility keys: each covered pixel's winner gets its exact
     barycentrics and depth, from the float64 set-up (so they are not quantised).
@@ -386,27 +415,21 @@ def rasterize(
         if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
 
-        corners = gather_corners(pos, tri)
-        setups = _live_setup(corners, (H, W), cull_backfaces)
         raster = Raster(face_id, bary, depth)
-        if setups.live.numel() == 0:
-            return raster
-        live, counts = setups.live, setups.counts
-        face, view = live % T, torch.div(live, T, rounding_mode="floor")
         buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)
-        base = view * (buffer.shape[1] * buffer.row_stride) + setups.row0 * buffer.row_stride + setups.col0
-        # Boxes of at most WHOLE x WHOLE pixels are drawn whole, bin by bin; larger ones (sorted
-        # last) go through the coarse pass.
-        n = sum(counts[:N_BINS])
-        if n:
-            entries = Entries(_scaled(setups.params64[:, :n], setups.scale[:, :n]), base[:n], face[:n],
-                              torch.arange(n, device=device))
-            draw(buffer, entries, bin_slices(counts[:N_BINS], max_pairs), max_pairs)
-        if counts[N_BINS]:
-            _draw_large(buffer, setups, n, base[n:], face[n:], max_pairs)
+        drawn = None
+        if device.type == "cpu" and pos.dtype in (torch.float32, torch.float64) and kernels.available():
+            drawn = kernels.rasterize_views(pos, tri, (H, W), cull_backfaces, buffer)
+        if drawn is None:
+            corners = gather_corners(pos, tri)
+            live, row0, col0, params64, front = _draw_vectorised(buffer, corners, T, (H, W), cull_backfaces,
+                                                                 max_pairs)
+            edges = EdgeTest(corners, live, front, (H, W))
+        else:
+            live, row0, col0, params64, front, corners = drawn
+            edges = EdgeTest(corners, torch.arange(live.numel()), front, (H, W))
         # The few pixels the float32 edge values leave undecided (on an edge, or a small fraction
         # of a pixel from one), all at once.
-        buffer.settle(EdgeTest(corners, live, setups.front, (H, W)))
-        resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, setups.row0, setups.col0,
-                        setups.params64)
+        buffer.settle(edges)
+        resolve_winners(raster, buffer.image((H, W)), buffer.id_bits, T, live, row0, col0, params64)
         return raster

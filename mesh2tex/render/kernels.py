@@ -1,0 +1,281 @@
+"""The boxes, set-up and pixel passes of :func:`mesh2tex.render.rasterize` as one compiled CPU loop
+(numba).
+
+On the CPU, the vectorised passes (:mod:`mesh2tex.render.binning`, the set-up in
+:mod:`mesh2tex.render.rasterize`) spend most of their time writing and reading temporaries the size
+of every (view, triangle) pair and building index tensors, and with several torch threads they
+stall when the machine is busy. This loop visits each (view, triangle) pair once, on one thread,
+and each pixel of its box once, with no temporaries: its cost follows the triangles and the pixels
+they cover. It evaluates exactly the expressions of the vectorised path, in the same order and
+precision (float32 boxes and pixel tests, float64 set-up; a fused multiply-add wherever torch's
+``addcmul`` computes one), so every pixel is
+classified the same way: covered when its three scaled edge values are above 1, outside when one is
+below -1, set aside for the exact test (:class:`~mesh2tex.render.edges.EdgeTest`) otherwise; depth
+keys are the same integers. The rasterizer's output is identical bit for bit on both paths (tests
+compare them).
+
+The exact test of the band pixels and the barycentrics of each pixel's winner stay in torch (they
+concern few pixels, and the covered ones). A call with a triangle crossing the near plane (rare: the
+camera inside a mesh) takes the vectorised path. numba compiles the loop on first use (a few
+seconds, cached on disk after that). Where numba is not installed, or ``MESH2TEX_RASTER_KERNEL=torch``
+is set, the vectorised path runs.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+import torch
+
+try:  # numba is a dependency; the vectorised passes remain the fallback and the CUDA path.
+    import numba
+    import numba.extending
+except ImportError:  # pragma: no cover - exercised only where numba is missing
+    numba = None
+
+# Each must equal its namesake on the vectorised path (checked by tests/test_rasterize_kernel.py).
+_BOX_MARGIN = np.float32(1e-3)  # rasterize._BOX_MARGIN
+_WHOLE = 16  # binning.WHOLE
+_REGION = 64  # binning.REGION
+_BAND = np.float32(2.0 ** -18)  # edges._BAND
+_SETUP_ROUNDING = 2.0 ** -40  # edges._SETUP_ROUNDING
+_SCALE_FLOOR = np.float32(2.0 ** -100)  # below it, edges.band_scale gives 0
+# Band pixels a call expects at first; a call with more runs once more with room for all.
+BAND_CAPACITY = 4096
+
+
+# Compiled lazily, on first call; plain Python (unused) where numba is missing.
+# error_model "numpy": a division by zero gives inf or NaN, as in torch, instead of raising.
+_jit = numba.njit(cache=True, nogil=True, error_model="numpy") if numba is not None else (lambda function: function)
+
+if numba is not None:
+    @numba.extending.intrinsic
+    def _fma(typingctx, a, b, c):
+        """a * b + c rounded once, as torch.addcmul computes it on the CPU."""
+        return a(a, b, c), lambda context, builder, signature, args: builder.fma(*args)
+else:  # pragma: no cover
+    def _fma(a, b, c):
+        return a * b + c
+
+
+def available() -> bool:
+    """Whether the compiled loop can run (numba importable and not switched off)."""
+    return numba is not None and os.environ.get("MESH2TEX_RASTER_KERNEL", "numba") != "torch"
+
+
+@_jit
+def _box(x0, x1, x2, y0, y1, y2, H, W):
+    """Pixel box (row0, col0, rows, cols) of one triangle in front of the near plane from the float32
+    NDC x, y of its corners, as ``rasterize._pixel_boxes``; rows * cols = 0 when it draws nothing."""
+    one, half = np.float32(1.0), np.float32(0.5)
+    x_min, x_max = _min3(x0, x1, x2), _max3(x0, x1, x2)
+    y_min, y_max = _min3(y0, y1, y2), _max3(y0, y1, y2)
+    if not math.isfinite(((x_min + x_max) + y_min) + y_max):
+        return 0, 0, 0, 0
+    col_lo = min(max(math.ceil(((x_min + one) * np.float32(W) - one) * half - _BOX_MARGIN), 0), W)
+    col_hi = min(max(math.floor(((x_max + one) * np.float32(W) - one) * half + _BOX_MARGIN), -1), W - 1)
+    row_lo = min(max(math.ceil(((one - y_max) * np.float32(H) - one) * half - _BOX_MARGIN), 0), H)
+    row_hi = min(max(math.floor(((one - y_min) * np.float32(H) - one) * half + _BOX_MARGIN), -1), H - 1)
+    return row_lo, col_lo, max(row_hi - row_lo + 1, 0), max(col_hi - col_lo + 1, 0)
+
+
+@_jit
+def _min3(a, b, c):  # NaN-propagating, as torch.minimum
+    if a != a or b != b or c != c:
+        return np.float32(np.nan)
+    return min(min(a, b), c)
+
+
+@_jit
+def _max3(a, b, c):
+    if a != a or b != b or c != c:
+        return np.float32(np.nan)
+    return max(max(a, b), c)
+
+
+@_jit
+def _setup(x, y, z, w, row0, col0, H, W, p):
+    """Fill p (3,4) float64 with the planes of ``rasterize._edge_setup`` relative to (row0, col0);
+    returns the determinant."""
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        p[1, i] = y[j] * w[k] - w[j] * y[k]
+        p[2, i] = w[j] * x[k] - x[j] * w[k]
+        p[0, i] = x[j] * y[k] - y[j] * x[k]
+    det = (x[0] * p[1, 0] + y[0] * p[2, 0]) + w[0] * p[0, 0]
+    for r in range(3):
+        for i in range(3):
+            p[r, i] /= det
+        p[r, 3] = (p[r, 0] * z[0] + p[r, 1] * z[1]) + p[r, 2] * z[2]
+    ref_x = (2 * col0 + 1) / W - 1.0
+    ref_y = 1.0 - (2 * row0 + 1) / H
+    for c in range(4):
+        p[0, c] = _fma(p[2, c], ref_y, _fma(p[1, c], ref_x, p[0, c]))
+        p[1, c] *= 2.0 / W
+        p[2, c] *= -2.0 / H
+    return det
+
+
+@_jit
+def _band_scale(p, size, det, rows, cols, scale):
+    """Fill scale (3,) float32 as ``edges.band_scale``."""
+    roundoff = np.float32(size * size * _SETUP_ROUNDING / abs(det))
+    reach_c, reach_r = np.float32(cols + 64), np.float32(rows + 64)
+    for i in range(3):
+        tau = _fma(abs(np.float32(p[2, i])), reach_r, _fma(abs(np.float32(p[1, i])), reach_c, abs(np.float32(p[0, i]))))
+        tau = _fma(tau, _BAND, roundoff)
+        scale[i] = np.float32(1.0) / tau if tau > _SCALE_FLOOR else np.float32(0.0)
+
+
+@_jit
+def _draw(q, rows, cols, base, face, setup, keys, row_stride, id_bits, depth_scale, band, n_band):
+    """Depth-test the pixels of one rectangle with float32 planes q (12,) (rows as in
+    :class:`~mesh2tex.render.binning.Entries`); band pixels go to ``band`` (3, capacity) as far as
+    it holds them. Returns the new band count."""
+    one = np.float32(1.0)
+    for dr in range(rows):
+        fr = np.float32(dr)
+        a0, a1, a2, az = _fma(q[8], fr, q[0]), _fma(q[9], fr, q[1]), _fma(q[10], fr, q[2]), _fma(q[11], fr, q[3])
+        row_base = base + dr * row_stride
+        for dc in range(cols):
+            fc = np.float32(dc)
+            l0, l1, l2 = _fma(q[4], fc, a0), _fma(q[5], fc, a1), _fma(q[6], fc, a2)
+            # NaN fails every comparison, as it fails the vectorised ``min >= -1``.
+            if not (l0 >= -one and l1 >= -one and l2 >= -one):
+                continue
+            z = _fma(q[7], fc, az)
+            if not (abs(z) <= one):  # near and far planes
+                continue
+            key = (np.int64((np.float64(z) + 1.0) * depth_scale) << id_bits) | face
+            pixel = row_base + dc
+            if l0 <= one or l1 <= one or l2 <= one:
+                if n_band < band.shape[1]:
+                    band[0, n_band], band[1, n_band], band[2, n_band] = pixel, key, setup
+                n_band += 1
+            elif key < keys[pixel]:
+                keys[pixel] = key
+    return n_band
+
+
+@_jit
+def _rasterize_views(pos, tri, H, W, cull, keys, view_stride, row_stride, id_bits, depth_scale,
+                     live, box, params, front, corners, band):
+    """Boxes, set-up and pixel passes of every (view, triangle) pair: pos (B,V,4), tri (T,3).
+
+    Writes the live set-ups (those that draw) to ``live`` (L,) (view * T + triangle), ``box`` (L,2)
+    origin, ``params`` (12,L) float64, ``front`` (L,) and ``corners`` (4,3,L) (pos's dtype); band
+    pixels to ``band`` (3, capacity). Returns (L, band count), or (-1, 0) at the first triangle
+    crossing the near plane."""
+    B, V, T = pos.shape[0], pos.shape[1], tri.shape[0]
+    x, y, z, w = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    p = np.empty((3, 4))
+    scale = np.empty(3, dtype=np.float32)
+    q = np.empty(12, dtype=np.float32)
+    # Per vertex of a view, once: float32 NDC x and y, and whether it is in front of the near plane.
+    ndc_x, ndc_y = np.empty(V, dtype=np.float32), np.empty(V, dtype=np.float32)
+    ahead = np.empty(V, dtype=np.bool_)
+    n_live, n_band = 0, 0
+    for view in range(B):
+        for v in range(V):
+            x32, y32 = np.float32(pos[view, v, 0]), np.float32(pos[view, v, 1])
+            z32, w32 = np.float32(pos[view, v, 2]), np.float32(pos[view, v, 3])
+            ndc_x[v], ndc_y[v], ahead[v] = x32 / w32, y32 / w32, z32 + w32 >= 0
+        for face in range(T):
+            i0, i1, i2 = tri[face, 0], tri[face, 1], tri[face, 2]
+            n_ahead = np.int64(ahead[i0]) + np.int64(ahead[i1]) + np.int64(ahead[i2])
+            if n_ahead < 3:
+                if n_ahead > 0:
+                    return -1, 0
+                continue
+            row0, col0, rows, cols = _box(ndc_x[i0], ndc_x[i1], ndc_x[i2], ndc_y[i0], ndc_y[i1], ndc_y[i2], H, W)
+            if rows * cols == 0:
+                continue
+            size = 0.0
+            for k in range(3):
+                vertex = tri[face, k]
+                x[k], y[k], z[k], w[k] = pos[view, vertex, 0], pos[view, vertex, 1], pos[view, vertex, 2], pos[view, vertex, 3]
+                size = max(size, abs(x[k]), abs(y[k]), abs(z[k]), abs(w[k]))
+            det = _setup(x, y, z, w, row0, col0, H, W, p)
+            if not math.isfinite(1.0 / det) or (cull and not det > 0):
+                continue
+            _band_scale(p, size, det, rows, cols, scale)
+            base = view * view_stride + row0 * row_stride + col0
+            live[n_live], box[n_live, 0], box[n_live, 1], front[n_live] = view * T + face, row0, col0, det > 0
+            for k in range(3):
+                for c in range(4):
+                    corners[c, k, n_live] = pos[view, tri[face, k], c]
+            for r in range(3):
+                for c in range(4):
+                    params[r * 4 + c, n_live] = p[r, c]
+            if rows <= _WHOLE and cols <= _WHOLE:
+                _scaled(p, scale, False, 0, 0, q)
+                n_band = _draw(q, rows, cols, base, face, n_live, keys, row_stride, id_bits, depth_scale, band,
+                               n_band)
+            else:  # regions of at most _REGION pixels a side, their planes rebased in float64
+                for off_r in range(0, rows, _REGION):
+                    for off_c in range(0, cols, _REGION):
+                        _scaled(p, scale, True, off_r, off_c, q)
+                        n_band = _draw(q, min(rows - off_r, _REGION), min(cols - off_c, _REGION),
+                                       base + off_r * row_stride + off_c, face, n_live, keys, row_stride, id_bits,
+                                       depth_scale, band, n_band)
+            n_live += 1
+    return n_live, n_band
+
+
+@_jit
+def _scaled(p, scale, rebase, off_r, off_c, q):
+    """q (12,) float32: the planes p (3,4), rebased by (off_r, off_c) pixels if ``rebase`` (a region,
+    as ``rasterize._regions``), edge planes times their band scale (``rasterize._scaled``)."""
+    for c in range(4):
+        value = p[0, c]
+        if rebase:
+            value = value + (p[1, c] * off_c + p[2, c] * off_r)
+        q[c], q[4 + c], q[8 + c] = np.float32(value), np.float32(p[1, c]), np.float32(p[2, c])
+    for i in range(3):
+        q[i] *= scale[i]
+        q[4 + i] *= scale[i]
+        q[8 + i] *= scale[i]
+
+
+def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backfaces: bool, buffer):
+    """Draw every (view, triangle) pair into ``buffer`` (a CPU
+    :class:`~mesh2tex.render.binning.DepthBuffer`); its band pixels go to ``buffer.undecided``.
+
+    Args:
+        pos: (B,V,4) float32 or float64 clip-space vertices; tri: (T,3) int64.
+    Returns:
+        None when a triangle crosses the near plane (nothing drawn: use the vectorised path), else
+        live (L,) int64 (view * T + triangle) of each set-up, row0, col0 (L,) int64 its box origin,
+        params64 (12,L) float64 its planes relative to it, front (L,) bool, corners (4,3,L) its
+        clip-space corners (pos's dtype): component, corner, set-up.
+    """
+    H, W = int(resolution[0]), int(resolution[1])
+    positions = pos.detach().contiguous().numpy()
+    faces = tri.contiguous().numpy()
+    N = positions.shape[0] * faces.shape[0]
+    live = np.empty(N, dtype=np.int64)
+    box = np.empty((N, 2), dtype=np.int64)
+    params = np.empty((12, N))
+    front = np.empty(N, dtype=np.bool_)
+    corners = np.empty((4, 3, N), dtype=positions.dtype)
+    capacity = BAND_CAPACITY
+    keys = buffer.keys.numpy()  # shares memory: updated in place
+    view_stride = buffer.shape[1] * buffer.row_stride
+    while True:
+        band = np.empty((3, capacity), dtype=np.int64)
+        # Re-running after an overflow is harmless: depth-testing the same keys again changes nothing.
+        n_live, n_band = _rasterize_views(positions, faces, H, W, cull_backfaces, keys, view_stride,
+                                          buffer.row_stride, buffer.id_bits, buffer.depth_scale, live, box, params,
+                                          front, corners, band)
+        if n_live < 0:
+            return None
+        if n_band <= capacity:
+            break
+        capacity = n_band
+    if n_band:
+        buffer.undecided.append(tuple(torch.from_numpy(band[i, :n_band].copy()) for i in range(3)))
+    box = torch.from_numpy(box[:n_live])
+    return (torch.from_numpy(live[:n_live]), box[:, 0], box[:, 1], torch.from_numpy(params[:, :n_live]),
+            torch.from_numpy(front[:n_live]), torch.from_numpy(corners[:, :, :n_live]))

@@ -1,4 +1,5 @@
-"""Rendering in pure PyTorch: orbit cameras, a rasterizer, interpolation, shading, UV-space baking.
+"""Rendering in PyTorch (the rasterizer's CPU loop compiled by numba): orbit cameras, a rasterizer,
+interpolation, shading, UV-space baking.
 
 Four primitives in the spirit of nvdiffrast, composed by the caller::
 

@@ -156,12 +156,18 @@ class ProtocolConfig:
 
     def _shared_into(self, name: str, shared: tuple[str, ...]):
         """The nested config ``name`` with the protocol's own values of ``shared``; a value set there that differs is refused
-        (one left at the nested config's default cannot be told from one not set, and takes the protocol's)."""
+        (one left at the nested config's default cannot be told from one not set, and takes the protocol's). The copy
+        remembers the values it was given (``_from_protocol``), so that ``dataclasses.replace`` of a shared field on a
+        built config, which hands the same nested config to the new one, takes the new value instead of refusing it."""
         nested, default = getattr(self, name), self._default(name)
-        wrong = [key for key in shared if getattr(nested, key) not in (getattr(self, key), getattr(default, key))]
+        given = getattr(nested, "_from_protocol", {})
+        wrong = [key for key in shared
+                 if getattr(nested, key) not in (getattr(self, key), getattr(default, key)) and getattr(nested, key) != given.get(key)]
         if wrong:
             raise UserError(f"{name}: {', '.join(wrong)} cannot be set there: set the protocol's own {', '.join(wrong)}")
-        return replace(nested, **{key: getattr(self, key) for key in shared})
+        resolved = replace(nested, **{key: getattr(self, key) for key in shared})
+        resolved._from_protocol = {key: getattr(self, key) for key in shared}
+        return resolved
 
     def transfer_config(self, device: str = "auto") -> TransferConfig:
         """The settings of every transfer (the ablations change them further), on ``device``."""

@@ -243,9 +243,15 @@ def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, ca
     from mesh2tex.metrics.evaluate import EvaluateConfig
     from infer.protocols import ProtocolConfig
 
+    from dataclasses import replace
+
     cfg = load_config(ProtocolConfig, _yaml(tmp_path / "p.yaml", transfer={"w_anchor": 10, "latent_iters": 7}))
     assert (cfg.transfer.w_anchor, cfg.transfer.latent_iters, cfg.transfer.scales, cfg.transfer.patch_scales) == (10.0, 7, 1, 0)
-    assert cfg.transfer.resolution == cfg.resolution == 32, "the transfer's resolution is the protocol's"
+    assert cfg.transfer_config().resolution == cfg.resolution == 32, "the transfer's resolution is the protocol's"
+    # A shared field replaced on a built config is the one every transfer and the set metrics then take.
+    changed = replace(cfg, resolution=48, seed=5)
+    assert (changed.transfer_config().resolution, changed.transfer_config().seed) == (48, 5)
+    assert (changed.evaluate_config().resolution, changed.evaluate_config().seed) == (48, 5)
     assert load_config(ProtocolConfig, overrides={"transfer.w_colour": 1}).transfer.scales == 2
     for fields, says in (({"w_anchr": 1}, "unknown key(s) ['w_anchr']"), ({"seed": 3}, "transfer: seed cannot be set there"),
                          ({"use_noc": False}, "choose an ablation")):

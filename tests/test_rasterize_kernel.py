@@ -85,3 +85,10 @@ def test_degenerate_triangles_and_vertices_at_the_eye(monkeypatch):
     compiled, vectorised = both_paths(monkeypatch, pos, tri, (32, 32))
     assert_bitwise(compiled, vectorised)
     assert set(compiled.face_id.unique().tolist()) == {-1, 4}
+
+
+@pytest.mark.parametrize("bad", [[[0, 1, 3]], [[0, -1, 2]]])
+def test_vertex_indices_out_of_range_are_refused(bad):
+    pos = torch.tensor([[0.0, 0.0, 0.5, 1.0], [0.5, 0.0, 0.5, 1.0], [0.0, 0.5, 0.5, 1.0]])
+    with pytest.raises(ValueError, match="vertex indices"):
+        rasterize(pos, torch.tensor(bad), (8, 8))

@@ -414,6 +414,10 @@ def rasterize(
         depth = torch.ones((B, H, W), dtype=torch.float32, device=device)
         if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
+        # The compiled loop reads vertices without bounds checks: a bad index must stop here.
+        low, high = torch.aminmax(tri)
+        if int(low) < 0 or int(high) >= V:
+            raise ValueError(f"rasterize: tri holds vertex indices {int(low)}..{int(high)}, pos has {V} vertices")
 
         raster = Raster(face_id, bary, depth)
         buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)

@@ -130,6 +130,28 @@ def _band_scale(p, size, det, rows, cols, scale):
 
 
 @_jit
+def _row_span(at, step, first, last):
+    """Narrow the columns [first, last] of a row to those where the edge value ``fma(step, c, at)``
+    (float32) may be at least -1. Conservative: the bound is computed in float64 with a margin of
+    1e-6 in value (the float32 rounding of a value near -1 is 6e-8) and one column, so no pixel the
+    test would keep is skipped. NaN or infinite planes leave the row whole."""
+    if not (math.isfinite(at) and math.isfinite(step)) or step == 0:
+        return first, last
+    bound = (-1.000001 - np.float64(at)) / np.float64(step)  # where the exact value crosses -1 - 1e-6
+    if step > 0:  # values rise with the column: below the bound they are under -1
+        if bound > last + 1:
+            return 1, 0
+        if bound > first:
+            first = max(first, int(math.floor(bound)) - 1)
+    else:
+        if bound < first - 1:
+            return 1, 0
+        if bound < last:
+            last = min(last, int(math.ceil(bound)) + 1)
+    return first, last
+
+
+@_jit
 def _draw(q, rows, cols, base, face, setup, keys, row_stride, id_bits, depth_scale, band, n_band):
     """Depth-test the pixels of one rectangle with float32 planes q (12,) (rows as in
     :class:`~mesh2tex.render.binning.Entries`); band pixels go to ``band`` (3, capacity) as far as
@@ -139,7 +161,12 @@ def _draw(q, rows, cols, base, face, setup, keys, row_stride, id_bits, depth_sca
         fr = np.float32(dr)
         a0, a1, a2, az = _fma(q[8], fr, q[0]), _fma(q[9], fr, q[1]), _fma(q[10], fr, q[2]), _fma(q[11], fr, q[3])
         row_base = base + dr * row_stride
-        for dc in range(cols):
+        first, last = 0, cols - 1
+        if cols > 8:  # long rows: skip the columns where an edge is surely below -1
+            first, last = _row_span(a0, q[4], first, last)
+            first, last = _row_span(a1, q[5], first, last)
+            first, last = _row_span(a2, q[6], first, last)
+        for dc in range(first, last + 1):
             fc = np.float32(dc)
             l0, l1, l2 = _fma(q[4], fc, a0), _fma(q[5], fc, a1), _fma(q[6], fc, a2)
             # NaN fails every comparison, as it fails the vectorised ``min >= -1``.

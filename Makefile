@@ -13,6 +13,7 @@ $(VPY):
 .install-stamp: pyproject.toml $(VPY)
 	$(VPY) -c "import torch" 2>/dev/null || $(VPY) -m pip install "$(TORCH_SPEC)"
 	$(VPY) -m pip install -e ".[test]"
+	$(VPY) -c "from mesh2tex.render.kernels import warm_up; warm_up()"  # compile the rasterizer's CPU loop once
 	touch .install-stamp
 
 install: .install-stamp

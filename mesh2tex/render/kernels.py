@@ -306,3 +306,14 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
     box = torch.from_numpy(box[:n_live])
     return (torch.from_numpy(live[:n_live]), box[:, 0], box[:, 1], torch.from_numpy(params[:, :n_live]),
             torch.from_numpy(front[:n_live]), torch.from_numpy(corners[:, :, :n_live]))
+
+
+def warm_up() -> None:
+    """Compile the loop for float32 positions now (or load it from numba's cache), so that the first
+    render does not wait for it; ``make install`` calls this."""
+    if not available():
+        return
+    from mesh2tex.render.rasterize import rasterize
+
+    corners = torch.tensor([[-0.5, -0.5, 0.5, 1.0], [0.5, -0.5, 0.5, 1.0], [0.0, 0.5, 0.5, 1.0]])
+    rasterize(corners, torch.tensor([[0, 1, 2]]), (4, 4))

@@ -5,22 +5,24 @@ On the CPU, the vectorised passes (:mod:`mesh2tex.render.binning`, the set-up in
 :mod:`mesh2tex.render.rasterize`) spend most of their time writing and reading temporaries the size
 of every (view, triangle) pair and building index tensors, and with several torch threads they
 stall when the machine is busy. This loop visits each (view, triangle) pair once, on one thread,
-and each pixel of its box once, with no temporaries: its cost follows the triangles and the pixels
-they cover. It evaluates exactly the expressions of the vectorised path, in the same order and
-precision (float32 boxes and pixel tests, float64 set-up; a fused multiply-add wherever torch's
-``addcmul`` computes one), so every pixel is
-classified the same way: covered when its three scaled edge values are above 1, outside when one is
-below -1, set aside for the exact test (:class:`~mesh2tex.render.edges.EdgeTest`) otherwise; depth
-keys are the same integers. The rasterizer's output is identical bit for bit on both paths (tests
-compare them).
+with no temporaries, and in each row of a triangle's box only the columns that its edges do not
+rule out (:func:`_row_span`): its cost follows the triangles and the pixels they cover.
+
+It evaluates exactly the expressions of the vectorised path, in the same order and precision
+(float32 boxes and pixel tests, float64 set-up, a fused multiply-add wherever torch's ``addcmul``
+computes one), so every pixel is classified the same way: covered when its three scaled edge values
+are above 1, outside when one is below -1, set aside for the exact test
+(:class:`~mesh2tex.render.edges.EdgeTest`) otherwise; depth keys are the same integers. The
+rasterizer's output is identical bit for bit on both paths (``tests/test_rasterize_kernel.py``).
+On a CPU without fused multiply-add instructions torch's ``addcmul`` rounds twice; coverage stays
+exact there, but depth keys may then differ in the last bit from the vectorised path's.
 
 The exact test of the band pixels and the barycentrics of each pixel's winner stay in torch (they
 concern few pixels, and the covered ones). A call with a triangle crossing the near plane (rare: the
-camera inside a mesh) takes the vectorised path. numba compiles the loop on first use (a few
-seconds, cached on disk after that). Where numba is not installed, or ``MESH2TEX_RASTER_KERNEL=torch``
-is set, the vectorised path runs.
+camera inside a mesh) takes the vectorised path. numba compiles the loop on first use (about 6 s,
+cached on disk after that; ``make install`` does it, :func:`warm_up`). Where numba is not installed,
+or ``MESH2TEX_RASTER_KERNEL=torch`` is set, the vectorised path runs.
 """
-
 from __future__ import annotations
 
 import math

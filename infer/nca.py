@@ -25,10 +25,9 @@ import torch
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface
 from mesh2tex.geometry.regions import region_weights
-from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.checkpoint import save_checkpoint
-from mesh2tex.io.images import colours_to_uint8, images_to_uint8, save_png
+from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import load_nca
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
@@ -38,8 +37,8 @@ from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
-from mesh2tex.render.uv import bake_surface_colours
 from mesh2tex.runtime import select_device
+from mesh2tex.texture import write_automaton_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
 
@@ -138,14 +137,8 @@ def run(args) -> int:
             style = float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
                                      generator=torch.Generator().manual_seed(0)))
 
-        def colours_at(triangle_id, bary):
-            return model.colours(state, graph.triangles, triangle_id.to(device), bary.to(device), graft=graft)
-
-        verts, tris, uv, texture, _ = bake_surface_colours(graph.positions, graph.triangles, colours_at, args.texture_size)
-        save_glb(out / "textured.glb", verts.numpy(), tris.numpy(), uv.numpy(), texture, smooth_vertex_normals(verts.numpy(), tris.numpy()),
-                 texture_format=args.texture_format)
-        vertex_rgb = colours_to_uint8(model.vertex_colours(state, graft=graft)[0])
-        save_ply(out / "textured.ply", positions, graph.triangles.cpu().numpy(), vertex_rgb)
+        write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, args.texture_size, args.texture_format,
+                             graft=graft)
     save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
                     meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": args.steps})
     if frames:

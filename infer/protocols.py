@@ -29,7 +29,9 @@ Each transfer protocol runs every ablation of Table 8 on the same queries with t
 (:data:`BASELINES`): the ground-truth texture itself (``oracle``, the world's ``textured/`` GLB),
 the photo's mean colour everywhere (``flat_colour``), the generator's mean texture (``mean_texture``,
 ``w_avg``, no optimisation) and the photo back-projected onto the mesh from the pose the transfer
-used (``backprojection``).
+used (``backprojection``). When asked for (``--baselines ...,automaton``), a mesh automaton fitted to
+the photo at that pose with the transfer's losses and no GAN (``automaton``,
+:mod:`mesh2tex.transfer.automaton`).
 
 Every method is judged alike (:mod:`mesh2tex.evaluation`): a textured surface rendered by one
 function with the photo's camera, light and background (``lighting: albedo`` renders all unlit), at
@@ -72,9 +74,9 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.evaluation import (LIGHTING, ComparisonRender, ScoreSettings, backproject_photo, common_mask, flat_surface,
                                  generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
-                                 seen_and_unseen)
+                                 seen_and_unseen, vertex_colour_surface)
 from mesh2tex.evaluation.paired import compare_to_full, flat_colour_targets, mean_scores, oracle_check
-from mesh2tex.evaluation.report import BASELINES, PROTOCOLS, TRANSFER_PROTOCOLS, protocols_markdown
+from mesh2tex.evaluation.report import BASELINES, EXTRA_METHODS, PROTOCOLS, TRANSFER_PROTOCOLS, protocols_markdown
 from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth, load_world, other_shape_name, reference_renders
 from mesh2tex.geometry.prepared import PreparedShape, shape_paths
 from mesh2tex.io.atomic import atomic_path, json_ready, write_json, write_text
@@ -95,6 +97,7 @@ from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, load_shape, mean_latent
 from mesh2tex.transfer import ABLATIONS, TransferConfig, check_style_sizes, estimate_pose, load_photo, predict_noc, view_at_pose
+from mesh2tex.transfer.automaton import AutomatonFitConfig, fit_automaton
 
 
 # TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations set.
@@ -128,6 +131,8 @@ class ProtocolConfig:
     # The unconditional protocol's set metrics (KID/FID features, KID subsets, SWD sampling); its resolution and seed are
     # the fields above.
     evaluate: EvaluateConfig = field(default_factory=lambda: EvaluateConfig(resolution=64))
+    # The ``automaton`` method's fit (with the transfer's losses and settings above), when --baselines asks for it.
+    automaton: AutomatonFitConfig = field(default_factory=AutomatonFitConfig)
 
     # Keys of older protocol configs that now live under ``transfer`` (named by the unknown-key error).
     MOVED_KEYS: typing.ClassVar[dict[str, str]] = ({name: f"transfer.{name}" for name in FORMER_FIELDS}
@@ -135,10 +140,10 @@ class ProtocolConfig:
 
     def __post_init__(self):
         unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
-                   + [b for b in self.baselines if b not in BASELINES])
+                   + [b for b in self.baselines if b not in (*BASELINES, *EXTRA_METHODS)])
         if unknown:
             raise UserError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
-                            f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join(BASELINES)}")
+                            f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join((*BASELINES, *EXTRA_METHODS))}")
         if self.lighting not in LIGHTING:
             raise UserError(f"lighting {self.lighting!r}: must be one of {', '.join(LIGHTING)}")
         if not 0 <= self.unseen_views <= 35 or self.lowpass_sigma < 0:
@@ -325,6 +330,14 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                     ws = mean_latent(generator).to(device)
                     texture = generator.synthesize(batch.to(device), ws, noise_mode="none")
                 rendered = render(generator_surface(generator, texture, batch))
+            elif name == "automaton":  # fitted at the pose the transfer uses, with its losses
+                if base.use_noc and base.use_patches and photo_noc is None:
+                    raise UserError("the automaton uses NOC-guided patches: give --noc-checkpoint")
+                torch.manual_seed(cfg.seed)
+                fit = fit_automaton(shape, photo, view, photo_noc, vgg, base, cfg.automaton, device, show_progress=False)
+                rendered = render(vertex_colour_surface(vertices, triangles, fit.colours.cpu()))
+                keep(name, rendered, {"seconds": round(time.perf_counter() - start, 2), "loss_last": fit.losses[-1]})
+                continue
             else:  # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
                 try:
                     surface = backproject_photo(vertices, triangles, truth.photo[0], truth.photo_mask[0, 0], azimuth, elevation,
@@ -387,8 +400,9 @@ def cache_settings(cfg: ProtocolConfig, generator_lit: bool) -> dict:
     if not own["pose_search"]:
         del own["pose_search"]
     judged = ("protocols", "ablations", "queries", "baselines", "lighting", "unseen_views", "lowpass_sigma")
+    # The automaton's fit is not cached (a method beside the transfers, not a transfer).
     settings = {"resolution": cfg.resolution, **own, **{name: getattr(cfg.evaluate, name) for name in FORMER_EVALUATE_FIELDS},
-                **{k: v for k, v in asdict(cfg).items() if k not in (*judged, "resolution", "transfer", "evaluate")}}
+                **{k: v for k, v in asdict(cfg).items() if k not in (*judged, "resolution", "transfer", "evaluate", "automaton")}}
     defaults = asdict(TransferConfig())
     further = {k: v for k, v in transfer.items() if k not in (*FORMER_FIELDS, *SHARED, *ABLATED) and v != defaults[k]}
     if further:

@@ -110,3 +110,23 @@ def write_textured_mesh(glb_path: str | Path, ply_path: str | Path, generator: T
              texture_format=texture_format)
     save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
              vertex_colours(generator, texture, batch))
+
+
+@torch.no_grad()
+def write_automaton_mesh(glb_path: str | Path, ply_path: str | Path, model, state: torch.Tensor, graph, texture_size: int,
+                         texture_format: str = "png", graft=None) -> None:
+    """An automaton's growth on its mesh: a GLB with the readout baked into a ``texture_size`` square UV
+    map (``texture_format`` as :func:`write_textured_mesh`), and a PLY with the colour at each cell.
+
+    model: :class:`mesh2tex.nn.nca.MeshNCA`; state (1, V, C) on the model's device; graph: its
+    :class:`~mesh2tex.nn.nca.CellGraph`; graft: (other automaton, alpha (V,)) as in ``MeshNCA.colours``.
+    """
+    device = state.device
+
+    def colours_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+        return model.colours(state, graph.triangles, triangle_id.to(device), bary.to(device), graft=graft)
+
+    verts, tris, uv, image, _ = bake_surface_colours(graph.positions, graph.triangles, colours_at, texture_size)
+    save_glb(glb_path, verts.numpy(), tris.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), tris.numpy()),
+             texture_format=texture_format)
+    save_ply(ply_path, graph.positions.cpu().numpy(), graph.triangles.cpu().numpy(), colours_to_uint8(model.vertex_colours(state, graft=graft)[0]))

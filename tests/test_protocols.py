@@ -94,6 +94,29 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
     assert main(protocol_args(root, out)) == 2, "existing results are kept without --overwrite"
 
 
+def test_an_automaton_fitted_to_the_photo_is_judged_beside_the_baselines_when_asked_for(setup, tmp_path, monkeypatch):
+    """``--baselines ...,automaton`` adds a mesh automaton fitted to the photo (no GAN) as one more row, scored
+    alike; its fit is set under ``automaton:`` and is left out of the transfer cache's fingerprint."""
+    from infer.protocols import ProtocolConfig, cache_settings
+    from mesh2tex.config import config_from_dict
+
+    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "no_weights"))
+    root, _ = setup
+    config = _yaml(tmp_path / "automaton.yaml", automaton={"iters": 3, "steps_min": 2, "steps_max": 3, "final_steps": 2})
+    out = tmp_path / "eval"
+    args = protocol_args(root, out, "--only", "known_pose", "--ablations", "full", "--baselines", "oracle,flat_colour,automaton")
+    args[args.index("--protocol-config") + 1] = str(config)
+    assert main(args) == 0
+    entry = json.loads((out / "protocols.json").read_text())["protocols"]["known_pose"]
+    assert list(entry["methods"]) == ["oracle", "flat_colour", "automaton", "full"]
+    automaton = entry["methods"]["automaton"]
+    assert len(automaton["per_query"]) == 2 and np.isfinite(automaton["query"]["seen part_delta_e"])
+    assert np.isfinite(automaton["per_query"][0]["loss_last"])
+    assert "| automaton fitted to the photo (no GAN) |" in (out / "protocols.md").read_text()
+    plain, tuned = (config_from_dict(ProtocolConfig, d) for d in ({}, {"automaton": {"iters": 7}}))
+    assert cache_settings(plain, True) == cache_settings(tuned, True)
+
+
 def test_true_pose_frame_lines_up_with_the_photo(setup):
     """Exact geometry is judged pixel-aligned: the world mesh seen through the sidecar camera, framed by
     the photo's box, covers the photo's mask (a wrong pose convention would overlap far less)."""

@@ -14,10 +14,15 @@ TRANSFER_PROTOCOLS = PROTOCOLS[1:]
 # The simple methods beside every transfer (none optimises anything): the ground truth itself, the
 # photo's mean colour everywhere, the generator's mean texture (w_avg), and the photo back-projected.
 BASELINES = ("oracle", "flat_colour", "mean_texture", "backprojection")
+# Methods judged beside them only when asked for (``--baselines ...,automaton``): they fit something
+# to the photo, at a transfer's cost. ``automaton``: a mesh automaton fitted to the photo, no GAN
+# (:func:`mesh2tex.transfer.automaton.fit_automaton`).
+EXTRA_METHODS = ("automaton",)
 
 
 METHOD_TITLES = {"oracle": "ground-truth texture (oracle)", "flat_colour": "flat mean colour of the photo",
                  "mean_texture": "generator's mean texture (w_avg)", "backprojection": "photo back-projection",
+                 "automaton": "automaton fitted to the photo (no GAN)",
                  **{"full": "full method", "no_noc": "w/o NOC", "no_patches": "w/o patches",
                     "no_refine": "w/o surface features (no refine)", "paper": "the paper's losses (no colour loss, unlit, lr 0.01)"}}
 
@@ -100,7 +105,7 @@ def protocols_markdown(result: dict) -> str:
                      if protocol != "other_shape" else "each image on its own object pixels, parts matched by label. ")
                   + f"Low-pass PSNR after a Gaussian blur of σ = {s.get('lowpass_sigma', 3.0):g} px; object SWD x1e3. "
                   "Bold: the best method other than the oracle.", ""]
-        order = ["oracle", "flat_colour", "mean_texture", "backprojection", "paper", "no_noc", "no_patches", "no_refine", "full"]
+        order = [*BASELINES, *EXTRA_METHODS, "paper", "no_noc", "no_patches", "no_refine", "full"]
         lines += transfer_table(methods, order)
         lost = oracle_check(methods)
         lines += ["", "The oracle wins every column." if not lost else

@@ -315,7 +315,7 @@ def warm_up() -> None:
     render does not wait for it; ``make install`` calls this."""
     if not available():
         return
-    from mesh2tex.render.rasterize import rasterize
+    from mesh2tex.render.binning import WHOLE, DepthBuffer
 
-    corners = torch.tensor([[-0.5, -0.5, 0.5, 1.0], [0.5, -0.5, 0.5, 1.0], [0.0, 0.5, 0.5, 1.0]])
-    rasterize(corners, torch.tensor([[0, 1, 2]]), (4, 4))
+    corners = torch.tensor([[[-0.5, -0.5, 0.5, 1.0], [0.5, -0.5, 0.5, 1.0], [0.0, 0.5, 0.5, 1.0]]])
+    rasterize_views(corners, torch.tensor([[0, 1, 2]]), (4, 4), False, DepthBuffer(1, (4, 4), (WHOLE, WHOLE), 1, "cpu"))

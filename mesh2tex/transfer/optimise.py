@@ -56,6 +56,47 @@ class PhotoLight(torch.nn.Module):
                     "ambient": round(torch.sigmoid(self.ambient_logit).item(), 4)}
 
 
+class PhotoLoss:
+    """The transfer's losses of a render at the photo's pose (the view's crop) against the photo:
+    ``w_glob`` times the global style loss, ``w_patch`` times the patch style loss over patch pairs
+    (NOC-guided when ``cfg.use_noc`` and ``cfg.use_patches``) and ``w_colour`` times the low-pass
+    colour loss, each as ``cfg`` turns it on. Used by :func:`transfer_texture` and by
+    :func:`mesh2tex.transfer.automaton.fit_automaton`.
+
+    Calling it with an image (1, 3, R, R) in [-1, 1] returns (total loss, {part: float}); the patch
+    pairs are drawn from ``pick`` (default: its own generator, seeded with ``cfg.seed``).
+    """
+
+    def __init__(self, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig, device: torch.device):
+        self.guided = cfg.use_noc and cfg.use_patches
+        if self.guided and photo_noc is None:
+            raise InputError("NOC-guided patches need the photo's NOC: give --noc-checkpoint, or --no-noc")
+        self.vgg, self.cfg = vgg, cfg
+        self.photo_image, self.photo_mask = photo.image.to(device), photo.mask.to(device)
+        self.render_mask = view.mask.to(device)
+        self.render_noc = view.noc.to(device)
+        self.photo_noc = photo_noc.to(device) if photo_noc is not None else None
+        with torch.no_grad():
+            self.photo_grams = style_grams(vgg, self.photo_image, self.photo_mask, cfg.scales)
+        self.pick = torch.Generator().manual_seed(cfg.seed)
+        self.colour_sigma = cfg.colour_sigma * cfg.resolution
+
+    def __call__(self, image: torch.Tensor, use_global: bool, pick: torch.Generator | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+        cfg, vgg = self.cfg, self.vgg
+        parts: dict[str, torch.Tensor] = {}
+        if use_global:
+            parts["global"] = cfg.w_glob * global_style_loss(vgg, image, self.render_mask, target_grams=self.photo_grams, scales=cfg.scales)
+        if cfg.use_patches:
+            pairs = sample_patch_pairs(self.photo_mask[0, 0], self.render_mask[0, 0], cfg.patches, self.photo_noc, self.render_noc,
+                                       guided=self.guided, generator=pick or self.pick)
+            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, self.render_mask, self.photo_image, self.photo_mask, pairs,
+                                                            cfg.patch_size, cfg.patch_levels)
+        if cfg.w_colour > 0:
+            parts["colour"] = cfg.w_colour * lowpass_colour_loss(image, self.render_mask, self.photo_image, self.photo_mask, self.colour_sigma)
+        total = sum(parts.values())
+        return total, {k: float(v.detach()) for k, v in parts.items()}
+
+
 @dataclass
 class TransferResult:
     ws: torch.Tensor  # (1, num_ws, w_dim) the optimised latent
@@ -82,23 +123,14 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     light prior (:func:`mesh2tex.io.models.trained_lit`), which ``cfg.light`` 'auto' follows.
     With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose.
     """
-    guided = cfg.use_noc and cfg.use_patches
-    if guided and photo_noc is None:
-        raise InputError("NOC-guided patches need the photo's NOC: give --noc-checkpoint, or --no-noc")
+    loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     batch = collate_shapes([shape]).to(device)
     generator = generator.to(device).requires_grad_(False)
     encoded = [e.detach() for e in generator.encoder(batch)]
     samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
-    photo_image, photo_mask = photo.image.to(device), photo.mask.to(device)
-    render_mask = view.mask.to(device)
-    render_noc = view.noc.to(device)
-    photo_noc = photo_noc.to(device) if photo_noc is not None else None
-    with torch.no_grad():
-        photo_grams = style_grams(vgg, photo_image, photo_mask, cfg.scales)
     grey = torch.zeros(1, 3, device=device)
-    pick = torch.Generator().manual_seed(cfg.seed)
     light = PhotoLight(view.azimuth).to(device) if learns_light(cfg, generator_lit) else None
-    colour_sigma = cfg.colour_sigma * cfg.resolution
+    colour_sigma = loss_of.colour_sigma
 
     def render(ws: torch.Tensor) -> torch.Tensor:
         full = render_field_views(generator, batch, ws, view.mvp.to(device), (view.render_size,) * 2, grey,
@@ -111,18 +143,6 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         full = render_field_views(generator, batch, ws, at.mvp.to(device), (at.render_size,) * 2, grey,
                                   encoded=encoded, noise_mode="none", samples=at_samples).images
         return crop_square(full, at.box, cfg.resolution)
-
-    def loss_of(image: torch.Tensor, use_global: bool, pick: torch.Generator = pick) -> tuple[torch.Tensor, dict[str, float]]:
-        parts: dict[str, torch.Tensor] = {}
-        if use_global:
-            parts["global"] = cfg.w_glob * global_style_loss(vgg, image, render_mask, target_grams=photo_grams, scales=cfg.scales)
-        if cfg.use_patches:
-            pairs = sample_patch_pairs(photo_mask[0, 0], render_mask[0, 0], cfg.patches, photo_noc, render_noc, guided=guided, generator=pick)
-            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, render_mask, photo_image, photo_mask, pairs, cfg.patch_size, cfg.patch_levels)
-        if cfg.w_colour > 0:
-            parts["colour"] = cfg.w_colour * lowpass_colour_loss(image, render_mask, photo_image, photo_mask, colour_sigma)
-        total = sum(parts.values())
-        return total, {k: float(v.detach()) for k, v in parts.items()}
 
     num_ws = generator.num_ws
     with torch.no_grad():

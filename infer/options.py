@@ -53,6 +53,9 @@ def transfer(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-refine", action="store_true", help="ablation: optimise the latent only")
     parser.add_argument("--no-pose-search", action="store_true",
                         help="--pose auto takes the pose network's bin centres as they are (the paper), without the silhouette search")
+    parser.add_argument("--automaton", action="store_true",
+                        help="fit a mesh automaton to the photo with the same losses instead of the GAN's texture (unlit, no GAN prior)")
+    parser.add_argument("--automaton-iters", type=int, default=300, help="with --automaton: its iterations")
     config.add("--vgg-weights", help="VGG19 ImageNet weights (torchvision's vgg19-dcbb9e9d.pth; default: torch's cache, else random weights)")
     config.add("--device", choices=DEVICES, help="where to run")
     config.add("--seed", type=int, help="random seed")

@@ -96,8 +96,8 @@ from mesh2tex.options import config_overrides
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, load_shape, mean_latent
-from mesh2tex.transfer import ABLATIONS, TransferConfig, check_style_sizes, estimate_pose, load_photo, predict_noc, view_at_pose
-from mesh2tex.transfer.automaton import AutomatonFitConfig, fit_automaton
+from mesh2tex.transfer import (ABLATIONS, AutomatonFitConfig, TransferConfig, check_style_sizes, estimate_pose, fit_automaton, load_photo,
+                               predict_noc, view_at_pose)
 
 
 # TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations set.

@@ -2,7 +2,8 @@
 
     mesh2tex infer transfer --checkpoint GAN --mesh MESH --image IMG [--mask M] [--pose auto|AZ,EL]
                             [--pose-checkpoint P] [--noc-checkpoint N] --out DIR [--texture-size 1024]
-                            [--no-noc] [--no-patches] [--no-refine] [--no-pose-search] [--config YAML] [--overwrite]
+                            [--no-noc] [--no-patches] [--no-refine] [--no-pose-search] [--automaton [--automaton-iters 300]]
+                            [--config YAML] [--overwrite]
 
 Steps:
 1. The photo: mask from its alpha channel, from ``--mask``, or estimated (GrabCut); a square crop
@@ -24,6 +25,11 @@ Steps:
    ``comparison.png`` (photo | render at the pose | photo NOC | rendered NOC), ``turntable_XX.png`` and
    ``turntable.gif`` (lit by the learnt light, turning with the camera, when one was learnt),
    ``report.json`` (pose, learnt light, losses per stage, seconds per stage, settings).
+
+``--automaton``: instead of steps 4's optimisation of the GAN's texture, a mesh automaton is grown on the
+mesh and fitted to the photo with the same losses (:mod:`mesh2tex.transfer.automaton`; no GAN in the
+result: the checkpoint gives the camera and the shape's preparation). Its renders are unlit, so its
+colours carry the photo's shading, as back-projection's do; the same files are written.
 
 Ablations of the paper's Table 8: ``--no-noc`` (patch pairs without NOC guidance), ``--no-patches``
 (global loss only; stage 2 then also uses the global loss), ``--no-refine`` (stage 1 only).
@@ -49,14 +55,14 @@ from mesh2tex.io.models import gan_camera, is_model_name, load_generator, traine
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
-from mesh2tex.nn.render_texture import render_field_views
+from mesh2tex.nn.render_texture import render_field_views, render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import load_shape, write_textured_mesh
-from mesh2tex.transfer import (FramedView, Photo, PoseEstimate, TransferConfig, TransferResult, check_style_sizes, estimate_pose, load_photo,
-                               predict_noc, transfer_texture, view_at_pose)
+from mesh2tex.texture import load_shape, write_automaton_mesh, write_textured_mesh
+from mesh2tex.transfer import (AutomatonFit, AutomatonFitConfig, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
+                               check_style_sizes, estimate_pose, fit_automaton, load_photo, predict_noc, transfer_texture, view_at_pose)
 
 
 # -------------------------------------------------------------------------------------- the pose
@@ -85,6 +91,28 @@ def noc_to_uint8(noc: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
     return colours_to_uint8(composite(noc.cpu().clamp(0, 1)[None], m[None], 1.0)[0], signed=False)
 
 
+def save_comparison(out: Path, photo: Photo, render: torch.Tensor, view: FramedView, photo_noc: torch.Tensor | None) -> None:
+    """comparison.png: photo | render at the pose (1,3,R,R) | photo NOC (when predicted) | rendered NOC, on white."""
+    white_photo = composite_images(photo.image, photo.mask, 1.0)
+    white_render = composite_images(render, view.mask, 1.0)
+    panels = [to_uint8_image(white_photo), to_uint8_image(white_render)]
+    if photo_noc is not None:
+        panels.append(noc_to_uint8(photo_noc, photo.mask))
+    panels.append(noc_to_uint8(view.noc, view.mask))
+    save_png(out / "comparison.png", np.concatenate(panels, axis=1))
+
+
+def save_turntable(out: Path, images: torch.Tensor) -> None:
+    """turntable_XX.png and turntable.gif from (K,3,H,W) images in [-1, 1]."""
+    frames = []
+    for i in range(images.shape[0]):
+        frame = to_uint8_image(images[i])
+        save_png(out / f"turntable_{i:02d}.png", frame)
+        frames.append(Image.fromarray(frame))
+    with atomic_path(out / "turntable.gif") as tmp:
+        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=120, loop=0)
+
+
 @torch.no_grad()
 def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, result: TransferResult, photo: Photo,
                   view: FramedView, photo_noc: torch.Tensor | None, distance: float, fov: float, elevation: float,
@@ -93,16 +121,8 @@ def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, 
     batch = collate_shapes([shape]).to(device)
     texture = generator.synthesize(batch, result.ws.to(device), noise_mode="none")
     write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size, texture_format)
+    save_comparison(out, photo, result.render, view, photo_noc)
 
-    white_photo = composite_images(photo.image, photo.mask, 1.0)
-    white_render = composite_images(result.render, view.mask, 1.0)
-    panels = [to_uint8_image(white_photo), to_uint8_image(white_render)]
-    if photo_noc is not None:
-        panels.append(noc_to_uint8(photo_noc, photo.mask))
-    panels.append(noc_to_uint8(view.noc, view.mask))
-    save_png(out / "comparison.png", np.concatenate(panels, axis=1))
-
-    frames = []
     k = cfg.turntable_frames
     azimuths, elevations = turntable_angles(k, elevation)
     mvp = orbit_camera(azimuths, elevations, distance=distance, fov=fov).mvp.to(device)
@@ -114,12 +134,20 @@ def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, 
     size = cfg.resolution * 2
     views = render_field_views(generator, batch, result.ws.to(device), mvp, (size, size), torch.ones(k, 3, device=device),
                                texture=texture, noise_mode="none", lights=lights)
-    for i in range(k):
-        frame = to_uint8_image(views.images[i])
-        save_png(out / f"turntable_{i:02d}.png", frame)
-        frames.append(Image.fromarray(frame))
-    with atomic_path(out / "turntable.gif") as tmp:
-        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=120, loop=0)
+    save_turntable(out, views.images)
+    return {"glb": "textured.glb", "ply": "textured.ply", "comparison": "comparison.png", "turntable": "turntable.gif"}
+
+
+@torch.no_grad()
+def write_automaton_outputs(out: Path, fit: AutomatonFit, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None,
+                            distance: float, fov: float, elevation: float, cfg: TransferConfig, device: torch.device,
+                            texture_format: str = "png") -> dict[str, str]:
+    """The same files for an automaton fitted to the photo (``--automaton``); its turntable is unlit."""
+    write_automaton_mesh(out / "textured.glb", out / "textured.ply", fit.model, fit.state, fit.graph, cfg.texture_size, texture_format)
+    save_comparison(out, photo, fit.render, view, photo_noc)
+    azimuths, elevations = turntable_angles(cfg.turntable_frames, elevation)
+    mvp = orbit_camera(azimuths, elevations, distance=distance, fov=fov).mvp.to(device)
+    save_turntable(out, render_states(fit.model, fit.state, fit.graph, mvp, cfg.resolution * 2, background=1.0).images)
     return {"glb": "textured.glb", "ply": "textured.ply", "comparison": "comparison.png", "turntable": "turntable.gif"}
 
 
@@ -143,6 +171,8 @@ def run(args) -> int:
     cfg = build_config(args)
     out = guard_outputs(args.out, output_names(cfg), args.overwrite)
     pose = parse_pose(args.pose)
+    if args.automaton and args.automaton_iters < 1:
+        raise UserError(f"--automaton-iters {args.automaton_iters}: must be at least 1")
     if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks
         args.pose_checkpoint = args.pose_checkpoint or args.checkpoint
         args.noc_checkpoint = args.noc_checkpoint or args.checkpoint
@@ -172,14 +202,24 @@ def run(args) -> int:
     seconds["pose_and_noc"] = round(time.perf_counter() - t, 2)
 
     vgg = load_vgg19(cfg.vgg_weights or None, device=device)
-    result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, generator_lit=trained_lit(meta))
-    seconds.update({f"stage_{k}": v for k, v in result.seconds.items()})
+    if args.automaton:
+        fit = fit_automaton(shape, photo, view, photo_noc, vgg, cfg, AutomatonFitConfig(iters=args.automaton_iters), device)
+        seconds["automaton"] = fit.seconds
+        losses, light, render = {"automaton": fit.losses}, None, fit.render
+    else:
+        result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, generator_lit=trained_lit(meta))
+        seconds.update({f"stage_{k}": v for k, v in result.seconds.items()})
+        losses, light, render = result.losses, result.light, result.render
 
     t = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    files = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device, args.texture_format)
+    if args.automaton:
+        files = write_automaton_outputs(out, fit, photo, view, photo_noc, distance, fov, elevation, cfg, device, args.texture_format)
+    else:
+        files = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device,
+                              args.texture_format)
     save_png(out / "photo_crop.png", to_uint8_image(photo.image))
-    save_png(out / "render_at_pose.png", to_uint8_image(result.render))
+    save_png(out / "render_at_pose.png", to_uint8_image(render))
     seconds["outputs"] = round(time.perf_counter() - t, 2)
     seconds["total"] = round(time.perf_counter() - started, 2)
     report = {
@@ -189,8 +229,9 @@ def run(args) -> int:
                  **({"network": list(estimate.network), "silhouette_iou": estimate.silhouette_iou,
                      "network_silhouette_iou": estimate.network_silhouette_iou} if estimate.silhouette_iou is not None else {})},
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
-        "light": result.light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders
-        "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in result.losses.items()},
+        "method": f"automaton fitted to the photo ({args.automaton_iters} iterations)" if args.automaton else "transfer",
+        "light": light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders
+        "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in losses.items()},
         "seconds": seconds,
         "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
         "settings": {**asdict(cfg), "texture_format": args.texture_format},

@@ -65,6 +65,26 @@ def test_transfer_writes_a_textured_asset_and_a_report(setup, tmp_path):
     assert Image.open(out / "comparison.png").size == (4 * 64, 64)
 
 
+def test_an_automaton_fitted_to_the_photo_writes_the_same_files(setup, tmp_path, capsys):
+    """``--automaton``: a mesh automaton grown on the mesh and fitted to the photo replaces the GAN's texture; its
+    loss falls, and the GLB's baked texture, the PLY's colours and the turntable come from its growth."""
+    out = tmp_path / "auto"
+    assert main(transfer_args(setup, out, "--automaton", "--automaton-iters", "12", "--texture-size", "48")) == 0
+    report = json.loads((out / "report.json").read_text())
+    curve = report["losses"]["automaton"]["curve"]
+    assert set(report["losses"]) == {"automaton"} and len(curve) == 12 and all(np.isfinite(curve))
+    assert min(curve[-3:]) < curve[0], "the fit lowers the photo's losses"
+    assert report["method"].startswith("automaton") and report["light"] is None
+    scene = trimesh.load(out / "textured.glb")
+    mesh = next(iter(scene.geometry.values())) if isinstance(scene, trimesh.Scene) else scene
+    assert mesh.visual.material.baseColorTexture.size == (48, 48)
+    colours = trimesh.load(out / "textured.ply", process=False).visual.vertex_colors[:, :3].astype(float)
+    assert colours.std(0).max() > 0, "the cells do not all take one colour"
+    assert Image.open(out / "turntable.gif").n_frames == 12 and (out / "comparison.png").is_file()
+    assert main(transfer_args(setup, tmp_path / "bad", "--automaton", "--automaton-iters", "0")) == 2
+    assert capsys.readouterr().err.strip().endswith("--automaton-iters 0: must be at least 1")
+
+
 def test_pose_auto_searches_silhouettes_unless_told_not_to(setup, tmp_path):
     auto = ["--pose", "auto", "--pose-checkpoint", str(setup / "pose" / "checkpoint.safetensors"), "--no-refine", "--latent-iters", "1"]
     assert main(transfer_args(setup, tmp_path / "search", *auto)) == 0

@@ -3,18 +3,21 @@
 ``config``: :class:`TransferConfig` and its checks; ``photo``: the photo cropped around its object
 (:func:`load_photo`) and the mesh seen at a pose, cropped alike (:func:`view_at_pose`); ``pose``: the
 pose network's beliefs and the silhouette search (:func:`estimate_pose`), the NOC network
-(:func:`predict_noc`); ``optimise``: :func:`transfer_texture`. The command ``mesh2tex infer transfer``
+(:func:`predict_noc`); ``optimise``: :func:`transfer_texture` and the losses against the photo
+(:class:`PhotoLoss`); ``automaton``: a mesh automaton fitted to the photo with those losses, no GAN
+(:func:`fit_automaton`). The command ``mesh2tex infer transfer``
 (``infer/transfer.py``) reads the files and writes the results.
 """
 
 from mesh2tex.transfer.config import ABLATIONS, TransferConfig, check_style_sizes
-from mesh2tex.transfer.optimise import TransferResult, transfer_texture
+from mesh2tex.transfer.optimise import PhotoLoss, TransferResult, transfer_texture
+from mesh2tex.transfer.automaton import AutomatonFit, AutomatonFitConfig, fit_automaton
 from mesh2tex.transfer.photo import FramedView, Photo, load_photo, view_at_pose
 from mesh2tex.transfer.pose import (PoseBeliefs, PoseEstimate, estimate_pose, pose_network_beliefs, predict_noc, predict_pose,
                                     search_pose, silhouette_iou)
 
 __all__ = [
-    "ABLATIONS", "FramedView", "Photo", "PoseBeliefs", "PoseEstimate", "TransferConfig", "TransferResult", "check_style_sizes", "estimate_pose",
-    "load_photo", "pose_network_beliefs", "predict_noc", "predict_pose", "search_pose", "silhouette_iou", "transfer_texture",
-    "view_at_pose",
+    "ABLATIONS", "AutomatonFit", "AutomatonFitConfig", "FramedView", "Photo", "PhotoLoss", "PoseBeliefs", "PoseEstimate", "TransferConfig",
+    "TransferResult", "check_style_sizes", "estimate_pose", "fit_automaton", "load_photo", "pose_network_beliefs", "predict_noc",
+    "predict_pose", "search_pose", "silhouette_iou", "transfer_texture", "view_at_pose",
 ]

@@ -88,7 +88,7 @@ class PhotoLoss:
             parts["global"] = cfg.w_glob * global_style_loss(vgg, image, self.render_mask, target_grams=self.photo_grams, scales=cfg.scales)
         if cfg.use_patches:
             pairs = sample_patch_pairs(self.photo_mask[0, 0], self.render_mask[0, 0], cfg.patches, self.photo_noc, self.render_noc,
-                                       guided=self.guided, generator=pick or self.pick)
+                                       guided=self.guided, generator=self.pick if pick is None else pick)
             parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, self.render_mask, self.photo_image, self.photo_mask, pairs,
                                                             cfg.patch_size, cfg.patch_levels)
         if cfg.w_colour > 0:

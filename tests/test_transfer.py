@@ -81,6 +81,9 @@ def test_an_automaton_fitted_to_the_photo_writes_the_same_files(setup, tmp_path,
     colours = trimesh.load(out / "textured.ply", process=False).visual.vertex_colors[:, :3].astype(float)
     assert colours.std(0).max() > 0, "the cells do not all take one colour"
     assert Image.open(out / "turntable.gif").n_frames == 12 and (out / "comparison.png").is_file()
+    again = tmp_path / "again"  # seeded: the same run twice is the same fit
+    assert main(transfer_args(setup, again, "--automaton", "--automaton-iters", "12", "--texture-size", "48")) == 0
+    assert json.loads((again / "report.json").read_text())["losses"]["automaton"]["curve"] == curve
     assert main(transfer_args(setup, tmp_path / "bad", "--automaton", "--automaton-iters", "0")) == 2
     assert capsys.readouterr().err.strip().endswith("--automaton-iters 0: must be at least 1")
 

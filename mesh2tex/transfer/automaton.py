@@ -72,8 +72,9 @@ def fit_automaton(shape: PreparedShape, photo: Photo, view: FramedView, photo_no
     start = time.perf_counter()
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     graph = build_cell_graph(shape.vertices[0], shape.quads[0], fit.nca.neighbourhood).to(device)
-    torch.manual_seed(cfg.seed)  # the update rule's initial weights
-    model = MeshNCA(fit.nca).to(device)
+    with torch.random.fork_rng(devices=[]):  # the update rule's initial weights, seeded, leaving the caller's generator alone
+        torch.manual_seed(cfg.seed)
+        model = MeshNCA(fit.nca).to(device)
     growth = torch.Generator(device=device).manual_seed(cfg.seed)
     mvp = view.mvp.to(device)
 

@@ -424,7 +424,8 @@ def rasterize(
         drawn = None
         if device.type == "cpu" and pos.dtype in (torch.float32, torch.float64) and kernels.available():
             drawn = kernels.rasterize_views(pos, tri, (H, W), cull_backfaces, buffer)
-        if drawn is None:
+        if drawn is None:  # no loop, or it stopped at a triangle across the near plane: the keys it wrote are
+            # ones the vectorised passes write again (a depth test keeps the minimum), so the result is the same
             corners = gather_corners(pos, tri)
             live, row0, col0, params64, front = _draw_vectorised(buffer, corners, T, (H, W), cull_backfaces,
                                                                  max_pairs)

@@ -26,7 +26,7 @@ Steps:
    ``turntable.gif`` (lit by the learnt light, turning with the camera, when one was learnt),
    ``report.json`` (pose, learnt light, losses per stage, seconds per stage, settings).
 
-``--automaton``: instead of steps 4's optimisation of the GAN's texture, a mesh automaton is grown on the
+``--automaton``: instead of step 4's optimisation of the GAN's texture, a mesh automaton is grown on the
 mesh and fitted to the photo with the same losses (:mod:`mesh2tex.transfer.automaton`; no GAN in the
 result: the checkpoint gives the camera and the shape's preparation). Its renders are unlit, so its
 colours carry the photo's shading, as back-projection's do; the same files are written.

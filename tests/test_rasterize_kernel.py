@@ -75,6 +75,7 @@ def test_the_loop_uses_the_constants_of_the_vectorised_passes():
     assert kernels._WHOLE == binning.WHOLE and kernels._REGION == binning.REGION
     assert float(kernels._BAND) == edges._BAND and kernels._SETUP_ROUNDING == edges._SETUP_ROUNDING
     assert kernels._BOX_MARGIN == np.float32(rasterize_module._BOX_MARGIN)
+    assert float(kernels._SCALE_FLOOR) == edges._SCALE_FLOOR
 
 
 def test_degenerate_triangles_and_vertices_at_the_eye(monkeypatch):

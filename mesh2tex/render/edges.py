@@ -36,6 +36,8 @@ _BAND = 2.0 ** -18
 # float64 round-off of the set-up (products and their differences, the division by det, the
 # rebasing; ~50 roundings of the products at most), relative to the products' largest magnitude.
 _SETUP_ROUNDING = 2.0 ** -40
+# A band half-width below this (0, NaN, or a plane out of float32's range) gets band scale 0.
+_SCALE_FLOOR = 2.0 ** -100
 # E in float64 errs by at most ~5 roundings (2^-50.7) of the sum of its terms' magnitudes.
 _EXACT_ENOUGH = 2.0 ** -48
 # Below this, float64 products may have underflowed and the error bound does not hold.
@@ -70,7 +72,7 @@ def band_scale(params64: torch.Tensor, size: torch.Tensor, det: torch.Tensor, ro
     roundoff = (size.double().square() * _SETUP_ROUNDING / det.abs()).float()
     tau = torch.add(roundoff, tau, alpha=_BAND)
     # Where tau is 0, NaN or out of float32's range, every value is in the band (scale 0).
-    return torch.where(tau > 2.0 ** -100, tau.reciprocal(), 0.0)
+    return torch.where(tau > _SCALE_FLOOR, tau.reciprocal(), 0.0)
 
 
 _SPLITTER = 134217729.0  # 2^27 + 1: splits a float64 into two halves of 26 bits (Dekker)

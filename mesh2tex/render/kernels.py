@@ -37,13 +37,16 @@ try:  # numba is a dependency; the vectorised passes remain the fallback and the
 except ImportError:  # pragma: no cover - exercised only where numba is missing
     numba = None
 
-# Each must equal its namesake on the vectorised path (checked by tests/test_rasterize_kernel.py).
+# The vectorised path's constants, in the precision the loop uses them in. They are written out here,
+# not imported: numba compiles module globals into the cached machine code and re-checks only this
+# file for changes, so an imported value changed elsewhere would leave a stale cache.
+# tests/test_rasterize_kernel.py checks each against its namesake.
 _BOX_MARGIN = np.float32(1e-3)  # rasterize._BOX_MARGIN
 _WHOLE = 16  # binning.WHOLE
 _REGION = 64  # binning.REGION
 _BAND = np.float32(2.0 ** -18)  # edges._BAND
 _SETUP_ROUNDING = 2.0 ** -40  # edges._SETUP_ROUNDING
-_SCALE_FLOOR = np.float32(2.0 ** -100)  # below it, edges.band_scale gives 0
+_SCALE_FLOOR = np.float32(2.0 ** -100)  # edges._SCALE_FLOOR
 # Band pixels a call expects at first; a call with more runs once more with room for all.
 BAND_CAPACITY = 4096
 
@@ -283,6 +286,9 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
     H, W = int(resolution[0]), int(resolution[1])
     positions = pos.detach().contiguous().numpy()
     faces = tri.contiguous().numpy()
+    # The loop reads vertices without bounds checks: a bad index must stop here.
+    if faces.size and (faces.min() < 0 or faces.max() >= positions.shape[1]):
+        raise ValueError(f"rasterize: tri holds vertex indices {faces.min()}..{faces.max()}, pos has {positions.shape[1]} vertices")
     N = positions.shape[0] * faces.shape[0]
     live = np.empty(N, dtype=np.int64)
     box = np.empty((N, 2), dtype=np.int64)

@@ -392,7 +392,8 @@ def rasterize(
             x = (2j+1)/W - 1, y = 1 - (2i+1)/H: row 0 is the top of the image.
         cull_backfaces: drop triangles that are clockwise in NDC (OpenGL's default front face is
             counter-clockwise). Off by default: both sides are drawn.
-        max_pairs: at most this many candidate (triangle, pixel) pairs are held at once; bounds memory.
+        max_pairs: at most this many candidate (triangle, pixel) pairs are held at once by the vectorised
+            passes; bounds memory (the compiled CPU loop holds none).
     Returns:
         Raster with ``face_id`` (B,H,W) int64, ``bary`` (B,H,W,3) float32, ``depth`` (B,H,W) float32,
         on the device of ``pos``. The nearest surface (smallest NDC z) wins; surface points outside
@@ -414,10 +415,6 @@ def rasterize(
         depth = torch.ones((B, H, W), dtype=torch.float32, device=device)
         if T == 0 or B == 0:
             return Raster(face_id, bary, depth)
-        # The compiled loop reads vertices without bounds checks: a bad index must stop here.
-        low, high = torch.aminmax(tri)
-        if int(low) < 0 or int(high) >= V:
-            raise ValueError(f"rasterize: tri holds vertex indices {int(low)}..{int(high)}, pos has {V} vertices")
 
         raster = Raster(face_id, bary, depth)
         buffer = DepthBuffer(B, (H, W), (WHOLE, WHOLE), T, device)

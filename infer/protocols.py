@@ -320,7 +320,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             (out / "renders" / protocol).mkdir(parents=True, exist_ok=True)
             save_png(out / "renders" / protocol / f"{query.name}_reference.png", _strip(reference.rgb))
         for name in cfg.baselines:
-            start = time.perf_counter()
+            start, row = time.perf_counter(), {}
             if name == "oracle":
                 rendered = oracle
             elif name == "flat_colour":
@@ -333,11 +333,9 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             elif name == "automaton":  # fitted at the pose the transfer uses, with its losses
                 if base.use_noc and base.use_patches and photo_noc is None:
                     raise UserError("the automaton uses NOC-guided patches: give --noc-checkpoint")
-                torch.manual_seed(cfg.seed)
                 fit = fit_automaton(shape, photo, view, photo_noc, vgg, base, cfg.automaton, device, show_progress=False)
                 rendered = render(vertex_colour_surface(vertices, triangles, fit.colours.cpu()))
-                keep(name, rendered, {"seconds": round(time.perf_counter() - start, 2), "loss_last": fit.losses[-1]})
-                continue
+                row = {"loss_last": fit.losses[-1]}
             else:  # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
                 try:
                     surface = backproject_photo(vertices, triangles, truth.photo[0], truth.photo_mask[0, 0], azimuth, elevation,
@@ -346,7 +344,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                 except ValueError as error:
                     raise UserError(f"{query.image}: {error}") from None
                 rendered = render(surface)
-            keep(name, rendered, {"seconds": round(time.perf_counter() - start, 2)})
+            keep(name, rendered, {"seconds": round(time.perf_counter() - start, 2), **row})
 
         for ablation in cfg.ablations:
             tcfg = replace(base, **ABLATIONS[ablation])

@@ -209,10 +209,12 @@ def test_derived_geometry_is_computed_once_and_agrees_with_the_offsets():
 
 def test_fused_activation_equals_the_separate_operations_to_second_order():
     """The LeakyReLU path of bias_act runs in one buffer with its own backward: values, gradients and
-    the gradients of gradients (R1, path length) are those of the plain operations, clamp included."""
+    the gradients of gradients (R1, path length) are those of the plain operations, clamp included,
+    on contiguous and on channels-last activations (the discriminator's)."""
     torch.manual_seed(3)
-    for shape, clamp in (((6, 5), None), ((3, 4, 5, 5), 1.0)):
-        x = torch.randn(shape, requires_grad=True)
+    for shape, clamp, layout in (((6, 5), None, torch.contiguous_format), ((3, 4, 5, 5), 1.0, torch.contiguous_format),
+                                 ((3, 4, 5, 5), 1.0, torch.channels_last), ((3, 4, 5, 5), 100.0, torch.channels_last)):
+        x = torch.randn(shape).contiguous(memory_format=layout).requires_grad_(True)
         b = torch.randn(shape[1], requires_grad=True)
         g = torch.randn(shape)
         results = []
@@ -225,7 +227,7 @@ def test_fused_activation_equals_the_separate_operations_to_second_order():
             gx, gb = torch.autograd.grad(y, [x, b], g, create_graph=True)
             second = torch.autograd.grad((gx.square() * x).sum() + gb.square().sum(), [x, b], allow_unused=True)
             results.append([y, gx, gb] + [torch.zeros_like(t) if s is None else s for s, t in zip(second, (x, b))])
-        assert clamp is None or (results[0][0].abs() == clamp).any()  # the clamp did bite
+        assert clamp in (None, 100.0) or (results[0][0].abs() == clamp).any()  # the clamp did bite
         for fused, plain in zip(*results):
             assert torch.equal(fused, plain)
     xd = torch.randn(2, 3, 4, 4, dtype=torch.float64, requires_grad=True)

@@ -388,3 +388,34 @@ def test_kill_stops_a_run_with_its_checkpoint_saved(tiny_data, tmp_path):
     assert "interrupted; re-run the same command to resume" in stderr
     _, meta = load_checkpoint(out / "checkpoint.safetensors")
     assert meta["iteration"] >= 3 and meta["iteration"] >= metrics(out)[-1]["iteration"]
+
+
+def test_the_path_length_phase_renders_the_first_half_of_the_batch(tiny_data, tmp_path, monkeypatch):
+    """As StyleGAN2 does (``loss.pl_batch_shrink`` 2), the path-length phase renders half of the
+    batch's shapes, each from its own views, with the rasterization of those shapes alone; the other
+    phases render the whole batch."""
+    import train.gan as gan
+    from mesh2tex.losses.gan import GanLoss
+    from mesh2tex.nn.render_texture import rasterize_batch
+
+    phase_now, seen = [], []
+    accumulate, render = GanLoss.accumulate_gradients, gan.render_field_views
+
+    def recording_accumulate(self, phase, *args, **kwargs):
+        phase_now[:] = [phase]
+        return accumulate(self, phase, *args, **kwargs)
+
+    def recording_render(generator, batch, ws, mvp, resolution, background, **kwargs):
+        samples = kwargs.get("samples")
+        if samples is None:  # the run's sample sheet, not a training phase
+            return render(generator, batch, ws, mvp, resolution, background, **kwargs)
+        expected = rasterize_batch(batch, mvp, resolution)
+        assert torch.equal(samples.triangle_id, expected.triangle_id) and torch.equal(samples.bary, expected.bary)
+        assert background.shape[0] == kwargs["lights"].direction.shape[0] == mvp.shape[0] == 2 * batch.num_shapes
+        seen.append((phase_now[0], batch.num_shapes, ws.shape[0]))
+        return render(generator, batch, ws, mvp, resolution, background, **kwargs)
+
+    monkeypatch.setattr(GanLoss, "accumulate_gradients", recording_accumulate)
+    monkeypatch.setattr(gan, "render_field_views", recording_render)
+    assert train(tiny_data, tmp_path / "run", "--iters", "1", "--batch", "4") == 0
+    assert sorted(set(seen)) == [("Dmain", 4, 4), ("Gmain", 4, 4), ("Greg", 2, 2)]

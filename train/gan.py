@@ -5,7 +5,7 @@
 
 Each iteration: B shapes, K random views each (azimuth uniform, elevation in a range, camera
 jitter), one rasterization of the finest level shared by the phases; G main (+ path-length reg
-every 4), D main (+ R1 every 16) through :class:`mesh2tex.losses.GanLoss`; an EMA of the generator.
+every 4, on half the shapes), D main (+ R1 every 16) through :class:`mesh2tex.losses.GanLoss`; an EMA of the generator.
 Several processes: ``torchrun --nproc_per_node N -m mesh2tex train gan ...`` (gloo on CPU, nccl on
 CUDA); each process renders its own B shapes and gradients are averaged.
 """
@@ -32,10 +32,10 @@ from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
-from mesh2tex.nn.render_texture import rasterize_batch, render_field_views, render_proxy_views
+from mesh2tex.nn.render_texture import SurfaceSamples, rasterize_batch, render_field_views, render_proxy_views
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import CameraConfig, LightConfig, composite_images, orbit_camera, random_lights, turntable_angles
+from mesh2tex.render import CameraConfig, LightConfig, Lights, composite_images, orbit_camera, random_lights, turntable_angles
 from train import runs
 
 KIND = "gan"
@@ -243,11 +243,15 @@ class GanTrainer:
 
         encoded = []  # the latest generate's encoder output, which proxy_of reuses (it does not depend on the latent)
 
-        def generate(z, update_w_avg=False):
+        def generate(z, update_w_avg=False, shapes=cfg.batch):
+            """Renders of latents z (shapes, z_dim) on the first ``shapes`` shapes of the batch and their views."""
+            scene = batch if shapes == cfg.batch else collate_shapes([self.shapes[i] for i in shape_index[:shapes]]).to(self.device)
+            m = shapes * cfg.views  # the first shapes' views come first, and their triangle ids are the same in the smaller batch
             ws = g.mapping(z, update_w_avg=update_w_avg)
-            encoded[:] = g.encoder(batch)
-            out = render_field_views(g, batch, ws, mvp, (cfg.resolution, cfg.resolution), fake_background, proxy=True, samples=samples,
-                                     lights=lights, encoded=encoded)
+            encoded[:] = g.encoder(scene)
+            out = render_field_views(g, scene, ws, mvp[:m], (cfg.resolution, cfg.resolution), fake_background[:m], proxy=True,
+                                     samples=SurfaceSamples(samples.triangle_id[:m], samples.bary[:m]),
+                                     lights=None if lights is None else Lights(lights.direction[:m], lights.ambient[:m]), encoded=encoded)
             return out.images, out.proxy, ws
 
         def proxy_of(z):
@@ -268,7 +272,12 @@ class GanTrainer:
                 if not phase.startswith(group):
                     continue
                 z = z_g if group == "G" else z_d
-                fn = (lambda z_: generate(z_, update_w_avg=True)) if phase == "Gmain" else generate
+                fn = generate
+                if phase == "Gmain":
+                    fn = lambda z_: generate(z_, update_w_avg=True)  # noqa: E731
+                elif phase == "Greg":  # on fewer shapes (pl_batch_shrink)
+                    z = z[: self.loss.path_length_shapes(cfg.batch)]
+                    fn = lambda z_: generate(z_, shapes=z_.shape[0])  # noqa: E731
                 logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of, diversity_gain=diversity_gain))
             bad = None
             try:

@@ -5,7 +5,8 @@ colour renders. Losses (StyleGAN2):
     G main:  softplus(-D_field(fake)) + proxy_weight * softplus(-D_proxy(proxy))    (non-saturating)
     G div:   diversity_weight * max(0, diversity_target - d), d the mode-seeking ratio (below), in G main
              from iteration ``diversity_start`` on, every ``diversity_interval`` steps, scaled by it
-    G reg:   path-length regularisation on psi renders, every ``pl_interval`` steps, scaled by it
+    G reg:   path-length regularisation on psi renders, every ``pl_interval`` steps, scaled by it, on
+             the first batch / ``pl_batch_shrink`` shapes of the batch (StyleGAN2's default of 2)
     D main:  softplus(D(fake)) + softplus(-D(real)) for both discriminators
     D reg:   R1 = gamma/2 |grad_x D(real)|^2 for both, every ``r1_interval`` steps, scaled by it
 
@@ -47,6 +48,7 @@ class GanLossConfig:
     pl_weight: float = 2.0  # path-length regularisation weight (0 disables)
     pl_interval: int = 4  # lazy path-length regularisation: every this many iterations
     pl_decay: float = 0.01  # running-mean decay of the path lengths
+    pl_batch_shrink: int = 2  # the path-length phase renders batch // this many shapes (at least 1), as StyleGAN2 does
     proxy_weight: float = 1.0  # weight of the proxy (per-face colour) adversarial loss
     diversity_weight: float = 1.0  # mode-seeking term on the proxy renders of two latents (0 disables)
     diversity_target: float = 0.3  # the term stops pushing once d (mean abs proxy difference / mean abs latent difference) reaches it
@@ -55,6 +57,7 @@ class GanLossConfig:
 
     def __post_init__(self):
         check_fields(self, at_least={"r1_gamma": 0, "pl_weight": 0, "proxy_weight": 0, "r1_interval": 1, "pl_interval": 1,
+                                     "pl_batch_shrink": 1,
                                      "diversity_weight": 0, "diversity_target": 0, "diversity_start": 0,
                                      "diversity_interval": 1},
                      between={"pl_decay": (0.0, 1.0)})
@@ -98,6 +101,10 @@ class GanLoss:
         if self.cfg.r1_gamma > 0 and iteration % self.cfg.r1_interval == 0:
             out.append(("Dreg", float(self.cfg.r1_interval)))
         return out
+
+    def path_length_shapes(self, batch: int) -> int:
+        """How many of a batch's ``batch`` shapes (and their latents) the path-length phase renders."""
+        return max(1, batch // self.cfg.pl_batch_shrink)
 
     def diversity_gain(self, iteration: int) -> float:
         """The diversity term's gain in G main at ``iteration`` (0-based): 0 when it does not run."""

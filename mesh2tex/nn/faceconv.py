@@ -62,7 +62,7 @@ class _BiasLeakyReLU(torch.autograd.Function):
         inside = None
         if clamp is not None:
             # Rarely needed on a CPU (NaN counts as needed); an accelerator would wait for the answer, so it always keeps the mask.
-            low, high = torch.aminmax(y) if y.device.type == "cpu" else (None, None)
+            low, high = torch.aminmax(_elements(y)) if y.device.type == "cpu" else (None, None)
             if low is None or not (low.item() >= -clamp and high.item() <= clamp):
                 inside = (y >= -clamp) & (y <= clamp)  # clamp's own mask: its ends pass the gradient
                 y.clamp_(-clamp, clamp)
@@ -80,6 +80,14 @@ class _BiasLeakyReLU(torch.autograd.Function):
         if ctx.has_bias and ctx.needs_input_grad[1]:
             grad_bias = grad.sum([d for d in range(grad.dim()) if d != 1])
         return grad, grad_bias, None, None
+
+
+def _elements(y: torch.Tensor) -> torch.Tensor:
+    """Every element of y, as a 1-D view where possible: aminmax would copy a channels-last tensor
+    (the discriminator's activations) into a contiguous one first."""
+    if y.dim() == 4 and not y.is_contiguous() and y.is_contiguous(memory_format=torch.channels_last):
+        return y.permute(0, 2, 3, 1).reshape(-1)
+    return y.reshape(-1)
 
 
 def neighborhood_matmul(x: torch.Tensor, neighbors: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:

@@ -241,7 +241,7 @@ class GanTrainer:
         z_d = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
         g = self.generator
 
-        encoded = []  # the latest generate's encoder output, which proxy_of reuses (it does not depend on the latent)
+        encoded = []  # the latest generate's encoder output (it does not depend on the latent): proxy_of, called in G main, reuses G main's
 
         def generate(z, update_w_avg=False, shapes=cfg.batch):
             """Renders of latents z (shapes, z_dim) on the first ``shapes`` shapes of the batch and their views."""

@@ -2,12 +2,14 @@
 
     python benchmarks/learning_curve_gan.py --run RUN --world WORLD --shapes HELD_OUT_SHAPES
         [--checkpoints FILE...] [--views 8] [--latents 8] [--max-shapes 0] [--json curve.json] [--threads 1]
+        [--split held_out|train]
 
 RUN is a ``mesh2tex train gan`` run directory; its generators are ``RUN/snapshots/*.safetensors``
 (``snapshot_every`` in the training config) unless ``--checkpoints`` names files (any GAN
 checkpoints: snapshots, training checkpoints, shipped models). Each one goes through the
 generation protocol of ``mesh2tex evaluate --generation`` (:mod:`infer.generation`) on the world's
-held-out shapes, without KID/FID: the gap closed on log object SWD (0 untrained, 1 the ground
+held-out shapes (or, with ``--split train`` and --shapes the prepared training shapes, on the
+shapes the GAN trained on), without KID/FID: the gap closed on log object SWD (0 untrained, 1 the ground
 truth), the same on the colour histogram, and the colour diversity across latents against the
 photo set's. Wall time is read from RUN/metrics.jsonl (seconds since the run's first record,
 resumed runs included). Prints one line per generator and writes the curve to --json.
@@ -59,6 +61,8 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--gan-lighting", choices=["auto", "lit", "unlit"], default="auto",
                         help="the generator's rows lit, unlit, or as the run was trained (evaluate --generation's option)")
+    parser.add_argument("--split", choices=["held_out", "train"], default="held_out",
+                        help="the world's shapes measured: held_out, or train (--shapes the prepared training shapes; evaluate --generation's option)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     run = Path(args.run)
@@ -67,7 +71,8 @@ def main() -> None:
         sys.exit(f"{run / 'snapshots'}: no generators to evaluate (set snapshot_every in the training config, or pass --checkpoints)")
     paths.sort(key=lambda p: read_checkpoint_meta(p)["meta"]["iteration"])
     seconds = wall_seconds(run)
-    cfg = GenerationConfig(views=args.views, latents=args.latents, kid_fid=False, max_shapes=args.max_shapes, lighting=args.gan_lighting)
+    cfg = GenerationConfig(views=args.views, latents=args.latents, kid_fid=False, max_shapes=args.max_shapes, lighting=args.gan_lighting,
+                           split=args.split)
     curve = []
     print(f"{'iteration':>9} {'hours':>6} {'objSWD':>7} {'oracle':>7} {'untrained':>9} {'gap':>5} {'gap_hist':>8} "
           f"{'div/photos':>10} {'pair/materials':>14}")

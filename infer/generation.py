@@ -43,6 +43,11 @@ baked its own shading into its colours: its rows are rendered unlit, as it was t
 lit oracle. ``lighting`` lit/unlit forces one way (to compare models trained either way on one
 footing); ``generator_lit`` in the result says which was used. The diversity pose keeps a
 photo-like light: the first view's light turned with the camera to the pose's azimuth.
+
+**Training shapes.** ``split: train`` (``--split train``, with --shapes the prepared training
+shapes) measures the same rows on the shapes the GAN trained on, at their own photos' cameras.
+Beside the held-out figures it shows how much of what the generator learnt is tied to the shapes
+it saw: the generalisation gap.
 """
 
 from __future__ import annotations
@@ -75,6 +80,7 @@ from mesh2tex.texture import mean_latent, shape_mismatch
 
 ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "flat_colour", "mean_texture")
 LIGHTING_MODES = ("auto", "lit", "unlit")
+SPLITS = ("held_out", "train")
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 _ORACLE_STREAM = 7927  # seeds the oracle's material draws
 
@@ -91,10 +97,13 @@ class GenerationConfig:
     max_shapes: int = 0  # held-out shapes used, the first K (0: all)
     seed: int = 0  # latents, untrained weights, SWD sampling
     lighting: str = "auto"  # the generator's rows: auto (lit when it was trained under the light prior), lit or unlit
+    split: str = "held_out"  # the shapes measured: held_out (never trained on) or train (beside held_out: the generalisation gap)
 
     def __post_init__(self):
         if self.lighting not in LIGHTING_MODES:
             raise ValueError(f"lighting must be one of {', '.join(LIGHTING_MODES)}, got {self.lighting!r}")
+        if self.split not in SPLITS:
+            raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {self.split!r}")
 
 
 @dataclass
@@ -102,17 +111,19 @@ class WorldData:
     spec: WorldSpec
     root: Path
     held_out: list[str]  # shape names
+    train: list[str]  # the training shapes' names
     indices: dict[str, int]  # shape name -> world index
 
 
 def read_world(root: str | Path) -> WorldData:
-    """The world's spec and its held-out shapes (the query split) from ``root/index.json``."""
+    """The world's spec, its held-out shapes (the query split) and its training shapes from ``root/index.json``."""
     world = load_world(root)  # checks the index (format, complete, query files)
     spec = world_spec(world.index)
     held_out = list(world.index["split"]["query_shapes"])
     if not held_out:
         raise UserError(f"{world.root / 'index.json'}: the world holds no held-out shapes")
-    return WorldData(spec=spec, root=world.root, held_out=held_out, indices={spec.shape_name(i): i for i in range(spec.shapes)})
+    return WorldData(spec=spec, root=world.root, held_out=held_out, train=list(world.index["split"]["train_shapes"]),
+                     indices={spec.shape_name(i): i for i in range(spec.shapes)})
 
 
 def _white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
@@ -203,12 +214,14 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
     lit = trained_lit(meta) if cfg.lighting == "auto" else cfg.lighting == "lit"
-    names = world.held_out[: cfg.max_shapes] if cfg.max_shapes > 0 else world.held_out
+    names = world.held_out if cfg.split == "held_out" else world.train
+    names = names[: cfg.max_shapes] if cfg.max_shapes > 0 else names
+    what = "held-out" if cfg.split == "held_out" else "training"
     shapes = {}
     for name in names:
         path = Path(shapes_dir) / f"{name}.npz"
         if not path.is_file():
-            raise UserError(f"{path}: the held-out shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
+            raise UserError(f"{path}: the {what} shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
         shape = PreparedShape.load(path)
         problem = shape_mismatch(shape, trained)
         if problem:
@@ -223,7 +236,8 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
     for name in names:
         index = world.indices[name]
-        views = sample_views(world.spec, index, cfg.views)  # fresh photo views: the world never used this stream for a held-out shape
+        # Photo views: fresh for a held-out shape (the world never used this stream for one), a training shape's own photos' cameras.
+        views = sample_views(world.spec, index, cfg.views)
         z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
         for row, generator in (("trained", trained), ("untrained", untrained)):
             images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit)
@@ -269,7 +283,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     summary = {name: {k: float(np.mean(v)) for k, v in d.items()} for name, d in diversity.items()}
     ref = summary["reference_materials"]
     result = {
-        "world": str(world.root), "checkpoint": str(checkpoint), "shapes": names, "resolution": resolution,
+        "world": str(world.root), "checkpoint": str(checkpoint), "split": cfg.split, "shapes": names, "resolution": resolution,
         "iteration": int(meta.get("iteration", 0)), "rows": rows, "generator_lit": lit,
         "gap_closed": gap_closed(rows["untrained"]["object_swd"], rows["trained"]["object_swd"], rows["oracle"]["object_swd"]),
         "gap_closed_histogram": gap_closed(rows["untrained"]["color_hist_tv"], rows["trained"]["color_hist_tv"], rows["oracle"]["color_hist_tv"]),
@@ -310,7 +324,8 @@ def generation_markdown(result: dict) -> str:
     names = ["object_swd", "swd"] + [k for k in rows["trained"] if k.startswith(("kid", "fid")) and not k.endswith("_std")] + ["color_hist_tv"]
     lighting = ("the generator's rows lit by each view's light, as the oracle" if result.get("generator_lit")
                 else "the generator's rows unlit, as it was trained")
-    lines = [f"Generation protocol on {len(result['shapes'])} held-out shapes at {result['resolution']} px "
+    what = "training" if result.get("split") == "train" else "held-out"
+    lines = [f"Generation protocol on {len(result['shapes'])} {what} shapes at {result['resolution']} px "
              f"(checkpoint iteration {result['iteration']}; {lighting}); lower is better for every distance.", "",
              "| row | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
     for row in ROWS:

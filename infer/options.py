@@ -115,6 +115,8 @@ def evaluate(parser: argparse.ArgumentParser) -> None:
     generation.add("--latents", type=int, help="latents per held-out shape for the diversity measures")
     generation.add("--gan-lighting", key="lighting", choices=["auto", "lit", "unlit"],
                    help="the generator's rows: lit by each view's light, unlit, or auto (as the GAN was trained)")
+    generation.add("--split", choices=["held_out", "train"],
+                   help="the world's shapes measured: held_out (never trained on) or train (the GAN's own; --shapes then the prepared training shapes)")
 
 
 def _protocols(parser: argparse.ArgumentParser) -> None:

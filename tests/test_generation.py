@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 
 import numpy as np
 import pytest
@@ -9,7 +10,7 @@ import torch
 import yaml
 
 from conftest import TINY_GAN, make_tiny_world
-from infer.generation import GenerationConfig, run_generation_protocol
+from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
 from mesh2tex.cli import main
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
 
@@ -143,6 +144,24 @@ def test_command_writes_results_and_refuses_to_overwrite(world_and_gan, tmp_path
     assert "Gap closed" in (tmp_path / "out" / "generation.md").read_text()
     assert main(args) == 2 and "--overwrite" in capsys.readouterr().err
     assert main(args[:5] + args[7:]) == 2 and "--generation needs --gan" in capsys.readouterr().err
+
+
+def test_the_training_split_measures_the_shapes_the_gan_trained_on(world_and_gan, tmp_path, capsys):
+    """``split: train`` puts the world's training shapes, not its held-out ones, through the same rows."""
+    root = world_and_gan
+    index = json.loads((root / "world" / "index.json").read_text())
+    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
+                                     GenerationConfig(views=2, latents=2, kid_fid=False, max_shapes=1, split="train"), log=lambda line: None)
+    assert result["split"] == "train" and result["shapes"] == index["split"]["train_shapes"][:1]
+    assert result["shapes"][0] not in index["split"]["query_shapes"]
+    assert result["rows"]["oracle"]["object_swd"] < result["rows"]["untrained"]["object_swd"]
+    assert "1 training shapes" in generation_markdown(result)
+    # Through the command: only the first training shape is prepared, so the second one is named.
+    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--gan",
+            str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--split", "train",
+            "--device", "cpu", "--features", "randvgg"]
+    assert main(args) == 2
+    assert f"the training shape {index['split']['train_shapes'][1]} is not prepared" in capsys.readouterr().err
 
 
 def test_pose_view_turns_the_light_with_the_camera():

@@ -87,14 +87,14 @@ _ORACLE_STREAM = 7927  # seeds the oracle's material draws
 
 @dataclass
 class GenerationConfig:
-    views: int = 8  # photo-like views of each held-out shape for the set metrics (one latent each)
-    latents: int = 16  # latents per held-out shape for the diversity measures
+    views: int = 8  # photo-like views of each shape for the set metrics (one latent each)
+    latents: int = 16  # latents per shape for the diversity measures
     resolution: int = 0  # render and photo side (0: the GAN's training resolution)
     azimuth: float = 35.0  # the one pose of the diversity renders, degrees
     elevation: float = 20.0
     features: str = "auto"  # KID/FID features (see mesh2tex.metrics.features)
     kid_fid: bool = True  # compute KID and FID (the feature network is most of the cost)
-    max_shapes: int = 0  # held-out shapes used, the first K (0: all)
+    max_shapes: int = 0  # shapes of the split used, the first K (0: all)
     seed: int = 0  # latents, untrained weights, SWD sampling
     lighting: str = "auto"  # the generator's rows: auto (lit when it was trained under the light prior), lit or unlit
     split: str = "held_out"  # the shapes measured: held_out (never trained on) or train (beside held_out: the generalisation gap)

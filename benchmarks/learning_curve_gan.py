@@ -26,7 +26,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from infer.generation import GenerationConfig, run_generation_protocol  # noqa: E402
+from infer.generation import LIGHTING_MODES, SPLITS, GenerationConfig, run_generation_protocol  # noqa: E402
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 
 
@@ -59,9 +59,9 @@ def main() -> None:
     parser.add_argument("--max-shapes", type=int, default=0)
     parser.add_argument("--json")
     parser.add_argument("--threads", type=int, default=1)
-    parser.add_argument("--gan-lighting", choices=["auto", "lit", "unlit"], default="auto",
+    parser.add_argument("--gan-lighting", choices=LIGHTING_MODES, default="auto",
                         help="the generator's rows lit, unlit, or as the run was trained (evaluate --generation's option)")
-    parser.add_argument("--split", choices=["held_out", "train"], default="held_out",
+    parser.add_argument("--split", choices=list(SPLITS), default="held_out",
                         help="the world's shapes measured: held_out, or train (--shapes the prepared training shapes; evaluate --generation's option)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)

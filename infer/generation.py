@@ -80,7 +80,7 @@ from mesh2tex.texture import mean_latent, shape_mismatch
 
 ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "flat_colour", "mean_texture")
 LIGHTING_MODES = ("auto", "lit", "unlit")
-SPLITS = ("held_out", "train")
+SPLITS = {"held_out": "held-out", "train": "training"}  # split -> the word for its shapes
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 _ORACLE_STREAM = 7927  # seeds the oracle's material draws
 
@@ -216,12 +216,11 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     lit = trained_lit(meta) if cfg.lighting == "auto" else cfg.lighting == "lit"
     names = world.held_out if cfg.split == "held_out" else world.train
     names = names[: cfg.max_shapes] if cfg.max_shapes > 0 else names
-    what = "held-out" if cfg.split == "held_out" else "training"
     shapes = {}
     for name in names:
         path = Path(shapes_dir) / f"{name}.npz"
         if not path.is_file():
-            raise UserError(f"{path}: the {what} shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
+            raise UserError(f"{path}: the {SPLITS[cfg.split]} shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
         shape = PreparedShape.load(path)
         problem = shape_mismatch(shape, trained)
         if problem:
@@ -324,8 +323,7 @@ def generation_markdown(result: dict) -> str:
     names = ["object_swd", "swd"] + [k for k in rows["trained"] if k.startswith(("kid", "fid")) and not k.endswith("_std")] + ["color_hist_tv"]
     lighting = ("the generator's rows lit by each view's light, as the oracle" if result.get("generator_lit")
                 else "the generator's rows unlit, as it was trained")
-    what = "training" if result.get("split") == "train" else "held-out"
-    lines = [f"Generation protocol on {len(result['shapes'])} {what} shapes at {result['resolution']} px "
+    lines = [f"Generation protocol on {len(result['shapes'])} {SPLITS[result.get('split', 'held_out')]} shapes at {result['resolution']} px "
              f"(checkpoint iteration {result['iteration']}; {lighting}); lower is better for every distance.", "",
              "| row | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
     for row in ROWS:

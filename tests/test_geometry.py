@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from mesh2tex.errors import InputError
-from mesh2tex.geometry.clean import clean_mesh, normalize
+from mesh2tex.geometry.clean import clean_mesh, decimate, isotropic_remesh, normalize
 from mesh2tex.geometry.features import face_features, fundamental_forms, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, orient_coherently, pooling_map
 from mesh2tex.geometry.mesh_io import load_mesh
@@ -259,3 +259,36 @@ def test_orient_coherently_restores_the_outward_orientation_of_every_part():
     oriented = orient_coherently(v, mixed)
     assert np.array_equal(oriented, q)
     assert np.array_equal(orient_coherently(v, q[:, ::-1]), q)
+
+
+def _pymeshlab_call(filter_name: str, **settings) -> None:
+    """One pymeshlab filter run on a throwaway sphere, as other code in the same process might run it."""
+    import pymeshlab
+
+    sphere = trimesh.creation.icosphere(2)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(sphere.vertices, dtype=np.float64), face_matrix=sphere.faces.astype(np.int32)))
+    getattr(ms, filter_name)(**settings)
+
+
+def test_remeshing_and_decimation_do_not_depend_on_earlier_pymeshlab_calls():
+    """MeshLab's filters take every unpassed setting from the previous call in the process; ours must
+    give the same triangles whatever ran before (the same shape, prepared in any worker, any order)."""
+    import pymeshlab
+
+    chair = box_chair()
+    chair = trimesh.Trimesh(chair.vertices, chair.faces).subdivide().subdivide()
+    chair.vertices += np.random.default_rng(0).normal(scale=0.004, size=chair.vertices.shape)
+    results = []
+    for surface_check, adaptive in ((False, True), (True, False)):
+        _pymeshlab_call("meshing_isotropic_explicit_remeshing", targetlen=pymeshlab.PercentageValue(8.0), iterations=1,
+                        checksurfdist=surface_check, maxsurfdist=pymeshlab.PercentageValue(0.05), adaptive=adaptive, featuredeg=5.0,
+                        smoothflag=adaptive)
+        _pymeshlab_call("meshing_decimation_quadric_edge_collapse", targetfacenum=100, preservetopology=adaptive,
+                        planarquadric=adaptive, qualitythr=0.9 if adaptive else 0.1, preservenormal=adaptive)
+        remeshed = isotropic_remesh(chair.vertices, chair.faces, 0.03)
+        results.append((remeshed, decimate(chair.vertices, chair.faces, 600)))
+    (iso_a, dec_a), (iso_b, dec_b) = results
+    assert len(iso_a[1]) != len(chair.faces) and len(dec_a[1]) <= 620, "both filters ran"
+    for a, b in ((iso_a, iso_b), (dec_a, dec_b)):
+        assert a[0].shape == b[0].shape and np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])

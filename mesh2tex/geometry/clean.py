@@ -64,6 +64,18 @@ def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
     return transform.apply(vertices), transform
 
 
+# Every parameter of the two pymeshlab filters below is passed, never left to its default: MeshLab's
+# plugin takes an unpassed parameter from the previous call in the process, and for the isotropic
+# remeshing's surface-distance check (on/off and distance) from memory it never initialises, so the
+# same mesh came out differently from one installation, one worker process or one call order to another.
+DECIMATION = {"targetperc": 0.0, "qualitythr": 0.3, "preserveboundary": True, "boundaryweight": 1.0, "preservenormal": False,
+              "preservetopology": True, "optimalplacement": True, "planarquadric": True, "planarweight": 0.001,
+              "qualityweight": False, "autoclean": True, "selected": False}
+ISOTROPIC_REMESHING = {"adaptive": False, "selectedonly": False, "featuredeg": 30.0, "checksurfdist": True, "splitflag": True,
+                       "collapseflag": True, "swapflag": True, "smoothflag": True, "reprojectflag": True}
+ISOTROPIC_MAX_SURFACE_DISTANCE = 1.0  # per cent of the bounding-box diagonal a remeshing step may move the surface
+
+
 def _apply_filter(ms, name: str, **kwargs) -> bool:
     """Run one pymeshlab filter; a filter that refuses this mesh is skipped (False), not fatal."""
     import pymeshlab
@@ -136,8 +148,7 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> tupl
         return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
-    _apply_filter(ms, "meshing_decimation_quadric_edge_collapse", targetfacenum=int(max(target_faces, 4)),
-                  preservetopology=True, preserveboundary=True, planarquadric=True, optimalplacement=True)
+    _apply_filter(ms, "meshing_decimation_quadric_edge_collapse", targetfacenum=int(max(target_faces, 4)), **DECIMATION)
     _apply_filter(ms, "meshing_remove_unreferenced_vertices")
     mesh = ms.current_mesh()
     return np.asarray(mesh.vertex_matrix(), dtype=np.float64), np.asarray(mesh.face_matrix(), dtype=np.int64)
@@ -156,7 +167,8 @@ def isotropic_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
     if not _apply_filter(ms, "meshing_isotropic_explicit_remeshing", targetlen=pymeshlab.PureValue(float(edge_length)),
-                         iterations=int(iterations)):
+                         iterations=int(iterations), maxsurfdist=pymeshlab.PercentageValue(ISOTROPIC_MAX_SURFACE_DISTANCE),
+                         **ISOTROPIC_REMESHING):
         return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
     _apply_filter(ms, "meshing_remove_unreferenced_vertices")
     mesh = ms.current_mesh()

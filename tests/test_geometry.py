@@ -292,3 +292,14 @@ def test_remeshing_and_decimation_do_not_depend_on_earlier_pymeshlab_calls():
     assert len(iso_a[1]) != len(chair.faces) and len(dec_a[1]) <= 620, "both filters ran"
     for a, b in ((iso_a, iso_b), (dec_a, dec_b)):
         assert a[0].shape == b[0].shape and np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def test_a_setting_pymeshlab_does_not_know_is_an_error_not_a_skipped_filter():
+    from mesh2tex.geometry.clean import _apply_filter
+    import pymeshlab
+
+    sphere = trimesh.creation.icosphere(1)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(sphere.vertices, dtype=np.float64), face_matrix=sphere.faces.astype(np.int32)))
+    with pytest.raises(RuntimeError, match="no_such_setting"):
+        _apply_filter(ms, "meshing_isotropic_explicit_remeshing", no_such_setting=True)

@@ -77,13 +77,16 @@ ISOTROPIC_MAX_SURFACE_DISTANCE = 1.0  # per cent of the bounding-box diagonal a 
 
 
 def _apply_filter(ms, name: str, **kwargs) -> bool:
-    """Run one pymeshlab filter; a filter that refuses this mesh is skipped (False), not fatal."""
+    """Run one pymeshlab filter; a filter that refuses this mesh is skipped (False), not fatal. A setting
+    the installed pymeshlab does not know raises: skipping the filter then would change every result silently."""
     import pymeshlab
 
     try:
         getattr(ms, name)(**kwargs)
         return True
-    except pymeshlab.PyMeshLabException:
+    except pymeshlab.PyMeshLabException as error:
+        if "not found for filter" in str(error):
+            raise RuntimeError(f"pymeshlab {name}: {error}") from error
         return False
 
 

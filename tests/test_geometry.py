@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from mesh2tex.errors import InputError
-from mesh2tex.geometry.clean import clean_mesh, decimate, isotropic_remesh, normalize
+from mesh2tex.geometry.clean import clean_mesh, decimate, isotropic_remesh, mesh_set, normalize
 from mesh2tex.geometry.features import face_features, fundamental_forms, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, orient_coherently, pooling_map
 from mesh2tex.geometry.mesh_io import load_mesh
@@ -263,12 +263,8 @@ def test_orient_coherently_restores_the_outward_orientation_of_every_part():
 
 def _pymeshlab_call(filter_name: str, **settings) -> None:
     """One pymeshlab filter run on a throwaway sphere, as other code in the same process might run it."""
-    import pymeshlab
-
     sphere = trimesh.creation.icosphere(2)
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(sphere.vertices, dtype=np.float64), face_matrix=sphere.faces.astype(np.int32)))
-    getattr(ms, filter_name)(**settings)
+    getattr(mesh_set(sphere.vertices, sphere.faces), filter_name)(**settings)
 
 
 def test_remeshing_and_decimation_do_not_depend_on_earlier_pymeshlab_calls():
@@ -296,10 +292,7 @@ def test_remeshing_and_decimation_do_not_depend_on_earlier_pymeshlab_calls():
 
 def test_a_setting_pymeshlab_does_not_know_is_an_error_not_a_skipped_filter():
     from mesh2tex.geometry.clean import _apply_filter
-    import pymeshlab
 
     sphere = trimesh.creation.icosphere(1)
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(sphere.vertices, dtype=np.float64), face_matrix=sphere.faces.astype(np.int32)))
     with pytest.raises(RuntimeError, match="no_such_setting"):
-        _apply_filter(ms, "meshing_isotropic_explicit_remeshing", no_such_setting=True)
+        _apply_filter(mesh_set(sphere.vertices, sphere.faces), "meshing_isotropic_explicit_remeshing", no_such_setting=True)

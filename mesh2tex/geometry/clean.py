@@ -76,6 +76,15 @@ ISOTROPIC_REMESHING = {"adaptive": False, "selectedonly": False, "featuredeg": 3
 ISOTROPIC_MAX_SURFACE_DISTANCE = 1.0  # per cent of the bounding-box diagonal a remeshing step may move the surface
 
 
+def mesh_set(vertices: np.ndarray, faces: np.ndarray):
+    """A pymeshlab MeshSet holding one mesh: (V, 3) vertices (float64) and (T, 3) triangles (int32)."""
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
+    return ms
+
+
 def _apply_filter(ms, name: str, **kwargs) -> bool:
     """Run one pymeshlab filter; a filter that refuses this mesh is skipped (False), not fatal. A setting
     the installed pymeshlab does not know raises: skipping the filter then would change every result silently."""
@@ -104,16 +113,13 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, max_hole_edges: int = 30
     Raises:
         InputError: nothing with area is left.
     """
-    import pymeshlab
-
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     # faces with a repeated index have no area and would confuse pymeshlab's topology filters
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
     if len(faces) == 0:
         raise InputError("every face is degenerate (repeated vertex)")
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=vertices, face_matrix=faces.astype(np.int32)))
+    ms = mesh_set(vertices, faces)
     _apply_filter(ms, "meshing_remove_duplicate_vertices")
     _apply_filter(ms, "meshing_remove_duplicate_faces")
     _apply_filter(ms, "meshing_remove_null_faces")
@@ -145,12 +151,9 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> tupl
 
     Returns (V', 3) float64 and (T', 3) int64; the input when it already has few enough faces.
     """
-    import pymeshlab
-
     if len(faces) <= target_faces:
         return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
+    ms = mesh_set(vertices, faces)
     _apply_filter(ms, "meshing_decimation_quadric_edge_collapse", targetfacenum=int(max(target_faces, 4)), **DECIMATION)
     _apply_filter(ms, "meshing_remove_unreferenced_vertices")
     mesh = ms.current_mesh()
@@ -167,8 +170,7 @@ def isotropic_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float
     import pymeshlab
 
     vertices, faces = decimate(vertices, faces, 30_000)
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
+    ms = mesh_set(vertices, faces)
     if not _apply_filter(ms, "meshing_isotropic_explicit_remeshing", targetlen=pymeshlab.PureValue(float(edge_length)),
                          iterations=int(iterations), maxsurfdist=pymeshlab.PercentageValue(ISOTROPIC_MAX_SURFACE_DISTANCE),
                          **ISOTROPIC_REMESHING):

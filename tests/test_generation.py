@@ -179,3 +179,17 @@ def test_pose_view_turns_the_light_with_the_camera():
     assert torch.allclose(torch.tensor(moved.light), expected, atol=1e-5)
     assert (moved.azimuth, moved.elevation, moved.distance, moved.ambient) == (35.0, 20.0, 1.8, 0.4)
     assert math.isclose(sum(v * v for v in moved.light), 1.0, abs_tol=1e-5)
+
+
+def test_the_commands_offer_the_protocols_lightings_and_splits():
+    """infer/options.py spells the choices out (it must not import torch); they stay the protocol's."""
+    import argparse
+
+    from infer.generation import LIGHTING_MODES, SPLITS
+    from infer.options import evaluate
+
+    parser = argparse.ArgumentParser()
+    evaluate(parser)
+    choices = {action.dest: list(action.choices) for action in parser._actions if action.choices}
+    assert choices["gan_lighting"] == list(LIGHTING_MODES)
+    assert choices["split"] == list(SPLITS)

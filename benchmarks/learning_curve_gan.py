@@ -10,8 +10,9 @@ checkpoints: snapshots, training checkpoints, shipped models). Each one goes thr
 generation protocol of ``mesh2tex evaluate --generation`` (:mod:`infer.generation`) on the world's
 held-out shapes (or, with ``--split train`` and --shapes the prepared training shapes, on the
 shapes the GAN trained on), without KID/FID: the gap closed on log object SWD (0 untrained, 1 the ground
-truth), the same on the colour histogram, and the colour diversity across latents against the
-photo set's. Wall time is read from RUN/metrics.jsonl (seconds since the run's first record,
+truth) against the protocol's fresh photo set, the same on the colour histogram, the gap closed
+against the training photos (``gap_photos``: the protocol's reference before the fresh photo set,
+for comparison with earlier curves), and the colour diversity across latents against the photo set's. Wall time is read from RUN/metrics.jsonl (seconds since the run's first record,
 resumed runs included). Prints one line per generator and writes the curve to --json.
 """
 
@@ -75,19 +76,20 @@ def main() -> None:
                            split=args.split)
     curve = []
     print(f"{'iteration':>9} {'hours':>6} {'objSWD':>7} {'oracle':>7} {'untrained':>9} {'gap':>5} {'gap_hist':>8} "
-          f"{'div/photos':>10} {'pair/materials':>14}")
+          f"{'gap_photos':>10} {'div/photos':>10} {'pair/materials':>14}")
     for path in paths:
         r = run_generation_protocol(args.world, args.shapes, path, cfg, log=lambda line: None)
         d, rows = r["diversity"], r["rows"]
         point = {"checkpoint": str(path), "iteration": r["iteration"], "seconds": seconds.get(r["iteration"]),
                  "object_swd": rows["trained"]["object_swd"], "oracle_object_swd": rows["oracle"]["object_swd"],
                  "untrained_object_swd": rows["untrained"]["object_swd"], "gap_closed": r["gap_closed"],
-                 "gap_closed_histogram": r["gap_closed_histogram"], "spread_vs_photo_set": d["trained_spread_vs_photo_set"],
+                 "gap_closed_histogram": r["gap_closed_histogram"], "gap_closed_vs_photos": r["gap_closed_vs_photos"],
+                 "gap_closed_training_materials": r["gap_closed_training_materials"], "spread_vs_photo_set": d["trained_spread_vs_photo_set"],
                  "pairwise_vs_materials": d["trained_pairwise_vs_materials"]}
         curve.append(point)
         hours = f"{point['seconds'] / 3600:6.2f}" if point["seconds"] is not None else "     ?"
         print(f"{point['iteration']:9d} {hours} {point['object_swd']:7.1f} {point['oracle_object_swd']:7.1f} "
-              f"{point['untrained_object_swd']:9.1f} {point['gap_closed']:5.2f} {point['gap_closed_histogram']:8.2f} "
+              f"{point['untrained_object_swd']:9.1f} {point['gap_closed']:5.2f} {point['gap_closed_histogram']:8.2f} {point['gap_closed_vs_photos']:10.2f} "
               f"{point['spread_vs_photo_set']:10.2f} {point['pairwise_vs_materials']:14.2f}", flush=True)
         if args.json:
             Path(args.json).write_text(json.dumps(curve, indent=1))

@@ -10,9 +10,11 @@ import torch
 import yaml
 
 from conftest import TINY_GAN, make_tiny_world
-from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
+from infer.generation import GenerationConfig, fresh_photo_set, generation_markdown, ground_truth_renders, read_world, run_generation_protocol
+from mesh2tex.io.image_sets import list_images, load_set
 from mesh2tex.cli import main
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
+from mesh2tex.synthetic.world import sample_views
 
 
 def test_colour_measures_on_known_images():
@@ -49,6 +51,41 @@ def test_gap_closed():
     assert np.isnan(gap_closed(50.0, 40.0, 60.0)), "an oracle that loses makes the figure meaningless"
 
 
+def _world_photos(world, resolution: int, shape: str | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """The world's photo set as the protocol reads it (only ``shape``'s photos when given)."""
+    photos, masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+    if shape is None:
+        return photos, masks
+    keep = torch.tensor([stem.rsplit("_", 1)[0] == shape for stem in list_images(world.root / "images", "image")])
+    return photos[keep], masks[keep]
+
+
+def test_ground_truth_rows_are_rendered_as_the_world_renders_its_photos(world_and_gan):
+    """The oracle and ground-truth rows go through the photos' own pipeline (the world's resolution,
+    then resized as the photo set is read): a training shape's own material at its photos' cameras
+    is its photos, pixel for pixel, at an evaluation resolution below the world's too."""
+    world = read_world(world_and_gan / "world")
+    name = world.train[0]
+    views = sample_views(world.spec, world.indices[name], world.spec.views)
+    images, masks = ground_truth_renders(world, name, views, 16)
+    photos, photo_masks = _world_photos(world, 16, name)
+    assert images.shape == photos.shape == (world.spec.views, 3, 16, 16)
+    assert torch.equal(masks, photo_masks)
+    assert (images - photos).abs().max() < 1e-6
+
+
+def test_distances_are_to_a_fresh_photo_set_not_the_training_photos(world_and_gan):
+    """The reference of every distance shows the training shapes at their photos' cameras, each photo
+    with a new material of the world's sampler: not the photos the GAN learnt from."""
+    world = read_world(world_and_gan / "world")
+    reference, reference_masks = fresh_photo_set(world, 32, seed=0)
+    photos, photo_masks = _world_photos(world, 32)
+    assert torch.equal(reference_masks, photo_masks), "same shapes, same cameras"
+    assert ((reference - photos).abs() * photo_masks).amax(dim=(1, 2, 3)).min() > 0.1, "every photo gets another material"
+    again, _ = fresh_photo_set(world, 32, seed=0)
+    assert torch.equal(again, reference)
+
+
 @pytest.fixture(scope="module")
 def world_and_gan(tmp_path_factory):
     root = tmp_path_factory.mktemp("generation")
@@ -62,11 +99,11 @@ def world_and_gan(tmp_path_factory):
 
 def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     root = world_and_gan
-    cfg = GenerationConfig(views=3, latents=3, kid_fid=False)
+    cfg = GenerationConfig(views=6, latents=3, kid_fid=False)  # 3 draws against 6 fresh photos are too few to rank
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors", cfg,
                                      samples_path=tmp_path / "grid.png", log=lambda line: None)
     rows = result["rows"]
-    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "flat_colour", "mean_texture"}
+    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture"}
     # The oracle's textures also beat the simple baseline, one flat colour (the photo set's mean).
     assert rows["oracle"]["object_swd"] < rows["flat_colour"]["object_swd"]
     # The oracle is fresh photos of the held-out shapes with textures from the world's sampler: it must
@@ -74,7 +111,9 @@ def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     assert rows["oracle"]["object_swd"] < rows["untrained"]["object_swd"]
     assert rows["oracle"]["swd"] < rows["untrained"]["swd"]
     assert rows["oracle"]["color_hist_tv"] < rows["untrained"]["color_hist_tv"]
-    assert np.isfinite(result["gap_closed"])
+    assert np.isfinite(result["gap_closed"]) and np.isfinite(result["gap_closed_training_materials"])
+    assert isinstance(result["oracle_loses"], list)
+    assert all(np.isfinite(rows[row]["object_swd_vs_photos"]) for row in rows)
     d = result["diversity"]
     assert d["reference_materials"]["spread"] > 1 and d["reference_materials"]["pairwise"] > 1 and d["photo_set_spread"] > 1
     assert d["trained"]["spread"] >= 0 and d["trained_spread_vs_photo_set"] == pytest.approx(d["trained"]["spread"] / d["photo_set_spread"])
@@ -108,7 +147,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     from infer import generation
 
     original_load, original_render, original_draws = generation.load_generator, generation.generator_renders, generation.material_draws
-    seen, draws = [], []
+    seen, draws, fresh_photos = [], [], []
 
     def load(path, device):
         generator, meta = original_load(path, device)
@@ -120,7 +159,11 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
         return original_render(*args, **kwargs)
 
     def material(*args, **kwargs):
-        draws.append(kwargs.get("lit", args[6] if len(args) > 6 else False))
+        lit = kwargs.get("lit", args[6] if len(args) > 6 else False)
+        if kwargs.get("stream", args[5] if len(args) > 5 else None) == generation._FRESH_PHOTOS_STREAM:
+            fresh_photos.append(lit)  # the reference: photos, lit whatever the generator
+        else:
+            draws.append(lit)
         return original_draws(*args, **kwargs)
 
     monkeypatch.setattr(generation, "load_generator", load)
@@ -131,6 +174,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     assert result["generator_lit"] is enabled
     assert len(seen) >= 4 * len(result["shapes"]) and all(lit is enabled for lit in seen)
     per_shape = len(draws) // len(result["shapes"])  # oracle (lit), oracle unlit, then the diversity reference
+    assert fresh_photos and all(fresh_photos)
     assert draws[:per_shape][:2] == [True, False] and all(d[-1] is enabled for d in [draws[i * per_shape:(i + 1) * per_shape] for i in range(len(result["shapes"]))])
 
 
@@ -151,7 +195,7 @@ def test_the_training_split_measures_the_shapes_the_gan_trained_on(world_and_gan
     root = world_and_gan
     index = json.loads((root / "world" / "index.json").read_text())
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                     GenerationConfig(views=2, latents=2, kid_fid=False, max_shapes=1, split="train"), log=lambda line: None)
+                                     GenerationConfig(views=6, latents=2, kid_fid=False, max_shapes=1, split="train"), log=lambda line: None)
     assert result["split"] == "train" and result["shapes"] == index["split"]["train_shapes"][:1]
     assert result["shapes"][0] not in index["split"]["query_shapes"]
     assert result["rows"]["oracle"]["object_swd"] < result["rows"]["untrained"]["object_swd"]

@@ -195,6 +195,19 @@ def test_evaluate_sets_without_kid_fid_skips_the_feature_network(monkeypatch):
     assert {"swd", "color_hist_tv"} <= set(result["metrics"])
 
 
+def test_evaluate_sets_takes_the_images_features_once_computed():
+    """Several sets measured against one reference reuse its features: the same figures."""
+    import mesh2tex.metrics.evaluate as evaluate
+
+    generator = torch.Generator().manual_seed(0)
+    renders, images = torch.rand(4, 3, 32, 32, generator=generator), torch.rand(6, 3, 32, 32, generator=generator)
+    extractor = get_feature_extractor("randvgg")
+    config = evaluate.EvaluateConfig(resolution=32, kid_subsets=2, kid_subset_size=4)
+    fresh = evaluate.evaluate_sets(renders, images, extractor, config)["metrics"]
+    reused = evaluate.evaluate_sets(renders, images, extractor, config, image_features=extractor(images * 2 - 1))["metrics"]
+    assert reused == pytest.approx(fresh)
+
+
 def test_evaluate_names_a_bad_file(tmp_path, capsys):
     _write_set(tmp_path / "renders", 2, 0)
     _write_set(tmp_path / "photos", 2, 1)

@@ -182,7 +182,7 @@ def metric_direction(name: str) -> int:
     """+1 if higher is better, -1 if lower is better, 0 for values that are not scores (spreads, levels).
 
     Transfer columns are named '<seen|unseen> <metric>' or bare (see :data:`METRICS`); the set metrics
-    of ``mesh2tex evaluate`` by their own names (kid_*, fid_*, swd, color_hist_tv, psnr_masked, ssim_masked)."""
+    of ``mesh2tex evaluate`` by their own names (kid_*, fid_*, swd, color_hist_tv, psnr_masked, ssim_masked, object_swd*)."""
     if name.endswith("_std") or (name.startswith("swd_") and name.endswith("px")):
         return 0
     last = name.split(" ")[-1]
@@ -190,6 +190,8 @@ def metric_direction(name: str) -> int:
         return METRICS[last]
     if name in ("psnr_masked", "ssim_masked"):
         return 1
+    if name.startswith("object_swd"):  # the generation protocol's object SWD, against either reference
+        return -1
     return -1 if name.split("_")[0] in ("kid", "fid", "swd") or name == "color_hist_tv" else 0
 
 

@@ -34,7 +34,7 @@ class EvaluateConfig:
 
 def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: FeatureExtractor | None = None,
                   config: EvaluateConfig | None = None, render_masks: torch.Tensor | None = None,
-                  image_masks: torch.Tensor | None = None, kid_fid: bool = True) -> dict:
+                  image_masks: torch.Tensor | None = None, kid_fid: bool = True, image_features: torch.Tensor | None = None) -> dict:
     """Unpaired metrics between renders [N, 3, H, W] and images [M, 3, H, W], both float in [0, 1], same H, W.
 
     ``extractor``: KID/FID features (default: ``get_feature_extractor(config.features)``; metric
@@ -44,6 +44,8 @@ def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: Featur
     ``color_hist_tv_whole_image`` (it then also measures how much of each image the object covers).
     KID, FID and SWD always see the whole images (objects on their background, as in the paper).
     ``kid_fid=False`` skips KID and FID (and the feature network, most of the cost; ``features`` is None).
+    ``image_features``: ``extractor``'s features of ``images`` [M, D], when several sets are measured
+    against the same images (computed here when None).
     Returns {"metrics": {name: value}, "features": description, "counts": {"renders": N, "images": M}}.
     KID has a ``<name>_std`` entry (spread over subsets); SWD has one entry per pyramid level (``swd_<side>px``).
     """
@@ -54,7 +56,7 @@ def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: Featur
     if kid_fid:
         extractor = extractor or get_feature_extractor(config.features)
         features_renders = extractor(renders * 2 - 1)
-        features_images = extractor(images * 2 - 1)
+        features_images = extractor(images * 2 - 1) if image_features is None else image_features
         kid_mean, kid_std = kid(features_images, features_renders, config.kid_subsets, config.kid_subset_size, config.seed)
         metrics[extractor.metric_name("kid")] = kid_mean
         metrics[extractor.metric_name("kid") + "_std"] = kid_std

@@ -8,26 +8,35 @@ cameras and the same white background for every row:
     trained       the checkpoint's EMA generator, one random latent per view
     untrained     a freshly initialised generator of the same configuration (the floor)
     oracle        for every view a fresh draw of the world's own material sampler on the held-out
-                  shape, rendered as the world renders its photos (their lighting): what a perfect
-                  generator produces (one texture draw per view, like the generator's latents)
+                  shape, rendered as the world renders its photos (at the world's resolution, their
+                  lighting, resized as the photo set is read): what a perfect generator produces
+                  (one texture draw per view, like the generator's latents)
     oracle, unlit the same draws without lighting (what an albedo-only generator could reach)
     ground truth  each held-out shape's own material, lit: one texture per shape. With few held-out
-                  shapes its colours cover the distribution less well than a draw per view, so a
-                  generator can beat it on set metrics (a trained car GAN did, on the object SWD):
-                  it is shown, the gap is measured to the oracle
+                  shapes its colours cover the distribution less well than a draw per view: it is
+                  shown, the gap is measured to the oracle
+    training materials  the training shapes' own materials, one per view in turn, on the held-out
+                  shapes: what a generator that reproduced its training textures exactly would paint
     flat colour   a simple baseline: the photo set's mean object colour on every pixel of the
                   generator's silhouettes (what a model that learnt one average colour would score)
     mean texture  the trained generator's mean texture (``w_avg`` in every style input, lit as the
                   trained row): what the GAN paints without a latent; a trained row no better than
                   it has not learnt to use its latent
 
-each against the world's photo set (``images/``): the **object SWD** (x1000: patches of object pixels
-only, pooled per set, :func:`mesh2tex.metrics.generation.object_set_swd`), the whole-image SWD, KID
-and FID on named features, the pooled colour-histogram distance; and the **gap closed**: the share of
-the untrained-to-oracle gap in log object SWD that the trained generator closes (also reported on
-the colour histogram). The whole-image SWD is dominated by the white background and the
-silhouettes, which the rows share (same shapes, same cameras) and the photos do not (other shapes):
-on the chair world a one-colour generator matched the oracle on it, so it does not rank textures.
+each against a **fresh photo set** (:func:`fresh_photo_set`: the training shapes at their photos'
+cameras and lights, a new material of the world's sampler on every photo): the **object SWD**
+(x1000: patches of object pixels only, pooled per set, :func:`mesh2tex.metrics.generation.object_set_swd`),
+the whole-image SWD, KID and FID on named features, the pooled colour-histogram distance; and the
+**gap closed**: the share of the untrained-to-oracle gap in log object SWD that the trained
+generator closes (also reported on the colour histogram, and for the training-materials row). Not
+the training photos themselves: they show only as many materials as training shapes (24 on the
+chair and car worlds), and a generator that copies those beat the oracle's fresh draws there (a
+trained car GAN did, 81.5 against 144.2), so the figure measured copying, not closeness to the
+world's textures; the object SWD to the training photos stays as a last column
+(``object_swd_vs_photos``, ``gap_closed_vs_photos``) to read earlier figures. ``oracle_loses`` lists
+the columns some row beats the oracle on: those do not rank textures. The whole-image SWD is
+usually one: it is dominated by the white background and the silhouettes, in which the held-out
+shapes differ from the reference's training shapes.
 
 **Diversity**: per held-out shape, ``latents`` latents at one pose: the spread of their mean object
 colours (Lab) and their mean pairwise per-pixel Delta E (:mod:`mesh2tex.metrics.generation`); the
@@ -85,6 +94,20 @@ SPLITS = {"held_out": "held-out", "train": "training"}  # split -> the word for 
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 _ORACLE_STREAM = 7927  # seeds the oracle's material draws
 _FRESH_PHOTOS_STREAM = 7933  # seeds the materials of the fresh photo set, the distances' reference
+_LATENT_STREAM = 7937  # seeds the latents of the set rows
+_DIVERSITY_STREAM = 7949  # seeds the latents of the diversity renders
+DRAWN_ROWS = ("trained", "untrained", "oracle", "oracle_unlit")  # the rows drawn anew in every repeat
+
+
+def draw_key(seed: int, repeat: int) -> tuple[int, ...]:
+    """The entropy of repeat ``repeat``'s draws: ``(seed,)`` for the first, ``(seed, repeat)`` after."""
+    return (seed,) if repeat == 0 else (seed, repeat)
+
+
+def seeded_generator(key: tuple[int, ...], stream: int) -> torch.Generator:
+    """A torch generator for one stream of draws, seeded from ``key`` and ``stream`` (never colliding
+    with another key's or stream's)."""
+    return torch.Generator().manual_seed(int(np.random.default_rng([*key, stream]).integers(1 << 62)))
 
 
 @dataclass
@@ -97,11 +120,14 @@ class GenerationConfig:
     features: str = "auto"  # KID/FID features (see mesh2tex.metrics.features)
     kid_fid: bool = True  # compute KID and FID (the feature network is most of the cost)
     max_shapes: int = 0  # shapes of the split used, the first K (0: all)
-    seed: int = 0  # latents, untrained weights, SWD sampling
+    seed: int = 0  # latents, untrained weights, material draws, SWD sampling
+    repeats: int = 4  # draws of the set rows' latents, oracle materials and fresh photo set; their distances averaged
     lighting: str = "auto"  # the generator's rows: auto (lit when it was trained under the light prior), lit or unlit
     split: str = "held_out"  # the shapes measured: held_out (never trained on) or train (beside held_out: the generalisation gap)
 
     def __post_init__(self):
+        if self.repeats < 1:
+            raise ValueError(f"repeats must be at least 1, got {self.repeats}")
         if self.lighting not in LIGHTING_MODES:
             raise ValueError(f"lighting must be one of {', '.join(LIGHTING_MODES)}, got {self.lighting!r}")
         if self.split not in SPLITS:
@@ -128,7 +154,7 @@ def read_world(root: str | Path) -> WorldData:
                      indices={spec.shape_name(i): i for i in range(spec.shapes)})
 
 
-def _white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+def on_white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
     """(B, R, R, 3) uint8 over any background, (B, R, R) 0/255 -> on white (B, 3, R, R) [0, 1], masks (B, 1, R, R)."""
     rgb = torch.from_numpy(rgb_uint8).float().permute(0, 3, 1, 2) / 255.0
     mask = torch.from_numpy(mask_uint8 > 127).float().unsqueeze(1)
@@ -143,7 +169,7 @@ def as_photos(out: dict[str, np.ndarray], resolution: int) -> tuple[torch.Tensor
     Rendering straight at ``resolution`` is another image pipeline: the world's own materials on its
     training shapes, rendered at 64 px instead of 128 px and resized, lay 52 object-SWD units from
     the identical photos instead of 10 (car world), a handicap the oracle rows do not deserve."""
-    images, masks = _white(out["rgb"], out["mask"])
+    images, masks = on_white(out["rgb"], out["mask"])
     if images.shape[-1] == resolution:
         return images, masks
     return (torch.stack([square_resize(image, resolution) for image in images]),
@@ -176,12 +202,14 @@ def material_renders(world: WorldData, name: str, views, materials, resolution: 
     return torch.cat(images), torch.cat(masks)
 
 
-def material_draws(world: WorldData, name: str, views, resolution: int, seed: int, stream: int = _REFERENCE_STREAM,
+def material_draws(world: WorldData, name: str, views, resolution: int, seed: int | tuple[int, ...], stream: int = _REFERENCE_STREAM,
                    lit: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
     """A fresh material of the world's sampler for each of ``views`` on shape ``name`` (see
-    :func:`material_renders`; unlit unless ``lit``). -> images (B, 3, R, R) in [0, 1], masks (B, 1, R, R)."""
+    :func:`material_renders`; unlit unless ``lit``), drawn from ``seed`` (or a :func:`draw_key`) and
+    ``stream``. -> images (B, 3, R, R) in [0, 1], masks (B, 1, R, R)."""
     index = world.indices[name]
-    materials = [random_material(world.spec.category, np.random.default_rng([seed, stream, index, k])) for k in range(len(views))]
+    key = seed if isinstance(seed, tuple) else (seed,)
+    materials = [random_material(world.spec.category, np.random.default_rng([*key, stream, index, k])) for k in range(len(views))]
     return material_renders(world, name, views, materials, resolution, lit)
 
 
@@ -194,7 +222,7 @@ def training_material_renders(world: WorldData, name: str, views, resolution: in
     return material_renders(world, name, views, materials, resolution)
 
 
-def fresh_photo_set(world: WorldData, resolution: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
+def fresh_photo_set(world: WorldData, resolution: int, seed: int | tuple[int, ...]) -> tuple[torch.Tensor, torch.Tensor]:
     """The reference of every distance: the world's photo set drawn again with new materials.
 
     Every training shape at its own photos' cameras, lights and ambient shares, each photo with a
@@ -283,37 +311,25 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     photos, photo_masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
     photo_names = list(list_images(world.root / "images", "image"))
     photo_mean = (photos * photo_masks).sum(dim=(0, 2, 3)) / (photo_masks.sum() * 1.0).clamp_min(1.0)  # (3,) the mean object colour
-    z_gen = torch.Generator().manual_seed(cfg.seed + 1)
-    sets = {row: ([], []) for row in ROWS}
+    views_of = {name: sample_views(world.spec, world.indices[name], cfg.views) for name in names}  # fresh for held-out shapes
+    fixed = {row: ([], []) for row in ROWS if row not in DRAWN_ROWS}  # rows that draw nothing: rendered once
     diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
+    z_div_gen = seeded_generator((cfg.seed,), _DIVERSITY_STREAM)
     for position, name in enumerate(names):
-        index = world.indices[name]
-        # Photo views: fresh for a held-out shape (the world never used this stream for one), a training shape's own photos' cameras.
-        views = sample_views(world.spec, index, cfg.views)
-        z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
-        for row, generator in (("trained", trained), ("untrained", untrained)):
-            images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit)
-            sets[row][0].append(images)
-            sets[row][1].append(masks)
+        views = views_of[name]
         images, masks = generator_renders(trained, shapes[name], views, resolution, None, device, lit,
                                           ws=mean_latent(trained).expand(len(views), -1, -1))
-        sets["mean_texture"][0].append(images)
-        sets["mean_texture"][1].append(masks)
-        sets["flat_colour"][0].append(composite_images(photo_mean.reshape(1, 3, 1, 1).expand_as(images), masks, 1.0))
-        sets["flat_colour"][1].append(masks)
-        for row, oracle_lit in (("oracle", True), ("oracle_unlit", False)):
-            images, masks = material_draws(world, name, views, resolution, cfg.seed, _ORACLE_STREAM, oracle_lit)
-            sets[row][0].append(images)
-            sets[row][1].append(masks)
-        images, masks = ground_truth_renders(world, name, views, resolution, lit=True)
-        sets["ground_truth"][0].append(images)
-        sets["ground_truth"][1].append(masks)
-        images, masks = training_material_renders(world, name, views, resolution, first=position * len(views))
-        sets["training_materials"][0].append(images)
-        sets["training_materials"][1].append(masks)
+        fixed["mean_texture"][0].append(images)
+        fixed["mean_texture"][1].append(masks)
+        fixed["flat_colour"][0].append(composite_images(photo_mean.reshape(1, 3, 1, 1).expand_as(images), masks, 1.0))
+        fixed["flat_colour"][1].append(masks)
+        for row, (images, masks) in (("ground_truth", ground_truth_renders(world, name, views, resolution, lit=True)),
+                                     ("training_materials", training_material_renders(world, name, views, resolution, first=position * len(views)))):
+            fixed[row][0].append(images)
+            fixed[row][1].append(masks)
         # Diversity: many latents at one pose.
         pose = pose_view(views[0], cfg.azimuth, cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
-        z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_gen)
+        z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_div_gen)
         for row, generator in (("trained", trained), ("untrained", untrained)):
             images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit)
             diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
@@ -322,26 +338,49 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         diversity["reference_materials"]["spread"].append(colour_spread(mean_object_lab(images, masks)))
         diversity["reference_materials"]["pairwise"].append(mean_pairwise_delta_e(images, masks))
         log(f"generation protocol: {name} done ({time.perf_counter() - start:.0f} s)")
+    fixed_sets = {row: (torch.cat(images), torch.cat(masks)) for row, (images, masks) in fixed.items()}
 
-    reference, reference_masks = fresh_photo_set(world, resolution, cfg.seed)
-    log(f"generation protocol: fresh photo set drawn ({time.perf_counter() - start:.0f} s)")
     eval_cfg = EvaluateConfig(resolution=resolution, features=cfg.features, seed=cfg.seed)
-    reference_features = None
     if cfg.kid_fid:
         extractor = extractor or get_feature_extractor(cfg.features, device=device)
-        reference_features = extractor(reference * 2 - 1)  # once for every row
-    rows = {}
-    for row in ROWS:
-        images, masks = torch.cat(sets[row][0]), torch.cat(sets[row][1])
-        metrics = evaluate_sets(images, reference, extractor, eval_cfg, masks, reference_masks, kid_fid=cfg.kid_fid,
-                                image_features=reference_features)["metrics"]
-        levels = [v for k, v in metrics.items() if k.startswith("swd_") and k.endswith("px")]
-        metrics["swd"] = float(np.mean(levels))
-        metrics["object_swd"] = object_set_swd(images, masks, reference, reference_masks, seed=cfg.seed)
-        # Against the training photos, as this protocol measured before the fresh photo set: for
-        # comparison with earlier figures only (the oracle can lose there).
-        metrics["object_swd_vs_photos"] = object_set_swd(images, masks, photos, photo_masks, seed=cfg.seed)
-        rows[row] = metrics
+    per_repeat = []  # {row: metrics} of every repeat
+    for repeat in range(cfg.repeats):
+        key = draw_key(cfg.seed, repeat)
+        sets = dict(fixed_sets)
+        drawn = {row: ([], []) for row in DRAWN_ROWS}
+        z_gen = seeded_generator(key, _LATENT_STREAM)
+        for name in names:
+            views = views_of[name]
+            z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
+            for row, generator in (("trained", trained), ("untrained", untrained)):
+                images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit)
+                drawn[row][0].append(images)
+                drawn[row][1].append(masks)
+            for row, oracle_lit in (("oracle", True), ("oracle_unlit", False)):
+                images, masks = material_draws(world, name, views, resolution, key, _ORACLE_STREAM, oracle_lit)
+                drawn[row][0].append(images)
+                drawn[row][1].append(masks)
+        sets.update({row: (torch.cat(images), torch.cat(masks)) for row, (images, masks) in drawn.items()})
+        reference, reference_masks = fresh_photo_set(world, resolution, key)
+        # KID and FID (the feature network, most of the cost) on the first draw only.
+        kid_fid = cfg.kid_fid and repeat == 0
+        reference_features = extractor(reference * 2 - 1) if kid_fid else None  # once for every row
+        swd_seed = cfg.seed + repeat
+        rows = {}
+        for row in ROWS:
+            images, masks = sets[row]
+            metrics = evaluate_sets(images, reference, extractor, dataclasses.replace(eval_cfg, seed=swd_seed), masks, reference_masks,
+                                    kid_fid=kid_fid, image_features=reference_features)["metrics"]
+            levels = [v for k, v in metrics.items() if k.startswith("swd_") and k.endswith("px")]
+            metrics["swd"] = float(np.mean(levels))
+            metrics["object_swd"] = object_set_swd(images, masks, reference, reference_masks, seed=swd_seed)
+            # Against the training photos, as this protocol measured before the fresh photo set: for
+            # comparison with earlier figures only (the oracle can lose there).
+            metrics["object_swd_vs_photos"] = object_set_swd(images, masks, photos, photo_masks, seed=swd_seed)
+            rows[row] = metrics
+        per_repeat.append(rows)
+        log(f"generation protocol: draw {repeat + 1} of {cfg.repeats} measured ({time.perf_counter() - start:.0f} s)")
+    rows = average_rows(per_repeat)
     photo_spread = photo_set_spread(world, photos, photo_masks, photo_names)
     summary = {name: {k: float(np.mean(v)) for k, v in d.items()} for name, d in diversity.items()}
     ref = summary["reference_materials"]
@@ -349,6 +388,9 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         "world": str(world.root), "checkpoint": str(checkpoint), "split": cfg.split, "shapes": names, "resolution": resolution,
         "iteration": int(meta.get("iteration", 0)), "rows": rows, "generator_lit": lit,
         "gap_closed": gap_closed(rows["untrained"]["object_swd"], rows["trained"]["object_swd"], rows["oracle"]["object_swd"]),
+        # The same figure from each draw alone: how much one draw of latents and materials moves it.
+        "gap_closed_per_draw": [gap_closed(r["untrained"]["object_swd"], r["trained"]["object_swd"], r["oracle"]["object_swd"])
+                                for r in per_repeat],
         "gap_closed_histogram": gap_closed(rows["untrained"]["color_hist_tv"], rows["trained"]["color_hist_tv"], rows["oracle"]["color_hist_tv"]),
         "gap_closed_whole_image_swd": gap_closed(rows["untrained"]["swd"], rows["trained"]["swd"], rows["oracle"]["swd"]),
         # What reproducing the training textures exactly would close: about the most a generator can learn from them alone.
@@ -388,6 +430,17 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     save_png(path, colours_to_uint8(grid, signed=False))
 
 
+def average_rows(per_repeat: list[dict[str, dict[str, float]]]) -> dict[str, dict]:
+    """{row: metrics} of several draws -> the mean of every metric over the draws that have it (KID
+    and FID only the first), and each row's object SWD per draw (``object_swd_per_draw``)."""
+    rows = {}
+    for row in per_repeat[0]:
+        names = dict.fromkeys(k for r in per_repeat for k in r[row])
+        rows[row] = {name: float(np.mean([r[row][name] for r in per_repeat if name in r[row]])) for name in names}
+        rows[row]["object_swd_per_draw"] = [r[row]["object_swd"] for r in per_repeat]
+    return rows
+
+
 ROW_LABELS = {"oracle": "oracle (world's sampler, a draw per view)", "oracle_unlit": "oracle, unlit",
               "ground_truth": "each shape's own ground truth",
               "training_materials": "the training shapes' materials (a generator that reproduced them)",
@@ -407,8 +460,11 @@ def generation_markdown(result: dict) -> str:
              + ["color_hist_tv"] + (["object_swd_vs_photos"] if fresh else []))
     lighting = ("the generator's rows lit by each view's light, as the oracle" if result.get("generator_lit")
                 else "the generator's rows unlit, as it was trained")
+    draws = result.get("settings", {}).get("repeats", 1)
+    averaged = (f", each the mean of {draws} draws of the latents, the oracle's materials and the fresh photo set (KID and FID: "
+                f"the first draw)" if draws > 1 else "")
     reference = ("distances to a fresh photo set (the training shapes at their photos' cameras and lights, a new material of "
-                 "the world's sampler on each photo), the last column to the training photos; lower is better" if fresh
+                 f"the world's sampler on each photo){averaged}, the last column to the training photos; lower is better" if fresh
                  else "distances to the training photos; lower is better")
     lines = [f"Generation protocol on {len(result['shapes'])} {SPLITS[result.get('split', 'held_out')]} shapes at {result['resolution']} px "
              f"(checkpoint iteration {result['iteration']}; {lighting}); {reference}.", "",
@@ -423,7 +479,9 @@ def generation_markdown(result: dict) -> str:
     def share(value: float) -> str:
         return f"{value:.2f}" if math.isfinite(value) else "undefined (the oracle does not beat the untrained generator)"
 
-    gap_line = (f"Gap closed (log object SWD, untrained 0 -> oracle 1; higher is better): **{share(gap)}**; "
+    per_draw = result.get("gap_closed_per_draw", [])
+    spread = f" (single draws: {', '.join(f'{v:.2f}' for v in per_draw)})" if len(per_draw) > 1 else ""
+    gap_line = (f"Gap closed (log object SWD, untrained 0 -> oracle 1; higher is better): **{share(gap)}**{spread}; "
                 f"on the colour histogram {share(result['gap_closed_histogram'])}; on the whole-image SWD "
                 f"{share(result['gap_closed_whole_image_swd'])}")
     if fresh:

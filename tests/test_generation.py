@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -99,7 +100,7 @@ def world_and_gan(tmp_path_factory):
 
 def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     root = world_and_gan
-    cfg = GenerationConfig(views=6, latents=3, kid_fid=False)  # 3 draws against 6 fresh photos are too few to rank
+    cfg = GenerationConfig(views=6, latents=3, kid_fid=False, repeats=2)  # 3 draws against 6 fresh photos are too few to rank
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors", cfg,
                                      samples_path=tmp_path / "grid.png", log=lambda line: None)
     rows = result["rows"]
@@ -113,6 +114,13 @@ def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     assert rows["oracle"]["color_hist_tv"] < rows["untrained"]["color_hist_tv"]
     assert np.isfinite(result["gap_closed"]) and np.isfinite(result["gap_closed_training_materials"])
     assert isinstance(result["oracle_loses"], list)
+    # Every distance is the mean of the draws; the first draw is the one-draw protocol's.
+    per_draw = rows["trained"]["object_swd_per_draw"]
+    assert len(per_draw) == 2 == len(result["gap_closed_per_draw"]) and rows["trained"]["object_swd"] == pytest.approx(np.mean(per_draw))
+    one = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
+                                  dataclasses.replace(cfg, repeats=1), log=lambda line: None)
+    assert one["rows"]["oracle"]["object_swd"] == pytest.approx(rows["oracle"]["object_swd_per_draw"][0])
+    assert one["rows"]["trained"]["object_swd"] == pytest.approx(per_draw[0])
     assert all(np.isfinite(rows[row]["object_swd_vs_photos"]) for row in rows)
     d = result["diversity"]
     assert d["reference_materials"]["spread"] > 1 and d["reference_materials"]["pairwise"] > 1 and d["photo_set_spread"] > 1
@@ -134,7 +142,7 @@ def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp
 
     monkeypatch.setattr(generation, "load_generator", collapsed)
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                     GenerationConfig(views=2, latents=3, kid_fid=False), log=lambda line: None)
+                                     GenerationConfig(views=2, latents=3, kid_fid=False, repeats=1), log=lambda line: None)
     assert result["diversity"]["trained"]["spread"] == pytest.approx(0, abs=1e-3)
     assert result["diversity"]["trained"]["pairwise"] == pytest.approx(0, abs=1e-3)
 
@@ -147,7 +155,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     from infer import generation
 
     original_load, original_render, original_draws = generation.load_generator, generation.generator_renders, generation.material_draws
-    seen, draws, fresh_photos = [], [], []
+    seen, oracle, diversity_reference, fresh_photos = [], [], [], []
 
     def load(path, device):
         generator, meta = original_load(path, device)
@@ -160,10 +168,13 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
 
     def material(*args, **kwargs):
         lit = kwargs.get("lit", args[6] if len(args) > 6 else False)
-        if kwargs.get("stream", args[5] if len(args) > 5 else None) == generation._FRESH_PHOTOS_STREAM:
+        stream = kwargs.get("stream", args[5] if len(args) > 5 else generation._REFERENCE_STREAM)
+        if stream == generation._FRESH_PHOTOS_STREAM:
             fresh_photos.append(lit)  # the reference: photos, lit whatever the generator
+        elif stream == generation._ORACLE_STREAM:
+            oracle.append(lit)
         else:
-            draws.append(lit)
+            diversity_reference.append(lit)
         return original_draws(*args, **kwargs)
 
     monkeypatch.setattr(generation, "load_generator", load)
@@ -173,15 +184,16 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
                                      GenerationConfig(views=2, latents=2, kid_fid=False), log=lambda line: None)
     assert result["generator_lit"] is enabled
     assert len(seen) >= 4 * len(result["shapes"]) and all(lit is enabled for lit in seen)
-    per_shape = len(draws) // len(result["shapes"])  # oracle (lit), oracle unlit, then the diversity reference
     assert fresh_photos and all(fresh_photos)
-    assert draws[:per_shape][:2] == [True, False] and all(d[-1] is enabled for d in [draws[i * per_shape:(i + 1) * per_shape] for i in range(len(result["shapes"]))])
+    # The oracle is drawn lit and unlit for every shape in every draw; the diversity reference as the generator.
+    assert oracle == [True, False] * (len(result["shapes"]) * result["settings"]["repeats"])
+    assert len(diversity_reference) == len(result["shapes"]) and all(lit is enabled for lit in diversity_reference)
 
 
 def test_command_writes_results_and_refuses_to_overwrite(world_and_gan, tmp_path, capsys):
     root = world_and_gan
     args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--gan",
-            str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--kid-subsets", "2",
+            str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--repeats", "1", "--kid-subsets", "2",
             "--device", "cpu", "--features", "randvgg"]
     assert main(args) == 0
     assert {"generation.json", "generation.md", "generation_samples.png"} <= {p.name for p in (tmp_path / "out").iterdir()}
@@ -195,7 +207,7 @@ def test_the_training_split_measures_the_shapes_the_gan_trained_on(world_and_gan
     root = world_and_gan
     index = json.loads((root / "world" / "index.json").read_text())
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                     GenerationConfig(views=6, latents=2, kid_fid=False, max_shapes=1, split="train"), log=lambda line: None)
+                                     GenerationConfig(views=6, latents=2, kid_fid=False, max_shapes=1, split="train", repeats=1), log=lambda line: None)
     assert result["split"] == "train" and result["shapes"] == index["split"]["train_shapes"][:1]
     assert result["shapes"][0] not in index["split"]["query_shapes"]
     assert result["rows"]["oracle"]["object_swd"] < result["rows"]["untrained"]["object_swd"]

@@ -213,6 +213,7 @@ def test_two_process_data_parallel_run(tiny_data, tmp_path):
     assert result.returncode == 0, result.stderr[-3000:]
     records = metrics(out)
     assert [r["iteration"] for r in records] == [1, 2] and records[-1]["world_size"] == 2
+    assert records[-1]["torch_threads"] == 1, "OMP_NUM_THREADS=1: the run records the threads it summed with"
     _, meta = load_checkpoint(out / "checkpoint.safetensors")
     assert meta["world_size"] == 2 and len(meta["rng"]) == 2
 

@@ -405,7 +405,9 @@ class GanTrainer:
                     metric = self.measure()
                     logs.update(metric, best=self.keep_if_best(metric))
                 if main and (it % cfg.log_every == 0 or it == cfg.iters or "best" in logs):
-                    self.run.log({"iteration": it, **logs, **throughput.fields(it), "world_size": self.dist.world_size})
+                    # The thread count is logged because it changes float sums, so a long run's trajectory with it.
+                    self.run.log({"iteration": it, **logs, **throughput.fields(it), "world_size": self.dist.world_size,
+                                  "torch_threads": torch.get_num_threads()})
                 if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
                     self.save(self.run.checkpoint_path)
                 if main and cfg.snapshot_every and it % cfg.snapshot_every == 0:

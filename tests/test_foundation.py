@@ -105,3 +105,16 @@ def test_threads_follow_the_idle_cores_unless_the_user_sets_them():
     assert choose_threads(cpu_count=2, load=5.0, environ={"OMP_NUM_THREADS": "2"}) == 2
     assert choose_threads(cpu_count=2, load=0.0, environ={"MESH2TEX_THREADS": "1", "OMP_NUM_THREADS": "2"}) == 1
     assert choose_threads(cpu_count=2, load=0.0, environ={"OMP_NUM_THREADS": "junk"}) == 2
+
+
+def test_busy_cores_are_read_from_the_kernels_cpu_counters(tmp_path, monkeypatch):
+    """Between two readings of /proc/stat, 300 of 400 ticks busy on a 2-core machine: 1.5 cores."""
+    from mesh2tex import runtime
+
+    stat = tmp_path / "stat"
+    # user nice system idle iowait irq softirq steal guest guest_nice
+    stat.write_text("cpu  100 0 100 500 0 0 0 0 0 0\ncpu0 50 0 50 250 0 0 0 0 0 0\ncpu1 50 0 50 250 0 0 0 0 0 0\nintr 1\n")
+    later = "cpu  350 0 150 580 20 0 0 0 0 0\ncpu0 1 0 1 1 0 0 0 0 0 0\ncpu1 1 0 1 1 0 0 0 0 0 0\n"
+    monkeypatch.setattr(runtime.time, "sleep", lambda seconds: stat.write_text(later))
+    assert runtime.busy_cores_now(stat_path=str(stat)) == pytest.approx(1.5)
+    assert runtime.busy_cores_now(stat_path=str(tmp_path / "missing")) is None

@@ -22,7 +22,7 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     metrics = json.loads((out / "metrics.json").read_text())
     assert all(np.isfinite(v) for v in metrics["transfer"]["transfer"].values() if v != float("inf"))
     generation = metrics["generation"]
-    assert set(generation["rows"]) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "flat_colour", "mean_texture"}
+    assert set(generation["rows"]) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture"}
     assert {"gap_closed", "diversity"} <= set(generation) and (out / "gan" / "generation_samples.png").is_file()
     stages = [json.loads(line)["stage"] for line in (out / "demo_log.jsonl").read_text().splitlines()]
     assert stages[:2] == ["prepare synthetic", "prepare shapes (train)"]

@@ -378,6 +378,9 @@ def generation_section(g: dict, fmt, table, out: Path) -> str:
                  ("photo set, across shapes (reference)", fmt(d["photo_set_spread"]), "")]
     gap = g["gap_closed"]
     shipped = shipped_model_note(fmt)
+    loses = g.get("oracle_loses", [])
+    oracle_note = (f"<p>Columns the oracle does not win here: {', '.join(loses)}. On so few held-out chairs those figures rank "
+                   "runs, not the distance to the ground truth.</p>\n" if loses else "")
     return f"""<h2>Generation: the GAN on the {len(g['shapes'])} held-out shapes, against a fresh photo set</h2>
 <p>Every distance is to a fresh photo set: the training shapes at their photos' cameras and lights, each photo with a new
 material of the world's sampler. (Measured against the training photos themselves, a generator that reproduces their
@@ -387,7 +390,7 @@ few materials beats fresh draws of the true textures, and the oracle would no lo
 reproduced its training chairs' materials exactly would close {fmt(g.get('gap_closed_training_materials'))}.
 Object SWD: sliced Wasserstein distance of 7x7 patches of object pixels only (x1e3); the whole-image SWD also sees the
 white background and the silhouettes, which the rows share, so it barely ranks textures.</p>
-<p>Diversity: {g['settings']['latents']} latents per held-out shape at one pose (higher is more varied).
+{oracle_note}<p>Diversity: {g['settings']['latents']} latents per held-out shape at one pose (higher is more varied).
 Colour spread {fmt(d['trained_spread_vs_photo_set'])} of the photo set's.</p>
 {table(diversity, ("", "colour spread (ΔE)", "mean pairwise ΔE"))}
 {shipped}

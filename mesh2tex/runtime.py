@@ -71,9 +71,10 @@ def choose_threads(cpu_count: int | None = None, load: float | None = None, envi
             load = os.getloadavg()[0]
         except OSError:  # not available on this platform
             load = 0.0
-        now = busy_cores_now()
-        if now is not None:
-            load = min(load, now)
+        if int(round(load)) > 0:  # the moment can only lower the load: measure it (0.2 s) only when that matters
+            now = busy_cores_now()
+            if now is not None:
+                load = min(load, now)
     return max(1, min(cpu_count, cpu_count - int(round(load))))
 
 

@@ -9,6 +9,7 @@ import torch
 
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
+from mesh2tex.nn.faceconv import ModulatedFaceConv
 from mesh2tex.nn.field import NeuralField, blend_vertex_features, local_coordinates, sorted_cdf_coordinates, vertex_features
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
@@ -386,3 +387,40 @@ def test_the_diversity_term_runs_from_its_start_every_interval_scaled_by_it():
     assert GanLoss(GanLossConfig(diversity_weight=0.0), None, None).diversity_gain(0) == 0
     with pytest.raises(ValueError, match="diversity_interval"):
         GanLossConfig(diversity_interval=0)
+
+
+
+def test_gathers_repeat_to_the_bit_with_two_threads():
+    """A training run repeats from its seed on a multi-core CPU: the layers whose rows many faces or
+    pixels read (the styles of a modulated face convolution, the corner features psi blends) return
+    identical gradients in every backward pass on two torch threads, even when the readers of one
+    row are spread over the whole batch."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        torch.manual_seed(0)
+        conv = ModulatedFaceConv(32, 32, 16)
+        x = torch.randn(20000, 32, requires_grad=True)
+        sample_index = torch.randint(0, 2, (20000,))  # faces of two samples, interleaved
+        neighbors = torch.randint(-1, 20000, (20000, 9))
+        w = torch.randn(2, 16, requires_grad=True)
+        vertex_feats = torch.randn(8, 16, requires_grad=True)  # a cube's corners, seen by 50000 pixels
+        triangles = torch.randint(0, 8, (12, 3))
+        triangle_id = torch.randint(0, 12, (50000,))
+        bary = torch.rand(50000, 3)
+        weights = torch.randn(20000, 32), torch.randn(50000, 16)
+
+        def gradients():
+            for tensor in (x, w, vertex_feats):
+                tensor.grad = None
+            conv.zero_grad()
+            out = conv(x, neighbors, w, sample_index, noise_mode="none")
+            blended = blend_vertex_features(vertex_feats, triangles, triangle_id, bary)
+            ((out * weights[0]).sum() + (blended * weights[1]).sum()).backward()
+            return [x.grad.clone(), w.grad.clone(), vertex_feats.grad.clone()] + [p.grad.clone() for p in conv.parameters() if p.grad is not None]
+
+        first = gradients()
+        for _ in range(4):
+            assert all(torch.equal(a, b) for a, b in zip(first, gradients()))
+    finally:
+        torch.set_num_threads(threads)

@@ -279,3 +279,20 @@ def test_baked_texels_equal_the_readout(readout):
     baked = torch.from_numpy(texture)[covered].float() / 127.5 - 1
     assert covered.float().mean() > 0.3
     assert (baked - expected).abs().max() <= 1.0 / 255 + 1e-6
+
+
+def test_points_read_the_state_of_their_own_sample():
+    """colours(state, ..., sample): a point of sample b is coloured from state b, as if b were the only state."""
+    vertices, quads = cube_sphere(2)
+    graph = build_cell_graph(vertices, quads)
+    torch.manual_seed(0)
+    model = MeshNCA(NCAConfig(channels=6, hidden=8))
+    state = torch.rand(3, graph.num_cells, 6) * 1.6 - 0.8
+    triangle_id = torch.randint(0, graph.triangles.shape[0], (50,))
+    bary = torch.distributions.Dirichlet(torch.ones(3)).sample((50,))
+    sample = torch.randint(0, 3, (50,))
+    with torch.no_grad():
+        mixed = model.colours(state, graph.triangles, triangle_id, bary, sample)
+        for b in range(3):
+            alone = model.colours(state[b:b + 1], graph.triangles, triangle_id, bary)
+            torch.testing.assert_close(mixed[sample == b], alone[sample == b])

@@ -35,12 +35,21 @@ def gather_neighborhood(x: torch.Tensor, neighbors: torch.Tensor) -> torch.Tenso
     return _gather_rows(x, neighbors)
 
 
+def take_rows(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """x[index] for a differentiable x: x (R, ...), index (...) int64 rows of x -> (*index.shape, *x.shape[1:]).
+
+    The same values as ``x[index]``, but its gradient is ``index_add`` instead of an accumulating
+    ``index_put``: on a CPU with several threads the latter adds the rows that share an index in
+    whichever order the threads reach them, so two runs from one seed drift apart; ``index_add``
+    adds them in index order, and is also the faster of the two.
+    """
+    return x.index_select(0, index.reshape(-1)).reshape(*index.shape, *x.shape[1:])
+
+
 def _gather_rows(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     """x: (R, C), index: (...) int64 rows of x or -1 -> (..., C), zeros at -1."""
     padded = torch.cat([x, x.new_zeros(1, x.shape[1])], dim=0)
-    flat = torch.where(index >= 0, index, x.shape[0]).reshape(-1)
-    # index_select on the flat index: the same rows as padded[index], a faster forward on a CPU.
-    return padded.index_select(0, flat).reshape(*index.shape, x.shape[1])
+    return take_rows(padded, torch.where(index >= 0, index, x.shape[0]))
 
 
 class _BiasLeakyReLU(torch.autograd.Function):
@@ -207,7 +216,7 @@ class ModulatedFaceConv(nn.Module):
         check_shape(w, "ModulatedFaceConv: w", ("B", self.affine.weight.shape[1]), dtype="float")
         styles = self.affine(w)  # (B, in)
         weight = self.weight * self.weight_gain  # (out, k, in)
-        x = x * styles[sample_index].to(x.dtype)
+        x = x * take_rows(styles, sample_index).to(x.dtype)
         if self.kernel_size == 1:
             out = x @ weight[:, 0].t().to(x.dtype)  # (F, out)
         else:
@@ -215,7 +224,7 @@ class ModulatedFaceConv(nn.Module):
         if self.demodulate:
             # (B, out): 1 / |w'_{b,o}| over the kernel and the input channels.
             dcoefs = (weight.square().sum(1).unsqueeze(0) * styles.square().unsqueeze(1)).sum(2).add(1e-8).rsqrt()
-            out = out * dcoefs[sample_index].to(out.dtype)
+            out = out * take_rows(dcoefs, sample_index).to(out.dtype)
         if self.use_noise and noise_mode == "random":
             out = out + torch.randn(out.shape[0], 1, device=out.device, dtype=out.dtype) * self.noise_strength.to(out.dtype)
         return bias_act(out, self.bias, self.activation, gain=gain, clamp=self.clamp)

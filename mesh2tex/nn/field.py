@@ -22,7 +22,7 @@ import torch
 from torch import nn
 
 from mesh2tex.checks import check_shape
-from mesh2tex.nn.faceconv import FullyConnected
+from mesh2tex.nn.faceconv import FullyConnected, take_rows
 
 COORDINATE_MODES = ("raw", "sorted_cdf")
 # (left, right, mode) of the triangular distribution of the largest, middle and smallest barycentric.
@@ -70,7 +70,7 @@ def vertex_features(face_features: torch.Tensor, quads: torch.Tensor, num_vertic
 
 def blend_vertex_features(vertex_feats: torch.Tensor, triangles: torch.Tensor, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
     """b1 F_v1 + b2 F_v2 + b3 F_v3 at points. vertex_feats (V, C), triangles (T, 3), triangle_id (P,), bary (P, 3) -> (P, C)."""
-    corners = vertex_feats[triangles[triangle_id]]  # (P, 3, C)
+    corners = take_rows(vertex_feats, triangles[triangle_id])  # (P, 3, C)
     return (corners * bary.unsqueeze(2).to(corners.dtype)).sum(1)
 
 

@@ -41,6 +41,7 @@ from torch import nn
 from mesh2tex.checks import check_shape, check_type
 from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.geometry.prepared import quads_to_triangles
+from mesh2tex.nn.faceconv import take_rows
 from mesh2tex.nn.field import sorted_cdf_coordinates, vertex_features
 from mesh2tex.render.shading import vertex_normals
 
@@ -360,9 +361,9 @@ class MeshNCA(nn.Module):
             check_shape(sample, "MeshNCA.colours: sample", ("P",), sizes=points, dtype="int")
         corners = triangles[triangle_id]  # (P, 3)
         if sample is None:
-            corner_states = state[0][corners]
-        else:
-            corner_states = state[sample[:, None], corners]
+            corner_states = take_rows(state[0], corners)  # (P, 3, C)
+        else:  # cell (sample, vertex) is row sample * V + vertex of the (B V, C) states
+            corner_states = take_rows(state.reshape(-1, state.shape[2]), sample[:, None] * state.shape[1] + corners)
         bary = bary.to(state.dtype)
         rgb = self.readout(corner_states, bary)
         if graft is None:

@@ -16,6 +16,7 @@ import torch
 
 from mesh2tex.checks import check_shape, check_type
 from mesh2tex.nn.batch import MeshBatch
+from mesh2tex.nn.faceconv import take_rows
 from mesh2tex.nn.field import blend_vertex_features, vertex_features
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
 from mesh2tex.nn.nca import CellGraph, MeshNCA
@@ -134,7 +135,7 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     background, flat_index, triangle_id, bary = _covered_pixels(samples.triangle_id, samples.bary, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
     images = paint_pixels(background, flat_index, shade(field_colours(generator, texture, batch, triangle_id, bary)))
-    proxy_images = paint_pixels(background, flat_index, shade(texture.face_rgb[triangle_id // 2])) if proxy else None
+    proxy_images = paint_pixels(background, flat_index, shade(take_rows(texture.face_rgb, triangle_id // 2))) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=samples.mask.unsqueeze(1).to(images.dtype))
 
 
@@ -149,7 +150,7 @@ def render_proxy_views(texture: FaceTexture, batch: MeshBatch, samples: SurfaceS
     check_shape(background, "render_proxy_views: background", (n, 3), (n, 3, h, w), dtype="float")
     background, flat_index, triangle_id, _ = _covered_pixels(samples.triangle_id, samples.bary, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
-    return paint_pixels(background, flat_index, shade(texture.face_rgb[triangle_id // 2]))
+    return paint_pixels(background, flat_index, shade(take_rows(texture.face_rgb, triangle_id // 2)))
 
 
 def _covered_pixels(triangle_id: torch.Tensor, bary: torch.Tensor, background: torch.Tensor):

@@ -424,3 +424,21 @@ def test_gathers_repeat_to_the_bit_with_two_threads():
             assert all(torch.equal(a, b) for a, b in zip(first, gradients()))
     finally:
         torch.set_num_threads(threads)
+
+
+def test_renders_have_no_thread_order_gathers():
+    """Every row gather between the latent and a rendered pixel goes through take_rows: no x[index]
+    node, whose gradient adds shared rows in thread order, is in the graph of a field or proxy render."""
+    torch.manual_seed(0)
+    gen, batch = tiny_generator(), tiny_batch()
+    ws = gen.mapping(torch.randn(2, 16))
+    out = render_field_views(gen, batch, ws, views(2, 2), (32, 32), torch.zeros(4, 3), proxy=True)
+    seen, stack, names = set(), [out.images.sum().grad_fn, out.proxy.sum().grad_fn], set()
+    while stack:
+        node = stack.pop()
+        if node is None or node in seen:
+            continue
+        seen.add(node)
+        names.add(type(node).__name__)
+        stack.extend(parent for parent, _ in node.next_functions)
+    assert "IndexSelectBackward0" in names and not any(name.startswith("IndexBackward") for name in names)

@@ -1,6 +1,6 @@
 """Seconds per training iteration and peak memory of ``train gan`` at its default configuration.
 
-    python benchmarks/bench_gan_step.py [--iters 8] [--device auto|cpu|cuda] [--faces 6144]
+    python benchmarks/bench_gan_step.py [--iters 8] [--device auto|cpu|cuda] [--faces 6144] [--levels 5]
                                         [--batch 2] [--views 4] [--resolution 128] [--config YAML] [--threads N]
                                         [--previous REV] [--check N]
 
@@ -118,6 +118,7 @@ def main() -> None:
     parser.add_argument("--iters", type=int, default=8)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--faces", type=int, default=6144)
+    parser.add_argument("--levels", type=int, default=5, help="levels of the quad hierarchy (the demo: 4)")
     parser.add_argument("--batch", type=int, default=2)
     parser.add_argument("--views", type=int, default=4)
     parser.add_argument("--resolution", type=int, default=128)
@@ -136,7 +137,7 @@ def main() -> None:
     shapes = []
     for i in range(2):
         mesh = generate_shape("chair", np.random.default_rng(i))
-        shapes.append(prepare_shape(mesh.vertices, mesh.faces, face_count=args.faces, levels=5, seed=0))
+        shapes.append(prepare_shape(mesh.vertices, mesh.faces, face_count=args.faces, levels=args.levels, seed=0))
     print(f"prepared 2 chairs in {time.perf_counter() - t0:.1f} s; finest faces {[s.face_counts[0] for s in shapes]}")
 
     versions = [Version("current")]

@@ -59,6 +59,15 @@ def test_swd_grows_with_a_distribution_shift():
     assert swd(reference * 2 - 1, same * 2 - 1, **options) == pytest.approx(base, rel=1e-5)
 
 
+def test_swd_sorts_projections_exactly_as_torch_does():
+    # The SWD sorts with numpy for speed: its rows must be torch.sort's, ties and duplicates included.
+    from mesh2tex.metrics.swd import sorted_rows
+    values = torch.randn(64, 300, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    values[:, ::7] = values[:, :1]  # repeated values in every row
+    assert torch.equal(sorted_rows(values), torch.sort(values, dim=1).values)
+    assert torch.equal(sorted_rows(values[:, 1:]), torch.sort(values[:, 1:], dim=1).values)  # a view that is not contiguous
+
+
 def test_paired_metrics():
     generator = torch.Generator().manual_seed(0)
     images = torch.rand(2, 3, 32, 32, generator=generator)

@@ -15,7 +15,7 @@ Stages (each one resumes: re-running the command after an interruption continues
                     ground-truth rows on the held-out shapes, gap closed, diversity across latents)
 7. ``report.html``  everything above on one page
 
-The defaults are a CPU budget (about 18 minutes on 2 cores), far below the paper's training
+The defaults are a CPU budget (about 17 minutes on 2 cores), far below the paper's training
 (50k iterations on two GPUs): the figures show the pipeline working, not the method's ceiling.
 ``--config YAML`` changes any field of :class:`DemoConfig`.
 """
@@ -73,9 +73,9 @@ class DemoGanConfig:
 class DemoViewNetsConfig:
     samples: int = 1536  # rendered views for the pose and NOC networks (rendered once, shared by both)
     resolution: int = 64  # their input size
-    width: int = 12  # the pose network's channel width (8 reads the azimuth worse; docs/transfer.md)
-    noc_width: int = 8  # the NOC network's (12 or 16: held-out NOC error 0.05 against 0.08, no better transfer, 2-3x the time)
-    pose_iters: int = 1000  # pose network steps (held-out accuracy levels off after about 1000; docs/transfer.md)
+    width: int = 12  # the pose network's channel width (as good as 16 on held-out queries, 8 worse; docs/transfer.md)
+    noc_width: int = 8  # the NOC network's (12 or 16: a sixth lower NOC error on queries, no better transfer, 2-3.5x the time)
+    pose_iters: int = 1500  # pose network steps (1000 read the held-out queries worse; docs/transfer.md)
     noc_iters: int = 400  # NOC network steps
 
     def __post_init__(self):

@@ -30,6 +30,13 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     pose_views, noc_views = np.load(out / "pose" / "views.npz"), np.load(out / "noc" / "views.npz")
     assert str(noc_views["fingerprint"]) == str(pose_views["fingerprint"]), "the NOC run trains on the pose run's views"
     assert pose_views["gan_textured"].any(), "some training views are textured by the demo's GAN"
+    import yaml
+
+    from infer.demo import QUICK, DemoConfig
+    from mesh2tex.config import load_config
+    nets = load_config(DemoConfig, None, QUICK).view_nets
+    widths = {kind: yaml.safe_load((out / kind / "config.yaml").read_text())["width"] for kind in ("pose", "noc")}
+    assert widths == {"pose": nets.width, "noc": nets.noc_width} and nets.width != nets.noc_width, "each network its own width"
 
     assert main(["demo", "--out", str(out), "--quick"]) == 0, "a second run resumes from what is there"
     assert read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"] == iteration

@@ -135,7 +135,7 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     background, flat_index, triangle_id, bary = _covered_pixels(samples.triangle_id, samples.bary, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
     images = paint_pixels(background, flat_index, shade(field_colours(generator, texture, batch, triangle_id, bary)))
-    proxy_images = paint_pixels(background, flat_index, shade(take_rows(texture.face_rgb, triangle_id // 2))) if proxy else None
+    proxy_images = paint_pixels(background, flat_index, shade(_quad_colours(texture, triangle_id))) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=samples.mask.unsqueeze(1).to(images.dtype))
 
 
@@ -150,7 +150,13 @@ def render_proxy_views(texture: FaceTexture, batch: MeshBatch, samples: SurfaceS
     check_shape(background, "render_proxy_views: background", (n, 3), (n, 3, h, w), dtype="float")
     background, flat_index, triangle_id, _ = _covered_pixels(samples.triangle_id, samples.bary, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
-    return paint_pixels(background, flat_index, shade(take_rows(texture.face_rgb, triangle_id // 2)))
+    return paint_pixels(background, flat_index, shade(_quad_colours(texture, triangle_id)))
+
+
+def _quad_colours(texture: FaceTexture, triangle_id: torch.Tensor) -> torch.Tensor:
+    """The proxy colour of each covered pixel: triangle_id (P,) int64 -> (P, 3), its quad's
+    ``texture.face_rgb`` row (quad q is split into triangles 2q and 2q + 1)."""
+    return take_rows(texture.face_rgb, triangle_id // 2)
 
 
 def _covered_pixels(triangle_id: torch.Tensor, bary: torch.Tensor, background: torch.Tensor):

@@ -2,7 +2,7 @@
 
     python benchmarks/learning_curve_gan.py --run RUN --world WORLD --shapes HELD_OUT_SHAPES
         [--checkpoints FILE...] [--views 8] [--latents 8] [--max-shapes 0] [--json curve.json] [--threads 1]
-        [--split held_out|train] [--seed 0]
+        [--split held_out|train] [--seed 0] [--truncation 1.0]
 
 RUN is a ``mesh2tex train gan`` run directory; its generators are ``RUN/snapshots/*.safetensors``
 (``snapshot_every`` in the training config) unless ``--checkpoints`` names files (any GAN
@@ -61,6 +61,7 @@ def main() -> None:
     parser.add_argument("--json")
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0, help="the protocol's seed: latents, untrained weights, material draws, SWD sampling")
+    parser.add_argument("--truncation", type=float, default=1.0, help="truncation psi of the generators' latents (evaluate --generation's option)")
     parser.add_argument("--gan-lighting", choices=LIGHTING_MODES, default="auto",
                         help="the generator's rows lit, unlit, or as the run was trained (evaluate --generation's option)")
     parser.add_argument("--split", choices=list(SPLITS), default="held_out",
@@ -74,7 +75,7 @@ def main() -> None:
     paths.sort(key=lambda p: read_checkpoint_meta(p)["meta"]["iteration"])
     seconds = wall_seconds(run)
     cfg = GenerationConfig(views=args.views, latents=args.latents, kid_fid=False, max_shapes=args.max_shapes, lighting=args.gan_lighting,
-                           split=args.split, seed=args.seed)
+                           split=args.split, seed=args.seed, truncation=args.truncation)
     curve = []
     print(f"{'iteration':>9} {'hours':>6} {'objSWD':>7} {'oracle':>7} {'untrained':>9} {'gap':>5} {'gap_hist':>8} "
           f"{'gap_photos':>10} {'div/photos':>10} {'pair/materials':>14}")

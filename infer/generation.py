@@ -57,6 +57,11 @@ photo-like light: the first view's light turned with the camera to the pose's az
 shapes) measures the same rows on the shapes the GAN trained on, at their own photos' cameras.
 Beside the held-out figures it shows how much of what the generator learnt is tied to the shapes
 it saw: the generalisation gap.
+
+**Truncation.** ``truncation`` (``--truncation``) maps the trained row's latents with that psi, as
+``infer generate --truncation`` does (every latent pulled towards ``w_avg``; 0 paints the mean
+texture): it measures the trade between distance and diversity a user can choose. The untrained row
+keeps psi 1.
 """
 
 from __future__ import annotations
@@ -124,10 +129,13 @@ class GenerationConfig:
     repeats: int = 4  # draws of the set rows' latents, oracle materials and fresh photo set; their distances averaged
     lighting: str = "auto"  # the generator's rows: auto (lit when it was trained under the light prior), lit or unlit
     split: str = "held_out"  # the shapes measured: held_out (never trained on) or train (beside held_out: the generalisation gap)
+    truncation: float = 1.0  # truncation psi of the trained generator's latents, as 'infer generate --truncation' (1: none)
 
     def __post_init__(self):
         if self.repeats < 1:
             raise ValueError(f"repeats must be at least 1, got {self.repeats}")
+        if not 0.0 <= self.truncation <= 1.0:
+            raise ValueError(f"truncation must be between 0 and 1, got {self.truncation}")
         if self.lighting not in LIGHTING_MODES:
             raise ValueError(f"lighting must be one of {', '.join(LIGHTING_MODES)}, got {self.lighting!r}")
         if self.split not in SPLITS:
@@ -256,15 +264,16 @@ def view_lights(views) -> Lights:
 
 
 def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor | None,
-                      device: torch.device, lit: bool = False, ws: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-    """One latent per view: z (B, z_dim), or style inputs ``ws`` (B, num_ws, w_dim) instead; ``views``
-    B world PhotoSetup records (their cameras, and with ``lit`` their lights) -> images (B, 3, R, R) in
-    [0, 1] on white, masks (B, 1, R, R)."""
+                      device: torch.device, lit: bool = False, ws: torch.Tensor | None = None,
+                      truncation: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """One latent per view: z (B, z_dim) mapped with ``truncation`` psi, or style inputs ``ws``
+    (B, num_ws, w_dim) instead; ``views`` B world PhotoSetup records (their cameras, and with ``lit``
+    their lights) -> images (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R)."""
     b = len(views)
     batch = collate_shapes([shape] * b).to(device)
     camera = orbit_camera(torch.tensor([v.azimuth for v in views]), torch.tensor([v.elevation for v in views]),
                           distance=torch.tensor([v.distance for v in views]), fov=torch.tensor([v.fov for v in views]))
-    ws = generator.mapping(z.to(device)) if ws is None else ws.to(device)
+    ws = generator.mapping(z.to(device), truncation_psi=truncation) if ws is None else ws.to(device)
     out = render_field_views(generator, batch, ws, camera.mvp.to(device), (resolution, resolution),
                              torch.ones(b, 3, device=device), noise_mode="none", lights=view_lights(views).to(device) if lit else None)
     return ((out.images.float() + 1) / 2).clamp(0, 1).cpu(), out.mask.float().cpu()
@@ -330,8 +339,8 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         # Diversity: many latents at one pose.
         pose = pose_view(views[0], cfg.azimuth, cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
         z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_div_gen)
-        for row, generator in (("trained", trained), ("untrained", untrained)):
-            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit)
+        for row, generator, psi in (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0)):
+            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit, truncation=psi)
             diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
             diversity[row]["pairwise"].append(mean_pairwise_delta_e(images, masks))
         images, masks = material_draws(world, name, [pose] * cfg.latents, resolution, cfg.seed, lit=lit)
@@ -352,8 +361,8 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         for name in names:
             views = views_of[name]
             z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
-            for row, generator in (("trained", trained), ("untrained", untrained)):
-                images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit)
+            for row, generator, psi in (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0)):
+                images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit, truncation=psi)
                 drawn[row][0].append(images)
                 drawn[row][1].append(masks)
             for row, oracle_lit in (("oracle", True), ("oracle_unlit", False)):
@@ -423,7 +432,7 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     rows = []
     for k in range(latents):
         z = torch.randn(1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed * 1000 + k)).repeat(views, 1)
-        rows.append(generator_renders(generator, shape, ring, resolution, z, device, lit)[0])
+        rows.append(generator_renders(generator, shape, ring, resolution, z, device, lit, truncation=cfg.truncation)[0])
     rows.append(ground_truth_renders(world, name, ring, resolution, lit=True)[0])
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)

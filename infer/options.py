@@ -114,6 +114,7 @@ def evaluate(parser: argparse.ArgumentParser) -> None:
     generation = ConfigOptions(group, GENERATION_CONFIG, config_flag=None)
     generation.add("--latents", type=int, help="latents per shape for the diversity measures")
     generation.add("--repeats", type=int, help="draws of the latents, oracle materials and fresh photo set, their distances averaged")
+    generation.add("--truncation", type=float, help="truncation psi of the trained generator's latents, as 'infer generate' takes it (1: none)")
     generation.add("--gan-lighting", key="lighting", choices=["auto", "lit", "unlit"],
                    help="the generator's rows: lit by each view's light, unlit, or auto (as the GAN was trained)")
     generation.add("--split", choices=["held_out", "train"],

@@ -147,6 +147,21 @@ def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp
     assert result["diversity"]["trained"]["pairwise"] == pytest.approx(0, abs=1e-3)
 
 
+def test_full_truncation_paints_the_mean_texture_for_every_latent(world_and_gan, capsys):
+    # Truncation 0 pulls every latent onto w_avg: the trained row is the mean texture, with no diversity.
+    root = world_and_gan
+    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
+                                     GenerationConfig(views=2, latents=3, kid_fid=False, repeats=1, truncation=0.0), log=lambda line: None)
+    rows, diversity = result["rows"], result["diversity"]
+    assert rows["trained"]["object_swd"] == pytest.approx(rows["mean_texture"]["object_swd"], rel=1e-4)
+    assert diversity["trained"]["spread"] == pytest.approx(0, abs=1e-3) and diversity["untrained"]["spread"] > 0.1
+    with pytest.raises(ValueError, match="truncation must be between 0 and 1"):
+        GenerationConfig(truncation=1.5)
+    # The command takes it as 'infer generate' does.
+    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--gan", "g", "--out", "o", "--truncation", "0.7", "--print-config"]) == 0
+    assert "truncation: 0.7" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("enabled", [True, False])
 def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_path, monkeypatch, enabled):
     """A generator trained under the light prior is rendered under each view's light on every held-out

@@ -5,8 +5,11 @@ import re
 
 import numpy as np
 import pytest
+import yaml
 
+from infer.demo import QUICK, DemoConfig
 from mesh2tex.cli import main
+from mesh2tex.config import load_config
 from mesh2tex.errors import InputError
 from mesh2tex.io.checkpoint import read_checkpoint_meta
 
@@ -30,10 +33,6 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     pose_views, noc_views = np.load(out / "pose" / "views.npz"), np.load(out / "noc" / "views.npz")
     assert str(noc_views["fingerprint"]) == str(pose_views["fingerprint"]), "the NOC run trains on the pose run's views"
     assert pose_views["gan_textured"].any(), "some training views are textured by the demo's GAN"
-    import yaml
-
-    from infer.demo import QUICK, DemoConfig
-    from mesh2tex.config import load_config
     nets = load_config(DemoConfig, None, QUICK).view_nets
     widths = {kind: yaml.safe_load((out / kind / "config.yaml").read_text())["width"] for kind in ("pose", "noc")}
     assert widths == {"pose": nets.width, "noc": nets.noc_width} and nets.width != nets.noc_width, "each network its own width"
@@ -46,10 +45,7 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
 def test_settings_recorded_before_they_were_nested_still_resume(tmp_path):
     """A demo folder records its settings (demo_config.yaml) and refuses other ones; a folder recorded
     with the flat names (gan_iters, view_samples, latent_iters ...) reads as the same nested settings."""
-    import yaml
-
-    from infer.demo import QUICK, DemoConfig, saved_config
-    from mesh2tex.config import load_config
+    from infer.demo import saved_config
 
     flat = {"shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1, "gan_iters": 2,
             "gan_resolution": 32, "gan_views": 1, "gan_channels": [8, 8, 8], "view_samples": 16, "view_resolution": 32,

@@ -78,8 +78,8 @@ def sorted_rows(values: torch.Tensor) -> torch.Tensor:
 
     numpy sorts these float64 rows about 2.5 times faster than torch on the CPU (its vectorised
     quicksort on one thread, against torch's on two), and sorting is where the SWD spends most of
-    its time (``benchmarks/bench_swd.py``). Rows along the last, contiguous axis: sorting along the first
-    is several times slower in both.
+    its time (``benchmarks/bench_swd.py``). Rows along the last, contiguous axis: torch sorts along
+    the first several times slower.
     """
     return torch.from_numpy(np.sort(values.detach().contiguous().numpy(), axis=1))
 

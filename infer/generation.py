@@ -75,6 +75,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from mesh2tex.config import check_fields
 from mesh2tex.errors import UserError
 from mesh2tex.evaluation.paired import oracle_check
 from mesh2tex.evaluation.world import load_world, world_spec
@@ -134,8 +135,7 @@ class GenerationConfig:
     def __post_init__(self):
         if self.repeats < 1:
             raise ValueError(f"repeats must be at least 1, got {self.repeats}")
-        if not 0.0 <= self.truncation <= 1.0:
-            raise ValueError(f"truncation must be between 0 and 1, got {self.truncation}")
+        check_fields(self, between={"truncation": (0.0, 1.0)})
         if self.lighting not in LIGHTING_MODES:
             raise ValueError(f"lighting must be one of {', '.join(LIGHTING_MODES)}, got {self.lighting!r}")
         if self.split not in SPLITS:
@@ -324,6 +324,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     fixed = {row: ([], []) for row in ROWS if row not in DRAWN_ROWS}  # rows that draw nothing: rendered once
     diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
     z_div_gen = seeded_generator((cfg.seed,), _DIVERSITY_STREAM)
+    generator_rows = (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0))  # (row, generator, truncation psi)
     for position, name in enumerate(names):
         views = views_of[name]
         images, masks = generator_renders(trained, shapes[name], views, resolution, None, device, lit,
@@ -339,7 +340,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         # Diversity: many latents at one pose.
         pose = pose_view(views[0], cfg.azimuth, cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
         z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_div_gen)
-        for row, generator, psi in (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0)):
+        for row, generator, psi in generator_rows:
             images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit, truncation=psi)
             diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
             diversity[row]["pairwise"].append(mean_pairwise_delta_e(images, masks))
@@ -361,7 +362,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         for name in names:
             views = views_of[name]
             z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
-            for row, generator, psi in (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0)):
+            for row, generator, psi in generator_rows:
                 images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit, truncation=psi)
                 drawn[row][0].append(images)
                 drawn[row][1].append(masks)

@@ -155,7 +155,7 @@ def test_full_truncation_paints_the_mean_texture_for_every_latent(world_and_gan,
     rows, diversity = result["rows"], result["diversity"]
     assert rows["trained"]["object_swd"] == pytest.approx(rows["mean_texture"]["object_swd"], rel=1e-4)
     assert diversity["trained"]["spread"] == pytest.approx(0, abs=1e-3) and diversity["untrained"]["spread"] > 0.1
-    with pytest.raises(ValueError, match="truncation must be between 0 and 1"):
+    with pytest.raises(ValueError, match=r"truncation must be in \[0, 1\]"):
         GenerationConfig(truncation=1.5)
     # The command takes it as 'infer generate' does.
     assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--gan", "g", "--out", "o", "--truncation", "0.7", "--print-config"]) == 0

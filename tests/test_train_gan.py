@@ -156,6 +156,33 @@ def test_resume_applies_the_run_configs_learning_rates(tiny_data, tmp_path, caps
     assert [r["iteration"] for r in metrics(out)] == [1, 2, 3]
 
 
+def test_annealed_learning_rates_fall_linearly_and_survive_a_resume(tiny_data, tmp_path, capsys):
+    """``optim.lr_decay_*``: every rate is the config's up to lr_decay_start, then falls linearly to
+    lr_decay_to times it over lr_decay_iters steps and stays there; a run interrupted during the fall
+    and resumed is the uninterrupted run, and the resume does not report the annealed rates as changed."""
+    from train.gan import OptimConfig
+    optim = OptimConfig(lr_decay_start=10, lr_decay_iters=4, lr_decay_to=0.5)
+    assert [optim.lr_scale(i) for i in (0, 10, 11, 12, 14, 100)] == [1.0, 1.0, 0.875, 0.75, 0.5, 0.5]
+    assert OptimConfig().lr_scale(10 ** 6) == 1.0  # off by default
+    with pytest.raises(ValueError, match="lr_decay_to"):
+        OptimConfig(lr_decay_start=1, lr_decay_to=1.5)
+    config = tmp_path / "anneal.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "optim": {"lr_decay_start": 1, "lr_decay_iters": 2, "lr_decay_to": 0.5}}))
+    full, part = tmp_path / "full", tmp_path / "part"
+    assert train(tiny_data, full, "--iters", "4", "--config", str(config)) == 0
+    assert train(tiny_data, part, "--iters", "3", "--config", str(config)) == 0
+    _, meta = load_checkpoint(part / "checkpoint.safetensors")
+    assert [g["lr"] for g in meta["optimizers"]["g"]["param_groups"]] == pytest.approx([0.75e-4, 9e-4, 0.75e-4])  # step 2 -> 3: 0.75
+    capsys.readouterr()
+    assert train(tiny_data, part, "--iters", "4", "--resume") == 0
+    assert "learning rates" not in capsys.readouterr().err
+    ga, meta = load_checkpoint(full / "checkpoint.safetensors")
+    assert [g["lr"] for g in meta["optimizers"]["d"]["param_groups"]] == pytest.approx([7e-4])
+    gb, _ = load_checkpoint(part / "checkpoint.safetensors")
+    for name, tensor in ga["generator_ema"].items():
+        torch.testing.assert_close(tensor, gb["generator_ema"][name], rtol=1e-5, atol=1e-6)
+
+
 def test_a_run_killed_before_its_first_checkpoint_starts_its_metrics_afresh(tiny_data, tmp_path):
     out = tmp_path / "run"
     out.mkdir()

@@ -49,14 +49,30 @@ class OptimConfig:
     lr_discriminator: float = 14e-4  # both discriminators (paper: 14e-4)
     beta1: float = 0.0  # Adam beta1 (paper: 0)
     beta2: float = 0.99  # Adam beta2 (paper: 0.99)
+    # Annealing: from iteration lr_decay_start (0: never) every rate falls linearly, over lr_decay_iters
+    # iterations, to lr_decay_to times its value, and stays there. At constant rates a long run's
+    # generator keeps swinging its whole palette from one few hundred iterations to the next, and its
+    # EMA averages those palettes into duller colours (docs/gan.md, "Annealing the learning rates").
+    lr_decay_start: int = 0
+    lr_decay_iters: int = 2000
+    lr_decay_to: float = 0.25
 
     def __post_init__(self):
-        check_fields(self, positive=("lr_encoder", "lr_generator", "lr_field", "lr_discriminator"),
-                     between={"beta1": (0.0, 0.9999), "beta2": (0.0, 0.9999)})
+        check_fields(self, positive=("lr_encoder", "lr_generator", "lr_field", "lr_discriminator", "lr_decay_iters"),
+                     at_least={"lr_decay_start": 0}, between={"beta1": (0.0, 0.9999), "beta2": (0.0, 0.9999), "lr_decay_to": (0.0, 1.0)})
 
-    def learning_rates(self) -> dict[str, list[float]]:
-        """{optimizer: learning rate of each of its parameter groups}, in the order the trainer builds them."""
-        return {"g": [self.lr_encoder, self.lr_generator, self.lr_field], "d": [self.lr_discriminator]}
+    def lr_scale(self, iteration: int) -> float:
+        """The annealing factor of every learning rate in the step from ``iteration`` to the next (1 up
+        to ``lr_decay_start``)."""
+        if not self.lr_decay_start or iteration <= self.lr_decay_start:
+            return 1.0
+        done = min(1.0, (iteration - self.lr_decay_start) / self.lr_decay_iters)
+        return 1.0 - (1.0 - self.lr_decay_to) * done
+
+    def learning_rates(self, iteration: int = 0) -> dict[str, list[float]]:
+        """{optimizer: learning rate of each of its parameter groups at ``iteration``}, in the order the trainer builds them."""
+        k = self.lr_scale(iteration)
+        return {"g": [k * self.lr_encoder, k * self.lr_generator, k * self.lr_field], "d": [k * self.lr_discriminator]}
 
 
 @dataclass
@@ -201,7 +217,8 @@ class GanTrainer:
         run's (this run starts from its networks, optimizers, loss and augmentation state and iteration)."""
         optimizers = {"g": self.opt_g, "d": self.opt_d}
         groups, meta = runs.load_training_state(path, KIND, self.modules(), optimizers, self.device)
-        changed = runs.apply_learning_rates(optimizers, self.cfg.optim.learning_rates())  # the run's config.yaml rules, not the checkpoint
+        # The run's config.yaml rules, not the checkpoint; annealed as at the checkpoint's last step.
+        changed = runs.apply_learning_rates(optimizers, self.cfg.optim.learning_rates(max(int(meta["iteration"]) - 1, 0)))
         if changed and self.dist.is_main:
             print(f"mesh2tex: note: resuming with the learning rates of {self.run.config_path}: {', '.join(changed)}", file=sys.stderr)
         if GAN_LOSS not in groups:
@@ -240,6 +257,8 @@ class GanTrainer:
         z_g = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
         z_d = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
         g = self.generator
+        if cfg.optim.lr_decay_start:
+            runs.apply_learning_rates({"g": self.opt_g, "d": self.opt_d}, cfg.optim.learning_rates(self.iteration))
 
         encoded = []  # the latest generate's encoder output (it does not depend on the latent): proxy_of, called in G main, reuses G main's
 

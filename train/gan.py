@@ -189,6 +189,9 @@ class GanTrainer:
             raise UserError(f"augment: {error}") from None
         self.loss = GanLoss(cfg.loss, self.d_field, self.d_proxy, autocast=autocast, augment=augment)
         self.ada = AdaptiveAugment(augment)
+        if cfg.loss.colour_weight > 0:  # the training photos' colour moments (the metric's held-out photos excluded)
+            photos = images[: -cfg.metric_photos] if cfg.metric_every else images
+            self.loss.set_colour_target(photos[:, :3].float() / 127.5 - 1.0, photos[:, 3:].float() / 255.0)
         self.images_per_step = cfg.batch * cfg.views * distributed.world_size
         self.held_out, self.best = None, None  # the metric's photos; {"iteration", "swd", "diversity"} of RUN/best.safetensors
         if cfg.metric_every:  # run() checks that some photos are left to train on
@@ -297,7 +300,8 @@ class GanTrainer:
                 elif phase == "Greg":  # on fewer shapes (pl_batch_shrink)
                     z = z[: self.loss.path_length_shapes(cfg.batch)]
                     fn = lambda z_: generate(z_, shapes=z_.shape[0])  # noqa: E731
-                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of, diversity_gain=diversity_gain))
+                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of, diversity_gain=diversity_gain,
+                                                           object_mask=samples.mask.unsqueeze(1).float()))
             bad = None
             try:
                 runs.check_finite(logs, self.iteration)

@@ -5,6 +5,8 @@ colour renders. Losses (StyleGAN2):
     G main:  softplus(-D_field(fake)) + proxy_weight * softplus(-D_proxy(proxy))    (non-saturating)
     G div:   diversity_weight * max(0, diversity_target - d), d the mode-seeking ratio (below), in G main
              from iteration ``diversity_start`` on, every ``diversity_interval`` steps, scaled by it
+    G colour: colour_weight * sum over CIELAB channels of ((mean - photo mean)^2 + (std - photo std)^2) / photo std^2,
+             the moments of object pixels in the field renders, running means over recent steps (below), in G main
     G reg:   path-length regularisation on psi renders, every ``pl_interval`` steps, scaled by it, on
              the first batch / ``pl_batch_shrink`` shapes of the batch (StyleGAN2's default of 2)
     D main:  softplus(D(fake)) + softplus(-D(real)) for both discriminators
@@ -23,6 +25,16 @@ It costs a second synthesis forward and backward; applied lazily (``diversity_in
 gain scaled by the interval as R1's is) it costs that much less. Until ``diversity_start`` it draws
 no second latent at all, so a run that starts the term late is, step for step, the run without the
 term resumed with it (the chair model was trained that way, in two runs).
+
+The colour term matches the first two moments of the generator's object colours (CIELAB, lit, as the
+discriminator sees them) to the photo collection's (:meth:`GanLoss.set_colour_target`). Without it
+a long run's generator swings its whole palette from a few hundred steps to the next, and the
+renders of its EMA stay darker and duller than the photos: on the 56-chair world, matching those
+moments after the fact would take the held-out object SWD from 157 to 100 (docs/gan.md, *Colour
+moments*). The moments are running means (``colour_decay`` the weight of each step's batch) so that
+the term corrects the generator's global bias: a batch of two latents is not pushed towards the
+photos' mean colour, which would shrink every sample towards it. Its value is the running
+moments'; its gradient flows through this batch's.
 """
 
 from __future__ import annotations
@@ -35,6 +47,8 @@ from typing import Callable
 import torch
 import torch.nn.functional as F
 from torch import nn
+
+from kornia.color import rgb_to_lab
 
 from mesh2tex.config import check_fields
 
@@ -54,13 +68,15 @@ class GanLossConfig:
     diversity_target: float = 0.3  # the term stops pushing once d (mean abs proxy difference / mean abs latent difference) reaches it
     diversity_start: int = 0  # the first iteration (0-based) with the term
     diversity_interval: int = 1  # lazy mode seeking: every this many iterations from diversity_start, scaled by it
+    colour_weight: float = 0.0  # colour-moment term: the object colours' CIELAB mean and std against the photos' (0 disables)
+    colour_decay: float = 0.05  # the weight of each step's batch in the running moments
 
     def __post_init__(self):
         check_fields(self, at_least={"r1_gamma": 0, "pl_weight": 0, "proxy_weight": 0, "r1_interval": 1, "pl_interval": 1,
                                      "pl_batch_shrink": 1,
                                      "diversity_weight": 0, "diversity_target": 0, "diversity_start": 0,
-                                     "diversity_interval": 1},
-                     between={"pl_decay": (0.0, 1.0)})
+                                     "diversity_interval": 1, "colour_weight": 0},
+                     between={"pl_decay": (0.0, 1.0), "colour_decay": (0.0, 1.0)})
 
 
 # generate(z) -> (psi images (N,3,H,W), proxy images (N,3,H,W) or None, ws (B,num_ws,w_dim))
@@ -79,6 +95,17 @@ def mode_seeking_ratio(proxy_a: torch.Tensor, proxy_b: torch.Tensor, mask: torch
     return image_distance / (z_a - z_b).abs().mean().clamp(min=1e-8)
 
 
+def object_lab_moments(images: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The CIELAB mean and mean square of object pixels, pooled over the batch, differentiable.
+
+    images (N, 3, H, W) in [-1, 1]; mask (N, 1, H, W) (object > 0.5) -> (mean (3,), mean square (3,)) float32."""
+    lab = rgb_to_lab(((images.float() + 1) / 2).clamp(0, 1))  # (N, 3, H, W)
+    weight = (mask > 0.5).float()
+    count = weight.sum().clamp(min=1.0)
+    mean = (lab * weight).sum(dim=(0, 2, 3)) / count
+    return mean, (lab.square() * weight).sum(dim=(0, 2, 3)) / count
+
+
 class GanLoss:
     """Computes and back-propagates one phase at a time; keeps the running path-length mean.
 
@@ -91,6 +118,29 @@ class GanLoss:
         self.cfg, self.d_field, self.d_proxy, self.autocast = cfg, d_field, d_proxy, autocast
         self.augment = augment or (lambda x: x)
         self.pl_mean = torch.zeros([])
+        self.colour_target: tuple[torch.Tensor, torch.Tensor] | None = None  # the photos' CIELAB (mean (3,), std (3,))
+        self.colour_running: torch.Tensor | None = None  # (2, 3) running mean and mean square of the fakes' object colours
+
+    def set_colour_target(self, photos: torch.Tensor, masks: torch.Tensor) -> None:
+        """The colour term's target: the CIELAB moments of the photos' object pixels.
+        photos (N, 3, H, W) in [-1, 1], masks (N, 1, H, W)."""
+        mean, square = object_lab_moments(photos, masks)
+        self.colour_target = (mean, (square - mean.square()).clamp(min=1e-6).sqrt())
+
+    def colour_loss(self, images: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """The colour-moment term (unweighted) of fakes ``images`` (N, 3, H, W) with object ``mask``
+        (N, 1, H, W); updates the running moments. Its value is the running moments' distance to the
+        target; its gradient is that of this batch's moments."""
+        if self.colour_target is None:
+            raise ValueError("GanLoss: colour_weight > 0 needs set_colour_target (the photos' moments)")
+        batch = torch.stack(object_lab_moments(images, mask))  # (2, 3)
+        previous = batch.detach() if self.colour_running is None else self.colour_running.to(batch.device)
+        running = previous.lerp(batch.detach(), self.cfg.colour_decay)
+        self.colour_running = running
+        moments = running + (batch - batch.detach())  # the running value, this batch's gradient
+        mean, std = moments[0], (moments[1] - moments[0].square()).clamp(min=1e-6).sqrt()
+        target_mean, target_std = (t.to(images.device) for t in self.colour_target)
+        return (((mean - target_mean).square() + (std - target_std).square()) / target_std.square()).sum()
 
     def phases(self, iteration: int) -> list[tuple[str, float]]:
         """(phase, gain) to run at ``iteration`` (0-based): main phases always, regularisers lazily."""
@@ -114,7 +164,8 @@ class GanLoss:
         return float(cfg.diversity_interval)
 
     def accumulate_gradients(self, phase: str, generate: GenerateFn, z: torch.Tensor, real: torch.Tensor, gain: float = 1.0,
-                             proxy_of: ProxyFn | None = None, diversity_gain: float = 1.0) -> dict[str, torch.Tensor]:
+                             proxy_of: ProxyFn | None = None, diversity_gain: float = 1.0,
+                             object_mask: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
         """Back-propagate the loss of ``phase`` (scaled by ``gain``); returns detached scalars to log.
 
         z: (B, z_dim) latents, real: (N, 3, H, W) real images in [-1, 1]; proxy_of: renders a second
@@ -139,6 +190,12 @@ class GanLoss:
                     ratio = mode_seeking_ratio(proxy, proxy_other, mask, z, z_other)
                     logs["mode_seeking"] = ratio.detach()
                     loss = loss + diversity_gain * self.cfg.diversity_weight * F.relu(self.cfg.diversity_target - ratio)
+            if self.cfg.colour_weight > 0:
+                if object_mask is None:
+                    raise ValueError("GanLoss: colour_weight > 0 needs the renders' object_mask")
+                colour = self.colour_loss(images, object_mask)
+                logs["colour_moments"] = colour.detach()
+                loss = loss + self.cfg.colour_weight * colour
             (loss * gain).backward()
         elif phase == "Greg":
             images, _, ws = generate(z)
@@ -194,7 +251,11 @@ class GanLoss:
         return F.softplus(fake_logits).mean() + F.softplus(-real_logits).mean()
 
     def state_dict(self) -> dict[str, torch.Tensor]:
-        return {"pl_mean": self.pl_mean.detach().cpu().reshape([])}
+        state = {"pl_mean": self.pl_mean.detach().cpu().reshape([])}
+        if self.colour_running is not None:
+            state["colour_running"] = self.colour_running.detach().cpu()
+        return state
 
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         self.pl_mean = state["pl_mean"].clone().reshape([])
+        self.colour_running = state["colour_running"].clone() if "colour_running" in state else None  # absent before the term

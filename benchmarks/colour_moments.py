@@ -10,8 +10,9 @@ views, a latent per view, the views' lights, as the generation protocol renders 
 draw of the protocol's fresh photo set, it prints the CIELAB mean lightness and chroma of the object
 pixels, and the object SWD of the renders as they are and after their object colours are moved,
 channel by channel in CIELAB, to the photo set's mean and standard deviation; the same for the oracle
-(the world's own materials, as the protocol draws them) and the flat-colour baseline. The moved
-renders are a diagnosis, not a generator: how much of the distance is the palette's global bias.
+(the world's own materials, as the protocol draws them) and the flat-colour baseline; and the
+lightness and chroma of the training photos, which the GANs learnt from. The moved renders are a
+diagnosis, not a generator: they take the reference's own moments.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from infer.generation import _ORACLE_STREAM, draw_key, fresh_photo_set, generator_renders, material_draws, read_world, sample_views  # noqa: E402
 from mesh2tex.render import composite_images  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
+from mesh2tex.io.image_sets import list_images, load_set  # noqa: E402
 from mesh2tex.io.checkpoint import load_checkpoint  # noqa: E402
 from mesh2tex.io.models import GENERATOR, load_generator, save_inference_checkpoint  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd, srgb_to_lab  # noqa: E402
@@ -84,6 +86,10 @@ def main() -> None:
     chroma = lambda lab_: lab_[1:].norm(dim=0).mean().item()  # noqa: E731
     print(f"{'generator':<70} {'L':>5} {'chroma':>6} {'object SWD':>10} {'moved':>7}")
     print(f"{'fresh photo set (reference)':<70} {lab[0].mean().item():5.1f} {chroma(lab):6.1f}")
+    # The photos the GAN learnt from, read as the protocol reads them (on white, resized): not the reference.
+    training, training_masks = load_set(world.root / "images", "image", args.resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+    lab = object_lab(training, training_masks)
+    print(f"{'training photos (what the GAN learnt from)':<70} {lab[0].mean().item():5.1f} {chroma(lab):6.1f}")
     views = {name: sample_views(world.spec, world.indices[name], args.views) for name in shapes}
 
     def report(label: str, images: torch.Tensor, masks: torch.Tensor, move: bool = True) -> None:
@@ -106,7 +112,8 @@ def main() -> None:
         for name, shape in shapes.items():
             z = torch.randn(len(views[name]), generator.cfg.z_dim, generator=latents)
             with torch.no_grad():
-                image, mask = generator_renders(generator, shape, views[name], args.resolution, z, torch.device("cpu"), lit=True)
+                image, mask = generator_renders(generator, shape, views[name], args.resolution, z, torch.device("cpu"), lit=True,
+                                               photo_resolution=world.spec.resolution)
             images.append(image)
             masks.append(mask)
         report(label, torch.cat(images), torch.cat(masks))

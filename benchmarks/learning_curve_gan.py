@@ -2,7 +2,7 @@
 
     python benchmarks/learning_curve_gan.py --run RUN --world WORLD --shapes HELD_OUT_SHAPES
         [--checkpoints FILE...] [--views 8] [--latents 8] [--max-shapes 0] [--json curve.json] [--threads 1]
-        [--split held_out|train] [--seed 0] [--truncation 1.0]
+        [--split held_out|train] [--seed 0] [--truncation 1.0] [--generator-render photo|direct]
 
 RUN is a ``mesh2tex train gan`` run directory; its generators are ``RUN/snapshots/*.safetensors``
 (``snapshot_every`` in the training config) unless ``--checkpoints`` names files (any GAN
@@ -27,7 +27,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from infer.generation import LIGHTING_MODES, SPLITS, GenerationConfig, run_generation_protocol  # noqa: E402
+from infer.generation import GENERATOR_RENDERS, LIGHTING_MODES, SPLITS, GenerationConfig, run_generation_protocol  # noqa: E402
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 
 
@@ -64,6 +64,8 @@ def main() -> None:
     parser.add_argument("--truncation", type=float, default=1.0, help="truncation psi of the generators' latents (evaluate --generation's option)")
     parser.add_argument("--gan-lighting", choices=LIGHTING_MODES, default="auto",
                         help="the generator's rows lit, unlit, or as the run was trained (evaluate --generation's option)")
+    parser.add_argument("--generator-render", choices=list(GENERATOR_RENDERS), default="photo",
+                        help="the generator's rows rendered as the oracle is (photo), or by the GAN's own renderer (direct; evaluate --generation's option)")
     parser.add_argument("--split", choices=list(SPLITS), default="held_out",
                         help="the world's shapes measured: held_out, or train (--shapes the prepared training shapes; evaluate --generation's option)")
     args = parser.parse_args()
@@ -75,7 +77,8 @@ def main() -> None:
     paths.sort(key=lambda p: read_checkpoint_meta(p)["meta"]["iteration"])
     seconds = wall_seconds(run)
     cfg = GenerationConfig(views=args.views, latents=args.latents, kid_fid=False, max_shapes=args.max_shapes, lighting=args.gan_lighting,
-                           split=args.split, seed=args.seed, truncation=args.truncation)
+                           split=args.split, seed=args.seed, truncation=args.truncation,
+                           generator_render=args.generator_render)
     curve = []
     print(f"{'iteration':>9} {'hours':>6} {'objSWD':>7} {'oracle':>7} {'untrained':>9} {'gap':>5} {'gap_hist':>8} "
           f"{'gap_photos':>10} {'div/photos':>10} {'pair/materials':>14}")

@@ -3,7 +3,10 @@
     mesh2tex evaluate --generation --world WORLD --shapes SHAPES --gan CKPT --out DIR
 
 On the world's held-out shapes (those of its queries, never seen in training), with the same
-cameras and the same white background for every row:
+cameras, the same white background and the same image pipeline for every row (rendered as the
+world renders its photos, at its resolution, supersampled, and read as the photo set is read;
+``generator_render: direct`` renders the generator rows by the GAN's own renderer straight at the
+metric's resolution instead, as the figures before were):
 
     trained       the checkpoint's EMA generator, one random latent per view
     untrained     a freshly initialised generator of the same configuration (the floor)
@@ -77,7 +80,9 @@ import torch
 
 from mesh2tex.config import check_fields
 from mesh2tex.errors import UserError
+from mesh2tex.evaluation.compare import render_for_comparison
 from mesh2tex.evaluation.paired import oracle_check
+from mesh2tex.evaluation.surfaces import generator_surface
 from mesh2tex.evaluation.world import load_world, world_spec
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.image_sets import list_images, load_set, square_resize
@@ -96,6 +101,7 @@ from mesh2tex.texture import mean_latent, shape_mismatch
 
 ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture")
 LIGHTING_MODES = ("auto", "lit", "unlit")
+GENERATOR_RENDERS = ("photo", "direct")
 SPLITS = {"held_out": "held-out", "train": "training"}  # split -> the word for its shapes
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 _ORACLE_STREAM = 7927  # seeds the oracle's material draws
@@ -131,6 +137,9 @@ class GenerationConfig:
     lighting: str = "auto"  # the generator's rows: auto (lit when it was trained under the light prior), lit or unlit
     split: str = "held_out"  # the shapes measured: held_out (never trained on) or train (beside held_out: the generalisation gap)
     truncation: float = 1.0  # truncation psi of the trained generator's latents, as 'infer generate --truncation' (1: none)
+    # The generator rows' renders: "photo" as the world renders its photos and the oracle (supersampled at the world's
+    # resolution, read as the photo set is), or "direct", the GAN's own renderer at the metric's resolution (the figures before)
+    generator_render: str = "photo"
 
     def __post_init__(self):
         if self.repeats < 1:
@@ -138,6 +147,8 @@ class GenerationConfig:
         check_fields(self, between={"truncation": (0.0, 1.0)})
         if self.lighting not in LIGHTING_MODES:
             raise ValueError(f"lighting must be one of {', '.join(LIGHTING_MODES)}, got {self.lighting!r}")
+        if self.generator_render not in GENERATOR_RENDERS:
+            raise ValueError(f"generator_render must be one of {', '.join(GENERATOR_RENDERS)}, got {self.generator_render!r}")
         if self.split not in SPLITS:
             raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {self.split!r}")
 
@@ -177,7 +188,12 @@ def as_photos(out: dict[str, np.ndarray], resolution: int) -> tuple[torch.Tensor
     Rendering straight at ``resolution`` is another image pipeline: the world's own materials on its
     training shapes, rendered at 64 px instead of 128 px and resized, lay 52 object-SWD units from
     the identical photos instead of 10 (car world), a handicap the oracle rows do not deserve."""
-    images, masks = on_white(out["rgb"], out["mask"])
+    return read_as_photos(*on_white(out["rgb"], out["mask"]), resolution)
+
+
+def read_as_photos(images: torch.Tensor, masks: torch.Tensor, resolution: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Renders on white at the world's photo resolution, images (B, 3, S, S) in [0, 1] and masks (B, 1, S, S),
+    resized to ``resolution`` as the photo set is read -> (B, 3, R, R), (B, 1, R, R)."""
     if images.shape[-1] == resolution:
         return images, masks
     return (torch.stack([square_resize(image, resolution) for image in images]),
@@ -265,15 +281,32 @@ def view_lights(views) -> Lights:
 
 def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor | None,
                       device: torch.device, lit: bool = False, ws: torch.Tensor | None = None,
-                      truncation: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+                      truncation: float = 1.0, photo_resolution: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
     """One latent per view: z (B, z_dim) mapped with ``truncation`` psi, or style inputs ``ws``
     (B, num_ws, w_dim) instead; ``views`` B world PhotoSetup records (their cameras, and with ``lit``
-    their lights) -> images (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R)."""
+    their lights) -> images (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R).
+
+    ``photo_resolution`` S > 0: the texture rendered as the world renders its photos and as the oracle
+    is (:func:`mesh2tex.evaluation.render_for_comparison` at S, supersampled and box-filtered, Lambert
+    with flat face normals), then read as the photo set is (on white, resized to R). 0: the GAN's own
+    renderer straight at R, as it trains (no antialiasing): another image pipeline than the oracle's,
+    which costs the generator rows distance that is not the texture's (``docs/gan.md``, *One
+    pipeline for every row*)."""
     b = len(views)
+    ws = generator.mapping(z.to(device), truncation_psi=truncation) if ws is None else ws.to(device)
+    if photo_resolution > 0:
+        batch = collate_shapes([shape]).to(device)
+        images, masks = [], []
+        for view, w in zip(views, ws, strict=True):
+            texture = generator.synthesize(batch, w[None], noise_mode="none")
+            out = render_for_comparison(generator_surface(generator, texture, batch), [view], photo_resolution,
+                                        lighting="photo" if lit else "albedo")
+            images.append(composite_images(out.rgb, out.mask, 1.0))
+            masks.append(out.mask)
+        return read_as_photos(torch.cat(images).cpu(), torch.cat(masks).cpu(), resolution)
     batch = collate_shapes([shape] * b).to(device)
     camera = orbit_camera(torch.tensor([v.azimuth for v in views]), torch.tensor([v.elevation for v in views]),
                           distance=torch.tensor([v.distance for v in views]), fov=torch.tensor([v.fov for v in views]))
-    ws = generator.mapping(z.to(device), truncation_psi=truncation) if ws is None else ws.to(device)
     out = render_field_views(generator, batch, ws, camera.mvp.to(device), (resolution, resolution),
                              torch.ones(b, 3, device=device), noise_mode="none", lights=view_lights(views).to(device) if lit else None)
     return ((out.images.float() + 1) / 2).clamp(0, 1).cpu(), out.mask.float().cpu()
@@ -304,6 +337,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
     lit = trained_lit(meta) if cfg.lighting == "auto" else cfg.lighting == "lit"
+    photo_side = world.spec.resolution if cfg.generator_render == "photo" else 0  # generator_renders' photo_resolution
     names = world.held_out if cfg.split == "held_out" else world.train
     names = names[: cfg.max_shapes] if cfg.max_shapes > 0 else names
     shapes = {}
@@ -328,7 +362,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     for position, name in enumerate(names):
         views = views_of[name]
         images, masks = generator_renders(trained, shapes[name], views, resolution, None, device, lit,
-                                          ws=mean_latent(trained).expand(len(views), -1, -1))
+                                          ws=mean_latent(trained).expand(len(views), -1, -1), photo_resolution=photo_side)
         fixed["mean_texture"][0].append(images)
         fixed["mean_texture"][1].append(masks)
         fixed["flat_colour"][0].append(composite_images(photo_mean.reshape(1, 3, 1, 1).expand_as(images), masks, 1.0))
@@ -341,7 +375,8 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         pose = pose_view(views[0], cfg.azimuth, cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
         z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_div_gen)
         for row, generator, psi in generator_rows:
-            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit, truncation=psi)
+            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit, truncation=psi,
+                                              photo_resolution=photo_side)
             diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
             diversity[row]["pairwise"].append(mean_pairwise_delta_e(images, masks))
         images, masks = material_draws(world, name, [pose] * cfg.latents, resolution, cfg.seed, lit=lit)
@@ -363,7 +398,8 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
             views = views_of[name]
             z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
             for row, generator, psi in generator_rows:
-                images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit, truncation=psi)
+                images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit, truncation=psi,
+                                                  photo_resolution=photo_side)
                 drawn[row][0].append(images)
                 drawn[row][1].append(masks)
             for row, oracle_lit in (("oracle", True), ("oracle_unlit", False)):
@@ -433,7 +469,8 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     rows = []
     for k in range(latents):
         z = torch.randn(1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed * 1000 + k)).repeat(views, 1)
-        rows.append(generator_renders(generator, shape, ring, resolution, z, device, lit, truncation=cfg.truncation)[0])
+        rows.append(generator_renders(generator, shape, ring, resolution, z, device, lit, truncation=cfg.truncation,
+                                      photo_resolution=world.spec.resolution if cfg.generator_render == "photo" else 0)[0])
     rows.append(ground_truth_renders(world, name, ring, resolution, lit=True)[0])
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)

@@ -117,6 +117,9 @@ def evaluate(parser: argparse.ArgumentParser) -> None:
     generation.add("--truncation", type=float, help="truncation psi of the trained generator's latents, as 'infer generate' takes it (1: none)")
     generation.add("--gan-lighting", key="lighting", choices=["auto", "lit", "unlit"],
                    help="the generator's rows: lit by each view's light, unlit, or auto (as the GAN was trained)")
+    generation.add("--generator-render", choices=["photo", "direct"],
+                   help="the generator's rows rendered as the world's photos and the oracle are (photo), or by the GAN's own renderer "
+                        "straight at the metric's resolution (direct: how the figures before were measured)")
     generation.add("--split", choices=["held_out", "train"],
                    help="the world's shapes measured: held_out (never trained on) or train (the GAN's own; --shapes then the prepared training shapes)")
 

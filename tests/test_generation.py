@@ -75,6 +75,37 @@ def test_ground_truth_rows_are_rendered_as_the_world_renders_its_photos(world_an
     assert (images - photos).abs().max() < 1e-6
 
 
+def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan, monkeypatch):
+    """With ``photo_resolution``, a generator's texture is rendered as the oracle and the photos are (at
+    the world's resolution, supersampled, on white, resized as the photo set is read): a generator that
+    paints one colour gives exactly the world pipeline's render of that colour on its mesh, antialiased
+    edges included, which the GAN's own renderer straight at the metric's resolution does not."""
+    from infer import generation
+    from mesh2tex.evaluation.compare import render_for_comparison
+    from mesh2tex.evaluation.surfaces import flat_surface
+    from mesh2tex.geometry.prepared import PreparedShape
+    from mesh2tex.io.models import load_generator
+    from mesh2tex.nn import render_texture
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.render import composite_images
+
+    world = read_world(world_and_gan / "world")
+    name = world.held_out[0]
+    shape = PreparedShape.load(world_and_gan / "shapes" / f"{name}.npz")
+    generator, _ = load_generator(world_and_gan / "gan" / "checkpoint.safetensors", torch.device("cpu"))
+    monkeypatch.setattr(render_texture, "field_colours", lambda generator, texture, batch, triangle_id, bary, **_: torch.full((len(triangle_id), 3), 0.2))
+    views = sample_views(world.spec, world.indices[name], 2)
+    z = torch.randn(2, generator.cfg.z_dim)
+    images, masks = generation.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True,
+                                                 photo_resolution=world.spec.resolution)
+    batch = collate_shapes([shape])
+    out = render_for_comparison(flat_surface(batch.shape_vertices(0), batch.shape_triangles(0), [0.6, 0.6, 0.6]), views, world.spec.resolution)
+    expected, expected_masks = generation.read_as_photos(composite_images(out.rgb, out.mask, 1.0), out.mask, 16)
+    assert torch.equal(masks, expected_masks) and (images - expected).abs().max() < 1e-5
+    direct, _ = generation.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True)
+    assert (direct - expected).abs().max() > 0.05
+
+
 def test_distances_are_to_a_fresh_photo_set_not_the_training_photos(world_and_gan):
     """The reference of every distance shows the training shapes at their photos' cameras, each photo
     with a new material of the world's sampler: not the photos the GAN learnt from."""
@@ -160,6 +191,13 @@ def test_full_truncation_paints_the_mean_texture_for_every_latent(world_and_gan,
     # The command takes it as 'infer generate' does.
     assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--gan", "g", "--out", "o", "--truncation", "0.7", "--print-config"]) == 0
     assert "truncation: 0.7" in capsys.readouterr().out
+    # The generator's renders: as the oracle's by default, the GAN's own renderer on request (earlier figures).
+    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--gan", "g", "--out", "o", "--generator-render", "direct",
+                 "--print-config"]) == 0
+    assert "generator_render: direct" in capsys.readouterr().out
+    assert GenerationConfig().generator_render == "photo"
+    with pytest.raises(ValueError, match="generator_render must be one of photo, direct"):
+        GenerationConfig(generator_render="fast")
 
 
 @pytest.mark.parametrize("enabled", [True, False])
@@ -170,7 +208,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     from infer import generation
 
     original_load, original_render, original_draws = generation.load_generator, generation.generator_renders, generation.material_draws
-    seen, oracle, diversity_reference, fresh_photos = [], [], [], []
+    seen, sides, oracle, diversity_reference, fresh_photos = [], [], [], [], []
 
     def load(path, device):
         generator, meta = original_load(path, device)
@@ -179,6 +217,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
 
     def render(*args, **kwargs):
         seen.append(args[6] if len(args) > 6 else kwargs.get("lit", False))
+        sides.append(kwargs.get("photo_resolution", 0))
         return original_render(*args, **kwargs)
 
     def material(*args, **kwargs):
@@ -199,6 +238,8 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
                                      GenerationConfig(views=2, latents=2, kid_fid=False), log=lambda line: None)
     assert result["generator_lit"] is enabled
     assert len(seen) >= 4 * len(result["shapes"]) and all(lit is enabled for lit in seen)
+    # Every generator render goes through the pipeline of the oracle and the photos, at the world's resolution.
+    assert sides == [read_world(root / "world").spec.resolution] * len(seen)
     assert fresh_photos and all(fresh_photos)
     # The oracle is drawn lit and unlit for every shape in every draw; the diversity reference as the generator.
     assert oracle == [True, False] * (len(result["shapes"]) * result["settings"]["repeats"])

@@ -447,3 +447,41 @@ def test_the_path_length_phase_renders_the_first_half_of_the_batch(tiny_data, tm
     monkeypatch.setattr(gan, "render_field_views", recording_render)
     assert train(tiny_data, tmp_path / "run", "--iters", "1", "--batch", "4") == 0
     assert sorted(set(seen)) == [("Dmain", 4, 4), ("Gmain", 4, 4), ("Greg", 2, 2)]
+
+
+def test_supersampled_fakes_are_rendered_larger_and_box_filtered_to_the_photos_resolution(tiny_data, tmp_path, monkeypatch):
+    """``supersample: 2`` renders every training fake at twice the resolution and averages 2 x 2 blocks,
+    as the photos were antialiased, so that the discriminators see fakes and photos of one size."""
+    import torch.nn.functional as F
+
+    import train.gan as gan
+    from mesh2tex.losses.gan import GanLoss
+
+    rendered, judged = [], []
+    render, accumulate = gan.render_field_views, GanLoss.accumulate_gradients
+
+    def recording_render(generator, batch, ws, mvp, resolution, background, **kwargs):
+        out = render(generator, batch, ws, mvp, resolution, background, **kwargs)
+        if kwargs.get("samples") is not None:
+            rendered.append(out.images.detach())
+        return out
+
+    def recording_accumulate(self, phase, generate, *args, **kwargs):
+        def spy(z, *a, **k):
+            images, proxy, ws = generate(z, *a, **k)
+            judged.append(images.detach())
+            return images, proxy, ws
+        return accumulate(self, phase, spy, *args, **kwargs)
+
+    monkeypatch.setattr(gan, "render_field_views", recording_render)
+    monkeypatch.setattr(GanLoss, "accumulate_gradients", recording_accumulate)
+    config = tmp_path / "ss.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "supersample": 2}))
+    assert main(["train", "gan", "--shapes", str(tiny_data / "shapes"), "--images", str(tiny_data / "photos"), "--out", str(tmp_path / "run"),
+                 "--config", str(config), "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu", "--iters", "1"]) == 0
+    assert rendered and all(images.shape[-1] == 32 for images in rendered)
+    assert len(judged) == len(rendered)
+    for big, small in zip(rendered, judged):
+        assert small.shape[-1] == 16 and torch.allclose(small, F.avg_pool2d(big, 2))
+    with pytest.raises(ValueError, match="supersample"):
+        gan.TrainGanConfig(supersample=0)

@@ -82,6 +82,7 @@ class TrainGanConfig:
     batch: int = 2  # shapes per iteration and process (paper: 2)
     views: int = 4  # random views per shape (paper: 8)
     resolution: int = 128  # render and image resolution (a power of two)
+    supersample: int = 1  # fakes rendered at resolution x this and box-filtered down, as the photos are antialiased (1: one sample per pixel)
     device: str = "auto"  # auto, cpu or cuda
     mixed_precision: bool = True  # bfloat16 autocast for the main phases on CUDA (ignored on a CPU)
     ema_halflife_images: float = 5000.0  # EMA of the generator: half-life in rendered images
@@ -103,7 +104,7 @@ class TrainGanConfig:
     lighting: LightConfig = field(default_factory=LightConfig)  # fakes are shaded like photos, so the generator learns albedo
 
     def __post_init__(self):
-        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0,
+        check_fields(self, at_least={"log_every": 1, "supersample": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0,
                                      "metric_every": 0, "metric_photos": 1, "sample_shapes": 1, "ema_rampup": 0},
                      positive=("ema_halflife_images",))
         if self.resolution >= 8:  # smaller ones are refused by build_config, naming --resolution
@@ -254,8 +255,11 @@ class GanTrainer:
         batch = collate_shapes([self.shapes[i] for i in shape_index]).to(self.device)
         mvp, azimuth = random_cameras(n, cfg.camera, self.device)
         lights = random_lights(azimuth, cfg.lighting).to(self.device) if cfg.lighting.enabled else None
-        samples = rasterize_batch(batch, mvp, (cfg.resolution, cfg.resolution))
+        ss = cfg.supersample
+        side = cfg.resolution * ss  # the fakes' render side; box-filtered down to the photos' resolution
+        samples = rasterize_batch(batch, mvp, (side, side))
         fake_background = (torch.rand(n, 3) * 2 - 1).to(self.device)
+        down = (lambda images: images) if ss == 1 else (lambda images: torch.nn.functional.avg_pool2d(images, ss))
         real = self.draw_real(n)
         z_g = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
         z_d = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
@@ -271,14 +275,16 @@ class GanTrainer:
             m = shapes * cfg.views  # the first shapes' views come first, and their triangle ids are the same in the smaller batch
             ws = g.mapping(z, update_w_avg=update_w_avg)
             encoded[:] = g.encoder(scene)
-            out = render_field_views(g, scene, ws, mvp[:m], (cfg.resolution, cfg.resolution), fake_background[:m], proxy=True,
+            out = render_field_views(g, scene, ws, mvp[:m], (side, side), fake_background[:m], proxy=True,
                                      samples=SurfaceSamples(samples.triangle_id[:m], samples.bary[:m]),
                                      lights=None if lights is None else Lights(lights.direction[:m], lights.ambient[:m]), encoded=encoded)
-            return out.images, out.proxy, ws
+            return down(out.images), down(out.proxy), ws
+
+        object_mask = down(samples.mask.unsqueeze(1).float())  # (n, 1, R, R) coverage
 
         def proxy_of(z):
             texture = g.synthesize(batch, g.mapping(z), encoded=encoded)
-            return render_proxy_views(texture, batch, samples, fake_background, lights), samples.mask.unsqueeze(1).float()
+            return down(render_proxy_views(texture, batch, samples, fake_background, lights)), object_mask
 
         logs: dict[str, torch.Tensor] = {}
         phases = self.loss.phases(self.iteration)
@@ -301,7 +307,7 @@ class GanTrainer:
                     z = z[: self.loss.path_length_shapes(cfg.batch)]
                     fn = lambda z_: generate(z_, shapes=z_.shape[0])  # noqa: E731
                 logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of, diversity_gain=diversity_gain,
-                                                           object_mask=samples.mask.unsqueeze(1).float()))
+                                                           object_mask=object_mask))
             bad = None
             try:
                 runs.check_finite(logs, self.iteration)

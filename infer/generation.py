@@ -152,6 +152,11 @@ class GenerationConfig:
         if self.split not in SPLITS:
             raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {self.split!r}")
 
+    def photo_side(self, world: WorldData) -> int:
+        """:func:`generator_renders`' ``photo_resolution`` for the generator rows: the world's photo
+        resolution, or 0 with ``generator_render: direct``."""
+        return world.spec.resolution if self.generator_render == "photo" else 0
+
 
 @dataclass
 class WorldData:
@@ -337,7 +342,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
     lit = trained_lit(meta) if cfg.lighting == "auto" else cfg.lighting == "lit"
-    photo_side = world.spec.resolution if cfg.generator_render == "photo" else 0  # generator_renders' photo_resolution
+    photo_side = cfg.photo_side(world)
     names = world.held_out if cfg.split == "held_out" else world.train
     names = names[: cfg.max_shapes] if cfg.max_shapes > 0 else names
     shapes = {}
@@ -470,7 +475,7 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     for k in range(latents):
         z = torch.randn(1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed * 1000 + k)).repeat(views, 1)
         rows.append(generator_renders(generator, shape, ring, resolution, z, device, lit, truncation=cfg.truncation,
-                                      photo_resolution=world.spec.resolution if cfg.generator_render == "photo" else 0)[0])
+                                      photo_resolution=cfg.photo_side(world))[0])
     rows.append(ground_truth_renders(world, name, ring, resolution, lit=True)[0])
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)

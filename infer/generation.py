@@ -301,9 +301,10 @@ def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, 
     ws = generator.mapping(z.to(device), truncation_psi=truncation) if ws is None else ws.to(device)
     if photo_resolution > 0:
         batch = collate_shapes([shape]).to(device)
+        encoded = generator.encoder(batch)  # the geometry's encoding: the same for every view's latent
         images, masks = [], []
         for view, w in zip(views, ws, strict=True):
-            texture = generator.synthesize(batch, w[None], noise_mode="none")
+            texture = generator.synthesize(batch, w[None], encoded=encoded, noise_mode="none")
             out = render_for_comparison(generator_surface(generator, texture, batch), [view], photo_resolution,
                                         lighting="photo" if lit else "albedo")
             images.append(composite_images(out.rgb, out.mask, 1.0))

@@ -45,14 +45,27 @@ GAN_CONFIG = {
     "discriminator": {"channel_base": 1024},
     "optim": {"lr_field": 0.0012},
 }
-# What differs between the shipped models. The chair's GAN ran its first 3500 iterations without the
-# diversity term (it did not exist yet) and then went on with it; loss.diversity_start gives the same
-# run in one go (tests/test_train_gan.py checks the equivalence). The pose and NOC networks learn from
-# views half textured by the GAN's snapshot at views_gan_iteration.
+# What differs between the shipped models. world_shapes: the world's shape count (WORLD["shapes"]
+# when absent; the held-out count stays WORLD["query_shapes"]). gan: top-level training settings
+# (supersample: the fakes rendered at twice the resolution and box-filtered, as the photos are).
+# loss.diversity_start: the mode-seeking term from that iteration on. The pose and NOC networks learn
+# from views half textured by the GAN's snapshot at views_gan_iteration.
 RECIPES = {
-    "chair": {"gan_iters": 6000, "loss": {"diversity_start": 3500}, "views_gan_iteration": 2500},
-    "car": {"gan_iters": 3000, "loss": {}, "views_gan_iteration": 1500},
+    "chair": {"gan_iters": 8000, "world_shapes": 64, "gan": {"supersample": 2}, "loss": {"diversity_start": 3500},
+              "views_gan_iteration": 2500},
+    "car": {"gan_iters": 3000, "gan": {}, "loss": {}, "views_gan_iteration": 1500},
 }
+
+
+def recipe_world(recipe: dict) -> dict:
+    """The `prepare synthetic` settings of a recipe: WORLD with the recipe's shape count."""
+    return {**WORLD, "shapes": recipe.get("world_shapes", WORLD["shapes"])}
+
+
+def recipe_gan_config(recipe: dict) -> dict:
+    """The `train gan --config` contents of a recipe: GAN_CONFIG with its top-level settings and loss."""
+    config = {**GAN_CONFIG, **recipe["gan"]}
+    return {**config, "loss": recipe["loss"]} if recipe["loss"] else config
 VIEWS = {"samples": 1536, "resolution": 64, "batch": 32, "seed": 0, "config": {"width": 16, "log_every": 25, "checkpoint_every": 100}}
 
 
@@ -108,7 +121,8 @@ def main() -> None:
                         "(default: the model's own run, its snapshot at the recipe's views_gan_iteration)")
     args = parser.parse_args()
     recipe = RECIPES[args.category]
-    gan_config = {**GAN_CONFIG, "loss": recipe["loss"]} if recipe["loss"] else GAN_CONFIG
+    gan_config = recipe_gan_config(recipe)
+    world_settings = recipe_world(recipe)
     if args.gan_iters is None:
         args.gan_iters = recipe["gan_iters"]
     work = Path(args.work)
@@ -117,9 +131,10 @@ def main() -> None:
     commands: list[str] = []
     start = time.perf_counter()
     world = work / "world"
-    run(["prepare", "synthetic", "--out", str(world), "--category", args.category, "--shapes", str(WORLD["shapes"]),
-         "--views", str(WORLD["views"]), "--query-shapes", str(WORLD["query_shapes"]), "--query-views", str(WORLD["query_views"]),
-         "--seed", str(WORLD["seed"]), "--resolution", str(WORLD["resolution"])], commands)
+    run(["prepare", "synthetic", "--out", str(world), "--category", args.category, "--shapes", str(world_settings["shapes"]),
+         "--views", str(world_settings["views"]), "--query-shapes", str(world_settings["query_shapes"]),
+         "--query-views", str(world_settings["query_views"]), "--seed", str(world_settings["seed"]),
+         "--resolution", str(world_settings["resolution"])], commands)
     split = json.loads((world / "index.json").read_text())["split"]
     for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
         folder = work / "shapes" / part
@@ -162,7 +177,7 @@ def main() -> None:
                                      GenerationConfig(views=8, latents=16, kid_fid=False), samples_path=out / "samples.png")
     size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
     card = {
-        "name": args.category, "category": args.category, "world": WORLD, "shapes": SHAPES, "gan": {**GAN, "config": gan_config},
+        "name": args.category, "category": args.category, "world": world_settings, "shapes": SHAPES, "gan": {**GAN, "config": gan_config},
         "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
         "noc_iterations": args.noc_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
         "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), int(gan_meta["iteration"])),
@@ -176,8 +191,8 @@ def main() -> None:
     (out / "card.md").write_text(
         f"# Shipped model `{args.category}` ({args.category})\n\n"
         f"Texture GAN (EMA generator), pose and NOC networks trained on the synthetic {args.category} world "
-        f"({WORLD['shapes'] - WORLD['query_shapes']} training shapes, {WORLD['views']} photos each at {WORLD['resolution']} px; "
-        f"{WORLD['query_shapes']} held-out shapes for the figures below). Float16, {size_mb:.1f} MB in all.\n\n"
+        f"({world_settings['shapes'] - world_settings['query_shapes']} training shapes, {world_settings['views']} photos each at "
+        f"{world_settings['resolution']} px; {world_settings['query_shapes']} held-out shapes for the figures below). Float16, {size_mb:.1f} MB in all.\n\n"
         f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch 2, "
         + (f"{card['gan_training_seconds'] / 3600:.2f} h of training; " if card["gan_training_seconds"] else "")
         + f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "

@@ -62,12 +62,14 @@ def test_the_shipped_models_load(monkeypatch):
             load_view_network(name, kind)
 
 
-def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card():
+def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path):
     """models/build_model.py's recipes load as train gan configs, and each shipped card's iteration
     count is its recipe's (the rebuild command on the card has no --gan-iters)."""
     import importlib.util
     import json
     from pathlib import Path
+
+    import yaml
 
     from mesh2tex.config import load_config
     from train.gan import TrainGanConfig
@@ -77,10 +79,14 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card():
     build_model = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(build_model)
     for category, recipe in build_model.RECIPES.items():
-        overrides = {f"loss.{key}": value for key, value in recipe["loss"].items()}
-        cfg = load_config(TrainGanConfig, None, {**overrides, "snapshot_every": build_model.GAN_CONFIG["snapshot_every"]})
+        gan_config = build_model.recipe_gan_config(recipe)
+        written = tmp_path / f"{category}.yaml"  # as build_model.py hands it to train gan
+        written.write_text(yaml.safe_dump(gan_config, sort_keys=False))
+        cfg = load_config(TrainGanConfig, written)
         assert recipe["views_gan_iteration"] % cfg.snapshot_every == 0  # the views' snapshot is kept
         card = json.loads((root / "models" / category / "card.json").read_text())
         assert card["gan_iterations"] == recipe["gan_iters"]
         assert card["views_gan_iteration"] == recipe["views_gan_iteration"]
+        assert card["world"] == build_model.recipe_world(recipe)  # the card's world is the one the recipe prepares
+        assert card["gan"]["config"] == gan_config  # and its training settings are the recipe's
     assert build_model.RECIPES["chair"]["loss"]["diversity_start"] == 3500

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import pytest
 import torch
 
 from mesh2tex.io.models import load_generator
 from mesh2tex.cli import main
-from mesh2tex.io.checkpoint import load_checkpoint
+from mesh2tex.errors import InputError
+from mesh2tex.io.checkpoint import check_training_checkpoint, load_checkpoint
 from mesh2tex.io.models import MODEL_FILES, export_inference_checkpoint, list_models, resolve_checkpoint
 
 
@@ -19,6 +21,8 @@ def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny
     assert list_models() == ["tiny"]
     groups, meta = load_checkpoint(models / "tiny" / MODEL_FILES["gan"], kind="gan")
     assert set(groups) == {"generator_ema"} and "rng" not in meta
+    with pytest.raises(InputError, match="an inference checkpoint"):  # not mistaken for a training state
+        check_training_checkpoint(models / "tiny" / MODEL_FILES["gan"], "gan")
     assert all(t.dtype == torch.float16 for t in groups["generator_ema"].values() if t.is_floating_point())
     assert (models / "tiny" / MODEL_FILES["gan"]).stat().st_size < source.stat().st_size / 4
 
@@ -38,8 +42,6 @@ def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny
 
 
 def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch):
-    from mesh2tex.errors import InputError
-    import pytest
 
     models = tmp_path / "models"
     (models / "tiny").mkdir(parents=True)

@@ -86,14 +86,19 @@ def resolve_checkpoint(value: str | os.PathLike, kind: str) -> Path:
     return path
 
 
+# What a training checkpoint's metadata holds only to resume (check_training_checkpoint looks for them).
+TRAINING_ONLY_META = ("rng", "optimizers")
+
+
 def export_inference_checkpoint(source: str | os.PathLike, kind: str, target: str | os.PathLike, half: bool = True) -> dict:
     """Write the inference part of a training checkpoint: the ``INFERENCE_GROUPS[kind]`` weights
-    (float16 when ``half``) and the metadata without RNG states. Returns the metadata written."""
+    (float16 when ``half``) and the metadata without the training state (RNG states, optimizer
+    settings), so that the file is read as an inference checkpoint. Returns the metadata written."""
     groups, meta = load_checkpoint(source, kind=kind)
     group = INFERENCE_GROUPS[kind]
     if group not in groups:
         raise InputError(f"{source}: no '{group}' weights in this {kind} checkpoint")
-    kept = {k: v for k, v in meta.items() if k != "rng"}
+    kept = {k: v for k, v in meta.items() if k not in TRAINING_ONLY_META}
     kept["exported_from"] = {"file": Path(source).name}
     return save_inference_checkpoint(target, kind, groups[group], kept, half)
 

@@ -66,6 +66,8 @@ def recipe_gan_config(recipe: dict) -> dict:
     """The `train gan --config` contents of a recipe: GAN_CONFIG with its top-level settings and loss."""
     config = {**GAN_CONFIG, **recipe["gan"]}
     return {**config, "loss": recipe["loss"]} if recipe["loss"] else config
+
+
 VIEWS = {"samples": 1536, "resolution": 64, "batch": 32, "seed": 0, "config": {"width": 16, "log_every": 25, "checkpoint_every": 100}}
 
 

@@ -42,7 +42,6 @@ def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny
 
 
 def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch):
-
     models = tmp_path / "models"
     (models / "tiny").mkdir(parents=True)
     export_inference_checkpoint(tiny_gan / "run" / "checkpoint.safetensors", "gan", models / "tiny" / MODEL_FILES["gan"])
@@ -66,7 +65,8 @@ def test_the_shipped_models_load(monkeypatch):
 
 def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path):
     """models/build_model.py's recipes load as train gan configs, and each shipped card's iteration
-    count is its recipe's (the rebuild command on the card has no --gan-iters)."""
+    count, world and training settings are its recipe's (the rebuild command on the card has no
+    --gan-iters)."""
     import importlib.util
     import json
     from pathlib import Path

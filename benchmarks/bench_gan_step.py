@@ -51,8 +51,8 @@ class Version:
         self.name, self.revision = name, revision
         with self.active():
             from mesh2tex.config import load_config
-            from train import runs
-            from train.gan import GanTrainer, TrainGanConfig
+            from mesh2tex.train import runs
+            from mesh2tex.train.gan import GanTrainer, TrainGanConfig
         self.load_config, self.runs, self.GanTrainer, self.TrainGanConfig = load_config, runs, GanTrainer, TrainGanConfig
 
     def active(self):

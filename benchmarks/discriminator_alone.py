@@ -26,8 +26,8 @@ from mesh2tex.geometry.prepared import load_shapes  # noqa: E402
 from mesh2tex.nn.batch import collate_shapes  # noqa: E402
 from mesh2tex.nn.discriminator import Discriminator  # noqa: E402
 from mesh2tex.nn.render_texture import render_field_views  # noqa: E402
-from train import runs  # noqa: E402
-from train.gan import GanTrainer, TrainGanConfig, load_images, random_cameras  # noqa: E402
+from mesh2tex.train import runs  # noqa: E402
+from mesh2tex.train.gan import GanTrainer, TrainGanConfig, load_images, random_cameras  # noqa: E402
 
 
 def main() -> int:

@@ -4,7 +4,7 @@ benchmark can time old and new code side by side under the same machine load.
     old = Revision("HEAD~1")                           # mesh2tex/ and train/ of that revision, extracted
     rasterize = old.module("mesh2tex.render.rasterize").rasterize
     with old.active():                                 # imports made meanwhile resolve to the old packages
-        trainer = old.module("train.gan").GanTrainer(...)
+        trainer = old.module("mesh2tex.train.gan").GanTrainer(...)
 
 Both versions live under the same package names, so ``sys.modules`` holds one at a time:
 :meth:`Revision.active` swaps the revision's modules in and today's out, and back. Functions and
@@ -59,6 +59,6 @@ class Revision:
             sys.modules.update(today)
 
     def module(self, name: str):
-        """The module ``name`` (e.g. ``"train.gan"``) of this revision."""
+        """The module ``name`` (e.g. ``"mesh2tex.train.gan"``) of this revision."""
         with self.active():
             return importlib.import_module(name)

@@ -35,7 +35,7 @@ import numpy as np
 import torch
 import yaml
 
-from infer.generation import GenerationConfig, run_generation_protocol
+from mesh2tex.infer.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.cli import main as cli_main
 from mesh2tex.config import check_fields, load_config, save_config
 from mesh2tex.errors import UserError
@@ -411,7 +411,7 @@ def shipped_model_note(fmt) -> str:
     return (f"<p>For comparison, the shipped <code>chair</code> model ({card['gan_iterations']} GAN iterations on "
             f"{card['world']['shapes'] - card['world']['query_shapes']} chairs, measured the same way on its own world's "
             f"{len(g['shapes'])} held-out chairs): gap closed <b>{fmt(g['gap_closed'])}</b>, colour spread "
-            f"{fmt(d['trained_spread_vs_photo_set'])} of the photo set's (models/chair/card.md).</p>")
+            f"{fmt(d['trained_spread_vs_photo_set'])} of the photo set's (mesh2tex/models/chair/card.md).</p>")
 
 
 def write_report(out: Path, cfg: DemoConfig, seconds: dict, query: dict, metrics: dict) -> Path:

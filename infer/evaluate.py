@@ -36,9 +36,9 @@ import time
 import warnings
 from dataclasses import asdict
 
-from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
-from infer.options import GENERATION_CONFIG, SETS_CONFIG
-from infer.protocols import protocol_config, run_protocols_command
+from mesh2tex.infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
+from mesh2tex.infer.options import GENERATION_CONFIG, SETS_CONFIG
+from mesh2tex.infer.protocols import protocol_config, run_protocols_command
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready, write_json, write_text

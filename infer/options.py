@@ -10,16 +10,16 @@ from mesh2tex.options import (DEVICES, ConfigOptions, add_device, add_out, add_p
                               static_value)
 
 SETS_CONFIG = "mesh2tex.metrics.evaluate:EvaluateConfig"
-PROTOCOL_CONFIG = "infer.protocols:ProtocolConfig"
-GENERATION_CONFIG = "infer.generation:GenerationConfig"
-BACKGROUNDS = ("black", "grey", "white")  # infer.evaluate.BACKGROUNDS maps them to grey levels
+PROTOCOL_CONFIG = "mesh2tex.infer.protocols:ProtocolConfig"
+GENERATION_CONFIG = "mesh2tex.infer.generation:GenerationConfig"
+BACKGROUNDS = ("black", "grey", "white")  # mesh2tex.infer.evaluate.BACKGROUNDS maps them to grey levels
 
 
 def generate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors) or a shipped model's name (chair, car)")
     parser.add_argument("--mesh", required=True, help="a prepared shape (.npz) or a mesh file (.obj .ply .off .stl .glb)")
     add_out(parser, "output folder")
-    config = ConfigOptions(parser, "infer.generate:GenerateConfig", what="the generate config")
+    config = ConfigOptions(parser, "mesh2tex.infer.generate:GenerateConfig", what="the generate config")
     config.add("--seeds", help="comma-separated latent seeds")
     config.add("--views", type=int, help="orbit views per seed")
     config.add("--resolution", type=int, help="render resolution")
@@ -145,7 +145,7 @@ def _protocols(parser: argparse.ArgumentParser) -> None:
 
 def demo(parser: argparse.ArgumentParser) -> None:
     add_out(parser, "output folder", required=False, default="demo_out")
-    config = ConfigOptions(parser, "infer.demo:DemoConfig", what="the demo config")
+    config = ConfigOptions(parser, "mesh2tex.infer.demo:DemoConfig", what="the demo config")
     parser.add_argument("--quick", action="store_true", help="a smoke-test budget (a minute or two): every stage runs, nothing learns much")
     config.add("--seed", type=int, help="master seed")
     add_texture_format(parser, config, key="transfer.texture_format")

@@ -68,7 +68,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from infer.options import PROTOCOL_CONFIG
+from mesh2tex.infer.options import PROTOCOL_CONFIG
 from mesh2tex import transfer
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError

@@ -2,7 +2,7 @@
 
 Every subcommand is a stage module (``data_prep``, ``train``, ``infer``) that defines ``run(args) -> int``
 (and ``build_config(args)`` where the command has a config); its options are the function of the same
-name in the package's ``options.py`` (``train.gan`` -> ``train.options.gan(parser)``), which imports no
+name in the package's ``options.py`` (``mesh2tex.train.gan`` -> ``mesh2tex.train.options.gan(parser)``), which imports no
 torch. This file only routes: it builds the options of the one command asked for and imports its
 stage when it runs, so that ``mesh2tex --help`` and ``mesh2tex CMD --help`` stay fast and one broken
 stage cannot break the others. ``--print-config`` prints the command's resolved config and exits.
@@ -22,18 +22,18 @@ from mesh2tex.options import HelpFormatter, Parser
 
 # (command, subcommand or None) -> (stage module, one-line help)
 COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
-    ("prepare", "shapes"): ("data_prep.shapes", "turn meshes into quad-mesh hierarchies (.npz)"),
-    ("prepare", "images"): ("data_prep.images", "turn a folder of photos into square crops with masks"),
-    ("prepare", "synthetic"): ("data_prep.synthetic", "build the synthetic world (shapes, textures, photos, queries)"),
-    ("train", "gan"): ("train.gan", "train the mesh-field texture GAN"),
-    ("train", "pose"): ("train.pose", "train the pose network"),
-    ("train", "noc"): ("train.noc", "train the NOC network"),
-    ("train", "nca"): ("train.nca", "grow a texture from one exemplar image with a mesh cellular automaton"),
-    ("infer", "generate"): ("infer.generate", "texture a mesh from random latent codes"),
-    ("infer", "transfer"): ("infer.transfer", "texture a mesh after one photo"),
-    ("infer", "nca"): ("infer.nca", "grow a trained cellular automaton's texture on any mesh"),
-    ("evaluate", None): ("infer.evaluate", "metrics between renders and images"),
-    ("demo", None): ("infer.demo", "run the whole pipeline on the embedded synthetic world"),
+    ("prepare", "shapes"): ("mesh2tex.data_prep.shapes", "turn meshes into quad-mesh hierarchies (.npz)"),
+    ("prepare", "images"): ("mesh2tex.data_prep.images", "turn a folder of photos into square crops with masks"),
+    ("prepare", "synthetic"): ("mesh2tex.data_prep.synthetic", "build the synthetic world (shapes, textures, photos, queries)"),
+    ("train", "gan"): ("mesh2tex.train.gan", "train the mesh-field texture GAN"),
+    ("train", "pose"): ("mesh2tex.train.pose", "train the pose network"),
+    ("train", "noc"): ("mesh2tex.train.noc", "train the NOC network"),
+    ("train", "nca"): ("mesh2tex.train.nca", "grow a texture from one exemplar image with a mesh cellular automaton"),
+    ("infer", "generate"): ("mesh2tex.infer.generate", "texture a mesh from random latent codes"),
+    ("infer", "transfer"): ("mesh2tex.infer.transfer", "texture a mesh after one photo"),
+    ("infer", "nca"): ("mesh2tex.infer.nca", "grow a trained cellular automaton's texture on any mesh"),
+    ("evaluate", None): ("mesh2tex.infer.evaluate", "metrics between renders and images"),
+    ("demo", None): ("mesh2tex.infer.demo", "run the whole pipeline on the embedded synthetic world"),
 }
 
 
@@ -42,7 +42,7 @@ USER_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPER
 
 
 def _options(stage: str):
-    """The options function of ``stage`` (``train.gan`` -> ``train.options.gan``), or None while the
+    """The options function of ``stage`` (``mesh2tex.train.gan`` -> ``mesh2tex.train.options.gan``), or None while the
     command is not written yet (never a pretend command)."""
     package, name = stage.rsplit(".", 1)
     try:

@@ -25,7 +25,6 @@ import functools
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]  # the folder holding mesh2tex/, data_prep/, train/, infer/
 DEVICES = ("auto", "cpu", "cuda")
 
 
@@ -194,8 +193,19 @@ def static_value(target: str):
 
 
 def _source(module: str) -> Path:
-    base = ROOT.joinpath(*module.split("."))
-    return base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
+    """The source file of ``module`` (``mesh2tex....``), looked for along the package's ``__path__`` as
+    the import system would (a source tree or an installed wheel) without importing any subpackage."""
+    import mesh2tex
+
+    package, *parts = module.split(".")
+    if package != "mesh2tex" or not parts:
+        raise ModuleNotFoundError(f"no module named {module!r} in mesh2tex", name=module)
+    for folder in map(Path, mesh2tex.__path__):
+        base = folder.joinpath(*parts)
+        for candidate in (base / "__init__.py", base.with_suffix(".py")):
+            if candidate.is_file():
+                return candidate
+    raise ModuleNotFoundError(f"no module named {module!r}", name=module)
 
 
 @functools.lru_cache(maxsize=None)

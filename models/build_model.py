@@ -1,6 +1,6 @@
 """Rebuild a shipped model from nothing: world, shapes, GAN, pose and NOC networks, export, evaluation, card.
 
-    python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out models/chair]
+    python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out mesh2tex/models/chair]
                                  [--pose-iters 1500] [--noc-iters 400] [--device auto] [--from-gan CKPT] [--views-gan CKPT]
 
 Every stage resumes (re-run the same command after an interruption): the world and the shapes are
@@ -31,7 +31,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from infer.generation import GenerationConfig, generation_markdown, run_generation_protocol  # noqa: E402
+from mesh2tex.infer.generation import GenerationConfig, generation_markdown, run_generation_protocol  # noqa: E402
 from mesh2tex.cli import main as cli  # noqa: E402
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 from mesh2tex.io.models import MODEL_FILES, export_inference_checkpoint  # noqa: E402
@@ -112,7 +112,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--category", choices=["chair", "car"], required=True)
     parser.add_argument("--work", required=True, help="folder for the world, shapes and runs (kept, resumable)")
-    parser.add_argument("--out", help="model folder (default models/<category>)")
+    parser.add_argument("--out", help="model folder (default mesh2tex/models/<category>)")
     parser.add_argument("--gan-iters", type=int, help="GAN iterations in all (default: the category's recipe)")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
@@ -128,7 +128,7 @@ def main() -> None:
     if args.gan_iters is None:
         args.gan_iters = recipe["gan_iters"]
     work = Path(args.work)
-    out = Path(args.out) if args.out else ROOT / "models" / args.category
+    out = Path(args.out) if args.out else ROOT / "mesh2tex" / "models" / args.category
     out.mkdir(parents=True, exist_ok=True)
     commands: list[str] = []
     start = time.perf_counter()

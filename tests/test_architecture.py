@@ -20,13 +20,16 @@ USER_ERROR_MODULES = {"mesh2tex.cli", "mesh2tex.errors"}  # the command line's o
 
 
 def module_files(root: Path = ROOT) -> dict[str, Path]:
-    """{dotted module name: file} of the library and the stage packages."""
+    """{dotted module name: file} of the library and the stage packages, named as they are imported
+    (a stage folder ``infer/`` of the source tree is the package ``mesh2tex.infer``)."""
     modules = {}
     for package in (LIBRARY, *STAGES):
         for path in sorted((root / package).rglob("*.py")):
             parts = list(path.relative_to(root).with_suffix("").parts)
             if parts[-1] == "__init__":
                 parts = parts[:-1]
+            if package != LIBRARY:
+                parts = [LIBRARY, *parts]
             modules[".".join(parts)] = path
     return modules
 
@@ -65,7 +68,9 @@ def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
 
 
 def top(name: str) -> str:
-    return name.split(".")[0]
+    """The package ``name`` belongs to: a stage (``mesh2tex.infer.demo`` -> ``infer``) or the library."""
+    parts = name.split(".")
+    return parts[1] if len(parts) > 1 and parts[0] == LIBRARY and parts[1] in STAGES else parts[0]
 
 
 def cross_package_imports(graph: dict[str, set[str]]) -> list[str]:
@@ -121,8 +126,8 @@ def graph() -> dict[str, set[str]]:
 def test_the_graph_sees_the_imports(graph):
     """A guard for the checks below: the walker finds imports of every form the code uses."""
     assert "mesh2tex.render.cameras" in graph["mesh2tex.render"]  # relative, from a package's __init__
-    assert "mesh2tex.runtime" in graph["infer.generate"]  # from a module import a name
-    assert "mesh2tex.transfer" in graph["infer.protocols"]  # from a package import a submodule
+    assert "mesh2tex.runtime" in graph["mesh2tex.infer.generate"]  # from a module import a name
+    assert "mesh2tex.transfer" in graph["mesh2tex.infer.protocols"]  # from a package import a submodule
     assert all(top(t) in (LIBRARY, *STAGES) for targets in graph.values() for t in targets)
 
 
@@ -135,10 +140,10 @@ def test_no_import_cycles(graph):
 
 
 def test_the_checks_find_what_they_forbid():
-    graph = {"infer.a": {"train.b", "mesh2tex.c"}, "train.b": set(), "mesh2tex.c": {"infer.a"}, "mesh2tex.d": {"mesh2tex.e"},
+    graph = {"mesh2tex.infer.a": {"mesh2tex.train.b", "mesh2tex.c"}, "mesh2tex.train.b": set(), "mesh2tex.c": {"mesh2tex.infer.a"}, "mesh2tex.d": {"mesh2tex.e"},
              "mesh2tex.e": {"mesh2tex.f"}, "mesh2tex.f": {"mesh2tex.d"}}
-    assert cross_package_imports(graph) == ["infer.a -> train.b", "mesh2tex.c -> infer.a"]
-    assert import_cycles(graph) == [["infer.a", "mesh2tex.c"], ["mesh2tex.d", "mesh2tex.e", "mesh2tex.f"]]
+    assert cross_package_imports(graph) == ["mesh2tex.c -> mesh2tex.infer.a", "mesh2tex.infer.a -> mesh2tex.train.b"]
+    assert import_cycles(graph) == [["mesh2tex.c", "mesh2tex.infer.a"], ["mesh2tex.d", "mesh2tex.e", "mesh2tex.f"]]
 
 
 def user_error_lines(source: str) -> list[int]:
@@ -269,4 +274,4 @@ def test_the_name_check_finds_what_it_forbids(tmp_path):
         (tmp_path / package).mkdir()
     (tmp_path / LIBRARY / "a.py").write_text("class View:\n    pass\n\ndef _helper():\n    pass\n")
     (tmp_path / "infer" / "b.py").write_text("def View():\n    pass\n\ndef _helper():\n    pass\n")
-    assert public_definitions(tmp_path) == {"View": [f"{LIBRARY}.a", "infer.b"]}
+    assert public_definitions(tmp_path) == {"View": [f"{LIBRARY}.a", "mesh2tex.infer.b"]}

@@ -23,11 +23,11 @@ from mesh2tex.options import HelpFormatter, show_default, static_defaults
 ROOT = Path(__file__).resolve().parents[1]
 ARGVS = [[command] + ([sub] if sub else []) for command, sub in COMMANDS]
 CONFIG_COMMANDS = {  # argv -> the config class --print-config prints
-    ("train", "gan"): "train.gan:TrainGanConfig", ("train", "pose"): "mesh2tex.nn.view_nets:ViewTrainConfig",
-    ("train", "noc"): "mesh2tex.nn.view_nets:ViewTrainConfig", ("train", "nca"): "train.nca:TrainNCAConfig",
-    ("infer", "generate"): "infer.generate:GenerateConfig", ("infer", "transfer"): "mesh2tex.transfer.config:TransferConfig",
-    ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig", ("evaluate", "--protocols"): "infer.protocols:ProtocolConfig",
-    ("evaluate", "--generation"): "infer.generation:GenerationConfig", ("demo",): "infer.demo:DemoConfig",
+    ("train", "gan"): "mesh2tex.train.gan:TrainGanConfig", ("train", "pose"): "mesh2tex.nn.view_nets:ViewTrainConfig",
+    ("train", "noc"): "mesh2tex.nn.view_nets:ViewTrainConfig", ("train", "nca"): "mesh2tex.train.nca:TrainNCAConfig",
+    ("infer", "generate"): "mesh2tex.infer.generate:GenerateConfig", ("infer", "transfer"): "mesh2tex.transfer.config:TransferConfig",
+    ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig", ("evaluate", "--protocols"): "mesh2tex.infer.protocols:ProtocolConfig",
+    ("evaluate", "--generation"): "mesh2tex.infer.generation:GenerationConfig", ("demo",): "mesh2tex.infer.demo:DemoConfig",
 }
 DEVICE_COMMANDS = [argv for argv in ARGVS if argv[0] != "prepare"]  # preparation runs on the CPU
 
@@ -201,8 +201,8 @@ def test_prepare_keeps_output_as_a_hidden_alias_of_out(sub, capsys):
 
 
 def test_backgrounds_named_in_the_options_are_the_commands():
-    from infer.evaluate import BACKGROUNDS
-    from infer.options import BACKGROUNDS as NAMES
+    from mesh2tex.infer.evaluate import BACKGROUNDS
+    from mesh2tex.infer.options import BACKGROUNDS as NAMES
 
     assert sorted(BACKGROUNDS) == sorted(NAMES)
 
@@ -220,7 +220,7 @@ def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
 # --------------------------------------------------------------------------- config flags
 def flag_value(action: argparse.Action, default):
     """(text for the command line, the field's value it must give) of a config flag: anything but the default."""
-    from infer.protocols import ABLATIONS, BASELINES, PROTOCOLS
+    from mesh2tex.infer.protocols import ABLATIONS, BASELINES, PROTOCOLS
     from mesh2tex.io.models import resolve_checkpoint
 
     lists = {"--only": PROTOCOLS, "--ablations": ABLATIONS, "--baselines": BASELINES}  # comma-separated names
@@ -277,23 +277,23 @@ def test_every_config_flag_reaches_its_field(argv, tmp_path, monkeypatch, capsys
 @pytest.mark.parametrize("error, code", [(InputError("m.obj: the mesh has no faces"), 2), (UserError("--pool 0: too small", exit_code=4), 4)])
 def test_input_and_user_errors_are_one_line(error, code, monkeypatch, capsys):
     """The library's InputError (a ValueError) and a command's UserError end as one line and their exit status."""
-    import infer.generate
+    import mesh2tex.infer.generate
 
     def run(args):
         raise error
 
-    monkeypatch.setattr(infer.generate, "run", run)
+    monkeypatch.setattr(mesh2tex.infer.generate, "run", run)
     assert main(["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"]) == code
     assert capsys.readouterr().err == f"mesh2tex: error: {error}\n"
     assert issubclass(InputError, ValueError)
 
 
 def test_any_other_value_error_is_a_bug_with_its_traceback(monkeypatch):
-    import infer.generate
+    import mesh2tex.infer.generate
 
     def run(args):
         raise ValueError("an index three calls deep")
 
-    monkeypatch.setattr(infer.generate, "run", run)
+    monkeypatch.setattr(mesh2tex.infer.generate, "run", run)
     with pytest.raises(ValueError, match="three calls deep"):
         main(["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"])

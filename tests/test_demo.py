@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import yaml
 
-from infer.demo import QUICK, DemoConfig
+from mesh2tex.infer.demo import QUICK, DemoConfig
 from mesh2tex.cli import main
 from mesh2tex.config import load_config
 from mesh2tex.errors import InputError
@@ -45,7 +45,7 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
 def test_settings_recorded_before_they_were_nested_still_resume(tmp_path):
     """A demo folder records its settings (demo_config.yaml) and refuses other ones; a folder recorded
     with the flat names (gan_iters, view_samples, latent_iters ...) reads as the same nested settings."""
-    from infer.demo import saved_config
+    from mesh2tex.infer.demo import saved_config
 
     flat = {"shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1, "gan_iters": 2,
             "gan_resolution": 32, "gan_views": 1, "gan_channels": [8, 8, 8], "view_samples": 16, "view_resolution": 32,

@@ -1,4 +1,4 @@
-"""The demo report's transfer table (``infer.demo.transfer_metrics``): like with like, the oracle on top."""
+"""The demo report's transfer table (``mesh2tex.infer.demo.transfer_metrics``): like with like, the oracle on top."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import shutil
 import numpy as np
 import pytest
 
-from infer.demo import TRANSFER_METHODS, transfer_metrics, transfer_section
+from mesh2tex.infer.demo import TRANSFER_METHODS, transfer_metrics, transfer_section
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape

@@ -52,7 +52,7 @@ def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch)
 
 
 def test_the_shipped_models_load(monkeypatch):
-    """Every model in the source tree's models/ folder loads and has all three networks."""
+    """Every model in the package's models/ folder (mesh2tex/models) loads and has all three networks."""
     monkeypatch.delenv("MESH2TEX_MODELS", raising=False)
     from mesh2tex.io.models import load_view_network
 
@@ -74,7 +74,7 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
     import yaml
 
     from mesh2tex.config import load_config
-    from train.gan import TrainGanConfig
+    from mesh2tex.train.gan import TrainGanConfig
 
     root = Path(__file__).resolve().parents[1]
     spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")
@@ -86,7 +86,7 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
         written.write_text(yaml.safe_dump(gan_config, sort_keys=False))
         cfg = load_config(TrainGanConfig, written)
         assert recipe["views_gan_iteration"] % cfg.snapshot_every == 0  # the views' snapshot is kept
-        card = json.loads((root / "models" / category / "card.json").read_text())
+        card = json.loads((root / "mesh2tex" / "models" / category / "card.json").read_text())
         assert card["gan_iterations"] == recipe["gan_iters"]
         assert card["views_gan_iteration"] == recipe["views_gan_iteration"]
         assert card["world"] == build_model.recipe_world(recipe)  # the card's world is the one the recipe prepares

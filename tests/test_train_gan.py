@@ -160,7 +160,7 @@ def test_annealed_learning_rates_fall_linearly_and_survive_a_resume(tiny_data, t
     """``optim.lr_decay_*``: every rate is the config's up to lr_decay_start, then falls linearly to
     lr_decay_to times it over lr_decay_iters steps and stays there; a run interrupted during the fall
     and resumed is the uninterrupted run, and the resume does not report the annealed rates as changed."""
-    from train.gan import OptimConfig
+    from mesh2tex.train.gan import OptimConfig
     optim = OptimConfig(lr_decay_start=10, lr_decay_iters=4, lr_decay_to=0.5)
     assert [optim.lr_scale(i) for i in (0, 10, 11, 12, 14, 100)] == [1.0, 1.0, 0.875, 0.75, 0.5, 0.5]
     assert OptimConfig().lr_scale(10 ** 6) == 1.0  # off by default
@@ -323,7 +323,7 @@ def refused_sources(tiny_data, tmp_path_factory):
     save_checkpoint(root / "pose.safetensors", {"net": {"w": torch.zeros(2)}}, kind="pose",
                     meta={"iteration": 2, "optimizers": {}, "rng": []})
     save_inference_checkpoint(root / "snapshot.safetensors", "gan", {"w": torch.zeros(2)}, {"iteration": 2})
-    shipped = Path(__file__).resolve().parents[1] / "models" / "chair" / "generator.safetensors"
+    shipped = Path(__file__).resolve().parents[1] / "mesh2tex" / "models" / "chair" / "generator.safetensors"
     (root / "text.safetensors").write_text("not a checkpoint")
     return {"another kind": (root / "pose.safetensors", "a 'pose' checkpoint, expected a 'gan' training checkpoint"),
             "snapshot": (root / "snapshot.safetensors", "an inference checkpoint (float16 weights without optimizer state"),
@@ -422,7 +422,7 @@ def test_the_path_length_phase_renders_the_first_half_of_the_batch(tiny_data, tm
     """As StyleGAN2 does (``loss.pl_batch_shrink`` 2), the path-length phase renders half of the
     batch's shapes, each from its own views, with the rasterization of those shapes alone; the other
     phases render the whole batch."""
-    import train.gan as gan
+    import mesh2tex.train.gan as gan
     from mesh2tex.losses.gan import GanLoss
     from mesh2tex.nn.render_texture import rasterize_batch
 
@@ -454,7 +454,7 @@ def test_supersampled_fakes_are_rendered_larger_and_box_filtered_to_the_photos_r
     as the photos were antialiased, so that the discriminators see fakes and photos of one size."""
     import torch.nn.functional as F
 
-    import train.gan as gan
+    import mesh2tex.train.gan as gan
     from mesh2tex.losses.gan import GanLoss
 
     rendered, judged = [], []

@@ -33,7 +33,7 @@ def train(root, out, *extra):
 
 
 def test_an_interrupted_run_resumes_exactly(nca_files, monkeypatch):
-    import train.nca as stage
+    import mesh2tex.train.nca as stage
 
     assert train(nca_files, nca_files / "straight") == 0
     step = stage.NCATrainer.step

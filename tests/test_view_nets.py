@@ -12,7 +12,7 @@ from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepare import prepare_shape
 from mesh2tex.io.models import load_view_network
 from mesh2tex.nn.view_nets import ViewDataConfig
-from train.view_nets import render_view_dataset
+from mesh2tex.train.view_nets import render_view_dataset
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +90,7 @@ def _tiny_shapes(tiny_gan):
 
 def test_gan_colours_follow_the_rendered_vertex_order(tiny_gan):
     from mesh2tex.nn.batch import collate_shapes
-    from train.view_nets import _GanTextures
+    from mesh2tex.train.view_nets import _GanTextures
 
     shapes = _tiny_shapes(tiny_gan)
     gan = _GanTextures(str(tiny_gan / "run" / "checkpoint.safetensors"), shapes)
@@ -144,8 +144,8 @@ def test_bad_gan_checkpoint_is_a_one_line_error(tiny_gan, shapes_dir, tmp_path, 
 
 
 def test_cached_views_are_rendered_again_when_the_data_settings_change(tiny_gan, tmp_path, monkeypatch):
-    from train import view_nets
-    from train.runs import RunDirectory
+    from mesh2tex.train import view_nets
+    from mesh2tex.train.runs import RunDirectory
 
     calls = []
     render = view_nets.render_view_dataset
@@ -199,7 +199,7 @@ def test_a_run_starts_from_another_runs_checkpoint(kind, shapes_dir, tmp_path, c
 def test_logged_numbers_go_to_tensorboard_as_well_when_it_is_there(tiny_gan, tmp_path, monkeypatch):
     """Every number of metrics.jsonl reaches TensorBoard (tag = key, step = iteration) when a writer
     is available; MESH2TEX_TENSORBOARD=0 turns it off."""
-    from train import runs
+    from mesh2tex.train import runs
 
     class Recorder:
         def __init__(self):

@@ -36,7 +36,7 @@ from mesh2tex.nn.render_texture import SurfaceSamples, rasterize_batch, render_f
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import CameraConfig, LightConfig, Lights, composite_images, orbit_camera, random_lights, turntable_angles
-from train import runs
+from mesh2tex.train import runs
 
 KIND = "gan"
 

@@ -38,7 +38,7 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.synthetic.world import contact_sheet
-from train import runs
+from mesh2tex.train import runs
 
 KIND = "nca"
 VIEW_START = 30.0  # azimuth of the first sample view: off the cube-sphere's face centres

@@ -4,7 +4,7 @@ Trains the NOC U-Net (RGB + mask in, normalised object coordinates out) on rende
 prepared shapes; see :mod:`train.view_nets` for the data and the loop.
 """
 
-from train.view_nets import build_view_config, run_view_training
+from mesh2tex.train.view_nets import build_view_config, run_view_training
 
 
 def build_config(args):

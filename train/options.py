@@ -15,7 +15,7 @@ def gan(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--shapes", required=True, help="folder of prepared shapes (.npz from 'mesh2tex prepare shapes')")
     parser.add_argument("--images", required=True, help="photo folder: images/*.png with masks/*.png, or RGBA *.png")
     add_out(parser, "run directory (config, checkpoint, metrics, samples)")
-    config = ConfigOptions(parser, "train.gan:TrainGanConfig", what="the training config")
+    config = ConfigOptions(parser, "mesh2tex.train.gan:TrainGanConfig", what="the training config")
     config.add("--iters", type=int, help="training iterations (total, also when resuming)")
     config.add("--batch", type=int, help="shapes per iteration and process")
     config.add("--views", type=int, help="random views per shape")
@@ -62,7 +62,7 @@ def noc(parser: argparse.ArgumentParser) -> None:
 def nca(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--exemplar", required=True, help="the texture photo to grow (any image file)")
     add_out(parser, "run directory (config, checkpoint, metrics, samples)")
-    config = ConfigOptions(parser, "train.nca:TrainNCAConfig", what="the training config")
+    config = ConfigOptions(parser, "mesh2tex.train.nca:TrainNCAConfig", what="the training config")
     config.add("--mesh", help="training mesh: sphere, sphere:N, a prepared shape .npz or a mesh file")
     config.add("--iters", type=int, help="training iterations (total, also when resuming)")
     config.add("--views", type=int, help="random views per state and iteration")

@@ -44,7 +44,7 @@ from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views, unit_to_uint8
 from mesh2tex.texture import latent, shape_mismatch, vertex_colours as field_vertex_colours  # _GanTextures.vertex_colours shadows the name
-from train import runs
+from mesh2tex.train import runs
 
 # --------------------------------------------------------------------------------------- data
 _GAN_STREAM = 4  # random stream of a group (WorldSpec.rng) that picks GAN or material, and the latent seed

@@ -17,8 +17,8 @@ A model is a folder ``<models>/<name>/`` with one inference checkpoint per kind 
     noc.safetensors        kind "noc": the NOC network (group ``net``), float16
     card.md, card.json     how it was made (world, commands, iterations, hardware, wall time) and its figures
 
-``<models>`` is ``$MESH2TEX_MODELS`` when set, else the ``models/`` folder of the source tree
-(next to the ``mesh2tex`` package). Loading a float16 state into a model's float32 parameters
+``<models>`` is ``$MESH2TEX_MODELS`` when set, else the package's own ``mesh2tex/models/`` (package
+data: the shipped models travel in the wheel, so they are there after any install). Loading a float16 state into a model's float32 parameters
 (``load_state_dict``) casts it back.
 """
 
@@ -50,7 +50,7 @@ INFERENCE_GROUPS = {"gan": GENERATOR_EMA, "pose": VIEW_NET, "noc": VIEW_NET}
 def models_root() -> Path:
     """The folder that holds the shipped models."""
     env = os.environ.get("MESH2TEX_MODELS")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "models"
+    return Path(env) if env else Path(__file__).resolve().parents[1] / "models"
 
 
 def list_models() -> list[str]:

@@ -1,7 +1,7 @@
 """Run the synthetic evaluation protocols and print their cost and the full-vs-ablation outcome.
 
-    OMP_NUM_THREADS=1 python benchmarks/transfer_protocols.py --world WORLD --shapes SHAPES --gan GAN \\
-        --pose POSE --noc NOC [--latent-iters 20] [--refine-iters 20] [--queries 4] [--only known_pose] [--out DIR]
+    OMP_NUM_THREADS=1 python benchmarks/transfer_protocols.py --world WORLD --shapes SHAPES --checkpoint GAN \\
+        --pose-checkpoint POSE --noc-checkpoint NOC [--latent-iters 20] [--refine-iters 20] [--queries 4] [--only known_pose] [--out DIR]
 
 Prints, per transfer protocol and row (ablations and baselines): seconds in all, for ablations the
 seconds per transfer iteration and the time relative to the full method in the same run, and how
@@ -28,9 +28,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--world", required=True)
     parser.add_argument("--shapes", required=True)
-    parser.add_argument("--gan", required=True)
-    parser.add_argument("--pose", required=True)
-    parser.add_argument("--noc", required=True)
+    # named as 'mesh2tex evaluate --protocols' names them (the former --gan, --pose, --noc still work)
+    parser.add_argument("--checkpoint", "--gan", dest="checkpoint", required=True, help="generator: a checkpoint or a shipped model's name")
+    parser.add_argument("--pose-checkpoint", "--pose", dest="pose", required=True)
+    parser.add_argument("--noc-checkpoint", "--noc", dest="noc", required=True)
     parser.add_argument("--latent-iters", type=int, default=20)
     parser.add_argument("--refine-iters", type=int, default=20)
     parser.add_argument("--queries", type=int, default=0)
@@ -40,7 +41,7 @@ def main() -> None:
     transfer = replace(ProtocolConfig().transfer, latent_iters=args.latent_iters, refine_iters=args.refine_iters)
     cfg = ProtocolConfig(protocols=args.only.split(","), queries=args.queries, device="cpu", transfer=transfer)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="protocols_"))
-    result = run_protocols(args.world, args.shapes, args.gan, args.pose, args.noc, cfg, out, log=lambda line: None)
+    result = run_protocols(args.world, args.shapes, args.checkpoint, args.pose, args.noc, cfg, out, log=lambda line: None)
     queries = result["counts"]["queries"]
     print(f"{queries} queries, {cfg.transfer.latent_iters} + {cfg.transfer.refine_iters} iterations at {cfg.resolution} px; results in {out}")
     for name, entry in result["protocols"].items():

@@ -6,10 +6,15 @@ with the image border as background). The image is cropped to a square around th
 margin), padded with white where the square leaves the photo, and resized to ``--size``. Output:
 ``DIR/images/<name>.png``, ``DIR/masks/<name>.png`` and ``DIR/index.json`` (per input: status,
 reason, mask source, mask coverage). Exit status 0 when every image succeeded, 2 when any failed.
+
+A file it would write that is already there stops the command before any work, unless
+``--overwrite``: then the earlier preparation is replaced, and its images that this one does not
+write again (listed in the earlier ``index.json``) are removed, so that the folder holds this run's set only.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import sys
@@ -19,6 +24,7 @@ from pathlib import Path
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import is_image_file, load_image, load_mask, save_png
+from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.photos import estimate_mask, square_crop
 from mesh2tex.progress import progress_bar
 
@@ -65,6 +71,20 @@ def prepare_image(path: Path, relative: Path, name: str, output: Path, size: int
     return record
 
 
+def remove_earlier(output: Path, kept: set[str]) -> None:
+    """``--overwrite``: remove the images and masks an earlier preparation in ``output`` wrote (as its
+    ``index.json`` lists them) that this one will not write again; nothing else in the folder is touched."""
+    try:
+        earlier = json.loads((output / "index.json").read_text(encoding="utf-8"))["images"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    for record in earlier if isinstance(earlier, list) else []:
+        name = record.get("name") if isinstance(record, dict) else None
+        if isinstance(name, str) and name not in kept and "/" not in name and os.sep not in name and not name.startswith("."):
+            for folder in ("images", "masks"):
+                (output / folder / f"{name}.png").unlink(missing_ok=True)
+
+
 def run(args) -> int:
     input_dir, output = Path(args.input), Path(args.out)
     if not input_dir.is_dir():
@@ -82,15 +102,20 @@ def run(args) -> int:
         photos = [p for p in photos if masks_dir.resolve() not in p.resolve().parents]
     if not photos:
         raise UserError(f"{input_dir}: no images ({' '.join(s for s in ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.webp'))})")
-    output.mkdir(parents=True, exist_ok=True)
-    records, used = [], set()
-    for path in progress_bar(photos, desc="prepare images", unit="image"):
-        relative = path.relative_to(input_dir)
-        name = re.sub(r"[^A-Za-z0-9_.-]", "_", str(relative.with_suffix("")).replace(os.sep, "_"))
+    names, used = [], set()
+    for path in photos:
+        name = re.sub(r"[^A-Za-z0-9_.-]", "_", str(path.relative_to(input_dir).with_suffix("")).replace(os.sep, "_"))
         while name in used:
             name += "_"
         used.add(name)
-        record = prepare_image(path, relative, name, output, args.size, masks_dir)
+        names.append(name)
+    guard_outputs(output, ["index.json"] + [f"{folder}/{name}.png" for name in names for folder in ("images", "masks")], args.overwrite)
+    if args.overwrite:
+        remove_earlier(output, set(names))
+    output.mkdir(parents=True, exist_ok=True)
+    records = []
+    for path, name in progress_bar(list(zip(photos, names)), desc="prepare images", unit="image"):
+        record = prepare_image(path, path.relative_to(input_dir), name, output, args.size, masks_dir)
         if record["status"] == "failed":
             print(f"mesh2tex: failed: {record['reason']}", file=sys.stderr)
         records.append(record)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 
-from mesh2tex.options import add_out
+from mesh2tex.options import add_out, add_overwrite
 
 
 def shapes(parser: argparse.ArgumentParser) -> None:
@@ -27,6 +27,8 @@ def images(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", type=int, default=256, help="side of the square output images in pixels")
     parser.add_argument("--masks", metavar="DIR", default=None,
                         help="folder of mask images named like the photos (any image suffix; default: the alpha channel, else a GrabCut estimate)")
+    add_overwrite(parser, "replace an earlier preparation in --out (its images and masks, index.json); without it, a file that would "
+                          "be replaced stops the command before any work")
 
 
 def synthetic(parser: argparse.ArgumentParser) -> None:
@@ -40,3 +42,5 @@ def synthetic(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--query-views", type=int, default=2, help="query photos per held-out shape")
     parser.add_argument("--elevation", type=float, nargs=2, default=(5.0, 35.0), metavar=("MIN", "MAX"), help="elevation range in degrees")
     parser.add_argument("--texture-size", type=int, default=512, help="side of the baked UV texture of textured/*.glb")
+    add_overwrite(parser, "replace what --out holds (a world of other settings, or other files) with this world; without it such a "
+                          "folder is refused (an unfinished world of the same settings is resumed either way)")

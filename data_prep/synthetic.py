@@ -17,11 +17,15 @@ Layout of ``--out`` (``<s>`` a shape name such as ``chair_0003``, ``<k>`` a two-
     log.jsonl                  one JSON line per shape built
 
 Deterministic for a seed. Every file is written atomically, so a re-run skips what is finished.
+A folder holding a world of other settings, or other files, is refused; ``--overwrite`` replaces a
+world of other settings (its entries above are removed first) and builds beside other files, as
+long as none of them has a name of the layout above.
 """
 
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -71,8 +75,14 @@ def _settings(spec) -> dict:
     return {"generator_version": GENERATOR_VERSION, **spec.to_dict()}
 
 
-def _check_output(output: Path, settings: dict) -> None:
-    """Refuse to mix two worlds in one folder: an existing index.json must have the same settings."""
+# The entries of a world's folder (the layout of the module docstring).
+WORLD_ENTRIES = ("index.json", "meshes", "textured", "images", "masks", "queries", "preview.png", "log.jsonl")
+
+
+def _check_output(output: Path, settings: dict, overwrite: bool = False) -> None:
+    """Refuse to mix two worlds in one folder: an existing index.json must have the same settings.
+    ``overwrite``: a world of other settings is removed (its entries only), and a folder of other
+    files is built into when none of them is named like a world's entry."""
     index_path = output / "index.json"
     if output.exists() and not output.is_dir():
         raise UserError(f"{output}: exists and is not a folder")
@@ -85,9 +95,23 @@ def _check_output(output: Path, settings: dict) -> None:
             raise UserError(f"{index_path}: not a synthetic world index; choose another --out")
         if existing.get("settings") != settings:
             changed = sorted(k for k in settings if existing.get("settings", {}).get(k) != settings[k])
-            raise UserError(f"{output}: holds a world built with other settings ({', '.join(changed)}); choose another --out")
+            if not overwrite:
+                raise UserError(f"{output}: holds a world built with other settings ({', '.join(changed)}); pass --overwrite to "
+                                f"replace it, or choose another --out")
+            for name in WORLD_ENTRIES:
+                path = output / name
+                if path.is_dir() and not path.is_symlink():
+                    shutil.rmtree(path)
+                elif path.exists() or path.is_symlink():
+                    path.unlink()
     elif output.is_dir() and any(output.iterdir()):
-        raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); choose another --out")
+        if not overwrite:
+            raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); pass --overwrite to build "
+                            f"the world beside its files, or choose another --out")
+        clashing = [name for name in WORLD_ENTRIES if (output / name).exists()]
+        if clashing:
+            raise UserError(f"{output}: holds {', '.join(clashing)} of no synthetic world; --overwrite replaces only a world's "
+                            f"own files: move them or choose another --out")
 
 
 def _photo_record(spec, view, shape_name: str, k: int, query: bool) -> dict:
@@ -185,7 +209,7 @@ def write_preview(output: Path, index: dict, columns: int = 8, rows: int = 4) ->
 def run(args) -> int:
     spec = spec_from_args(args)
     output = Path(args.out)
-    _check_output(output, _settings(spec))
+    _check_output(output, _settings(spec), args.overwrite)
     index = plan(spec)
     write_json(output / "index.json", index)
     log = JsonLines(output / "log.jsonl")

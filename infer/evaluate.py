@@ -20,8 +20,12 @@ The library entry points :func:`mesh2tex.metrics.evaluate.evaluate_sets` and
 :func:`mesh2tex.metrics.evaluate.evaluate_pairs` take tensors and return plain dicts (the folders are
 read by :mod:`mesh2tex.io.image_sets`); the command writes ``OUT/metrics.json`` and ``OUT/metrics.md``.
 
+Each mode reads its config (``--config YAML``, printed by ``--print-config``): the sets and pairs
+modes :class:`mesh2tex.metrics.evaluate.EvaluateConfig`, ``--protocols`` the protocol config,
+``--generation`` the generation config. Long steps show a progress bar on a terminal.
+
 ``--generation`` measures a texture GAN against a synthetic world's ground truth (trained, untrained
-and oracle rows, the gap closed, diversity across latents): see :mod:`infer.generation`.
+and oracle rows, the gap closed, diversity across latents) given as ``--checkpoint NAME|PATH``: see :mod:`infer.generation`.
 
 ``--protocols`` runs the paper's evaluation protocols on a synthetic world instead (unconditional
 generation; transfer with known pose, unknown pose, to another shape; each with the ablations of
@@ -33,7 +37,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-import warnings
 from dataclasses import asdict
 
 from mesh2tex.infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
@@ -47,6 +50,7 @@ from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, markdown_table
 from mesh2tex.options import config_overrides
+from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.runtime import select_device
 
 BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
@@ -57,17 +61,19 @@ BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
 
 
 def generation_config(args: argparse.Namespace) -> GenerationConfig:
-    """Its own flags, then --resolution and the flags it shares with the sets mode."""
-    return load_config(GenerationConfig, None, config_overrides(args, GENERATION_CONFIG, computed={
+    """``--config``, then its own flags, then --resolution and the flags it shares with the sets mode."""
+    return load_config(GenerationConfig, args.config, config_overrides(args, GENERATION_CONFIG, computed={
         "resolution": args.resolution, "features": args.features, "seed": args.seed}))
 
 
 def sets_config(args: argparse.Namespace) -> EvaluateConfig:
-    return load_config(EvaluateConfig, None, config_overrides(args, SETS_CONFIG, computed={"resolution": args.resolution}))
+    """``--config``, then the flags given."""
+    return load_config(EvaluateConfig, args.config, config_overrides(args, SETS_CONFIG, computed={"resolution": args.resolution}))
 
 
 def build_config(args: argparse.Namespace):
-    """The config of the mode asked for: ``--generation``, ``--protocols``, else sets and pairs."""
+    """The config of the mode asked for: ``--generation``, ``--protocols``, else sets and pairs;
+    ``--config`` is a YAML file of that mode's config."""
     if getattr(args, "generation", False):
         return generation_config(args)
     if getattr(args, "protocols", False):
@@ -77,7 +83,7 @@ def build_config(args: argparse.Namespace):
 
 def run_generation_command(args: argparse.Namespace) -> int:
     """``mesh2tex evaluate --generation``: OUT/generation.json, OUT/generation.md, OUT/generation_samples.png."""
-    for flag in ("world", "shapes", "gan"):
+    for flag in ("world", "shapes", "checkpoint"):
         if not getattr(args, flag):
             raise UserError(f"--generation needs --{flag}")
     cfg = generation_config(args)
@@ -85,16 +91,10 @@ def run_generation_command(args: argparse.Namespace) -> int:
         raise UserError(f"--latents {cfg.latents}: diversity needs at least 2")
     out = guard_outputs(args.out, ["generation.json", "generation.md", "generation_samples.png"], args.overwrite)
     device = select_device(args.device)
-    extractor = None
-    if cfg.kid_fid:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            extractor = get_feature_extractor(cfg.features, args.inception_weights, args.vgg_weights, device)
-        for warning in caught:
-            print(f"mesh2tex: warning: {warning.message}", file=sys.stderr)
+    extractor = get_feature_extractor(cfg.features, args.inception_weights, args.vgg_weights, device) if cfg.kid_fid else None
     out.mkdir(parents=True, exist_ok=True)
-    result = run_generation_protocol(args.world, args.shapes, args.gan, cfg, device, extractor, out / "generation_samples.png",
-                                     log=lambda line: print(line, file=sys.stderr, flush=True))
+    result = run_generation_protocol(args.world, args.shapes, args.checkpoint, cfg, device, extractor, out / "generation_samples.png",
+                                     log=lambda line: write_line(line, sys.stderr))
     write_json(out / "generation.json", json_ready(result))
     text = generation_markdown(result)
     write_text(out / "generation.md", text)
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "protocols", False):
         return run_protocols_command(args)
     if not args.renders or not args.images:
-        raise UserError("evaluate needs --renders and --images (or --protocols with --world, --shapes and --gan)")
+        raise UserError("evaluate needs --renders and --images (or --protocols or --generation with --world, --shapes and --checkpoint)")
     config = sets_config(args)
     if config.resolution < 16:
         raise UserError(f"--resolution {config.resolution}: must be at least 16")
@@ -117,21 +117,29 @@ def run(args: argparse.Namespace) -> int:
     targets = [out / "metrics.json", out / "metrics.md"]
     masks = list_images(args.masks, "mask") if args.masks else None
     start = time.perf_counter()
-    if args.pairs:
-        renders, images, pair_masks, names = load_pairs(args.renders, args.images, masks)
-        result = evaluate_pairs(renders, images, pair_masks, names, config)
-        mode = "pairs"
-    else:
-        background = BACKGROUNDS[config.background]
-        renders, render_masks = load_set(args.renders, "render", config.resolution, background)
-        images, image_masks = load_set(args.images, "image", config.resolution, background, masks)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
+    steps = ["read the pairs", "paired metrics"] if args.pairs else ["read the renders", "read the images", "feature network", "set metrics"]
+    with progress_bar(total=len(steps), desc="evaluate", unit="step") as bar:
+        def step(done: str) -> None:
+            bar.update(1)
+            bar.set_postfix_str(done)
+
+        if args.pairs:
+            renders, images, pair_masks, names = load_pairs(args.renders, args.images, masks)
+            step(steps[0])
+            result = evaluate_pairs(renders, images, pair_masks, names, config)
+            step(steps[1])
+            mode = "pairs"
+        else:
+            background = BACKGROUNDS[config.background]
+            renders, render_masks = load_set(args.renders, "render", config.resolution, background)
+            step(steps[0])
+            images, image_masks = load_set(args.images, "image", config.resolution, background, masks)
+            step(steps[1])
             extractor = get_feature_extractor(config.features, args.inception_weights, args.vgg_weights, select_device(args.device))
-        for warning in caught:
-            print(f"mesh2tex: warning: {warning.message}", file=sys.stderr)
-        result = evaluate_sets(renders, images, extractor, config, render_masks, image_masks)
-        mode = "sets"
+            step(steps[2])
+            result = evaluate_sets(renders, images, extractor, config, render_masks, image_masks)
+            step(steps[3])
+            mode = "sets"
     result = {"mode": mode, "renders": str(args.renders), "images": str(args.images), "masks": args.masks,
               **result, "seconds": round(time.perf_counter() - start, 2), "settings": asdict(config)}
     out.mkdir(parents=True, exist_ok=True)

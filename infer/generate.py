@@ -28,7 +28,7 @@ from mesh2tex.io.models import gan_camera, load_generator
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import render_field_views
-from mesh2tex.options import config_overrides
+from mesh2tex.options import config_overrides, parse_seeds  # --seeds: lists and ranges (0-7, 0,2,5-9)
 from mesh2tex.render import orbit_camera, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, load_shape, write_textured_mesh
@@ -58,16 +58,6 @@ class GenerateConfig:
 def output_names(cfg: GenerateConfig) -> list[str]:
     """The files the command writes into --out."""
     return [name for seed in cfg.seeds for name in [f"seed{seed}_view{v}.png" for v in range(cfg.views)] + [f"seed{seed}.glb", f"seed{seed}.ply"]]
-
-
-def parse_seeds(text: str) -> list[int]:
-    try:
-        seeds = [int(s) for s in text.split(",") if s.strip()]
-    except ValueError:
-        raise UserError(f"--seeds {text!r}: expected comma-separated integers, e.g. 0,1,2") from None
-    if not seeds:
-        raise UserError("--seeds: give at least one seed")
-    return seeds
 
 
 def build_config(args) -> GenerateConfig:

@@ -1,6 +1,6 @@
 """The generation protocol: a texture GAN measured against the synthetic world's ground truth.
 
-    mesh2tex evaluate --generation --world WORLD --shapes SHAPES --gan CKPT --out DIR
+    mesh2tex evaluate --generation --world WORLD --shapes SHAPES --checkpoint NAME|PATH --out DIR
 
 On the world's held-out shapes (those of its queries, never seen in training), with the same
 cameras, the same white background and the same image pipeline for every row (rendered as the
@@ -94,6 +94,7 @@ from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_l
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
+from mesh2tex.progress import progress_bar
 from mesh2tex.render import Lights, composite_images, orbit_camera
 from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views
@@ -365,6 +366,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
     z_div_gen = seeded_generator((cfg.seed,), _DIVERSITY_STREAM)
     generator_rows = (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0))  # (row, generator, truncation psi)
+    bar = progress_bar(total=len(names) + cfg.repeats, desc="generation protocol", unit="step")
     for position, name in enumerate(names):
         views = views_of[name]
         images, masks = generator_renders(trained, shapes[name], views, resolution, None, device, lit,
@@ -389,6 +391,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         diversity["reference_materials"]["spread"].append(colour_spread(mean_object_lab(images, masks)))
         diversity["reference_materials"]["pairwise"].append(mean_pairwise_delta_e(images, masks))
         log(f"generation protocol: {name} done ({time.perf_counter() - start:.0f} s)")
+        bar.update(1)
     fixed_sets = {row: (torch.cat(images), torch.cat(masks)) for row, (images, masks) in fixed.items()}
 
     eval_cfg = EvaluateConfig(resolution=resolution, features=cfg.features, seed=cfg.seed)
@@ -432,6 +435,8 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
             rows[row] = metrics
         per_repeat.append(rows)
         log(f"generation protocol: draw {repeat + 1} of {cfg.repeats} measured ({time.perf_counter() - start:.0f} s)")
+        bar.update(1)
+    bar.close()
     rows = average_rows(per_repeat)
     photo_spread = photo_set_spread(world, photos, photo_masks, photo_names)
     summary = {name: {k: float(np.mean(v)) for k, v in d.items()} for name, d in diversity.items()}

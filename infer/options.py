@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import argparse
 
-from mesh2tex.options import (DEVICES, ConfigOptions, add_device, add_out, add_print_config, add_texture_format, config_default,
-                              static_value)
+from mesh2tex.options import (DEVICES, SHIPPED_MODELS_HELP, ConfigOptions, add_checkpoint, add_device, add_out, add_overwrite,
+                              add_print_config, add_texture_format, config_default, renamed, static_value)
 
 SETS_CONFIG = "mesh2tex.metrics.evaluate:EvaluateConfig"
 PROTOCOL_CONFIG = "mesh2tex.infer.protocols:ProtocolConfig"
@@ -86,12 +86,16 @@ def nca(parser: argparse.ArgumentParser) -> None:
 
 def evaluate(parser: argparse.ArgumentParser) -> None:
     """Three modes, each with its config: sets (default) and pairs, ``--protocols``, ``--generation``;
-    ``--print-config`` prints the one of the mode asked for."""
+    ``--config`` reads, and ``--print-config`` prints, the one of the mode asked for."""
     parser.add_argument("--renders", help="folder of rendered images (PNG/JPEG; RGBA alpha is the mask); required unless --protocols")
     parser.add_argument("--images", help="folder of reference images (photos, or ground-truth renders with --pairs); required unless --protocols")
     parser.add_argument("--masks", help="folder of masks named like the images (white = object)")
     parser.add_argument("--pairs", action="store_true", help="paired metrics (PSNR, SSIM, histogram) between files of the same name")
     add_out(parser, "output folder for metrics.json and metrics.md (protocols.* with --protocols, generation.* with --generation)")
+    config = parser.add_argument("--config", "--protocol-config", metavar="YAML",
+                                 help="YAML file with any fields of the config of the mode asked for: sets and pairs, --protocols or "
+                                      "--generation (the flags given override it; --print-config shows its fields)")
+    renamed(config, "--protocol-config")
     add_print_config(parser)
     sets = ConfigOptions(parser, SETS_CONFIG, config_flag=None)
     parser.add_argument("--resolution", type=int, help=(
@@ -106,11 +110,11 @@ def evaluate(parser: argparse.ArgumentParser) -> None:
     sets.add("--background", choices=BACKGROUNDS, help="sets mode: colour for masked-out pixels")
     add_device(parser)
     sets.add("--seed", type=int, help="seed for KID subsets and SWD sampling")
-    parser.add_argument("--overwrite", action="store_true", help="replace metrics already in --out")
+    add_overwrite(parser, "replace metrics already in --out")
     _protocols(parser)
     group = parser.add_argument_group("generation (--generation: a GAN against a synthetic world's ground truth)")
     group.add_argument("--generation", action="store_true",
-                       help="the generation protocol: --gan against --world's ground truth on the held-out shapes in --shapes")
+                       help="the generation protocol: --checkpoint against --world's ground truth on the held-out shapes in --shapes")
     generation = ConfigOptions(group, GENERATION_CONFIG, config_flag=None)
     generation.add("--latents", type=int, help="latents per shape for the diversity measures")
     generation.add("--repeats", type=int, help="draws of the latents, oracle materials and fresh photo set, their distances averaged")
@@ -129,10 +133,11 @@ def _protocols(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--protocols", action="store_true", help="run the evaluation protocols on a synthetic world")
     group.add_argument("--world", help="synthetic world folder (from 'mesh2tex prepare synthetic')")
     group.add_argument("--shapes", help="prepared shapes of the world's meshes (from 'mesh2tex prepare shapes')")
-    group.add_argument("--gan", help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan')")
-    group.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose')")
-    group.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc')")
-    config = ConfigOptions(group, PROTOCOL_CONFIG, config_flag="--protocol-config", print_config=False, what="the protocol config")
+    add_checkpoint(group, "--protocols and --generation: the generator measured, a 'train gan' checkpoint (RUN/checkpoint.safetensors) "
+                          f"{SHIPPED_MODELS_HELP}, which also supplies the pose and NOC networks unless given", alias="--gan")
+    group.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose'), or a shipped model's name")
+    group.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc'), or a shipped model's name")
+    config = ConfigOptions(group, PROTOCOL_CONFIG, config_flag=None, what="the protocol config")
     config.add("--latent-iters", key="transfer.latent_iters", type=int, help="transfer stage 1 iterations")
     config.add("--refine-iters", key="transfer.refine_iters", type=int, help="transfer stage 2 iterations")
     config.add("--queries", type=int, help="query photos used, the first K (0: all)")

@@ -1,6 +1,6 @@
 """The evaluation protocols of the Mesh2Tex paper, run on a synthetic world and trained checkpoints.
 
-    mesh2tex evaluate --protocols --world WORLD --shapes SHAPES --gan GAN --pose-checkpoint P
+    mesh2tex evaluate --protocols --world WORLD --shapes SHAPES --checkpoint NAME|PATH --pose-checkpoint P
                       --noc-checkpoint N --out DIR [--latent-iters N] [--refine-iters N] [--queries K]
 
 A world from ``mesh2tex prepare synthetic`` holds photos of training shapes (``images/``, ``masks/``)
@@ -84,7 +84,7 @@ from mesh2tex.io.checkpoint import checkpoint_digest
 from mesh2tex.io.image_sets import list_images, load_set
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.outputs import guard_outputs
-from mesh2tex.io.models import gan_camera, load_generator, trained_lit
+from mesh2tex.io.models import gan_camera, is_model_name, load_generator, resolve_checkpoint, trained_lit
 from mesh2tex.metrics import get_feature_extractor, to_unit
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.nn.batch import collate_shapes
@@ -93,6 +93,7 @@ from mesh2tex.nn.pose import azimuth_error
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides
+from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, load_shape, mean_latent
@@ -235,7 +236,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                           vgg, cfg: ProtocolConfig,
                           pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None,
                           distance: float, fov: float, device: torch.device, out: Path | None, log=print,
-                          cache: "TransferCache | None" = None, generator_lit: bool = False) -> dict:
+                          cache: "TransferCache | None" = None, generator_lit: bool = False, step=None) -> dict:
     """One transfer protocol (``known_pose``, ``unknown_pose`` or ``other_shape``): the baselines of
     ``cfg.baselines`` and every ablation of ``cfg.ablations``, judged alike.
 
@@ -315,6 +316,8 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {target} {name}: "
                 + ", ".join(f"{k} {row[k]:.4g}" for k in ("seen part_delta_e", "unseen part_delta_e", "seen lowpass_psnr") if k in row)
                 + (f" ({row['seconds']:.0f} s)" if "seconds" in row else ""))
+            if step is not None:  # one method of one query judged
+                step()
 
         if out is not None:
             (out / "renders" / protocol).mkdir(parents=True, exist_ok=True)
@@ -510,7 +513,8 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         inputs = {"world": str(Path(world_dir).resolve()), "shapes": str(Path(shapes_dir).resolve()),
-                  "gan": _file_digest(gan_checkpoint), "pose": _file_digest(pose_checkpoint), "noc": _file_digest(noc_checkpoint)}
+                  "gan": _file_digest(gan_checkpoint, "gan"), "pose": _file_digest(pose_checkpoint, "pose"),
+                  "noc": _file_digest(noc_checkpoint, "noc")}
         cache = TransferCache(out, {"settings": json_ready(cache_settings(cfg, trained_lit(meta))), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
@@ -518,19 +522,25 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
               "features": extractor.description, "style_features": getattr(vgg, "source", None),
               "counts": {"queries": len(world.queries), "query_shapes": len(world.query_shapes)},
               "settings": asdict(cfg), "protocols": {}, "comparison": {}, "warnings": notes}
+    steps = sum(1 if protocol == "unconditional" else len(world.queries) * (len(cfg.baselines) + len(cfg.ablations))
+                for protocol in cfg.protocols)
+    bar = progress_bar(total=steps, desc="protocols", unit="result")
     for protocol in cfg.protocols:
         t = time.perf_counter()
         if protocol == "unconditional":
             entry = run_unconditional(generator, world, shapes, cfg, extractor, eval_cfg, distance, fov, device, out)
+            bar.update(1)
         else:
             entry = run_transfer_protocol(protocol, generator, world, shapes, targets, vgg, cfg, pose_checkpoint,
-                                          noc_checkpoint, distance, fov, device, out, log, cache, generator_lit=trained_lit(meta))
+                                          noc_checkpoint, distance, fov, device, out, log, cache, generator_lit=trained_lit(meta),
+                                          step=bar.update)
             result["comparison"][protocol] = compare_to_full(entry["methods"])
             entry["oracle_loses"] = oracle_check(entry["methods"])
             entry["against_flat_colour"] = flat_colour_targets(entry["methods"])
         entry["seconds"] = round(time.perf_counter() - t, 2)
         result["protocols"][protocol] = entry
         log(f"{protocol}: done in {entry['seconds']:.0f} s")
+    bar.close()
     result["seconds"] = round(time.perf_counter() - started, 2)
     if out is not None:
         write_json(out / "protocols.json", json_ready(result))
@@ -538,9 +548,9 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     return result
 
 
-def _file_digest(path: str | Path | None) -> str | None:
-    """:func:`mesh2tex.io.checkpoint.checkpoint_digest`, None for None."""
-    return None if path is None else checkpoint_digest(path)
+def _file_digest(path: str | Path | None, kind: str) -> str | None:
+    """:func:`mesh2tex.io.checkpoint.checkpoint_digest` of a path or a shipped model's ``kind`` file, None for None."""
+    return None if path is None else checkpoint_digest(resolve_checkpoint(path, kind))
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -548,8 +558,8 @@ def _split(text: str | None) -> list[str] | None:
 
 
 def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
-    """The protocol config: its defaults, then ``--protocol-config``, then the flags given."""
-    return load_config(ProtocolConfig, args.protocol_config, config_overrides(args, PROTOCOL_CONFIG, computed={
+    """The protocol config: its defaults, then ``--config``, then the flags given."""
+    return load_config(ProtocolConfig, args.config, config_overrides(args, PROTOCOL_CONFIG, computed={
         "protocols": _split(args.only), "ablations": _split(args.ablations), "baselines": _split(args.baselines),
         # the options evaluate's other modes share
         "resolution": args.resolution, "evaluate.features": args.features, "evaluate.kid_subsets": args.kid_subsets, "seed": args.seed,
@@ -559,13 +569,15 @@ def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
 
 def run_protocols_command(args: argparse.Namespace) -> int:
     """``mesh2tex evaluate --protocols ...``: writes OUT/protocols.json, OUT/protocols.md and OUT/renders/."""
-    for flag in ("world", "shapes", "gan"):
+    for flag in ("world", "shapes", "checkpoint"):
         if not getattr(args, flag):
             raise UserError(f"--protocols needs --{flag}")
     cfg = protocol_config(args)
     out = guard_outputs(args.out, ["protocols.json", "protocols.md"], args.overwrite)  # finished transfers are a cache (TransferCache)
-    result = run_protocols(args.world, args.shapes, args.gan, args.pose_checkpoint, args.noc_checkpoint, cfg, out,
-                           log=lambda line: print(line, flush=True), overwrite=args.overwrite)
+    pose, noc = args.pose_checkpoint, args.noc_checkpoint
+    if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks, as in 'infer transfer'
+        pose, noc = pose or args.checkpoint, noc or args.checkpoint
+    result = run_protocols(args.world, args.shapes, args.checkpoint, pose, noc, cfg, out, log=write_line, overwrite=args.overwrite)
     print(protocols_markdown(result), end="")
     print(f"wrote {out / 'protocols.json'} and {out / 'protocols.md'} ({result['seconds']:.0f} s)")
     return 0

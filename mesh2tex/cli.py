@@ -6,6 +6,8 @@ name in the package's ``options.py`` (``mesh2tex.train.gan`` -> ``mesh2tex.train
 torch. This file only routes: it builds the options of the one command asked for and imports its
 stage when it runs, so that ``mesh2tex --help`` and ``mesh2tex CMD --help`` stay fast and one broken
 stage cannot break the others. ``--print-config`` prints the command's resolved config and exits.
+Every Python warning raised while a command runs (the library's ``warnings.warn``, a dependency's)
+is shown as one line, ``mesh2tex: warning: ...`` (:func:`show_warning`), never with a source line.
 """
 
 from __future__ import annotations
@@ -16,9 +18,11 @@ import importlib
 import os
 import signal
 import sys
+import warnings
+from pathlib import Path
 
 from mesh2tex.errors import InputError, UserError
-from mesh2tex.options import HelpFormatter, Parser
+from mesh2tex.options import HelpFormatter, Parser, warning
 
 # (command, subcommand or None) -> (stage module, one-line help)
 COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
@@ -98,7 +102,42 @@ def print_config(stage, args) -> int:
     return 0
 
 
+def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` while a command runs: one ``mesh2tex: warning: ...`` line. The
+    library's own warnings (raised from ``mesh2tex``) are the message alone; a dependency's names its
+    category and package, so that it is not taken for ours."""
+    origin = Path(filename).resolve()
+    if any(folder.resolve() in origin.parents for folder in _package_folders()):
+        warning(message)
+    else:
+        source = _package_of(origin)
+        warning(f"{message} ({category.__name__}{f' from {source}' if source else ''})")
+
+
+def _package_folders() -> list[Path]:
+    """The folders of mesh2tex's code: the package and its stage folders (beside it in a source tree)."""
+    import mesh2tex
+
+    package = Path(mesh2tex.__file__).parent
+    return [package] + [Path(entry) / stage for entry in mesh2tex.__path__ for stage in ("data_prep", "train", "infer")]
+
+
+def _package_of(path: Path) -> str:
+    """The top-level package a source file belongs to (the folder under site-packages), or ''."""
+    parts = path.parts
+    for marker in ("site-packages", "dist-packages"):
+        if marker in parts and parts.index(marker) + 1 < len(parts):
+            return parts[parts.index(marker) + 1].removesuffix(".py")
+    return ""
+
+
 def main(argv: list[str] | None = None) -> int:
+    with warnings.catch_warnings():
+        warnings.showwarning = show_warning
+        return _main(argv)
+
+
+def _main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
     args, unknown = parser.parse_known_args(argv)

@@ -13,7 +13,13 @@ them from the source with ``ast`` (literal values, nested configs, names of modu
 * :class:`ConfigOptions` declares which flag overrides which config field; :func:`config_overrides`
   gives a command the overrides of every flag it declared.
 * :func:`add_out` and :func:`add_device`: ``--out DIR`` and ``--device auto|cpu|cuda`` alike everywhere;
-  :func:`add_texture_format`: ``--texture-format png|jpeg|webp`` on every command that writes a GLB.
+  :func:`add_overwrite`: ``--overwrite`` on every command that writes; :func:`add_checkpoint`:
+  ``--checkpoint NAME|PATH`` wherever a generator is read; :func:`add_texture_format`:
+  ``--texture-format png|jpeg|webp`` on every command that writes a GLB; :func:`parse_seeds`: the
+  ``--seeds`` lists and ranges (``0-7``, ``0,2,5-9``).
+* :func:`renamed`: an old spelling of a flag keeps working, hidden from ``--help``, and says once
+  ``mesh2tex: warning: --gan is renamed --checkpoint``; :func:`warning` prints that one-line form,
+  the form of every warning the commands give (``mesh2tex/cli.py`` shows Python warnings the same way).
 """
 
 from __future__ import annotations
@@ -28,8 +34,26 @@ from pathlib import Path
 DEVICES = ("auto", "cpu", "cuda")
 
 
+def warning(message) -> None:
+    """``mesh2tex: warning: <message>`` as one line on stderr."""
+    text = " ".join(line.strip() for line in str(message).splitlines() if line.strip())
+    if "tqdm" in sys.modules:  # a progress bar may be showing: print above it, not through it
+        sys.modules["tqdm"].tqdm.write(f"mesh2tex: warning: {text}", file=sys.stderr)
+    else:
+        print(f"mesh2tex: warning: {text}", file=sys.stderr)
+
+
 class Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors are one line: ``mesh2tex: error: <what>; see 'PROG --help'`` (exit 2)."""
+    """An ArgumentParser whose errors are one line: ``mesh2tex: error: <what>; see 'PROG --help'`` (exit 2),
+    and which warns when an old spelling of a flag (:func:`renamed`) is used."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        words = sys.argv[1:] if args is None else list(args)
+        for action in self._actions:
+            for old in getattr(action, "renamed_from", ()):
+                if any(word == old or word.startswith(old + "=") for word in words):
+                    warning(f"{old} is renamed {action.option_strings[0]}")
+        return super().parse_known_args(args, namespace)
 
     def error(self, message: str):
         for action in self._actions:  # name an option as its help does, without its hidden aliases
@@ -68,12 +92,75 @@ def show_default(value) -> str | None:
     return str(value)
 
 
+def renamed(action: argparse.Action, *old: str) -> argparse.Action:
+    """Mark ``old`` spellings among ``action``'s option strings (its first one is the name): they still
+    work, ``--help`` and error messages do not show them, and using one prints
+    ``mesh2tex: warning: OLD is renamed NEW``."""
+    missing = [flag for flag in old if flag not in action.option_strings]
+    if missing or action.option_strings[0] in old:
+        raise ValueError(f"{', '.join(missing) or action.option_strings[0]}: not an old spelling of {action.option_strings}")
+    action.hidden_aliases = tuple(getattr(action, "hidden_aliases", ())) + old
+    action.renamed_from = tuple(getattr(action, "renamed_from", ())) + old
+    return action
+
+
 def add_out(parser, help: str, *, required: bool = True, default: str | None = None, alias: str | None = None) -> argparse.Action:
     """``--out DIR``; ``alias`` (an older spelling such as ``--output``) still works but is not shown."""
     flags = ["--out"] + ([alias] if alias else [])
     action = parser.add_argument(*flags, dest="out", metavar="DIR", required=required, default=default, help=help)
-    action.hidden_aliases = (alias,) if alias else ()
-    return action
+    return renamed(action, alias) if alias else action
+
+
+def add_overwrite(parser, help: str = "replace files already in --out (without it, a command that would replace one stops before any work)") -> argparse.Action:
+    """``--overwrite``: without it a command refuses to replace a file already in ``--out``."""
+    return parser.add_argument("--overwrite", action="store_true", help=help)
+
+
+SHIPPED_MODELS_HELP = "or a shipped model's name (chair, car)"
+
+
+def add_checkpoint(parser, help: str, *, config: "ConfigOptions | None" = None, key: str | None = None, required: bool = False,
+                   alias: str | None = None) -> argparse.Action:
+    """``--checkpoint NAME|PATH``: a generator (a 'train gan' checkpoint, or a shipped model's name,
+    which :func:`mesh2tex.io.models.resolve_checkpoint` turns into its file); ``help`` says what it
+    is for. With ``config`` it overrides that config's field ``key``; ``alias``: an old spelling (:func:`renamed`)."""
+    flags = ["--checkpoint"] + ([alias] if alias else [])
+    kwargs = dict(dest="checkpoint", metavar="NAME|PATH", help=help)
+    if config is not None:
+        action = config.add(*flags, key=key, **kwargs)
+    else:
+        action = parser.add_argument(*flags, required=required, **kwargs)
+    return renamed(action, alias) if alias else action
+
+
+def parse_seeds(text: str, flag: str = "--seeds") -> list[int]:
+    """Seeds as the user types them: integers and ranges, comma-separated (``0-7``, ``0,2,5-9``; a
+    range includes both ends); repeated seeds are kept once, in the order first given. InputError
+    (one line naming the text) for anything else."""
+    from mesh2tex.errors import InputError
+
+    seeds: list[int] = []
+    seen: set[int] = set()
+    for part in str(text).split(","):
+        part = part.strip()
+        if not part:
+            continue
+        split = part.find("-", 1)  # a range; a leading minus is a negative seed
+        try:
+            first, last = (int(part), int(part)) if split < 0 else (int(part[:split]), int(part[split + 1:]))
+        except ValueError:
+            raise InputError(f"{flag} {text!r}: expected integers and ranges, comma-separated, e.g. 0,1,2 or 0-7 or 0,2,5-9") from None
+        if last < first:
+            raise InputError(f"{flag} {text!r}: the range {part} runs backwards")
+        if last - first >= 100_000:
+            raise InputError(f"{flag} {text!r}: the range {part} holds more than 100000 seeds")
+        for value in range(first, last + 1):
+            if value not in seen:
+                seen.add(value)
+                seeds.append(value)
+    if not seeds:
+        raise InputError(f"{flag}: give at least one seed")
+    return seeds
 
 
 def add_device(parser, help: str = "where to run", default: str | None = "auto") -> argparse.Action:

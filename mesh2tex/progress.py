@@ -24,6 +24,12 @@ def progress_bar(iterable: Iterable | None = None, total: int | None = None, des
     return tqdm(iterable, total=total, desc=desc, initial=initial, file=sys.stderr, disable=disable, dynamic_ncols=True, **kwargs)
 
 
+def write_line(text: str, file=None) -> None:
+    """Print one line (default: stdout) without tearing a progress bar that is showing (``tqdm.write``)."""
+    tqdm.write(text, file=file or sys.stdout)
+    (file or sys.stdout).flush()
+
+
 class JsonLines:
     """Append one JSON object per line to ``path`` (flushed each time, so a crash loses nothing written)."""
 

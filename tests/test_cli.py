@@ -232,7 +232,7 @@ def flag_value(action: argparse.Action, default):
         return "3,4", [3, 4]
     if flag == "--steps":
         return "3,5", [3, 5]
-    if flag == "--gan":  # a checkpoint that must exist: a shipped model's name, resolved to its file
+    if flag == "--checkpoint":  # a generator that must exist: a shipped model's name, resolved to its file
         return "chair", str(resolve_checkpoint("chair", "gan"))
     if action.choices:
         choice = next(c for c in action.choices if c != default)

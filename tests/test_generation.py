@@ -189,10 +189,10 @@ def test_full_truncation_paints_the_mean_texture_for_every_latent(world_and_gan,
     with pytest.raises(ValueError, match=r"truncation must be in \[0, 1\]"):
         GenerationConfig(truncation=1.5)
     # The command takes it as 'infer generate' does.
-    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--gan", "g", "--out", "o", "--truncation", "0.7", "--print-config"]) == 0
+    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--checkpoint", "g", "--out", "o", "--truncation", "0.7", "--print-config"]) == 0
     assert "truncation: 0.7" in capsys.readouterr().out
     # The generator's renders: as the oracle's by default, the GAN's own renderer on request (earlier figures).
-    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--gan", "g", "--out", "o", "--generator-render", "direct",
+    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--checkpoint", "g", "--out", "o", "--generator-render", "direct",
                  "--print-config"]) == 0
     assert "generator_render: direct" in capsys.readouterr().out
     assert GenerationConfig().generator_render == "photo"
@@ -248,14 +248,14 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
 
 def test_command_writes_results_and_refuses_to_overwrite(world_and_gan, tmp_path, capsys):
     root = world_and_gan
-    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--gan",
+    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--checkpoint",
             str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--repeats", "1", "--kid-subsets", "2",
             "--device", "cpu", "--features", "randvgg"]
     assert main(args) == 0
     assert {"generation.json", "generation.md", "generation_samples.png"} <= {p.name for p in (tmp_path / "out").iterdir()}
     assert "Gap closed" in (tmp_path / "out" / "generation.md").read_text()
     assert main(args) == 2 and "--overwrite" in capsys.readouterr().err
-    assert main(args[:5] + args[7:]) == 2 and "--generation needs --gan" in capsys.readouterr().err
+    assert main(args[:5] + args[7:]) == 2 and "--generation needs --checkpoint" in capsys.readouterr().err
 
 
 def test_the_training_split_measures_the_shapes_the_gan_trained_on(world_and_gan, tmp_path, capsys):
@@ -269,7 +269,7 @@ def test_the_training_split_measures_the_shapes_the_gan_trained_on(world_and_gan
     assert result["rows"]["oracle"]["object_swd"] < result["rows"]["untrained"]["object_swd"]
     assert "1 training shapes" in generation_markdown(result)
     # Through the command: only the first training shape is prepared, so the second one is named.
-    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--gan",
+    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--checkpoint",
             str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--split", "train",
             "--device", "cpu", "--features", "randvgg"]
     assert main(args) == 2

@@ -91,3 +91,24 @@ def test_prepare_images_masks_from_alpha_file_and_estimate(tmp_path, capsys):
 def test_prepare_images_missing_folder_is_a_user_error(tmp_path, capsys):
     assert main(["prepare", "images", "--input", str(tmp_path / "none"), "--out", str(tmp_path / "out")]) == 2
     assert "none" in capsys.readouterr().err
+
+
+def test_prepare_images_refuses_to_replace_its_outputs_without_overwrite(tmp_path, capsys):
+    src, out = tmp_path / "photos", tmp_path / "out"
+    src.mkdir()
+    rgb, mask = photo_with_object()
+    for name in ("a", "b"):
+        Image.fromarray(np.dstack([rgb, mask.astype(np.uint8) * 255])).save(src / f"{name}.png")
+    argv = ["prepare", "images", "--input", str(src), "--out", str(out), "--size", "32"]
+    assert main(argv) == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    assert main(argv + ["--size", "16"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "already holds index.json" in err and "--overwrite" in err, err
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before, "nothing replaced"
+    (src / "b.png").unlink()  # the next set lacks b: --overwrite leaves the folder holding this set only
+    assert main(argv + ["--size", "16", "--overwrite"]) == 0
+    assert sorted(p.name for p in (out / "images").iterdir()) == ["a.png"]
+    assert sorted(p.name for p in (out / "masks").iterdir()) == ["a.png"]
+    assert np.asarray(Image.open(out / "images" / "a.png")).shape == (16, 16, 3)

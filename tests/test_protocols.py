@@ -41,11 +41,11 @@ def setup(tmp_path_factory):
 
 def protocol_args(root, out, *extra):
     return ["evaluate", "--protocols", "--world", str(root / "world"), "--shapes", str(root / "shapes"),
-            "--gan", str(root / "gan" / "checkpoint.safetensors"),
+            "--checkpoint", str(root / "gan" / "checkpoint.safetensors"),
             "--pose-checkpoint", str(root / "pose" / "checkpoint.safetensors"),
             "--noc-checkpoint", str(root / "noc" / "checkpoint.safetensors"), "--out", str(out),
             "--latent-iters", "2", "--refine-iters", "1", "--kid-subsets", "2", "--device", "cpu",
-            "--protocol-config", str(root / "protocols.yaml"), *extra]
+            "--config", str(root / "protocols.yaml"), *extra]
 
 
 def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypatch):
@@ -105,7 +105,7 @@ def test_an_automaton_fitted_to_the_photo_is_judged_beside_the_baselines_when_as
     config = _yaml(tmp_path / "automaton.yaml", automaton={"iters": 3, "steps_min": 2, "steps_max": 3, "final_steps": 2})
     out = tmp_path / "eval"
     args = protocol_args(root, out, "--only", "known_pose", "--ablations", "full", "--baselines", "oracle,flat_colour,automaton")
-    args[args.index("--protocol-config") + 1] = str(config)
+    args[args.index("--config") + 1] = str(config)
     assert main(args) == 0
     entry = json.loads((out / "protocols.json").read_text())["protocols"]["known_pose"]
     assert list(entry["methods"]) == ["oracle", "flat_colour", "automaton", "full"]
@@ -208,7 +208,7 @@ def test_an_interrupted_run_resumes_without_redoing_finished_transfers(setup, tm
     result = json.loads((out / "protocols.json").read_text())
     assert set(result["comparison"]["known_pose"]) == set(BASELINES) | {"no_refine", "no_noc"}
 
-    judged_apart = protocol_args(root, out, "--only", "known_pose", "--ablations", "full", "--protocol-config",
+    judged_apart = protocol_args(root, out, "--only", "known_pose", "--ablations", "full", "--config",
                                  str(_yaml(tmp_path / "albedo.yaml", lighting="albedo", unseen_views=2)), "--overwrite")
     assert main(judged_apart) == 0
     assert len(counted) == 3, "judging with other lighting and views re-judges the kept transfers, it does not redo them"
@@ -278,18 +278,18 @@ def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, ca
     assert load_config(ProtocolConfig, overrides={"transfer.w_colour": 1}).transfer.scales == 2
     for fields, says in (({"w_anchr": 1}, "unknown key(s) ['w_anchr']"), ({"seed": 3}, "transfer: seed cannot be set there"),
                          ({"use_noc": False}, "choose an ablation")):
-        assert main(protocol_args(tmp_path, tmp_path / "o", "--protocol-config", str(_yaml(tmp_path / "bad.yaml", transfer=fields)))) == 2
+        assert main(protocol_args(tmp_path, tmp_path / "o", "--config", str(_yaml(tmp_path / "bad.yaml", transfer=fields)))) == 2
         err = capsys.readouterr().err
         assert says in err and err.count("\n") == 1, err
     assert main(["evaluate", "--protocols", "--latent-iters", "9", "--print-config"]) == 0
     assert yaml.safe_load(capsys.readouterr().out)["transfer"]["latent_iters"] == 9
     # A config of the layout before the nesting is told where its keys went.
-    assert main(protocol_args(tmp_path, tmp_path / "o", "--protocol-config", str(_yaml(tmp_path / "old.yaml", latent_iters=5)))) == 2
+    assert main(protocol_args(tmp_path, tmp_path / "o", "--config", str(_yaml(tmp_path / "old.yaml", latent_iters=5)))) == 2
     assert "key(s) moved: latent_iters -> transfer.latent_iters" in capsys.readouterr().err
     # The set metrics' settings nest the same way, and take the protocol's resolution and seed.
     cfg = load_config(ProtocolConfig, overrides={"resolution": 48, "seed": 3, "evaluate.kid_subsets": 7})
     assert cfg.evaluate_config() == EvaluateConfig(resolution=48, seed=3, kid_subsets=7)
-    assert main(protocol_args(tmp_path, tmp_path / "o", "--protocol-config", str(_yaml(tmp_path / "bad.yaml", evaluate={"seed": 5})))) == 2
+    assert main(protocol_args(tmp_path, tmp_path / "o", "--config", str(_yaml(tmp_path / "bad.yaml", evaluate={"seed": 5})))) == 2
     assert "evaluate: seed cannot be set there" in capsys.readouterr().err
 
 

@@ -15,7 +15,7 @@ import yaml
 from PIL import Image
 
 from mesh2tex.cli import main
-from mesh2tex.io.checkpoint import load_checkpoint
+from mesh2tex.io.checkpoint import load_checkpoint, read_checkpoint_meta
 from conftest import TINY_GAN
 from test_faceconv import cube_shape
 
@@ -343,6 +343,19 @@ def test_resume_refuses_what_is_not_a_gan_training_checkpoint(case, refused_sour
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"mesh2tex: error: {path}: ") and reason in err, err
     assert not out.exists(), "nothing is written to --out"
+
+
+def test_overwrite_starts_a_new_run_in_place_of_the_one_in_out(tiny_data, tmp_path, capsys):
+    run = tmp_path / "run"
+    assert train(tiny_data, run, "--iters", "2") == 0
+    capsys.readouterr()
+    assert train(tiny_data, run, "--iters", "1") == 2
+    assert "pass --resume to continue it, --overwrite to replace it" in capsys.readouterr().err
+    assert train(tiny_data, run, "--iters", "1", "--resume", "--overwrite") == 2, "continue or replace: not both"
+    assert "give one of them" in capsys.readouterr().err
+    assert train(tiny_data, run, "--iters", "1", "--overwrite") == 0
+    assert max(record["iteration"] for record in metrics(run)) == 1, "the replaced run's metrics are gone"
+    assert read_checkpoint_meta(run / "checkpoint.safetensors")["meta"]["iteration"] == 1
 
 
 def test_resume_from_another_run_refuses_an_out_that_holds_a_run(tiny_data, tmp_path, capsys):

@@ -110,7 +110,7 @@ def test_train_with_gan_mixes_gan_and_procedural_views(tiny_gan, tmp_path, capsy
     config.write_text("width: 4\ndata:\n  views_per_material: 2\n  gan_share: 0.5\n")
     assert main(["train", "pose", "--shapes", str(tiny_gan / "shapes"), "--out", str(run), "--config", str(config),
                  "--samples", "16", "--resolution", "16", "--batch", "4", "--iters", "1", "--device", "cpu",
-                 "--gan", str(tiny_gan / "run" / "checkpoint.safetensors")]) == 0
+                 "--checkpoint", str(tiny_gan / "run" / "checkpoint.safetensors")]) == 0
     assert (run / "checkpoint.safetensors").is_file()
     with np.load(run / "views.npz", allow_pickle=False) as views:
         gan_textured = views["gan_textured"]
@@ -119,26 +119,26 @@ def test_train_with_gan_mixes_gan_and_procedural_views(tiny_gan, tmp_path, capsy
         # a group (2 views) shares its texture source
         assert (gan_textured[0::2] == gan_textured[1::2]).all()
     assert main(["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--out", str(tmp_path / "noc"),
-                 "--gan", str(run / "checkpoint.safetensors")]) == 2, "a pose checkpoint is no GAN"
-    assert f"{run / 'checkpoint.safetensors'}: this is a 'pose' checkpoint, --gan needs a 'gan' checkpoint" in capsys.readouterr().err
+                 "--checkpoint", str(run / "checkpoint.safetensors")]) == 2, "a pose checkpoint is no GAN"
+    assert f"{run / 'checkpoint.safetensors'}: this is a 'pose' checkpoint, --checkpoint needs a 'gan' checkpoint" in capsys.readouterr().err
 
 
 def test_bad_gan_checkpoint_is_a_one_line_error(tiny_gan, shapes_dir, tmp_path, capsys):
     base = ["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--samples", "4", "--resolution", "16", "--iters", "1",
             "--device", "cpu"]
     missing = tmp_path / "missing.safetensors"
-    assert main(base + ["--out", str(tmp_path / "a"), "--gan", str(missing)]) == 2
+    assert main(base + ["--out", str(tmp_path / "a"), "--checkpoint", str(missing)]) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"mesh2tex: error: {missing}: checkpoint not found"
     assert not (tmp_path / "a").exists(), "nothing is written before the checkpoint is checked"
     not_a_checkpoint = tiny_gan / "shapes" / "box0.npz"
-    assert main(base + ["--out", str(tmp_path / "b"), "--gan", str(not_a_checkpoint)]) != 0
+    assert main(base + ["--out", str(tmp_path / "b"), "--checkpoint", str(not_a_checkpoint)]) != 0
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and f"{not_a_checkpoint}: not a mesh2tex checkpoint" in err
     # a GAN whose hierarchy differs from the shapes' (2 levels here, 3 in the GAN)
     gan = tiny_gan / "run" / "checkpoint.safetensors"
     base[base.index("--shapes") + 1] = str(shapes_dir)
-    assert main(base + ["--out", str(tmp_path / "c"), "--gan", str(gan)]) != 0
+    assert main(base + ["--out", str(tmp_path / "c"), "--checkpoint", str(gan)]) != 0
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and f"{gan}: the prepared shapes have 2 levels, the generator needs 3" in err
 

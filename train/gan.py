@@ -457,7 +457,7 @@ class GanTrainer:
 def build_config(args) -> TrainGanConfig:
     overrides = config_overrides(args)
     run_config = Path(args.out) / "config.yaml"
-    if args.resume and run_config.is_file():
+    if args.resume and not getattr(args, "overwrite", False) and run_config.is_file():
         if args.config:
             print(f"mesh2tex: note: resuming uses {run_config}; --config {args.config} is ignored", file=sys.stderr)
         cfg = load_config(TrainGanConfig, run_config, overrides)
@@ -478,7 +478,7 @@ def run(args) -> int:
     try:
         device = runs.select_device(cfg.device)
         run_dir = runs.RunDirectory(args.out)
-        source = runs.start_from(args.resume, run_dir, KIND, note=distributed.is_main)  # checked before the data is read
+        source = runs.start_from(args.resume, run_dir, KIND, note=distributed.is_main, overwrite=args.overwrite)  # checked before the data is read
         shapes, _ = load_shapes(args.shapes)
         images = load_images(args.images, cfg.resolution)
         if cfg.metric_every and len(images) <= cfg.metric_photos:
@@ -489,13 +489,13 @@ def run(args) -> int:
             raise UserError(f"generator.input_features is {cfg.generator.input_features} but the shapes in {args.shapes} have {features} face features")
         cfg.generator.input_features = features
         if distributed.is_main and source is None:
-            run_dir.start(cfg, resume=False)
+            run_dir.start(cfg, resume=False, overwrite=args.overwrite)
         distributed.barrier()
         trainer = GanTrainer(cfg, shapes, images, run_dir, device, distributed)
         if source is not None:
             trainer.resume(source)  # before config.yaml is written: a checkpoint that cannot be loaded leaves --out as it was
             if distributed.is_main:
-                run_dir.start(cfg, resume=source == run_dir.checkpoint_path)
+                run_dir.start(cfg, resume=source == run_dir.checkpoint_path, overwrite=args.overwrite)
             distributed.barrier()
         trainer.train()
         if distributed.is_main:

@@ -117,7 +117,7 @@ def build_config(args) -> TrainNCAConfig:
     steps = parse_steps(args.steps)
     overrides = config_overrides(args, computed={"steps_min": steps[0] if steps else None, "steps_max": steps[1] if steps else None})
     run_config = Path(args.out) / "config.yaml"
-    if args.resume and run_config.is_file():
+    if args.resume and not getattr(args, "overwrite", False) and run_config.is_file():
         if args.config:
             print(f"mesh2tex: note: resuming uses {run_config}; --config {args.config} is ignored", file=sys.stderr)
         return load_config(TrainNCAConfig, run_config, overrides)
@@ -302,7 +302,7 @@ def run(args) -> int:
     cfg = build_config(args)
     device = runs.select_device(cfg.device)
     run_dir = runs.RunDirectory(args.out)
-    source = runs.start_from(args.resume, run_dir, KIND)  # checked before anything is written
+    source = runs.start_from(args.resume, run_dir, KIND, overwrite=args.overwrite)  # checked before anything is written
     exemplar = load_exemplar(args.exemplar, cfg.exemplar_size)
     parent = None
     if args.parent and source is None:
@@ -314,7 +314,7 @@ def run(args) -> int:
     trainer = NCATrainer(cfg, exemplar, graph, run_dir, device, vgg, parent=parent, cell_spacing=mean_edge_length(vertices, faces))
     if source is not None:
         trainer.resume(source)  # before config.yaml is written: a checkpoint that does not fit leaves --out as it was
-    run_dir.start(cfg, resume=source == run_dir.checkpoint_path)
+    run_dir.start(cfg, resume=source == run_dir.checkpoint_path, overwrite=args.overwrite)
     trainer.train()
     print(f"trained {trainer.iteration} iterations on {graph.num_cells} cells; checkpoint {run_dir.checkpoint_path}")
     return 0

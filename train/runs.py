@@ -78,14 +78,19 @@ class RunDirectory:
     def has_checkpoint(self) -> bool:
         return self.checkpoint_path.is_file()
 
-    def start(self, cfg, resume: bool) -> None:
-        """Create the directory and write the resolved config; refuse to overwrite a run by accident."""
-        if not resume and self.has_checkpoint():
-            raise UserError(f"{self.root}: already holds a run ({CHECKPOINT_NAME}); pass --resume to continue it or choose another --out")
+    def start(self, cfg, resume: bool, overwrite: bool = False) -> None:
+        """Create the directory and write the resolved config; refuse to overwrite a run by accident.
+        ``overwrite`` (``--overwrite``): a new run replaces the one there (its checkpoint, NaN state and metrics go)."""
+        if not resume and self.has_checkpoint() and not overwrite:
+            raise UserError(f"{self.root}: already holds a run ({CHECKPOINT_NAME}); pass --resume to continue it, --overwrite to "
+                            f"replace it, or choose another --out")
         if resume:
             read_checkpoint_meta(self.checkpoint_path)  # a damaged checkpoint is refused before config.yaml is rewritten
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
+        if not resume and overwrite:  # nothing of the replaced run may be resumed or read as this one's
+            for path in (self.checkpoint_path, self.nonfinite_path, self.metrics.path):
+                path.unlink(missing_ok=True)
         if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again
             self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)
@@ -104,14 +109,18 @@ def tensorboard_writer(folder: Path):
     return SummaryWriter(log_dir=str(folder))
 
 
-def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bool = True) -> Path | None:
+def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bool = True, overwrite: bool = False) -> Path | None:
     """The checkpoint a run starts from, checked before anything is written to ``run``.
 
     ``--resume`` alone (``True``): the run's own checkpoint, which it continues (None, with a note,
     when there is none yet). ``--resume PATH``: another run's training checkpoint of ``kind`` (a run
     folder stands for its checkpoint), from which ``run``, which must not hold a run of its own,
     starts; the header is checked here (kind, optimizer state) and a note names the source. Without
-    ``--resume``: None. ``note``: whether this process prints the notes (the main one of a run)."""
+    ``--resume``: None. ``note``: whether this process prints the notes (the main one of a run).
+    ``overwrite`` (``--overwrite``): the run in ``run`` is to be replaced, so ``--resume`` alone is refused
+    and ``--resume PATH`` may start there."""
+    if resume is True and overwrite:
+        raise UserError("--resume continues the run in --out and --overwrite replaces it: give one of them")
     if not resume:
         return None
     if resume is not True:
@@ -120,9 +129,9 @@ def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bo
             path = path / CHECKPOINT_NAME
         if path.resolve() != run.checkpoint_path.resolve():
             header = check_training_checkpoint(path, kind)
-            if run.has_checkpoint():
+            if run.has_checkpoint() and not overwrite:
                 raise UserError(f"{run.root}: already holds a run ({CHECKPOINT_NAME}); --resume {path} starts a new run: choose another --out, "
-                                f"or pass --resume alone to continue this one")
+                                f"pass --overwrite to replace it, or pass --resume alone to continue this one")
             if note:
                 print(f"mesh2tex: note: {run.root} starts from {path} (iteration {header['meta']['iteration']}) with this run's config "
                       f"(its config.yaml, else --config and the flags), not the checkpoint's",

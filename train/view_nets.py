@@ -4,7 +4,7 @@
 
 1. **Data**: views of the prepared shapes, rendered once and cached in ``RUN/views.npz``. Each group
    of views (one shape, one texture) is textured either by a random material of the category's
-   procedural library (:mod:`mesh2tex.synthetic.materials`) or, with ``--gan CHECKPOINT``
+   procedural library (:mod:`mesh2tex.synthetic.materials`) or, with ``--checkpoint NAME|PATH``
    (``data.gan_checkpoint``), for a ``data.gan_share`` of the groups, by the trained GAN from a
    random latent (its per-vertex colours of the finest level). Cameras, lights and backgrounds are
    drawn exactly as the synthetic photos are (:func:`mesh2tex.synthetic.world.sample_views`), and
@@ -214,7 +214,7 @@ def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], inde
 def build_view_config(args) -> ViewTrainConfig:
     overrides = config_overrides(args)
     run_config = Path(args.out) / "config.yaml"
-    source = run_config if args.resume and run_config.is_file() else args.config
+    source = run_config if args.resume and not getattr(args, "overwrite", False) and run_config.is_file() else args.config
     cfg = load_config(ViewTrainConfig, source, overrides)
     if cfg.iters < 1 or cfg.batch < 1 or cfg.data.samples < 2:
         raise UserError("--iters and --batch must be at least 1 and --samples at least 2")
@@ -226,7 +226,7 @@ def build_view_config(args) -> ViewTrainConfig:
         cfg.data.gan_checkpoint = str(resolve_checkpoint(cfg.data.gan_checkpoint, "gan"))  # a shipped model's name, or a path
         kind = read_checkpoint_meta(cfg.data.gan_checkpoint).get("kind")
         if kind != "gan":
-            raise UserError(f"{cfg.data.gan_checkpoint}: this is a '{kind}' checkpoint, --gan needs a 'gan' checkpoint")
+            raise UserError(f"{cfg.data.gan_checkpoint}: this is a '{kind}' checkpoint, --checkpoint needs a 'gan' checkpoint")
     return cfg
 
 
@@ -234,12 +234,12 @@ def run_view_training(args, kind: str) -> int:
     cfg = build_view_config(args)
     device = runs.select_device(cfg.device)
     run = runs.RunDirectory(args.out)
-    source = runs.start_from(args.resume, run, kind)  # checked before anything is written
+    source = runs.start_from(args.resume, run, kind, overwrite=args.overwrite)  # checked before anything is written
     shapes, _ = load_shapes(args.shapes)
     if source is not None and source != run.checkpoint_path:  # another run's: loaded once before --out is written, so a misfit leaves it as it was
         probe = build_network(kind, cfg)
         runs.load_training_state(source, kind, {VIEW_NET: probe}, {"opt": torch.optim.Adam(probe.parameters(), lr=cfg.lr)}, torch.device("cpu"))
-    run.start(cfg, resume=source == run.checkpoint_path)
+    run.start(cfg, resume=source == run.checkpoint_path, overwrite=args.overwrite)
     runs.seed_everything(cfg.seed)
     views = load_or_render_views(run, shapes, cfg)
 

@@ -11,6 +11,9 @@ A run directory ``RUN/`` holds:
     samples/                    images the trainer writes while it runs
     snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators (keep_snapshots: the newest N)
 
+A folder that holds a run is continued with ``--resume`` or replaced with ``--overwrite`` (the files
+the replaced run wrote, :data:`REPLACED_BY_OVERWRITE`, are removed; nothing else), and refused otherwise.
+
 Checkpoints hold modules, optimizers (with their state), EMA copies, RNG states (torch, CUDA, numpy,
 Python; one set per process of a distributed run) and the iteration, so that ``--resume`` continues
 exactly where the run stopped; ``--resume CHECKPOINT`` starts a new run from another run's
@@ -46,6 +49,10 @@ __all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "NonFiniteLoss", 
 
 CHECKPOINT_NAME = "checkpoint.safetensors"
 NONFINITE_NAME = "nonfinite.safetensors"
+# What a run writes into its folder (the module docstring; best.safetensors of train gan, model.safetensors
+# of train nca): a new run started with --overwrite removes these of the run it replaces, and nothing else.
+REPLACED_BY_OVERWRITE = (CHECKPOINT_NAME, NONFINITE_NAME, "metrics.jsonl", "best.safetensors", "model.safetensors",
+                         "snapshots/iter*.safetensors", "samples/iter*.png", "tensorboard/events.out.tfevents.*")
 
 
 # ---------------------------------------------------------------------------------- run directory
@@ -89,8 +96,10 @@ class RunDirectory:
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
         if not resume and overwrite:  # nothing of the replaced run may be resumed or read as this one's
-            for path in (self.checkpoint_path, self.nonfinite_path, self.metrics.path):
-                path.unlink(missing_ok=True)
+            for pattern in REPLACED_BY_OVERWRITE:
+                for path in self.root.glob(pattern):
+                    if path.is_file() or path.is_symlink():
+                        path.unlink()
         if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again
             self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)

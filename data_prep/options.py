@@ -42,5 +42,8 @@ def synthetic(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--query-views", type=int, default=2, help="query photos per held-out shape")
     parser.add_argument("--elevation", type=float, nargs=2, default=(5.0, 35.0), metavar=("MIN", "MAX"), help="elevation range in degrees")
     parser.add_argument("--texture-size", type=int, default=512, help="side of the baked UV texture of textured/*.glb")
+    parser.add_argument("--variety", choices=("boxy", "real"), default="boxy",
+                        help="shapes: 'boxy' (the original straight-member chairs and hull cars) or 'real' (families of real "
+                             "chairs and cars: office, club, sofa, stool, bench, rocking, folding, shell; sedan, SUV, van, ...)")
     add_overwrite(parser, "replace what --out holds (a world of other settings, or other files) with this world; without it such a "
                           "folder is refused (an unfinished world of the same settings is resumed either way)")

@@ -2,7 +2,8 @@
 
 Layout of ``--out`` (``<s>`` a shape name such as ``chair_0003``, ``<k>`` a two-digit view number):
 
-    index.json                 settings, the train/query split, every shape (design choices, material),
+    index.json                 settings (with ``variety`` when it is not the default 'boxy'), the train/query
+                               split, every shape (design choices, its family in a varied world, material),
                                every photo and query with its camera
     meshes/<s>.obj             watertight mesh, normalised frame (bbox centre 0, diagonal 1), y up,
                                front +z; one OBJ group per part (seat, leg, body, wheel, ...)
@@ -67,7 +68,7 @@ def spec_from_args(args):
     return WorldSpec(
         category=args.category, shapes=args.shapes, views=args.views, seed=args.seed, resolution=args.resolution,
         query_shapes=args.query_shapes, query_views=args.query_views, elevation_min=float(args.elevation[0]),
-        elevation_max=float(args.elevation[1]), texture_size=args.texture_size,
+        elevation_max=float(args.elevation[1]), texture_size=args.texture_size, variety=args.variety,
     )
 
 

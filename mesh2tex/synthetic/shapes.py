@@ -64,12 +64,25 @@ def generate_shape(category: str, rng: np.random.Generator) -> SyntheticShape:
     """One random shape of ``category`` ('chair' or 'car'), drawn from ``rng`` only (deterministic)."""
     if category not in _GENERATORS:
         raise ValueError(f"unknown category {category!r}; choose one of {', '.join(CATEGORIES)}")
+    return build_shape(category, _GENERATORS[category], rng)
+
+
+def build_shape(category: str, design: Callable[[_PartBuilder, np.random.Generator], dict[str, Any]],
+                rng: np.random.Generator, repair: Callable | None = None) -> SyntheticShape:
+    """The shape that ``design`` (which adds labelled solids to a builder and returns its design choices)
+    draws from ``rng``: the union of its parts, normalised, redrawn while unusable. ``repair``, when
+    given, maps the union's (vertices, faces, face_parts) to cleaned ones, or None to redraw."""
     # A random design can rarely leave a sliver edge (two parts nearly touching) or a part that
     # floats free; such a draw is replaced by the next one, so the result stays deterministic.
     for _ in range(_MAX_DRAWS):
         builder = _PartBuilder()
-        params = _GENERATORS[category](builder, rng)
+        params = design(builder, rng)
         vertices, faces, face_parts = builder.union()
+        if repair is not None:
+            repaired = repair(vertices, faces, face_parts)
+            if repaired is None:
+                continue
+            vertices, faces, face_parts = repaired
         vertices = normalise(vertices)
         if _is_usable(vertices, faces):
             return SyntheticShape(category, vertices, faces, face_parts, params)

@@ -37,7 +37,8 @@ from mesh2tex.render import (
     uv_rasterize,
 )
 from mesh2tex.synthetic.materials import Material, fractal_noise, random_material
-from mesh2tex.synthetic.shapes import CATEGORIES, SyntheticShape, generate_shape
+from mesh2tex.synthetic.shapes import CATEGORIES, SyntheticShape
+from mesh2tex.synthetic.variety import VARIETIES, generate_varied_shape
 
 # Random streams of one shape (the last entry of the rng seed sequence).
 _SHAPE, _MATERIAL, _PHOTOS, _QUERIES = 0, 1, 2, 3
@@ -65,10 +66,13 @@ class WorldSpec:
     fov: float = 40.0  # vertical field of view, degrees
     supersample: int = 2  # render at this multiple of the resolution and average (anti-aliasing)
     texture_size: int = 512  # side of the baked UV texture of textured/*.glb
+    variety: str = "boxy"  # 'boxy' (the original shapes) or 'real' (families of real chairs and cars, mesh2tex.synthetic.variety)
 
     def __post_init__(self):
         if self.category not in CATEGORIES:
             raise ValueError(f"category must be one of {', '.join(CATEGORIES)}, got {self.category!r}")
+        if self.variety not in VARIETIES:
+            raise ValueError(f"variety must be one of {', '.join(VARIETIES)}, got {self.variety!r}")
 
     @property
     def query_count(self) -> int:
@@ -86,7 +90,11 @@ class WorldSpec:
         return np.random.default_rng([self.seed, CATEGORIES.index(self.category), index, stream])
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The settings as JSON; a boxy world leaves ``variety`` out, so its index is what it was before varieties existed."""
+        settings = asdict(self)
+        if self.variety == "boxy":
+            del settings["variety"]
+        return settings
 
 
 @dataclass(frozen=True)
@@ -104,7 +112,7 @@ class PhotoSetup:
 
 
 def make_shape(spec: WorldSpec, index: int) -> SyntheticShape:
-    return generate_shape(spec.category, spec.rng(index, _SHAPE))
+    return generate_varied_shape(spec.category, spec.rng(index, _SHAPE), spec.variety)
 
 
 def make_material(spec: WorldSpec, index: int) -> Material:

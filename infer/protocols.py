@@ -71,7 +71,7 @@ import torch
 from mesh2tex.infer.options import PROTOCOL_CONFIG
 from mesh2tex import transfer
 from mesh2tex.config import load_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.evaluation import (LIGHTING, ComparisonRender, ScoreSettings, backproject_photo, common_mask, flat_surface,
                                  generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
                                  seen_and_unseen, vertex_colour_surface)
@@ -96,7 +96,7 @@ from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import latent, load_shape, mean_latent
+from mesh2tex.texture import latent, mean_latent, shape_mismatch
 from mesh2tex.transfer import (ABLATIONS, AutomatonFitConfig, TransferConfig, check_style_sizes, estimate_pose, fit_automaton, load_photo,
                                predict_noc, view_at_pose)
 
@@ -500,7 +500,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     missing = sorted(needed - set(paths))
     if missing:
         raise UserError(f"{shapes_dir}: no prepared shape for {', '.join(missing)} (prepare the world's meshes with 'mesh2tex prepare shapes')")
-    shapes = {name: load_shape(paths[name], generator, 0, cfg.seed) for name in sorted(needed)}
+    shapes = {name: load_prepared(paths[name], generator) for name in sorted(needed)}
     eval_cfg = cfg.evaluate_config()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -546,6 +546,15 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         write_json(out / "protocols.json", json_ready(result))
         write_text(out / "protocols.md", protocols_markdown(result))
     return result
+
+
+def load_prepared(path: Path, generator) -> PreparedShape:
+    """A prepared shape of the world (``SHAPES/<name>.npz``), checked against the generator (InputError naming the file)."""
+    shape = PreparedShape.load(path)
+    problem = shape_mismatch(shape, generator)
+    if problem:
+        raise InputError(f"{path}: has {problem}")
+    return shape
 
 
 def _file_digest(path: str | Path | None, kind: str) -> str | None:

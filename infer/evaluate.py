@@ -46,6 +46,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.io.image_sets import list_images, load_pairs, load_set
+from mesh2tex.io.models import resolve_checkpoint
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, markdown_table
@@ -90,6 +91,7 @@ def run_generation_command(args: argparse.Namespace) -> int:
     if cfg.latents < 2:
         raise UserError(f"--latents {cfg.latents}: diversity needs at least 2")
     out = guard_outputs(args.out, ["generation.json", "generation.md", "generation_samples.png"], args.overwrite)
+    resolve_checkpoint(args.checkpoint, "gan")  # an unknown model name is refused before the feature network is built
     device = select_device(args.device)
     extractor = get_feature_extractor(cfg.features, args.inception_weights, args.vgg_weights, device) if cfg.kid_fid else None
     out.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """The chair families of the varied world (``prepare synthetic --variety real``).
 
 Each family is a design function ``(builder, rng) -> params`` for
-:func:`mesh2tex.synthetic.shapes.build_shape`: it adds labelled solids (seat, back, leg, arm, base)
+:func:`mesh2tex.synthetic.shapes.shape_from_design`: it adds labelled solids (seat, back, leg, arm, base)
 in metres, y up, the front towards +z, the floor at y = 0, and returns its design choices with a
 ``family`` key. Proportions are drawn from the catalogue ranges of ``docs/synthetic.md`` ("The varied
 world"): seat heights 42-48 cm for dining and shell chairs, 40-53 cm for office chairs, and so on.

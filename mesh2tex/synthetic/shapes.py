@@ -64,10 +64,10 @@ def generate_shape(category: str, rng: np.random.Generator) -> SyntheticShape:
     """One random shape of ``category`` ('chair' or 'car'), drawn from ``rng`` only (deterministic)."""
     if category not in _GENERATORS:
         raise ValueError(f"unknown category {category!r}; choose one of {', '.join(CATEGORIES)}")
-    return build_shape(category, _GENERATORS[category], rng)
+    return shape_from_design(category, _GENERATORS[category], rng)
 
 
-def build_shape(category: str, design: Callable[[_PartBuilder, np.random.Generator], dict[str, Any]],
+def shape_from_design(category: str, design: Callable[[_PartBuilder, np.random.Generator], dict[str, Any]],
                 rng: np.random.Generator, repair: Callable | None = None) -> SyntheticShape:
     """The shape that ``design`` (which adds labelled solids to a builder and returns its design choices)
     draws from ``rng``: the union of its parts, normalised, redrawn while unusable. ``repair``, when

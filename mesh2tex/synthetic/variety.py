@@ -11,7 +11,7 @@ import numpy as np
 
 from mesh2tex.synthetic.car_families import CAR_FAMILIES
 from mesh2tex.synthetic.chair_families import CHAIR_FAMILIES
-from mesh2tex.synthetic.shapes import SyntheticShape, build_shape, generate_shape
+from mesh2tex.synthetic.shapes import SyntheticShape, shape_from_design, generate_shape
 
 VARIETIES: tuple[str, ...] = ("boxy", "real")
 # category -> family name -> (design function, share, parts every shape of the family has)
@@ -42,7 +42,7 @@ def generate_varied_shape(category: str, rng: np.random.Generator, variety: str 
     name = drawn if family is None else family
     if name not in FAMILIES[category]:
         raise ValueError(f"unknown {category} family {name!r}; choose one of {', '.join(names)}")
-    return build_shape(category, FAMILIES[category][name][0], rng, repair=collapse_short_edges)
+    return shape_from_design(category, FAMILIES[category][name][0], rng, repair=collapse_short_edges)
 
 
 SHORT_EDGE = 2e-5  # share of the bounding-box diagonal: unions of many curved parts leave a few edges this short

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 
-from mesh2tex.options import add_out, add_overwrite
+from mesh2tex.options import add_out, add_overwrite, add_up
 
 
 def shapes(parser: argparse.ArgumentParser) -> None:
@@ -19,6 +19,7 @@ def shapes(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="QuadriFlow seed")
     parser.add_argument("--max-seconds", type=float, help="time budget of one shape; past it the shape fails with that reason (default: none)")
     parser.add_argument("--max-memory-gb", type=float, help="memory budget of each QuadriFlow process of a shape, GiB (default: none)")
+    add_up(parser)
 
 
 def images(parser: argparse.ArgumentParser) -> None:

@@ -94,17 +94,17 @@ def assign_names(paths: list[Path], earlier: dict[str, str] | None = None) -> di
 
 
 def prepare_one(path: str, output: str, faces: int, levels: int, seed: int, max_seconds: float | None = None,
-                max_memory_gb: float | None = None) -> dict:
+                max_memory_gb: float | None = None, up: str = "auto") -> dict:
     """Load, prepare and save one shape (within the budgets given); returns its index record (never raises for a bad input)."""
-    from mesh2tex.geometry.mesh_io import load_mesh
-    from mesh2tex.geometry.prepare import prepare_shape
+    from mesh2tex.geometry.mesh_io import load_user_mesh
+    from mesh2tex.geometry.prepare import prepare_user_mesh
 
     start = time.perf_counter()
     record = {"source": path, "file": Path(output).name}
     try:
-        vertices, triangles = load_mesh(path)
-        shape = prepare_shape(vertices, triangles, face_count=faces, levels=levels, seed=seed, source=path,
-                              max_seconds=max_seconds, max_memory_gb=max_memory_gb)
+        mesh = load_user_mesh(path, up)
+        record["up"] = mesh.up
+        shape = prepare_user_mesh(mesh, face_count=faces, levels=levels, seed=seed, max_seconds=max_seconds, max_memory_gb=max_memory_gb)
         shape.save(output)
         levels = shape.metadata["levels"]
         record.update(status="ok", reason="", face_counts=shape.face_counts, methods=[level["method"] for level in levels],
@@ -136,7 +136,10 @@ def read_index(index_path: Path, settings: dict) -> tuple[dict[str, dict], dict 
 
 
 def _settings(args) -> dict:
-    return {"faces": int(args.faces), "levels": int(args.levels), "seed": int(args.seed)}
+    settings = {"faces": int(args.faces), "levels": int(args.levels), "seed": int(args.seed)}
+    if args.up != "auto":  # the default keeps the settings of indexes written before --up
+        settings["up"] = args.up
+    return settings
 
 
 def run(args) -> int:
@@ -196,7 +199,7 @@ def run(args) -> int:
             bar.write(f"mesh2tex: warning: {record['source']}: {warning}", file=sys.stderr)
         bar.update(1)
 
-    jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed, args.max_seconds, args.max_memory_gb) for p in todo]
+    jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed, args.max_seconds, args.max_memory_gb, args.up) for p in todo]
     with progress_bar(total=len(paths), initial=len(paths) - len(todo), desc="prepare shapes", unit="shape") as bar:
         if args.workers == 1 or len(jobs) <= 1:
             for job in jobs:

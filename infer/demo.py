@@ -52,7 +52,7 @@ from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import JsonLines
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import load_shape, mean_latent
+from mesh2tex.texture import load_shape, mean_latent, model_face_count
 
 
 @dataclass
@@ -200,7 +200,7 @@ def run_pipeline(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
         seconds[f"train {kind}"] = _stage(f"train {kind}", [
             "train", kind, "--shapes", str(out / "shapes" / "train"), "--out", str(out / kind), "--config", str(views_yaml),
             "--iters", str(iters), "--samples", str(nets.samples), "--resolution", str(nets.resolution),
-            "--batch", "32", "--seed", str(cfg.seed), "--device", device, "--gan", str(out / "gan" / "checkpoint.safetensors"), "--resume"], log)
+            "--batch", "32", "--seed", str(cfg.seed), "--device", device, "--checkpoint", str(out / "gan" / "checkpoint.safetensors"), "--resume"], log)
     query = pick_query(world, cfg.transfer.query)
     transfer = out / "transfer"
     if not (transfer / "report.json").is_file():
@@ -281,8 +281,9 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     reference = reference_renders(truth, views, lighting)
     renders = {"oracle": render(truth.truth.oracle), "transfer": render_glb_at_pose(transfer / "textured.glb", views, size, lighting),
                "flat_colour": render(flat_surface(vertices, faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])))}
-    generator, _ = load_generator(report["checkpoint"], torch.device("cpu"))
-    shape = load_shape(report["mesh"], generator, report["settings"].get("faces", 6144), report["settings"].get("seed", 0))
+    generator, meta = load_generator(report["checkpoint"], torch.device("cpu"))
+    shape, _ = load_shape(report["mesh"], generator, model_face_count(meta, report["settings"].get("faces", 0)), report["settings"].get("seed", 0),
+                          output_mesh="prepared")
     batch = collate_shapes([shape])
     ws = mean_latent(generator)
     renders["mean_texture"] = render(generator_surface(generator, generator.synthesize(batch, ws, noise_mode="none"), batch))

@@ -7,11 +7,13 @@
 ``--config YAML`` sets any field of :class:`GenerateConfig` (the flags override it).
 
 Writes, per seed S: ``seed{S}_view{V}.png`` (orbit views, azimuths evenly spaced), ``seed{S}.glb``
-(the finest quad level, split into triangles, with a UV texture baked from psi: xatlas unwrapping,
-UV-space rasterization, seams dilated) and ``seed{S}.ply`` (vertex colours). A raw mesh is
-prepared on the fly (``mesh2tex prepare shapes`` does the same ahead of time). Assets are in the
-prepared shape's normalised frame (bounding-box centre at the origin, diagonal 1). Files already in
-DIR are never replaced without ``--overwrite``.
+and ``seed{S}.ply``: the user's own mesh (its vertices, faces, frame and units; ``--up`` says which
+axis is up) with a UV texture baked from psi into its own UVs when usable, else a new atlas
+(``--uv``), and with the colour at each vertex (:mod:`mesh2tex.render.bake`). A raw mesh is prepared
+on the fly with the hierarchy the model was trained on (``--faces`` overrides it); a prepared shape
+(.npz) brings its source mesh's path. ``--output-mesh prepared`` writes the prepared working copy
+instead (normalised frame: bounding-box centre at the origin, diagonal 1). Files already in DIR are
+never replaced without ``--overwrite``.
 """
 
 from __future__ import annotations
@@ -29,9 +31,10 @@ from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.options import config_overrides, parse_seeds  # --seeds: lists and ranges (0-7, 0,2,5-9)
+from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.render import orbit_camera, turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import latent, load_shape, write_textured_mesh
+from mesh2tex.texture import TexturedMeshWriter, latent, load_shape, model_face_count, note
 
 
 @dataclass
@@ -43,7 +46,7 @@ class GenerateConfig:
     texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
     elevation: float = 20.0  # elevation of the orbit views, degrees
     truncation: float = 1.0  # truncation psi of the latent (1: none)
-    faces: int = 6144  # finest quad count when a raw mesh is prepared on the fly
+    faces: int = 0  # finest quad count when a raw mesh is prepared on the fly (0: the hierarchy the model was trained on)
     device: str = "auto"  # auto, cpu or cuda
 
     def __post_init__(self):
@@ -71,17 +74,21 @@ def run(args) -> int:
     device = select_device(cfg.device)
     generator, meta = load_generator(args.checkpoint, device)
     distance, fov = gan_camera(meta)
-    shape = load_shape(args.mesh, generator, cfg.faces)
+    shape, target = load_shape(args.mesh, generator, model_face_count(meta, cfg.faces), up=args.up, uv=args.uv,
+                               output_mesh=args.output_mesh)
     batch = collate_shapes([shape]).to(device)
     encoded = generator.encoder(batch)
     out = guard_outputs(args.out, output_names(cfg), args.overwrite)  # after the inputs are checked, before anything is written
+    writer = TexturedMeshWriter(generator, batch, target, cfg.texture_size, cfg.texture_format)
+    if writer.uv_note:
+        note(f"{args.mesh}: a new UV atlas, as {writer.uv_note}")
     out.mkdir(parents=True, exist_ok=True)
     azimuth, elevation = turntable_angles(cfg.views, cfg.elevation)
     mvp = orbit_camera(azimuth, elevation, distance=distance, fov=fov).mvp.to(device)
     res = (cfg.resolution, cfg.resolution)
     white = torch.ones(cfg.views, 3, device=device)
     with torch.no_grad():
-        for seed in cfg.seeds:
+        for seed in progress_bar(cfg.seeds, desc="infer generate", unit="seed"):
             ws = latent(generator, seed, device, cfg.truncation)
             texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode="none")
             views = render_field_views(generator, batch, ws, mvp, res, white, texture=texture)
@@ -89,6 +96,7 @@ def run(args) -> int:
                 raise UserError(f"{args.checkpoint}: the generator's colours for seed {seed} are not finite (damaged weights?)")
             for v, image in enumerate(images_to_uint8(views.images)):
                 save_png(out / f"seed{seed}_view{v}.png", image)
-            write_textured_mesh(out / f"seed{seed}.glb", out / f"seed{seed}.ply", generator, texture, batch, cfg.texture_size, cfg.texture_format)
-            print(f"seed {seed}: {cfg.views} views, {out / f'seed{seed}.glb'}, {out / f'seed{seed}.ply'}")
+            written = writer.write(out / f"seed{seed}.glb", out / f"seed{seed}.ply", texture)
+            write_line(f"seed {seed}: {cfg.views} views, {out / f'seed{seed}.glb'}, {out / f'seed{seed}.ply'} "
+                  f"({written['mesh']} mesh, {written['triangles']} triangles)")
     return 0

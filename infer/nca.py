@@ -5,8 +5,9 @@
                        [--subdivide auto|N] [--views 4] [--resolution 256] [--texture-size 1024]
                        [--frames 24] [--seed 0] [--device] [--overwrite]
 
-Writes into DIR: ``view_K.png`` renders, ``textured.glb`` (the readout baked into a UV texture over
-an xatlas atlas, opens in Blender), ``textured.ply`` (per-vertex colours), ``growth.gif`` (the
+Writes into DIR: ``view_K.png`` renders, ``textured.glb`` (the user's own mesh, in its own frame and
+units, with the readout baked into its UVs or a new atlas; ``--up``, ``--uv``, ``--output-mesh`` as
+in ``infer generate``; opens in Blender), ``textured.ply`` (the same mesh with per-vertex colours), ``growth.gif`` (the
 texture growing from the seed, a quarter turn of the camera), ``state.safetensors`` (the final cell
 states and positions) and ``report.json`` (settings, timings, the style loss of the renders against
 the exemplar). ``--graft`` blends the updates, and the colour readouts, of a second model of the same lineage by
@@ -18,12 +19,13 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from mesh2tex.errors import UserError
-from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface
+from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface, unit_transform
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.checkpoint import save_checkpoint
@@ -38,7 +40,8 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import write_automaton_mesh
+from mesh2tex.render.bake import BakeTarget
+from mesh2tex.texture import note, write_automaton_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
 
@@ -51,6 +54,33 @@ def choose_subdivisions(value: str, vertices: np.ndarray, faces: np.ndarray, cel
             raise UserError(f"--subdivide {value}: expected auto or a number 0..4")
         return int(value)
     return density_subdivisions(mean_edge_length(vertices, faces), cell_spacing)
+
+
+def read_cells_surface(spec: str, up: str, uv: str, output_mesh: str) -> tuple[tuple[np.ndarray, np.ndarray], BakeTarget | None]:
+    """The surface the cells grow on (vertices (V, 3) float64 y-up, faces) for ``--mesh spec``, and
+    the user's mesh the texture is baked onto (None for the sphere, or ``--output-mesh prepared``):
+    a mesh file itself, or the source mesh of a prepared shape (.npz) when it is found."""
+    from mesh2tex.geometry.clean import Normalization
+    from mesh2tex.geometry.mesh_io import is_mesh_file, load_user_mesh
+    from mesh2tex.geometry.prepared import PreparedShape
+
+    if not is_mesh_file(spec):
+        surface = read_surface(spec)
+        if output_mesh == "input" and spec.endswith(".npz"):
+            shape = PreparedShape.load(spec)
+            source = str(shape.metadata.get("source") or "")
+            if source and Path(source).is_file():
+                to_prepared = Normalization.from_json(shape.metadata["transform"])
+                mesh = load_user_mesh(source, str(shape.metadata.get("up", "y")))
+                return surface, BakeTarget(mesh, to_prepared.then(unit_transform(surface[0], spec)), uv)
+            note(f"{spec}: its source mesh {source or '(none recorded)'} is not found; writing the cell mesh")
+        return surface, None
+    mesh = load_user_mesh(spec, up)
+    note(f"{spec}: {mesh.up}-up ({mesh.up_reason})")
+    surface = (mesh.working_vertices(), mesh.faces)
+    if output_mesh == "prepared":
+        return surface, None
+    return surface, BakeTarget(mesh, unit_transform(surface[0], spec), uv)
 
 
 def run(args) -> int:
@@ -73,7 +103,7 @@ def run(args) -> int:
             raise UserError(f"{args.graft}: its automaton config differs from {args.checkpoint}'s; only models of one lineage can be grafted")
         lineage_note = lineage(meta, other_meta)
 
-    surface = read_surface(args.mesh)  # read once: the subdivided mesh is made from the same arrays
+    surface, bake_target = read_cells_surface(args.mesh, args.up, args.uv, args.output_mesh)  # read once, subdivided from these arrays
     vertices, faces = unit_surface(*surface, name=args.mesh)
     cell_spacing = float(meta.get("cell_spacing", 0.0))
     subdivisions = choose_subdivisions(args.subdivide, vertices, faces, cell_spacing)
@@ -137,8 +167,10 @@ def run(args) -> int:
             style = float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
                                      generator=torch.Generator().manual_seed(0)))
 
-        write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, args.texture_size, args.texture_format,
-                             graft=graft)
+        written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, args.texture_size,
+                                       args.texture_format, graft=graft, target=bake_target)
+    if written.get("uv_note"):
+        note(f"{args.mesh}: a new UV atlas, as {written['uv_note']}")
     save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
                     meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": args.steps})
     if frames:
@@ -149,7 +181,7 @@ def run(args) -> int:
               "edge_ratio": None if edge_ratio is None else round(edge_ratio, 3),
               "steps": args.steps, "regrow": args.regrow, "graft": args.graft, "graft_mask": args.graft_mask if args.graft else None,
               "lineage": lineage_note, "angle_degrees": args.angle, "seconds": round(time.perf_counter() - started, 2),
-              "ms_per_step": round(1000 * step_seconds / (args.steps * len(phases)), 3), "style_loss": style,
+              "ms_per_step": round(1000 * step_seconds / (args.steps * len(phases)), 3), "style_loss": style, "output_mesh": written,
               "files": [f"view_{k}.png" for k in range(args.views)] + [n for n in OUTPUTS if (out / n).exists()]}
     write_json(out / "report.json", report)
     density = f"faces split into four {subdivisions}x" if subdivisions else "the mesh as it is"

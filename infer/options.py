@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 
-from mesh2tex.options import (DEVICES, SHIPPED_MODELS_HELP, ConfigOptions, add_checkpoint, add_device, add_out, add_overwrite,
+from mesh2tex.options import (DEVICES, SHIPPED_MODELS_HELP, ConfigOptions, add_checkpoint, add_device, add_mesh_output, add_out, add_overwrite,
                               add_print_config, add_texture_format, config_default, renamed, static_value)
 
 SETS_CONFIG = "mesh2tex.metrics.evaluate:EvaluateConfig"
@@ -20,14 +20,15 @@ def generate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mesh", required=True, help="a prepared shape (.npz) or a mesh file (.obj .ply .off .stl .glb)")
     add_out(parser, "output folder")
     config = ConfigOptions(parser, "mesh2tex.infer.generate:GenerateConfig", what="the generate config")
-    config.add("--seeds", help="comma-separated latent seeds")
+    config.add("--seeds", help="latent seeds, one texture each: a list and ranges, e.g. 0,2,5-9")
     config.add("--views", type=int, help="orbit views per seed")
     config.add("--resolution", type=int, help="render resolution")
     config.add("--texture-size", type=int, help="baked UV texture size")
     add_texture_format(parser, config)
     config.add("--elevation", type=float, help="elevation of the orbit views, degrees")
     config.add("--truncation", type=float, help="truncation psi of the latent (1: none)")
-    config.add("--faces", type=int, help="finest quad count when preparing a raw mesh")
+    config.add("--faces", type=int, help="finest quad count when preparing a raw mesh (0: the hierarchy the model was trained on)")
+    add_mesh_output(parser)
     config.add("--device", choices=DEVICES, help="where to run")
     parser.add_argument("--overwrite", action="store_true", help="replace files already in --out")
 
@@ -56,6 +57,8 @@ def transfer(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--automaton", action="store_true",
                         help="fit a mesh automaton to the photo with the same losses instead of the GAN's texture (unlit, no GAN prior)")
     parser.add_argument("--automaton-iters", type=int, default=300, help="with --automaton: its iterations")
+    config.add("--faces", type=int, help="finest quad count when preparing a raw mesh (0: the hierarchy the model was trained on)")
+    add_mesh_output(parser)
     config.add("--vgg-weights", help="VGG19 ImageNet weights (torchvision's vgg19-dcbb9e9d.pth; default: torch's cache, else random weights)")
     config.add("--device", choices=DEVICES, help="where to run")
     config.add("--seed", type=int, help="random seed")
@@ -79,6 +82,7 @@ def nca(parser: argparse.ArgumentParser) -> None:
     add_texture_format(parser)
     parser.add_argument("--frames", type=int, default=24, help="frames of growth.gif (0: no GIF)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the asynchronous updates")
+    add_mesh_output(parser)
     parser.add_argument("--vgg-weights", help="VGG19 weights for the report's style loss")
     add_device(parser)
     parser.add_argument("--overwrite", action="store_true", help="replace outputs already in --out")

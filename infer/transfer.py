@@ -21,7 +21,9 @@ Steps:
    optimises their weights with ``L_patch + w_colour * L_colour``. Adam, lr 0.05 then 0.01 (the
    paper: 0.01 and the style losses alone). A generator trained lit is rendered under a light
    optimised with the texture (``light``), so the texture stays albedo.
-5. Outputs in ``DIR``: ``textured.glb`` (UV texture baked from psi), ``textured.ply`` (vertex colours),
+5. Outputs in ``DIR``: ``textured.glb`` (the user's own mesh, in its own frame and units, with psi
+   baked into its UVs or a new atlas: ``--up``, ``--uv``, ``--output-mesh`` as in ``infer generate``),
+   ``textured.ply`` (the same mesh with vertex colours),
    ``comparison.png`` (photo | render at the pose | photo NOC | rendered NOC), ``turntable_XX.png`` and
    ``turntable.gif`` (lit by the learnt light, turning with the camera, when one was learnt),
    ``report.json`` (pose, learnt light, losses per stage, seconds per stage, settings).
@@ -60,7 +62,8 @@ from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import load_shape, write_automaton_mesh, write_textured_mesh
+from mesh2tex.render.bake import BakeTarget
+from mesh2tex.texture import load_shape, model_face_count, note, write_automaton_mesh, write_textured_mesh
 from mesh2tex.transfer import (AutomatonFit, AutomatonFitConfig, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
                                check_style_sizes, estimate_pose, fit_automaton, load_photo, predict_noc, transfer_texture, view_at_pose)
 
@@ -116,11 +119,14 @@ def save_turntable(out: Path, images: torch.Tensor) -> None:
 @torch.no_grad()
 def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, result: TransferResult, photo: Photo,
                   view: FramedView, photo_noc: torch.Tensor | None, distance: float, fov: float, elevation: float,
-                  cfg: TransferConfig, device: torch.device, texture_format: str = "png") -> dict[str, str]:
-    """textured.glb/.ply, comparison.png, turntable frames and GIF; returns {what: file name}."""
+                  cfg: TransferConfig, device: torch.device, texture_format: str = "png",
+                  target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
+    """textured.glb/.ply (the user's mesh ``target``, or the prepared shape when None), comparison.png,
+    turntable frames and GIF; returns ({what: file name}, what the report says of the mesh written)."""
     batch = collate_shapes([shape]).to(device)
     texture = generator.synthesize(batch, result.ws.to(device), noise_mode="none")
-    write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size, texture_format)
+    written = write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size, texture_format,
+                                  target)
     save_comparison(out, photo, result.render, view, photo_noc)
 
     k = cfg.turntable_frames
@@ -135,20 +141,24 @@ def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, 
     views = render_field_views(generator, batch, result.ws.to(device), mvp, (size, size), torch.ones(k, 3, device=device),
                                texture=texture, noise_mode="none", lights=lights)
     save_turntable(out, views.images)
-    return {"glb": "textured.glb", "ply": "textured.ply", "comparison": "comparison.png", "turntable": "turntable.gif"}
+    return OUTPUT_FILES, written
+
+
+OUTPUT_FILES = {"glb": "textured.glb", "ply": "textured.ply", "comparison": "comparison.png", "turntable": "turntable.gif"}
 
 
 @torch.no_grad()
 def write_automaton_outputs(out: Path, fit: AutomatonFit, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None,
                             distance: float, fov: float, elevation: float, cfg: TransferConfig, device: torch.device,
-                            texture_format: str = "png") -> dict[str, str]:
+                            texture_format: str = "png", target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
     """The same files for an automaton fitted to the photo (``--automaton``); its turntable is unlit."""
-    write_automaton_mesh(out / "textured.glb", out / "textured.ply", fit.model, fit.state, fit.graph, cfg.texture_size, texture_format)
+    written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", fit.model, fit.state, fit.graph, cfg.texture_size,
+                                   texture_format, target=target)
     save_comparison(out, photo, fit.render, view, photo_noc)
     azimuths, elevations = turntable_angles(cfg.turntable_frames, elevation)
     mvp = orbit_camera(azimuths, elevations, distance=distance, fov=fov).mvp.to(device)
     save_turntable(out, render_states(fit.model, fit.state, fit.graph, mvp, cfg.resolution * 2, background=1.0).images)
-    return {"glb": "textured.glb", "ply": "textured.ply", "comparison": "comparison.png", "turntable": "turntable.gif"}
+    return OUTPUT_FILES, written
 
 
 def output_names(cfg: TransferConfig) -> list[str]:
@@ -187,7 +197,8 @@ def run(args) -> int:
 
     generator, meta = load_generator(args.checkpoint, device)
     distance, fov = gan_camera(meta)
-    shape = load_shape(args.mesh, generator, cfg.faces, cfg.seed)
+    shape, target = load_shape(args.mesh, generator, model_face_count(meta, cfg.faces), cfg.seed, up=args.up, uv=args.uv,
+                               output_mesh=args.output_mesh)
     photo, mask_source = load_photo(args.image, args.mask, cfg)
     seconds["load"] = round(time.perf_counter() - started, 2)
 
@@ -214,10 +225,13 @@ def run(args) -> int:
     t = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     if args.automaton:
-        files = write_automaton_outputs(out, fit, photo, view, photo_noc, distance, fov, elevation, cfg, device, args.texture_format)
+        files, written = write_automaton_outputs(out, fit, photo, view, photo_noc, distance, fov, elevation, cfg, device,
+                                                 args.texture_format, target)
     else:
-        files = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device,
-                              args.texture_format)
+        files, written = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device,
+                                       args.texture_format, target)
+    if written.get("uv_note"):
+        note(f"{args.mesh}: a new UV atlas, as {written['uv_note']}")
     save_png(out / "photo_crop.png", to_uint8_image(photo.image))
     save_png(out / "render_at_pose.png", to_uint8_image(render))
     seconds["outputs"] = round(time.perf_counter() - t, 2)
@@ -236,6 +250,7 @@ def run(args) -> int:
         "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
         "settings": {**asdict(cfg), "texture_format": args.texture_format},
         "files": {**files, "photo_crop": "photo_crop.png", "render_at_pose": "render_at_pose.png"},
+        "output_mesh": written,
     }
     write_json(out / "report.json", report)
     print(f"textured {args.mesh} after {args.image}: pose az {azimuth:.0f} el {elevation:.0f} ({pose_source}); "

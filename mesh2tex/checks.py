@@ -86,3 +86,15 @@ def check_type(value, name: str, kind: type):
     if not isinstance(value, kind):
         raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
     return value
+
+
+def check_array(value, name: str, *shapes: Shape, dtype=None):
+    """``value`` (a numpy array, a tensor or a nested sequence) as a contiguous numpy array of ``dtype``
+    (None: as it is), checked against ``shapes`` as :func:`check_shape` does; ValueError naming it otherwise."""
+    import numpy as np
+
+    if isinstance(value, torch.Tensor):
+        value = value.detach().cpu().numpy()
+    array = np.ascontiguousarray(np.asarray(value), dtype=dtype)
+    check_shape(torch.empty(array.shape, device="meta"), name, *shapes)
+    return array

@@ -179,6 +179,23 @@ def add_texture_format(parser, config: "ConfigOptions | None" = None, key: str =
     return parser.add_argument("--texture-format", default="png", **kwargs)
 
 
+def add_up(parser) -> argparse.Action:
+    """``--up auto|y|z``: the up axis of the user's mesh file (:func:`mesh2tex.geometry.mesh_io.choose_up`)."""
+    return parser.add_argument("--up", default="auto", choices=static_value("mesh2tex.geometry.mesh_io:UP_AXES"),
+                               help="the mesh file's up axis; auto: y for glTF (by definition), OBJ, PLY and OFF, z for STL (the choice is printed)")
+
+
+def add_mesh_output(parser) -> None:
+    """The options of a command that hands the user's mesh back textured: ``--up``, ``--uv``, ``--output-mesh``."""
+    add_up(parser)
+    parser.add_argument("--uv", default="auto", choices=static_value("mesh2tex.render.bake:UV_MODES"),
+                        help="the texture's atlas: the mesh's own UVs (keep), a new xatlas atlas (new), or auto: its own when "
+                             "they are usable (inside [0, 1], charts not overlapping), else new (the reason is printed)")
+    parser.add_argument("--output-mesh", default="input", choices=("input", "prepared"),
+                        help="input: the user's mesh as given (its vertices, faces, frame and units) with UVs and a baked texture; "
+                             "prepared: the quad-remeshed, normalised working copy")
+
+
 # The attribute of the parsed arguments that holds {config: {dest: field key}}: every flag ConfigOptions
 # declared, so that config_overrides() passes each of them on and none is forgotten.
 CONFIG_FLAGS = "_config_flags"

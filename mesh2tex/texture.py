@@ -1,5 +1,7 @@
-"""A trained generator's texture on a prepared shape: latents, the shapes it can texture, its colours
-at the mesh's vertices and its texture baked into UV space (for GLB files).
+"""A trained generator's texture on a shape: latents, the shapes it can texture (a user's mesh with
+its prepared working copy, :func:`load_shape`), its colours at the mesh's vertices and the textured
+assets written: the user's own mesh with the texture baked into its atlas
+(:mod:`mesh2tex.render.bake`), or the prepared shape itself.
 
 Rendering the texture in views is :func:`mesh2tex.nn.render_texture.render_field_views`; loading a
 generator is :func:`mesh2tex.io.models.load_generator`.
@@ -14,37 +16,83 @@ import numpy as np
 import torch
 
 from mesh2tex.errors import InputError
+from mesh2tex.geometry.mesh_io import UserMesh
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.images import colours_to_uint8
+from mesh2tex.io.models import model_hierarchy
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
 from mesh2tex.nn.render_texture import field_colours
+from mesh2tex.render.bake import BakedUserMesh, BakeTarget, MeshBaker
 from mesh2tex.render.uv import bake_surface_colours
 
 
-def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0) -> PreparedShape:
-    """A prepared shape from .npz, or a mesh file prepared on the fly (with a one-line warning on stderr
-    when ``face_count`` is too coarse to keep its parts); checked against the generator."""
+def note(message: str) -> None:
+    """One line on stderr: ``mesh2tex: note: message``."""
+    print(f"mesh2tex: note: {message}", file=sys.stderr)
+
+
+def model_face_count(meta: dict, face_count: int = 0) -> int:
+    """The finest quad count a raw mesh is prepared with for a GAN checkpoint ``meta``: ``face_count``
+    when given (> 0; with a note when it differs from the model's), else the model's own hierarchy."""
+    trained, recorded = model_hierarchy(meta)
+    if face_count < 0:
+        raise InputError(f"--faces {face_count}: must be positive (or 0: the hierarchy the model was trained on)")
+    if face_count and recorded and face_count != trained:
+        note(f"--faces {face_count}: the model learnt on {trained}-quad hierarchies; the texture's features will come out "
+             f"at about {(trained / face_count) ** 0.5:.2g}x their learnt size")
+    if not face_count and not recorded:
+        note(f"the checkpoint does not record the hierarchy its shapes were prepared with; preparing with {trained} quads (--faces to change)")
+    return face_count or trained
+
+
+def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0, up: str = "auto",
+               uv: str = "auto", output_mesh: str = "input") -> tuple[PreparedShape, BakeTarget | None]:
+    """The shape a command textures, and where its texture goes.
+
+    ``path`` is a mesh file, prepared on the fly (a one-line warning on stderr when ``face_count`` is too
+    coarse to keep its parts), or a prepared shape (.npz). Returns (the prepared shape, checked against
+    the generator; the user's mesh as a :class:`~mesh2tex.render.bake.BakeTarget` with ``--uv uv``, or
+    None for ``output_mesh`` 'prepared', or for a prepared shape whose source mesh is not found: then
+    the prepared shape itself is written, and a note says so). ``up``: the file's up axis
+    (:func:`~mesh2tex.geometry.mesh_io.choose_up`; a prepared shape has its own on record).
+    """
+    from mesh2tex.geometry.clean import Normalization
+    from mesh2tex.geometry.mesh_io import load_user_mesh
+
+    if output_mesh not in ("input", "prepared"):
+        raise InputError(f"--output-mesh {output_mesh!r}: choose input or prepared")
     path = Path(path)
-    levels = generator.cfg.num_levels
+    mesh = None
     if path.suffix.lower() == ".npz":
         shape = PreparedShape.load(path)
+        source = str(shape.metadata.get("source") or "")
+        if output_mesh == "input":
+            if source and Path(source).is_file():
+                mesh = load_user_mesh(source, str(shape.metadata.get("up", "y")))
+            else:
+                note(f"{path}: its source mesh {source or '(none recorded)'} is not found; writing the prepared shape")
     else:
-        from mesh2tex.geometry.mesh_io import load_mesh
-        from mesh2tex.geometry.prepare import coarseness_warning, prepare_shape
+        from mesh2tex.geometry.prepare import coarseness_warning, prepare_user_mesh
 
-        vertices, faces = load_mesh(path)
-        try:
-            shape = prepare_shape(vertices, faces, face_count=face_count, levels=levels, seed=seed, source=str(path))
-        except InputError as error:  # name the mesh the problem is in
-            raise (error if str(error).startswith(str(path)) else InputError(f"{path}: {error}")) from None
+        mesh = load_user_mesh(path, up)
+        note(f"{path}: {mesh.up}-up ({mesh.up_reason})")
+        shape = prepare_user_mesh(mesh, face_count=face_count, levels=generator.cfg.num_levels, seed=seed)
         for warning in coarseness_warning(shape.metadata["coarseness"]):
             print(f"mesh2tex: warning: {path}: {warning}", file=sys.stderr)
+        if output_mesh == "prepared":
+            mesh = None
     problem = shape_mismatch(shape, generator)
     if problem:
         raise InputError(f"{path}: has {problem}")
-    return shape
+    if mesh is None:
+        return shape, None
+    try:
+        transform = Normalization.from_json(shape.metadata.get("transform"))
+    except ValueError as error:
+        raise InputError(f"{path}: its normalisation transform is {error}") from None
+    return shape, BakeTarget(mesh, transform, uv)
 
 
 def shape_mismatch(shape: PreparedShape, generator: TextureGenerator) -> str:
@@ -99,34 +147,82 @@ def vertex_colours(generator: TextureGenerator, texture: FaceTexture, batch: Mes
     return colours_to_uint8(mean)
 
 
+def write_baked_mesh(glb_path: str | Path, ply_path: str | Path, baked: BakedUserMesh, mesh: UserMesh, texture_format: str = "png") -> dict:
+    """The user's mesh with its baked texture: a GLB (the file's vertex positions as they are, split on
+    the atlas's seams; a z-up mesh's node stands it up, see :func:`mesh2tex.io.assets.save_glb`) with
+    the file's normals, or smooth ones when it has none, and a PLY of the user's own vertices and faces
+    with the texture's colour at each vertex. Returns what a report says of the mesh written."""
+    normals = baked.normals if baked.normals is not None else smooth_vertex_normals(baked.vertices, baked.faces)
+    save_glb(glb_path, baked.vertices, baked.faces, baked.uv, baked.texture, normals, texture_format=texture_format, up_axis=mesh.up)
+    save_ply(ply_path, mesh.vertices, mesh.faces, baked.vertex_colours)
+    return {"mesh": "input", "up": mesh.up, "vertices": int(len(baked.vertices)), "triangles": int(len(baked.faces)),
+            "uv": baked.atlas.source, "uv_note": baked.atlas.note,
+            "surface_distance_max": round(float(baked.surface_distance.max()), 5) if len(baked.surface_distance) else 0.0}
+
+
+class TexturedMeshWriter:
+    """Writes a generator's textures on shape 0 of ``batch`` as GLB + PLY: baked onto the user's mesh
+    (``target``; the map to it made once, for every texture written) or, when ``target`` is None, onto
+    the prepared shape itself (a fresh xatlas atlas over its finest triangles, :func:`bake_texture`)."""
+
+    def __init__(self, generator: TextureGenerator, batch: MeshBatch, target: BakeTarget | None, texture_size: int,
+                 texture_format: str = "png"):
+        self.generator, self.batch, self.target = generator, batch, target
+        self.texture_size, self.texture_format = int(texture_size), texture_format
+        self.baker = None if target is None else MeshBaker(target, batch.shape_vertices(0).cpu(), batch.shape_triangles(0).cpu(), texture_size)
+
+    @property
+    def uv_note(self) -> str:
+        """Why the user's own UVs were not kept ('' when they were, or none were asked for)."""
+        return "" if self.baker is None else self.baker.atlas.note
+
+    @torch.no_grad()
+    def write(self, glb_path: str | Path, ply_path: str | Path, texture: FaceTexture) -> dict:
+        """Both files for ``texture``; returns what a report says of the mesh written."""
+        generator, batch = self.generator, self.batch
+        if self.baker is None:
+            verts, faces, uv, image, _ = bake_texture(generator, texture, batch, self.texture_size)
+            save_glb(glb_path, verts.numpy(), faces.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), faces.numpy()),
+                     texture_format=self.texture_format)
+            save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
+                     vertex_colours(generator, texture, batch))
+            return {"mesh": "prepared", "vertices": int(len(verts)), "triangles": int(len(faces)), "uv": "new"}
+        device = texture.face_rgb.device
+
+        def colours_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+            return field_colours(generator, texture, batch, triangle_id.to(device), bary.to(device))
+
+        return write_baked_mesh(glb_path, ply_path, self.baker.bake(colours_at, device), self.target.mesh, self.texture_format)
+
+
 @torch.no_grad()
 def write_textured_mesh(glb_path: str | Path, ply_path: str | Path, generator: TextureGenerator, texture: FaceTexture,
-                        batch: MeshBatch, texture_size: int, texture_format: str = "png") -> None:
-    """Shape 0 of ``batch`` with ``texture``: a GLB with the texture baked into a ``texture_size``
-    square UV map (:func:`bake_texture`), embedded as ``texture_format`` (png, jpeg or webp; see
-    :func:`mesh2tex.io.assets.save_glb`), and a PLY with :func:`vertex_colours`."""
-    verts, faces, uv, image, _ = bake_texture(generator, texture, batch, texture_size)
-    save_glb(glb_path, verts.numpy(), faces.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), faces.numpy()),
-             texture_format=texture_format)
-    save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
-             vertex_colours(generator, texture, batch))
+                        batch: MeshBatch, texture_size: int, texture_format: str = "png", target: BakeTarget | None = None) -> dict:
+    """One texture written by a :class:`TexturedMeshWriter` (see there); returns what a report says of the mesh."""
+    return TexturedMeshWriter(generator, batch, target, texture_size, texture_format).write(glb_path, ply_path, texture)
 
 
 @torch.no_grad()
 def write_automaton_mesh(glb_path: str | Path, ply_path: str | Path, model, state: torch.Tensor, graph, texture_size: int,
-                         texture_format: str = "png", graft=None) -> None:
-    """An automaton's growth on its mesh: a GLB with the readout baked into a ``texture_size`` square UV
-    map (``texture_format`` as :func:`write_textured_mesh`), and a PLY with the colour at each cell.
+                         texture_format: str = "png", graft=None, target: BakeTarget | None = None) -> dict:
+    """An automaton's growth: baked onto the user's mesh (``target``, whose ``to_surface`` maps into the
+    cell mesh's frame), or, without one, onto the cell mesh itself (an xatlas atlas over its triangles)
+    with a PLY of the colour at each cell. ``texture_format`` as :func:`write_textured_mesh`.
 
     model: :class:`mesh2tex.nn.nca.MeshNCA`; state (1, V, C) on the model's device; graph: its
     :class:`~mesh2tex.nn.nca.CellGraph`; graft: (other automaton, alpha (V,)) as in ``MeshNCA.colours``.
+    Returns what a report says of the mesh written.
     """
     device = state.device
 
     def colours_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
         return model.colours(state, graph.triangles, triangle_id.to(device), bary.to(device), graft=graft)
 
+    if target is not None:
+        baked = MeshBaker(target, graph.positions.cpu(), graph.triangles.cpu(), texture_size).bake(colours_at, device)
+        return write_baked_mesh(glb_path, ply_path, baked, target.mesh, texture_format)
     verts, tris, uv, image, _ = bake_surface_colours(graph.positions, graph.triangles, colours_at, texture_size)
     save_glb(glb_path, verts.numpy(), tris.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), tris.numpy()),
              texture_format=texture_format)
     save_ply(ply_path, graph.positions.cpu().numpy(), graph.triangles.cpu().numpy(), colours_to_uint8(model.vertex_colours(state, graft=graft)[0]))
+    return {"mesh": "prepared", "vertices": int(len(verts)), "triangles": int(len(tris)), "uv": "new"}

@@ -25,7 +25,8 @@ from mesh2tex.config import check_fields, load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, read_image, save_png
-from mesh2tex.io.models import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, save_inference_checkpoint
+from mesh2tex.io.models import (D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY, save_inference_checkpoint,
+                                shape_hierarchy)
 from mesh2tex.losses.augment import AdaptiveAugment, AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
 from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
@@ -206,12 +207,17 @@ class GanTrainer:
     def modules(self) -> dict:
         return {GENERATOR: self.generator, GENERATOR_EMA: self.ema, D_FIELD: self.d_field, D_PROXY: self.d_proxy}
 
+    def model_meta(self) -> dict:
+        """What every checkpoint of the run says of the model: iteration, configs, processes, and the
+        hierarchy its shapes were prepared with (a raw mesh is prepared the same way at inference)."""
+        return {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
+                GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator), HIERARCHY: shape_hierarchy(self.shapes)}
+
     def save(self, path: Path) -> None:
         """Collective: every process contributes its RNG state; the main process writes."""
         rng_states = self.dist.gather_objects(runs.rng_to_state())
         if self.dist.is_main:
-            meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
-                    GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator), "best": self.best}
+            meta = {**self.model_meta(), "best": self.best}
             runs.save_training_state(path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d},
                                      {GAN_LOSS: {**self.loss.state_dict(), **self.ada.state_dict()}}, meta, rng_states)
         self.dist.barrier()
@@ -338,8 +344,7 @@ class GanTrainer:
         """RUN/snapshots/iterNNNNNNN.safetensors: the EMA generator now, float16, loadable like a shipped model."""
         path = self.run.root / "snapshots" / f"iter{self.iteration:07d}.safetensors"
         path.parent.mkdir(exist_ok=True)
-        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
-                "world_size": self.dist.world_size}
+        meta = self.model_meta()
         save_inference_checkpoint(path, KIND, self.ema.state_dict(), meta)
         if self.cfg.keep_snapshots:
             for old in sorted(path.parent.glob("iter*.safetensors"))[: -self.cfg.keep_snapshots]:
@@ -388,8 +393,7 @@ class GanTrainer:
         if not np.isfinite(swd) or (self.best is not None and swd >= self.best["swd"]):
             return False
         self.best = {"iteration": self.iteration, "swd": swd, "diversity": metric["metric_diversity"]}
-        meta = {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
-                "world_size": self.dist.world_size, "metric": self.best}
+        meta = {**self.model_meta(), "metric": self.best}
         save_inference_checkpoint(self.run.root / "best.safetensors", KIND, self.ema.state_dict(), meta)
         return True
 

@@ -41,6 +41,22 @@ class Normalization:
         return {"center": [float(c) for c in self.centre], "scale": float(self.scale), "matrix": self.matrix().tolist(),
                 "meaning": "normalized = (original - center) * scale"}
 
+    def then(self, other: "Normalization") -> "Normalization":
+        """The normalisation that applies this one, then ``other``."""
+        return Normalization(centre=self.centre + other.centre / self.scale, scale=self.scale * other.scale)
+
+    @classmethod
+    def from_json(cls, record) -> "Normalization":
+        """The transform :meth:`to_json` wrote; ValueError when ``record`` is not such a record."""
+        try:
+            centre = np.asarray(record["center"], dtype=np.float64).reshape(3)
+            scale = float(record["scale"])
+        except (KeyError, TypeError, ValueError) as error:
+            raise ValueError(f"not a normalisation record ({error})") from None
+        if not (np.isfinite(centre).all() and np.isfinite(scale) and scale > 0):
+            raise ValueError("not a normalisation record (non-finite centre or non-positive scale)")
+        return cls(centre=centre, scale=scale)
+
 
 def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
     """Centre the bounding box at the origin and scale its diagonal to 1.

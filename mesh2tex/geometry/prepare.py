@@ -36,7 +36,7 @@ def level_face_counts(face_count: int, levels: int) -> list[int]:
 
 def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 6144, levels: int = 5, seed: int = 0,
                   source: str = "", timeout: float | None = 300.0, max_seconds: float | None = None,
-                  max_memory_gb: float | None = None) -> PreparedShape:
+                  max_memory_gb: float | None = None, up: str = "y") -> PreparedShape:
     """Repair, normalise and quad-remesh a mesh into a hierarchy with neighbourhoods, pooling and features.
 
     Args:
@@ -45,6 +45,8 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         levels: number of levels (level 0 the finest).
         seed: QuadriFlow seed (other seeds are tried on failure).
         source: recorded in the metadata (e.g. the input path).
+        up: the source file's up axis, recorded in the metadata: 'z' when ``vertices`` were turned y-up
+            from a z-up file (:meth:`mesh2tex.geometry.mesh_io.UserMesh.working_vertices`), else 'y'.
         timeout: seconds per QuadriFlow attempt.
         max_seconds: the shape's time budget (cleaning and every remeshing attempt); past it the
             preparation stops with that reason. None: no limit.
@@ -84,6 +86,7 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
     features, names = face_features(level_vertices[0], level_quads[0])
     metadata = {
         "source": str(source),
+        "up": str(up),
         "transform": transform.to_json(),
         "input": {"vertices": int(len(vertices)), "triangles": int(len(faces)), "cleaned_triangles": int(len(clean_f))},
         "targets": targets,
@@ -108,6 +111,16 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
         noc=noc_coordinates(level_vertices[0]),
         metadata=metadata,
     )
+
+
+def prepare_user_mesh(mesh, face_count: int = 6144, levels: int = 5, seed: int = 0, **budgets) -> PreparedShape:
+    """:func:`prepare_shape` of a :class:`~mesh2tex.geometry.mesh_io.UserMesh`, turned y-up first; its
+    errors name the file. ``budgets``: ``timeout``, ``max_seconds``, ``max_memory_gb``."""
+    try:
+        return prepare_shape(mesh.working_vertices(), mesh.faces, face_count=face_count, levels=levels, seed=seed,
+                             source=mesh.path, up=mesh.up, **budgets)
+    except InputError as error:
+        raise (error if str(error).startswith(mesh.path) else InputError(f"{mesh.path}: {error}")) from None
 
 
 def surface_deviation(vertices: np.ndarray, triangles: np.ndarray, quad_vertices: np.ndarray, quads: np.ndarray,

@@ -116,8 +116,6 @@ def unit_surface(vertices: np.ndarray, faces: np.ndarray, subdivide: int = 0, na
     """A mesh of :func:`read_surface` with every face split into four ``subdivide`` times, then normalised
     to the unit ball: vertices (V', 3) float32, faces int64 (the inputs are not changed). InputError
     naming ``name`` for a mesh without extent."""
-    from mesh2tex.errors import InputError
-
     for _ in range(int(subdivide)):
         if faces.shape[1] == 4:
             vertices, faces = subdivide_quads(vertices, faces)
@@ -125,12 +123,29 @@ def unit_surface(vertices: np.ndarray, faces: np.ndarray, subdivide: int = 0, na
             import trimesh
 
             vertices, faces = trimesh.remesh.subdivide(vertices, faces)
+    centre, radius = _centre_radius(vertices, name)
+    return ((vertices - centre) / radius).astype(np.float32), faces.astype(np.int64)
+
+
+def _centre_radius(vertices: np.ndarray, name: str) -> tuple[np.ndarray, float]:
+    """The bounding box's centre (3,) and the farthest vertex's distance from it; InputError naming ``name`` without extent."""
+    from mesh2tex.errors import InputError
+
     lo, hi = vertices.min(0), vertices.max(0)
-    vertices = vertices - (lo + hi) / 2
-    radius = np.linalg.norm(vertices, axis=1).max()
+    centre = (lo + hi) / 2
+    radius = np.linalg.norm(vertices - centre, axis=1).max()
     if not np.isfinite(radius) or radius <= 0:
         raise InputError(f"{name}: the mesh has no extent (all vertices at one point, or non-finite positions)")
-    return (vertices / radius).astype(np.float32), faces.astype(np.int64)
+    return centre, radius
+
+
+def unit_transform(vertices: np.ndarray, name: str = "mesh"):
+    """The :class:`~mesh2tex.geometry.clean.Normalization` of :func:`unit_surface` (up to rounding): the
+    bounding box's centre to the origin, the farthest vertex to radius 1 (splitting faces moves neither)."""
+    from mesh2tex.geometry.clean import Normalization
+
+    centre, radius = _centre_radius(np.asarray(vertices, dtype=np.float64), name)
+    return Normalization(centre=centre, scale=1.0 / radius)
 
 
 def mean_edge_length(vertices: np.ndarray, faces: np.ndarray) -> float:

@@ -73,8 +73,16 @@ def image_bytes(image_rgb_uint8, texture_format: str = "png") -> bytes:
     return buffer.getvalue()
 
 
-def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh", texture_format: str = "png") -> bytes:
+# The node rotation (x, y, z, w) that stands a z-up mesh up in glTF's y-up frame: -90 degrees about x,
+# (x, y, z) -> (x, z, -y). Blender's glTF importer turns it back, so the asset lands as it was.
+Z_UP_NODE_ROTATION = [-(0.5 ** 0.5), 0.0, 0.0, 0.5 ** 0.5]
+
+
+def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh", texture_format: str = "png",
+              up_axis: str = "y") -> bytes:
     """A binary glTF 2.0 file holding one textured triangle mesh; see :func:`save_glb`."""
+    if up_axis not in ("y", "z"):
+        raise ValueError(f"up_axis must be 'y' or 'z', got {up_axis!r}")
     positions = _array(vertices, np.float32, "vertices", 3)
     triangles = _array(faces, np.int64, "faces", 3)
     texcoords = _array(uv, np.float32, "uv", 2).copy()
@@ -122,7 +130,7 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
         "asset": {"version": "2.0", "generator": "mesh2tex"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0, "name": name}],
+        "nodes": [{"mesh": 0, "name": name, **({"rotation": Z_UP_NODE_ROTATION} if up_axis == "z" else {})}],
         "meshes": [{"name": name, "primitives": [{"attributes": attributes, "indices": 2, "material": 0, "mode": 4}]}],
         "materials": [{"name": f"{name}_material", "doubleSided": True,
                        "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0}}],
@@ -146,7 +154,7 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
 
 
 def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh",
-             texture_format: str = "png") -> None:
+             texture_format: str = "png", up_axis: str = "y") -> None:
     """Write a textured triangle mesh as GLB (glTF 2.0 binary) with the texture embedded as
     ``texture_format``: "png" (lossless), "jpeg" or "webp" (lossy, quality :data:`LOSSY_QUALITY`; WebP
     through the EXT_texture_webp extension, declared required).
@@ -156,8 +164,10 @@ def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, ve
     texture_rgb_uint8: (H, W, 3) uint8, row 0 the top of the image; vertex_normals: optional (V, 3)
     for smooth shading (without them viewers shade flat). Loads in trimesh, Blender and three.js (WebP:
     in viewers that support EXT_texture_webp, such as three.js's GLTFLoader and Blender 4.x).
+    up_axis: 'y' (glTF's own), or 'z' for vertices of a z-up file: they are stored as they are and the
+    mesh's node carries :data:`Z_UP_NODE_ROTATION`, so that viewers stand it up.
     """
-    write_bytes(path, glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals, name, texture_format))
+    write_bytes(path, glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals, name, texture_format, up_axis))
 
 
 def smooth_vertex_normals(vertices, faces) -> np.ndarray:

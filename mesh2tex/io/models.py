@@ -41,6 +41,10 @@ from mesh2tex.render.cameras import CameraConfig
 GENERATOR, GENERATOR_EMA, D_FIELD, D_PROXY, GAN_LOSS = "generator", "generator_ema", "d_field", "d_proxy", "loss"
 # Metadata key of the 'gan' kind with the GeneratorConfig that load_generator builds.
 GENERATOR_CONFIG = "generator_config"
+# Metadata key of the 'gan' kind with the hierarchy its training shapes were prepared with: {"faces", "levels"}.
+HIERARCHY = "hierarchy"
+# What a raw mesh is prepared with for a generator whose checkpoint names no hierarchy (written before it did).
+DEFAULT_HIERARCHY_FACES = 6144
 # Tensor group of the 'pose' and 'noc' kinds.
 VIEW_NET = "net"
 MODEL_FILES = {"gan": "generator.safetensors", "pose": "pose.safetensors", "noc": "noc.safetensors"}
@@ -127,6 +131,23 @@ def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[Textu
     except (KeyError, RuntimeError) as error:
         raise InputError(f"{path}: generator weights missing or damaged ({str(error).splitlines()[0]})") from None
     return generator.to(device).eval().requires_grad_(False), meta
+
+
+def shape_hierarchy(shapes) -> dict:
+    """{"faces": requested finest quads, "levels": levels} of prepared shapes (the first one's record:
+    a training set is prepared with one setting)."""
+    first = shapes[0]
+    targets = first.metadata.get("targets") or [len(first.quads[0])]
+    return {"faces": int(targets[0]), "levels": int(first.num_levels)}
+
+
+def model_hierarchy(meta: dict) -> tuple[int, bool]:
+    """(finest quad count, whether the checkpoint recorded it) a raw mesh is prepared with for a GAN
+    checkpoint's generator: the hierarchy its training shapes had, else :data:`DEFAULT_HIERARCHY_FACES`."""
+    recorded = meta.get(HIERARCHY)
+    if isinstance(recorded, dict) and isinstance(recorded.get("faces"), int) and recorded["faces"] > 0:
+        return recorded["faces"], True
+    return DEFAULT_HIERARCHY_FACES, False
 
 
 def trained_lit(meta: dict) -> bool:

@@ -32,6 +32,44 @@ def uv_rasterize(uv: torch.Tensor, tri: torch.Tensor, resolution) -> Raster:
     return rasterize(pos[None], tri, resolution)
 
 
+# --uv auto keeps a mesh's own UVs unless more than this share of their area lies on texels that
+# another triangle covers too (mirrored or stacked charts: one texel for two places on the surface).
+UV_OVERLAP_LIMIT = 0.02
+UV_RANGE_TOLERANCE = 1e-3  # how far outside [0, 1] a UV may stray (rounding in exporters)
+
+
+def uv_atlas_problem(uv, faces, resolution: int = 1024) -> str:
+    """'' when ``uv`` is a usable atlas for baking a texture, else why not, in a few words.
+
+    Usable: finite, inside [0, 1] (wrapped or tiled UVs would repeat texels over the surface), of
+    non-zero area, and with charts that do not overlap: the triangles' UV area, summed, may exceed the
+    area they cover together (counted on a ``resolution``-square grid of texel centres) by at most
+    :data:`UV_OVERLAP_LIMIT` of it.
+
+    Args:
+        uv: (V, 2) float, v up; faces: (T, 3) int indexing ``uv`` (arrays or tensors).
+    """
+    uv = torch.as_tensor(uv).double()
+    faces = torch.as_tensor(faces).long()
+    check_shape(uv, "uv_atlas_problem: uv", ("V", 2), dtype="float")
+    check_shape(faces, "uv_atlas_problem: faces", ("T", 3), dtype="int")
+    if not bool(torch.isfinite(uv).all()):
+        return "its UV coordinates are not all finite"
+    corners = uv[faces]  # (T, 3, 2)
+    low, high = float(corners.min()), float(corners.max())
+    if low < -UV_RANGE_TOLERANCE or high > 1 + UV_RANGE_TOLERANCE:
+        return f"its UVs leave [0, 1] (from {low:.2f} to {high:.2f}: a tiled or wrapped texture)"
+    edge1, edge2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    area = float((edge1[:, 0] * edge2[:, 1] - edge1[:, 1] * edge2[:, 0]).abs().sum() / 2)
+    if area * resolution * resolution < 1:
+        return "its UV triangles have no area"
+    covered = int((uv_rasterize(uv.float(), faces, (resolution, resolution)).face_id[0] >= 0).sum())
+    overlap = 1 - covered / (area * resolution * resolution)
+    if overlap > UV_OVERLAP_LIMIT:
+        return f"its UV charts overlap ({100 * overlap:.0f} % of their area shares texels: mirrored or stacked parts)"
+    return ""
+
+
 def dilate_texture(image: torch.Tensor, mask: torch.Tensor, pixels: int) -> torch.Tensor:
     """Pad a texture's charts outwards so that bilinear lookups near seams do not read background.
 

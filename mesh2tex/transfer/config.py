@@ -52,7 +52,7 @@ class TransferConfig:
     render_oversample: float = 1.5  # render at this multiple of ``resolution`` before cropping to the object
     turntable_frames: int = 12  # frames of turntable.gif
     texture_size: int = 1024  # side of the baked UV texture in textured.glb
-    faces: int = 6144  # finest quad count when a raw mesh is prepared on the fly
+    faces: int = 0  # finest quad count when a raw mesh is prepared on the fly (0: the hierarchy the model was trained on)
     seed: int = 0  # seed of the initial latent and the patch sampling
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)

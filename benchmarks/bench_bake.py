@@ -1,0 +1,225 @@
+"""The texture baked onto the user's own mesh: how faithful it is, how long it takes, how much memory.
+
+    python benchmarks/bench_bake.py fidelity [--size 1024] [--out DIR]
+    python benchmarks/bench_bake.py time [--triangles 100000] [--size 1024] [--threads 1]
+    python benchmarks/bench_bake.py memory [--triangles 1000000] [--size 1024]
+
+fidelity: the shipped chair's texture (seed 0) on meshes the synthetic world did not make (a stool of
+separate, open parts; a z-up STL of it scaled by 40) and on a world chair given as a raw mesh. Eight
+views at 256 px (azimuths 0-315, elevation 20) of (a) the generator's field rendered on the prepared
+shape, as ``infer generate`` renders it, and (b) the user's mesh with the baked texture, sampled
+bilinearly; over the pixels both cover, 2 px away from either silhouette, the CIELAB colour
+difference (CIE76) between them: median and 99th percentile. The row ``prepared`` bakes onto the
+prepared shape itself (``--output-mesh prepared``, a fresh xatlas atlas): the bake's own error with
+no mapping. ``--out`` also writes each mesh's renders side by side, and a zoom on the texture near a
+seam of the atlas.
+
+time: a raw chair mesh subdivided to ``--triangles`` (default 100,000), its texture baked at ``--size``
+texels; the seconds of each part: the atlas (xatlas), the map (rasterizing the atlas and each
+texel's closest point on the prepared surface), the colours (the field at those points) and the
+writing; against the reference, the same size's bake onto the prepared shape as before (in the same
+process). ``--threads`` sets torch's threads (the closest-point queries use one core).
+
+memory: the same at ``--triangles`` 1,000,000 in a fresh process: its peak resident memory (ru_maxrss)
+before and after the bake.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))  # the meshes a user brings, made apart from the world (tests/user_assets.py)
+
+
+def chair_mesh(triangles: int = 0) -> trimesh.Trimesh:
+    """Chair 0 of the synthetic world as a raw triangle mesh, each face split in four until it has ``triangles``."""
+    from mesh2tex.synthetic.shapes import generate_shape
+
+    chair = generate_shape("chair", np.random.default_rng(0))
+    mesh = trimesh.Trimesh(chair.vertices, chair.faces, process=False)
+    while len(mesh.faces) < triangles:
+        mesh = mesh.subdivide()
+    return mesh
+
+
+def fidelity_meshes(folder: Path) -> dict[str, Path]:
+    from user_assets import user_files
+
+    files = user_files(folder)
+    chair = folder / "world_chair.obj"
+    chair_mesh().export(chair)
+    return {"stool (PLY)": files["ply"], "stool z-up x40 (STL)": files["stl"], "world chair (OBJ)": chair}
+
+
+def lab_difference(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """(N, 3, H, W) images in [-1, 1] -> (N, H, W) CIE76 colour difference."""
+    from kornia.color import rgb_to_lab
+
+    return (rgb_to_lab(((a + 1) / 2).clamp(0, 1)) - rgb_to_lab(((b + 1) / 2).clamp(0, 1))).norm(dim=1)
+
+
+def render_baked(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texture: np.ndarray, mvp: torch.Tensor, size: int):
+    """The baked mesh (vertices in the working frame) rendered with its texture: images (N, 3, H, W) in [-1, 1], mask (N, H, W)."""
+    from mesh2tex.render import interpolate, rasterize, texture as sample, transform_points
+
+    faces_t = torch.from_numpy(np.asarray(faces, dtype=np.int64))
+    raster = rasterize(transform_points(torch.from_numpy(vertices).float(), mvp), faces_t, (size, size))
+    texel_uv = interpolate(torch.from_numpy(uv).float(), raster, faces_t)
+    image = torch.from_numpy(texture).permute(2, 0, 1).float() / 127.5 - 1
+    colours = sample(image, texel_uv)  # (N, H, W, 3)
+    mask = raster.face_id >= 0
+    return torch.where(mask[..., None], colours, torch.ones_like(colours)).permute(0, 3, 1, 2), mask
+
+
+def eroded(mask: torch.Tensor, pixels: int = 2) -> torch.Tensor:
+    """(N, H, W) bool -> the pixels at least ``pixels`` away from the mask's border."""
+    kernel = 2 * pixels + 1
+    return -torch.nn.functional.max_pool2d(-(mask.float()[:, None]), kernel, stride=1, padding=pixels)[:, 0] > 0.5
+
+
+def fidelity(args) -> None:
+    from PIL import Image
+
+    from mesh2tex.io.models import gan_camera, load_generator
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.render_texture import render_field_views
+    from mesh2tex.render import orbit_camera, turntable_angles
+    from mesh2tex.render.bake import MeshBaker
+    from mesh2tex.nn.render_texture import field_colours
+    from mesh2tex.texture import bake_texture, latent, load_shape, model_face_count
+
+    generator, meta = load_generator("chair", torch.device("cpu"))
+    distance, fov = gan_camera(meta)
+    mvp = orbit_camera(*turntable_angles(8, 20.0), distance=distance, fov=fov).mvp
+    white = torch.ones(8, 3)
+    folder = Path(tempfile.mkdtemp(prefix="bake-"))
+    print(f"texture {args.size}^2, 8 views at 256 px, pixels 2 px inside both silhouettes; CIELAB difference (CIE76)")
+    print(f"{'mesh':24s} {'target':9s} {'triangles':>9s} {'uv':>4s} {'pixels':>7s} {'median':>7s} {'p99':>6s} {'max dist':>8s}")
+    for name, path in fidelity_meshes(folder).items():
+        shape, target = load_shape(path, generator, model_face_count(meta))
+        batch = collate_shapes([shape])
+        with torch.no_grad():
+            texture = generator.synthesize(batch, latent(generator, 0, torch.device("cpu")), noise_mode="none")
+            reference = render_field_views(generator, batch, None, mvp, (256, 256), white, texture=texture)
+
+            def colours_at(triangle, bary):
+                return field_colours(generator, texture, batch, triangle, bary)
+
+            baked = MeshBaker(target, batch.shape_vertices(0), batch.shape_triangles(0), args.size).bake(colours_at)
+            user_images, user_mask = render_baked(target.surface_points(baked.vertices), baked.faces, baked.uv, baked.texture, mvp, 256)
+            p_vertices, p_faces, p_uv, p_texture, _ = bake_texture(generator, texture, batch, args.size)
+            prepared_images, prepared_mask = render_baked(p_vertices.numpy(), p_faces.numpy(), p_uv.numpy(), p_texture, mvp, 256)
+        inside = eroded(reference.mask[:, 0] > 0.5)
+        for label, images, mask, triangles, uv, far in (
+                ("input", user_images, user_mask, len(baked.faces), baked.atlas.source, float(baked.surface_distance.max())),
+                ("prepared", prepared_images, prepared_mask, len(p_faces), "new", 0.0)):
+            both = inside & eroded(mask)
+            delta = lab_difference(images, reference.images)[both]
+            print(f"{name:24s} {label:9s} {triangles:9d} {uv:>4s} {int(both.sum()):7d} {float(delta.median()):7.2f} "
+                  f"{float(torch.quantile(delta, 0.99)):6.2f} {far:8.4f}")
+        if args.out:
+            out = Path(args.out)
+            out.mkdir(parents=True, exist_ok=True)
+            strip = lambda images: np.concatenate([((i.permute(1, 2, 0).numpy() + 1) * 127.5).clip(0, 255).astype(np.uint8) for i in images[:4]], axis=1)
+            slug = name.split(" ")[0] + ("_z_up" if "z-up" in name else "")
+            Image.fromarray(np.concatenate([strip(reference.images), strip(user_images)], axis=0)).save(out / f"bake_{slug}.png")
+            Image.fromarray(baked.texture).save(out / f"bake_{slug}_texture.png")
+
+
+def timed_bake(triangles: int, size: int) -> dict:
+    """Seconds of each part of baking the shipped chair's texture onto a ``triangles``-triangle chair at ``size``."""
+    from mesh2tex.geometry.closest import SurfaceIndex
+    from mesh2tex.io.models import load_generator
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.render.bake import MeshBaker, mesh_atlas
+    from mesh2tex.nn.render_texture import field_colours
+    from mesh2tex.texture import bake_texture, latent, load_shape, model_face_count, write_baked_mesh
+
+    folder = Path(tempfile.mkdtemp(prefix="bake-time-"))
+    path = folder / "chair.ply"
+    mesh = chair_mesh(triangles)
+    mesh.export(path)
+    generator, meta = load_generator("chair", torch.device("cpu"))
+    start = time.perf_counter()
+    shape, target = load_shape(path, generator, model_face_count(meta))
+    seconds = {"load and prepare": time.perf_counter() - start}
+    batch = collate_shapes([shape])
+    with torch.no_grad():
+        texture = generator.synthesize(batch, latent(generator, 0, torch.device("cpu")), noise_mode="none")
+
+        def colours_at(triangle, bary):
+            return field_colours(generator, texture, batch, triangle, bary)
+
+        tick = time.perf_counter()
+        mesh_atlas(target.mesh, "new")
+        seconds["atlas (xatlas)"] = time.perf_counter() - tick
+        tick = time.perf_counter()
+        SurfaceIndex(batch.shape_vertices(0), batch.shape_triangles(0))
+        seconds["surface index"] = time.perf_counter() - tick
+        tick = time.perf_counter()
+        baker = MeshBaker(target, batch.shape_vertices(0), batch.shape_triangles(0), size)
+        seconds["map (atlas, raster, closest points)"] = time.perf_counter() - tick
+        tick = time.perf_counter()
+        baked = baker.bake(colours_at)
+        seconds["colours"] = time.perf_counter() - tick
+        tick = time.perf_counter()
+        write_baked_mesh(folder / "out.glb", folder / "out.ply", baked, target.mesh)
+        seconds["write GLB + PLY"] = time.perf_counter() - tick
+        tick = time.perf_counter()
+        bake_texture(generator, texture, batch, size)
+        seconds["reference: bake onto the prepared shape"] = time.perf_counter() - tick
+    seconds["user bake (map + colours + write)"] = (seconds["map (atlas, raster, closest points)"] + seconds["colours"]
+                                                    + seconds["write GLB + PLY"])
+    return {"triangles": len(mesh.faces), "texels": size * size, "coverage": float(baked.coverage.mean()), "seconds": seconds}
+
+
+def time_bake(args) -> None:
+    torch.set_num_threads(args.threads)
+    result = timed_bake(args.triangles, args.size)
+    print(f"{result['triangles']} triangles, {args.size}^2 texels ({100 * result['coverage']:.0f} % covered), {args.threads} torch thread(s)")
+    reference = result["seconds"]["reference: bake onto the prepared shape"]
+    for part, value in result["seconds"].items():
+        print(f"  {part:42s} {value:7.2f} s  ({value / reference:5.2f}x the reference)")
+
+
+def memory(args) -> None:
+    code = ("import resource, sys; sys.path.insert(0, {root!r}); sys.path.insert(0, {bench!r}); import torch; torch.set_num_threads(1); "
+            "import bench_bake; before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
+            "r = bench_bake.timed_bake({t}, {s}); after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
+            "print(r['triangles'], round(before / 2**20, 2), round(after / 2**20, 2), round(r['seconds']['user bake (map + colours + write)'], 1))"
+            ).format(root=str(ROOT), bench=str(ROOT / "benchmarks"), t=args.triangles, s=args.size)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    print(f"{out[0]} triangles at {args.size}^2: peak resident memory {out[1]} GiB before the mesh is read, {out[2]} GiB after the bake "
+          f"(user bake {out[3]} s)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("what", choices=["fidelity", "time", "memory"])
+    parser.add_argument("--size", type=int, default=1024)
+    parser.add_argument("--triangles", type=int, default=None)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--out", help="fidelity: folder for the side-by-side renders")
+    args = parser.parse_args()
+    if args.what == "fidelity":
+        fidelity(args)
+    elif args.what == "time":
+        args.triangles = args.triangles or 100_000
+        time_bake(args)
+    else:
+        args.triangles = args.triangles or 1_000_000
+        memory(args)
+
+
+if __name__ == "__main__":
+    main()

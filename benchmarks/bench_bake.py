@@ -9,24 +9,28 @@ separate, open parts; a z-up STL of it scaled by 40) and on a world chair given 
 views at 256 px (azimuths 0-315, elevation 20) of (a) the generator's field rendered on the prepared
 shape, as ``infer generate`` renders it, and (b) the user's mesh with the baked texture, sampled
 bilinearly; over the pixels both cover, 2 px away from either silhouette, the CIELAB colour
-difference (CIE76) between them: median and 99th percentile. The row ``prepared`` bakes onto the
+difference (CIE76) between them: median and 99th percentile; and over those of them where both
+show the same point of the object (within 1 % of its size: not where the remeshed copy's leg stands
+in front of the seat the user's mesh shows there). The row ``prepared`` bakes onto the
 prepared shape itself (``--output-mesh prepared``, a fresh xatlas atlas): the bake's own error with
 no mapping. ``--out`` also writes each mesh's renders side by side, and a zoom on the texture near a
-seam of the atlas.
+seam of the atlas (``bake_*_seam.png``: the render, and the same square with the seams marked).
 
-time: a raw chair mesh subdivided to ``--triangles`` (default 100,000), its texture baked at ``--size``
+time: a raw chair mesh subdivided to ``--triangles`` (default 100,000; ``--shape blob``: a bumpy blob,
+curved everywhere, where xatlas has more to do), its texture baked at ``--size``
 texels; the seconds of each part: the atlas (xatlas), the map (rasterizing the atlas and each
 texel's closest point on the prepared surface), the colours (the field at those points) and the
 writing; against the reference, the same size's bake onto the prepared shape as before (in the same
 process). ``--threads`` sets torch's threads (the closest-point queries use one core).
 
-memory: the same at ``--triangles`` 1,000,000 in a fresh process: its peak resident memory (ru_maxrss)
-before and after the bake.
+memory: ``mesh2tex infer generate`` (one seed, one small view) on such a chair of ``--triangles``
+(default 1,000,000) in a child process: its wall time and peak resident memory (ru_maxrss).
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import subprocess
 import sys
 import tempfile
@@ -38,18 +42,37 @@ import torch
 import trimesh
 
 ROOT = Path(__file__).resolve().parents[1]
+SAME_POINT = 0.01  # fidelity: two renders show the same point of the object when their points are this close (bbox diagonals)
 sys.path.insert(0, str(ROOT / "tests"))  # the meshes a user brings, made apart from the world (tests/user_assets.py)
 
 
 def chair_mesh(triangles: int = 0) -> trimesh.Trimesh:
-    """Chair 0 of the synthetic world as a raw triangle mesh, each face split in four until it has ``triangles``."""
+    """Chair 0 of the synthetic world as a raw triangle mesh, faces split in four until it has about
+    ``triangles`` (the last split only on as many faces as that needs)."""
     from mesh2tex.synthetic.shapes import generate_shape
 
     chair = generate_shape("chair", np.random.default_rng(0))
     mesh = trimesh.Trimesh(chair.vertices, chair.faces, process=False)
-    while len(mesh.faces) < triangles:
+    while 4 * len(mesh.faces) <= triangles:
         mesh = mesh.subdivide()
+    extra = (triangles - len(mesh.faces)) // 3  # splitting a face adds three
+    if extra > 0:
+        mesh = mesh.subdivide(face_index=np.arange(extra))
     return mesh
+
+
+def blob_mesh(triangles: int) -> trimesh.Trimesh:
+    """A bumpy closed blob of about ``triangles`` triangles, like a scan: curved everywhere, so that
+    xatlas cuts many charts (a subdivided chair is mostly flat panels, the easy case)."""
+    mesh = trimesh.creation.icosphere(subdivisions=1)
+    while 4 * len(mesh.faces) <= triangles:
+        mesh = mesh.subdivide()
+    extra = (triangles - len(mesh.faces)) // 3
+    if extra > 0:
+        mesh = mesh.subdivide(face_index=np.arange(extra))
+    v = mesh.vertices / np.linalg.norm(mesh.vertices, axis=1, keepdims=True)
+    bumps = 1 + 0.15 * np.sin(5 * v[:, 0]) * np.cos(4 * v[:, 1]) + 0.05 * np.sin(11 * v[:, 2])
+    return trimesh.Trimesh(v * bumps[:, None] * [1.0, 0.7, 0.5], mesh.faces, process=False)
 
 
 def fidelity_meshes(folder: Path) -> dict[str, Path]:
@@ -68,17 +91,49 @@ def lab_difference(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return (rgb_to_lab(((a + 1) / 2).clamp(0, 1)) - rgb_to_lab(((b + 1) / 2).clamp(0, 1))).norm(dim=1)
 
 
-def render_baked(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texture: np.ndarray, mvp: torch.Tensor, size: int):
-    """The baked mesh (vertices in the working frame) rendered with its texture: images (N, 3, H, W) in [-1, 1], mask (N, H, W)."""
-    from mesh2tex.render import interpolate, rasterize, texture as sample, transform_points
+def surface_positions(vertices, faces, mvp: torch.Tensor, size: int):
+    """The surface point each pixel shows: (N, H, W, 3) (vertices' frame), mask (N, H, W), and the raster."""
+    from mesh2tex.render import interpolate, rasterize, transform_points
 
-    faces_t = torch.from_numpy(np.asarray(faces, dtype=np.int64))
-    raster = rasterize(transform_points(torch.from_numpy(vertices).float(), mvp), faces_t, (size, size))
-    texel_uv = interpolate(torch.from_numpy(uv).float(), raster, faces_t)
+    vertices = torch.as_tensor(np.asarray(vertices), dtype=torch.float32)
+    faces = torch.as_tensor(np.asarray(faces), dtype=torch.int64)
+    raster = rasterize(transform_points(vertices, mvp), faces, (size, size))
+    return interpolate(vertices, raster, faces), raster.face_id >= 0, raster
+
+
+def render_baked(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texture: np.ndarray, mvp: torch.Tensor, size: int):
+    """The baked mesh (vertices in the working frame) rendered with its texture: images (N, 3, H, W) in
+    [-1, 1], mask (N, H, W), the surface point at each pixel (N, H, W, 3)."""
+    from mesh2tex.render import interpolate, texture as sample
+
+    positions, mask, raster = surface_positions(vertices, faces, mvp, size)
+    texel_uv = interpolate(torch.from_numpy(uv).float(), raster, torch.from_numpy(np.asarray(faces, dtype=np.int64)))
     image = torch.from_numpy(texture).permute(2, 0, 1).float() / 127.5 - 1
     colours = sample(image, texel_uv)  # (N, H, W, 3)
-    mask = raster.face_id >= 0
-    return torch.where(mask[..., None], colours, torch.ones_like(colours)).permute(0, 3, 1, 2), mask
+    return torch.where(mask[..., None], colours, torch.ones_like(colours)).permute(0, 3, 1, 2), mask, positions
+
+
+def seam_zoom(vertices, faces, uv, texture, mvp: torch.Tensor, size: int = 512, window: int = 64, scale: int = 4) -> np.ndarray:
+    """A zoom on the atlas's seams in one view: the ``window``-pixel square of a ``size`` render where
+    the most seams cross the object (neighbouring pixels whose UVs jump: another chart), enlarged
+    ``scale`` times, beside the same square with those seams marked red. (H, 2W, 3) uint8."""
+    from mesh2tex.render import interpolate
+
+    images, mask, _ = render_baked(vertices, faces, uv, texture, mvp, size)
+    _, _, raster = surface_positions(vertices, faces, mvp, size)
+    texel_uv = interpolate(torch.from_numpy(uv).float(), raster, torch.from_numpy(np.asarray(faces, dtype=np.int64)))[0]
+    inside = eroded(mask)[0]
+    jump = torch.zeros(size, size, dtype=torch.bool)
+    jump[:, 1:] |= (texel_uv[:, 1:] - texel_uv[:, :-1]).norm(dim=-1) > 0.02
+    jump[1:, :] |= (texel_uv[1:] - texel_uv[:-1]).norm(dim=-1) > 0.02
+    seams = (jump & inside).float()
+    counts = torch.nn.functional.avg_pool2d(seams[None, None], window, stride=8)[0, 0]
+    row, col = divmod(int(counts.argmax()), counts.shape[1])
+    top, left = row * 8, col * 8
+    crop = ((images[0].permute(1, 2, 0).numpy() + 1) * 127.5).clip(0, 255).astype(np.uint8)[top:top + window, left:left + window]
+    marked = crop.copy()
+    marked[seams.numpy()[top:top + window, left:left + window] > 0] = (255, 0, 0)
+    return np.concatenate([crop, marked], axis=1).repeat(scale, axis=0).repeat(scale, axis=1)
 
 
 def eroded(mask: torch.Tensor, pixels: int = 2) -> torch.Tensor:
@@ -104,7 +159,7 @@ def fidelity(args) -> None:
     white = torch.ones(8, 3)
     folder = Path(tempfile.mkdtemp(prefix="bake-"))
     print(f"texture {args.size}^2, 8 views at 256 px, pixels 2 px inside both silhouettes; CIELAB difference (CIE76)")
-    print(f"{'mesh':24s} {'target':9s} {'triangles':>9s} {'uv':>4s} {'pixels':>7s} {'median':>7s} {'p99':>6s} {'max dist':>8s}")
+    print(f"{'mesh':24s} {'target':9s} {'pixels of':11s} {'triangles':>9s} {'uv':>4s} {'pixels':>7s} {'median':>7s} {'p99':>6s} {'max dist':>8s}")
     for name, path in fidelity_meshes(folder).items():
         shape, target = load_shape(path, generator, model_face_count(meta))
         batch = collate_shapes([shape])
@@ -116,17 +171,23 @@ def fidelity(args) -> None:
                 return field_colours(generator, texture, batch, triangle, bary)
 
             baked = MeshBaker(target, batch.shape_vertices(0), batch.shape_triangles(0), args.size).bake(colours_at)
-            user_images, user_mask = render_baked(target.surface_points(baked.vertices), baked.faces, baked.uv, baked.texture, mvp, 256)
+            user_images, user_mask, user_points = render_baked(target.surface_points(baked.vertices), baked.faces, baked.uv,
+                                                               baked.texture, mvp, 256)
             p_vertices, p_faces, p_uv, p_texture, _ = bake_texture(generator, texture, batch, args.size)
-            prepared_images, prepared_mask = render_baked(p_vertices.numpy(), p_faces.numpy(), p_uv.numpy(), p_texture, mvp, 256)
+            prepared_images, prepared_mask, _ = render_baked(p_vertices.numpy(), p_faces.numpy(), p_uv.numpy(), p_texture, mvp, 256)
+            reference_points, _, _ = surface_positions(batch.shape_vertices(0), batch.shape_triangles(0), mvp, 256)
         inside = eroded(reference.mask[:, 0] > 0.5)
-        for label, images, mask, triangles, uv, far in (
-                ("input", user_images, user_mask, len(baked.faces), baked.atlas.source, float(baked.surface_distance.max())),
-                ("prepared", prepared_images, prepared_mask, len(p_faces), "new", 0.0)):
+        # pixels where the two meshes show the same point of the object (within 1 % of its size): not
+        # where one shows a leg and the other the seat behind it, an edge of the remeshed copy
+        same_point = (user_points - reference_points).norm(dim=-1) < SAME_POINT
+        for label, images, mask, triangles, uv, far, where in (
+                ("input", user_images, user_mask, len(baked.faces), baked.atlas.source, float(baked.surface_distance.max()), same_point),
+                ("prepared", prepared_images, prepared_mask, len(p_faces), "new", 0.0, torch.ones_like(same_point))):
             both = inside & eroded(mask)
-            delta = lab_difference(images, reference.images)[both]
-            print(f"{name:24s} {label:9s} {triangles:9d} {uv:>4s} {int(both.sum()):7d} {float(delta.median()):7.2f} "
-                  f"{float(torch.quantile(delta, 0.99)):6.2f} {far:8.4f}")
+            for scope, pixels in (("silhouettes", both), ("same point", both & where)):
+                delta = lab_difference(images, reference.images)[pixels]
+                print(f"{name:24s} {label:9s} {scope:11s} {triangles:9d} {uv:>4s} {int(pixels.sum()):7d} {float(delta.median()):7.2f} "
+                      f"{float(torch.quantile(delta, 0.99)):6.2f} {far:8.4f}")
         if args.out:
             out = Path(args.out)
             out.mkdir(parents=True, exist_ok=True)
@@ -134,9 +195,11 @@ def fidelity(args) -> None:
             slug = name.split(" ")[0] + ("_z_up" if "z-up" in name else "")
             Image.fromarray(np.concatenate([strip(reference.images), strip(user_images)], axis=0)).save(out / f"bake_{slug}.png")
             Image.fromarray(baked.texture).save(out / f"bake_{slug}_texture.png")
+            Image.fromarray(seam_zoom(target.surface_points(baked.vertices), baked.faces, baked.uv, baked.texture, mvp[:1])).save(
+                out / f"bake_{slug}_seam.png")
 
 
-def timed_bake(triangles: int, size: int) -> dict:
+def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
     """Seconds of each part of baking the shipped chair's texture onto a ``triangles``-triangle chair at ``size``."""
     from mesh2tex.geometry.closest import SurfaceIndex
     from mesh2tex.io.models import load_generator
@@ -147,7 +210,7 @@ def timed_bake(triangles: int, size: int) -> dict:
 
     folder = Path(tempfile.mkdtemp(prefix="bake-time-"))
     path = folder / "chair.ply"
-    mesh = chair_mesh(triangles)
+    mesh = chair_mesh(triangles) if shape == "chair" else blob_mesh(triangles)
     mesh.export(path)
     generator, meta = load_generator("chair", torch.device("cpu"))
     start = time.perf_counter()
@@ -185,22 +248,25 @@ def timed_bake(triangles: int, size: int) -> dict:
 
 def time_bake(args) -> None:
     torch.set_num_threads(args.threads)
-    result = timed_bake(args.triangles, args.size)
-    print(f"{result['triangles']} triangles, {args.size}^2 texels ({100 * result['coverage']:.0f} % covered), {args.threads} torch thread(s)")
+    result = timed_bake(args.triangles, args.size, args.shape)
+    print(f"{args.shape}: {result['triangles']} triangles, {args.size}^2 texels ({100 * result['coverage']:.0f} % covered), {args.threads} torch thread(s)")
     reference = result["seconds"]["reference: bake onto the prepared shape"]
     for part, value in result["seconds"].items():
         print(f"  {part:42s} {value:7.2f} s  ({value / reference:5.2f}x the reference)")
 
 
 def memory(args) -> None:
-    code = ("import resource, sys; sys.path.insert(0, {root!r}); sys.path.insert(0, {bench!r}); import torch; torch.set_num_threads(1); "
-            "import bench_bake; before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
-            "r = bench_bake.timed_bake({t}, {s}); after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
-            "print(r['triangles'], round(before / 2**20, 2), round(after / 2**20, 2), round(r['seconds']['user bake (map + colours + write)'], 1))"
-            ).format(root=str(ROOT), bench=str(ROOT / "benchmarks"), t=args.triangles, s=args.size)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    print(f"{out[0]} triangles at {args.size}^2: peak resident memory {out[1]} GiB before the mesh is read, {out[2]} GiB after the bake "
-          f"(user bake {out[3]} s)")
+    """``infer generate`` on a ``--triangles`` chair in a child process: its wall time and peak resident memory."""
+    folder = Path(tempfile.mkdtemp(prefix="bake-memory-"))
+    mesh = chair_mesh(args.triangles)
+    mesh.export(folder / "chair.ply")
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "mesh2tex", "infer", "generate", "--checkpoint", "chair", "--mesh", str(folder / "chair.ply"),
+                    "--out", str(folder / "out"), "--seeds", "0", "--views", "1", "--resolution", "64", "--texture-size", str(args.size)],
+                   check=True, capture_output=True)
+    seconds = time.perf_counter() - start
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20  # kB -> GiB
+    print(f"infer generate on {len(mesh.faces)} triangles at {args.size}^2 texels: {seconds:.0f} s, peak resident memory {peak:.2f} GiB")
 
 
 def main() -> None:
@@ -209,6 +275,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=1024)
     parser.add_argument("--triangles", type=int, default=None)
     parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--shape", choices=["chair", "blob"], default="chair", help="time: a subdivided world chair, or a bumpy blob")
     parser.add_argument("--out", help="fidelity: folder for the side-by-side renders")
     args = parser.parse_args()
     if args.what == "fidelity":

@@ -20,6 +20,8 @@ def shapes(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-seconds", type=float, help="time budget of one shape; past it the shape fails with that reason (default: none)")
     parser.add_argument("--max-memory-gb", type=float, help="memory budget of each QuadriFlow process of a shape, GiB (default: none)")
     add_up(parser)
+    add_overwrite(parser, help="prepare every shape again, replacing its .npz and index entry (without it, shapes already prepared "
+                               "in --out with the same settings are kept and skipped)")
 
 
 def images(parser: argparse.ArgumentParser) -> None:

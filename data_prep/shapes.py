@@ -160,6 +160,8 @@ def run(args) -> int:
     settings = _settings(args)
     with locked(output / INDEX_LOCK):
         previous, other_settings = read_index(index_path, settings)
+    if args.overwrite:  # every shape again; the index keeps their old names, so the new files replace the old
+        previous = {source: {k: v for k, v in entry.items() if k != "status"} for source, entry in previous.items()}
     names = assign_names(paths, {source: Path(entry["file"]).stem for source, entry in previous.items() if isinstance(entry.get("file"), str)})
     if other_settings:
         print(f"mesh2tex: note: {index_path} lists shapes prepared with other settings ({other_settings}); "

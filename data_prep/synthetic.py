@@ -26,7 +26,6 @@ long as none of them has a name of the layout above.
 from __future__ import annotations
 
 import json
-import shutil
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -37,6 +36,7 @@ from PIL import Image
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import save_png
+from mesh2tex.io.outputs import remove_outputs
 from mesh2tex.progress import JsonLines, progress_bar
 
 FORMAT = "mesh2tex-synthetic-world"
@@ -99,12 +99,7 @@ def _check_output(output: Path, settings: dict, overwrite: bool = False) -> None
             if not overwrite:
                 raise UserError(f"{output}: holds a world built with other settings ({', '.join(changed)}); pass --overwrite to "
                                 f"replace it, or choose another --out")
-            for name in WORLD_ENTRIES:
-                path = output / name
-                if path.is_dir() and not path.is_symlink():
-                    shutil.rmtree(path)
-                elif path.exists() or path.is_symlink():
-                    path.unlink()
+            remove_outputs(output, WORLD_ENTRIES)
     elif output.is_dir() and any(output.iterdir()):
         if not overwrite:
             raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); pass --overwrite to build "

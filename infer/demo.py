@@ -47,6 +47,7 @@ from mesh2tex.evaluation.world import load_query_truth, reference_renders
 from mesh2tex.io.assets import TEXTURE_FORMATS, load_glb
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import load_generator, models_root
+from mesh2tex.io.outputs import remove_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides
@@ -57,7 +58,7 @@ from mesh2tex.texture import load_shape, mean_latent, model_face_count
 
 @dataclass
 class DemoGanConfig:
-    iters: int = 1200  # GAN iterations (the demo world's learning curves in docs/gan.md)
+    iters: int = 1200  # GAN iterations (the demo world's learning curves in docs/results/gan.md)
     resolution: int = 64  # GAN render resolution
     views: int = 4  # views per shape and GAN iteration
     channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first: one per level
@@ -73,9 +74,9 @@ class DemoGanConfig:
 class DemoViewNetsConfig:
     samples: int = 1536  # rendered views for the pose and NOC networks (rendered once, shared by both)
     resolution: int = 64  # their input size
-    width: int = 12  # the pose network's channel width (as good as 16 on held-out queries, 8 worse; docs/transfer.md)
+    width: int = 12  # the pose network's channel width (as good as 16 on held-out queries, 8 worse; docs/results/demo.md)
     noc_width: int = 8  # the NOC network's (12 or 16: a sixth lower NOC error on queries, no better transfer, 2-3.5x the time)
-    pose_iters: int = 1500  # pose network steps (1000 read the held-out queries worse; docs/transfer.md)
+    pose_iters: int = 1500  # pose network steps (1000 read the held-out queries worse; docs/results/demo.md)
     noc_iters: int = 400  # NOC network steps
 
     def __post_init__(self):
@@ -486,13 +487,21 @@ def saved_config(path: Path) -> DemoConfig:
     return load_config(DemoConfig, None, {FORMER_NAMES.get(key, key): value for key, value in data.items()})
 
 
+# What a demo writes into --out: --overwrite removes these (and nothing else) before it starts again.
+DEMO_OUTPUTS = ("world", "shapes", "gan", "pose", "noc", "transfer", "report.html", "metrics.json", "demo_log.jsonl",
+                "demo_config.yaml", "gan_config.yaml", "pose_config.yaml", "noc_config.yaml")
+
+
 def run(args) -> int:
     out = Path(args.out)
     saved = out / "demo_config.yaml"
     cfg = build_config(args)
     select_device(args.device)  # --device cuda without a GPU is refused before any stage runs
+    if args.overwrite:
+        remove_outputs(out, DEMO_OUTPUTS)
     if saved.is_file() and saved_config(saved) != cfg:
-        raise UserError(f"{out}: holds a demo run with other settings ({saved}); resume it with the same options or choose another --out")
+        raise UserError(f"{out}: holds a demo run with other settings ({saved}); resume it with the same options, "
+                        "start again with --overwrite, or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     save_config(cfg, saved)
     start = time.perf_counter()

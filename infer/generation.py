@@ -296,7 +296,7 @@ def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, 
     is (:func:`mesh2tex.evaluation.render_for_comparison` at S, supersampled and box-filtered, Lambert
     with flat face normals), then read as the photo set is (on white, resized to R). 0: the GAN's own
     renderer straight at R, as it trains (no antialiasing): another image pipeline than the oracle's,
-    which costs the generator rows distance that is not the texture's (``docs/gan.md``, *One
+    which costs the generator rows distance that is not the texture's (``docs/results/gan.md``, *One
     pipeline for every row*)."""
     b = len(views)
     ws = generator.mapping(z.to(device), truncation_psi=truncation) if ws is None else ws.to(device)

@@ -19,15 +19,18 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface, unit_transform
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.atomic import atomic_path, write_json
+from mesh2tex.io.assets import TEXTURE_FORMATS
 from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import load_nca
@@ -36,6 +39,7 @@ from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
 from mesh2tex.nn.nca import build_cell_graph
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
+from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
@@ -44,6 +48,34 @@ from mesh2tex.render.bake import BakeTarget
 from mesh2tex.texture import note, write_automaton_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
+
+
+@dataclass
+class InferNCAConfig:
+    steps: int = 96  # automaton steps from the seed
+    angle: float = 0.0  # texture orientation: degrees about each vertex normal
+    subdivide: str = "auto"  # split faces into four N times (0: the mesh as it is); auto: the count whose edges come nearest the training mesh's
+    views: int = 4  # renders around the mesh
+    resolution: int = 256  # render resolution
+    texture_size: int = 1024  # side of the baked UV texture
+    texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
+    frames: int = 24  # frames of growth.gif (0: no GIF)
+    seed: int = 0  # seed of the asynchronous updates
+    vgg_weights: str = ""  # VGG19 weights for the report's style loss ('' looks in $TORCH_HOME, else a random-weight fallback)
+    device: str = "auto"  # auto, cpu or cuda
+
+    def __post_init__(self):
+        for name, low in (("steps", 1), ("views", 1), ("resolution", 32), ("texture_size", 16), ("frames", 0)):
+            if getattr(self, name) < low:
+                raise UserError(f"--{name.replace('_', '-')} must be at least {low}, got {getattr(self, name)}")
+        if self.texture_format not in TEXTURE_FORMATS:
+            raise UserError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+        self.subdivide = str(self.subdivide)
+
+
+def build_config(args) -> InferNCAConfig:
+    """The config's defaults, then ``--config``, then the flags given."""
+    return load_config(InferNCAConfig, args.config, config_overrides(args))
 
 
 def choose_subdivisions(value: str, vertices: np.ndarray, faces: np.ndarray, cell_spacing: float) -> int:
@@ -86,12 +118,9 @@ def read_cells_surface(spec: str, up: str, uv: str, output_mesh: str) -> tuple[t
 def run(args) -> int:
     from PIL import Image
 
-    for name, value, low in (("--steps", args.steps, 1), ("--views", args.views, 1), ("--resolution", args.resolution, 32),
-                             ("--texture-size", args.texture_size, 16), ("--frames", args.frames, 0)):
-        if value < low:
-            raise UserError(f"{name} must be at least {low}, got {value}")
-    out = guard_outputs(args.out, list(OUTPUTS) + [f"view_{k}.png" for k in range(args.views)], args.overwrite)
-    device = select_device(args.device)
+    cfg = build_config(args)
+    out = guard_outputs(args.out, list(OUTPUTS) + [f"view_{k}.png" for k in range(cfg.views)], args.overwrite)
+    device = select_device(cfg.device)
     model, meta, exemplar = load_nca(args.checkpoint, device)
     camera = meta.get("config", {}).get("camera", {})  # frame the unit ball as training did
     distance, fov = float(camera.get("distance", 3.2)), float(camera.get("fov", 40.0))
@@ -106,7 +135,7 @@ def run(args) -> int:
     surface, bake_target = read_cells_surface(args.mesh, args.up, args.uv, args.output_mesh)  # read once, subdivided from these arrays
     vertices, faces = unit_surface(*surface, name=args.mesh)
     cell_spacing = float(meta.get("cell_spacing", 0.0))
-    subdivisions = choose_subdivisions(args.subdivide, vertices, faces, cell_spacing)
+    subdivisions = choose_subdivisions(cfg.subdivide, vertices, faces, cell_spacing)
     if subdivisions:
         vertices, faces = unit_surface(*surface, subdivide=subdivisions, name=args.mesh)
     edge_ratio = mean_edge_length(vertices, faces) / cell_spacing if cell_spacing > 0 else None
@@ -123,10 +152,10 @@ def run(args) -> int:
             raise UserError(f"--regrow {args.regrow}: the region holds no vertex of this mesh")
     out.mkdir(parents=True, exist_ok=True)
 
-    angle = math.radians(args.angle)
-    generator = torch.Generator(device=device).manual_seed(args.seed)
-    frames_at = set(np.linspace(0, args.steps, args.frames, dtype=int).tolist()) if args.frames else set()
-    gif_size = min(args.resolution, 192)
+    angle = math.radians(cfg.angle)
+    generator = torch.Generator(device=device).manual_seed(cfg.seed)
+    frames_at = set(np.linspace(0, cfg.steps, cfg.frames, dtype=int).tolist()) if cfg.frames else set()
+    gif_size = min(cfg.resolution, 192)
     frames: list[np.ndarray] = []
 
     def frame(state, index, total):
@@ -134,16 +163,16 @@ def run(args) -> int:
         mvp = orbit_camera(azimuth, 20.0, distance=distance, fov=fov).mvp.to(device)
         frames.append(images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0, graft=graft).images)[0])
 
-    state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(args.seed))
+    state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed))
     total_frames = len(frames_at) * (2 if damage is not None else 1)
     started = time.perf_counter()
     step_seconds = 0.0
     with torch.no_grad():
-        phases = [("grow", args.steps)] + ([("regrow", args.steps)] if damage is not None else [])
+        phases = [("grow", cfg.steps)] + ([("regrow", cfg.steps)] if damage is not None else [])
         for phase, steps in phases:
             if phase == "regrow":
                 state = state.masked_fill(damage[None, :, None], 0.0) if model.cfg.seed == "zero" else torch.where(
-                    damage[None, :, None], model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(args.seed + 1)), state)
+                    damage[None, :, None], model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed + 1)), state)
             for step in progress_bar(range(steps + 1), desc=f"infer nca ({phase})"):
                 if step in frames_at:
                     frame(state, len(frames), total_frames)
@@ -155,38 +184,38 @@ def run(args) -> int:
         if not torch.isfinite(state).all():
             raise UserError(f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps")
 
-        mvp = orbit_camera(*turntable_angles(args.views, 20.0, start=30.0), distance=distance, fov=fov).mvp.to(device)
-        views = render_states(model, state, graph, mvp, args.resolution, background=1.0, graft=graft)
+        mvp = orbit_camera(*turntable_angles(cfg.views, 20.0, start=30.0), distance=distance, fov=fov).mvp.to(device)
+        views = render_states(model, state, graph, mvp, cfg.resolution, background=1.0, graft=graft)
         for k, image in enumerate(images_to_uint8(views.images)):
             save_png(out / f"view_{k}.png", image)
         style = None
         if exemplar is not None:
-            vgg = load_vgg19(args.vgg_weights, device=device, warn=False)
+            vgg = load_vgg19(cfg.vgg_weights or None, device=device, warn=False)
             depth = int(meta.get("config", {}).get("vgg_depth", 4))
             target = torch.from_numpy(exemplar).permute(2, 0, 1)[None].float().to(device) / 127.5 - 1
             style = float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
                                      generator=torch.Generator().manual_seed(0)))
 
-        written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, args.texture_size,
-                                       args.texture_format, graft=graft, target=bake_target)
+        written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, cfg.texture_size,
+                                       cfg.texture_format, graft=graft, target=bake_target)
     if written.get("uv_note"):
         note(f"{args.mesh}: a new UV atlas, as {written['uv_note']}")
     save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
-                    meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": args.steps})
+                    meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": cfg.steps})
     if frames:
         pictures = [Image.fromarray(f) for f in frames]
         with atomic_path(out / "growth.gif") as tmp:
             pictures[0].save(tmp, format="GIF", save_all=True, append_images=pictures[1:], duration=100, loop=0)
     report = {"checkpoint": str(args.checkpoint), "mesh": args.mesh, "cells": graph.num_cells, "subdivisions": subdivisions,
               "edge_ratio": None if edge_ratio is None else round(edge_ratio, 3),
-              "steps": args.steps, "regrow": args.regrow, "graft": args.graft, "graft_mask": args.graft_mask if args.graft else None,
-              "lineage": lineage_note, "angle_degrees": args.angle, "seconds": round(time.perf_counter() - started, 2),
-              "ms_per_step": round(1000 * step_seconds / (args.steps * len(phases)), 3), "style_loss": style, "output_mesh": written,
-              "files": [f"view_{k}.png" for k in range(args.views)] + [n for n in OUTPUTS if (out / n).exists()]}
+              "steps": cfg.steps, "regrow": args.regrow, "graft": args.graft, "graft_mask": args.graft_mask if args.graft else None,
+              "lineage": lineage_note, "angle_degrees": cfg.angle, "seconds": round(time.perf_counter() - started, 2),
+              "ms_per_step": round(1000 * step_seconds / (cfg.steps * len(phases)), 3), "style_loss": style, "output_mesh": written,
+              "files": [f"view_{k}.png" for k in range(cfg.views)] + [n for n in OUTPUTS if (out / n).exists()]}
     write_json(out / "report.json", report)
     density = f"faces split into four {subdivisions}x" if subdivisions else "the mesh as it is"
     density += "; the model records no training cell spacing" if edge_ratio is None else f", edges {edge_ratio:.2f}x the training mesh's"
-    print(f"{graph.num_cells} cells ({density}), {args.steps} steps ({report['ms_per_step']} ms each): {out / 'textured.glb'}"
+    print(f"{graph.num_cells} cells ({density}), {cfg.steps} steps ({report['ms_per_step']} ms each): {out / 'textured.glb'}"
           + (f"; style loss {style:.3f}" if style is not None else ""))
     if lineage_note:
         print(f"mesh2tex: note: {lineage_note}")

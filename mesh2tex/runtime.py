@@ -57,7 +57,7 @@ def choose_threads(cpu_count: int | None = None, load: float | None = None, envi
     Why not all cores: torch's threads wait for one another at every operation, so one descheduled
     thread stalls the rest. With one competing CPU-bound process on a 2-core machine, two threads
     took 1.8x (best of 8) to 3.5x (median) the time of one thread for a 256 px render
-    (docs/rendering.md). Why the moment too: the load average still counts a job that has just
+    (docs/results/rendering.md). Why the moment too: the load average still counts a job that has just
     ended. Right after ``make install``, on an otherwise idle 2-core machine, it gave ``make demo``
     one thread, and its GAN 0.89 s per iteration instead of 0.65 with two.
     """

@@ -1,7 +1,8 @@
 """Rebuild a shipped model from nothing: world, shapes, GAN, pose and NOC networks, export, evaluation, card.
 
     python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out mesh2tex/models/chair]
-                                 [--pose-iters 1500] [--noc-iters 400] [--device auto] [--from-gan CKPT] [--views-gan CKPT]
+                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--device auto]
+                                 [--from-gan CKPT] [--views-gan CKPT]
 
 Every stage resumes (re-run the same command after an interruption): the world and the shapes are
 skipped when present, the GAN, pose and NOC runs continue with --resume. ``--gan-iters`` is the total
@@ -12,7 +13,9 @@ of training one: the run must have been trained with this script's settings (``G
 
 The model folder gets generator.safetensors, pose.safetensors, noc.safetensors (float16 inference
 checkpoints, :mod:`mesh2tex.io.models`), card.json (settings, commands, iterations, hardware, wall
-time, the generation protocol's figures) and card.md (the same for people).
+time, the generation protocol's figures) and build_log.md (the same for people; the model card,
+card.md, is written by hand from it). ``--variety real`` builds the world of real families of chairs
+and cars (``prepare synthetic --variety``); ``--seed`` the GAN's training seed.
 """
 
 from __future__ import annotations
@@ -114,6 +117,8 @@ def main() -> None:
     parser.add_argument("--work", required=True, help="folder for the world, shapes and runs (kept, resumable)")
     parser.add_argument("--out", help="model folder (default mesh2tex/models/<category>)")
     parser.add_argument("--gan-iters", type=int, help="GAN iterations in all (default: the category's recipe)")
+    parser.add_argument("--variety", choices=["boxy", "real"], default="boxy", help="the world's shapes (prepare synthetic --variety)")
+    parser.add_argument("--seed", type=int, default=GAN["seed"], help="the GAN's training seed")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
     parser.add_argument("--device", default="auto")
@@ -124,7 +129,8 @@ def main() -> None:
     args = parser.parse_args()
     recipe = RECIPES[args.category]
     gan_config = recipe_gan_config(recipe)
-    world_settings = recipe_world(recipe)
+    world_settings = {**recipe_world(recipe), **({"variety": args.variety} if args.variety != "boxy" else {})}
+    gan_settings = {**GAN, "seed": args.seed}
     if args.gan_iters is None:
         args.gan_iters = recipe["gan_iters"]
     work = Path(args.work)
@@ -136,7 +142,7 @@ def main() -> None:
     run(["prepare", "synthetic", "--out", str(world), "--category", args.category, "--shapes", str(world_settings["shapes"]),
          "--views", str(world_settings["views"]), "--query-shapes", str(world_settings["query_shapes"]),
          "--query-views", str(world_settings["query_views"]), "--seed", str(world_settings["seed"]),
-         "--resolution", str(world_settings["resolution"])], commands)
+         "--resolution", str(world_settings["resolution"]), "--variety", args.variety], commands)
     split = json.loads((world / "index.json").read_text())["split"]
     for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
         folder = work / "shapes" / part
@@ -151,13 +157,13 @@ def main() -> None:
         it = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"]
         commands.append(f"mesh2tex train gan --shapes {work / 'shapes' / 'train'} --images {world} --out {run_dir} "
                         f"--config {run_dir / 'config.yaml'} --resolution {GAN['resolution']} --views {GAN['views']} "
-                        f"--seed {GAN['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it")
+                        f"--seed {gan_settings['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it")
     else:
         gan_yaml = work / "gan.yaml"
         gan_yaml.write_text(yaml.safe_dump(gan_config, sort_keys=False))
         run(["train", "gan", "--shapes", str(work / "shapes" / "train"), "--images", str(world), "--out", str(work / "gan"),
              "--config", str(gan_yaml), "--iters", str(args.gan_iters), "--resolution", str(GAN["resolution"]),
-             "--views", str(GAN["views"]), "--seed", str(GAN["seed"]), "--device", args.device, "--resume"], commands)
+             "--views", str(GAN["views"]), "--seed", str(gan_settings["seed"]), "--device", args.device, "--resume"], commands)
         gan_ckpt = work / "gan" / "checkpoint.safetensors"
     snapshot = gan_run_dir(gan_ckpt) / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors"
     if not args.views_gan and snapshot.is_file():  # else the GAN itself (a run shorter than the recipe's iteration)
@@ -179,7 +185,7 @@ def main() -> None:
                                      GenerationConfig(views=8, latents=16, kid_fid=False), samples_path=out / "samples.png")
     size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
     card = {
-        "name": args.category, "category": args.category, "world": world_settings, "shapes": SHAPES, "gan": {**GAN, "config": gan_config},
+        "name": args.category, "category": args.category, "world": world_settings, "shapes": SHAPES, "gan": {**gan_settings, "config": gan_config},
         "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
         "noc_iterations": args.noc_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
         "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), int(gan_meta["iteration"])),
@@ -189,8 +195,9 @@ def main() -> None:
     }
     (out / "card.json").write_text(json.dumps(card, indent=1, default=float))
     rebuild = f"python models/build_model.py --category {args.category} --work WORK" + (
-        "" if card["gan_iterations"] == recipe["gan_iters"] else f" --gan-iters {card['gan_iterations']}")
-    (out / "card.md").write_text(
+        "" if card["gan_iterations"] == recipe["gan_iters"] else f" --gan-iters {card['gan_iterations']}") + (
+        f" --variety {args.variety}" if args.variety != "boxy" else "") + (f" --seed {args.seed}" if args.seed != GAN["seed"] else "")
+    (out / "build_log.md").write_text(
         f"# Shipped model `{args.category}` ({args.category})\n\n"
         f"Texture GAN (EMA generator), pose and NOC networks trained on the synthetic {args.category} world "
         f"({world_settings['shapes'] - world_settings['query_shapes']} training shapes, {world_settings['views']} photos each at "

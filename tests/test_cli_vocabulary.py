@@ -38,9 +38,6 @@ GENERATOR_READERS = {("train", "pose"), ("train", "noc"), ("infer", "generate"),
 OTHER_SPELLINGS = {"--output", "--output-dir", "--outdir", "--gan", "--generator", "--gan-checkpoint", "--ckpt", "--model",
                    "--protocol-config", "--config-file", "--force", "--replace", "--random-seed", "--rng-seed", "--cpu", "--gpu", "--cuda"}
 EXCEPTIONS: dict[tuple[tuple[str, ...], str], str] = {
-    (("prepare", "shapes"), "--overwrite"): "prepare shapes resumes into --out and has no --overwrite yet",
-    (("demo",), "--overwrite"): "demo resumes into --out and has no --overwrite yet",
-    (("infer", "nca"), "--config"): "infer nca has no config yet",
 }
 
 

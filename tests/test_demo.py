@@ -60,3 +60,18 @@ def test_settings_recorded_before_they_were_nested_still_resume(tmp_path):
     (tmp_path / "flat.yaml").write_text(yaml.safe_dump({"view_width": 4, "gan_iters": 5, "seed": 1}))
     with pytest.raises(InputError, match=r"key\(s\) moved: gan_iters -> gan.iters, view_width -> view_nets.width$"):
         load_config(DemoConfig, tmp_path / "flat.yaml")
+
+
+def test_demo_overwrite_removes_only_what_a_demo_wrote(tmp_path):
+    from mesh2tex.infer.demo import DEMO_OUTPUTS
+    from mesh2tex.io.outputs import remove_outputs
+
+    for name in DEMO_OUTPUTS:
+        path = tmp_path / name
+        if "." in name:
+            path.write_text("x")
+        else:
+            (path / "inner").mkdir(parents=True)
+    (tmp_path / "my_notes.md").write_text("mine")
+    remove_outputs(tmp_path, DEMO_OUTPUTS)
+    assert [p.name for p in tmp_path.iterdir()] == ["my_notes.md"]

@@ -178,3 +178,20 @@ def test_a_hierarchy_too_coarse_for_a_chair_is_one_warning_and_recorded(tmp_path
         else:
             assert coarse == [] and not record["too_coarse"] and record["deviation"] < DEVIATION_LIMIT / 2
             assert record["suggested_faces"] is None and index["too_coarse"] == 0
+
+
+def test_overwrite_prepares_every_shape_again(tmp_path):
+    """Without --overwrite a shape already prepared in --out is skipped; with it, it is prepared again
+    and its file replaced (a file of the user's beside them stays)."""
+    import trimesh
+
+    trimesh.creation.box().export(tmp_path / "cube.stl")
+    out = tmp_path / "out"
+    args = ["prepare", "shapes", "--input", str(tmp_path / "cube.stl"), "--out", str(out), "--faces", "96", "--levels", "2"]
+    assert main(args) == 0
+    (out / "notes.txt").write_text("mine")
+    first = (out / "cube.npz").stat().st_mtime_ns
+    assert main(args) == 0 and (out / "cube.npz").stat().st_mtime_ns == first
+    assert main([*args, "--overwrite"]) == 0
+    assert (out / "cube.npz").stat().st_mtime_ns != first and (out / "notes.txt").read_text() == "mine"
+    assert json.loads((out / "index.json").read_text())["ok"] == 1

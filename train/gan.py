@@ -53,7 +53,7 @@ class OptimConfig:
     # Annealing: from iteration lr_decay_start (0: never) every rate falls linearly, over lr_decay_iters
     # iterations, to lr_decay_to times its value, and stays there. At constant rates a long run's
     # generator keeps swinging its whole palette from one few hundred iterations to the next, and its
-    # EMA averages those palettes into duller colours (docs/gan.md, "Annealing the learning rates").
+    # EMA averages those palettes into duller colours (docs/results/gan.md, "The palette swings").
     lr_decay_start: int = 0
     lr_decay_iters: int = 2000
     lr_decay_to: float = 0.25

@@ -62,7 +62,7 @@ class NCACameraConfig:
 class TrainNCAConfig:
     seed: int = 0
     iters: int = 1500  # training iterations
-    batch: int = 1  # states per iteration (1 state and 1 view: 3x the Adam steps of 2 x 2 in the same time; docs/nca.md)
+    batch: int = 1  # states per iteration (1 state and 1 view: 3x the Adam steps of 2 x 2 in the same time; docs/results/nca.md)
     views: int = 1  # random views per state
     resolution: int = 128  # render resolution
     steps_min: int = 15  # rollout length per iteration: uniform in [steps_min, steps_max]

@@ -19,7 +19,12 @@ from scipy.spatial import cKDTree
 
 from mesh2tex.checks import check_array
 
-CANDIDATES = 8  # nearest samples whose triangles are tried first; more where the answer is not certain
+CANDIDATES = 24  # nearest samples whose triangles are tried first; more where the answer is not certain
+# Samples every eighth of a typical triangle's longest edge: dense enough that the 24 nearest samples
+# certify most points on or near the surface at once (measured on a chair: 2.6 s for 776k texels, against
+# 7.2 s at half-edge spacing and 8 candidates, where nearly every point needed more), within a budget.
+SPACING_DIVISOR = 8
+SAMPLE_BUDGET = 2_000_000
 # A point far from the surface needs nearly every sample to be certain of its closest triangle; its answer
 # is taken once no other triangle can be nearer by more than this share of the distance found.
 RELATIVE_SLACK = 0.25
@@ -121,10 +126,13 @@ class SurfaceIndex:
         corners = self.vertices[self.triangles]  # (T, 3, 3)
         self._a, self._b, self._c = (np.ascontiguousarray(corners[:, k]) for k in range(3))
         longest = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
-        if spacing is None:  # half the typical edge: a handful of samples on a typical triangle
-            spacing = float(np.median(longest)) / 2
+        if spacing is None:
+            spacing = float(np.median(longest)) / SPACING_DIVISOR
         spacing = max(float(spacing), 1e-12)
         grids = np.clip(np.ceil(longest / spacing), 1, MAX_GRID).astype(np.int64)
+        while ((grids + 1) * (grids + 2) // 2).sum() > SAMPLE_BUDGET and grids.max() > 1:  # a large mesh: coarser grids
+            spacing *= 1.5
+            grids = np.clip(np.ceil(longest / spacing), 1, MAX_GRID).astype(np.int64)
         self.cover = float((longest / grids).max()) * (1 + 1e-9) + 1e-12
         points, owners = [], []
         for n in np.unique(grids):

@@ -4,6 +4,7 @@ unless the user asks to replace them."""
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 from typing import Iterable
 
@@ -23,3 +24,15 @@ def guard_outputs(out: str | os.PathLike, names: Iterable[str], overwrite: bool)
         shown = ", ".join(existing[:4]) + (f" and {len(existing) - 4} more" if len(existing) > 4 else "")
         raise InputError(f"{out}: already holds {shown}; pass --overwrite to replace them, or choose another --out")
     return out
+
+
+def remove_outputs(out: str | os.PathLike, names: Iterable[str]) -> None:
+    """``--overwrite`` of a command that starts again: remove the files and folders ``out/<name>`` an
+    earlier run of it wrote (a link is removed, never followed); anything else in ``out`` stays."""
+    out = Path(out)
+    for name in names:
+        path = out / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()

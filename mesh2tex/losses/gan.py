@@ -30,8 +30,8 @@ The colour term matches the first two moments of the generator's object colours 
 discriminator sees them) to the photo collection's (:meth:`GanLoss.set_colour_target`). Without it
 a long run's generator swings its whole palette from a few hundred steps to the next, and the
 renders of its EMA stay darker and duller than the photos: on the 56-chair world, matching those
-moments after the fact would take the held-out object SWD from 157 to 100 (docs/gan.md, *Colour
-moments*). The moments are running means (``colour_decay`` the weight of each step's batch) so that
+moments after the fact would take the held-out object SWD from 157 to 100 (docs/results/gan.md, *The
+palette swings*). The moments are running means (``colour_decay`` the weight of each step's batch) so that
 the term corrects the generator's global bias: a batch of two latents is not pushed towards the
 photos' mean colour, which would shrink every sample towards it. Its value is the running
 moments'; its gradient flows through this batch's.

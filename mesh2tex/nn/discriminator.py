@@ -115,7 +115,7 @@ class Discriminator(nn.Module):
         check_shape(images, "Discriminator: images", (None, self.fromrgb.weight.shape[1], self.resolution, self.resolution), dtype="float")
         if images.device.type == "cpu":
             # oneDNN's CPU convolutions, forward and backward, run about a fifth faster on channels-last
-            # activations (docs/gan.md, "Seconds per iteration"). Safe here because no convolution of
+            # activations (docs/results/gan.md, "Seconds per iteration"). Safe here because no convolution of
             # this network is a strided 1x1 (oneDNN issue 6035: that backward writes out of bounds on
             # channels-last inputs with few channels): Conv2dLayer's 1x1 downsampling strides its blur.
             images = images.contiguous(memory_format=torch.channels_last)

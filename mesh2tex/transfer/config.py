@@ -35,7 +35,7 @@ class TransferConfig:
     w_patch: float = 1.0  # weight of the patch style loss
     scales: int = 3  # resolution levels of the global style loss, and of the patch loss when patch_scales is 0 (paper: 3)
     patches: int = 2  # patch pairs per iteration (paper: 2)
-    patch_size: int = 32  # side of a patch in pixels (paper: 64; at 128 px crops 32 beats it, docs/protocols.md)
+    patch_size: int = 32  # side of a patch in pixels (paper: 64; at 128 px crops 32 beats it, docs/results/protocols.md)
     patch_scales: int = 2  # resolution levels of the patch loss alone (0: ``scales``; 2 keeps 32 px patches at a 16 px coarsest level)
     w_colour: float = 10.0  # weight of the low-pass colour loss: render against photo at the pose, both blurred, where both show the object (0: the paper's style losses alone)
     colour_sigma: float = 0.03  # the colour loss's Gaussian blur, as a share of the crop side (0.03: 2 px at 64 px)

@@ -14,7 +14,9 @@ show the same point of the object (within 1 % of its size: not where the remeshe
 in front of the seat the user's mesh shows there). The row ``prepared`` bakes onto the
 prepared shape itself (``--output-mesh prepared``, a fresh xatlas atlas): the bake's own error with
 no mapping. ``--out`` also writes each mesh's renders side by side, and a zoom on the texture near a
-seam of the atlas (``bake_*_seam.png``: the render, and the same square with the seams marked).
+seam of the atlas (``bake_*_seam.png``: the render, and the same square with the seams marked);
+``bake_*.png`` has three rows: the user's mesh as given (grey), the field on the prepared copy, the
+user's mesh with the baked texture.
 
 time: a raw chair mesh subdivided to ``--triangles`` (default 100,000; ``--shape blob``: a bumpy blob,
 curved everywhere, where xatlas has more to do), its texture baked at ``--size``
@@ -113,6 +115,18 @@ def render_baked(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, textur
     return torch.where(mask[..., None], colours, torch.ones_like(colours)).permute(0, 3, 1, 2), mask, positions
 
 
+def plain_renders(vertices, faces, mvp: torch.Tensor, size: int) -> torch.Tensor:
+    """The mesh as the user gave it, grey with flat shading from the camera's side: (N, 3, H, W) in [-1, 1]."""
+    from mesh2tex.render import render_normals
+
+    _, mask, raster = surface_positions(vertices, faces, mvp, size)
+    normals = render_normals(torch.as_tensor(np.asarray(vertices), dtype=torch.float32), torch.as_tensor(np.asarray(faces), dtype=torch.int64),
+                             raster, smooth=False)
+    light = torch.nn.functional.normalize(torch.linalg.inv(mvp)[:, :3, 2], dim=-1)[:, None, None, :]  # towards the camera
+    grey = 0.35 + 0.55 * (normals * light).sum(-1).abs()
+    return torch.where(mask, grey * 2 - 1, torch.ones_like(grey))[:, None].expand(-1, 3, -1, -1)
+
+
 def seam_zoom(vertices, faces, uv, texture, mvp: torch.Tensor, size: int = 512, window: int = 64, scale: int = 4) -> np.ndarray:
     """A zoom on the atlas's seams in one view: the ``window``-pixel square of a ``size`` render where
     the most seams cross the object (neighbouring pixels whose UVs jump: another chart), enlarged
@@ -193,7 +207,8 @@ def fidelity(args) -> None:
             out.mkdir(parents=True, exist_ok=True)
             strip = lambda images: np.concatenate([((i.permute(1, 2, 0).numpy() + 1) * 127.5).clip(0, 255).astype(np.uint8) for i in images[:4]], axis=1)
             slug = name.split(" ")[0] + ("_z_up" if "z-up" in name else "")
-            Image.fromarray(np.concatenate([strip(reference.images), strip(user_images)], axis=0)).save(out / f"bake_{slug}.png")
+            before = plain_renders(target.surface_points(target.mesh.vertices), target.mesh.faces, mvp, 256)
+            Image.fromarray(np.concatenate([strip(before), strip(reference.images), strip(user_images)], axis=0)).save(out / f"bake_{slug}.png")
             Image.fromarray(baked.texture).save(out / f"bake_{slug}_texture.png")
             Image.fromarray(seam_zoom(target.surface_points(baked.vertices), baked.faces, baked.uv, baked.texture, mvp[:1])).save(
                 out / f"bake_{slug}_seam.png")

@@ -190,3 +190,28 @@ def test_keep_without_uvs_is_refused():
     mesh = stool()
     with pytest.raises(ValueError, match="has no UV coordinates"):
         mesh_atlas(UserMesh("m.ply", mesh.vertices, mesh.faces, None, None), "keep")
+
+
+def test_a_scene_of_several_nodes_and_an_obj_of_several_materials(tmp_path):
+    """A glTF scene's nodes are flattened with their transforms into one mesh in the scene's frame; an OBJ
+    whose faces use two materials is read whole. The textured output keeps every triangle of both."""
+    mesh = stool()
+    seat, rest = mesh.faces[:len(mesh.faces) // 3], mesh.faces[len(mesh.faces) // 3:]
+    scene = trimesh.Scene()
+    shift = trimesh.transformations.translation_matrix([0.0, 0.1, 0.0])
+    scene.add_geometry(trimesh.Trimesh(mesh.vertices, seat, process=False), node_name="seat", transform=shift)
+    scene.add_geometry(trimesh.Trimesh(mesh.vertices, rest, process=False), node_name="rest", transform=shift)
+    scene.export(tmp_path / "scene.glb")
+    read = load_user_mesh(tmp_path / "scene.glb")
+    assert len(read.faces) == len(mesh.faces)
+    assert rows(read.vertices[read.faces].reshape(-1, 3)) == rows((mesh.vertices + [0.0, 0.1, 0.0])[mesh.faces].reshape(-1, 3))
+    out = tmp_path / "gen"
+    assert main(["infer", "generate", "--checkpoint", "chair", "--mesh", str(tmp_path / "scene.glb"), "--out", str(out), *GENERATE]) == 0
+    assert len(load_glb(out / "seed0.glb")[1]) == len(mesh.faces)
+
+    (tmp_path / "two.mtl").write_text("newmtl wood\nKd 0.5 0.3 0.1\nnewmtl cloth\nKd 0.2 0.2 0.8\n")
+    lines = ["mtllib two.mtl"] + [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in mesh.vertices]
+    lines += ["usemtl cloth"] + [f"f {a} {b} {c}" for a, b, c in seat + 1] + ["usemtl wood"] + [f"f {a} {b} {c}" for a, b, c in rest + 1]
+    (tmp_path / "two.obj").write_text("\n".join(lines) + "\n")
+    read = load_user_mesh(tmp_path / "two.obj")
+    assert len(read.faces) == len(mesh.faces) and rows(read.vertices) <= rows(mesh.vertices)

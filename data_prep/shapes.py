@@ -25,6 +25,7 @@ from pathlib import Path
 
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import locked, write_json
+from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.progress import JsonLines, progress_bar
 
 
@@ -135,6 +136,15 @@ def read_index(index_path: Path, settings: dict) -> tuple[dict[str, dict], dict 
     return entries, None
 
 
+def is_shape_index(path: Path) -> bool:
+    """Whether ``path`` is an index written by ``prepare shapes`` (its runs into one folder share it)."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and isinstance(data.get("settings"), dict) and isinstance(data.get("shapes"), list)
+
+
 def _settings(args) -> dict:
     settings = {"faces": int(args.faces), "levels": int(args.levels), "seed": int(args.seed)}
     if args.up != "auto":  # the default keeps the settings of indexes written before --up
@@ -157,6 +167,7 @@ def run(args) -> int:
     if not paths:
         raise UserError(f"no mesh files (.obj .ply .off .stl .glb .gltf) under {' '.join(args.input)}")
     index_path = output / "index.json"
+    guard_outputs(output, ["index.json"], args.overwrite, accept=is_shape_index)  # a user's own index.json is kept
     settings = _settings(args)
     with locked(output / INDEX_LOCK):
         previous, other_settings = read_index(index_path, settings)
@@ -177,6 +188,8 @@ def run(args) -> int:
         else:
             todo.append(path)
 
+    listed = {Path(str(entry.get("file"))).name for entry in previous.values()}  # an earlier run's files: replaced when prepared again
+    guard_outputs(output, [f"{names[p]}.npz" for p in todo], args.overwrite, accept=lambda path: path.name in listed)
     log = JsonLines(output / "progress.jsonl")
 
     def write_index() -> None:

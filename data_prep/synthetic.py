@@ -36,7 +36,7 @@ from PIL import Image
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import save_png
-from mesh2tex.io.outputs import remove_outputs
+from mesh2tex.io.outputs import remove_outputs, user_entries
 from mesh2tex.progress import JsonLines, progress_bar
 
 FORMAT = "mesh2tex-synthetic-world"
@@ -100,7 +100,7 @@ def _check_output(output: Path, settings: dict, overwrite: bool = False) -> None
                 raise UserError(f"{output}: holds a world built with other settings ({', '.join(changed)}); pass --overwrite to "
                                 f"replace it, or choose another --out")
             remove_outputs(output, WORLD_ENTRIES)
-    elif output.is_dir() and any(output.iterdir()):
+    elif output.is_dir() and user_entries(output):
         if not overwrite:
             raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); pass --overwrite to build "
                             f"the world beside its files, or choose another --out")

@@ -47,7 +47,7 @@ from mesh2tex.evaluation.world import load_query_truth, reference_renders
 from mesh2tex.io.assets import TEXTURE_FORMATS, load_glb
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import load_generator, models_root
-from mesh2tex.io.outputs import remove_outputs
+from mesh2tex.io.outputs import guard_outputs, remove_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides
@@ -497,6 +497,8 @@ def run(args) -> int:
     saved = out / "demo_config.yaml"
     cfg = build_config(args)
     select_device(args.device)  # --device cuda without a GPU is refused before any stage runs
+    if not saved.is_file():  # a new demo: files of the user's under its names are kept without --overwrite
+        guard_outputs(out, DEMO_OUTPUTS, args.overwrite)
     if args.overwrite:
         remove_outputs(out, DEMO_OUTPUTS)
     if saved.is_file() and saved_config(saved) != cfg:

@@ -13,6 +13,7 @@ is shown as one line, ``mesh2tex: warning: ...`` (:func:`show_warning`), never w
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import importlib
 import os
@@ -42,7 +43,7 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
 
 
 # errno values an OSError without a file name still means the user's environment for
-USER_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM}
+USER_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO, errno.EMFILE, errno.ENAMETOOLONG}
 
 
 def _options(stage: str):
@@ -131,13 +132,15 @@ def _package_of(path: Path) -> str:
     return ""
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, prepare=None) -> int:
+    """Run the command ``argv``; ``prepare()``: called once the command holds its ``--out``, before its
+    stage is imported (the console script sets torch's threads there)."""
     with warnings.catch_warnings():
         warnings.showwarning = show_warning
-        return _main(argv)
+        return _main(argv, prepare)
 
 
-def _main(argv: list[str] | None = None) -> int:
+def _main(argv: list[str] | None = None, prepare=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
     args, unknown = parser.parse_known_args(argv)
@@ -148,27 +151,81 @@ def _main(argv: list[str] | None = None) -> int:
         print(f"mesh2tex: error: '{name}' is not available in this version yet", file=sys.stderr)
         return 3
     try:
-        stage = importlib.import_module(args._stage)
         if getattr(args, "print_config", False):
-            return print_config(stage, args)
-        return int(stage.run(args) or 0)
+            return print_config(importlib.import_module(args._stage), args)
+        with _output_folder(args, argv, name):  # before the stage is imported: a busy folder is refused at once
+            if prepare is not None:
+                prepare()
+            return int(importlib.import_module(args._stage).run(args) or 0)
     except (UserError, InputError) as error:  # a command's refusal, or bad input the library found
-        print(f"mesh2tex: error: {error}", file=sys.stderr)
+        print(f"mesh2tex: error: {one_line(error)}", file=sys.stderr)
         return getattr(error, "exit_code", 2)
     except OSError as error:
-        # a path the user gave that cannot be used (a file where a folder is needed, no permission, a full
-        # disk): the environment, not a bug; anything else keeps its traceback
+        # the system's refusal (a file where a folder is needed, no permission, a full disk, a file too
+        # large, a read-only disk): the environment, not a bug; an OSError naming neither a path nor a
+        # cause of the environment keeps its traceback
         if error.filename is None and error.errno not in USER_ERRNOS:
             raise
-        where = f"{error.filename}: " if error.filename is not None else ""
-        reason = error.strerror or str(error)
-        if isinstance(error, (FileExistsError, NotADirectoryError)) and os.path.isfile(error.filename or ""):
-            reason = "is a file where a folder is needed"
-        print(f"mesh2tex: error: {where}{reason}", file=sys.stderr)
+        print(f"mesh2tex: error: {os_error_line(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"mesh2tex: {name} interrupted; re-run the same command to resume", file=sys.stderr)
+        if _NESTED:  # a stage run by another command (the demo): the outer command says how to continue
+            raise
+        from mesh2tex.io.outputs import continue_command
+
+        print(f"mesh2tex: {name} interrupted; re-run the same command to resume: {continue_command(argv)}", file=sys.stderr)
         return 130
+
+
+# the commands running in this process, outermost first (the demo runs the other stages in-process)
+_NESTED: list[str] = []
+# the most an error line may hold: a value quoted in it is cut to fit
+MAX_ERROR_CHARS = 1000
+
+
+def one_line(error) -> str:
+    """An error's message as one line of at most :data:`MAX_ERROR_CHARS` characters."""
+    text = " ".join(part.strip() for part in str(error).splitlines() if part.strip())
+    return text if len(text) <= MAX_ERROR_CHARS else text[: MAX_ERROR_CHARS - 25] + f" ... ({len(text)} characters)"
+
+
+def os_error_line(error: OSError) -> str:
+    """An OSError as the user reads it: the path (both of a rename) and the cause."""
+    where = f"{error.filename}: " if error.filename is not None else ""
+    if getattr(error, "filename2", None) is not None:
+        where = f"{error.filename} -> {error.filename2}: "
+    reason = error.strerror or str(error)
+    if isinstance(error, (FileExistsError, NotADirectoryError)) and os.path.isfile(error.filename or ""):
+        reason = "is a file where a folder is needed"
+    elif error.errno in CAUSES:
+        reason = f"{reason} ({CAUSES[error.errno]})"
+    return one_line(f"{where}{reason}")
+
+
+# what to do about the system's refusals
+CAUSES = {errno.ENOSPC: "free some space or choose another --out", errno.EDQUOT: "over the disk quota; free some space",
+          errno.EFBIG: "a file larger than this file system or `ulimit -f` allows", errno.EROFS: "choose a writable --out",
+          errno.EACCES: "check the permissions", errno.EPERM: "check the permissions"}
+
+
+@contextlib.contextmanager
+def _output_folder(args, argv: list[str], name: str):
+    """The command's hold on its ``--out`` (:func:`mesh2tex.io.outputs.output_run`): one run at a time,
+    and a manifest of the files it claims. ``prepare shapes`` waits its turn (its runs share an
+    index); the other processes of a distributed run (RANK > 0) share their first process's hold."""
+    out = getattr(args, "out", None)
+    _NESTED.append(name)
+    try:
+        if not out:
+            yield
+            return
+        from mesh2tex.io.outputs import continue_command, output_run
+
+        rank = os.environ.get("RANK", "0")
+        with output_run(out, argv, continue_command(argv), wait=name == "prepare shapes", lock=rank in ("", "0")):
+            yield
+    finally:
+        _NESTED.pop()
 
 
 def _interrupt(signum, frame) -> None:
@@ -183,11 +240,12 @@ def console() -> int:
     # `kill PID` (what schedulers and `timeout` send) stops a run as Ctrl-C does: the long stages save
     # their checkpoint, and the same command resumes. A shell starts background jobs with SIGINT ignored.
     signal.signal(signal.SIGTERM, _interrupt)
-    if not any(a in ("-h", "--help", "--version") for a in argv) and argv:
+    def prepare() -> None:
         from mesh2tex.runtime import configure_threads
 
         configure_threads()
-    return main(argv)
+
+    return main(argv, prepare)
 
 
 if __name__ == "__main__":

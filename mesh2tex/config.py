@@ -29,6 +29,7 @@ import yaml
 
 from mesh2tex.errors import InputError
 from mesh2tex.io.atomic import write_text
+from mesh2tex.limits import check_config_value, short
 
 T = TypeVar("T")
 
@@ -65,6 +66,7 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
                                      getattr(base, f.name) if base is not None else _field_default(f))
         else:
             value = _coerce(value, hint, f"{where}.{f.name}")
+            check_config_value(f.name, value, f"{where}.{f.name}")  # sizes and angles: the same range in every command
         kwargs[f.name] = value
     if data:
         # A config class may name keys that moved (MOVED_KEYS: old key -> its new dotted place).
@@ -73,7 +75,7 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
             places = ", ".join(f"{key} -> {moved[key]}" for key in sorted(data, key=str) if key in moved)
             raise InputError(f"{where}: key(s) moved: {places}")
         known = ", ".join(f.name for f in dataclasses.fields(cls))
-        raise InputError(f"{where}: unknown key(s) {sorted(str(k) for k in data)}; known keys: {known}")
+        raise InputError(f"{where}: unknown key(s) {short(sorted(str(k) for k in data), 200)}; known keys: {known}")
     try:
         return cls(**kwargs) if base is None else dataclasses.replace(base, **kwargs)
     except (ValueError, TypeError) as error:
@@ -102,25 +104,25 @@ def _coerce(value, hint, where: str):
             try:
                 value = float(value.strip())
             except ValueError:
-                raise InputError(f"{where}: expected a number, got {value!r}") from None
+                raise InputError(f"{where}: expected a number, got {short(value)}") from None
         if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise InputError(f"{where}: expected a number, got {value!r}")
+            raise InputError(f"{where}: expected a number, got {short(value)}")
         try:
             number = float(value)
         except OverflowError:  # an integer beyond any float
             number = math.inf
         if not math.isfinite(number):
-            raise InputError(f"{where}: expected a finite number, got {value!r}")
+            raise InputError(f"{where}: expected a finite number, got {short(value)}")
         return number
     if hint in (int, str, bool):
         if not isinstance(value, hint) or (hint is int and isinstance(value, bool)):
-            raise InputError(f"{where}: expected {hint.__name__}, got {value!r}")
+            raise InputError(f"{where}: expected {hint.__name__}, got {short(value)}")
         if hint is int and not -2**63 <= value < 2**63:  # seeds and counts alike: beyond 64 bits is a typo
             raise InputError(f"{where}: {value} is out of range (a 64-bit integer)")
         return value
     if origin in (list, tuple):
         if not isinstance(value, (list, tuple)):
-            raise InputError(f"{where}: expected a list, got {value!r}")
+            raise InputError(f"{where}: expected a list, got {short(value)}")
         if args and args[-1] is not Ellipsis and origin is tuple and len(args) != len(value):
             raise InputError(f"{where}: expected {len(args)} values, got {len(value)}")
         if args:
@@ -143,13 +145,51 @@ def check_fields(cfg, *, at_least: dict[str, float] | None = None, positive: tup
 
     for name, low in (at_least or {}).items():
         if any(v < low for v in values(name)):
-            raise ValueError(f"{name} must be at least {low:g}, got {getattr(cfg, name)!r}")
+            raise ValueError(f"{name} must be at least {low:g}, got {short(getattr(cfg, name))}")
     for name in positive:
         if any(not v > 0 for v in values(name)):
-            raise ValueError(f"{name} must be positive, got {getattr(cfg, name)!r}")
+            raise ValueError(f"{name} must be positive, got {short(getattr(cfg, name))}")
     for name, (low, high) in (between or {}).items():
         if any(not low <= v <= high for v in values(name)):
-            raise ValueError(f"{name} must be in [{low:g}, {high:g}], got {getattr(cfg, name)!r}")
+            raise ValueError(f"{name} must be in [{low:g}, {high:g}], got {short(getattr(cfg, name))}")
+
+
+# A config is a few hundred lines: more is not a config, and an alias expanded more often than this
+# (a 500-byte "billion laughs" document) is refused before any of it is walked.
+MAX_CONFIG_BYTES = 1_000_000
+MAX_CONFIG_NODES = 100_000
+
+
+def read_yaml(path: Path):
+    """The YAML document at ``path`` (yaml.safe_load), refused (InputError) when the file is larger than
+    :data:`MAX_CONFIG_BYTES` or its aliases expand to more than :data:`MAX_CONFIG_NODES` values."""
+    size = path.stat().st_size
+    if size > MAX_CONFIG_BYTES:
+        raise InputError(f"{path}: {size} bytes is too large for a config (at most {MAX_CONFIG_BYTES})")
+    loader = yaml.SafeLoader(path.read_text(encoding="utf-8"))
+    try:
+        node = loader.get_single_node()
+    finally:
+        loader.dispose()
+    if node is None:
+        return None
+    count, stack = 0, [node]
+    while stack:  # every value the document holds once its aliases are expanded, stopping at the limit
+        current = stack.pop()
+        count += 1
+        if count > MAX_CONFIG_NODES:
+            raise InputError(f"{path}: its aliases expand to more than {MAX_CONFIG_NODES} values; write the config out without "
+                             f"nested aliases")
+        if isinstance(current, yaml.SequenceNode):
+            stack.extend(current.value)
+        elif isinstance(current, yaml.MappingNode):
+            for key, value in current.value:
+                stack.extend((key, value))
+    constructor = yaml.SafeLoader("")
+    try:
+        return constructor.construct_document(node)
+    finally:
+        constructor.dispose()
 
 
 def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: dict[str, Any] | None = None) -> T:
@@ -164,7 +204,7 @@ def load_config(cls: type[T], path: str | os.PathLike | None = None, overrides: 
         if not path.is_file():
             raise InputError(f"{path}: config file not found")
         try:
-            loaded = yaml.safe_load(path.read_text(encoding="utf-8"))
+            loaded = read_yaml(path)
         except UnicodeDecodeError as error:
             raise InputError(f"{path}: not UTF-8 text (byte {error.start}); save the config as UTF-8") from None
         except yaml.YAMLError as error:

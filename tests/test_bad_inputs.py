@@ -248,7 +248,7 @@ CASES = {
                                                              "flat.obj: the mesh has a zero-size bounding box"),
     # paths
     "--out a file (prepare shapes)": lambda c, t: Case(["prepare", "shapes", "--input", str(nan_vertex_obj(t / "m.obj")), "--out",
-                                                       str(write(t / "out" / "a_file", "x"))], "a_file: is a file where a folder is needed"),
+                                                       str(write(t / "out" / "a_file", "x"))], "a_file: --out is a file"),
     "--out a file (generate)": lambda c, t: Case(generate(c, t, None, None, "--out", str(write(t / "out" / "a_file", "x"))),
                                                  "a_file: --out is a file"),
     "prepare synthetic --shapes beyond reason": lambda c, t: Case(["prepare", "synthetic", "--out", str(t / "out" / "w"),

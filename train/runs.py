@@ -37,6 +37,7 @@ import torch
 from mesh2tex.config import save_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready
+from mesh2tex.io.outputs import continues_own_run, guard_outputs
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
 from mesh2tex.io.checkpoint import check_training_checkpoint, load_training_state, read_checkpoint_meta, save_training_state  # noqa: F401
 from mesh2tex.progress import JsonLines
@@ -53,6 +54,9 @@ NONFINITE_NAME = "nonfinite.safetensors"
 # of train nca): a new run started with --overwrite removes these of the run it replaces, and nothing else.
 REPLACED_BY_OVERWRITE = (CHECKPOINT_NAME, NONFINITE_NAME, "metrics.jsonl", "best.safetensors", "model.safetensors",
                          "snapshots/iter*.safetensors", "samples/iter*.png", "tensorboard/events.out.tfevents.*")
+# The files a new run writes at fixed names: one already there that no run of this command line wrote is kept
+# without --overwrite (mesh2tex.io.outputs.guard_outputs).
+RUN_FILES = ("config.yaml", CHECKPOINT_NAME, NONFINITE_NAME, "metrics.jsonl", "best.safetensors", "model.safetensors")
 
 
 # ---------------------------------------------------------------------------------- run directory
@@ -68,6 +72,7 @@ class RunDirectory:
         self.metrics = JsonLines(self.root / "metrics.jsonl")
         self.tensorboard_dir = self.root / "tensorboard"
         self._scalars = None  # the TensorBoard writer, made by the first log()
+        self.resume_asked = False  # --resume: the folder is a run's (one killed before its first checkpoint starts again there)
 
     def log(self, record: dict[str, Any]) -> None:
         """One logged iteration (``record["iteration"]`` and numbers): a line of metrics.jsonl, and the
@@ -93,6 +98,8 @@ class RunDirectory:
                             f"replace it, or choose another --out")
         if resume:
             read_checkpoint_meta(self.checkpoint_path)  # a damaged checkpoint is refused before config.yaml is rewritten
+        elif not self.resume_asked:  # a new run: files already at its names (a config.yaml of the user's) are kept without --overwrite
+            guard_outputs(self.root, RUN_FILES, overwrite)
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
         if not resume and overwrite:  # nothing of the replaced run may be resumed or read as this one's
@@ -128,8 +135,14 @@ def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bo
     ``--resume``: None. ``note``: whether this process prints the notes (the main one of a run).
     ``overwrite`` (``--overwrite``): the run in ``run`` is to be replaced, so ``--resume`` alone is refused
     and ``--resume PATH`` may start there."""
+    if resume is not True and run.has_checkpoint() and continues_own_run(run.root):
+        # the same command line, re-run after an interruption, continues its run (mesh2tex.io.outputs)
+        if note:
+            print(f"mesh2tex: note: {run.root}: continuing the interrupted run of this command", file=sys.stderr)
+        return run.checkpoint_path
     if resume is True and overwrite:
         raise UserError("--resume continues the run in --out and --overwrite replaces it: give one of them")
+    run.resume_asked = resume is True
     if not resume:
         return None
     if resume is not True:

@@ -89,6 +89,10 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
             os.fsync(handle.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
+    except OSError as error:
+        if error.filename is None or str(error.filename).startswith(str(folder)):  # name the file the user asked for
+            raise type(error)(error.errno, error.strerror or str(error), str(path)) from None
+        raise
     finally:
         shutil.rmtree(folder, ignore_errors=True)
         with contextlib.suppress(OSError):

@@ -37,6 +37,7 @@ from mesh2tex.render import (
     uv_rasterize,
 )
 from mesh2tex.synthetic.materials import Material, fractal_noise, random_material
+from mesh2tex.synthetic.real_materials import real_material
 from mesh2tex.synthetic.shapes import CATEGORIES, SyntheticShape
 from mesh2tex.synthetic.variety import VARIETIES, generate_varied_shape
 
@@ -115,8 +116,20 @@ def make_shape(spec: WorldSpec, index: int) -> SyntheticShape:
     return generate_varied_shape(spec.category, spec.rng(index, _SHAPE), spec.variety)
 
 
-def make_material(spec: WorldSpec, index: int) -> Material:
-    return random_material(spec.category, spec.rng(index, _MATERIAL))
+def make_material(spec: WorldSpec, index: int, shape: SyntheticShape | None = None) -> Material:
+    """Shape ``index``'s ground-truth material; the varied world sizes it to the shape (``shape``, made again when None)."""
+    if spec.variety == "real" and shape is None:
+        shape = make_shape(spec, index)
+    return sample_material(spec, spec.rng(index, _MATERIAL), shape)
+
+
+def sample_material(spec: WorldSpec, rng: np.random.Generator, shape: SyntheticShape | None = None) -> Material:
+    """A material of the world's sampler drawn from ``rng``: the boxy world's procedural library, or for
+    ``variety: real`` materials a photo would show (:mod:`mesh2tex.synthetic.real_materials`), at
+    ``shape``'s physical scale and chosen for its family (typical sizes when None)."""
+    if spec.variety == "real":
+        return real_material(spec.category, rng, shape)
+    return random_material(spec.category, rng)
 
 
 def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -> list[PhotoSetup]:

@@ -45,7 +45,7 @@ FABRICS = ((0.55, 0.55, 0.56), (0.16, 0.22, 0.38), (0.18, 0.33, 0.24), (0.74, 0.
            (0.78, 0.73, 0.64), (0.22, 0.22, 0.24), (0.16, 0.40, 0.42), (0.42, 0.10, 0.14), (0.70, 0.62, 0.48))
 PLASTICS = ((0.93, 0.93, 0.91), (0.10, 0.10, 0.10), (0.80, 0.22, 0.16), (0.92, 0.74, 0.16), (0.22, 0.44, 0.72),
             (0.55, 0.66, 0.58), (0.85, 0.60, 0.55))
-RUBBER = (0.06, 0.06, 0.065)
+RUBBER = (0.16, 0.16, 0.17)
 _WEAVE_MEAN = 0.7043  # the mean of |sin(pi x)|^0.7, the weave's brightness
 
 
@@ -110,7 +110,7 @@ class Grain(_Metric):
     light: Colour
     dark: Colour
     axis: Colour  # unit grain direction in the shape's frame
-    across: float = 40.0  # streaks per metre across the grain (1-5 cm apart)
+    across: float = 15.0  # streaks per metre across the grain (the figure of a flat-sawn board: bands 4-12 cm apart)
     along: float = 2.0  # streak variation per metre along the grain
     rings: float = 250.0  # growth-ring lines per metre across the grain (2-8 mm apart)
     seed: int = 0
@@ -122,7 +122,7 @@ class Grain(_Metric):
         streaks = banded_noise(np.stack([u * self.along, v * self.across, w * self.across], axis=1), self.across, 3, self.seed, self.limit)
         phase = (v + 0.6 * w) * self.rings + 6.0 * streaks
         ring = (0.5 + 0.5 * np.cos(2 * np.pi * phase)) ** 4  # thin dark latewood lines
-        t = 0.75 * (streaks - 0.5) * 2.0 + 0.5 + 0.35 * fade(self.rings, self.limit) * (ring - 0.2)
+        t = 0.5 + 3.0 * (streaks - 0.5) + 0.35 * fade(self.rings, self.limit) * (ring - 0.2)
         return _mix(self.light, self.dark, t)
 
 
@@ -132,7 +132,7 @@ class Fabric(_Metric):
     ``heather`` strong at ``yarn`` cycles per metre, and a soft nap at ``nap`` cycles per metre."""
 
     KIND = "fabric"
-    color: Colour
+    colour: Colour
     threads: float = 700.0  # threads per metre (1-2.5 mm apart)
     weave_contrast: float = 0.35  # darkening in the gaps between threads, share of the colour
     heather: float = 0.10  # yarn-to-yarn colour variation, share of the colour
@@ -155,8 +155,8 @@ class Fabric(_Metric):
         brightness = 1.0 - self.weave_contrast * (1.0 - (_WEAVE_MEAN + keep * (weave - _WEAVE_MEAN)))  # the faded weave keeps its mean
         yarn = banded_noise(points * self.yarn, self.yarn, 2, self.seed, self.limit)
         nap = banded_noise(points * self.nap, self.nap, 2, self.seed + 1, self.limit)
-        brightness = brightness * (1.0 + self.heather * 2.0 * (yarn - 0.5)) * (1.0 + 0.12 * (nap - 0.5))
-        return np.clip(_c(self.color)[None] * brightness[:, None], 0.0, 1.0)
+        brightness = brightness * (1.0 + self.heather * 2.0 * (yarn - 0.5)) * (1.0 + 0.3 * (nap - 0.5))
+        return np.clip(_c(self.colour)[None] * brightness[:, None], 0.0, 1.0)
 
 
 @dataclass
@@ -165,7 +165,7 @@ class Leather(_Metric):
     and creases (soft darker folds) at ``creases`` cycles per metre."""
 
     KIND = "leather"
-    color: Colour
+    colour: Colour
     pebbles: float = 500.0
     pebble_contrast: float = 0.12
     mottle: float = 12.0
@@ -180,7 +180,7 @@ class Leather(_Metric):
         crease = banded_noise(points * self.creases * np.array([1.0, 3.0, 1.0]), self.creases * 3.0, 2, self.seed + 2, self.limit)
         brightness = (1.0 + self.pebble_contrast * 2.0 * (pebble - 0.5)) * (1.0 + self.mottle_contrast * 2.0 * (mottle - 0.5))
         brightness *= 1.0 - 0.15 * np.clip((crease - 0.55) * 4.0, 0.0, 1.0)
-        return np.clip(_c(self.color)[None] * brightness[:, None], 0.0, 1.0)
+        return np.clip(_c(self.colour)[None] * brightness[:, None], 0.0, 1.0)
 
 
 @dataclass
@@ -221,7 +221,7 @@ class BrushedMetal(_Metric):
     constant along it) over a soft sheen at ``sheen`` cycles per metre."""
 
     KIND = "brushed_metal"
-    color: Colour
+    colour: Colour
     axis: Colour
     across: float = 1500.0
     along: float = 3.0
@@ -236,7 +236,7 @@ class BrushedMetal(_Metric):
         streak = banded_noise(np.stack([u * self.along, v * self.across, w * self.across], axis=1), self.across, 2, self.seed, self.limit)
         sheen = banded_noise(points * self.sheen, self.sheen, 2, self.seed + 1, self.limit)
         brightness = (1.0 + self.streak_contrast * 2.0 * (streak - 0.5)) * (1.0 + 0.16 * (sheen - 0.5))
-        return np.clip(_c(self.color)[None] * brightness[:, None], 0.0, 1.0)
+        return np.clip(_c(self.colour)[None] * brightness[:, None], 0.0, 1.0)
 
 
 @dataclass
@@ -245,7 +245,7 @@ class Painted(_Metric):
     metre and a broad variation of the finish at ``finish`` cycles per metre."""
 
     KIND = "painted"
-    color: Colour
+    colour: Colour
     peel: float = 400.0
     peel_contrast: float = 0.03
     finish: float = 3.0
@@ -257,7 +257,7 @@ class Painted(_Metric):
         peel = banded_noise(points * self.peel, self.peel, 1, self.seed, self.limit)
         finish = banded_noise(points * self.finish, self.finish, 2, self.seed + 1, self.limit)
         brightness = (1.0 + self.peel_contrast * 2.0 * (peel - 0.5)) * (1.0 + self.finish_contrast * 2.0 * (finish - 0.5))
-        return np.clip(_c(self.color)[None] * brightness[:, None], 0.0, 1.0)
+        return np.clip(_c(self.colour)[None] * brightness[:, None], 0.0, 1.0)
 
 
 @dataclass
@@ -266,7 +266,7 @@ class Rubber(_Metric):
     the sidewalls (facing along x) a little lighter, with a faint ring pattern."""
 
     KIND = "rubber"
-    color: Colour = RUBBER
+    colour: Colour = RUBBER
     groove: float = 0.035
     groove_width: float = 0.008
     sidewall_lift: float = 0.35  # the sidewall's extra brightness, share of the colour
@@ -279,7 +279,7 @@ class Rubber(_Metric):
         groove = _line(np.abs(offset), self.groove_width, self.limit)
         wear = banded_noise(points * 20.0, 20.0, 2, self.seed, self.limit)
         brightness = (1.0 - 0.5 * groove * (1 - side)) * (1.0 + self.sidewall_lift * side) * (1.0 + 0.2 * (wear - 0.5))
-        return np.clip(_c(self.color)[None] * brightness[:, None], 0.0, 1.0)
+        return np.clip(_c(self.colour)[None] * brightness[:, None], 0.0, 1.0)
 
 
 @dataclass
@@ -288,14 +288,14 @@ class DarkGlass(_Metric):
     ``sky`` the lift at the top, over ``height`` metres."""
 
     KIND = "dark_glass"
-    color: Colour
+    colour: Colour
     sky: float = 0.6
     height: float = 1.6
     limit: float = math.inf
 
     def __call__(self, points, normals):
         t = np.clip(points[:, 1] / self.height + 0.5, 0.0, 1.0) ** 2
-        return np.clip(_c(self.color)[None] * (1.0 + self.sky * t)[:, None], 0.0, 1.0)
+        return np.clip(_c(self.colour)[None] * (1.0 + self.sky * t)[:, None], 0.0, 1.0)
 
 
 @dataclass
@@ -351,7 +351,7 @@ def _axis(rng: np.random.Generator, main: int) -> Colour:
 def wood(rng: np.random.Generator, limit: float, axis: int = 1, species=None) -> Grain:
     """A wood of ``species`` (an entry of WOODS, else drawn), grain along coordinate ``axis`` (0 x, 1 y, 2 z)."""
     light, dark = species if species is not None else _pick(rng, WOODS)
-    return Grain(_jitter(rng, light, 0.03), _jitter(rng, dark, 0.02), _axis(rng, axis), float(rng.uniform(25, 60)),
+    return Grain(_jitter(rng, light, 0.03), _jitter(rng, dark, 0.02), _axis(rng, axis), float(rng.uniform(8, 25)),
                  float(rng.uniform(1, 4)), float(rng.uniform(150, 400)), _seed(rng), limit)
 
 

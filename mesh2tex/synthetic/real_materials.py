@@ -76,8 +76,8 @@ def banded_noise(coords: np.ndarray, frequency: float, octaves: int, seed: int, 
 def _frame(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A unit ``axis`` and two unit vectors perpendicular to it and to each other."""
     a = _c(axis) / np.linalg.norm(axis)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    b = np.cross(a, helper)
+    other = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    b = np.cross(a, other)
     b /= np.linalg.norm(b)
     return a, b, np.cross(a, b)
 

@@ -96,8 +96,7 @@ from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import Lights, composite_images, orbit_camera
-from mesh2tex.synthetic.materials import random_material
-from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views
+from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_material, sample_views
 from mesh2tex.texture import mean_latent, shape_mismatch
 
 ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture")
@@ -239,7 +238,8 @@ def material_draws(world: WorldData, name: str, views, resolution: int, seed: in
     ``stream``. -> images (B, 3, R, R) in [0, 1], masks (B, 1, R, R)."""
     index = world.indices[name]
     key = seed if isinstance(seed, tuple) else (seed,)
-    materials = [random_material(world.spec.category, np.random.default_rng([*key, stream, index, k])) for k in range(len(views))]
+    shape = make_shape(world.spec, index) if world.spec.variety == "real" else None  # the varied world's materials fit the shape's size
+    materials = [sample_material(world.spec, np.random.default_rng([*key, stream, index, k]), shape) for k in range(len(views))]
     return material_renders(world, name, views, materials, resolution, lit)
 
 

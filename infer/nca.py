@@ -45,7 +45,7 @@ from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
-from mesh2tex.texture import note, write_automaton_mesh
+from mesh2tex.texture import note, read_user_mesh, source_mesh, write_automaton_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
 
@@ -93,22 +93,19 @@ def read_cells_surface(spec: str, up: str, uv: str, output_mesh: str) -> tuple[t
     the user's mesh the texture is baked onto (None for the sphere, or ``--output-mesh prepared``):
     a mesh file itself, or the source mesh of a prepared shape (.npz) when it is found."""
     from mesh2tex.geometry.clean import Normalization
-    from mesh2tex.geometry.mesh_io import is_mesh_file, load_user_mesh
+    from mesh2tex.geometry.mesh_io import is_mesh_file
     from mesh2tex.geometry.prepared import PreparedShape
 
     if not is_mesh_file(spec):
         surface = read_surface(spec)
         if output_mesh == "input" and spec.endswith(".npz"):
             shape = PreparedShape.load(spec)
-            source = str(shape.metadata.get("source") or "")
-            if source and Path(source).is_file():
+            mesh = source_mesh(shape, spec, "the cell mesh")
+            if mesh is not None:
                 to_prepared = Normalization.from_json(shape.metadata["transform"])
-                mesh = load_user_mesh(source, str(shape.metadata.get("up", "y")))
                 return surface, BakeTarget(mesh, to_prepared.then(unit_transform(surface[0], spec)), uv)
-            note(f"{spec}: its source mesh {source or '(none recorded)'} is not found; writing the cell mesh")
         return surface, None
-    mesh = load_user_mesh(spec, up)
-    note(f"{spec}: {mesh.up}-up ({mesh.up_reason})")
+    mesh = read_user_mesh(spec, up)
     surface = (mesh.working_vertices(), mesh.faces)
     if output_mesh == "prepared":
         return surface, None

@@ -47,6 +47,27 @@ def model_face_count(meta: dict, face_count: int = 0) -> int:
     return face_count or trained
 
 
+def read_user_mesh(path: str | Path, up: str = "auto") -> UserMesh:
+    """:func:`~mesh2tex.geometry.mesh_io.load_user_mesh`, with a note on stderr saying which axis is up and why."""
+    from mesh2tex.geometry.mesh_io import load_user_mesh
+
+    mesh = load_user_mesh(path, up)
+    note(f"{path}: {mesh.up}-up ({mesh.up_reason})")
+    return mesh
+
+
+def source_mesh(shape: PreparedShape, path: str | Path, instead: str) -> UserMesh | None:
+    """The mesh a prepared shape (read from ``path``) was made from, read with its recorded up axis;
+    None, with a note that ``instead`` is written, when its file is not where the record says."""
+    from mesh2tex.geometry.mesh_io import load_user_mesh
+
+    source = str(shape.metadata.get("source") or "")
+    if source and Path(source).is_file():
+        return load_user_mesh(source, str(shape.metadata.get("up", "y")))
+    note(f"{path}: its source mesh {source or '(none recorded)'} is not found; writing {instead}")
+    return None
+
+
 def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0, up: str = "auto",
                uv: str = "auto", output_mesh: str = "input") -> tuple[PreparedShape, BakeTarget | None]:
     """The shape a command textures, and where its texture goes.
@@ -59,7 +80,6 @@ def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, s
     (:func:`~mesh2tex.geometry.mesh_io.choose_up`; a prepared shape has its own on record).
     """
     from mesh2tex.geometry.clean import Normalization
-    from mesh2tex.geometry.mesh_io import load_user_mesh
 
     if output_mesh not in ("input", "prepared"):
         raise InputError(f"--output-mesh {output_mesh!r}: choose input or prepared")
@@ -67,17 +87,12 @@ def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, s
     mesh = None
     if path.suffix.lower() == ".npz":
         shape = PreparedShape.load(path)
-        source = str(shape.metadata.get("source") or "")
         if output_mesh == "input":
-            if source and Path(source).is_file():
-                mesh = load_user_mesh(source, str(shape.metadata.get("up", "y")))
-            else:
-                note(f"{path}: its source mesh {source or '(none recorded)'} is not found; writing the prepared shape")
+            mesh = source_mesh(shape, path, "the prepared shape")
     else:
         from mesh2tex.geometry.prepare import coarseness_warning, prepare_user_mesh
 
-        mesh = load_user_mesh(path, up)
-        note(f"{path}: {mesh.up}-up ({mesh.up_reason})")
+        mesh = read_user_mesh(path, up)
         shape = prepare_user_mesh(mesh, face_count=face_count, levels=generator.cfg.num_levels, seed=seed)
         for warning in coarseness_warning(shape.metadata["coarseness"]):
             print(f"mesh2tex: warning: {path}: {warning}", file=sys.stderr)

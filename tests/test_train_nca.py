@@ -148,3 +148,25 @@ def test_infer_matches_the_training_cell_spacing_and_old_models_run_as_is(nca_fi
         line = capsys.readouterr().out
         assert line.startswith(f"{cells} cells (")
         assert ("records no training cell spacing" in line) == (checkpoint == old)
+
+
+def test_infer_nca_hands_back_the_users_mesh(nca_files, tmp_path):
+    """Grown on a z-up STL stool (scaled by 40), the automaton's texture comes back on the stool itself:
+    its vertices and triangles, the GLB's node standing it up, the PLY in the file's own frame."""
+    from mesh2tex.geometry.mesh_io import load_user_mesh
+    from mesh2tex.io.assets import Z_UP_NODE_ROTATION, load_glb
+    from user_assets import user_files
+
+    stl = user_files(tmp_path / "meshes")["stl"]
+    out = tmp_path / "grown"
+    assert main(["infer", "nca", "--checkpoint", str(nca_files / "straight" / "model.safetensors"), "--mesh", str(stl), "--out", str(out),
+                 "--steps", "2", "--views", "1", "--resolution", "32", "--texture-size", "64", "--frames", "0", "--device", "cpu"]) == 0
+    source = load_user_mesh(stl)
+    vertices, faces, _, texture = load_glb(out / "textured.glb")
+    assert len(faces) == len(source.faces) and set(map(tuple, vertices)) <= set(map(tuple, source.vertices.astype(np.float32)))
+    assert texture.std() > 0
+    ply = trimesh.load(out / "textured.ply", process=False)
+    np.testing.assert_allclose(ply.vertices, source.vertices, rtol=1e-6)
+    assert json.loads((out / "report.json").read_text())["output_mesh"]["up"] == "z"
+    header = (out / "textured.glb").read_bytes()
+    assert json.loads(header[20:20 + int.from_bytes(header[12:16], "little")])["nodes"][0]["rotation"] == Z_UP_NODE_ROTATION

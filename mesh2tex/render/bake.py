@@ -190,11 +190,6 @@ class MeshBaker:
         texture = colours_to_uint8(torch.from_numpy(fill_empty_texels(colours, self.coverage)))
         normals = None if mesh.normals is None else mesh.normals[atlas.vertex_index]
         return BakedUserMesh(vertices=mesh.vertices[atlas.vertex_index], faces=atlas.faces, uv=atlas.uv, normals=normals,
-                         texture=texture, coverage=self.coverage, vertex_colours=colours_to_uint8(_colours(colours_at, self._vertices, device)),
-                         atlas=atlas, surface_distance=self._vertices.distance)
-
-
-def bake_onto_mesh(target: BakeTarget, surface_vertices, surface_triangles, colours_at: ColoursAt, size: int,
-                   device: torch.device | str = "cpu") -> BakedUserMesh:
-    """One texture baked onto the user's mesh: :class:`MeshBaker` made and used once."""
-    return MeshBaker(target, surface_vertices, surface_triangles, size).bake(colours_at, device)
+                             texture=texture, coverage=self.coverage,
+                             vertex_colours=colours_to_uint8(_colours(colours_at, self._vertices, device)),
+                             atlas=atlas, surface_distance=self._vertices.distance)

@@ -117,8 +117,9 @@ def check_path(path: Path) -> None:
 
 def load_user_mesh(path: str | os.PathLike, up: str = "auto") -> UserMesh:
     """Read a mesh file as it is (.obj .ply .off .stl .glb .gltf): every part of a scene, with its node
-    transform applied, merged into one mesh; vertices kept as the file has them (duplicates and
-    unreferenced ones included: they are the user's), polygons triangulated.
+    transform applied, merged into one mesh; vertices kept as the reader gives them (duplicates
+    included; unreferenced ones too, except in OBJ files, whose reader drops them), polygons fanned
+    into triangles.
 
     Raises:
         InputError: naming the file: missing, empty, unreadable, a point cloud, no faces, vertices

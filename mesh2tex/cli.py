@@ -22,7 +22,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from mesh2tex.errors import InputError, UserError
+from mesh2tex.errors import InputError, UserError, one_line
 from mesh2tex.options import HelpFormatter, Parser, warning
 
 # (command, subcommand or None) -> (stage module, one-line help)
@@ -145,7 +145,12 @@ def _main(argv: list[str] | None = None, prepare=None) -> int:
     parser = build_parser(argv)
     args, unknown = parser.parse_known_args(argv)
     if unknown:  # named by the command's own parser, whose --help lists what it takes
-        args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+        args._parser.error(f"unrecognized arguments: {' '.join(one_line(word)[:80] for word in unknown)}")
+    for action in args._parser._actions:  # an empty value is never meant (as a path it would be the current folder),
+        value = getattr(args, action.dest, None)  # nor a NUL character (no path can hold one)
+        texts = [v for v in (value if isinstance(value, (list, tuple)) else [value]) if isinstance(v, str)]
+        if action.option_strings and any(text == "" or "\x00" in text for text in texts):
+            args._parser.error(f"argument {action.option_strings[0]}: {'an empty value' if '' in texts else 'a NUL character in its value'}")
     name = args.command + (f" {args.subcommand}" if getattr(args, "subcommand", None) else "")
     if getattr(args, "_unfinished", False):
         print(f"mesh2tex: error: '{name}' is not available in this version yet", file=sys.stderr)
@@ -179,16 +184,6 @@ def _main(argv: list[str] | None = None, prepare=None) -> int:
 
 # the commands running in this process, outermost first (the demo runs the other stages in-process)
 _NESTED: list[str] = []
-# the most an error line may hold: a value quoted in it is cut to fit
-MAX_ERROR_CHARS = 1000
-
-
-def one_line(error) -> str:
-    """An error's message as one line of at most :data:`MAX_ERROR_CHARS` characters."""
-    text = " ".join(part.strip() for part in str(error).splitlines() if part.strip())
-    return text if len(text) <= MAX_ERROR_CHARS else text[: MAX_ERROR_CHARS - 25] + f" ... ({len(text)} characters)"
-
-
 def os_error_line(error: OSError) -> str:
     """An OSError as the user reads it: the path (both of a rename) and the cause."""
     where = f"{error.filename}: " if error.filename is not None else ""

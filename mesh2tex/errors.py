@@ -26,3 +26,14 @@ class UserError(Exception):
     def __init__(self, message: str, exit_code: int = 2):
         super().__init__(message)
         self.exit_code = exit_code
+
+
+# The most an error message holds (the line under 1 kB with its prefix): a value quoted in it (a paragraph passed as a number) is cut to fit.
+MAX_MESSAGE_CHARS = 900
+
+
+def one_line(message) -> str:
+    """``message`` as one line of at most :data:`MAX_MESSAGE_CHARS` characters (what ``mesh2tex: error:`` prints)."""
+    text = " ".join(part.strip() for part in str(message).splitlines() if part.strip())
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)  # no terminal control characters
+    return text if len(text) <= MAX_MESSAGE_CHARS else text[: MAX_MESSAGE_CHARS - 30] + f" ... ({len(text)} characters)"

@@ -20,6 +20,7 @@ MAX_RESOLUTION = 4096  # side of a render, a photo crop or an exemplar, pixels
 MAX_TEXTURE_SIZE = 8192  # side of a baked UV texture, pixels
 MAX_VIEWS = 10_000  # views, frames or samples of one command
 MAX_FACES = 1_000_000  # quads of the finest level of a prepared shape
+MAX_LEVELS = 10  # levels of a quad hierarchy (each a quarter of the one below; 4^9 from a million is 4 quads)
 MAX_SPHERE_SUBDIVISIONS = 256  # sphere:N is a cube sphere of 6 N^2 quads (256: 393216)
 MAX_IMAGE_PIXELS = 100_000_000  # pixels of one photo read (PIL's own bomb limit is half of twice this)
 MAX_LATENTS = 10_000  # latents per shape of the generation protocol

@@ -60,7 +60,9 @@ class Parser(argparse.ArgumentParser):
             hidden = getattr(action, "hidden_aliases", ())
             if hidden:
                 message = message.replace("/".join(action.option_strings), "/".join(s for s in action.option_strings if s not in hidden))
-        print(f"mesh2tex: error: {message}; see '{self.prog} --help'", file=sys.stderr)
+        from mesh2tex.errors import one_line
+
+        print(f"mesh2tex: error: {one_line(message)}; see '{self.prog} --help'", file=sys.stderr)
         sys.exit(2)
 
 

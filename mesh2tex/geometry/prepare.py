@@ -28,9 +28,10 @@ def level_face_counts(face_count: int, levels: int) -> list[int]:
     """Target quad counts, finest first, divided by 4 per level: 6144, 5 -> [6144, 1536, 384, 96, 24]."""
     if face_count < 1 or levels < 1:
         raise InputError(f"face count ({face_count}) and levels ({levels}) must be positive")
-    from mesh2tex.limits import MAX_FACES, check_size
+    from mesh2tex.limits import MAX_FACES, MAX_LEVELS, check_size
 
     check_size("face count", face_count, MAX_FACES)
+    check_size("levels", levels, MAX_LEVELS)
     counts = [int(round(face_count / 4**level)) for level in range(levels)]
     if counts[-1] < 4:
         raise InputError(f"{levels} levels from {face_count} faces leave fewer than 4 faces at the coarsest level")

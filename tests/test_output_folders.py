@@ -160,3 +160,31 @@ def test_the_systems_refusals_are_one_line_naming_the_path(code, cause, tmp_path
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith("mesh2tex: error: ") and str(tmp_path / "out") in err and cause in err, err
+
+
+def test_a_trainer_rerun_with_the_same_command_continues_its_checkpoint(tiny_gan, tmp_path, capsys, monkeypatch):
+    from mesh2tex.io.checkpoint import load_checkpoint
+    from mesh2tex.train import runs
+
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump({**TINY_GAN, "log_every": 1}))
+    out = tmp_path / "run"
+    argv = ["train", "gan", "--shapes", str(tiny_gan / "shapes"), "--images", str(tiny_gan / "photos"), "--out", str(out),
+            "--config", str(config), "--iters", "3", "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"]
+    real_log = runs.RunDirectory.log
+
+    def interrupted(self, record):
+        real_log(self, record)
+        raise KeyboardInterrupt  # after the first logged iteration: the trainer saves its checkpoint
+
+    monkeypatch.setattr(runs.RunDirectory, "log", interrupted)
+    assert main(argv) == 130
+    assert "re-run the same command to resume: mesh2tex train gan" in capsys.readouterr().err
+    _, meta = load_checkpoint(out / "checkpoint.safetensors")
+    assert meta["iteration"] < 3
+    monkeypatch.setattr(runs.RunDirectory, "log", real_log)
+    assert main(argv) == 0
+    assert "continuing the interrupted run" in capsys.readouterr().err
+    _, meta = load_checkpoint(out / "checkpoint.safetensors")
+    assert meta["iteration"] == 3
+    assert main(argv) == 2, "a finished run is not started again over itself"

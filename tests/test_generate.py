@@ -103,7 +103,7 @@ def test_generate_reads_a_config_file_and_flags_override_it(trained, tmp_path, c
     assert sorted(p.name for p in (tmp_path / "b").glob("*.png")) == ["seed4_view0.png"]
     config.write_text("views: 0\n")
     assert main(base + ["--out", str(tmp_path / "c")]) == 2
-    assert "--views must be >= 1" in capsys.readouterr().err
+    assert "views 0: must be at least 1" in capsys.readouterr().err
 
 
 def test_generate_prepares_a_raw_mesh_and_rejects_bad_input(trained, tmp_path, capsys):

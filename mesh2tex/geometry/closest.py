@@ -143,24 +143,27 @@ class SurfaceIndex:
         self._owner = np.concatenate(owners)
         self._tree = cKDTree(np.concatenate(points))
 
-    def query(self, points, candidates: int = CANDIDATES, chunk: int = 131_072) -> ClosestPoints:
-        """The closest surface point to each of ``points`` (P, 3) (float, the surface's frame)."""
+    def query(self, points, candidates: int = CANDIDATES, block: int = 4_000_000) -> ClosestPoints:
+        """The closest surface point to each of ``points`` (P, 3) (float, the surface's frame).
+        ``block``: candidates looked at in one go (points x k), which bounds the memory of a query."""
         points = check_array(points, "SurfaceIndex.query: points", ("P", 3), dtype=np.float64)
         triangle = np.empty(len(points), dtype=np.int64)
         bary = np.empty((len(points), 3))
         distance = np.empty(len(points))
-        for start in range(0, len(points), chunk):  # bounds the candidate arrays' memory
-            todo = np.arange(start, min(start + chunk, len(points)))
-            k = candidates
-            while len(todo):
-                k = int(min(k, len(self._owner)))
-                sample_distance, nearest = self._tree.query(points[todo], k=k)
-                sample_distance, nearest = sample_distance.reshape(len(todo), k), nearest.reshape(len(todo), k)
-                t, b, d = _closest_on_triangles(points[todo], self._a, self._b, self._c, np.ascontiguousarray(self._owner[nearest]))
+        pending = [(np.arange(len(points)), int(candidates))]  # (points, candidates to try)
+        while pending:
+            todo, k = pending.pop()
+            k = min(k, len(self._owner))
+            step = max(1, block // k)
+            for start in range(0, len(todo), step):
+                part = todo[start:start + step]
+                sample_distance, nearest = self._tree.query(points[part], k=k)
+                sample_distance, nearest = sample_distance.reshape(len(part), k), nearest.reshape(len(part), k)
+                t, b, d = _closest_on_triangles(points[part], self._a, self._b, self._c, np.ascontiguousarray(self._owner[nearest]))
                 d = np.sqrt(d)
-                triangle[todo], bary[todo], distance[todo] = t, b, d
-                if k == len(self._owner):
-                    break
-                todo = todo[sample_distance[:, -1] < (1 - RELATIVE_SLACK) * d + self.cover]  # not yet certain: try more candidates
-                k *= 4
+                triangle[part], bary[part], distance[part] = t, b, d
+                if k < len(self._owner):  # not yet certain: try more candidates
+                    unsure = part[sample_distance[:, -1] < (1 - RELATIVE_SLACK) * d + self.cover]
+                    if len(unsure):
+                        pending.append((unsure, 4 * k))
         return ClosestPoints(triangle, bary, distance)

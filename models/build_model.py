@@ -174,7 +174,8 @@ def main() -> None:
     for kind, iters in (("pose", args.pose_iters), ("noc", args.noc_iters)):
         run(["train", kind, "--shapes", str(work / "shapes" / "train"), "--out", str(work / kind), "--config", str(views_yaml),
              "--iters", str(iters), "--samples", str(VIEWS["samples"]), "--resolution", str(VIEWS["resolution"]),
-             "--batch", str(VIEWS["batch"]), "--category", args.category, "--seed", str(VIEWS["seed"]), "--checkpoint", str(views_gan),
+             "--batch", str(VIEWS["batch"]), "--category", args.category, "--variety", args.variety, "--seed", str(VIEWS["seed"]),
+             "--checkpoint", str(views_gan),
              "--device", args.device, "--resume"], commands)
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
     for kind in ("pose", "noc"):

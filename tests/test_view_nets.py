@@ -38,6 +38,18 @@ def test_rendered_views_carry_consistent_ground_truth(shapes_dir):
     assert np.array_equal(views["rgb"], again["rgb"]), "deterministic for a seed"
 
 
+def test_views_of_the_varied_world_take_its_materials(shapes_dir):
+    """variety 'real' textures the views with the varied world's materials (the same cameras and masks
+    as the boxy library's for a seed, other colours); 'boxy' stays what it was."""
+    from mesh2tex.geometry.prepared import PreparedShape
+
+    shape = PreparedShape.load(shapes_dir / "box.npz")
+    boxy = render_view_dataset([shape], ViewDataConfig(samples=4, views_per_material=2, resolution=32), seed=3)
+    real = render_view_dataset([shape], ViewDataConfig(samples=4, views_per_material=2, resolution=32, variety="real"), seed=3)
+    assert np.array_equal(boxy["mask"], real["mask"]) and np.array_equal(boxy["azimuth"], real["azimuth"])
+    assert not np.array_equal(boxy["rgb"], real["rgb"])
+
+
 def test_views_are_framed_like_the_query_photo(shapes_dir):
     """Training views are cropped around the object as 'infer transfer' crops a photo: the object's
     larger side spans 1 / (1 + 2 margin) of the view, centred, whatever the camera distance."""

@@ -46,6 +46,8 @@ def _view_network(parser: argparse.ArgumentParser, kind: str) -> None:
     config.add("--samples", type=int, key="data.samples", help="rendered training views (plus held-out ones)")
     config.add("--resolution", type=int, key="data.resolution", help="side of the rendered views")
     config.add("--category", choices=["chair", "car"], key="data.category", help="material library of the renders")
+    config.add("--variety", choices=["boxy", "real"], key="data.variety",
+               help="which world's materials the renders take: the original library (boxy) or materials a photo would show (real)")
     add_checkpoint(parser, f"a generator, a 'train gan' checkpoint (RUN/checkpoint.safetensors) {SHIPPED_MODELS_HELP}, that textures a "
                            "share (the config's data.gan_share) of the rendered views (default: none, procedural materials only)",
                    config=config, key="data.gan_checkpoint", alias="--gan")

@@ -40,9 +40,8 @@ from mesh2tex.nn.view_nets import VIEWS_NAME, ViewDataConfig, ViewTrainConfig, b
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square, object_box
-from mesh2tex.synthetic.materials import random_material
 from mesh2tex.synthetic.shapes import SyntheticShape
-from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views, unit_to_uint8
+from mesh2tex.synthetic.world import WorldSpec, render_views, sample_material, sample_views, unit_to_uint8
 from mesh2tex.texture import latent, shape_mismatch, vertex_colours as field_vertex_colours  # _GanTextures.vertex_colours shadows the name
 from mesh2tex.train import runs
 
@@ -61,7 +60,7 @@ def render_view_dataset(shapes: list[PreparedShape], cfg: ViewDataConfig, seed: 
     """
     spec = WorldSpec(category=cfg.category, seed=seed, resolution=cfg.resolution, elevation_min=cfg.elevation_min,
                      elevation_max=cfg.elevation_max, distance_min=cfg.distance_min, distance_max=cfg.distance_max,
-                     fov=cfg.fov, supersample=cfg.supersample)
+                     fov=cfg.fov, supersample=cfg.supersample, variety=cfg.variety)
     meshes = [SyntheticShape(cfg.category, s.vertices[0].astype(np.float64), s.triangles(0),
                              np.zeros(2 * s.face_counts[0], dtype=np.int64)) for s in shapes]
     gan = _GanTextures(cfg.gan_checkpoint, shapes) if cfg.gan_checkpoint else None
@@ -78,7 +77,7 @@ def render_view_dataset(shapes: list[PreparedShape], cfg: ViewDataConfig, seed: 
             colours = gan.vertex_colours(index, int(choice.integers(1 << 31)))
             rendered = render_views(meshes[index], None, views, size, cfg.supersample, vertex_colours=colours)
         else:
-            material = random_material(cfg.category, spec.rng(group, 1))
+            material = sample_material(spec, spec.rng(group, 1))
             rendered = render_views(meshes[index], material, views, size, cfg.supersample)
         if framed:
             rendered = frame_views(rendered, cfg.frame_margin, cfg.resolution)

@@ -22,6 +22,7 @@ VIEWS_NAME = "views.npz"  # where a 'train pose|noc' run directory caches its re
 @dataclass
 class ViewDataConfig:
     category: str = "chair"  # material library of the renders: 'chair' or 'car'
+    variety: str = "boxy"  # which world's materials: 'boxy' (the original procedural library) or 'real' (materials a photo would show)
     samples: int = 512  # rendered views in all (training plus held-out)
     views_per_material: int = 4  # views that share one random material and shape
     holdout: float = 0.1  # share of the views kept for validation

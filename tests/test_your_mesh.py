@@ -218,3 +218,10 @@ def test_a_scene_of_several_nodes_and_an_obj_of_several_materials(tmp_path):
     read = load_user_mesh(tmp_path / "two.obj")
     assert len(read.faces) == len(mesh.faces)
     assert cKDTree(mesh.vertices).query(read.vertices)[0].max() < 1e-6  # every vertex read is one of the file's
+
+
+def test_uv_keep_on_a_mesh_without_uvs_is_one_line(files, tmp_path, capsys):
+    out = tmp_path / "keep"
+    assert main(["infer", "generate", "--checkpoint", "chair", "--mesh", str(files["ply"]), "--out", str(out), "--uv", "keep", *GENERATE]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("mesh2tex: error:")]
+    assert len(errors) == 1 and "has no UV coordinates" in errors[0] and not out.exists()

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 from scipy import ndimage
 
+from mesh2tex.errors import InputError
 from mesh2tex.geometry.clean import Normalization
 from mesh2tex.geometry.closest import SurfaceIndex
 from mesh2tex.geometry.mesh_io import UserMesh
@@ -124,7 +125,7 @@ def mesh_atlas(mesh: UserMesh, mode: str = "auto") -> Atlas:
     if mode not in UV_MODES:
         raise ValueError(f"--uv {mode!r}: choose one of {', '.join(UV_MODES)}")
     if mode == "keep" and mesh.uv is None:
-        raise ValueError(f"{mesh.path}: --uv keep, but the mesh has no UV coordinates")
+        raise InputError(f"{mesh.path}: --uv keep, but the mesh has no UV coordinates")
     note = ""
     if mode == "auto" and mesh.uv is not None:
         note = uv_atlas_problem(mesh.uv, mesh.faces)

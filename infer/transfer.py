@@ -59,13 +59,14 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views, render_states
 from mesh2tex.nn.vgg import load_vgg19
-from mesh2tex.options import config_overrides
+from mesh2tex.options import config_overrides, warning
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
 from mesh2tex.texture import load_shape, model_face_count, note, write_automaton_mesh, write_textured_mesh
 from mesh2tex.transfer import (AutomatonFit, AutomatonFitConfig, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
                                check_style_sizes, estimate_pose, fit_automaton, load_photo, predict_noc, transfer_texture, view_at_pose)
+from mesh2tex.transfer.fit import check_fit
 
 
 # -------------------------------------------------------------------------------------- the pose
@@ -222,6 +223,11 @@ def run(args) -> int:
         seconds.update({f"stage_{k}": v for k, v in result.seconds.items()})
         losses, light, render = result.losses, result.light, result.render
 
+    # Judged at the found pose before anything is written: a poor fit is said, and recorded.
+    fit_check = check_fit(photo.image, photo.mask, render, view.mask)
+    for problem in fit_check.problems:
+        warning(f"{args.image}: {problem}")
+
     t = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     if args.automaton:
@@ -242,6 +248,7 @@ def run(args) -> int:
         "pose": {"azimuth": azimuth, "elevation": elevation, "source": pose_source, "distance": distance, "fov": fov,
                  **({"network": list(estimate.network), "silhouette_iou": estimate.silhouette_iou,
                      "network_silhouette_iou": estimate.network_silhouette_iou} if estimate.silhouette_iou is not None else {})},
+        "fit": fit_check.as_dict(),
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
         "method": f"automaton fitted to the photo ({args.automaton_iters} iterations)" if args.automaton else "transfer",
         "light": light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders

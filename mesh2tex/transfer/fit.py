@@ -1,0 +1,68 @@
+"""How well a transfer's result fits its photo at the pose it was found at, checked before the files
+are written: the outline's overlap and the colours against a flat texture of the photo's mean."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+
+from mesh2tex.metrics.appearance import lowpass_psnr
+
+# Below these the result is reported as a poor fit (one warning line; the files are still written).
+MIN_SILHOUETTE_IOU = 0.75  # the world's queries reach 0.85-0.95 at their found poses
+MIN_GAIN_OVER_FLAT_DB = 0.0  # a texture that matches the photo worse than its mean colour has failed
+
+
+@dataclass
+class FitCheck:
+    """The result at the found pose against the photo.
+
+    silhouette_iou: the mesh's outline (cropped like the photo) against the photo's object mask;
+    lowpass_psnr, flat_lowpass_psnr: dB over the pixels both cover (Gaussian sigma 3 px) for the
+    result's render and for the photo's mean colour; ``problems``: why the fit is poor (empty: good).
+    """
+
+    silhouette_iou: float
+    lowpass_psnr: float
+    flat_lowpass_psnr: float
+    problems: list[str]
+
+    @property
+    def poor(self) -> bool:
+        return bool(self.problems)
+
+    def as_dict(self) -> dict:
+        return {**asdict(self), "poor": self.poor}
+
+
+@torch.no_grad()
+def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch.Tensor, render_mask: torch.Tensor) -> FitCheck:
+    """Judge a transfer's render at its pose against the photo.
+
+    photo_image, render: (1,3,R,R) in [-1,1]; photo_mask, render_mask: (1,1,R,R) {0,1}, the same crop.
+    """
+    if photo_image.shape != render.shape or photo_mask.shape != render_mask.shape:
+        raise ValueError(f"photo {tuple(photo_image.shape)} / {tuple(photo_mask.shape)} and render {tuple(render.shape)} / "
+                         f"{tuple(render_mask.shape)} must be the same crop")
+    photo_in = photo_mask.float().cpu() > 0.5
+    render_in = render_mask.float().cpu() > 0.5
+    union = float((photo_in | render_in).sum())
+    iou = float((photo_in & render_in).sum()) / max(union, 1.0)
+    both = (photo_in & render_in).float()
+    problems = []
+    if both.sum() < 16:
+        return FitCheck(round(iou, 4), float("nan"), float("nan"), ["the mesh and the photo's object barely overlap at the found pose"])
+    photo01 = (photo_image.float().cpu() + 1) / 2
+    render01 = (render.float().cpu() + 1) / 2
+    mean = (photo01 * both).sum(dim=(2, 3), keepdim=True) / both.sum()
+    flat = mean.expand_as(photo01)
+    result_db = float(lowpass_psnr(render01, photo01, both)[0])
+    flat_db = float(lowpass_psnr(flat, photo01, both)[0])
+    if iou < MIN_SILHOUETTE_IOU:
+        problems.append(f"the mesh's outline at the found pose overlaps the photo's object by {iou:.2f} (IoU): "
+                        "the pose or the mask may be wrong (give --pose AZ,EL or --mask FILE)")
+    if result_db - flat_db < MIN_GAIN_OVER_FLAT_DB:
+        problems.append(f"the result matches the photo less than a flat colour of its mean ({result_db:.1f} dB against "
+                        f"{flat_db:.1f} dB low-pass PSNR at the found pose)")
+    return FitCheck(round(iou, 4), round(result_db, 3), round(flat_db, 3), problems)

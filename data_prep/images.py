@@ -24,7 +24,7 @@ from pathlib import Path
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import is_image_file, load_image, load_mask, save_png
-from mesh2tex.io.outputs import guard_outputs
+from mesh2tex.io.outputs import guard_outputs, move_aside, walked
 from mesh2tex.photos import estimate_mask, square_crop
 from mesh2tex.progress import progress_bar
 
@@ -71,18 +71,20 @@ def prepare_image(path: Path, relative: Path, name: str, output: Path, size: int
     return record
 
 
-def remove_earlier(output: Path, kept: set[str]) -> None:
-    """``--overwrite``: remove the images and masks an earlier preparation in ``output`` wrote (as its
-    ``index.json`` lists them) that this one will not write again; nothing else in the folder is touched."""
+def earlier_outputs(output: Path, kept: set[str]) -> list[str]:
+    """``--overwrite``: the images and masks an earlier preparation in ``output`` wrote (as its
+    ``index.json`` lists them) that this one will not write again, as paths in ``output``; they are
+    moved aside with the rest of what the new set replaces, and nothing else in the folder is touched."""
     try:
         earlier = json.loads((output / "index.json").read_text(encoding="utf-8"))["images"]
     except (OSError, ValueError, KeyError, TypeError):
-        return
+        return []
+    names = []
     for record in earlier if isinstance(earlier, list) else []:
         name = record.get("name") if isinstance(record, dict) else None
         if isinstance(name, str) and name not in kept and "/" not in name and os.sep not in name and not name.startswith("."):
-            for folder in ("images", "masks"):
-                (output / folder / f"{name}.png").unlink(missing_ok=True)
+            names += [f"{folder}/{name}.png" for folder in ("images", "masks")]
+    return names
 
 
 def run(args) -> int:
@@ -96,7 +98,7 @@ def run(args) -> int:
         raise UserError(f"{masks_dir}: no such mask folder")
     photos = []
     for root, dirs, files in os.walk(input_dir):
-        dirs.sort()
+        dirs[:] = walked(dirs)  # not what --overwrite moved aside
         photos.extend(Path(root) / f for f in sorted(files) if is_image_file(f))
     if masks_dir is not None:
         photos = [p for p in photos if masks_dir.resolve() not in p.resolve().parents]
@@ -109,9 +111,9 @@ def run(args) -> int:
             name += "_"
         used.add(name)
         names.append(name)
+    earlier = earlier_outputs(output, set(names)) if args.overwrite else []  # read before guard_outputs moves index.json aside
     guard_outputs(output, ["index.json"] + [f"{folder}/{name}.png" for name in names for folder in ("images", "masks")], args.overwrite)
-    if args.overwrite:
-        remove_earlier(output, set(names))
+    move_aside(output, earlier)
     output.mkdir(parents=True, exist_ok=True)
     records = []
     for path, name in progress_bar(list(zip(photos, names)), desc="prepare images", unit="image"):

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import locked, write_json
-from mesh2tex.io.outputs import guard_outputs
+from mesh2tex.io.outputs import guard_outputs, walked
 from mesh2tex.progress import JsonLines, progress_bar
 
 
@@ -46,7 +46,7 @@ def find_meshes(inputs: list[str]) -> list[Path]:
             found.append(path)
             continue
         for root, dirs, files in os.walk(path):
-            dirs.sort()
+            dirs[:] = walked(dirs)  # not what --overwrite moved aside
             root_path = Path(root)
             if root_path.name == "models" and "model_normalized.obj" in files:
                 found.append(root_path / "model_normalized.obj")  # ShapeNet: ignore the other files beside it

@@ -24,7 +24,7 @@ import yaml
 
 from conftest import TINY_GAN
 from mesh2tex.cli import main
-from mesh2tex.io.outputs import LOCK_NAME, MANIFEST_NAME, guard_outputs, output_run
+from mesh2tex.io.outputs import LOCK_NAME, MANIFEST_NAME, REPLACED_NAME, guard_outputs, move_aside, output_run
 
 ENV = {**os.environ, "MESH2TEX_PROGRESS": "0", "OMP_NUM_THREADS": "1"}
 
@@ -80,6 +80,20 @@ def test_a_failed_run_leaves_a_new_folder_absent(tmp_path, capsys):
     assert not (tmp_path / "new").exists()
 
 
+def project_with_a_users_config(tmp_path):
+    out = tmp_path / "project"
+    out.mkdir()
+    (out / "config.yaml").write_text("my: own settings\n")
+    return out
+
+
+def train_argv(gan, tmp_path, out, *extra):
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump(TINY_GAN))
+    return ["train", "gan", "--shapes", str(gan / "shapes"), "--images", str(gan / "photos"), "--out", str(out),
+            "--config", str(config), "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu", *extra]
+
+
 def test_the_same_command_continues_an_interrupted_run_and_keeps_a_finished_one(tiny_gan, tmp_path, capsys, monkeypatch):
     import mesh2tex.infer.generate as stage
 
@@ -106,21 +120,69 @@ def test_the_same_command_continues_an_interrupted_run_and_keeps_a_finished_one(
     assert "already holds seed0" in capsys.readouterr().err
     other = generate_argv(tiny_gan, out, "--truncation", "0.5")
     assert main(other) == 2, "another command line does not own them either"
+    before = (out / "seed0.glb").read_bytes()
     assert main(other + ["--overwrite"]) == 0
-    assert "--overwrite replaces seed0" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--overwrite moved seed0" in err and "aside to" in err
+    # the replaced files are kept, at their own names, in the folder the warning names
+    aside = err.rsplit("aside to ", 1)[1].strip()
+    assert os.path.dirname(aside) == str(out / REPLACED_NAME) and (out / REPLACED_NAME / os.path.basename(aside) / "seed0.glb").read_bytes() == before
 
 
 def test_train_keeps_a_users_config_yaml_and_continues_its_own_interrupted_run(tiny_gan, tmp_path, capsys):
-    out = tmp_path / "project"
-    out.mkdir()
-    (out / "config.yaml").write_text("my: own settings\n")
-    config = tmp_path / "tiny.yaml"
-    config.write_text(yaml.safe_dump(TINY_GAN))
-    argv = ["train", "gan", "--shapes", str(tiny_gan / "shapes"), "--images", str(tiny_gan / "photos"), "--out", str(out),
-            "--config", str(config), "--iters", "2", "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"]
+    out = project_with_a_users_config(tmp_path)
+    argv = train_argv(tiny_gan, tmp_path, out, "--iters", "2")
     assert main(argv) == 2
     assert "already holds config.yaml" in capsys.readouterr().err
     assert (out / "config.yaml").read_text() == "my: own settings\n" and sorted(p.name for p in out.iterdir()) == ["config.yaml"]
+
+
+def test_train_overwrite_moves_a_users_file_and_the_replaced_run_aside(tiny_gan, tmp_path, capsys):
+    out = project_with_a_users_config(tmp_path)
+    argv = train_argv(tiny_gan, tmp_path, out, "--iters", "1", "--overwrite")
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "--overwrite moved config.yaml (not written by this command) aside to" in err, err
+    [first] = (out / REPLACED_NAME).iterdir()
+    assert (first / "config.yaml").read_text() == "my: own settings\n"
+    checkpoint = (out / "checkpoint.safetensors").read_bytes()
+    assert main(argv[:-1] + ["--seed", "3", "--overwrite"]) == 0, "another run replaces this one"
+    err = capsys.readouterr().err
+    assert "were moved aside to" in err
+    second = sorted(set((out / REPLACED_NAME).iterdir()) - {first})
+    assert len(second) == 1 and (second[0] / "checkpoint.safetensors").read_bytes() == checkpoint
+    assert (second[0] / "metrics.jsonl").is_file() and (out / "checkpoint.safetensors").is_file()
+
+
+def test_move_aside_keeps_relative_paths_links_and_one_folder_per_run(tmp_path):
+    (tmp_path / "images").mkdir()
+    (tmp_path / "images" / "a.png").write_text("a")
+    (tmp_path / "index.json").write_text("{}")
+    os.symlink("/nonexistent/target", tmp_path / "link.png")
+    with output_run(tmp_path, ["x"], "mesh2tex x"):
+        first = move_aside(tmp_path, ["images/a.png", "missing.png", "link.png"])
+        assert move_aside(tmp_path, ["index.json"]) == first, "one folder per run"
+    assert (first / "images" / "a.png").read_text() == "a" and (first / "index.json").read_text() == "{}"
+    assert os.readlink(first / "link.png") == "/nonexistent/target", "a link is moved, not followed"
+    assert not (tmp_path / "images" / "a.png").exists() and not (tmp_path / "index.json").exists()
+    assert move_aside(tmp_path, ["missing.png"]) is None
+    (tmp_path / "index.json").write_text("{}")
+    other = move_aside(tmp_path, ["index.json"])
+    assert other != first and other.parent == tmp_path / REPLACED_NAME, "another run (the same second) gets its own folder"
+
+
+def test_what_overwrite_moved_aside_is_not_taken_for_input(tmp_path, capsys):
+    """A folder of photos that was once an --out: the photos moved aside are not prepared again."""
+    from PIL import Image
+
+    photos = tmp_path / "photos"
+    (photos / REPLACED_NAME / "20250101-000000").mkdir(parents=True)
+    Image.new("RGB", (32, 32), (200, 30, 30)).save(photos / "a.png")
+    Image.new("RGB", (32, 32), (200, 30, 30)).save(photos / REPLACED_NAME / "20250101-000000" / "old.png")
+    out = tmp_path / "out"
+    main(["prepare", "images", "--input", str(photos), "--out", str(out), "--size", "16"])
+    names = [record["name"] for record in json.loads((out / "index.json").read_text())["images"]]
+    assert names == ["a"]
 
 
 def test_prepare_shapes_keeps_a_users_index_json(tmp_path, capsys):

@@ -12,7 +12,8 @@ A run directory ``RUN/`` holds:
     snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators (keep_snapshots: the newest N)
 
 A folder that holds a run is continued with ``--resume`` or replaced with ``--overwrite`` (the files
-the replaced run wrote, :data:`REPLACED_BY_OVERWRITE`, are removed; nothing else), and refused otherwise.
+the replaced run wrote, :data:`REPLACED_BY_OVERWRITE`, are moved aside to ``RUN/.mesh2tex-replaced/<date-time>/``
+with the fixed-name files :func:`mesh2tex.io.outputs.guard_outputs` moves; nothing is deleted), and refused otherwise.
 
 Checkpoints hold modules, optimizers (with their state), EMA copies, RNG states (torch, CUDA, numpy,
 Python; one set per process of a distributed run) and the iteration, so that ``--resume`` continues
@@ -37,7 +38,7 @@ import torch
 from mesh2tex.config import save_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready
-from mesh2tex.io.outputs import continues_own_run, guard_outputs
+from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
 from mesh2tex.io.checkpoint import check_training_checkpoint, load_training_state, read_checkpoint_meta, save_training_state  # noqa: F401
 from mesh2tex.progress import JsonLines
@@ -51,7 +52,7 @@ __all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "NonFiniteLoss", 
 CHECKPOINT_NAME = "checkpoint.safetensors"
 NONFINITE_NAME = "nonfinite.safetensors"
 # What a run writes into its folder (the module docstring; best.safetensors of train gan, model.safetensors
-# of train nca): a new run started with --overwrite removes these of the run it replaces, and nothing else.
+# of train nca): a new run started with --overwrite moves these of the run it replaces aside, and nothing else.
 REPLACED_BY_OVERWRITE = (CHECKPOINT_NAME, NONFINITE_NAME, "metrics.jsonl", "best.safetensors", "model.safetensors",
                          "snapshots/iter*.safetensors", "samples/iter*.png", "tensorboard/events.out.tfevents.*")
 # The files a new run writes at fixed names: one already there that no run of this command line wrote is kept
@@ -102,11 +103,12 @@ class RunDirectory:
             guard_outputs(self.root, RUN_FILES, overwrite)
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
-        if not resume and overwrite:  # nothing of the replaced run may be resumed or read as this one's
-            for pattern in REPLACED_BY_OVERWRITE:
-                for path in self.root.glob(pattern):
-                    if path.is_file() or path.is_symlink():
-                        path.unlink()
+        if not resume and overwrite:  # nothing of the replaced run may be resumed or read as this one's: moved aside, not deleted
+            replaced = [path.relative_to(self.root).as_posix() for pattern in REPLACED_BY_OVERWRITE for path in sorted(self.root.glob(pattern))
+                        if path.is_file() or path.is_symlink()]
+            folder = move_aside(self.root, replaced)
+            if folder is not None:
+                print(f"mesh2tex: note: {self.root}: the replaced run's files ({len(replaced)}) were moved aside to {folder}", file=sys.stderr)
         if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again
             self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)

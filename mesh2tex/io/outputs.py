@@ -11,8 +11,9 @@ Three rules, all here:
   The lock file is removed when the run ends; a folder the run created and left empty is removed.
 * **A run replaces only its own files** (:func:`guard_outputs`): each command lists the files it
   will write before its work starts; one that exists and was not written by an unfinished earlier
-  run of the *same command line* in this folder is refused, unless ``--overwrite`` (then the
-  replaced files are named in a warning). What each run claimed is recorded in
+  run of the *same command line* in this folder is refused, unless ``--overwrite``: then it is
+  moved aside, never deleted, to ``<out>/.mesh2tex-replaced/<date-time>/<its path in out>`` (one such
+  folder per run, :func:`move_aside`), and a warning names the files and that folder. What each run claimed is recorded in
   ``<out>/.mesh2tex-manifest.json`` (file -> run, run -> command line and whether it finished), so
   that the same command, re-run after an interruption, continues and replaces its own half-finished
   outputs, while a finished run's results are kept.
@@ -43,8 +44,16 @@ from mesh2tex.errors import InputError
 
 LOCK_NAME = ".mesh2tex-lock"
 MANIFEST_NAME = ".mesh2tex-manifest.json"
+# Where --overwrite puts what it replaces (the user's files: not bookkeeping, so a folder holding it is not empty).
+REPLACED_NAME = ".mesh2tex-replaced"
 # What mesh2tex keeps in an output folder for itself (the partial folder: mesh2tex.io.atomic).
 BOOKKEEPING = (LOCK_NAME, MANIFEST_NAME, ".mesh2tex-partial")
+
+
+def walked(dirs: list[str]) -> list[str]:
+    """The sub-folders an ``os.walk`` over inputs descends into, sorted: not mesh2tex's own folders
+    (``.mesh2tex-replaced``, ``.mesh2tex-partial``), whose files are no input. Assign to ``dirs[:]``."""
+    return sorted(name for name in dirs if not name.startswith(".mesh2tex-"))
 
 
 def user_entries(folder: str | os.PathLike) -> list[Path]:
@@ -64,6 +73,7 @@ class _Run:
     fd: int | None = None  # the locked lock file (None: the folder was already ours, or locking is unsupported)
     created: list[Path] = dataclasses.field(default_factory=list)
     claimed: set[str] = dataclasses.field(default_factory=set)
+    replaced: Path | None = None  # the run's folder under REPLACED_NAME, made by its first move_aside
 
 
 _ACTIVE: list[_Run] = []  # innermost last (the demo runs stages inside its own run)
@@ -288,10 +298,48 @@ def guard_outputs(out: str | os.PathLike, names: Iterable[str], overwrite: bool,
     if foreign:
         from mesh2tex.options import warning
 
-        warning(f"{out}: --overwrite replaces {_shown(foreign)}, not written by this command")
+        folder = move_aside(out, foreign)
+        warning(f"{out}: --overwrite moved {_shown(foreign)} (not written by this command) aside to {folder}")
     if run is not None:
         _claim(run, out, names)
     return out
+
+
+def _replaced_folder(out: Path, run: _Run | None) -> Path:
+    """The folder this run moves replaced files into: ``<out>/.mesh2tex-replaced/<date-time>[-N]``,
+    made on first use, one per run (and one per call outside a run)."""
+    if run is not None and run.replaced is not None:
+        return run.replaced
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    (out / REPLACED_NAME).mkdir(exist_ok=True)
+    for n in range(1, 10000):
+        folder = out / REPLACED_NAME / (stamp if n == 1 else f"{stamp}-{n}")
+        try:
+            folder.mkdir()
+            break
+        except FileExistsError:  # two runs replacing in the same second
+            continue
+    else:
+        raise InputError(f"{out / REPLACED_NAME}: too many folders named {stamp}; empty it")
+    if run is not None:
+        run.replaced = folder
+    return folder
+
+
+def move_aside(out: str | os.PathLike, names: Iterable[str]) -> Path | None:
+    """Move the files and folders ``out/<name>`` that exist into the run's replaced folder (see
+    :func:`_replaced_folder`), each at its own relative path there (a link is moved, never followed);
+    returns that folder, or None when none existed. What ``--overwrite`` replaces is never deleted."""
+    out = Path(out)
+    present = [name for name in names if (out / name).exists() or (out / name).is_symlink()]
+    if not present:
+        return None
+    folder = _replaced_folder(out, _current(out))
+    for name in present:
+        target = folder / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(str(out / name), str(target))  # a rename on one file system; copied across a mount
+    return folder
 
 
 def remove_outputs(out: str | os.PathLike, names: Iterable[str]) -> None:

@@ -9,7 +9,12 @@ reason, mask source, mask coverage). Exit status 0 when every image succeeded, 2
 
 A file it would write that is already there stops the command before any work, unless
 ``--overwrite``: then the earlier preparation is replaced, and its images that this one does not
-write again (listed in the earlier ``index.json``) are removed, so that the folder holds this run's set only.
+write again (listed in the earlier ``index.json``) are moved aside with the rest of what it replaces
+(:func:`mesh2tex.io.outputs.move_aside`), so that the folder holds this run's set only.
+
+Each photo gets the checks of every photo set (:func:`mesh2tex.photos.read_set_photo`: readable, a
+photo's kind of image, at least 8 pixels a side, a mask file of its size that is a mask); a rejected
+one is a failed entry of the index with its reason, and the others are prepared.
 """
 
 from __future__ import annotations
@@ -23,9 +28,9 @@ from pathlib import Path
 
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import write_json
-from mesh2tex.io.images import is_image_file, load_image, load_mask, save_png
+from mesh2tex.io.images import is_image_file, save_png
 from mesh2tex.io.outputs import guard_outputs, move_aside, walked
-from mesh2tex.photos import estimate_mask, square_crop
+from mesh2tex.photos import estimate_mask, read_set_photo, square_crop
 from mesh2tex.progress import progress_bar
 
 
@@ -46,13 +51,10 @@ def prepare_image(path: Path, relative: Path, name: str, output: Path, size: int
     start = time.perf_counter()
     record = {"source": str(path), "name": name}
     try:
-        rgb, alpha = load_image(path)
         mask_file = find_mask_file(masks_dir, relative)
+        rgb, alpha = read_set_photo(path, mask_file)  # the checks every photo set gets: size, kind, mask
         if mask_file is not None:
-            mask = load_mask(mask_file)
-            if mask.shape != rgb.shape[:2]:
-                raise UserError(f"{mask_file}: mask is {mask.shape[1]}x{mask.shape[0]} but the photo is {rgb.shape[1]}x{rgb.shape[0]}")
-            source = f"file {mask_file}"
+            mask, source = alpha >= 128, f"file {mask_file}"
         elif alpha is not None and alpha.min() < 128:
             mask, source = alpha >= 128, "alpha"
         else:

@@ -25,6 +25,7 @@ MAX_SPHERE_SUBDIVISIONS = 256  # sphere:N is a cube sphere of 6 N^2 quads (256: 
 MAX_IMAGE_PIXELS = 100_000_000  # pixels of one photo read (PIL's own bomb limit is half of twice this)
 MAX_LATENTS = 10_000  # latents per shape of the generation protocol
 MAX_BATCH = 4096  # shapes or views per training step
+MIN_SET_PHOTO_SIDE = 8  # the smallest side of a photo of a training or evaluation set (prepare images' smallest --size)
 
 ELEVATION = (-90.0, 90.0)  # degrees above the horizon
 FOV = (1.0, 179.0)  # vertical field of view, degrees

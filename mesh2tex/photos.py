@@ -1,14 +1,29 @@
-"""Photos of an object: its mask estimated when none is given, and the square crop around it as arrays.
+"""Photos of an object: its mask estimated when none is given, the square crop around it as arrays,
+and the check of a photo set's files before training or evaluation reads them.
 
 ``mesh2tex prepare images`` writes its crops with :func:`square_crop`; the transfer estimates a
 query's mask with :func:`estimate_mask`. Both frame the object as :mod:`mesh2tex.render.crop` does.
+
+A photo set (``train gan --images``, ``evaluate --images/--renders``) is read once through
+:func:`read_photo_set`, which checks every file (:func:`read_set_photo`: readable, a photo's kind
+of image, at least :data:`mesh2tex.limits.MIN_SET_PHOTO_SIDE` pixels a side, a mask of its size
+that is a mask and holds the object) and collects one line per rejected file instead of stopping at
+the first; :func:`refuse_rejected` prints them and stops the command with one error line.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from mesh2tex.errors import InputError
+from mesh2tex.limits import MIN_SET_PHOTO_SIDE
 from mesh2tex.render.crop import object_box
+
+# PIL modes of files that hold no photo, though PIL reads them: what the file probably is instead
+NOT_PHOTO_MODES = {"1": "a 1-bit black-and-white image (a mask?)", "I": "a 32-bit integer image (depth or labels?)",
+                   "F": "a 32-bit float image (depth or data?)"}
 
 MARGIN = 0.1  # fraction of the mask's larger side added around it before the square crop
 
@@ -67,3 +82,86 @@ def square_crop(rgb: np.ndarray, mask: np.ndarray, size: int, margin: float = MA
     image = cv2.resize(canvas, (size, size), interpolation=interpolation)
     out_mask = cv2.resize(canvas_mask * 255, (size, size), interpolation=interpolation) >= 128
     return image, out_mask
+
+
+def _mode(path: Path) -> str:
+    """The PIL mode of an image file that :func:`mesh2tex.io.images.load_image` has read, from its
+    header alone (the pixels are not decoded again)."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return image.mode
+
+
+def _mask_from_file(path: Path) -> np.ndarray:
+    """A mask file as (H, W) uint8 coverage: its alpha where it has transparency, else its gray level;
+    InputError for a file that is a photo, not a mask (colours: the folders swapped?)."""
+    from mesh2tex.io.images import load_image
+
+    rgb, alpha = load_image(path)
+    if alpha is not None and alpha.min() < 255:
+        return alpha
+    spread = rgb.max(axis=2).astype(np.int16) - rgb.min(axis=2)
+    if float((spread > 32).mean()) > 0.01:  # gray masks have equal channels; a few coloured edge pixels are forgiven
+        raise InputError(f"{path}: not a mask: {float((spread > 32).mean()):.0%} of its pixels are coloured (expected white object on black)")
+    return np.round(rgb.mean(axis=2)).astype(np.uint8)
+
+
+def read_set_photo(path: str | Path, mask_path: str | Path | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """One photo of a set, checked: rgb (H, W, 3) uint8 and its object's coverage (H, W) uint8 (the
+    ``mask_path`` file, else the alpha channel, else None: the whole photo is the object).
+
+    Raises InputError naming the file: unreadable (:func:`mesh2tex.io.images.read_image`), not a
+    photo (:data:`NOT_PHOTO_MODES`), smaller than ``MIN_SET_PHOTO_SIDE`` on a side, a mask file that
+    is missing, of another size or coloured, or a mask with no object pixel (coverage >= 128)."""
+    from mesh2tex.io.images import load_image
+
+    path = Path(path)
+    rgb, alpha = load_image(path)  # first: it names the file for every way of not being an image
+    mode = _mode(path)
+    if mode in NOT_PHOTO_MODES:
+        raise InputError(f"{path}: {NOT_PHOTO_MODES[mode]}, not a photo")
+    h, w = rgb.shape[:2]
+    if min(h, w) < MIN_SET_PHOTO_SIDE:
+        raise InputError(f"{path}: the photo is {w}x{h} pixels; a photo of a set needs at least {MIN_SET_PHOTO_SIDE}x{MIN_SET_PHOTO_SIDE}")
+    where = path
+    if mask_path is not None:
+        where = Path(mask_path)
+        if not where.is_file():
+            raise InputError(f"{where}: mask missing for {path.name}")
+        alpha = _mask_from_file(where)
+        if alpha.shape != (h, w):
+            raise InputError(f"{where}: mask is {alpha.shape[1]}x{alpha.shape[0]}, the photo {path.name} {w}x{h}")
+    if alpha is not None and not (alpha >= 128).any():
+        raise InputError(f"{where}: the mask is empty (no object pixel{'' if mask_path else ' in the alpha channel'})")
+    return rgb, alpha
+
+
+def read_photo_set(items, read=read_set_photo) -> tuple[list, list[str]]:
+    """Read every ``(path, mask_path or None)`` of ``items`` with ``read`` (:func:`read_set_photo`);
+    returns (what ``read`` returned, for the files it accepted, in order) and the one-line reasons of
+    the files it rejected, each naming its file. Nothing stops at the first bad file."""
+    kept, rejected = [], []
+    for path, mask_path in items:
+        try:
+            kept.append(read(path, mask_path))
+        except InputError as error:
+            rejected.append(str(error))
+    return kept, rejected
+
+
+def refuse_rejected(rejected: list[str], total: int, where: str | Path, what: str = "photos") -> None:
+    """Stop a command whose photo set holds rejected files with an InputError (the command's one error
+    line) that counts them and quotes the first; when there are several, each is printed first as a
+    warning line of its own. Nothing when none was rejected."""
+    if not rejected:
+        return
+    if len(rejected) == 1:
+        raise InputError(f"{where}: 1 of {total} {what} cannot be used: {rejected[0]}; fix or remove it")
+    from mesh2tex.errors import one_line
+    from mesh2tex.options import warning
+
+    for line in rejected:
+        warning(f"rejected: {one_line(line)}")
+    raise InputError(f"{where}: {len(rejected)} of {total} {what} cannot be used (each named above), the first: {rejected[0]}; "
+                     f"fix or remove them")

@@ -22,9 +22,9 @@ import torch
 from PIL import Image
 
 from mesh2tex.config import check_fields, load_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
-from mesh2tex.io.images import images_to_uint8, read_image, save_png
+from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import (D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY, save_inference_checkpoint,
                                 shape_hierarchy)
 from mesh2tex.losses.augment import AdaptiveAugment, AugmentConfig, DiffAugment
@@ -35,6 +35,7 @@ from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import SurfaceSamples, rasterize_batch, render_field_views, render_proxy_views
 from mesh2tex.options import config_overrides
+from mesh2tex.photos import read_photo_set, read_set_photo, refuse_rejected
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import CameraConfig, LightConfig, Lights, composite_images, orbit_camera, random_lights, turntable_angles
 from mesh2tex.train import runs
@@ -118,6 +119,9 @@ def load_images(folder: str | Path, resolution: int) -> torch.Tensor:
 
     Layouts: ``folder/images/*.png`` with same-named ``folder/masks/*.png`` (white = object), or
     ``folder/*.png`` whose alpha channel is the mask (no alpha: the whole image is the object).
+    Every photo is checked once (:func:`mesh2tex.photos.read_photo_set`); a set with any rejected
+    file (unreadable, too small, not a photo, a bad or empty mask, an object smaller than a pixel at
+    R x R) stops the command, each file named.
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -127,19 +131,19 @@ def load_images(folder: str | Path, resolution: int) -> torch.Tensor:
     paths = sorted(p for p in image_dir.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
     if not paths:
         raise UserError(f"{image_dir}: no images (*.png, *.jpg)")
-    out = np.empty((len(paths), resolution, resolution, 4), dtype=np.uint8)
-    for i, path in enumerate(paths):
-        rgba = read_image(path, lambda image: image.convert("RGBA"))
-        if mask_dir is not None:
-            mask_path = mask_dir / (path.stem + ".png")
-            if not mask_path.is_file():
-                raise UserError(f"{mask_path}: mask missing for {path.name}")
-            mask = read_image(mask_path, lambda image: image.convert("L"))
-            if mask.size != rgba.size:
-                raise UserError(f"{mask_path}: mask size {mask.size} differs from {path.name}'s {rgba.size}")
-            rgba.putalpha(mask)
-        out[i] = np.asarray(rgba.resize((resolution, resolution), Image.LANCZOS))
-    return torch.from_numpy(out).permute(0, 3, 1, 2).contiguous()
+
+    def read(path: Path, mask_path: Path | None) -> np.ndarray:
+        rgb, alpha = read_set_photo(path, mask_path)
+        full = np.full(rgb.shape[:2], 255, np.uint8)
+        small = np.asarray(Image.fromarray(np.dstack([rgb, full if alpha is None else alpha])).resize((resolution, resolution), Image.LANCZOS))
+        if alpha is not None and not (small[..., 3] >= 128).any():  # a speck of an object vanishes at the training resolution
+            raise InputError(f"{mask_path or path}: the object covers no pixel once resized to {resolution}x{resolution}")
+        return small
+
+    items = [(path, None if mask_dir is None else mask_dir / (path.stem + ".png")) for path in paths]
+    photos, rejected = read_photo_set(items, read)
+    refuse_rejected(rejected, len(paths), image_dir)
+    return torch.from_numpy(np.stack(photos)).permute(0, 3, 1, 2).contiguous()
 
 
 def composite_real(images: torch.Tensor, background: torch.Tensor) -> torch.Tensor:

@@ -57,27 +57,28 @@ def square_resize(image: torch.Tensor, resolution: int) -> torch.Tensor:
     return F.interpolate(crop[None], size=(resolution, resolution), mode="bilinear", align_corners=False, antialias=True)[0]
 
 
-def _mask_for(stem: str, alpha: torch.Tensor | None, masks: dict[str, Path] | None) -> torch.Tensor | None:
-    if masks is not None and stem in masks:
-        return mask_tensor(masks[stem])
-    return None if alpha is None else (alpha > 0.5).float()
-
-
 def load_set(folder: str | Path, what: str, resolution: int, background: float,
              masks: dict[str, Path] | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
     """All images of ``folder`` as [N, 3, R, R] in [0, 1], masked-out pixels set to ``background``, and
     their object masks [N, 1, R, R] (0/1) when every image has one (a ``masks`` file or an alpha
-    channel), else None."""
-    images, object_masks = [], []
-    for stem, path in list_images(folder, what).items():
-        rgb, alpha = image_tensor(path)
-        mask = _mask_for(stem, alpha, masks)
-        if mask is not None:
-            if mask.shape[-2:] != rgb.shape[-2:]:
-                raise InputError(f"{masks[stem] if masks and stem in masks else path}: mask size {tuple(mask.shape[-2:])} differs from the image's {tuple(rgb.shape[-2:])}")
-            rgb = composite_images(rgb, mask, background)
-            object_masks.append((square_resize(mask.reshape(1, *mask.shape[-2:]), resolution) > 0.5).float())
-        images.append(square_resize(rgb, resolution))
+    channel), else None. Every file is checked first (:func:`mesh2tex.photos.read_set_photo`); any
+    rejected one is an InputError counting them, each named (:func:`mesh2tex.photos.refuse_rejected`)."""
+    from mesh2tex.photos import read_photo_set, read_set_photo, refuse_rejected
+
+    def read(path: Path, mask_path: Path | None) -> tuple[torch.Tensor, torch.Tensor | None]:
+        rgb, coverage = read_set_photo(path, mask_path)
+        image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1).contiguous().float() / 255.0
+        if coverage is None:
+            return square_resize(image, resolution), None
+        mask = torch.from_numpy(coverage >= 128)[None].float()
+        return square_resize(composite_images(image, mask, background), resolution), (square_resize(mask, resolution) > 0.5).float()
+
+    listed = list_images(folder, what)
+    items = [(path, masks.get(stem) if masks is not None else None) for stem, path in listed.items()]
+    read_set, rejected = read_photo_set(items, read)
+    refuse_rejected(rejected, len(items), folder, f"{what}s")
+    images = [image for image, _ in read_set]
+    object_masks = [mask for _, mask in read_set if mask is not None]
     return torch.stack(images), (torch.stack(object_masks) if len(object_masks) == len(images) else None)
 
 

@@ -320,11 +320,14 @@ def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, 
 
 
 def photo_set_spread(world: WorldData, photos: torch.Tensor, masks: torch.Tensor, names: list[str]) -> float:
-    """Spread of the mean object colours of the photo set's shapes: each shape's photos averaged."""
+    """Spread of the mean object colours of the photo set's shapes: each shape's photos averaged. NaN
+    for a world of one training shape: a spread across shapes needs two (the report says so)."""
     lab = mean_object_lab(photos, masks)
     by_shape: dict[str, list[torch.Tensor]] = {}
     for stem, colour in zip(names, lab):
         by_shape.setdefault(stem.rsplit("_", 1)[0], []).append(colour)
+    if len(by_shape) < 2:
+        return float("nan")
     return colour_spread(torch.stack([torch.stack(c).mean(0) for c in by_shape.values()]))
 
 
@@ -537,6 +540,9 @@ def generation_markdown(result: dict) -> str:
     def share(value: float) -> str:
         return f"{value:.2f}" if math.isfinite(value) else "undefined (the oracle does not beat the untrained generator)"
 
+    def across(value) -> str:  # None: read back from generation.json, where NaN is null
+        return f"{value:.2f}" if value is not None and math.isfinite(value) else "undefined (one training shape)"
+
     per_draw = result.get("gap_closed_per_draw", [])
     spread = f" (single draws: {', '.join(f'{v:.2f}' for v in per_draw)})" if len(per_draw) > 1 else ""
     gap_line = (f"Gap closed (log object SWD, untrained 0 -> oracle 1; higher is better): **{share(gap)}**{spread}; "
@@ -555,8 +561,8 @@ def generation_markdown(result: dict) -> str:
               f"| trained, {result['settings']['latents']} latents per shape | {d['trained']['spread']:.2f} | {d['trained']['pairwise']:.2f} |",
               f"| untrained | {d['untrained']['spread']:.2f} | {d['untrained']['pairwise']:.2f} |",
               f"| world's material sampler, same shapes and pose (reference) | {d['reference_materials']['spread']:.2f} | {d['reference_materials']['pairwise']:.2f} |",
-              f"| photo set, across shapes (reference) | {d['photo_set_spread']:.2f} | |", "",
-              f"Trained diversity: colour spread {d['trained_spread_vs_photo_set']:.2f} of the photo set's, "
+              f"| photo set, across shapes (reference) | {across(d['photo_set_spread'])} | |", "",
+              f"Trained diversity: colour spread {across(d['trained_spread_vs_photo_set'])} of the photo set's, "
               f"{d['trained_spread_vs_materials']:.2f} of the material sampler's; pairwise Delta E "
               f"{d['trained_pairwise_vs_materials']:.2f} of the material sampler's."]
     return "\n".join(lines) + "\n"

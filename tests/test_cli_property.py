@@ -87,3 +87,19 @@ def test_every_bad_value_of_every_option_is_one_line(argv, flag, tmp_path, capsy
         assert "Traceback" not in err and len(errors) == 1, f"{flag} {value[:40]!r}: {err[-2000:]}"
         assert len(errors[0].encode()) <= 1024, f"{flag} {value[:40]!r}: a {len(errors[0])}-character line"
         assert not (tmp_path / "out").exists(), f"{flag} {value[:40]!r}: --out was created"
+
+
+@pytest.mark.parametrize("expression", ["10**400", "9" * 400, "2.0**2.0**2.0**2.0**2.0**2.0", "1/0", "x/0", "(-8)**0.5", "exp(1000)",
+                                        "x" + "+x" * 2000, "-(" * 300 + "x" + ")" * 300, "-" * 999 + "x", "x >", "__import__('os')"])
+def test_a_bad_mask_expression_is_one_line(expression):
+    """``infer nca --graft-mask/--regrow`` expressions: an arithmetic overflow, a division by zero, a
+    root of a negative number, a paragraph, deep nesting: one InputError line under 1 kB, no traceback."""
+    import numpy as np
+
+    from mesh2tex.errors import InputError
+    from mesh2tex.geometry.regions import expression_weights
+
+    with pytest.raises(InputError) as caught:
+        expression_weights(expression, np.random.default_rng(0).uniform(-1, 1, (50, 3)))
+    message = str(caught.value)
+    assert message.startswith("graft mask ") and "\n" not in message and len(message.encode()) < 1000, message

@@ -305,3 +305,38 @@ def test_the_commands_offer_the_protocols_lightings_and_splits():
     choices = {action.dest: list(action.choices) for action in parser._actions if action.choices}
     assert choices["gan_lighting"] == list(LIGHTING_MODES)
     assert choices["split"] == list(SPLITS)
+
+
+def test_a_world_of_one_training_shape_reports_its_photo_spread_as_undefined(tmp_path):
+    """The photo set's spread across shapes needs two shapes: with one, the protocol still finishes and
+    its report says the figure is undefined, instead of ending in a traceback."""
+    from mesh2tex.infer.generation import photo_set_spread
+
+    photos, masks = torch.rand(3, 3, 8, 8), torch.ones(3, 1, 8, 8)
+    assert np.isnan(photo_set_spread(None, photos, masks, ["chair_0001_00", "chair_0001_01", "chair_0001_02"]))
+    assert np.isfinite(photo_set_spread(None, photos, masks, ["chair_0001_00", "chair_0002_00", "chair_0002_01"]))
+
+
+@pytest.mark.slow
+def test_the_protocol_runs_on_a_world_of_one_training_shape(tmp_path, capsys):
+    from mesh2tex.geometry.mesh_io import load_mesh
+    from mesh2tex.geometry.prepare import prepare_shape
+
+    world, shapes = tmp_path / "world", tmp_path / "shapes"
+    assert main(["prepare", "synthetic", "--out", str(world), "--shapes", "2", "--query-shapes", "1", "--views", "3", "--resolution", "32",
+                 "--texture-size", "64", "--seed", "3", "--query-views", "1"]) == 0
+    shapes.mkdir()
+    split = json.loads((world / "index.json").read_text())["split"]
+    assert len(split["train_shapes"]) == 1
+    for name in split["train_shapes"] + split["query_shapes"]:
+        vertices, faces = load_mesh(world / "meshes" / f"{name}.obj")
+        prepare_shape(vertices, faces, face_count=96, levels=3, seed=0).save(shapes / f"{name}.npz")
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
+    assert main(["train", "gan", "--shapes", str(shapes), "--images", str(world), "--out", str(tmp_path / "gan"), "--config",
+                 str(tmp_path / "tiny.yaml"), "--iters", "1", "--batch", "1", "--views", "1", "--resolution", "32", "--device", "cpu"]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", "--generation", "--world", str(world), "--shapes", str(shapes), "--checkpoint", str(tmp_path / "gan" / "checkpoint.safetensors"),
+                 "--out", str(tmp_path / "ev"), "--latents", "2", "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "| photo set, across shapes (reference) | undefined (one training shape) |" in out
+    assert json.loads((tmp_path / "ev" / "generation.json").read_text())["diversity"]["photo_set_spread"] is None

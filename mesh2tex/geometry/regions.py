@@ -37,8 +37,10 @@ _COMPARE = {ast.Gt: operator.gt, ast.GtE: operator.ge, ast.Lt: operator.lt, ast.
 def _evaluate(node, names: dict[str, np.ndarray]):
     if isinstance(node, ast.Expression):
         return _evaluate(node.body, names)
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
-        return float(node.value)
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+        # numpy scalars: 10**400 or 1/0 become inf (refused as not finite below), not Python's OverflowError
+        # or ZeroDivisionError; a negative base to a fractional power is NaN, not a complex number
+        return np.float64(node.value) if abs(node.value) < 1e308 else np.float64(np.inf)
     if isinstance(node, ast.Name) and node.id in names:
         return names[node.id]
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
@@ -54,18 +56,29 @@ def _evaluate(node, names: dict[str, np.ndarray]):
     raise ValueError(f"'{ast.unparse(node)}' is not allowed")
 
 
+MAX_EXPRESSION_CHARS = 1000  # longer is no hand-written mask; the parser's recursion and memory stay bounded
+
+
 def expression_weights(expression: str, positions: np.ndarray) -> np.ndarray:
-    """(V,) float32 in [0, 1]: ``expression`` evaluated at positions (V, 3), clipped."""
+    """(V,) float32 in [0, 1]: ``expression`` evaluated at positions (V, 3), clipped. InputError (one
+    line quoting at most 80 characters of it) for one that cannot be parsed or evaluated, or whose
+    value overflows or is undefined at some vertex."""
     positions = np.asarray(positions, dtype=np.float64)
     names = {"x": positions[:, 0], "y": positions[:, 1], "z": positions[:, 2]}
+    shown = repr(expression if len(expression) <= 80 else expression[:77] + "...")
+    if len(expression) > MAX_EXPRESSION_CHARS:
+        raise InputError(f"graft mask {shown}: {len(expression)} characters; an expression holds at most {MAX_EXPRESSION_CHARS} "
+                         f"(a per-vertex .npy or .txt file takes any mask)")
     try:
         tree = ast.parse(expression, mode="eval")
         with np.errstate(all="ignore"):
             value = np.broadcast_to(np.asarray(_evaluate(tree, names), dtype=np.float64), (positions.shape[0],))
-    except (SyntaxError, ValueError, TypeError) as error:
-        raise InputError(f"graft mask {expression!r}: {error} (use x, y, z, numbers, + - * / **, comparisons and {', '.join(sorted(FUNCTIONS))})") from None
+    except (SyntaxError, ValueError, TypeError, ArithmeticError) as error:
+        raise InputError(f"graft mask {shown}: {error} (use x, y, z, numbers, + - * / **, comparisons and {', '.join(sorted(FUNCTIONS))})") from None
+    except (RecursionError, MemoryError):  # nested too deep for the parser
+        raise InputError(f"graft mask {shown}: nested too deeply") from None
     if not np.all(np.isfinite(value)):
-        raise InputError(f"graft mask {expression!r}: not finite at some vertices")
+        raise InputError(f"graft mask {shown}: not finite at some vertices (an overflow, a division by zero or a root of a negative number)")
     return np.clip(value, 0.0, 1.0).astype(np.float32)
 
 

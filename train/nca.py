@@ -71,7 +71,7 @@ class TrainNCAConfig:
     seed_every: int = 4  # every this many iterations a fresh seed replaces the batch's first state
     mesh: str = "sphere"  # the training mesh (see load_surface; "sphere": 32 subdivisions, 6,146 cells)
     exemplar_size: int = 128  # the exemplar is centre-cropped to a square and resized to this
-    style_loss: str = "ot"  # "ot" (relaxed optimal transport + moments) or "gram"
+    style_loss: str = "ot"  # "ot" (relaxed optimal transport + moments), "gram", "sw" (sliced Wasserstein) or "ps" (oriented-band statistics)
     vgg_depth: int = 4  # VGG19 style layers used (relu1_2 ... relu4_4; 0: RGB only)
     max_points: int = 1024  # feature positions per set in the OT loss
     overflow_weight: float = 10.0  # weight of the overflow penalty

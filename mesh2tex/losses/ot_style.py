@@ -22,14 +22,17 @@ Conventions: images (N, 3, H, W) in [-1, 1]; masks (N, 1, H, W) in [0, 1].
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.losses.structure import STRUCTURE_LOSSES, exemplar_band_statistics, ps_loss, sw_distance
 from mesh2tex.losses.style import masked_gram
 
-STYLE_LOSSES = ("ot", "gram")
+# "ot" and "gram" here; "sw" (sliced Wasserstein on the same features) and "ps" (oriented-band
+# statistics, no network) in :mod:`mesh2tex.losses.structure`.
+STYLE_LOSSES = ("ot", "gram") + STRUCTURE_LOSSES
 
 
 def image_layers(vgg, images: torch.Tensor, depth: int) -> list[torch.Tensor]:
@@ -95,6 +98,12 @@ class ExemplarFeatures:
 
     image: torch.Tensor
     layers: list[torch.Tensor]
+    band_stats: dict[str, torch.Tensor] = field(default_factory=dict, repr=False)  # the "ps" statistics, made on first use
+
+    def band_statistics(self) -> dict[str, torch.Tensor]:
+        if not self.band_stats:
+            self.band_stats.update(exemplar_band_statistics(self.image))
+        return self.band_stats
 
     @classmethod
     def compute(cls, vgg, image: torch.Tensor, depth: int) -> "ExemplarFeatures":
@@ -107,11 +116,14 @@ def style_loss(vgg, images: torch.Tensor, masks: torch.Tensor, exemplar: Exempla
     """Mean over the N images of their style distance to the exemplar (see the module docstring).
 
     images (N, 3, H, W) in [-1, 1], masks (N, 1, H, W); ``kind`` "ot" (relaxed optimal transport and
-    moments) or "gram" (squared differences of masked Gram matrices, the project's transfer loss,
-    summed over the layers). Differentiable with respect to ``images``.
+    moments), "gram" (squared differences of masked Gram matrices, the project's transfer loss,
+    summed over the layers), "sw" (sliced Wasserstein on the same layers) or "ps" (oriented-band
+    statistics of the pixels; ``vgg`` unused). Differentiable with respect to ``images``.
     """
     if kind not in STYLE_LOSSES:
         raise ValueError(f"style loss must be one of {STYLE_LOSSES}, got {kind!r}")
+    if kind == "ps":
+        return ps_loss(images, masks, exemplar.band_statistics())
     depth = len(exemplar.layers) - 1
     layers = image_layers(vgg, images, depth)
     losses = []
@@ -123,5 +135,8 @@ def style_loss(vgg, images: torch.Tensor, masks: torch.Tensor, exemplar: Exempla
             continue
         render_sets = feature_sets([f[n : n + 1] for f in layers], masks[n], max_points, generator)
         exemplar_sets = feature_sets(exemplar.layers, None, max_points, generator)
-        losses.append(ot_style_distance(render_sets, exemplar_sets))
+        if kind == "sw":
+            losses.append(sw_distance(render_sets, exemplar_sets, generator))
+        else:
+            losses.append(ot_style_distance(render_sets, exemplar_sets))
     return torch.stack(losses).mean()

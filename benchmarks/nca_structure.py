@@ -1,0 +1,173 @@
+"""Does an automaton trained with a given style loss reproduce its exemplar's *structure*?
+
+    OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
+        [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
+
+For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over
+the unit square) and each loss, an automaton of the default config is trained from scratch on the
+sphere (``train nca``'s loop and defaults, only ``--iters`` and ``style_loss`` changed), grown 60
+steps from its seed and rendered from 8 fixed views at 128 px (azimuths 0..315, elevations +-15)
+on the sphere and on each ``--meshes`` file (held out: never trained on). Each set of renders is
+judged by :mod:`mesh2tex.metrics.structure`, which shares nothing with the losses: SWD of raw
+Laplacian-pyramid patches against the exemplar (x1000, lower is better), the windows' gradient
+coherence (stripes: 1) and perpendicular energy ratio (checks: near 1), and the spectral period
+in pixels (the exemplar's own figures are printed in its header).
+
+Rows: ``oracle`` (the exemplar's pattern painted per pixel at the exemplar's pixel scale),
+``vertex oracle`` (the pattern at the vertices, through a linear readout: what the cells can hold),
+``flat`` (the exemplar's mean colour), ``vertex noise`` (each vertex a random exemplar pixel's
+colour), then one row per loss (``ot`` is today's default). Summary per loss: its SWD over the
+oracle's and over ``ot``'s, on each mesh. One thread; with ``--runs`` the trained models are saved
+there (``<exemplar>_<loss>.safetensors``) and reused when present.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.nca_quality import RESOLUTION, STEPS, Judge, colour_model, grow, views_mvp  # noqa: E402
+from mesh2tex.geometry.primitives import load_surface  # noqa: E402
+from mesh2tex.io.models import load_nca  # noqa: E402
+from mesh2tex.metrics.structure import structure_scores  # noqa: E402
+from mesh2tex.nn.nca import build_cell_graph  # noqa: E402
+from mesh2tex.nn.render_texture import render_states  # noqa: E402
+from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
+from mesh2tex.render import interpolate, rasterize, transform_points  # noqa: E402
+from mesh2tex.synthetic.exemplars import EXEMPLARS, exemplar_image  # noqa: E402
+from mesh2tex.train import runs  # noqa: E402
+from train.nca import NCATrainer, TrainNCAConfig  # noqa: E402
+
+SIZE = 128  # exemplar pixels over the unit square of its pattern
+
+
+def train_model(exemplar: torch.Tensor, loss: str, iters: int, seed: int, graph, vgg, save: Path | None):
+    """An automaton trained ``iters`` iterations of ``train nca``'s loop with the style loss ``loss``."""
+    timing = save.with_suffix(".json") if save is not None else None
+    if save is not None and save.is_file():
+        model, _, _ = load_nca(save)
+        return model, json.loads(timing.read_text())["train_seconds"] if timing.is_file() else math.nan
+    cfg = TrainNCAConfig(seed=seed, iters=iters, style_loss=loss)
+    with tempfile.TemporaryDirectory() as tmp:
+        trainer = NCATrainer(cfg, exemplar, graph, runs.RunDirectory(tmp), torch.device("cpu"), vgg)
+        start = time.perf_counter()
+        while trainer.iteration < iters:
+            trainer.step()
+        seconds = time.perf_counter() - start
+        if save is not None:
+            trainer.save_model(save)
+            timing.write_text(json.dumps({"train_seconds": seconds, "iters": iters, "loss": loss, "seed": seed}))
+    return trainer.model.eval(), seconds
+
+
+@torch.no_grad()
+def oracle_views(name: str, graph, mvp: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The exemplar's pattern painted per pixel on the mesh at the exemplar's pixel scale:
+    images (N, 3, H, W) in [0, 1] (background 1), masks (N, 1, H, W)."""
+    raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (RESOLUTION, RESOLUTION))
+    points = interpolate(graph.positions, raster, graph.triangles)
+    normals = torch.nn.functional.normalize(interpolate(graph.normals, raster, graph.triangles), dim=-1)
+    mask = raster.face_id >= 0
+    rgb = EXEMPLARS[name](points[mask].double().numpy() * Judge.pattern_scale(SIZE), normals[mask].double().numpy())
+    images = torch.ones(mvp.shape[0], RESOLUTION, RESOLUTION, 3, dtype=torch.float64)
+    images[mask] = torch.from_numpy(rgb)
+    return images.permute(0, 3, 1, 2), mask[:, None].double()
+
+
+@torch.no_grad()
+def state_views(model, state, graph, mvp) -> tuple[torch.Tensor, torch.Tensor]:
+    views = render_states(model, state, graph, mvp, RESOLUTION, background=1.0)
+    return ((views.images.double().clamp(-1, 1) + 1) / 2), views.mask.double()
+
+
+def fmt(value: float, digits: int = 2) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--exemplars", nargs="+", default=["stripes", "checker", "bricks", "dots", "brick", "grass", "gravel"])
+    parser.add_argument("--losses", nargs="+", default=["ot", "sw", "ps"])
+    parser.add_argument("--iters", type=int, default=150, help="training iterations per model (train nca's default is 1500)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--meshes", nargs="*", default=[], help="held-out meshes (prepared .npz or mesh files)")
+    parser.add_argument("--runs", help="folder to keep (and reuse) the trained models")
+    parser.add_argument("--out", help="write every figure as JSON here")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    unknown = [n for n in args.exemplars if n not in EXEMPLARS]
+    if unknown:
+        parser.error(f"unknown exemplars {unknown}; choose from {sorted(EXEMPLARS)}")
+    vgg = load_vgg19(None, warn=False)
+    cfg = TrainNCAConfig()
+    meshes = {"sphere": cfg.mesh, **{Path(m).stem: m for m in args.meshes}}
+    graphs = {key: build_cell_graph(*load_surface(spec), cfg.nca.neighbourhood) for key, spec in meshes.items()}
+    mvp = views_mvp()
+    runs_dir = Path(args.runs) if args.runs else None
+    if runs_dir is not None:
+        runs_dir.mkdir(parents=True, exist_ok=True)
+    results: dict = {"iters": args.iters, "seed": args.seed, "meshes": meshes, "exemplars": {}}
+    for name in args.exemplars:
+        image = exemplar_image(name, SIZE)
+        target = torch.from_numpy(image).permute(2, 0, 1)[None].double() / 255
+        own = structure_scores(target, None, target)
+        record: dict = {"exemplar": own.as_dict(), "rows": {}, "train_seconds": {}}
+        pixels = torch.from_numpy(image.reshape(-1, 3)).float() / 127.5 - 1
+        models = {}
+        for loss in args.losses:
+            save = runs_dir / f"{name}_{loss}.safetensors" if runs_dir else None
+            models[loss], record["train_seconds"][loss] = train_model(target.float() * 2 - 1, loss, args.iters, args.seed, graphs["sphere"], vgg, save)
+        for mesh, graph in graphs.items():
+            sets = {"oracle": oracle_views(name, graph, mvp)}
+            vertex_rgb = torch.from_numpy(EXEMPLARS[name](graph.positions.double().numpy() * Judge.pattern_scale(SIZE),
+                                                          graph.normals.double().numpy())).float() * 2 - 1
+            baselines = {"vertex oracle": colour_model(vertex_rgb),
+                         "flat": colour_model(pixels.mean(0).expand(graph.num_cells, 3).clone()),
+                         "vertex noise": colour_model(pixels[torch.randint(pixels.shape[0], (graph.num_cells,),
+                                                                           generator=torch.Generator().manual_seed(0))])}
+            for row, (model, state) in baselines.items():
+                sets[row] = state_views(model, state, graph, mvp)
+            for loss, model in models.items():
+                sets[loss] = state_views(model, grow(model, graph, STEPS, seed=args.seed), graph, mvp)
+            for row, (images, masks) in sets.items():
+                record["rows"].setdefault(row, {})[mesh] = structure_scores(images, masks, target).as_dict()
+        results["exemplars"][name] = record
+        print_exemplar(name, record, list(graphs), args.losses)
+        if args.out:
+            Path(args.out).write_text(json.dumps(results, indent=1))
+    return 0
+
+
+def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]) -> None:
+    own = record["exemplar"]
+    print(f"\n{name}: exemplar coherence {fmt(own['coherence'])}, ratio {fmt(own['ratio'])}, period {fmt(own['period'], 1)} px, "
+          f"self-SWD {fmt(own['swd'], 0)}; train s: " + ", ".join(f"{k} {fmt(v, 0)}" for k, v in record["train_seconds"].items()))
+    header = "| row | " + " | ".join(f"{m} SWD | {m} coh | {m} ratio | {m} period" for m in meshes) + " |"
+    print(header)
+    print("|" + " --- |" * (1 + 4 * len(meshes)))
+    for row, per_mesh in record["rows"].items():
+        cells = []
+        for m in meshes:
+            s = per_mesh[m]
+            cells += [fmt(s["swd"], 0), fmt(s["coherence"]), fmt(s["ratio"]), fmt(s["period"], 1)]
+        print(f"| {row} | " + " | ".join(cells) + " |")
+    for loss in losses:
+        parts = []
+        for m in meshes:
+            swd = record["rows"][loss][m]["swd"]
+            parts.append(f"{m}: /oracle {fmt(swd / record['rows']['oracle'][m]['swd'])}, /ot {fmt(swd / record['rows']['ot'][m]['swd']) if 'ot' in record['rows'] else '-'}")
+        print(f"  {loss}: " + "; ".join(parts))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,269 @@
+"""Weight-free texture losses that see structure: stripes' direction, checks' corners, a period.
+
+Two kinds, both comparing only the object's pixels of a render with a whole exemplar image:
+
+``sw`` - **sliced Wasserstein on random-filter features** (after Heitz et al., CVPR 2021). The
+    same feature sets as the relaxed-OT loss (RGB and the random-weight VGG19 layers, object
+    positions only, :func:`mesh2tex.losses.ot_style.feature_sets`) are projected on as many random
+    unit directions as the layer has channels, fresh every call; both sides' projections are
+    sorted and the render's are matched to the exemplar's at the same quantiles:
+
+        SW_l(A, B) = mean over directions d and ranks i of (sort(A d)_i - Q_B,d(i))^2 / s_l
+        loss       = sum over layers l of SW_l
+
+    where Q_B,d is the exemplar's sorted projections read at the render's quantiles (the two sets
+    may differ in size) and s_l the exemplar layer's mean squared feature (so every layer counts
+    alike whatever its activation scale). Matching whole 1D distributions, not nearest neighbours
+    and two moments, asks for the right *proportions* of every feature, which is what a
+    random-weight network's features need to pin down a structure.
+
+``ps`` - **oriented-band statistics** in the spirit of Portilla and Simoncelli (2000), written here
+    on a small spatial filter bank so that a mask can be honoured exactly. The image's luminance
+    is split into ``scales`` octaves (5-tap binomial blur and decimation); at each octave, complex
+    oriented filters (a Gaussian-windowed complex exponential, ``orientations`` directions over
+    180 degrees, zero mean) give band responses b = r + i q. Statistics over the object positions
+    where the whole filter lies on the object:
+
+        colour      mean (3) and covariance (3 x 3) of the RGB pixels
+        marginals   skewness and kurtosis of each octave's low-pass luminance
+        energy      mean |b| per octave and orientation (which directions carry structure)
+        autocorr    the real band's auto-correlation and the magnitude's auto-covariance (over its
+                    squared mean) over a (2L+1)^2 lag window (period and regularity)
+        cross-ori   covariance of magnitudes between orientations at one octave, over the product
+                    of their means (checks: two directions present together; stripes: one)
+        cross-scale the same relative covariance of each magnitude with the next coarser
+                    octave's, and the correlation of the real band with the coarser band's
+                    phase-doubled response (edges and corners: features aligned across scales)
+        low-pass    each octave's low-pass luminance's auto-correlation over a 5 x 5 window
+
+    The loss is the sum over the groups of the squared difference relative to the exemplar's
+    group: |a_g - b_g|^2 / (|b_g|^2 + eps), so that no group wins by its units.
+
+Conventions: images (N, 3, H, W) in [-1, 1]; masks (N, 1, H, W) in [0, 1] (object above 0.5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F
+
+STRUCTURE_LOSSES = ("sw", "ps")
+
+_BINOMIAL = torch.tensor([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
+_INSIDE = 1.0 - 1e-4  # an eroded mask's average above this: every pixel of the support on the object
+_MIN_POSITIONS = 8  # octaves with fewer valid positions than this are left out of a render's statistics
+
+
+# ------------------------------------------------------------------------------ sliced Wasserstein
+def quantile_resample(sorted_values: torch.Tensor, count: int) -> torch.Tensor:
+    """(Q, K) values sorted along dim 0 -> (count, K): linear interpolation at the quantiles (i + 0.5) / count."""
+    q = sorted_values.shape[0]
+    if q == count:
+        return sorted_values
+    position = ((torch.arange(count, dtype=sorted_values.dtype, device=sorted_values.device) + 0.5) * (q / count) - 0.5).clamp(0, q - 1)
+    low = position.floor().long()
+    high = (low + 1).clamp(max=q - 1)
+    t = (position - low.to(position.dtype))[:, None]
+    return sorted_values[low] * (1 - t) + sorted_values[high] * t
+
+
+def sliced_wasserstein(a: torch.Tensor, b: torch.Tensor, directions: torch.Tensor) -> torch.Tensor:
+    """Squared sliced Wasserstein-2 distance between point sets a (P, C) and b (Q, C) along
+    ``directions`` (C, K) unit columns: the mean over directions and ranks of the squared difference
+    of sorted projections, b read at a's quantiles. Differentiable with respect to a and b."""
+    pa = torch.sort(a @ directions, dim=0).values
+    pb = quantile_resample(torch.sort(b @ directions, dim=0).values, a.shape[0])
+    return (pa - pb).square().mean()
+
+
+def random_directions(channels: int, count: int, generator: torch.Generator | None, device, dtype) -> torch.Tensor:
+    """(channels, count) random unit vectors (columns)."""
+    d = torch.randn(channels, count, generator=generator).to(device=device, dtype=dtype)
+    return d / d.norm(dim=0, keepdim=True).clamp_min(1e-12)
+
+
+def sw_distance(render_sets: list[torch.Tensor], exemplar_sets: list[torch.Tensor], generator: torch.Generator | None = None,
+                min_projections: int = 32) -> torch.Tensor:
+    """sum over layers of SW_l (module docstring); sets (P_l, C_l) and (Q_l, C_l); render sets under 2 points count 0."""
+    total = render_sets[0].new_zeros(())
+    for a, b in zip(render_sets, exemplar_sets):
+        if a.shape[0] < 2:
+            continue
+        scale = b.square().sum(1).mean().clamp_min(1e-8) / b.shape[1]  # mean squared feature per channel
+        directions = random_directions(a.shape[1], max(a.shape[1], min_projections), generator, a.device, a.dtype)
+        total = total + sliced_wasserstein(a, b, directions) / scale
+    return total
+
+
+# ----------------------------------------------------------------------- oriented band statistics
+def _blur_down(images: torch.Tensor) -> torch.Tensor:
+    """(N, C, H, W) -> (N, C, ceil(H/2), ceil(W/2)): binomial blur (reflect padding) and decimation."""
+    kernel = (_BINOMIAL[:, None] * _BINOMIAL[None, :]).to(images)
+    c = images.shape[1]
+    return F.conv2d(F.pad(images, (2, 2, 2, 2), mode="reflect"), kernel.expand(c, 1, 5, 5), groups=c)[..., ::2, ::2]
+
+
+def oriented_filters(orientations: int = 4, size: int = 7, frequency: float = 0.25, sigma: float = 1.4) -> torch.Tensor:
+    """(2 * orientations, 1, size, size) float32: per orientation theta_k = k pi / K, the real (even)
+    and imaginary (odd) parts of exp(2 pi i f (x cos + y sin)) under a Gaussian of ``sigma`` px, each
+    made zero-mean (no response to flat colour) and scaled to unit L2 norm."""
+    r = torch.arange(size, dtype=torch.float64) - (size - 1) / 2
+    y, x = torch.meshgrid(r, r, indexing="ij")
+    window = torch.exp(-(x**2 + y**2) / (2 * sigma**2))
+    bank = []
+    for k in range(orientations):
+        theta = math.pi * k / orientations
+        phase = 2 * math.pi * frequency * (x * math.cos(theta) + y * math.sin(theta))
+        for part in (torch.cos(phase), torch.sin(phase)):
+            f = part * window
+            f = f - f.mean()
+            bank.append(f / f.norm())
+    return torch.stack(bank)[:, None].float()
+
+
+def _masked_moments(x: torch.Tensor, w: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """x (C, P), weights w (P,) summing to 1 -> mean (C,), centred x (C, P)."""
+    mean = x @ w
+    return mean, x - mean[:, None]
+
+
+def _autocorrelation(maps: torch.Tensor, valid: torch.Tensor, lag: int, relative: bool = False) -> torch.Tensor:
+    """maps (C, h, w), valid (h, w) bool -> (C, L) covariances of each centred map with itself shifted by
+    the lags (dy, dx) of the half window 0 <= dy <= lag, |dx| <= lag (without (0, 0) and its mirror
+    duplicates), over the pairs where both ends are valid, divided by the variance (a correlation), or
+    with ``relative`` by the squared mean: for magnitudes, which can be nearly constant (a pure
+    sinusoid), where a correlation would be a ratio of two tiny numbers."""
+    c, h, w = maps.shape
+    v = valid.to(maps.dtype)
+    n = v.sum().clamp_min(1)
+    mean = (maps * v).sum((1, 2)) / n
+    centred = (maps - mean[:, None, None]) * v
+    var = (mean.square() if relative else centred.square().sum((1, 2)) / n) + 1e-8
+    out = []
+    for dy in range(0, lag + 1):
+        for dx in range(-lag, lag + 1):
+            if dy == 0 and dx <= 0:
+                continue
+            if dy >= h or abs(dx) >= w:
+                out.append(torch.zeros_like(var))
+                continue
+            a = centred[:, dy:, max(dx, 0) : w + min(dx, 0)]
+            b = centred[:, : h - dy, max(-dx, 0) : w - max(dx, 0)]
+            both = v[dy:, max(dx, 0) : w + min(dx, 0)] * v[: h - dy, max(-dx, 0) : w - max(dx, 0)]
+            out.append((a * b).sum((1, 2)) / both.sum().clamp_min(1) / var)
+    return torch.stack(out, 1)
+
+
+def _correlation(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    """x (A, P), y (B, P) -> (A, B) correlation coefficients of the centred rows."""
+    x, y = x - x.mean(1, keepdim=True), y - y.mean(1, keepdim=True)
+    cov = x @ y.t() / x.shape[1]
+    return cov / (x.square().mean(1)[:, None] * y.square().mean(1)[None, :]).clamp_min(1e-12).sqrt()
+
+
+def _relative_covariance(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    """x (A, P), y (B, P) positive (magnitudes) -> (A, B) covariances over the products of the means:
+    0 for constant rows, where a correlation would be undefined."""
+    mx, my = x.mean(1, keepdim=True), y.mean(1, keepdim=True)
+    return (x - mx) @ (y - my).t() / x.shape[1] / (mx * my.t() + 1e-8)
+
+
+def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scales: int = 4, orientations: int = 4,
+                    lag: int = 3) -> dict[str, torch.Tensor]:
+    """The statistics of the ``ps`` loss (module docstring) of one image.
+
+    image (1, 3, H, W) in [-1, 1]; mask (1, 1, H, W) in [0, 1] or None (every pixel). Returns a dict
+    of named 1D tensors; octaves with too few valid positions are left out (their keys absent), so
+    compare two dicts on their shared keys. Differentiable with respect to ``image``.
+    """
+    rgb = (image[0] + 1) / 2  # (3, H, W) in [0, 1]
+    full = torch.ones_like(rgb[:1]) if mask is None else (mask[0] > 0.5).to(rgb.dtype)
+    stats: dict[str, torch.Tensor] = {}
+    inside = full[0] > 0.5
+    pixels = rgb[:, inside]  # (3, P)
+    if pixels.shape[1] < _MIN_POSITIONS:
+        return stats
+    w = torch.full((pixels.shape[1],), 1.0 / pixels.shape[1], dtype=rgb.dtype, device=rgb.device)
+    mean, centred = _masked_moments(pixels, w)
+    stats["colour_mean"] = mean
+    stats["colour_cov"] = (centred @ centred.t() / pixels.shape[1]).reshape(-1)
+
+    bank = oriented_filters(orientations).to(rgb)
+    k = bank.shape[-1]
+    luminance = (0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2])[None, None]  # (1, 1, H, W)
+    m = full[None]  # (1, 1, H, W)
+    previous = None  # the finer octave's (magnitude, complex response, valid) for the cross-scale terms
+    for s in range(scales):
+        if min(luminance.shape[-2:]) < k:
+            break
+        # Filter support wholly on the object: erode the mask by the kernel.
+        valid = F.avg_pool2d(m, k, stride=1, padding=k // 2, count_include_pad=True)[0, 0] > _INSIDE
+        response = F.conv2d(F.pad(luminance, (k // 2,) * 4, mode="reflect"), bank)[0]  # (2K, h, w)
+        real, imag = response[0::2], response[1::2]  # (K, h, w) each
+        magnitude = (real.square() + imag.square() + 1e-8).sqrt()
+        lum_valid = m[0, 0] > 0.5
+        count = int(valid.sum())
+        if count >= _MIN_POSITIONS:
+            mag = magnitude[:, valid]  # (K, P)
+            stats[f"energy_{s}"] = mag.mean(1)
+            stats[f"cross_orientation_{s}"] = _relative_covariance(mag, mag)[torch.triu_indices(orientations, orientations).unbind()]
+            stats[f"autocorr_band_{s}"] = _autocorrelation(real, valid, lag).reshape(-1)
+            stats[f"autocorr_magnitude_{s}"] = _autocorrelation(magnitude, valid, lag, relative=True).reshape(-1)
+            stats[f"autocorr_lowpass_{s}"] = _autocorrelation(luminance[0], valid, min(lag, 2)).reshape(-1)
+            lum = luminance[0, 0][lum_valid]
+            centred_lum = lum - lum.mean()
+            var = centred_lum.square().mean() + 1e-8
+            stats[f"marginal_{s}"] = torch.stack([centred_lum.pow(3).mean() / var**1.5, centred_lum.pow(4).mean() / var**2])
+            if previous is not None:
+                fine_mag, fine_real, fine_valid = previous
+                size = fine_mag.shape[-2:]
+                up = lambda t: F.interpolate(t[None], size=size, mode="bilinear", align_corners=False)[0]  # noqa: E731
+                # Bilinear upsampling mixes a coarse pixel's neighbours: they must be valid too.
+                coarse_valid = F.avg_pool2d(valid[None, None].to(rgb.dtype), 3, stride=1, padding=1, count_include_pad=True) > _INSIDE
+                both = fine_valid & (F.interpolate(coarse_valid.to(rgb.dtype), size=size, mode="nearest")[0, 0] > 0.5)
+                if int(both.sum()) >= _MIN_POSITIONS:
+                    coarse_mag = up(magnitude)[:, both]
+                    f_mag = fine_mag[:, both]
+                    stats[f"cross_scale_magnitude_{s}"] = _relative_covariance(f_mag, coarse_mag).reshape(-1)
+                    # Phase doubling: the coarse band b^2 / |b| oscillates at the finer octave's frequency,
+                    # so it correlates with the fine band where edges line up across scales.
+                    doubled_real = up((real.square() - imag.square()) / magnitude)[:, both]
+                    doubled_imag = up(2 * real * imag / magnitude)[:, both]
+                    f_real = fine_real[:, both]
+                    coarse = torch.cat([doubled_real, doubled_imag])
+                    stats[f"cross_scale_phase_{s}"] = _correlation(f_real, coarse).reshape(-1)
+            previous = (magnitude, real, valid)
+        else:
+            previous = None
+        luminance = _blur_down(luminance)
+        # The next octave's object: coarse pixels whose 5-tap blur saw only object pixels.
+        m = (F.avg_pool2d(m, 5, stride=1, padding=2, count_include_pad=True) > _INSIDE).to(rgb.dtype)[..., ::2, ::2]
+    return stats
+
+
+def statistics_distance(mine: dict[str, torch.Tensor], theirs: dict[str, torch.Tensor], eps: float = 1e-2) -> torch.Tensor:
+    """sum over the shared groups of |a_g - b_g|^2 / (|b_g|^2 + eps * size_g)."""
+    total = next(iter(theirs.values())).new_zeros(())
+    for key, b in theirs.items():
+        if key in mine:
+            total = total + (mine[key] - b).square().sum() / (b.square().sum() + eps * b.numel())
+    return total
+
+
+def exemplar_band_statistics(image: torch.Tensor, **kwargs) -> dict[str, torch.Tensor]:
+    """:func:`band_statistics` of a whole exemplar (1, 3, H, W), detached."""
+    with torch.no_grad():
+        return {k: v.detach() for k, v in band_statistics(image, None, **kwargs).items()}
+
+
+def ps_loss(images: torch.Tensor, masks: torch.Tensor, exemplar_stats: dict[str, torch.Tensor]) -> torch.Tensor:
+    """Mean over the N images (N, 3, H, W) with masks (N, 1, H, W) of :func:`statistics_distance` to
+    ``exemplar_stats`` (:func:`exemplar_band_statistics`). Differentiable with respect to ``images``."""
+    return torch.stack([statistics_distance(band_statistics(images[n : n + 1], masks[n : n + 1]), exemplar_stats)
+                        for n in range(images.shape[0])]).mean()
+
+
+__all__ = ["STRUCTURE_LOSSES", "band_statistics", "exemplar_band_statistics", "oriented_filters", "ps_loss", "quantile_resample",
+           "sliced_wasserstein", "statistics_distance", "sw_distance"]

@@ -33,6 +33,7 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
     ("train", "gan"): ("mesh2tex.train.gan", "train the mesh-field texture GAN"),
     ("train", "pose"): ("mesh2tex.train.pose", "train the pose network"),
     ("train", "noc"): ("mesh2tex.train.noc", "train the NOC network"),
+    ("train", "mask"): ("mesh2tex.train.mask", "train the mask network (finds the object in a photo without a mask)"),
     ("train", "nca"): ("mesh2tex.train.nca", "grow a texture from one exemplar image with a mesh cellular automaton"),
     ("infer", "generate"): ("mesh2tex.infer.generate", "texture a mesh from random latent codes"),
     ("infer", "transfer"): ("mesh2tex.infer.transfer", "texture a mesh after one photo"),

@@ -1,7 +1,7 @@
-"""Rebuild a shipped model from nothing: world, shapes, GAN, pose and NOC networks, export, evaluation, card.
+"""Rebuild a shipped model from nothing: world, shapes, GAN, pose, NOC and mask networks, export, evaluation, card.
 
     python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out mesh2tex/models/chair]
-                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--device auto]
+                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters 3000] [--device auto]
                                  [--from-gan CKPT] [--views-gan CKPT]
 
 Every stage resumes (re-run the same command after an interruption): the world and the shapes are
@@ -11,7 +11,7 @@ skipped when present, the GAN, pose and NOC runs continue with --resume. ``--gan
 of training one: the run must have been trained with this script's settings (``GAN_CONFIG``,
 ``RECIPES``, WORLD, SHAPES below) for the card to be true.
 
-The model folder gets generator.safetensors, pose.safetensors, noc.safetensors (float16 inference
+The model folder gets generator.safetensors, pose.safetensors, noc.safetensors, mask.safetensors (float16 inference
 checkpoints, :mod:`mesh2tex.io.models`), card.json (settings, commands, iterations, hardware, wall
 time, the generation protocol's figures) and build_log.md (the same for people; the model card,
 card.md, is written by hand from it). ``--variety real`` builds the world of real families of chairs
@@ -72,6 +72,9 @@ def recipe_gan_config(recipe: dict) -> dict:
 
 
 VIEWS = {"samples": 1536, "resolution": 64, "batch": 32, "seed": 0, "config": {"width": 16, "log_every": 25, "checkpoint_every": 100}}
+# The mask network sees whole photos, not object crops: finer views, each placed over a fresh backdrop at every step.
+MASK = {"samples": 2048, "resolution": 128, "batch": 16, "seed": 0,
+        "config": {"width": 16, "lr": 0.001, "log_every": 50, "checkpoint_every": 250}}
 
 
 def run(argv: list[str], log: list[str]) -> None:
@@ -121,6 +124,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=GAN["seed"], help="the GAN's training seed")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
+    parser.add_argument("--mask-iters", type=int, default=3000)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
     parser.add_argument("--note", default="", help="a line for the card (e.g. how busy the machine was)")
@@ -177,8 +181,14 @@ def main() -> None:
              "--batch", str(VIEWS["batch"]), "--category", args.category, "--variety", args.variety, "--seed", str(VIEWS["seed"]),
              "--checkpoint", str(views_gan),
              "--device", args.device, "--resume"], commands)
+    mask_yaml = work / "mask.yaml"
+    mask_yaml.write_text(yaml.safe_dump(MASK["config"]))
+    run(["train", "mask", "--shapes", str(work / "shapes" / "train"), "--out", str(work / "mask"), "--config", str(mask_yaml),
+         "--iters", str(args.mask_iters), "--samples", str(MASK["samples"]), "--resolution", str(MASK["resolution"]),
+         "--batch", str(MASK["batch"]), "--category", args.category, "--variety", args.variety, "--seed", str(MASK["seed"]),
+         "--device", args.device, "--resume"], commands)
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
-    for kind in ("pose", "noc"):
+    for kind in ("pose", "noc", "mask"):
         export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])
     gan_meta = read_checkpoint_meta(gan_ckpt)["meta"]
     print("\n== generation protocol on the held-out shapes", flush=True)
@@ -188,7 +198,7 @@ def main() -> None:
     card = {
         "name": args.category, "category": args.category, "world": world_settings, "shapes": SHAPES, "gan": {**gan_settings, "config": gan_config},
         "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
-        "noc_iterations": args.noc_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
+        "noc_iterations": args.noc_iters, "mask": MASK, "mask_iterations": args.mask_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
         "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), int(gan_meta["iteration"])),
         "hardware": f"{platform.machine()}, {os.cpu_count()} CPU cores, {platform.system()}; device {args.device}", "note": args.note,
         "build_seconds_this_invocation": round(time.perf_counter() - start, 1), "size_mb": round(size_mb, 2),
@@ -206,7 +216,8 @@ def main() -> None:
         f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch 2, "
         + (f"{card['gan_training_seconds'] / 3600:.2f} h of training; " if card["gan_training_seconds"] else "")
         + f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
-        f"{card['views_gan_iteration']} and half by the world's procedural materials\n"
+        f"{card['views_gan_iteration']} and half by the world's procedural materials; mask: {args.mask_iters} steps on "
+        f"{MASK['resolution']} px views placed over backdrops\n"
         f"- Hardware of this build: {card['hardware']}" + (f"; {args.note}" if args.note else "") + "\n"
         f"- Rebuild from nothing: `{rebuild}`\n\n"
         f"## Commands\n\n```\n" + "\n".join(commands) + "\n```\n\n## Figures (generation protocol)\n\n"

@@ -1,4 +1,4 @@
-"""`train pose` / `train noc`: they learn from rendered views, checkpoint without pickle, resume, and load back."""
+"""`train pose` / `train noc` / `train mask`: they learn from rendered views, checkpoint without pickle, resume, and load back."""
 
 import json
 
@@ -70,7 +70,7 @@ def test_views_are_framed_like_the_query_photo(shapes_dir):
     assert ((whole["mask"] > 127).sum(axis=(1, 2)) < (views["mask"][:4] > 127).sum(axis=(1, 2))).all(), "frame_margin < 0 keeps the far view small"
 
 
-@pytest.mark.parametrize("kind", ["pose", "noc"])
+@pytest.mark.parametrize("kind", ["pose", "noc", "mask"])
 def test_train_resume_and_load(kind, shapes_dir, tmp_path):
     run = tmp_path / kind
     config = tmp_path / "c.yaml"
@@ -86,8 +86,8 @@ def test_train_resume_and_load(kind, shapes_dir, tmp_path):
     net, cfg = load_view_network(run / "checkpoint.safetensors", kind)
     assert cfg.width == 8 and cfg.data.resolution == 32
     image = torch.zeros(1, 3, 32, 32)
-    out = net(image) if kind == "pose" else net(image, torch.ones(1, 1, 32, 32))
-    assert (out[0].shape == (1, 12)) if kind == "pose" else (out.shape == (1, 3, 32, 32))
+    out = net(image) if kind in ("pose", "mask") else net(image, torch.ones(1, 1, 32, 32))
+    assert out[0].shape == (1, 12) if kind == "pose" else out.shape == (1, {"noc": 3, "mask": 1}[kind], 32, 32)
     other = "noc" if kind == "pose" else "pose"
     with pytest.raises(InputError, match=f"expected a '{other}' checkpoint"):
         load_view_network(run / "checkpoint.safetensors", other)

@@ -1,4 +1,4 @@
-"""The options of ``mesh2tex train gan|pose|noc|nca``, built without importing torch (``--help`` stays
+"""The options of ``mesh2tex train gan|pose|noc|mask|nca``, built without importing torch (``--help`` stays
 fast; the defaults shown are read from the configs' source, see :mod:`mesh2tex.options`); each
 command's ``run()`` and ``build_config()`` are in its own module."""
 
@@ -62,6 +62,10 @@ def pose(parser: argparse.ArgumentParser) -> None:
 
 def noc(parser: argparse.ArgumentParser) -> None:
     _view_network(parser, "noc")
+
+
+def mask(parser: argparse.ArgumentParser) -> None:
+    _view_network(parser, "mask")
 
 
 def nca(parser: argparse.ArgumentParser) -> None:

@@ -1,6 +1,9 @@
-"""Training of the two image networks of texture transfer: the pose classifier and the NOC U-Net.
+"""Training of the three image networks of texture transfer: the pose classifier, the NOC U-Net and
+the mask U-Net.
 
-``mesh2tex train pose`` and ``mesh2tex train noc`` share everything but the network and its loss:
+``mesh2tex train pose``, ``train noc`` and ``train mask`` share everything but the network and its
+loss (the mask network sees each view shrunk and placed over a fresh backdrop,
+:func:`mesh2tex.synthetic.backdrops.place_over_backdrops`, drawn anew at every step):
 
 1. **Data**: views of the prepared shapes, rendered once and cached in ``RUN/views.npz``. Each group
    of views (one shape, one texture) is textured either by a random material of the category's
@@ -34,12 +37,14 @@ from mesh2tex.io.atomic import atomic_path
 from mesh2tex.io.checkpoint import checkpoint_digest, read_checkpoint_meta
 from mesh2tex.io.models import VIEW_NET, load_generator, resolve_checkpoint
 from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.mask import mask_iou, mask_loss
 from mesh2tex.nn.noc import noc_error, noc_loss
 from mesh2tex.nn.pose import pose_accuracy, pose_loss
 from mesh2tex.nn.view_nets import VIEWS_NAME, ViewDataConfig, ViewTrainConfig, build_network
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square, object_box
+from mesh2tex.synthetic.backdrops import place_over_backdrops
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.world import WorldSpec, render_views, sample_material, sample_views, unit_to_uint8
 from mesh2tex.texture import latent, shape_mismatch, vertex_colours as field_vertex_colours  # _GanTextures.vertex_colours shadows the name
@@ -182,6 +187,9 @@ def network_loss(kind: str, net: torch.nn.Module, batch: dict[str, torch.Tensor]
     if kind == "pose":
         azimuth_logits, elevation_logits = net(batch["image"])
         return pose_loss(azimuth_logits, elevation_logits, batch["azimuth"], batch["elevation"], cfg.bins)
+    if kind == "mask":  # the backdrops come from torch's generator: a resumed run draws what it would have
+        images, masks = place_over_backdrops(batch["image"], batch["mask"], np.random.default_rng(int(torch.randint(1 << 62, (1,)))))
+        return mask_loss(net(images), masks)
     predicted = net(batch["image"], batch["mask"])
     return noc_loss(predicted, batch["noc"], batch["mask"])
 
@@ -189,16 +197,21 @@ def network_loss(kind: str, net: torch.nn.Module, batch: dict[str, torch.Tensor]
 @torch.no_grad()
 def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], index: np.ndarray, cfg: ViewTrainConfig,
              device: torch.device) -> dict[str, float]:
-    """Validation figures on the held-out views: bin accuracies and azimuth error, or NOC error."""
+    """Validation figures on the held-out views: bin accuracies and azimuth error, NOC error, or mask IoU
+    (the held-out views over the same backdrops at every validation)."""
     net.eval()
     out: dict[str, float] = {}
     chunks = [index[i : i + 64] for i in range(0, len(index), 64)]
     totals: dict[str, float] = {}
+    backdrops = np.random.default_rng(20240)
     for chunk in chunks:
         batch = views_to_tensors(views, chunk, device)
         if kind == "pose":
             az, el = net(batch["image"])
             figures = pose_accuracy(az, el, batch["azimuth"], batch["elevation"], cfg.bins)
+        elif kind == "mask":
+            images, masks = place_over_backdrops(batch["image"], batch["mask"], backdrops)
+            figures = {"mask_iou": mask_iou(net(images), masks)}
         else:
             figures = {"noc_error": noc_error(net(batch["image"], batch["mask"]), batch["noc"], batch["mask"])}
         for k, v in figures.items():

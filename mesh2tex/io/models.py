@@ -8,13 +8,16 @@ Checkpoint kinds and their tensor groups (the file format itself is :mod:`mesh2t
            generator_ema. Metadata: iteration, config (the 'train gan' config, with its camera),
            generator_config (what :func:`load_generator` builds), world_size.
     pose   the pose network (group ``net``, plus ``optim_opt`` while training); metadata: iteration,
-    noc    config (the 'train pose|noc' config, :class:`mesh2tex.nn.view_nets.ViewTrainConfig`).
+    noc    config (the 'train pose|noc|mask' config, :class:`mesh2tex.nn.view_nets.ViewTrainConfig`).
+    mask
 
 A model is a folder ``<models>/<name>/`` with one inference checkpoint per kind and a model card:
 
     generator.safetensors  kind "gan": the EMA generator only (group ``generator_ema``), float16
     pose.safetensors       kind "pose": the pose network (group ``net``), float16
     noc.safetensors        kind "noc": the NOC network (group ``net``), float16
+    mask.safetensors       kind "mask": the mask network (group ``net``), float16; optional (without it a
+                           photo without a mask is cut out by GrabCut alone)
     card.md, card.json     how it was made (world, commands, iterations, hardware, wall time) and its figures
 
 ``<models>`` is ``$MESH2TEX_MODELS`` when set, else the package's own ``mesh2tex/models/`` (package
@@ -47,8 +50,8 @@ HIERARCHY = "hierarchy"
 DEFAULT_HIERARCHY_FACES = 6144
 # Tensor group of the 'pose' and 'noc' kinds.
 VIEW_NET = "net"
-MODEL_FILES = {"gan": "generator.safetensors", "pose": "pose.safetensors", "noc": "noc.safetensors"}
-INFERENCE_GROUPS = {"gan": GENERATOR_EMA, "pose": VIEW_NET, "noc": VIEW_NET}
+MODEL_FILES = {"gan": "generator.safetensors", "pose": "pose.safetensors", "noc": "noc.safetensors", "mask": "mask.safetensors"}
+INFERENCE_GROUPS = {"gan": GENERATOR_EMA, "pose": VIEW_NET, "noc": VIEW_NET, "mask": VIEW_NET}
 
 
 def models_root() -> Path:
@@ -171,7 +174,7 @@ def gan_camera(meta: dict) -> tuple[float, float]:
 
 
 def load_view_network(path: str | os.PathLike, kind: str, device: torch.device | str = "cpu") -> tuple[torch.nn.Module, ViewTrainConfig]:
-    """A trained pose or NOC network (eval mode) and its config, from a ``train pose|noc`` checkpoint
+    """A trained pose, NOC or mask network (eval mode) and its config, from a ``train pose|noc|mask`` checkpoint
     (a path, or a shipped model's name such as ``chair``)."""
     path = resolve_checkpoint(path, kind)
     groups, meta = load_checkpoint(path, kind=kind)

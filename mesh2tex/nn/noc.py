@@ -48,10 +48,13 @@ class NocUNet(nn.Module):
     def forward(self, images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
         sizes = check_shape(images, "NocUNet: images", ("B", self.encoders[0][0].in_channels - 1, "H", "W"), dtype="float")
         check_shape(masks, "NocUNet: masks", ("B", 1, "H", "W"), sizes=sizes)
-        height, width = images.shape[-2:]
+        return torch.sigmoid(self.logits(torch.cat([images, masks.to(images.dtype)], dim=1)))
+
+    def logits(self, x: torch.Tensor) -> torch.Tensor:
+        """The head's raw output [B, out_channels, H, W] for the network's input x [B, in_channels, H, W]."""
+        height, width = x.shape[-2:]
         multiple = 2 ** self.depth
         pad_h, pad_w = (-height) % multiple, (-width) % multiple
-        x = torch.cat([images, masks.to(images.dtype)], dim=1)
         if pad_h or pad_w:
             x = F.pad(x, (0, pad_w, 0, pad_h))
         skips = []
@@ -63,7 +66,7 @@ class NocUNet(nn.Module):
             skip = skips.pop()
             x = F.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
             x = decoder(torch.cat([x, skip], dim=1))
-        return torch.sigmoid(self.head(x))[..., :height, :width]
+        return self.head(x)[..., :height, :width]
 
 
 def noc_loss(predicted: torch.Tensor, target: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:

@@ -1,7 +1,7 @@
-"""The two image networks of texture transfer, the pose classifier and the NOC U-Net: the config
-they are trained with (kept in their checkpoints) and their construction from it.
+"""The three image networks of texture transfer, the pose classifier, the NOC U-Net and the mask
+U-Net: the config they are trained with (kept in their checkpoints) and their construction from it.
 
-``mesh2tex train pose|noc`` trains them (:mod:`train.view_nets`); :func:`mesh2tex.io.models.load_view_network`
+``mesh2tex train pose|noc|mask`` trains them (:mod:`train.view_nets`); :func:`mesh2tex.io.models.load_view_network`
 reads them back.
 """
 
@@ -13,10 +13,11 @@ import torch
 
 from mesh2tex.config import MAX_CHANNELS, check_fields
 
+from mesh2tex.nn.mask import MaskUNet
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseBins, PoseNet
 
-VIEWS_NAME = "views.npz"  # where a 'train pose|noc' run directory caches its rendered views
+VIEWS_NAME = "views.npz"  # where a 'train pose|noc|mask' run directory caches its rendered views
 
 
 @dataclass
@@ -65,9 +66,11 @@ class ViewTrainConfig:
 
 
 def build_network(kind: str, cfg: ViewTrainConfig) -> torch.nn.Module:
-    """A fresh ``kind`` network ('pose' or 'noc') of ``cfg``'s width (and, for 'pose', its bins)."""
+    """A fresh ``kind`` network ('pose', 'noc' or 'mask') of ``cfg``'s width (and, for 'pose', its bins)."""
     if kind == "pose":
         return PoseNet(bins=cfg.bins, width=cfg.width)
     if kind == "noc":
         return NocUNet(width=cfg.width)
+    if kind == "mask":
+        return MaskUNet(width=cfg.width)
     raise ValueError(f"unknown network kind {kind!r}")

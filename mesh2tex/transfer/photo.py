@@ -15,6 +15,7 @@ from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.photos import estimate_mask
 from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig
+from mesh2tex.transfer.mask import network_mask
 
 
 @dataclass
@@ -48,10 +49,12 @@ class FramedView:
 MIN_PHOTO_SIDE = 16  # the smallest query photo: fewer pixels hold no texture to transfer
 
 
-def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig) -> tuple[Photo, str]:
+def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig,
+               mask_checkpoint: str | Path | None = None) -> tuple[Photo, str]:
     """The query photo cropped around its object (``cfg.margin``) and resized to R = ``cfg.resolution``:
     a :class:`Photo` (image (1,3,R,R) in [-1,1], white outside the photo; mask (1,1,R,R)), and where
-    the mask came from (the ``mask_path`` file, the alpha channel, or a GrabCut estimate)."""
+    the mask came from (the ``mask_path`` file, the alpha channel, or an estimate: the mask network of
+    ``mask_checkpoint`` refined by GrabCut, or GrabCut alone without one)."""
     rgb, alpha = load_image(image_path)
     if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
         raise InputError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
@@ -63,6 +66,8 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
         source = str(mask_path)
     elif alpha is not None and (alpha < 128).any():
         mask, source = alpha >= 128, "alpha channel"
+    elif mask_checkpoint is not None:
+        mask, source = network_mask(mask_checkpoint, rgb), "estimated (mask network, GrabCut edges)"
     else:
         mask, source = estimate_mask(rgb), "estimated (GrabCut)"
     mask = np.asarray(mask, dtype=bool)

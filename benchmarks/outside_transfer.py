@@ -1,0 +1,238 @@
+"""Transfer from one photo onto meshes the synthetic world did not make: the mask, the pose and the
+texture, against the photo's ground truth and a flat colour.
+
+    python benchmarks/outside_transfer.py --checkpoint chair [--pose-checkpoint P] [--noc-checkpoint N]
+        [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
+        [--resolution 64] [--photo-size 256] [--out FILE.json]
+
+The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py`` and, for
+chairs, the stool of ``tests/user_assets.py``, each read as a user's file is (turned y-up, prepared
+with the model's hierarchy). Each gets a material of the world's sampler (``sample_material``; parts
+guessed by height as in ``outside_generation.py``) and is photographed ``--poses`` times at the
+world's query cameras and lights (random azimuth, elevation in the world's range) at
+``--photo-size`` px, two ways:
+
+  alpha        a PNG whose alpha channel is the object's mask (the mask is given)
+  background   a JPEG (quality 90) of the object over a sharp crop of a photograph that neither the
+               world nor the mask network's training uses (scikit-image's astronaut, chelsea,
+               camera, coins, clock, page); the mask is estimated as ``infer transfer`` estimates
+               it when none is given: by the mask network with GrabCut edges when there is one
+               (``--mask-checkpoint``, or the shipped model's), else by GrabCut alone
+
+Columns, per variant:
+
+  mask IoU     the estimated mask against the true one (1 for alpha); for the background variant
+               also GrabCut alone, the network alone and the network with GrabCut edges
+  pose error   the azimuth error (degrees, circular) of ``--pose auto`` (the pose network and the
+               search ``infer transfer`` runs), median and share within 15 degrees; "network" is the
+               pose network's own most likely bin
+  transfer     for the first ``--transfers`` photos of each mesh: the transfer (``infer transfer``'s
+               stages at the given iteration counts, NOC guidance when a NOC network is given) and a
+               flat texture of the photo's mean object colour, both rendered with the photo's camera
+               and light at the photo's view ("seen") and turned 180 degrees ("unseen"), scored
+               against what the photo shows (the photo file as read, at 128 px) and the true material
+               rendered alike on the unseen side: low-pass PSNR (Gaussian sigma 3 px) on the pixels
+               both cover. Oracle: the true material rendered at the photo's view, against the file
+               (what 8-bit and JPEG rounding leave; unseen it is the reference itself).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import dataclasses
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT))
+
+# Photographs the world and the mask network's training never show (mesh2tex.synthetic.backdrops uses others).
+BACKDROPS = ("astronaut", "chelsea", "camera", "coins", "clock", "page")
+
+
+def backdrop(index: int, size: int, rng: np.random.Generator) -> np.ndarray:
+    """(size, size, 3) float32 in [0, 1]: a sharp crop of one of scikit-image's photographs."""
+    import cv2
+    import skimage.data
+
+    image = getattr(skimage.data, BACKDROPS[index % len(BACKDROPS)])()
+    if image.ndim == 2:
+        image = np.repeat(image[..., None], 3, axis=2)
+    image = image[..., :3]
+    h, w = image.shape[:2]
+    side = int(min(h, w) * rng.uniform(0.5, 0.9))
+    y, x = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))
+    crop = cv2.resize(np.ascontiguousarray(image[y:y + side, x:x + side]), (size, size), interpolation=cv2.INTER_AREA)
+    return crop.astype(np.float32) / 255.0
+
+
+def circular_error(a: float, b: float) -> float:
+    d = abs(a - b) % 360.0
+    return min(d, 360.0 - d)
+
+
+def main() -> None:
+    import cv2
+
+    from mesh2tex.evaluation.compare import ScoreSettings, common_mask, render_for_comparison, score_views
+    from mesh2tex.evaluation.surfaces import flat_surface, generator_surface, material_surface, photo_mean_colour
+    from mesh2tex.io.images import save_png
+    from mesh2tex.io.models import MODEL_FILES, gan_camera, is_model_name, load_generator, models_root, trained_lit
+
+    def shipped_file(name: str, kind: str) -> str | None:
+        path = models_root() / name / MODEL_FILES[kind]
+        return str(path) if path.is_file() else None
+    from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.vgg import load_vgg19
+    from mesh2tex.photos import estimate_mask
+    from mesh2tex.synthetic.world import WorldSpec, sample_material, sample_views
+    from mesh2tex.texture import load_shape, model_face_count
+    from mesh2tex.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, transfer_texture, view_at_pose
+    from mesh2tex.transfer.fit import check_fit
+    from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
+    from outside_generation import height_parts, outside_meshes
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--checkpoint", default="chair")
+    parser.add_argument("--pose-checkpoint")
+    parser.add_argument("--noc-checkpoint")
+    parser.add_argument("--mask-checkpoint", help="a 'train mask' checkpoint (default: the shipped model's, if it has one)")
+    parser.add_argument("--category", default="chair", choices=["chair", "car"])
+    parser.add_argument("--variety", default="real", choices=["boxy", "real"], help="the world whose materials and cameras are used")
+    parser.add_argument("--poses", type=int, default=4)
+    parser.add_argument("--transfers", type=int, default=1)
+    parser.add_argument("--latent-iters", type=int, default=60)
+    parser.add_argument("--refine-iters", type=int, default=120)
+    parser.add_argument("--resolution", type=int, default=64)
+    parser.add_argument("--photo-size", type=int, default=256)
+    parser.add_argument("--images", help="a folder to keep the photos, masks and renders in")
+    parser.add_argument("--out", help="write the per-photo rows here (JSON)")
+    args = parser.parse_args()
+    device = torch.device("cpu")
+    pose_checkpoint = args.pose_checkpoint or (args.checkpoint if is_model_name(args.checkpoint) else None)
+    noc_checkpoint = args.noc_checkpoint or (args.checkpoint if is_model_name(args.checkpoint) else None)
+    mask_checkpoint = args.mask_checkpoint
+    if mask_checkpoint is None and is_model_name(args.checkpoint):
+        mask_checkpoint = shipped_file(args.checkpoint, "mask")
+    if pose_checkpoint is None:
+        parser.error("--pose-checkpoint is needed with a checkpoint file")
+    generator, meta = load_generator(args.checkpoint, device)
+    distance, fov = gan_camera(meta)
+    cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
+                         use_noc=noc_checkpoint is not None)
+    vgg = load_vgg19(None, device=device)
+    spec = WorldSpec(category=args.category, variety=args.variety)
+    folder = Path(args.images) if args.images else Path(tempfile.mkdtemp(prefix="outside-transfer-"))
+    folder.mkdir(parents=True, exist_ok=True)
+    settings = ScoreSettings()
+    rows = []
+    for index, (name, path) in enumerate(outside_meshes(args.category, folder)):
+        shape, _ = load_shape(path, generator, model_face_count(meta), output_mesh="prepared")
+        vertices, faces = shape.vertices[0], shape.triangles(0)
+        parts = height_parts(vertices, faces, args.category)
+        material = sample_material(spec, np.random.default_rng([7, index]))
+        truth = material_surface(vertices, faces, parts, material)
+        views = sample_views(spec, 1000 + index, args.poses, query=True)
+        for k, view in enumerate(views):
+            photo_render = render_for_comparison(truth, [view], args.photo_size, lighting="photo")
+            rgb = photo_render.rgb[0].permute(1, 2, 0).numpy()
+            true_mask = photo_render.mask[0, 0].numpy() > 0.5
+            rng = np.random.default_rng([11, index, k])
+            backdrop_rgb = backdrop(index + k, args.photo_size, rng)
+            # The rendered photo's background is the view's own; re-composite over the sharp backdrop.
+            coverage = photo_render.mask[0, 0].numpy()[..., None]
+            over = rgb * coverage + backdrop_rgb * (1 - coverage)
+            stem = f"{name}_{k}"
+            alpha_file, jpeg_file = folder / f"{stem}.png", folder / f"{stem}.jpg"
+            save_png(alpha_file, np.concatenate([(rgb * 255).round().astype(np.uint8), (true_mask * 255).astype(np.uint8)[..., None]], 2))
+            cv2.imwrite(str(jpeg_file), cv2.cvtColor((over * 255).round().astype(np.uint8), cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 90])
+            for variant, file in (("alpha", alpha_file), ("background", jpeg_file)):
+                row = {"mesh": name, "photo": k, "variant": variant, "azimuth": view.azimuth, "elevation": view.elevation}
+                if variant == "background":
+                    as_read = cv2.cvtColor(cv2.imread(str(file)), cv2.COLOR_BGR2RGB)
+                    candidates = {"grabcut": estimate_mask(as_read)}
+                    if mask_checkpoint:
+                        probability = network_probability(mask_checkpoint, as_read)
+                        candidates["network"] = probability >= 0.5
+                        candidates["network_grabcut"] = refine_with_grabcut(as_read, probability)
+                    for label, estimate in candidates.items():
+                        row[f"iou_{label}"] = float((estimate & true_mask).sum() / max((estimate | true_mask).sum(), 1))
+                    estimated = candidates["network_grabcut" if mask_checkpoint else "grabcut"]
+                    row["mask_iou"] = row["iou_network_grabcut" if mask_checkpoint else "iou_grabcut"]
+                else:
+                    row["mask_iou"] = 1.0
+                photo, mask_source = load_photo(file, None, cfg, mask_checkpoint=mask_checkpoint)
+                started = time.perf_counter()
+                estimate = estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device)
+                row["pose_seconds"] = round(time.perf_counter() - started, 2)
+                row["found"] = [estimate.azimuth, estimate.elevation]
+                row["pose_error"] = circular_error(estimate.azimuth, view.azimuth)
+                row["network_error"] = circular_error(estimate.network[0], view.azimuth) if estimate.network else None
+                if k < args.transfers:
+                    photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
+                    framed = view_at_pose(shape, estimate.azimuth, estimate.elevation, distance, fov, cfg)
+                    torch.manual_seed(0)
+                    candidate = copy.deepcopy(generator)
+                    result = transfer_texture(candidate, shape, photo, framed, photo_noc, vgg, cfg, device, show_progress=False,
+                                              generator_lit=trained_lit(meta))
+                    batch = collate_shapes([shape])
+                    fit = check_fit(photo.image, photo.mask, result.render, framed.mask)
+                    row["fit_poor"], row["fit_iou"] = fit.poor, fit.silhouette_iou
+                    with torch.no_grad():
+                        texture = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none")
+                    judged = [view, dataclasses.replace(view, azimuth=(view.azimuth + 180.0) % 360.0)]
+                    side = 128
+                    reference = render_for_comparison(truth, judged, side, lighting="photo")
+                    # At the photo's view the reference is the photo file as the transfer read it (8-bit, JPEG for
+                    # the backdrop variant): the oracle row is then the truth against that file, finite.
+                    as_read = cv2.cvtColor(cv2.imread(str(file)), cv2.COLOR_BGR2RGB)
+                    as_read = cv2.resize(as_read, (side, side), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
+                    reference_rgb = reference.rgb.clone()
+                    reference_rgb[0] = torch.from_numpy(as_read).permute(2, 0, 1)
+                    photo_mask = torch.from_numpy(true_mask if variant == "alpha" else estimated).float()
+                    flat_colour = photo_mean_colour(torch.from_numpy(over if variant == "background" else rgb).permute(2, 0, 1), photo_mask)
+                    methods = {"oracle": reference,
+                               "transfer": render_for_comparison(generator_surface(generator, texture, batch), judged, side, lighting="photo"),
+                               "flat": render_for_comparison(flat_surface(vertices, faces, flat_colour), judged, side, lighting="photo")}
+                    mask = common_mask(reference.mask, methods["flat"].mask)
+                    for method, rendered in methods.items():
+                        scores = score_views(rendered, reference_rgb, reference.parts, mask, settings)["lowpass_psnr"]
+                        row[f"{method} seen"], row[f"{method} unseen"] = scores[0], (scores[1] if method != "oracle" else None)
+                    save_png(folder / f"{stem}_{variant}_transfer.png",
+                             (torch.cat([reference.rgb, methods["transfer"].rgb], 3).permute(0, 2, 3, 1).reshape(-1, 2 * side, 3).numpy() * 255)
+                             .round().astype(np.uint8))
+                rows.append(row)
+                print(json.dumps({k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
+    print(f"\n{len({r['mesh'] for r in rows})} {args.category} meshes from outside the world, {args.poses} photos each; "
+          f"checkpoint {args.checkpoint}, pose {pose_checkpoint}, NOC {noc_checkpoint}")
+    background = [r for r in rows if r["variant"] == "background"]
+    print("mask IoU over the backdrops: " + ", ".join(f"{k[4:]} {np.mean([r[k] for r in background]):.3f} (worst {np.min([r[k] for r in background]):.3f})"
+                                                   for k in background[0] if k.startswith("iou_")))
+    print(f"{'variant':12s} {'mask IoU':>9s} {'pose err median':>15s} {'<=15 deg':>8s} {'network median':>14s}"
+          f" {'poor fit':>8s} {'transfer seen':>13s} {'flat seen':>9s} {'transfer unseen':>15s} {'flat unseen':>11s} {'oracle seen':>11s}")
+    for variant in ("alpha", "background"):
+        chosen = [r for r in rows if r["variant"] == variant]
+        judged = [r for r in chosen if "transfer seen" in r]
+
+        def mean(key):
+            return float(np.mean([r[key] for r in judged])) if judged else float("nan")
+
+        print(f"{variant:12s} {np.mean([r['mask_iou'] for r in chosen]):9.3f} {np.median([r['pose_error'] for r in chosen]):15.1f} "
+              f"{np.mean([r['pose_error'] <= 15 for r in chosen]):8.2f} {np.median([r['network_error'] for r in chosen]):14.1f} "
+              f"{mean('fit_poor'):8.2f} {mean('transfer seen'):13.2f} {mean('flat seen'):9.2f} {mean('transfer unseen'):15.2f} {mean('flat unseen'):11.2f} "
+              f"{mean('oracle seen'):11.2f}")
+    if args.out:
+        Path(args.out).write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,76 @@
+"""The object's mask of a photo that comes without one: the mask network's estimate, its edges refined
+by GrabCut (:func:`mesh2tex.photos.estimate_mask` is GrabCut alone, for when no network is at hand)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+SURE = 0.9  # network probabilities above this (below 1 - this) are fixed as object (background) for GrabCut
+
+
+@torch.no_grad()
+def network_probability(checkpoint: str | Path, rgb: np.ndarray, device: torch.device | str = "cpu") -> np.ndarray:
+    """(H, W) float32 probability that each pixel shows the object, by the mask network.
+
+    rgb: (H, W, 3) uint8. The photo is padded to a square (edge pixels repeated), resized to the
+    network's training side, and the prediction is resized back and unpadded.
+    """
+    from mesh2tex.io.models import load_view_network
+
+    net, cfg = load_view_network(checkpoint, "mask", device)
+    h, w = rgb.shape[:2]
+    side = max(h, w)
+    top, left = (side - h) // 2, (side - w) // 2
+    image = torch.from_numpy(np.ascontiguousarray(rgb)).permute(2, 0, 1)[None].float() / 127.5 - 1.0
+    image = F.pad(image, (left, side - w - left, top, side - h - top), mode="replicate")
+    size = cfg.data.resolution
+    logits = net(F.interpolate(image, size=(size, size), mode="area").to(device))
+    probability = torch.sigmoid(F.interpolate(logits.float().cpu(), size=(side, side), mode="bilinear", align_corners=False))
+    return probability[0, 0, top:top + h, left:left + w].numpy()
+
+
+def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: int = 3) -> np.ndarray:
+    """(H, W) bool: GrabCut started from the network's probability (sure object above :data:`SURE`,
+    sure background below 1 - SURE, probable either way in between), then the largest connected
+    region. Falls back to the thresholded probability when GrabCut finds no object."""
+    import cv2
+
+    h, w = probability.shape
+    scale = min(1.0, 320.0 / max(h, w))  # GrabCut is slow on large photos; the mask is upsampled after
+    small_size = (max(1, round(w * scale)), max(1, round(h * scale)))
+    small = cv2.resize(rgb, small_size, interpolation=cv2.INTER_AREA) if scale < 1 else rgb
+    p = cv2.resize(probability, small_size, interpolation=cv2.INTER_LINEAR) if scale < 1 else probability
+    seeds = np.where(p >= 0.5, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
+    seeds[p >= SURE] = cv2.GC_FGD
+    seeds[p <= 1 - SURE] = cv2.GC_BGD
+    threshold = probability >= 0.5
+    if not (seeds == cv2.GC_FGD).any() or not (seeds == cv2.GC_BGD).any():
+        return _largest_region(threshold)
+    background, foreground = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    cv2.setRNGSeed(0)
+    cv2.grabCut(cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2BGR), seeds, None, background, foreground, iterations,
+                cv2.GC_INIT_WITH_MASK)
+    estimate = ((seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD)).astype(np.uint8)
+    if scale < 1:
+        estimate = cv2.resize(estimate, (w, h), interpolation=cv2.INTER_NEAREST)
+    estimate = _largest_region(estimate.astype(bool))
+    return estimate if estimate.sum() >= 16 else _largest_region(threshold)
+
+
+def _largest_region(mask: np.ndarray) -> np.ndarray:
+    import cv2
+
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    if count <= 2:
+        return mask.astype(bool)
+    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+
+
+def network_mask(checkpoint: str | Path, rgb: np.ndarray, refine: bool = True, device: torch.device | str = "cpu") -> np.ndarray:
+    """(H, W) bool object mask of ``rgb`` (H, W, 3) uint8: the mask network's, refined by GrabCut when ``refine``."""
+    probability = network_probability(checkpoint, rgb, device)
+    return refine_with_grabcut(rgb, probability) if refine else _largest_region(probability >= 0.5)

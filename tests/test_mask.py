@@ -1,0 +1,77 @@
+"""The object's mask of a photo without one: views placed over backdrops (the mask network's
+training input), the network's loss, and GrabCut started from a probability map."""
+
+import numpy as np
+import pytest
+import torch
+
+from mesh2tex.nn.mask import MaskUNet, mask_iou, mask_loss
+from mesh2tex.synthetic.backdrops import BACKDROP_KINDS, backdrop, place_over_backdrops
+from mesh2tex.transfer.mask import refine_with_grabcut
+
+
+def _framed_object(size: int = 48):
+    """A red rectangle filling a framed view (the object), white around it: image [1,3,S,S] in [-1,1], mask."""
+    image = torch.ones(1, 3, size, size)
+    mask = torch.zeros(1, 1, size, size)
+    mask[..., 6:42, 10:38] = 1
+    image[:, :, 6:42, 10:38] = torch.tensor([0.8, -0.8, -0.8]).view(1, 3, 1, 1)
+    return image, mask
+
+
+def test_every_backdrop_kind_is_an_image_in_range():
+    rng = np.random.default_rng(0)
+    spreads = []
+    for _ in range(40):
+        image = backdrop(rng, 32)
+        assert image.shape == (32, 32, 3) and image.dtype == np.float32
+        assert 0.0 <= image.min() and image.max() <= 1.0
+        spreads.append(float(image.std()))
+    assert max(spreads) > 0.1, "busy backdrops occur"
+    assert min(spreads) < 0.05, "and plain ones"
+    assert "photo" in BACKDROP_KINDS and "clutter" in BACKDROP_KINDS
+
+
+def test_placed_views_keep_the_object_under_their_mask():
+    image, mask = _framed_object()
+    images, masks = place_over_backdrops(image.repeat(6, 1, 1, 1), mask.repeat(6, 1, 1, 1), np.random.default_rng(1))
+    assert images.shape == (6, 3, 48, 48) and masks.shape == (6, 1, 48, 48)
+    assert images.min() >= -1 and images.max() <= 1
+    covered = masks[:, 0] > 0.5
+    assert covered.any(dim=(1, 2)).all(), "every view still shows the object"
+    assert (covered.sum(dim=(1, 2)) <= mask.sum()).all(), "the object is shrunk or kept, never grown"
+    red = (images[:, 0] > 0.2) & (images[:, 1] < -0.2)  # the object's colour, up to exposure and noise
+    inside = (red & covered).sum() / covered.sum()
+    assert inside > 0.8, "the mask sits on the object's pixels"
+    again, _ = place_over_backdrops(image.repeat(6, 1, 1, 1), mask.repeat(6, 1, 1, 1), np.random.default_rng(1))
+    assert torch.equal(images, again), "the same generator draws the same placements"
+
+
+def test_the_loss_prefers_the_true_mask_and_iou_reads_it():
+    _, mask = _framed_object()
+    right = mask * 20 - 10
+    wrong = -right
+    assert mask_loss(right, mask) < mask_loss(wrong, mask)
+    assert mask_iou(right, mask) == 1.0 and mask_iou(wrong, mask) == 0.0
+    assert MaskUNet(width=4)(torch.zeros(2, 3, 40, 24)).shape == (2, 1, 40, 24)
+
+
+def test_grabcut_sharpens_a_blurred_probability_to_the_object():
+    pytest.importorskip("cv2")
+    import cv2
+
+    rng = np.random.default_rng(2)
+    size = 96
+    rgb = (rng.uniform(0.3, 0.6, (size, size, 3)) * 255).astype(np.uint8)  # a busy grey backdrop
+    truth = np.zeros((size, size), bool)
+    cv2.circle(truth.view(np.uint8), (48, 48), 22, 1, -1)
+    rgb[truth] = (200, 40, 40)
+    probability = cv2.GaussianBlur(truth.astype(np.float32), (0, 0), 6)  # the right place, soft edges
+    probability = cv2.dilate(probability, np.ones((9, 9), np.uint8))  # and too large
+    refined = refine_with_grabcut(rgb, probability)
+    thresholded = probability >= 0.5
+
+    def iou(mask):
+        return (mask & truth).sum() / (mask | truth).sum()
+
+    assert iou(refined) > iou(thresholded) and iou(refined) > 0.9

@@ -149,10 +149,16 @@ def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bo
         return None
     if resume is not True:
         path = Path(resume)
-        if path.is_dir() and (path / CHECKPOINT_NAME).is_file():
+        if path.is_dir():
+            if not (path / CHECKPOINT_NAME).is_file():
+                raise UserError(_no_checkpoint_yet(path))
             path = path / CHECKPOINT_NAME
         if path.resolve() != run.checkpoint_path.resolve():
             header = check_training_checkpoint(path, kind)
+            if not run.has_checkpoint() and continues_own_run(run.root) and note:
+                # killed before its first checkpoint: nothing of this run to continue, so it starts from PATH again
+                print(f"mesh2tex: note: {run.root}: the interrupted run of this command saved no checkpoint yet; starting from {path} again",
+                      file=sys.stderr)
             if run.has_checkpoint() and not overwrite:
                 raise UserError(f"{run.root}: already holds a run ({CHECKPOINT_NAME}); --resume {path} starts a new run: choose another --out, "
                                 f"pass --overwrite to replace it, or pass --resume alone to continue this one")
@@ -166,6 +172,14 @@ def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bo
     if note:
         print(f"mesh2tex: note: {run.checkpoint_path} not found; starting a new run", file=sys.stderr)
     return None
+
+
+def _no_checkpoint_yet(folder: Path) -> str:
+    """Why ``--resume FOLDER`` has nothing to start from: a run not at its first checkpoint yet, or no run."""
+    if (folder / "config.yaml").is_file() or (folder / "metrics.jsonl").is_file():
+        return (f"{folder}: this run has no {CHECKPOINT_NAME} yet (a run writes it every checkpoint_every iterations, when it "
+                f"ends and when it is interrupted); --resume it once it is there, or start without --resume")
+    return f"{folder}: no {CHECKPOINT_NAME} in this folder; --resume takes a run folder or a training checkpoint file"
 
 
 # ------------------------------------------------------------------------------------ NaN guard

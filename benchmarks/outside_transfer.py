@@ -24,8 +24,10 @@ Columns, per variant:
   mask IoU     the estimated mask against the true one (1 for alpha); for the background variant
                also GrabCut alone, the network alone and the network with GrabCut edges
   pose error   the azimuth error (degrees, circular) of ``--pose auto`` (the pose network and the
-               search ``infer transfer`` runs), median and share within 15 degrees; "network" is the
-               pose network's own most likely bin
+               search ``infer transfer`` runs), median and share within 15 degrees, up to the mesh's
+               own symmetries (a round stool with four legs looks the same turned by 90 degrees,
+               and its material, laid by height, is the same too: every such pose is right);
+               "network" is the pose network's own most likely bin (raw error)
   transfer     for the first ``--transfers`` photos of each mesh: the transfer (``infer transfer``'s
                stages at the given iteration counts, NOC guidance when a NOC network is given) and a
                flat texture of the photo's mean object colour, both rendered with the photo's camera
@@ -78,6 +80,42 @@ def backdrop(index: int, size: int, rng: np.random.Generator) -> np.ndarray:
 def circular_error(a: float, b: float) -> float:
     d = abs(a - b) % 360.0
     return min(d, 360.0 - d)
+
+
+def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float = 0.03) -> list[float]:
+    """Turns about the vertical axis (degrees, 0 included) that map the mesh onto itself: its vertices,
+    turned, lie within ``tolerance`` of the bounding-box diagonal of the unturned ones (99th
+    percentile of the distances, both ways: every part must land on a part). A round stool has
+    several; a chair only 0."""
+    from scipy.spatial import cKDTree
+
+    points = vertices - vertices.mean(axis=0)
+    tree = cKDTree(points)
+    diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    angles = np.arange(0.0, 360.0, step)
+    distances = []
+    for degrees in angles:
+        c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+        turned = points @ np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])
+        distances.append(max(np.percentile(tree.query(turned)[0], 99), np.percentile(cKDTree(turned).query(points)[0], 99)))
+    distances = np.array(distances)
+    close = distances < tolerance * diagonal
+    if close.all():  # round: every azimuth shows the same
+        return [float(a) for a in angles]
+    # A symmetry shows as a run of close turns around it (the tolerance admits a few degrees): keep each run's best.
+    turns, n = [], len(angles)
+    for i in range(n):
+        if close[i] and not close[i - 1]:  # a run starts here (circularly)
+            run = [i]
+            while close[(run[-1] + 1) % n] and len(run) < n:
+                run.append((run[-1] + 1) % n)
+            turns.append(float(angles[min(run, key=lambda j: distances[j])]))
+    return sorted(turns) if turns else [0.0]
+
+
+def symmetric_error(found: float, truth: float, turns: list[float]) -> float:
+    """The azimuth error up to the mesh's own symmetries: the smallest error to any equivalent pose."""
+    return min(circular_error(found, truth + turn) for turn in turns)
 
 
 def main() -> None:
@@ -142,6 +180,7 @@ def main() -> None:
         material = sample_material(spec, np.random.default_rng([7, index]))
         truth = material_surface(vertices, faces, parts, material)
         views = sample_views(spec, 1000 + index, args.poses, query=True)
+        turns = azimuth_symmetries(vertices)
         for k, view in enumerate(views):
             photo_render = render_for_comparison(truth, [view], args.photo_size, lighting="photo")
             rgb = photo_render.rgb[0].permute(1, 2, 0).numpy()
@@ -175,7 +214,9 @@ def main() -> None:
                 estimate = estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device)
                 row["pose_seconds"] = round(time.perf_counter() - started, 2)
                 row["found"] = [estimate.azimuth, estimate.elevation]
-                row["pose_error"] = circular_error(estimate.azimuth, view.azimuth)
+                row["pose_error"] = symmetric_error(estimate.azimuth, view.azimuth, turns)
+                row["raw_pose_error"] = circular_error(estimate.azimuth, view.azimuth)
+                row["symmetries"] = len(turns)
                 row["network_error"] = circular_error(estimate.network[0], view.azimuth) if estimate.network else None
                 if k < args.transfers:
                     photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None

@@ -35,13 +35,16 @@ def generate(parser: argparse.ArgumentParser) -> None:
 
 def transfer(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", required=True, help="GAN checkpoint (RUN/checkpoint.safetensors from 'train gan'), or a shipped "
-                        "model's name (chair, car), which also supplies the pose and NOC networks unless given")
+                        "model's name (chair, car), which also supplies the pose, NOC and mask networks unless given")
     parser.add_argument("--mesh", required=True, help="the mesh to texture: a prepared shape (.npz) or a mesh file")
     parser.add_argument("--image", required=True, help="the query photo")
-    parser.add_argument("--mask", help="object mask of the photo (white = object); default: alpha channel or an estimate")
+    parser.add_argument("--mask", help="object mask of the photo (white = object); default: alpha channel, else an estimate "
+                        "(the mask network with GrabCut edges, or GrabCut alone without one)")
     parser.add_argument("--pose", default="auto", help="'auto' (pose network) or AZIMUTH,ELEVATION in degrees")
     parser.add_argument("--pose-checkpoint", help="pose network checkpoint (from 'train pose'), for --pose auto")
     parser.add_argument("--noc-checkpoint", help="NOC network checkpoint (from 'train noc'), for NOC-guided patches")
+    parser.add_argument("--mask-checkpoint", help="mask network checkpoint (from 'train mask'), for a photo without a mask or alpha "
+                        "channel; without one (and no shipped model's), the mask is estimated by GrabCut alone")
     add_out(parser, "output folder")
     config = ConfigOptions(parser, "mesh2tex.transfer.config:TransferConfig", what="the transfer config")
     config.add("--resolution", type=int, help="side of the photo crop and the renders")

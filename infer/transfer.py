@@ -53,7 +53,7 @@ from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, save_png
-from mesh2tex.io.models import gan_camera, is_model_name, load_generator, trained_lit
+from mesh2tex.io.models import gan_camera, is_model_name, load_generator, model_has, trained_lit
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
@@ -184,9 +184,11 @@ def run(args) -> int:
     pose = parse_pose(args.pose)
     if args.automaton and args.automaton_iters < 1:
         raise UserError(f"--automaton-iters {args.automaton_iters}: must be at least 1")
-    if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks
+    if is_model_name(args.checkpoint):  # a shipped model brings its own pose, NOC and (when it has one) mask networks
         args.pose_checkpoint = args.pose_checkpoint or args.checkpoint
         args.noc_checkpoint = args.noc_checkpoint or args.checkpoint
+        if not args.mask_checkpoint and model_has(args.checkpoint, "mask"):
+            args.mask_checkpoint = args.checkpoint
     if pose is None and not args.pose_checkpoint:
         raise UserError("--pose auto needs --pose-checkpoint (from 'mesh2tex train pose'), or give --pose AZIMUTH,ELEVATION")
     if cfg.use_noc and cfg.use_patches and not args.noc_checkpoint:
@@ -200,7 +202,7 @@ def run(args) -> int:
     distance, fov = gan_camera(meta)
     shape, target = load_shape(args.mesh, generator, model_face_count(meta, cfg.faces), cfg.seed, up=args.up, uv=args.uv,
                                output_mesh=args.output_mesh)
-    photo, mask_source = load_photo(args.image, args.mask, cfg)
+    photo, mask_source = load_photo(args.image, args.mask, cfg, mask_checkpoint=args.mask_checkpoint)
     seconds["load"] = round(time.perf_counter() - started, 2)
 
     t = time.perf_counter()

@@ -74,6 +74,11 @@ def is_model_name(value: str | os.PathLike) -> bool:
     return bool(text) and os.sep not in text and "/" not in text and "." not in text and not Path(text).exists()
 
 
+def model_has(name: str, kind: str) -> bool:
+    """Whether the shipped model ``name`` holds a ``kind`` network (the mask network is optional)."""
+    return (models_root() / name / MODEL_FILES[kind]).is_file()
+
+
 def resolve_checkpoint(value: str | os.PathLike, kind: str) -> Path:
     """A checkpoint path as given, or the ``kind`` checkpoint of the shipped model named ``value``.
 

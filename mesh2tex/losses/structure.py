@@ -24,7 +24,7 @@ Two kinds, both comparing only the object's pixels of a render with a whole exem
     180 degrees, zero mean) give band responses b = r + i q. Statistics over the object positions
     where the whole filter lies on the object:
 
-        colour      mean (3) and covariance (3 x 3) of the RGB pixels
+        colour      mean (3), covariance (3 x 3) and 16 quantiles per channel of the RGB pixels
         marginals   skewness and kurtosis of each octave's low-pass luminance
         energy      mean |b| per octave and orientation (which directions carry structure)
         autocorr    the real band's auto-correlation and the magnitude's auto-covariance (over its
@@ -53,6 +53,7 @@ STRUCTURE_LOSSES = ("sw", "ps")
 
 _BINOMIAL = torch.tensor([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 _INSIDE = 1.0 - 1e-4  # an eroded mask's average above this: every pixel of the support on the object
+QUANTILES = 16  # colour quantiles per channel in the "ps" statistics
 _MIN_POSITIONS = 8  # octaves with fewer valid positions than this are left out of a render's statistics
 
 
@@ -189,6 +190,10 @@ def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scale
     mean, centred = _masked_moments(pixels, w)
     stats["colour_mean"] = mean
     stats["colour_cov"] = (centred @ centred.t() / pixels.shape[1]).reshape(-1)
+    # The colour marginals themselves (a two-colour exemplar has two modes that a mean and a
+    # covariance cannot tell from a blend): QUANTILES evenly spaced quantiles of each channel.
+    ranks = ((torch.arange(QUANTILES, device=rgb.device) + 0.5) / QUANTILES * (pixels.shape[1] - 1)).round().long()
+    stats["colour_quantiles"] = torch.sort(pixels, dim=1).values[:, ranks].reshape(-1)
 
     bank = oriented_filters(orientations).to(rgb)
     k = bank.shape[-1]

@@ -1,7 +1,7 @@
 """Rebuild a shipped model from nothing: world, shapes, GAN, pose, NOC and mask networks, export, evaluation, card.
 
     python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out mesh2tex/models/chair]
-                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters 3000] [--device auto]
+                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters 2000] [--device auto]
                                  [--from-gan CKPT] [--views-gan CKPT]
 
 Every stage resumes (re-run the same command after an interruption): the world and the shapes are
@@ -73,8 +73,8 @@ def recipe_gan_config(recipe: dict) -> dict:
 
 VIEWS = {"samples": 1536, "resolution": 64, "batch": 32, "seed": 0, "config": {"width": 16, "log_every": 25, "checkpoint_every": 100}}
 # The mask network sees whole photos, not object crops: finer views, each placed over a fresh backdrop at every step.
-MASK = {"samples": 2048, "resolution": 128, "batch": 16, "seed": 0,
-        "config": {"width": 16, "lr": 0.001, "log_every": 50, "checkpoint_every": 250}}
+MASK = {"samples": 2048, "resolution": 96, "batch": 8, "seed": 0,
+        "config": {"width": 12, "lr": 0.001, "log_every": 50, "checkpoint_every": 250}}
 
 
 def run(argv: list[str], log: list[str]) -> None:
@@ -124,7 +124,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=GAN["seed"], help="the GAN's training seed")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
-    parser.add_argument("--mask-iters", type=int, default=3000)
+    parser.add_argument("--mask-iters", type=int, default=2000)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
     parser.add_argument("--note", default="", help="a line for the card (e.g. how busy the machine was)")

@@ -52,7 +52,7 @@ def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch
     both = (photo_in & render_in).float()
     problems = []
     if both.sum() < 16:
-        return FitCheck(round(iou, 4), float("nan"), float("nan"), ["the mesh and the photo's object barely overlap at the found pose"])
+        return FitCheck(round(iou, 4), float("nan"), float("nan"), ["the mesh and the photo's object barely overlap at the pose used"])
     photo01 = (photo_image.float().cpu() + 1) / 2
     render01 = (render.float().cpu() + 1) / 2
     mean = (photo01 * both).sum(dim=(2, 3), keepdim=True) / both.sum()
@@ -60,9 +60,9 @@ def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch
     result_db = float(lowpass_psnr(render01, photo01, both)[0])
     flat_db = float(lowpass_psnr(flat, photo01, both)[0])
     if iou < MIN_SILHOUETTE_IOU:
-        problems.append(f"the mesh's outline at the found pose overlaps the photo's object by {iou:.2f} (IoU): "
+        problems.append(f"the mesh's outline at the pose used overlaps the photo's object by {iou:.2f} (IoU): "
                         "the pose or the mask may be wrong (give --pose AZ,EL or --mask FILE)")
     if result_db - flat_db < MIN_GAIN_OVER_FLAT_DB:
         problems.append(f"the result matches the photo less than a flat colour of its mean ({result_db:.1f} dB against "
-                        f"{flat_db:.1f} dB low-pass PSNR at the found pose)")
+                        f"{flat_db:.1f} dB low-pass PSNR at the pose used)")
     return FitCheck(round(iou, 4), round(result_db, 3), round(flat_db, 3), problems)

@@ -76,6 +76,15 @@ def test_ps_ranks_the_exemplar_first_and_sees_orientation():
         assert float(ps_loss(image, mask, target)) > 10 * own, name
 
 
+def test_ps_prefers_the_exemplars_colours_scattered_to_a_flat_colour():
+    """A flat colour must not be the cheapest way out: the exemplar's own pixels shuffled score better."""
+    stripes, mask = _image("stripes"), _disc()
+    target = exemplar_band_statistics(stripes)
+    shuffled = stripes.flatten(2)[:, :, torch.randperm(64 * 64, generator=torch.Generator().manual_seed(4))].reshape(stripes.shape)
+    flat = stripes.mean(dim=(2, 3), keepdim=True).expand_as(stripes)
+    assert float(ps_loss(shuffled, mask, target)) < float(ps_loss(flat, mask, target))
+
+
 def test_ps_loss_falls_under_gradient_descent():
     target = exemplar_band_statistics(_image("checker"))
     mask = _disc()

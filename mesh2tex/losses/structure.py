@@ -37,7 +37,9 @@ Two kinds, both comparing only the object's pixels of a render with a whole exem
         low-pass    each octave's low-pass luminance's auto-correlation over a 5 x 5 window
 
     The loss is the sum over the groups of the squared difference relative to the exemplar's
-    group: |a_g - b_g|^2 / (|b_g|^2 + eps), so that no group wins by its units.
+    group, w_g |a_g - b_g|^2 / (|b_g|^2 + eps), so that no group wins by its units; the colour and
+    energy groups weigh 10 (w_g, :data:`GROUP_WEIGHTS`), or a flat colour would score better than
+    any wrong structure and an automaton would settle on it.
 
 Conventions: images (N, 3, H, W) in [-1, 1]; masks (N, 1, H, W) in [0, 1] (object above 0.5).
 """
@@ -54,6 +56,11 @@ STRUCTURE_LOSSES = ("sw", "ps")
 _BINOMIAL = torch.tensor([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 _INSIDE = 1.0 - 1e-4  # an eroded mask's average above this: every pixel of the support on the object
 QUANTILES = 16  # colour quantiles per channel in the "ps" statistics
+# Relative weights of statistic groups (by name prefix; others 1). Correlation-type groups of a flat
+# render are all 0, an error of 1 each, while a structured but wrong render can score 2 to 4 per
+# group: unweighted, a flat colour beats noise of the exemplar's own colours and the automaton
+# settles on it. Weighting the colour and band-energy groups makes contrast and palette come first.
+GROUP_WEIGHTS = {"colour": 10.0, "energy": 10.0}
 _MIN_POSITIONS = 8  # octaves with fewer valid positions than this are left out of a render's statistics
 
 
@@ -249,11 +256,12 @@ def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scale
 
 
 def statistics_distance(mine: dict[str, torch.Tensor], theirs: dict[str, torch.Tensor], eps: float = 1e-2) -> torch.Tensor:
-    """sum over the shared groups of |a_g - b_g|^2 / (|b_g|^2 + eps * size_g)."""
+    """sum over the shared groups of w_g |a_g - b_g|^2 / (|b_g|^2 + eps * size_g), w_g from :data:`GROUP_WEIGHTS`."""
     total = next(iter(theirs.values())).new_zeros(())
     for key, b in theirs.items():
         if key in mine:
-            total = total + (mine[key] - b).square().sum() / (b.square().sum() + eps * b.numel())
+            weight = next((w for prefix, w in GROUP_WEIGHTS.items() if key.startswith(prefix)), 1.0)
+            total = total + weight * (mine[key] - b).square().sum() / (b.square().sum() + eps * b.numel())
     return total
 
 
@@ -270,5 +278,5 @@ def ps_loss(images: torch.Tensor, masks: torch.Tensor, exemplar_stats: dict[str,
                         for n in range(images.shape[0])]).mean()
 
 
-__all__ = ["STRUCTURE_LOSSES", "band_statistics", "exemplar_band_statistics", "oriented_filters", "ps_loss", "quantile_resample",
+__all__ = ["GROUP_WEIGHTS", "STRUCTURE_LOSSES", "band_statistics", "exemplar_band_statistics", "oriented_filters", "ps_loss", "quantile_resample",
            "sliced_wasserstein", "statistics_distance", "sw_distance"]

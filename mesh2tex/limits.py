@@ -25,6 +25,8 @@ MAX_SPHERE_SUBDIVISIONS = 256  # sphere:N is a cube sphere of 6 N^2 quads (256: 
 MAX_IMAGE_PIXELS = 100_000_000  # pixels of one photo read (PIL's own bomb limit is half of twice this)
 MAX_LATENTS = 10_000  # latents per shape of the generation protocol
 MAX_BATCH = 4096  # shapes or views per training step
+MAX_ITERS = 10_000_000  # optimisation steps of one command (training iterations, transfer stages)
+MAX_NCA_STEPS = 100_000  # automaton steps of one rollout or growth
 MIN_SET_PHOTO_SIDE = 8  # the smallest side of a photo of a training or evaluation set (prepare images' smallest --size)
 
 ELEVATION = (-90.0, 90.0)  # degrees above the horizon
@@ -38,10 +40,16 @@ SIZE_FIELDS: dict[str, tuple[int, int]] = {
     "views": (1, MAX_VIEWS), "query_views": (1, MAX_VIEWS), "anchor_views": (0, MAX_VIEWS), "unseen_views": (0, MAX_VIEWS),
     "frames": (0, MAX_VIEWS), "turntable_frames": (0, MAX_VIEWS), "samples": (1, 100_000),
     "faces": (0, MAX_FACES), "latents": (1, MAX_LATENTS), "batch": (1, MAX_BATCH),
+    "iters": (0, MAX_ITERS), "latent_iters": (0, MAX_ITERS), "refine_iters": (0, MAX_ITERS), "pose_iters": (0, MAX_ITERS),
+    "noc_iters": (0, MAX_ITERS), "lr_decay_iters": (0, MAX_ITERS),
+    "steps": (0, MAX_NCA_STEPS), "steps_min": (0, MAX_NCA_STEPS), "steps_max": (0, MAX_NCA_STEPS), "final_steps": (0, MAX_NCA_STEPS),
+    "nca_steps": (0, MAX_NCA_STEPS),
 }
 ANGLE_FIELDS: dict[str, tuple[float, float]] = {
     "elevation": ELEVATION, "elevation_min": ELEVATION, "elevation_max": ELEVATION, "fov": FOV,
 }
+TRUNCATION = (-2.0, 2.0)  # truncation psi: 1 none, 0 the mean latent; beyond +-2 the latents leave anything trained
+RANGE_FIELDS: dict[str, tuple[float, float]] = {"truncation": TRUNCATION}
 
 
 def check_size(name: str, value, maximum: int, minimum: int = 1) -> int:
@@ -75,10 +83,10 @@ def check_config_value(name: str, value, where: str) -> None:
         for v in values:
             if isinstance(v, int) and not isinstance(v, bool):
                 check_size(where, v, high, low)
-    elif name in ANGLE_FIELDS:
+    elif name in ANGLE_FIELDS or name in RANGE_FIELDS:
         for v in values:
             if isinstance(v, (int, float)) and not isinstance(v, bool):
-                check_range(where, v, *ANGLE_FIELDS[name], unit="degrees")
+                check_range(where, v, *ANGLE_FIELDS.get(name, RANGE_FIELDS.get(name)), unit="degrees" if name in ANGLE_FIELDS else "")
 
 
 def short(value, limit: int = 60) -> str:

@@ -135,6 +135,9 @@ def add_checkpoint(parser, help: str, *, config: "ConfigOptions | None" = None, 
     return renamed(action, alias) if alias else action
 
 
+MAX_SEEDS = 100_000  # seeds of one command (a range holds at most as many)
+
+
 def parse_seeds(text: str, flag: str = "--seeds") -> list[int]:
     """Seeds as the user types them: integers and ranges, comma-separated (``0-7``, ``0,2,5-9``; a
     range includes both ends); repeated seeds are kept once, in the order first given. InputError
@@ -160,6 +163,8 @@ def parse_seeds(text: str, flag: str = "--seeds") -> list[int]:
             if value not in seen:
                 seen.add(value)
                 seeds.append(value)
+        if len(seeds) > MAX_SEEDS:
+            raise InputError(f"{flag}: more than {MAX_SEEDS} seeds; run them in parts")
     if not seeds:
         raise InputError(f"{flag}: give at least one seed")
     return seeds

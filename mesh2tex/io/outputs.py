@@ -169,6 +169,8 @@ def output_run(out: str | os.PathLike, argv: list[str], command: str, *, wait: b
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: --out is a file, not a folder")
+    if out.is_symlink() and not out.exists():
+        raise InputError(f"{out}: a symbolic link to {os.readlink(out)}, which does not exist; create that folder or choose another --out")
     held = _current(out)
     if held is not None:
         yield held

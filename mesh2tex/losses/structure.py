@@ -77,7 +77,7 @@ def quantile_resample(sorted_values: torch.Tensor, count: int) -> torch.Tensor:
     return sorted_values[low] * (1 - t) + sorted_values[high] * t
 
 
-def sliced_wasserstein(a: torch.Tensor, b: torch.Tensor, directions: torch.Tensor) -> torch.Tensor:
+def sliced_wasserstein2(a: torch.Tensor, b: torch.Tensor, directions: torch.Tensor) -> torch.Tensor:
     """Squared sliced Wasserstein-2 distance between point sets a (P, C) and b (Q, C) along
     ``directions`` (C, K) unit columns: the mean over directions and ranks of the squared difference
     of sorted projections, b read at a's quantiles. Differentiable with respect to a and b."""
@@ -101,7 +101,7 @@ def sw_distance(render_sets: list[torch.Tensor], exemplar_sets: list[torch.Tenso
             continue
         scale = b.square().sum(1).mean().clamp_min(1e-8) / b.shape[1]  # mean squared feature per channel
         directions = random_directions(a.shape[1], max(a.shape[1], min_projections), generator, a.device, a.dtype)
-        total = total + sliced_wasserstein(a, b, directions) / scale
+        total = total + sliced_wasserstein2(a, b, directions) / scale
     return total
 
 
@@ -279,4 +279,4 @@ def ps_loss(images: torch.Tensor, masks: torch.Tensor, exemplar_stats: dict[str,
 
 
 __all__ = ["GROUP_WEIGHTS", "STRUCTURE_LOSSES", "band_statistics", "exemplar_band_statistics", "oriented_filters", "ps_loss", "quantile_resample",
-           "sliced_wasserstein", "statistics_distance", "sw_distance"]
+           "sliced_wasserstein2", "statistics_distance", "sw_distance"]

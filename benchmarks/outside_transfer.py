@@ -13,7 +13,9 @@ world's query cameras and lights (random azimuth, elevation in the world's range
 ``--photo-size`` px, two ways:
 
   alpha        a PNG whose alpha channel is the object's mask (the mask is given)
-  background   a JPEG (quality 90) of the object over a sharp crop of a photograph that neither the
+  room         a JPEG (quality 90) of the object in front of a wall over a plank floor, drawn by this
+               script (:func:`room`); the mask is estimated as below
+  clutter      a JPEG (quality 90) of the object over a sharp crop of a photograph that neither the
                world nor the mask network's training uses (scikit-image's astronaut, chelsea,
                camera, coins, clock, page); the mask is estimated as ``infer transfer`` estimates
                it when none is given: by the mask network with GrabCut edges when there is one
@@ -22,7 +24,7 @@ world's query cameras and lights (random azimuth, elevation in the world's range
 Columns, per variant:
 
   mask IoU     the estimated mask against the true one (1 for alpha); for the background variant
-               also GrabCut alone, the network alone and the network with GrabCut edges
+               also GrabCut alone, the network alone and the network with GrabCut edges (room, clutter)
   pose error   the azimuth error (degrees, circular) of ``--pose auto`` (the pose network and the
                search ``infer transfer`` runs), median and share within 15 degrees, up to the mesh's
                own symmetries (a round stool with four legs looks the same turned by 90 degrees,
@@ -75,6 +77,27 @@ def backdrop(index: int, size: int, rng: np.random.Generator) -> np.ndarray:
     y, x = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))
     crop = cv2.resize(np.ascontiguousarray(image[y:y + side, x:x + side]), (size, size), interpolation=cv2.INTER_AREA)
     return crop.astype(np.float32) / 255.0
+
+
+def room(size: int, rng: np.random.Generator) -> np.ndarray:
+    """(size, size, 3) float32 in [0, 1]: a wall (a muted colour, lit from above) over a floor of planks
+    (each its own shade, with grain), the horizon at 45-75 % of the height; drawn here, not by the
+    training code's backdrops."""
+    import colorsys
+
+    rows = np.arange(size, dtype=np.float32)[:, None, None]
+    horizon = int(size * rng.uniform(0.45, 0.75))
+    wall = np.array(colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.05, 0.35), rng.uniform(0.55, 0.95)), np.float32)
+    image = np.broadcast_to(wall * (0.85 + 0.15 * (1 - rows / size)), (size, size, 3)).copy()
+    wood = np.array(colorsys.hsv_to_rgb(rng.uniform(0.05, 0.11), rng.uniform(0.3, 0.7), rng.uniform(0.25, 0.7)), np.float32)
+    plank = max(3, int(size * rng.uniform(0.03, 0.08)))
+    for top in range(horizon, size, plank):
+        shade = float(rng.uniform(0.8, 1.15))
+        grain = 1 + 0.06 * np.sin(np.arange(size) * rng.uniform(0.2, 0.6) + rng.uniform(0, 6))[None, :, None]
+        image[top:top + plank] = np.clip(wood * shade * grain, 0, 1)
+        image[top:top + 1] *= 0.7  # the gap between planks
+    image[horizon - 2:horizon] *= 0.6  # the skirting's shadow
+    return np.clip(image, 0.0, 1.0)
 
 
 def circular_error(a: float, b: float) -> float:
@@ -186,17 +209,19 @@ def main() -> None:
             rgb = photo_render.rgb[0].permute(1, 2, 0).numpy()
             true_mask = photo_render.mask[0, 0].numpy() > 0.5
             rng = np.random.default_rng([11, index, k])
-            backdrop_rgb = backdrop(index + k, args.photo_size, rng)
-            # The rendered photo's background is the view's own; re-composite over the sharp backdrop.
+            # The rendered photo's background is the view's own; re-composite over each backdrop.
             coverage = photo_render.mask[0, 0].numpy()[..., None]
-            over = rgb * coverage + backdrop_rgb * (1 - coverage)
             stem = f"{name}_{k}"
-            alpha_file, jpeg_file = folder / f"{stem}.png", folder / f"{stem}.jpg"
-            save_png(alpha_file, np.concatenate([(rgb * 255).round().astype(np.uint8), (true_mask * 255).astype(np.uint8)[..., None]], 2))
-            cv2.imwrite(str(jpeg_file), cv2.cvtColor((over * 255).round().astype(np.uint8), cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 90])
-            for variant, file in (("alpha", alpha_file), ("background", jpeg_file)):
+            photos = {"alpha": (folder / f"{stem}.png", rgb)}
+            save_png(photos["alpha"][0], np.concatenate([(rgb * 255).round().astype(np.uint8), (true_mask * 255).astype(np.uint8)[..., None]], 2))
+            for variant, backdrop_rgb in (("room", room(args.photo_size, rng)), ("clutter", backdrop(index + k, args.photo_size, rng))):
+                over = rgb * coverage + backdrop_rgb * (1 - coverage)
+                photos[variant] = (folder / f"{stem}_{variant}.jpg", over)
+                cv2.imwrite(str(photos[variant][0]), cv2.cvtColor((over * 255).round().astype(np.uint8), cv2.COLOR_RGB2BGR),
+                            [cv2.IMWRITE_JPEG_QUALITY, 90])
+            for variant, (file, over) in photos.items():
                 row = {"mesh": name, "photo": k, "variant": variant, "azimuth": view.azimuth, "elevation": view.elevation}
-                if variant == "background":
+                if variant != "alpha":
                     as_read = cv2.cvtColor(cv2.imread(str(file)), cv2.COLOR_BGR2RGB)
                     candidates = {"grabcut": estimate_mask(as_read)}
                     if mask_checkpoint:
@@ -240,7 +265,7 @@ def main() -> None:
                     reference_rgb = reference.rgb.clone()
                     reference_rgb[0] = torch.from_numpy(as_read).permute(2, 0, 1)
                     photo_mask = torch.from_numpy(true_mask if variant == "alpha" else estimated).float()
-                    flat_colour = photo_mean_colour(torch.from_numpy(over if variant == "background" else rgb).permute(2, 0, 1), photo_mask)
+                    flat_colour = photo_mean_colour(torch.from_numpy(over).permute(2, 0, 1).float(), photo_mask)
                     methods = {"oracle": reference,
                                "transfer": render_for_comparison(generator_surface(generator, texture, batch), judged, side, lighting="photo"),
                                "flat": render_for_comparison(flat_surface(vertices, faces, flat_colour), judged, side, lighting="photo")}
@@ -255,12 +280,13 @@ def main() -> None:
                 print(json.dumps({k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
     print(f"\n{len({r['mesh'] for r in rows})} {args.category} meshes from outside the world, {args.poses} photos each; "
           f"checkpoint {args.checkpoint}, pose {pose_checkpoint}, NOC {noc_checkpoint}")
-    background = [r for r in rows if r["variant"] == "background"]
-    print("mask IoU over the backdrops: " + ", ".join(f"{k[4:]} {np.mean([r[k] for r in background]):.3f} (worst {np.min([r[k] for r in background]):.3f})"
-                                                   for k in background[0] if k.startswith("iou_")))
+    for variant in ("room", "clutter"):
+        chosen = [r for r in rows if r["variant"] == variant]
+        print(f"mask IoU, {variant}: " + ", ".join(f"{k[4:]} {np.mean([r[k] for r in chosen]):.3f} (worst {np.min([r[k] for r in chosen]):.3f})"
+                                                 for k in chosen[0] if k.startswith("iou_")))
     print(f"{'variant':12s} {'mask IoU':>9s} {'pose err median':>15s} {'<=15 deg':>8s} {'network median':>14s}"
           f" {'poor fit':>8s} {'transfer seen':>13s} {'flat seen':>9s} {'transfer unseen':>15s} {'flat unseen':>11s} {'oracle seen':>11s}")
-    for variant in ("alpha", "background"):
+    for variant in ("alpha", "room", "clutter"):
         chosen = [r for r in rows if r["variant"] == variant]
         judged = [r for r in chosen if "transfer seen" in r]
 

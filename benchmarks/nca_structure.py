@@ -97,7 +97,7 @@ def fmt(value: float, digits: int = 2) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--exemplars", nargs="+", default=["stripes", "checker", "bricks", "dots", "brick", "grass", "gravel"])
-    parser.add_argument("--losses", nargs="+", default=["ot", "sw", "ps"])
+    parser.add_argument("--losses", nargs="*", default=["ot", "sw", "ps"], help="none: only the oracle and baseline rows")
     parser.add_argument("--iters", type=int, default=150, help="training iterations per model (train nca's default is 1500)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--meshes", nargs="*", default=[], help="held-out meshes (prepared .npz or mesh files)")

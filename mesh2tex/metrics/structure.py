@@ -51,6 +51,7 @@ from mesh2tex.metrics.spectrum import object_patches
 from mesh2tex.metrics.swd import sliced_wasserstein
 
 _FLAT = 1e-5  # mean gradient energy per pixel below which a window counts as untextured ((1/255)^2 is 1.5e-5)
+_FLAT_VARIANCE = 1e-8  # windowed luminance variance below which a set has no texture (8-bit steps give 1e-6 and more)
 BINS = 16  # orientation histogram bins over 180 degrees
 HALF_WIDTH = 1  # bins each side of a direction counted as "that direction" (3 bins: 33.75 degrees)
 
@@ -147,6 +148,8 @@ def spectrum_period(images: torch.Tensor, masks: torch.Tensor | None = None, pat
     hann = torch.hann_window(patch, periodic=False, dtype=torch.float64)
     window = hann[:, None] * hann[None, :]
     x = (x - (x * window).sum((-2, -1), keepdim=True) / window.sum()) * window
+    if float(x.square().mean()) < _FLAT_VARIANCE:  # a flat colour: float rounding has no period
+        return math.nan
     size = 4 * patch  # zero padding: a finer sampling of the same (window-smoothed) spectrum
     power = torch.fft.fft2(x, s=(size, size)).abs().square().sum(0)  # pooled (size, size)
     f = torch.fft.fftfreq(size, dtype=torch.float64)

@@ -35,6 +35,7 @@ from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.models import load_nca
 from mesh2tex.io.outputs import guard_outputs
+from mesh2tex.limits import check_range
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
 from mesh2tex.nn.nca import build_cell_graph
 from mesh2tex.nn.render_texture import render_states
@@ -68,6 +69,8 @@ class InferNCAConfig:
         for name, low in (("steps", 1), ("views", 1), ("resolution", 32), ("texture_size", 16), ("frames", 0)):
             if getattr(self, name) < low:
                 raise UserError(f"--{name.replace('_', '-')} must be at least {low}, got {getattr(self, name)}")
+        # one turn either way is every orientation; far beyond, the float32 rotation turns to NaN
+        self.angle = check_range("--angle", self.angle, -360.0, 360.0, "degrees")
         if self.texture_format not in TEXTURE_FORMATS:
             raise UserError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
         self.subdivide = str(self.subdivide)

@@ -103,3 +103,14 @@ def test_a_bad_mask_expression_is_one_line(expression):
         expression_weights(expression, np.random.default_rng(0).uniform(-1, 1, (50, 3)))
     message = str(caught.value)
     assert message.startswith("graft mask ") and "\n" not in message and len(message.encode()) < 1000, message
+
+
+@pytest.mark.parametrize("angle", ["1e308", "-1e308", "361"])
+def test_an_angle_beyond_a_turn_names_angle(angle, tmp_path, capsys):
+    """``infer nca --angle``: a finite angle far beyond a turn is refused naming --angle, before any
+    file is read (it once ran and ended in non-finite states blamed on --steps)."""
+    words = base_argv(("infer", "nca"), tmp_path, "--angle") + [f"--angle={angle}"]
+    assert main(words) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--angle {float(angle)!r}: must be in [-360, 360] degrees" in err and "--steps" not in err, err
+    assert not (tmp_path / "out").exists()

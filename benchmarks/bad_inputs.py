@@ -264,7 +264,7 @@ def cases() -> list[Case]:
         lambda d: [png(d / "p" / f"{k}.png", (16, 16), "RGBA", (0, 0, 0, 0)) for k in range(3)])
     add("train gan --images: a float TIFF depth map", "file", lambda fx, d: train_gan(fx, d, images=d / "p"), lambda d: float_tiff(d / "p"))
     add("train gan --images: a mask file holding a photo", "file", lambda fx, d: train_gan(fx, d, images=d / "p"),
-        lambda d: (color_png(d / "p" / "images" / "a.png"), color_png(d / "p" / "masks" / "a.png")))
+        lambda d: (colour_png(d / "p" / "images" / "a.png"), colour_png(d / "p" / "masks" / "a.png")))
     add("train gan --images: masks/ lacks one", "file", lambda fx, d: train_gan(fx, d, images=d / "p"),
         lambda d: (png(d / "p" / "images" / "a.png"), png(d / "p" / "images" / "b.png"), png(d / "p" / "masks" / "a.png", mode="L", value=255)))
     add("train nca --exemplar: a text file", "file", lambda fx, d: train_nca(fx, d, exemplar=d / "e.png"), lambda d: write(d / "e.png", "no"))
@@ -437,7 +437,7 @@ def float_tiff(folder: Path) -> None:
     (folder / "b.tif").rename(folder / "b.png")  # a float image under a photo's name
 
 
-def color_png(path: Path) -> None:
+def colour_png(path: Path) -> None:
     from PIL import Image
 
     path.parent.mkdir(parents=True, exist_ok=True)

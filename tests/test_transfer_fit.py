@@ -26,6 +26,12 @@ def test_a_render_that_matches_the_photo_is_a_good_fit():
     assert check.lowpass_psnr > check.flat_lowpass_psnr + 5
 
 
+def test_an_outline_one_pixel_off_is_not_a_poor_fit():
+    image, mask = _photo()
+    check = check_fit(image, mask, image.clone(), torch.roll(mask, shifts=1, dims=3))
+    assert check.outline_agreement == 1.0 and not check.poor
+
+
 def test_an_outline_off_the_photo_is_named():
     image, mask = _photo()
     shifted = torch.roll(mask, shifts=24, dims=3)

@@ -1,7 +1,8 @@
 """Rebuild a shipped model from nothing: world, shapes, GAN, pose, NOC and mask networks, export, evaluation, card.
 
     python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out mesh2tex/models/chair]
-                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters 2000] [--device auto]
+                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters 4000] [--device auto]
+                                 [--pick FROM,EVERY]
                                  [--from-gan CKPT] [--views-gan CKPT]
 
 Every stage resumes (re-run the same command after an interruption): the world and the shapes are
@@ -52,7 +53,10 @@ GAN_CONFIG = {
 # when absent; the held-out count stays WORLD["query_shapes"]). gan: top-level training settings
 # (supersample: the fakes rendered at twice the resolution and box-filtered, as the photos are).
 # loss.diversity_start: the mode-seeking term from that iteration on. The pose and NOC networks learn
-# from views half textured by the GAN's snapshot at views_gan_iteration.
+# from views half textured by the GAN's snapshot at views_gan_iteration. variety: the world's shapes
+# and materials (prepare synthetic --variety; boxy when absent). pick (or --pick FROM,EVERY): the
+# exported generator is the snapshot, every EVERY iterations from FROM to gan_iters, that closes the
+# most of the gap on a validation world no table reports (VALIDATION), not the last one.
 RECIPES = {
     "chair": {"gan_iters": 8000, "world_shapes": 64, "gan": {"supersample": 2}, "loss": {"diversity_start": 3500},
               "views_gan_iteration": 2500},
@@ -60,9 +64,61 @@ RECIPES = {
 }
 
 
+# The validation world of a recipe's pick: the same kind of world from another seed, its held-out
+# shapes measured by a smaller generation protocol (one draw).
+VALIDATION = {"shapes": 24, "views": 4, "query_shapes": 8, "query_views": 1, "seed": 1, "resolution": 128}
+VALIDATION_PROTOCOL = {"views": 4, "latents": 8, "kid_fid": False, "repeats": 1}
+
+
 def recipe_world(recipe: dict) -> dict:
-    """The `prepare synthetic` settings of a recipe: WORLD with the recipe's shape count."""
-    return {**WORLD, "shapes": recipe.get("world_shapes", WORLD["shapes"])}
+    """The `prepare synthetic` settings of a recipe: WORLD with the recipe's shape count (and variety)."""
+    world = {**WORLD, "shapes": recipe.get("world_shapes", WORLD["shapes"])}
+    return {**world, "variety": recipe["variety"]} if recipe.get("variety", "boxy") != "boxy" else world
+
+
+def prepare_world(folder: Path, category: str, settings: dict, variety: str, commands: list[str]) -> None:
+    """`prepare synthetic` into ``folder`` with ``settings`` (WORLD's keys); skipped when present with them."""
+    run(["prepare", "synthetic", "--out", str(folder), "--category", category, "--shapes", str(settings["shapes"]),
+         "--views", str(settings["views"]), "--query-shapes", str(settings["query_shapes"]),
+         "--query-views", str(settings["query_views"]), "--seed", str(settings["seed"]),
+         "--resolution", str(settings["resolution"]), "--variety", variety], commands)
+
+
+def prepare_split(world: Path, part: str, folder: Path, commands: list[str]) -> None:
+    """Prepare the world's ``part`` shapes (train or query) into ``folder`` with the recipe's hierarchy."""
+    split = json.loads((world / "index.json").read_text())["split"]
+    names = split["train_shapes"] if part == "train" else split["query_shapes"]
+    argv = ["prepare", "shapes", "--input", *[str(world / "meshes" / f"{n}.obj") for n in names], "--out", str(folder),
+            "--faces", str(SHAPES["faces"]), "--levels", str(SHAPES["levels"]), "--seed", str(SHAPES["seed"]), "--workers", "2"]
+    print(f"\n== mesh2tex {' '.join(argv[:2])} ... ({part})", flush=True)
+    commands.append("mesh2tex " + " ".join(shlex.quote(a) for a in argv))
+    cli(argv)  # a shape that cannot be remeshed fails alone (exit 2); the others are prepared
+
+
+def pick_snapshot(work: Path, category: str, variety: str, gan_run: Path, gan_iters: int, pick: dict,
+                  commands: list[str]) -> tuple[Path, dict[int, float]]:
+    """The snapshot of ``gan_run`` that closes the most of the gap on the validation world, and every
+    snapshot's figure ({iteration: gap closed}). Figures are kept in WORK/validation/pick.json and reused
+    (delete it to measure again)."""
+    folder = work / "validation"
+    prepare_world(folder / "world", category, VALIDATION, variety, commands)
+    prepare_split(folder / "world", "query", folder / "shapes", commands)
+    record = folder / "pick.json"
+    figures = {int(k): v for k, v in json.loads(record.read_text()).items()} if record.is_file() else {}
+    for iteration in range(pick["from"], gan_iters + 1, pick["every"]):
+        snapshot = gan_run / "snapshots" / f"iter{iteration:07d}.safetensors"
+        if iteration in figures or not snapshot.is_file():
+            continue
+        print(f"\n== validation: the snapshot at iteration {iteration}", flush=True)
+        result = run_generation_protocol(folder / "world", folder / "shapes", snapshot, GenerationConfig(**VALIDATION_PROTOCOL))
+        figures[iteration] = round(float(result["gap_closed"]), 4)
+        record.write_text(json.dumps(figures, indent=1))
+    if not figures:
+        sys.exit(f"build_model: no snapshot of {gan_run} between iterations {pick['from']} and {gan_iters} to pick from")
+    best = max(figures, key=lambda it: figures[it])
+    print(f"\n== picked the snapshot at iteration {best} (validation gap closed {figures[best]}; "
+          + ", ".join(f"{it}: {g}" for it, g in sorted(figures.items())) + ")", flush=True)
+    return gan_run / "snapshots" / f"iter{best:07d}.safetensors", figures
 
 
 def recipe_gan_config(recipe: dict) -> dict:
@@ -120,11 +176,13 @@ def main() -> None:
     parser.add_argument("--work", required=True, help="folder for the world, shapes and runs (kept, resumable)")
     parser.add_argument("--out", help="model folder (default mesh2tex/models/<category>)")
     parser.add_argument("--gan-iters", type=int, help="GAN iterations in all (default: the category's recipe)")
-    parser.add_argument("--variety", choices=["boxy", "real"], default="boxy", help="the world's shapes (prepare synthetic --variety)")
+    parser.add_argument("--variety", choices=["boxy", "real"], help="the world's shapes (prepare synthetic --variety; default: the recipe's)")
     parser.add_argument("--seed", type=int, default=GAN["seed"], help="the GAN's training seed")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
-    parser.add_argument("--mask-iters", type=int, default=2000)
+    parser.add_argument("--mask-iters", type=int, default=4000)
+    parser.add_argument("--pick", metavar="FROM,EVERY", help="export the snapshot (every EVERY iterations from FROM) that the "
+                        "validation world ranks first, not the last one (default: the recipe's pick, if any)")
     parser.add_argument("--device", default="auto")
     parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
     parser.add_argument("--note", default="", help="a line for the card (e.g. how busy the machine was)")
@@ -132,8 +190,11 @@ def main() -> None:
                         "(default: the model's own run, its snapshot at the recipe's views_gan_iteration)")
     args = parser.parse_args()
     recipe = RECIPES[args.category]
+    args.variety = args.variety or recipe.get("variety", "boxy")
     gan_config = recipe_gan_config(recipe)
-    world_settings = {**recipe_world(recipe), **({"variety": args.variety} if args.variety != "boxy" else {})}
+    world_settings = {**recipe_world(recipe), "variety": args.variety}
+    if args.variety == "boxy":
+        world_settings.pop("variety")
     gan_settings = {**GAN, "seed": args.seed}
     if args.gan_iters is None:
         args.gan_iters = recipe["gan_iters"]
@@ -143,18 +204,9 @@ def main() -> None:
     commands: list[str] = []
     start = time.perf_counter()
     world = work / "world"
-    run(["prepare", "synthetic", "--out", str(world), "--category", args.category, "--shapes", str(world_settings["shapes"]),
-         "--views", str(world_settings["views"]), "--query-shapes", str(world_settings["query_shapes"]),
-         "--query-views", str(world_settings["query_views"]), "--seed", str(world_settings["seed"]),
-         "--resolution", str(world_settings["resolution"]), "--variety", args.variety], commands)
-    split = json.loads((world / "index.json").read_text())["split"]
-    for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
-        folder = work / "shapes" / part
-        argv = ["prepare", "shapes", "--input", *[str(world / "meshes" / f"{n}.obj") for n in names], "--out", str(folder),
-                "--faces", str(SHAPES["faces"]), "--levels", str(SHAPES["levels"]), "--seed", str(SHAPES["seed"]), "--workers", "2"]
-        print(f"\n== mesh2tex {' '.join(argv[:2])} ... ({part})", flush=True)
-        commands.append("mesh2tex " + " ".join(shlex.quote(a) for a in argv))
-        cli(argv)  # a shape that cannot be remeshed fails alone (exit 2); the others are prepared
+    prepare_world(world, args.category, world_settings, args.variety, commands)
+    for part in ("train", "query"):
+        prepare_split(world, part, work / "shapes" / part, commands)
     if args.from_gan:
         gan_ckpt = Path(args.from_gan)
         run_dir = gan_run_dir(gan_ckpt)
@@ -169,6 +221,13 @@ def main() -> None:
              "--config", str(gan_yaml), "--iters", str(args.gan_iters), "--resolution", str(GAN["resolution"]),
              "--views", str(GAN["views"]), "--seed", str(gan_settings["seed"]), "--device", args.device, "--resume"], commands)
         gan_ckpt = work / "gan" / "checkpoint.safetensors"
+    picked: dict[int, float] = {}
+    pick = recipe.get("pick")
+    if args.pick:
+        start_at, every = (int(v) for v in args.pick.split(","))
+        pick = {"from": start_at, "every": every}
+    if pick and not args.from_gan:
+        gan_ckpt, picked = pick_snapshot(work, args.category, args.variety, work / "gan", args.gan_iters, pick, commands)
     snapshot = gan_run_dir(gan_ckpt) / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors"
     if not args.views_gan and snapshot.is_file():  # else the GAN itself (a run shorter than the recipe's iteration)
         args.views_gan = str(snapshot)
@@ -197,23 +256,28 @@ def main() -> None:
     size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
     card = {
         "name": args.category, "category": args.category, "world": world_settings, "shapes": SHAPES, "gan": {**gan_settings, "config": gan_config},
-        "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "pose_iterations": args.pose_iters,
+        "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "gan_trained_iterations": args.gan_iters,
+        **({"pick": {**pick, "validation_world": VALIDATION, "protocol": VALIDATION_PROTOCOL, "gap_closed": picked}}
+           if picked else {}), "pose_iterations": args.pose_iters,
         "noc_iterations": args.noc_iters, "mask": MASK, "mask_iterations": args.mask_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
-        "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), int(gan_meta["iteration"])),
+        "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), args.gan_iters if picked else int(gan_meta["iteration"])),
         "hardware": f"{platform.machine()}, {os.cpu_count()} CPU cores, {platform.system()}; device {args.device}", "note": args.note,
         "build_seconds_this_invocation": round(time.perf_counter() - start, 1), "size_mb": round(size_mb, 2),
         "generation": result,
     }
     (out / "card.json").write_text(json.dumps(card, indent=1, default=float))
     rebuild = f"python models/build_model.py --category {args.category} --work WORK" + (
-        "" if card["gan_iterations"] == recipe["gan_iters"] else f" --gan-iters {card['gan_iterations']}") + (
-        f" --variety {args.variety}" if args.variety != "boxy" else "") + (f" --seed {args.seed}" if args.seed != GAN["seed"] else "")
+        "" if args.gan_iters == recipe["gan_iters"] else f" --gan-iters {args.gan_iters}") + (
+        f" --variety {args.variety}" if args.variety != recipe.get("variety", "boxy") else "") + (
+        f" --seed {args.seed}" if args.seed != GAN["seed"] else "") + (f" --pick {args.pick}" if args.pick else "")
     (out / "build_log.md").write_text(
         f"# Shipped model `{args.category}` ({args.category})\n\n"
-        f"Texture GAN (EMA generator), pose and NOC networks trained on the synthetic {args.category} world "
+        f"Texture GAN (EMA generator), pose, NOC and mask networks trained on the synthetic {args.category} world "
         f"({world_settings['shapes'] - world_settings['query_shapes']} training shapes, {world_settings['views']} photos each at "
         f"{world_settings['resolution']} px; {world_settings['query_shapes']} held-out shapes for the figures below). Float16, {size_mb:.1f} MB in all.\n\n"
         f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch 2, "
+        + (f"the snapshot picked of {args.gan_iters} by the validation world's gap closed ("
+           + ", ".join(f"{it}: {g}" for it, g in sorted(picked.items())) + "), " if picked else "")
         + (f"{card['gan_training_seconds'] / 3600:.2f} h of training; " if card["gan_training_seconds"] else "")
         + f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
         f"{card['views_gan_iteration']} and half by the world's procedural materials; mask: {args.mask_iters} steps on "

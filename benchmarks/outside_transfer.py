@@ -23,8 +23,10 @@ world's query cameras and lights (random azimuth, elevation in the world's range
 
 Columns, per variant:
 
-  mask IoU     the estimated mask against the true one (1 for alpha); for the background variant
-               also GrabCut alone, the network alone and the network with GrabCut edges (room, clutter)
+  mask IoU     the estimated mask against the true one (1 for alpha): as infer transfer picks it,
+               the estimate whose found pose's silhouette matches it best
+               (:func:`mesh2tex.transfer.pick_by_outline`), and each estimate alone (GrabCut, the
+               network, the network with GrabCut edges; room, clutter)
   pose error   the azimuth error (degrees, circular) of ``--pose auto`` (the pose network and the
                search ``infer transfer`` runs), median and share within 15 degrees, up to the mesh's
                own symmetries (a round stool with four legs looks the same turned by 90 degrees,
@@ -60,6 +62,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT))
 
 # Photographs the world and the mask network's training never show (mesh2tex.synthetic.backdrops uses others).
+SOURCE_LABELS = {"estimated (mask network, GrabCut edges)": "network_grabcut", "estimated (mask network)": "network",
+                 "estimated (GrabCut)": "grabcut"}
 BACKDROPS = ("astronaut", "chelsea", "camera", "coins", "clock", "page")
 
 
@@ -157,7 +161,8 @@ def main() -> None:
     from mesh2tex.photos import estimate_mask
     from mesh2tex.synthetic.world import WorldSpec, sample_material, sample_views
     from mesh2tex.texture import load_shape, model_face_count
-    from mesh2tex.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, transfer_texture, view_at_pose
+    from mesh2tex.transfer import (TransferConfig, estimate_pose, photo_candidates, pick_by_outline, predict_noc, transfer_texture,
+                                   view_at_pose)
     from mesh2tex.transfer.fit import check_fit
     from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
     from outside_generation import height_parts, outside_meshes
@@ -177,6 +182,7 @@ def main() -> None:
     parser.add_argument("--photo-size", type=int, default=256)
     parser.add_argument("--images", help="a folder to keep the photos, masks and renders in")
     parser.add_argument("--out", help="write the per-photo rows here (JSON)")
+    parser.add_argument("--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter"])
     args = parser.parse_args()
     device = torch.device("cpu")
     pose_checkpoint = args.pose_checkpoint or (args.checkpoint if is_model_name(args.checkpoint) else None)
@@ -220,6 +226,8 @@ def main() -> None:
                 cv2.imwrite(str(photos[variant][0]), cv2.cvtColor((over * 255).round().astype(np.uint8), cv2.COLOR_RGB2BGR),
                             [cv2.IMWRITE_JPEG_QUALITY, 90])
             for variant, (file, over) in photos.items():
+                if variant not in args.variants:
+                    continue
                 row = {"mesh": name, "photo": k, "variant": variant, "azimuth": view.azimuth, "elevation": view.elevation}
                 if variant != "alpha":
                     as_read = cv2.cvtColor(cv2.imread(str(file)), cv2.COLOR_BGR2RGB)
@@ -230,13 +238,17 @@ def main() -> None:
                         candidates["network_grabcut"] = refine_with_grabcut(as_read, probability)
                     for label, estimate in candidates.items():
                         row[f"iou_{label}"] = float((estimate & true_mask).sum() / max((estimate | true_mask).sum(), 1))
-                    estimated = candidates["network_grabcut" if mask_checkpoint else "grabcut"]
-                    row["mask_iou"] = row["iou_network_grabcut" if mask_checkpoint else "iou_grabcut"]
                 else:
                     row["mask_iou"] = 1.0
-                photo, mask_source = load_photo(file, None, cfg, mask_checkpoint=mask_checkpoint)
+                # As infer transfer does: the photo framed by each mask estimate, the mesh's outline picks one.
+                framed_photos = photo_candidates(file, None, cfg, mask_checkpoint=mask_checkpoint)
                 started = time.perf_counter()
-                estimate = estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device)
+                index, estimate = pick_by_outline([p for p, _ in framed_photos],
+                                                  lambda p: estimate_pose(pose_checkpoint, shape, p, distance, fov, cfg, device))
+                photo, mask_source = framed_photos[index]
+                if variant != "alpha":
+                    picked = SOURCE_LABELS[mask_source]
+                    estimated, row["mask_iou"], row["mask_picked"] = candidates[picked], row[f"iou_{picked}"], picked
                 row["pose_seconds"] = round(time.perf_counter() - started, 2)
                 row["found"] = [estimate.azimuth, estimate.elevation]
                 row["pose_error"] = symmetric_error(estimate.azimuth, view.azimuth, turns)
@@ -280,13 +292,13 @@ def main() -> None:
                 print(json.dumps({k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
     print(f"\n{len({r['mesh'] for r in rows})} {args.category} meshes from outside the world, {args.poses} photos each; "
           f"checkpoint {args.checkpoint}, pose {pose_checkpoint}, NOC {noc_checkpoint}")
-    for variant in ("room", "clutter"):
+    for variant in [v for v in ("room", "clutter") if v in args.variants]:
         chosen = [r for r in rows if r["variant"] == variant]
         print(f"mask IoU, {variant}: " + ", ".join(f"{k[4:]} {np.mean([r[k] for r in chosen]):.3f} (worst {np.min([r[k] for r in chosen]):.3f})"
                                                  for k in chosen[0] if k.startswith("iou_")))
     print(f"{'variant':12s} {'mask IoU':>9s} {'pose err median':>15s} {'<=15 deg':>8s} {'network median':>14s}"
           f" {'poor fit':>8s} {'transfer seen':>13s} {'flat seen':>9s} {'transfer unseen':>15s} {'flat unseen':>11s} {'oracle seen':>11s}")
-    for variant in ("alpha", "room", "clutter"):
+    for variant in args.variants:
         chosen = [r for r in rows if r["variant"] == variant]
         judged = [r for r in chosen if "transfer seen" in r]
 

@@ -65,7 +65,8 @@ from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
 from mesh2tex.texture import load_shape, model_face_count, note, write_automaton_mesh, write_textured_mesh
 from mesh2tex.transfer import (AutomatonFit, AutomatonFitConfig, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
-                               check_style_sizes, estimate_pose, fit_automaton, load_photo, predict_noc, transfer_texture, view_at_pose)
+                               check_style_sizes, estimate_pose, fit_automaton, photo_candidates, pick_by_outline, predict_noc,
+                               transfer_texture, view_at_pose)
 from mesh2tex.transfer.fit import check_fit
 
 
@@ -202,11 +203,17 @@ def run(args) -> int:
     distance, fov = gan_camera(meta)
     shape, target = load_shape(args.mesh, generator, model_face_count(meta, cfg.faces), cfg.seed, up=args.up, uv=args.uv,
                                output_mesh=args.output_mesh)
-    photo, mask_source = load_photo(args.image, args.mask, cfg, mask_checkpoint=args.mask_checkpoint)
+    candidates = photo_candidates(args.image, args.mask, cfg, mask_checkpoint=args.mask_checkpoint)
+    photo, mask_source = candidates[0]
     seconds["load"] = round(time.perf_counter() - started, 2)
 
     t = time.perf_counter()
-    if pose is None:
+    if pose is None and cfg.pose_search and len(candidates) > 1:  # an estimated mask: the mesh picks among the estimates
+        index, estimate = pick_by_outline([c[0] for c in candidates],
+                                          lambda p: estimate_pose(args.pose_checkpoint, shape, p, distance, fov, cfg, device))
+        photo, mask_source = candidates[index]
+        mask_source += f", the one of {len(candidates)} estimates the mesh's outline matched best"
+    elif pose is None:
         estimate = estimate_pose(args.pose_checkpoint, shape, photo, distance, fov, cfg, device)
     else:
         estimate = PoseEstimate(pose[0], pose[1], "given")

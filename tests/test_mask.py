@@ -75,3 +75,31 @@ def test_grabcut_sharpens_a_blurred_probability_to_the_object():
         return (mask & truth).sum() / (mask | truth).sum()
 
     assert iou(refined) > iou(thresholded) and iou(refined) > 0.9
+
+
+def test_an_estimated_mask_gives_the_mesh_three_framings_to_pick_from(tmp_path):
+    """Without a mask or alpha, the photo comes framed by each estimate (network with GrabCut edges,
+    network, GrabCut); with an alpha channel, once. The pick takes the best outline, the first on ties."""
+    from PIL import Image
+
+    from mesh2tex.transfer import PoseEstimate, TransferConfig, photo_candidates, pick_by_outline
+
+    rng = np.random.default_rng(3)
+    rgb = (rng.uniform(0.2, 0.5, (96, 96, 3)) * 255).astype(np.uint8)
+    rgb[20:80, 30:66] = (180, 60, 40)
+    Image.fromarray(rgb).save(tmp_path / "photo.png")
+    alpha = np.zeros((96, 96), np.uint8)
+    alpha[20:80, 30:66] = 255
+    Image.fromarray(np.dstack([rgb, alpha])).save(tmp_path / "alpha.png")
+    cfg = TransferConfig(resolution=32)
+    estimated = photo_candidates(tmp_path / "photo.png", None, cfg, mask_checkpoint="chair")
+    assert [source for _, source in estimated] == ["estimated (mask network, GrabCut edges)", "estimated (mask network)",
+                                                   "estimated (GrabCut)"][:len(estimated)] and len(estimated) >= 2
+    assert all(photo.mask.shape == (1, 1, 32, 32) for photo, _ in estimated)
+    given = photo_candidates(tmp_path / "alpha.png", None, cfg, mask_checkpoint="chair")
+    assert [source for _, source in given] == ["alpha channel"]
+
+    scores = iter([0.6, 0.9, 0.9])
+    index, estimate = pick_by_outline([p for p, _ in estimated] + [estimated[0][0]],
+                                      lambda photo: PoseEstimate(0.0, 0.0, "test", silhouette_iou=next(scores, 0.1)))
+    assert index == 1 and estimate.silhouette_iou == 0.9

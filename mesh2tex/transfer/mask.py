@@ -49,7 +49,7 @@ def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: in
     seeds[p <= 1 - SURE] = cv2.GC_BGD
     threshold = probability >= 0.5
     if not (seeds == cv2.GC_FGD).any() or not (seeds == cv2.GC_BGD).any():
-        return _largest_region(threshold)
+        return largest_region(threshold)
     background, foreground = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
     cv2.setRNGSeed(0)
     cv2.grabCut(cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2BGR), seeds, None, background, foreground, iterations,
@@ -57,20 +57,15 @@ def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: in
     estimate = ((seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD)).astype(np.uint8)
     if scale < 1:
         estimate = cv2.resize(estimate, (w, h), interpolation=cv2.INTER_NEAREST)
-    estimate = _largest_region(estimate.astype(bool))
-    return estimate if estimate.sum() >= 16 else _largest_region(threshold)
+    estimate = largest_region(estimate.astype(bool))
+    return estimate if estimate.sum() >= 16 else largest_region(threshold)
 
 
-def _largest_region(mask: np.ndarray) -> np.ndarray:
+def largest_region(mask: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the largest 8-connected region of ``mask`` (the mask itself when it has at most one)."""
     import cv2
 
     count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     if count <= 2:
         return mask.astype(bool)
     return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-
-
-def network_mask(checkpoint: str | Path, rgb: np.ndarray, refine: bool = True, device: torch.device | str = "cpu") -> np.ndarray:
-    """(H, W) bool object mask of ``rgb`` (H, W, 3) uint8: the mask network's, refined by GrabCut when ``refine``."""
-    probability = network_probability(checkpoint, rgb, device)
-    return refine_with_grabcut(rgb, probability) if refine else _largest_region(probability >= 0.5)

@@ -15,7 +15,7 @@ from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.photos import estimate_mask
 from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.mask import network_mask
+from mesh2tex.transfer.mask import largest_region, network_probability, refine_with_grabcut
 
 
 @dataclass
@@ -54,7 +54,17 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
     """The query photo cropped around its object (``cfg.margin``) and resized to R = ``cfg.resolution``:
     a :class:`Photo` (image (1,3,R,R) in [-1,1], white outside the photo; mask (1,1,R,R)), and where
     the mask came from (the ``mask_path`` file, the alpha channel, or an estimate: the mask network of
-    ``mask_checkpoint`` refined by GrabCut, or GrabCut alone without one)."""
+    ``mask_checkpoint`` refined by GrabCut, or GrabCut alone without one). The first of
+    :func:`photo_candidates`."""
+    return photo_candidates(image_path, mask_path, cfg, mask_checkpoint)[0]
+
+
+def photo_candidates(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig,
+                     mask_checkpoint: str | Path | None = None) -> list[tuple[Photo, str]]:
+    """The photo framed by each mask worth trying, best guess first: one when the mask is given
+    (``mask_path`` or an alpha channel); when it is estimated, the mask network's with GrabCut edges,
+    the network's alone and GrabCut's alone (GrabCut's alone without a network). The mesh picks
+    among them (:func:`mesh2tex.transfer.pose.pick_by_outline`): no estimate is right on every photo."""
     rgb, alpha = load_image(image_path)
     if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
         raise InputError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
@@ -63,20 +73,28 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
         mask = load_mask(mask_path)
         if mask.shape != rgb.shape[:2]:
             raise InputError(f"{mask_path}: mask is {mask.shape[1]}x{mask.shape[0]}, the photo {rgb.shape[1]}x{rgb.shape[0]}")
-        source = str(mask_path)
+        masks = [(mask, str(mask_path))]
     elif alpha is not None and (alpha < 128).any():
-        mask, source = alpha >= 128, "alpha channel"
+        masks = [(alpha >= 128, "alpha channel")]
     elif mask_checkpoint is not None:
-        mask, source = network_mask(mask_checkpoint, rgb), "estimated (mask network, GrabCut edges)"
+        probability = network_probability(mask_checkpoint, rgb)
+        masks = [(refine_with_grabcut(rgb, probability), "estimated (mask network, GrabCut edges)"),
+                 (largest_region(probability >= 0.5), "estimated (mask network)"),
+                 (estimate_mask(rgb), "estimated (GrabCut)")]
     else:
-        mask, source = estimate_mask(rgb), "estimated (GrabCut)"
-    mask = np.asarray(mask, dtype=bool)
-    if mask.sum() < 16:
-        raise InputError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")
-    box = object_box(mask, cfg.margin)
+        masks = [(estimate_mask(rgb), "estimated (GrabCut)")]
     image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
-    image = crop_square(image, box, cfg.resolution, fill=1.0)
-    return Photo(image=image, mask=crop_mask(mask, box, cfg.resolution)), source
+    candidates = []
+    for mask, source in masks:
+        mask = np.asarray(mask, dtype=bool)
+        if mask.sum() < 16:
+            continue
+        box = object_box(mask, cfg.margin)
+        candidates.append((Photo(image=crop_square(image, box, cfg.resolution, fill=1.0), mask=crop_mask(mask, box, cfg.resolution)),
+                           source))
+    if not candidates:
+        raise InputError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")
+    return candidates
 
 
 @torch.no_grad()

@@ -123,6 +123,16 @@ def estimate_pose(checkpoint: str | Path, shape: PreparedShape, photo: Photo, di
     return PoseEstimate(azimuth, elevation, "pose network", (azimuth, elevation))
 
 
+def pick_by_outline(photos: list[Photo], estimate) -> tuple[int, PoseEstimate]:
+    """Among the same photo framed by several mask estimates, the one the mesh explains best: each is
+    given to ``estimate`` (a photo -> :class:`PoseEstimate` with the search's ``silhouette_iou``) and
+    the one whose found pose's silhouette matches its mask most wins (the first on ties). A wrong mask
+    seldom matches any view of the right mesh. Returns its index and its estimate."""
+    results = [estimate(photo) for photo in photos]
+    best = max(range(len(results)), key=lambda i: results[i].silhouette_iou or 0.0)
+    return best, results[best]
+
+
 @torch.no_grad()
 def predict_noc(checkpoint: str | Path, photo: Photo, device: torch.device) -> torch.Tensor:
     """(R,R,3) NOC map of the photo in [0,1], by the NOC network."""

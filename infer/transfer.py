@@ -6,8 +6,10 @@
                             [--config YAML] [--overwrite]
 
 Steps:
-1. The photo: mask from its alpha channel, from ``--mask``, or estimated (GrabCut); a square crop
-   around the object, resized to ``resolution``.
+1. The photo: mask from its alpha channel, from ``--mask``, or estimated (the mask network with
+   GrabCut edges, the network alone, GrabCut alone; with ``--pose auto`` the silhouette search
+   picks the estimate its found pose matches best); a square crop around the object, resized to
+   ``resolution``.
 2. The pose: given as ``--pose AZ,EL`` (degrees, the orbit-camera convention), or ``--pose auto``
    (the default, needs ``--pose-checkpoint``): the pose network's bin probabilities, then a search
    for the pose whose silhouette best matches the photo's mask (``--no-pose-search``: the network's
@@ -26,7 +28,7 @@ Steps:
    ``textured.ply`` (the same mesh with vertex colours),
    ``comparison.png`` (photo | render at the pose | photo NOC | rendered NOC), ``turntable_XX.png`` and
    ``turntable.gif`` (lit by the learnt light, turning with the camera, when one was learnt),
-   ``report.json`` (pose, learnt light, losses per stage, seconds per stage, settings).
+   ``report.json`` (pose, learnt light, losses per stage, seconds per stage, settings, the fit at the pose).
 
 ``--automaton``: instead of step 4's optimisation of the GAN's texture, a mesh automaton is grown on the
 mesh and fitted to the photo with the same losses (:mod:`mesh2tex.transfer.automaton`; no GAN in the

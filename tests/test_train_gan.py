@@ -350,7 +350,8 @@ def test_overwrite_starts_a_new_run_in_place_of_the_one_in_out(tiny_data, tmp_pa
     assert train(tiny_data, run, "--iters", "2") == 0
     capsys.readouterr()
     assert train(tiny_data, run, "--iters", "1") == 2
-    assert "pass --resume to continue it, --overwrite to replace it" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "at iteration 2); pass --resume to continue it (with a larger --iters to extend a finished one), --overwrite to replace it" in err
     assert train(tiny_data, run, "--iters", "1", "--resume", "--overwrite") == 2, "continue or replace: not both"
     assert "give one of them" in capsys.readouterr().err
     assert train(tiny_data, run, "--iters", "1", "--overwrite") == 0

@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from mesh2tex.config import save_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import json_ready
 from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
@@ -95,8 +95,12 @@ class RunDirectory:
         """Create the directory and write the resolved config; refuse to overwrite a run by accident.
         ``overwrite`` (``--overwrite``): a new run replaces the one there (its checkpoint, NaN state and metrics go)."""
         if not resume and self.has_checkpoint() and not overwrite:
-            raise UserError(f"{self.root}: already holds a run ({CHECKPOINT_NAME}); pass --resume to continue it, --overwrite to "
-                            f"replace it, or choose another --out")
+            try:  # the iteration tells a stopped run from a finished one
+                at = f", at iteration {int(read_checkpoint_meta(self.checkpoint_path)['meta']['iteration'])}"
+            except (InputError, KeyError, TypeError, ValueError):  # a damaged checkpoint is named when resumed; here the refusal matters
+                at = ""
+            raise UserError(f"{self.root}: already holds a run ({CHECKPOINT_NAME}{at}); pass --resume to continue it (with a "
+                            f"larger --iters to extend a finished one), --overwrite to replace it, or choose another --out")
         if resume:
             read_checkpoint_meta(self.checkpoint_path)  # a damaged checkpoint is refused before config.yaml is rewritten
         elif not self.resume_asked:  # a new run: files already at its names (a config.yaml of the user's) are kept without --overwrite

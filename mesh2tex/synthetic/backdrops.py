@@ -7,7 +7,7 @@ full sharpness, and drawn clutter (rectangles, discs, lines, stripes over a wall
 :func:`place_over_backdrops` puts framed renders of an object at a random size and position over
 them, the training input of the mask network (:mod:`mesh2tex.nn.mask`).
 
-Only the world's background photographs (``_BACKGROUND_PHOTOS``) are used here; benchmarks judge
+Only the world's background photographs (``BACKGROUND_PHOTOS``) are used here; benchmarks judge
 the mask on photographs this module never shows (``benchmarks/outside_transfer.py``).
 """
 
@@ -20,7 +20,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from mesh2tex.synthetic.world import _BACKGROUND_PHOTOS, _background_photo, random_background
+from mesh2tex.synthetic.world import BACKGROUND_PHOTOS, background_photo, random_background
 
 BACKDROP_KINDS = ("photo", "clutter", "noise", "gradient", "solid")
 BACKDROP_SHARES = (0.45, 0.3, 0.1, 0.1, 0.05)
@@ -29,7 +29,7 @@ SCALE_RANGE = (0.3, 1.0)  # the framed object's side over the photo's side
 
 @lru_cache(maxsize=None)
 def _photo(name: str) -> np.ndarray:
-    return _background_photo(name)
+    return background_photo(name)
 
 
 def _colour(rng: np.random.Generator, saturation: float = 0.7) -> np.ndarray:
@@ -69,7 +69,7 @@ def backdrop(rng: np.random.Generator, size: int) -> np.ndarray:
         return _clutter(rng, size)
     if kind != "photo":
         return np.ascontiguousarray(random_background(kind, int(rng.integers(1 << 31)), size))
-    source = _photo(_BACKGROUND_PHOTOS[int(rng.integers(len(_BACKGROUND_PHOTOS)))])
+    source = _photo(BACKGROUND_PHOTOS[int(rng.integers(len(BACKGROUND_PHOTOS)))])
     h, w = source.shape[:2]
     side = max(8, int(rng.uniform(0.25, 1.0) * min(h, w)))
     top, left = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))

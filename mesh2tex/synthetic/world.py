@@ -46,7 +46,8 @@ _SHAPE, _MATERIAL, _PHOTOS, _QUERIES = 0, 1, 2, 3
 BACKGROUND_KINDS = ("solid", "gradient", "noise", "photo")
 # The photos' lights; the GAN's light prior (LightConfig's defaults) is the same distribution.
 PHOTO_LIGHTS = LightConfig()
-_BACKGROUND_PHOTOS = ("coffee", "rocket", "hubble_deep_field", "immunohistochemistry", "brick", "grass", "gravel")
+BACKGROUND_PHOTOS = (  # scikit-image photographs the world's "photo" backgrounds and the mask network's backdrops crop
+    "coffee", "rocket", "hubble_deep_field", "immunohistochemistry", "brick", "grass", "gravel")
 
 
 @dataclass(frozen=True)
@@ -251,7 +252,7 @@ def random_background(kind: str, seed: int, size: int) -> np.ndarray:
 def _photo_crop(rng: np.random.Generator, size: int) -> np.ndarray:
     from PIL import Image, ImageFilter
 
-    source = _background_photo(_BACKGROUND_PHOTOS[int(rng.integers(len(_BACKGROUND_PHOTOS)))])
+    source = background_photo(BACKGROUND_PHOTOS[int(rng.integers(len(BACKGROUND_PHOTOS)))])
     h, w = source.shape[:2]
     side = int(rng.uniform(0.4, 1.0) * min(h, w))
     top, left = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))
@@ -264,7 +265,7 @@ def _photo_crop(rng: np.random.Generator, size: int) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _background_photo(name: str) -> np.ndarray:
+def background_photo(name: str) -> np.ndarray:
     """A bundled scikit-image photo as (H, W, 3) uint8 (grayscale ones repeated to three channels)."""
     import skimage.data
 

@@ -70,12 +70,10 @@ BACKDROPS = ("astronaut", "chelsea", "camera", "coins", "clock", "page")
 def backdrop(index: int, size: int, rng: np.random.Generator) -> np.ndarray:
     """(size, size, 3) float32 in [0, 1]: a sharp crop of one of scikit-image's photographs."""
     import cv2
-    import skimage.data
 
-    image = getattr(skimage.data, BACKDROPS[index % len(BACKDROPS)])()
-    if image.ndim == 2:
-        image = np.repeat(image[..., None], 3, axis=2)
-    image = image[..., :3]
+    from mesh2tex.synthetic.world import background_photo
+
+    image = background_photo(BACKDROPS[index % len(BACKDROPS)])
     h, w = image.shape[:2]
     side = int(min(h, w) * rng.uniform(0.5, 0.9))
     y, x = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))
@@ -102,11 +100,6 @@ def room(size: int, rng: np.random.Generator) -> np.ndarray:
         image[top:top + 1] *= 0.7  # the gap between planks
     image[horizon - 2:horizon] *= 0.6  # the skirting's shadow
     return np.clip(image, 0.0, 1.0)
-
-
-def circular_error(a: float, b: float) -> float:
-    d = abs(a - b) % 360.0
-    return min(d, 360.0 - d)
 
 
 def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float = 0.03) -> list[float]:
@@ -142,7 +135,9 @@ def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float
 
 def symmetric_error(found: float, truth: float, turns: list[float]) -> float:
     """The azimuth error up to the mesh's own symmetries: the smallest error to any equivalent pose."""
-    return min(circular_error(found, truth + turn) for turn in turns)
+    from mesh2tex.nn.pose import azimuth_error
+
+    return float(azimuth_error(found, torch.tensor([truth + turn for turn in turns])).min())
 
 
 def main() -> None:
@@ -151,6 +146,7 @@ def main() -> None:
     from mesh2tex.evaluation.compare import ScoreSettings, common_mask, render_for_comparison, score_views
     from mesh2tex.evaluation.surfaces import flat_surface, generator_surface, material_surface, photo_mean_colour
     from mesh2tex.io.images import save_png
+    from mesh2tex.nn.pose import azimuth_error
     from mesh2tex.io.models import MODEL_FILES, gan_camera, is_model_name, load_generator, models_root, trained_lit
 
     def shipped_file(name: str, kind: str) -> str | None:
@@ -252,9 +248,9 @@ def main() -> None:
                 row["pose_seconds"] = round(time.perf_counter() - started, 2)
                 row["found"] = [estimate.azimuth, estimate.elevation]
                 row["pose_error"] = symmetric_error(estimate.azimuth, view.azimuth, turns)
-                row["raw_pose_error"] = circular_error(estimate.azimuth, view.azimuth)
+                row["raw_pose_error"] = float(azimuth_error(estimate.azimuth, view.azimuth))
                 row["symmetries"] = len(turns)
-                row["network_error"] = circular_error(estimate.network[0], view.azimuth) if estimate.network else None
+                row["network_error"] = float(azimuth_error(estimate.network[0], view.azimuth)) if estimate.network else None
                 if k < args.transfers:
                     photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
                     framed = view_at_pose(shape, estimate.azimuth, estimate.elevation, distance, fov, cfg)

@@ -28,6 +28,24 @@ NOT_PHOTO_MODES = {"1": "a 1-bit black-and-white image (a mask?)", "I": "a 32-bi
 MARGIN = 0.1  # fraction of the mask's larger side added around it before the square crop
 
 
+GRABCUT_SIDE = 320.0  # GrabCut is slow on large photos: it runs on a copy at most this many pixels a side
+
+
+def grabcut_scale(height: int, width: int) -> float:
+    """The factor (<= 1) a photo of ``height`` x ``width`` is shrunk by before GrabCut; its mask is upsampled after."""
+    return min(1.0, GRABCUT_SIDE / max(height, width))
+
+
+def largest_region(mask: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the largest 8-connected region of ``mask`` (the mask itself when it has at most one)."""
+    import cv2
+
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    if count <= 2:
+        return mask.astype(bool)
+    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+
+
 def estimate_mask(rgb: np.ndarray, iterations: int = 5) -> np.ndarray:
     """Foreground estimate by GrabCut with a border prior: the outer 4 % of the photo is background.
 
@@ -39,7 +57,7 @@ def estimate_mask(rgb: np.ndarray, iterations: int = 5) -> np.ndarray:
     import cv2
 
     h, w = rgb.shape[:2]
-    scale = min(1.0, 320.0 / max(h, w))  # GrabCut is slow on large photos; the mask is upsampled after
+    scale = grabcut_scale(h, w)
     small = cv2.resize(rgb, (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA) if scale < 1 else rgb
     sh, sw = small.shape[:2]
     border = max(1, round(0.04 * min(sh, sw)))
@@ -50,11 +68,7 @@ def estimate_mask(rgb: np.ndarray, iterations: int = 5) -> np.ndarray:
     rect = (border, border, sw - 2 * border, sh - 2 * border)
     cv2.setRNGSeed(0)
     cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, rect, background, foreground, iterations, cv2.GC_INIT_WITH_RECT)
-    estimate = ((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)).astype(np.uint8)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(estimate, connectivity=8)
-    if count > 1:
-        largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-        estimate = (labels == largest).astype(np.uint8)
+    estimate = largest_region((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)).astype(np.uint8)
     if scale < 1:
         estimate = cv2.resize(estimate, (w, h), interpolation=cv2.INTER_NEAREST)
     return estimate.astype(bool)

@@ -9,6 +9,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.photos import grabcut_scale, largest_region
+
 SURE = 0.9  # network probabilities above this (below 1 - this) are fixed as object (background) for GrabCut
 
 
@@ -40,7 +42,7 @@ def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: in
     import cv2
 
     h, w = probability.shape
-    scale = min(1.0, 320.0 / max(h, w))  # GrabCut is slow on large photos; the mask is upsampled after
+    scale = grabcut_scale(h, w)
     small_size = (max(1, round(w * scale)), max(1, round(h * scale)))
     small = cv2.resize(rgb, small_size, interpolation=cv2.INTER_AREA) if scale < 1 else rgb
     p = cv2.resize(probability, small_size, interpolation=cv2.INTER_LINEAR) if scale < 1 else probability
@@ -59,13 +61,3 @@ def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: in
         estimate = cv2.resize(estimate, (w, h), interpolation=cv2.INTER_NEAREST)
     estimate = largest_region(estimate.astype(bool))
     return estimate if estimate.sum() >= 16 else largest_region(threshold)
-
-
-def largest_region(mask: np.ndarray) -> np.ndarray:
-    """(H, W) bool: the largest 8-connected region of ``mask`` (the mask itself when it has at most one)."""
-    import cv2
-
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-    if count <= 2:
-        return mask.astype(bool)
-    return labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))

@@ -12,10 +12,10 @@ import torch
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.images import load_image, load_mask
-from mesh2tex.photos import estimate_mask
+from mesh2tex.photos import estimate_mask, largest_region
 from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.mask import largest_region, network_probability, refine_with_grabcut
+from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
 
 
 @dataclass

@@ -92,6 +92,34 @@ def nca(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace outputs already in --out")
 
 
+def synthesize(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--exemplar", required=True,
+                        help="the exemplar image whose structure the texture takes (its centred square)")
+    parser.add_argument("--mesh", required=True, help="the mesh to texture: a mesh file (.obj .ply .off .stl .glb)")
+    add_out(parser, "output folder")
+    config = ConfigOptions(parser, "mesh2tex.infer.synthesize:InferSynthesizeConfig",
+                           what="the infer synthesize config")
+    config.add("--texture-size", type=int, key="synthesis.texture_size",
+               help="side of the UV texture optimised and written")
+    config.add("--iters", type=int, key="synthesis.iters", help="optimisation steps")
+    config.add("--direction-field", key="synthesis.direction_field",
+               choices=static_value("mesh2tex.texel_synthesis:DIRECTIONS"),
+               help="up: every view upright, so stripes keep one direction relative to the mesh's up; none: views "
+                    "rolled at random, each region of the surface takes an orientation of its own")
+    config.add("--loss", key="synthesis.loss", choices=static_value("mesh2tex.texel_synthesis:SYNTHESIS_LOSSES"),
+               help="structure loss: ps (oriented-band statistics, no network), sw (sliced Wasserstein on random VGG "
+                    "features), ot (relaxed optimal transport on them)")
+    config.add("--resolution", type=int, key="synthesis.resolution",
+               help="render resolution; an exemplar pixel shows at one pixel of a view of the whole mesh")
+    config.add("--views", type=int, help="renders written (view_K.png) and judged")
+    add_texture_format(parser, config)
+    config.add("--seed", type=int, key="synthesis.seed", help="seed of the views and the initial texture")
+    add_mesh_output(parser)
+    config.add("--vgg-weights", help="VGG19 weights for the sw and ot losses")
+    config.add("--device", choices=DEVICES, help="where to run")
+    add_overwrite(parser, "replace outputs already in --out")
+
+
 def evaluate(parser: argparse.ArgumentParser) -> None:
     """Three modes, each with its config: sets (default) and pairs, ``--protocols``, ``--generation``;
     ``--config`` reads, and ``--print-config`` prints, the one of the mode asked for."""

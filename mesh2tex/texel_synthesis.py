@@ -1,0 +1,299 @@
+"""Texture synthesis from one exemplar image, with the texels themselves as the parameters.
+
+The user's mesh keeps its own UV atlas (or gets a new xatlas one, :func:`mesh2tex.render.bake.mesh_atlas`);
+its UV texture is optimised directly, no network, so that renders of the textured mesh from random
+views match the exemplar's structure under a weight-free structure loss
+(:func:`mesh2tex.losses.ot_style.style_loss`: ``sw``, ``ps`` or ``ot``). Each step::
+
+    texture  = sum over levels k of upsample(P_k)             P_k (3, S / 2^k, S / 2^k), level 0 finest
+    seen     = avg_pool(texture, 2^m)                          m: the mip level whose texels match render pixels
+    views    = render(mesh, seen, K random orbit cameras)      (K, 3, R, R) in [-1, 1], masks (K, 1, R, R)
+    loss     = style_loss(views, masks, exemplar) + overflow   Adam on every P_k
+
+**What this is, and what it is not.** The paper (surface-aware texture synthesis with pre-trained
+2D CNNs) runs 2D convolutions on the surface itself, oriented by a tangent direction field, so that
+every point of the surface is seen once at its own scale. This module is the cheaper variant the
+issue allows: the surface is seen through *renders*, and the structure loss judges the renders as
+2D images. It needs no surface convolution, but it inherits the camera's orientation: the structure
+losses are orientation-sensitive (the ``ps`` filters are oriented, random VGG filters are not
+rotation-invariant), so a pattern's direction on the surface follows the cameras' up. With
+``direction="up"`` every view is upright (roll zero, up = the mesh's up, y in the working frame), so
+stripes keep one global direction on the surface, across the atlas's seams; with ``"none"`` every
+view is rolled by a random angle, and each region settles on an orientation of its own. The paper's
+convolution variant on a tangent direction field is **not built**.
+
+**Scale.** The exemplar's pixels are matched to render pixels: an exemplar pixel covers one pixel of a
+``resolution``-px view of the whole mesh (the unit ball seen from ``distance`` with ``fov``), as in
+``train nca``. The texels are pooled to the mip level nearest that pixel size before rendering
+(:func:`mip_level`), so that every texel receives a gradient (bilinear lookups of a finer texture
+would read four texels per pixel and leave the rest untouched); the finer levels of the pyramid then
+carry only what the pooled renders see.
+
+Conventions: colours in [-1, 1] inside; positions in the unit ball, y up; UVs v up (the convention of
+:func:`mesh2tex.render.texture`); the texture image row 0 is its top (v = 1).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from mesh2tex.config import check_fields
+from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
+from mesh2tex.render import interpolate, orbit_camera, rasterize, texture, transform_points, uv_rasterize
+
+DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
+SYNTHESIS_LOSSES = ("ps", "sw", "ot")  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
+
+
+@dataclass
+class SynthesisConfig:
+    iters: int = 400  # Adam steps
+    texture_size: int = 512  # side of the UV texture (the finest level of the pyramid)
+    levels: int = 6  # pyramid levels (level k has side texture_size / 2^k)
+    views: int = 2  # random views rendered per step
+    resolution: int = 128  # render resolution: an exemplar pixel shows at one render pixel
+    exemplar_size: int = 128  # the exemplar's centred square is resized to this
+    loss: str = "ps"  # structure loss: ps (oriented-band statistics), sw (sliced Wasserstein on random VGG), ot
+    vgg_depth: int = 4  # VGG19 layers of the sw and ot losses (0: RGB only)
+    max_points: int = 1024  # feature positions per set in the sw and ot losses
+    lr: float = 0.02  # Adam learning rate of every level
+    overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
+    direction_field: str = "up"  # up: views upright (stripes keep the mesh's up); none: views rolled at random
+    distance: float = 3.2  # camera distance, in units of the mesh's radius
+    fov: float = 40.0  # vertical field of view, degrees
+    elevation_min: float = -60.0  # random views: elevation range, degrees
+    elevation_max: float = 60.0
+    seed: int = 0  # seed of the views, the loss's random projections and the initial noise
+
+    def __post_init__(self):
+        check_fields(self, at_least={"iters": 1, "texture_size": 16, "levels": 1, "views": 1, "resolution": 32,
+                                     "exemplar_size": 16, "max_points": 2, "overflow_weight": 0},
+                     between={"vgg_depth": (0, 5), "fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0),
+                              "elevation_max": (-90.0, 90.0), "texture_size": (16, 8192), "resolution": (32, 4096),
+                              "exemplar_size": (16, 4096), "levels": (1, 12)},
+                     positive=("lr", "distance"))
+        if self.loss not in SYNTHESIS_LOSSES or self.loss not in STYLE_LOSSES:
+            raise ValueError(f"loss must be one of {', '.join(SYNTHESIS_LOSSES)}, got {self.loss!r}")
+        if self.direction_field not in DIRECTIONS:
+            raise ValueError(f"direction_field must be one of {', '.join(DIRECTIONS)}, got {self.direction_field!r}")
+        if self.elevation_max < self.elevation_min:
+            raise ValueError(f"elevation_max {self.elevation_max} is below elevation_min {self.elevation_min}")
+
+
+@dataclass
+class TexelSurface:
+    """The mesh the texture lives on: positions (V, 3) float32 in the unit ball (y up), faces (T, 3)
+    int64, uv (V, 2) float32 in [0, 1] (v up); a vertex is split where the atlas has a seam."""
+
+    positions: torch.Tensor
+    faces: torch.Tensor
+    uv: torch.Tensor
+
+    def __post_init__(self):
+        if self.positions.dim() != 2 or self.positions.shape[1] != 3:
+            raise ValueError(f"TexelSurface: positions must be (V, 3), got {tuple(self.positions.shape)}")
+        if self.uv.shape != (self.positions.shape[0], 2):
+            raise ValueError(f"TexelSurface: uv must be (V, 2) with V = {self.positions.shape[0]}, "
+                             f"got {tuple(self.uv.shape)}")
+        if self.faces.dim() != 2 or self.faces.shape[1] != 3 or self.faces.shape[0] == 0:
+            raise ValueError(f"TexelSurface: faces must be (T, 3) with T > 0, got {tuple(self.faces.shape)}")
+
+    @classmethod
+    def from_arrays(cls, positions, faces, uv) -> "TexelSurface":
+        return cls(torch.as_tensor(np.asarray(positions), dtype=torch.float32),
+                   torch.as_tensor(np.asarray(faces), dtype=torch.long),
+                   torch.as_tensor(np.asarray(uv), dtype=torch.float32))
+
+    def texel_density(self) -> float:
+        """Texels per unit length of the surface, per texel of texture side: sqrt(UV area / surface area)."""
+        corners, uv = self.positions[self.faces].double(), self.uv[self.faces].double()
+        area = torch.linalg.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).norm(dim=1).sum() / 2
+        e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+        uv_area = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).abs().sum() / 2
+        return float((uv_area / area.clamp_min(1e-12)).sqrt())
+
+
+def pixels_per_unit(resolution: int, distance: float, fov: float) -> float:
+    """Render pixels per unit length at the origin, seen from ``distance`` with a vertical ``fov`` (degrees)."""
+    return resolution / (2 * distance * math.tan(math.radians(fov) / 2))
+
+
+def mip_level(surface: TexelSurface, cfg: SynthesisConfig) -> int:
+    """The pooling level m whose texels come nearest to one render pixel (log2 of texels per pixel,
+    rounded; 0 when the texture is coarser than the renders), at most levels - 1."""
+    per_pixel = cfg.texture_size * surface.texel_density() / pixels_per_unit(cfg.resolution, cfg.distance, cfg.fov)
+    return int(min(max(round(math.log2(max(per_pixel, 1e-9))), 0), cfg.levels - 1))
+
+
+def exemplar_tensor(rgb: np.ndarray, size: int) -> torch.Tensor:
+    """(H, W, 3) uint8 image -> (1, 3, size, size) float32 in [-1, 1]: its centred square, resized
+    with antialiasing."""
+    h, w = rgb.shape[:2]
+    side = min(h, w)
+    top, left = (h - side) // 2, (w - side) // 2
+    crop = np.ascontiguousarray(rgb[top:top + side, left:left + side])
+    square = torch.from_numpy(crop).float().permute(2, 0, 1)[None]
+    resized = F.interpolate(square, size=(size, size), mode="bilinear", align_corners=False, antialias=side > size)
+    return (resized / 127.5 - 1).clamp(-1, 1)
+
+
+def view_cameras(cfg: SynthesisConfig, count: int, generator: torch.Generator) -> torch.Tensor:
+    """(count, 4, 4) mvp of random orbit views of the unit ball: upright for ``direction_field`` up, else each
+    rolled about its view axis by a random angle (a rotation of the clip-space x and y)."""
+    azimuth = torch.rand(count, generator=generator) * 360.0
+    elevation = cfg.elevation_min + torch.rand(count, generator=generator) * (cfg.elevation_max - cfg.elevation_min)
+    mvp = orbit_camera(azimuth, elevation, distance=cfg.distance, fov=cfg.fov).mvp
+    if cfg.direction_field == "none":
+        angle = torch.rand(count, generator=generator) * (2 * math.pi)
+        roll = torch.eye(4).repeat(count, 1, 1)
+        roll[:, 0, 0], roll[:, 0, 1], roll[:, 1, 0], roll[:, 1, 1] = angle.cos(), -angle.sin(), angle.sin(), angle.cos()
+        mvp = roll @ mvp
+    return mvp
+
+
+def render_texture(surface: TexelSurface, image: torch.Tensor, mvp: torch.Tensor, resolution: int,
+                   background: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """The mesh with texture ``image`` (3, H, W) in [-1, 1] (row 0 at v = 1) seen by ``mvp`` (N, 4, 4).
+
+    Returns images (N, 3, R, R) in [-1, 1] (``background`` off the object) and masks (N, 1, R, R)
+    float; differentiable with respect to ``image``.
+    """
+    raster = rasterize(transform_points(surface.positions, mvp), surface.faces, (resolution, resolution))
+    covered = (raster.face_id >= 0)[..., None]
+    colours = texture(image, interpolate(surface.uv, raster, surface.faces))  # (N, R, R, 3)
+    images = torch.where(covered, colours, torch.full_like(colours, background))
+    return images.permute(0, 3, 1, 2), covered.permute(0, 3, 1, 2).to(images.dtype)
+
+
+class TexelPyramid(torch.nn.Module):
+    """A texture as a Laplacian-style pyramid of parameters whose upsampled levels add up.
+
+    A single texel grid learns its low frequencies slowly: a step moves each texel by about the
+    learning rate, and a colour balance or band layout spanning the atlas has to be assembled texel by
+    texel. A coarse level moves a whole region in one step, so the large-scale layout converges in a
+    few dozen steps while the finer levels add detail.
+
+    Level 0 is (3, S, S) and the finest; level k is (3, S / 2^k, S / 2^k). ``mean`` (3,) starts the
+    coarsest level; ``noise`` the finest (a small random start breaks the symmetry of a flat colour).
+    """
+
+    def __init__(self, size: int, levels: int, mean: torch.Tensor, noise: float = 0.05,
+                 generator: torch.Generator | None = None):
+        super().__init__()
+        sides = [max(size >> k, 1) for k in range(levels)]
+        self.size = int(size)
+        self.levels = torch.nn.ParameterList([torch.nn.Parameter(torch.zeros(1, 3, s, s)) for s in sides])
+        with torch.no_grad():
+            self.levels[-1].copy_(mean.reshape(1, 3, 1, 1).expand_as(self.levels[-1]))
+            self.levels[0].add_(noise * torch.randn(self.levels[0].shape, generator=generator))
+
+    def forward(self) -> torch.Tensor:
+        """(3, S, S): the sum of every level, each upsampled bilinearly to S."""
+        total = self.levels[0]
+        for level in self.levels[1:]:
+            total = total + F.interpolate(level, size=(self.size, self.size), mode="bilinear", align_corners=False)
+        return total[0]
+
+
+def texture_coverage(surface: TexelSurface, size: int) -> torch.Tensor:
+    """(size, size) bool: the texels whose centre a triangle of the atlas covers."""
+    return uv_rasterize(surface.uv, surface.faces, (size, size)).face_id[0] >= 0
+
+
+class TexelSynthesis:
+    """The optimisation (module docstring): :meth:`step` once per iteration, then :meth:`texture`.
+
+    surface: the mesh and its atlas; exemplar (1, 3, h, w) in [-1, 1]; vgg: the feature network of
+    the ``sw`` and ``ot`` losses (None for ``ps``).
+    """
+
+    def __init__(self, cfg: SynthesisConfig, surface: TexelSurface, exemplar: torch.Tensor, vgg=None,
+                 device: torch.device | str = "cpu"):
+        if exemplar.dim() != 4 or exemplar.shape[:2] != (1, 3):
+            raise ValueError(f"TexelSynthesis: exemplar must be (1, 3, h, w), got {tuple(exemplar.shape)}")
+        if cfg.loss != "ps" and vgg is None:
+            raise ValueError(f"TexelSynthesis: the {cfg.loss} loss needs a VGG network")
+        self.cfg, self.device = cfg, torch.device(device)
+        self.surface = TexelSurface(*(t.to(self.device) for t in (surface.positions, surface.faces, surface.uv)))
+        self.vgg = vgg
+        depth = 0 if cfg.loss == "ps" else cfg.vgg_depth
+        self.features = ExemplarFeatures.compute(vgg, exemplar.to(self.device), depth)
+        self.generator = torch.Generator().manual_seed(cfg.seed)
+        mean = exemplar.mean((0, 2, 3))
+        self.pyramid = TexelPyramid(cfg.texture_size, cfg.levels, mean, generator=self.generator).to(self.device)
+        self.optimizer = torch.optim.Adam(self.pyramid.parameters(), lr=cfg.lr)
+        self.mip = mip_level(surface, cfg)
+        self.iteration = 0
+
+    def seen(self, image: torch.Tensor | None = None) -> torch.Tensor:
+        """(3, S / 2^m, S / 2^m): the texture pooled to the mip level the renders read; colours
+        clamped to [-1, 1] on the way forward, the gradient passed through as it is."""
+        image = self.pyramid() if image is None else image
+        pooled = F.avg_pool2d(image[None], 2**self.mip)[0] if self.mip else image
+        return pooled + (pooled.clamp(-1, 1) - pooled).detach()
+
+    def loss_of(self, image: torch.Tensor, mvp: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """The style loss of the renders of ``image`` (3, S, S) by ``mvp`` (N, 4, 4) against the exemplar."""
+        images, masks = render_texture(self.surface, self.seen(image), mvp.to(self.device), self.cfg.resolution)
+        return style_loss(self.vgg, images, masks, self.features, self.cfg.loss, self.cfg.max_points, generator)
+
+    def step(self) -> dict[str, float]:
+        """One Adam step on random views; returns its losses (style, overflow)."""
+        image = self.pyramid()
+        mvp = view_cameras(self.cfg, self.cfg.views, self.generator)
+        style = self.loss_of(image, mvp, self.generator)
+        overflow = F.relu(image.abs() - 1).square().mean()
+        loss = style + self.cfg.overflow_weight * overflow
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+        self.iteration += 1
+        values = {"loss": float(style.detach()), "overflow": float(overflow.detach())}
+        if not all(math.isfinite(v) for v in values.values()):
+            raise FloatingPointError(f"texel synthesis: non-finite loss at step {self.iteration}: {values}")
+        return values
+
+    @torch.no_grad()
+    def fixed_loss(self, views: int = 4, seed: int = 1) -> float:
+        """The style loss over ``views`` views and projections drawn from ``seed`` (the same at every call):
+        comparable before and after the optimisation."""
+        generator = torch.Generator().manual_seed(seed)
+        return float(self.loss_of(self.pyramid(), view_cameras(self.cfg, views, generator), generator))
+
+    @torch.no_grad()
+    def texture(self) -> torch.Tensor:
+        """(S, S, 3) float32 in [-1, 1] on the CPU: the pyramid summed, pooled to the mip level the renders
+        read and upsampled back (what the views saw, at the asked size), texels no render could read
+        (farther from the atlas's charts than a pooled texel) filled from the nearest one that could."""
+        from mesh2tex.render.bake import fill_empty_texels
+
+        size = self.cfg.texture_size
+        image = self.seen()
+        if self.mip:
+            image = F.interpolate(image[None], size=(size, size), mode="bilinear", align_corners=False)[0]
+        covered = texture_coverage(self.surface, size)[None, None].float()
+        reach = 2 * 2**self.mip + 1
+        readable = F.max_pool2d(covered, reach, stride=1, padding=reach // 2)[0, 0] > 0
+        colours = image.permute(1, 2, 0).cpu().numpy()
+        return torch.from_numpy(fill_empty_texels(colours, readable.cpu().numpy()))
+
+
+def vertex_texture_colours(image: torch.Tensor, uv: np.ndarray, vertex_index: np.ndarray, count: int) -> torch.Tensor:
+    """(count, 3) colours in [-1, 1] of a mesh's own vertices: the texture ``image`` (S, S, 3) read at each
+    atlas vertex's ``uv`` (V', 2) and averaged over the atlas vertices (``vertex_index`` (V',) into the
+    mesh's) that split the same vertex; a vertex no face uses reads uv (0, 0)."""
+    grid = torch.as_tensor(uv, dtype=torch.float32)[None, None]  # (1, 1, V', 2)
+    sampled = texture(image.permute(2, 0, 1).float(), grid)[0, 0]  # (V', 3)
+    index = torch.as_tensor(vertex_index, dtype=torch.long)
+    summed = torch.zeros(count, 3).index_add_(0, index, sampled)
+    return summed / torch.zeros(count).index_add_(0, index, torch.ones(len(index))).clamp_min(1)[:, None]
+
+
+__all__ = ["DIRECTIONS", "SYNTHESIS_LOSSES", "SynthesisConfig", "TexelPyramid", "TexelSurface", "TexelSynthesis",
+           "exemplar_tensor", "mip_level", "pixels_per_unit", "render_texture", "texture_coverage",
+           "vertex_texture_colours", "view_cameras"]

@@ -1,0 +1,125 @@
+"""``mesh2tex infer synthesize``: the user's mesh back with a texture optimised through renders, on a
+tiny mesh with tiny sizes (the figures of full-size runs are in docs/results/nca.md)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from PIL import Image
+
+from mesh2tex.cli import main
+from mesh2tex.io.assets import load_glb
+from mesh2tex.render.bake import new_atlas
+from mesh2tex.synthetic.exemplars import exemplar_image
+from mesh2tex.texel_synthesis import SynthesisConfig, TexelSurface, TexelSynthesis, exemplar_tensor, view_cameras
+from user_assets import stool, write_obj
+
+TINY = ["--iters", "4", "--texture-size", "64", "--resolution", "48", "--views", "1", "--device", "cpu"]
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("synthesize")
+    Image.fromarray(exemplar_image("stripes", 48)).save(folder / "stripes.png")
+    mesh = stool(sections=8)
+    write_obj(folder / "stool.obj", mesh.vertices, mesh.faces)
+    return folder
+
+
+def command(inputs, out, exemplar=None) -> list[str]:
+    exemplar = exemplar or inputs / "stripes.png"
+    return ["infer", "synthesize", "--exemplar", str(exemplar), "--mesh", str(inputs / "stool.obj"), "--out", str(out)]
+
+
+def one_error_line(capsys) -> str:
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.startswith("mesh2tex: error:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_the_glb_holds_the_users_mesh_with_a_texture_of_the_asked_size(inputs, tmp_path, monkeypatch):
+    monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
+    out = tmp_path / "out"
+    assert main([*command(inputs, out), *TINY]) == 0
+    source = trimesh.load(inputs / "stool.obj", process=False)
+    vertices, faces, uv, texture = load_glb(out / "textured.glb")
+    assert len(faces) == len(source.faces)
+    # the user's own positions (split on the atlas's seams only), and their triangles
+    corners = source.vertices[source.faces].astype(np.float32).reshape(len(faces), -1)
+    np.testing.assert_array_equal(np.sort(vertices[faces].reshape(len(faces), -1), axis=0), np.sort(corners, axis=0))
+    assert texture.shape == (64, 64, 3) and texture.std() > 0 and uv.shape == (len(vertices), 2)
+    ply = trimesh.load(out / "textured.ply", process=False)
+    assert len(ply.vertices) == len(source.vertices) and np.array_equal(ply.faces, source.faces)
+    assert np.asarray(Image.open(out / "texture.png")).shape == (64, 64, 3)
+    report = json.loads((out / "report.json").read_text())
+    assert report["config"]["synthesis"]["iters"] == 4 and report["output_mesh"]["uv"] == "new"
+    assert np.isfinite(report["final_loss"]) and "swd" in report["structure"]
+    assert (out / "view_0.png").is_file()
+
+
+def test_files_already_in_out_are_kept_without_overwrite(inputs, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "texture.png").write_text("the user's own file")
+    capsys.readouterr()
+    assert main([*command(inputs, out), *TINY]) != 0
+    line = one_error_line(capsys)
+    assert "texture.png" in line and "--overwrite" in line
+    assert (out / "texture.png").read_text() == "the user's own file"
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["texture.png"]
+
+
+@pytest.mark.parametrize("bad", ["missing.png", "broken.png"])
+def test_a_bad_exemplar_is_a_one_line_error(bad, inputs, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
+    (tmp_path / "broken.png").write_bytes(b"not an image at all")
+    out = tmp_path / "out"
+    capsys.readouterr()
+    assert main([*command(inputs, out, exemplar=tmp_path / bad), *TINY]) != 0
+    assert bad in one_error_line(capsys)
+    assert not out.exists() or not [p for p in out.iterdir() if not p.name.startswith(".")]
+
+
+def test_a_bad_mesh_is_a_one_line_error(inputs, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
+    capsys.readouterr()
+    assert main(["infer", "synthesize", "--exemplar", str(inputs / "stripes.png"), "--mesh", str(tmp_path / "none.obj"),
+                 "--out", str(tmp_path / "out"), *TINY]) != 0
+    assert "none.obj" in one_error_line(capsys)
+
+
+def test_the_loss_falls_over_a_short_run():
+    torch.manual_seed(0)
+    ball = trimesh.creation.icosphere(subdivisions=2)
+    vertex_index, faces, uv = new_atlas(ball.vertices, ball.faces)
+    unit = ball.vertices / np.linalg.norm(ball.vertices, axis=1).max()
+    surface = TexelSurface.from_arrays(unit[vertex_index], faces, uv)
+    cfg = SynthesisConfig(iters=30, texture_size=64, levels=4, resolution=64, exemplar_size=48, lr=0.05)
+    synthesis = TexelSynthesis(cfg, surface, exemplar_tensor(exemplar_image("stripes", 48), 48))
+    before = synthesis.fixed_loss()
+    for _ in range(cfg.iters):
+        synthesis.step()
+    after = synthesis.fixed_loss()
+    assert after < 0.8 * before, (before, after)
+    image = synthesis.texture()
+    assert image.shape == (64, 64, 3) and float(image.abs().max()) <= 1.0
+
+
+def test_upright_views_keep_the_meshs_up_and_rolled_views_do_not():
+    """direction field 'up': the y axis projects straight up the image in every view; 'none': it leans."""
+    def screen_up(direction: str) -> torch.Tensor:
+        mvp = view_cameras(SynthesisConfig(direction_field=direction), 16, torch.Generator().manual_seed(0))
+        points = torch.tensor([[0.0, 0.0, 0.0, 1.0], [0.0, 0.1, 0.0, 1.0]])
+        clip = points @ mvp.transpose(1, 2)  # (16, 2, 4)
+        ndc = clip[..., :2] / clip[..., 3:]
+        step = ndc[:, 1] - ndc[:, 0]
+        return torch.atan2(step[:, 0], step[:, 1]).abs()  # angle from the image's up, radians
+
+    assert float(screen_up("up").max()) < 1e-4
+    assert float(screen_up("none").max()) > 0.5

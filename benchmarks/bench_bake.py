@@ -159,23 +159,23 @@ def eroded(mask: torch.Tensor, pixels: int = 2) -> torch.Tensor:
 def fidelity(args) -> None:
     from PIL import Image
 
-    from mesh2tex.io.models import gan_camera, load_generator
+    from mesh2tex.models import load_generator
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.render_texture import render_field_views
     from mesh2tex.render import orbit_camera, turntable_angles
     from mesh2tex.render.bake import MeshBaker
     from mesh2tex.nn.render_texture import field_colours
-    from mesh2tex.texture import bake_texture, latent, load_shape, model_face_count
+    from mesh2tex.texture import bake_texture, latent, load_shape
 
-    generator, meta = load_generator("chair", torch.device("cpu"))
-    distance, fov = gan_camera(meta)
+    model = load_generator("chair", torch.device("cpu"))
+    generator, distance, fov = model.network, model.camera.distance, model.camera.fov
     mvp = orbit_camera(*turntable_angles(8, 20.0), distance=distance, fov=fov).mvp
     white = torch.ones(8, 3)
     folder = Path(tempfile.mkdtemp(prefix="bake-"))
     print(f"texture {args.size}^2, 8 views at 256 px, pixels 2 px inside both silhouettes; CIELAB difference (CIE76)")
     print(f"{'mesh':24s} {'target':9s} {'pixels of':11s} {'triangles':>9s} {'uv':>4s} {'pixels':>7s} {'median':>7s} {'p99':>6s} {'max dist':>8s}")
     for name, path in fidelity_meshes(folder).items():
-        shape, target = load_shape(path, generator, model_face_count(meta))
+        shape, target = load_shape(path, generator, model.face_count())
         batch = collate_shapes([shape])
         with torch.no_grad():
             texture = generator.synthesize(batch, latent(generator, 0, torch.device("cpu")), noise_mode="none")
@@ -217,19 +217,20 @@ def fidelity(args) -> None:
 def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
     """Seconds of each part of baking the shipped chair's texture onto a ``triangles``-triangle chair at ``size``."""
     from mesh2tex.geometry.closest import SurfaceIndex
-    from mesh2tex.io.models import load_generator
+    from mesh2tex.models import load_generator
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.render.bake import MeshBaker, mesh_atlas
     from mesh2tex.nn.render_texture import field_colours
-    from mesh2tex.texture import bake_texture, latent, load_shape, model_face_count, write_baked_mesh
+    from mesh2tex.texture import bake_texture, latent, load_shape, write_baked_mesh
 
     folder = Path(tempfile.mkdtemp(prefix="bake-time-"))
     path = folder / "chair.ply"
     mesh = chair_mesh(triangles) if shape == "chair" else blob_mesh(triangles)
     mesh.export(path)
-    generator, meta = load_generator("chair", torch.device("cpu"))
+    model = load_generator("chair", torch.device("cpu"))
+    generator = model.network
     start = time.perf_counter()
-    shape, target = load_shape(path, generator, model_face_count(meta))
+    shape, target = load_shape(path, generator, model.face_count())
     seconds = {"load and prepare": time.perf_counter() - start}
     batch = collate_shapes([shape])
     with torch.no_grad():

@@ -29,9 +29,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mesh2tex.infer.generation import _ORACLE_STREAM, draw_key, fresh_photo_set, generator_renders, material_draws, read_world, sample_views  # noqa: E402
 from mesh2tex.render import composite_images  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
-from mesh2tex.io.image_sets import list_images, load_set  # noqa: E402
+from mesh2tex.photos import list_images, load_set  # noqa: E402
 from mesh2tex.io.checkpoint import load_checkpoint  # noqa: E402
-from mesh2tex.io.models import GENERATOR, load_generator, save_inference_checkpoint  # noqa: E402
+from mesh2tex.models import load_generator, save_inference_checkpoint  # noqa: E402
+from mesh2tex.models.store import GENERATOR  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd, srgb_to_lab  # noqa: E402
 
 
@@ -52,7 +53,8 @@ def moved_to(images: torch.Tensor, masks: torch.Tensor, reference: torch.Tensor,
 def load(spec: str, live_out: Path | None):
     """A checkpoint spec (PATH or PATH@live) -> (EMA or live generator, label)."""
     path, _, which = spec.partition("@")
-    generator, meta = load_generator(path, torch.device("cpu"))
+    model = load_generator(path, torch.device("cpu"))
+    generator, meta = model.network, model.meta
     if which != "live":
         return generator, f"{path} (EMA)"
     groups, _ = load_checkpoint(path, kind="gan")

@@ -27,7 +27,8 @@ from mesh2tex.nn.batch import collate_shapes  # noqa: E402
 from mesh2tex.nn.discriminator import Discriminator  # noqa: E402
 from mesh2tex.nn.render_texture import render_field_views  # noqa: E402
 from mesh2tex.train import runs  # noqa: E402
-from mesh2tex.train.gan import GanTrainer, TrainGanConfig, load_images, random_cameras  # noqa: E402
+from mesh2tex.photos import load_photo_collection  # noqa: E402
+from mesh2tex.train.gan import GanTrainer, TrainGanConfig, random_cameras  # noqa: E402
 
 
 def main() -> int:
@@ -43,7 +44,7 @@ def main() -> int:
     cfg.device = "cpu"
     shapes, _ = load_shapes(args.shapes)
     cfg.generator.input_features = shapes[0].face_features.shape[1]
-    trainer = GanTrainer(cfg, shapes, load_images(args.images, cfg.resolution), runs.RunDirectory(args.run), torch.device("cpu"),
+    trainer = GanTrainer(cfg, shapes, load_photo_collection(args.images, cfg.resolution), runs.RunDirectory(args.run), torch.device("cpu"),
                          runs.Distributed("cpu"))
     trainer.resume()
     fakes = []

@@ -77,13 +77,13 @@ def main() -> None:
     from mesh2tex.geometry.prepared import quads_to_triangles
     from mesh2tex.infer.generation import (draw_key, fresh_photo_set, generator_renders, photo_set_spread, read_as_photos, read_world,
                                            seeded_generator)
-    from mesh2tex.io.image_sets import list_images, load_set
-    from mesh2tex.io.models import load_generator, trained_lit
+    from mesh2tex.photos import list_images, load_set
+    from mesh2tex.models import load_generator
     from mesh2tex.metrics.generation import colour_spread, mean_object_lab, object_set_swd
     from mesh2tex.nn.generator import TextureGenerator
     from mesh2tex.render import composite_images
     from mesh2tex.synthetic.world import sample_material, sample_views
-    from mesh2tex.texture import load_shape, model_face_count
+    from mesh2tex.texture import load_shape
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--world", required=True)
@@ -96,10 +96,12 @@ def main() -> None:
     device = torch.device("cpu")
     world = read_world(args.world)
     side = world.spec.resolution
-    generators = [(str(c), *load_generator(c, device)) for c in args.checkpoint]
-    resolution = int(generators[0][2]["config"]["resolution"])
+    models = {str(c): load_generator(c, device) for c in args.checkpoint}
+    first = next(iter(models.values()))
+    resolution = first.resolution
     torch.manual_seed(0)
-    untrained = TextureGenerator(generators[0][1].cfg).eval().requires_grad_(False)
+    untrained = TextureGenerator(first.network.cfg).eval().requires_grad_(False)
+    generators = [(label, model.network, model.lit) for label, model in models.items()]
     photos, photo_masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
     photo_names = list(list_images(world.root / "images", "image"))
     photo_mean = (photos * photo_masks).sum(dim=(0, 2, 3)) / photo_masks.sum().clamp_min(1.0)
@@ -110,9 +112,8 @@ def main() -> None:
     spread: dict[str, list] = {}
     meshes = outside_meshes(args.category, folder)
     for index, (name, path) in enumerate(meshes):
-        shape, _ = load_shape(path, generators[0][1], model_face_count(generators[0][2]), output_mesh="prepared")  # one working copy
-        for label, generator, meta in [*generators, ("untrained", untrained, generators[0][2])]:
-            lit = trained_lit(meta)
+        shape, _ = load_shape(path, first.network, first.face_count(), output_mesh="prepared")  # one working copy
+        for label, generator, lit in [*generators, ("untrained", untrained, first.lit)]:
             for repeat in range(args.repeats):
                 z = torch.randn(args.views, generator.cfg.z_dim, generator=seeded_generator(draw_key(0, repeat), 1))
                 rows.setdefault((label, repeat), []).append(generator_renders(generator, shape, views, resolution, z, device, lit,

@@ -147,7 +147,7 @@ def main() -> None:
     from mesh2tex.evaluation.surfaces import flat_surface, generator_surface, material_surface, photo_mean_colour
     from mesh2tex.io.images import save_png
     from mesh2tex.nn.pose import azimuth_error
-    from mesh2tex.io.models import MODEL_FILES, gan_camera, is_model_name, load_generator, models_root, trained_lit
+    from mesh2tex.models import MODEL_FILES, is_model_name, load_generator, models_root
 
     def shipped_file(name: str, kind: str) -> str | None:
         path = models_root() / name / MODEL_FILES[kind]
@@ -156,7 +156,7 @@ def main() -> None:
     from mesh2tex.nn.vgg import load_vgg19
     from mesh2tex.photos import estimate_mask
     from mesh2tex.synthetic.world import WorldSpec, sample_material, sample_views
-    from mesh2tex.texture import load_shape, model_face_count
+    from mesh2tex.texture import load_shape
     from mesh2tex.transfer import (TransferConfig, estimate_pose, photo_candidates, pick_by_outline, predict_noc, transfer_texture,
                                    view_at_pose)
     from mesh2tex.transfer.fit import check_fit
@@ -188,8 +188,8 @@ def main() -> None:
         mask_checkpoint = shipped_file(args.checkpoint, "mask")
     if pose_checkpoint is None:
         parser.error("--pose-checkpoint is needed with a checkpoint file")
-    generator, meta = load_generator(args.checkpoint, device)
-    distance, fov = gan_camera(meta)
+    model = load_generator(args.checkpoint, device)
+    generator, distance, fov = model.network, model.camera.distance, model.camera.fov
     cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
                          use_noc=noc_checkpoint is not None)
     vgg = load_vgg19(None, device=device)
@@ -199,7 +199,7 @@ def main() -> None:
     settings = ScoreSettings()
     rows = []
     for index, (name, path) in enumerate(outside_meshes(args.category, folder)):
-        shape, _ = load_shape(path, generator, model_face_count(meta), output_mesh="prepared")
+        shape, _ = load_shape(path, generator, model.face_count(), output_mesh="prepared")
         vertices, faces = shape.vertices[0], shape.triangles(0)
         parts = height_parts(vertices, faces, args.category)
         material = sample_material(spec, np.random.default_rng([7, index]))
@@ -257,7 +257,7 @@ def main() -> None:
                     torch.manual_seed(0)
                     candidate = copy.deepcopy(generator)
                     result = transfer_texture(candidate, shape, photo, framed, photo_noc, vgg, cfg, device, show_progress=False,
-                                              generator_lit=trained_lit(meta))
+                                              generator_lit=model.lit)
                     batch = collate_shapes([shape])
                     fit = check_fit(photo.image, photo.mask, result.render, framed.mask)
                     row["fit_poor"], row["fit_iou"] = fit.poor, fit.silhouette_iou

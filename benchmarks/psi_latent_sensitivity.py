@@ -20,7 +20,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.io.models import gan_camera, load_generator  # noqa: E402
+from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.nn.batch import collate_shapes  # noqa: E402
 from mesh2tex.nn.generator import FaceTexture  # noqa: E402
@@ -37,8 +37,8 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=64)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    generator, meta = load_generator(args.checkpoint, torch.device("cpu"))
-    distance, fov = gan_camera(meta)
+    model = load_generator(args.checkpoint, torch.device("cpu"))
+    generator, distance, fov = model.network, model.camera.distance, model.camera.fov
     paths = sorted(Path(args.shapes).glob("*.npz"))[:4]
     latent_swap, proxy_swap, frozen = [], [], []
     z = torch.randn(args.latents, generator.cfg.z_dim, generator=torch.Generator().manual_seed(0))
@@ -64,7 +64,7 @@ def main() -> None:
             for j in range(i + 1, args.latents):
                 latent_swap.append((colours[i] - colours[j]).abs().mean())
                 proxy_swap.append((faces[i] - faces[j]).abs().mean())
-    print(f"{args.checkpoint} (iteration {meta.get('iteration')}), {len(paths)} shapes, {args.latents} latents")
+    print(f"{args.checkpoint} (iteration {model.iteration}), {len(paths)} shapes, {args.latents} latents")
     print(f"psi colour change under a latent swap:   {torch.stack(latent_swap).mean():.4f}")
     print(f"proxy colour change under a latent swap: {torch.stack(proxy_swap).mean():.4f}")
     if frozen:

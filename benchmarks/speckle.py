@@ -42,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.infer.generation import WorldData, generator_renders, ground_truth_renders, material_renders  # noqa: E402
-from mesh2tex.io.models import load_generator  # noqa: E402
+from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.metrics.spectrum import DEFAULT_CUTOFF, high_frequency_share, view_pixels_per_unit  # noqa: E402
 from mesh2tex.nn.generator import TextureGenerator  # noqa: E402
 from mesh2tex.render import composite_images  # noqa: E402
@@ -123,7 +123,8 @@ def main() -> None:
     rendered = dataclasses.replace(spec, resolution=args.resolution)
     world = WorldData(rendered, Path(args.work), [spec.shape_name(i) for i in held], [spec.shape_name(i) for i in train],
                       {spec.shape_name(i): i for i in range(spec.shapes)})
-    generator, meta = load_generator(args.category, device)
+    model = load_generator(args.category, device)
+    generator = model.network
     torch.manual_seed(0)
     untrained = TextureGenerator(generator.cfg).to(device).eval().requires_grad_(False)
     work = Path(args.work) / f"{args.category}_{args.variety}"
@@ -185,7 +186,7 @@ def main() -> None:
     world_name = f"{args.category} world ({args.variety})"
     print(f"\nSpeckle on the {len(world.held_out)} held-out shapes of the {world_name}, {args.views} views each at {r} px, "
           f"unlit; power above {args.cutoff:g} cycles per object diagonal; generator seeds {args.seeds}; "
-          f"iteration {meta.get('iteration', '?')}; {time.perf_counter() - start:.0f} s\n")
+          f"iteration {model.iteration}; {time.perf_counter() - start:.0f} s\n")
     print("| row | high-frequency share, L* | x the world's materials' | L*a*b* | x the world's materials' |")
     print("| --- | --- | --- | --- | --- |")
     for row, values in rows.items():

@@ -46,14 +46,14 @@ from mesh2tex.evaluation import (METRIC_TITLES, METRICS, ScoreSettings, backproj
 from mesh2tex.evaluation.world import load_query_truth, reference_renders
 from mesh2tex.io.assets import TEXTURE_FORMATS, load_glb
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.io.models import load_generator, models_root
+from mesh2tex.models import load_generator, models_root
 from mesh2tex.io.outputs import guard_outputs, remove_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import JsonLines
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import load_shape, mean_latent, model_face_count
+from mesh2tex.texture import load_shape, mean_latent
 
 
 @dataclass
@@ -282,8 +282,9 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     reference = reference_renders(truth, views, lighting)
     renders = {"oracle": render(truth.truth.oracle), "transfer": render_glb_at_pose(transfer / "textured.glb", views, size, lighting),
                "flat_colour": render(flat_surface(vertices, faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])))}
-    generator, meta = load_generator(report["checkpoint"], torch.device("cpu"))
-    shape, _ = load_shape(report["mesh"], generator, model_face_count(meta, report["settings"].get("faces", 0)), report["settings"].get("seed", 0),
+    model = load_generator(report["checkpoint"], torch.device("cpu"))
+    generator = model.network
+    shape, _ = load_shape(report["mesh"], generator, model.face_count(report["settings"].get("faces", 0)), report["settings"].get("seed", 0),
                           output_mesh="prepared")
     batch = collate_shapes([shape])
     ws = mean_latent(generator)

@@ -18,7 +18,7 @@ computed over the mask (the ``--masks`` file, else the intersection of the alpha
 
 The library entry points :func:`mesh2tex.metrics.evaluate.evaluate_sets` and
 :func:`mesh2tex.metrics.evaluate.evaluate_pairs` take tensors and return plain dicts (the folders are
-read by :mod:`mesh2tex.io.image_sets`); the command writes ``OUT/metrics.json`` and ``OUT/metrics.md``.
+read by :mod:`mesh2tex.photos`); the command writes ``OUT/metrics.json`` and ``OUT/metrics.md``.
 
 Each mode reads its config (``--config YAML``, printed by ``--print-config``): the sets and pairs
 modes :class:`mesh2tex.metrics.evaluate.EvaluateConfig`, ``--protocols`` the protocol config,
@@ -45,11 +45,11 @@ from mesh2tex.infer.protocols import protocol_config, run_protocols_command
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready, write_json, write_text
-from mesh2tex.io.image_sets import list_images, load_pairs, load_set
-from mesh2tex.io.models import resolve_checkpoint
+from mesh2tex.photos import list_images, load_set
+from mesh2tex.models import resolve_checkpoint
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.metrics import get_feature_extractor
-from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, markdown_table
+from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, load_pairs, markdown_table
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.runtime import select_device

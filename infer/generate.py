@@ -26,7 +26,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.assets import TEXTURE_FORMATS
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.io.models import gan_camera, load_generator
+from mesh2tex.models import load_generator
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import render_field_views
@@ -34,7 +34,8 @@ from mesh2tex.options import config_overrides, parse_seeds  # --seeds: lists and
 from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.render import orbit_camera, turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import TexturedMeshWriter, latent, load_shape, model_face_count, note
+from mesh2tex.errors import note
+from mesh2tex.texture import TexturedMeshWriter, latent, load_shape
 
 
 @dataclass
@@ -72,9 +73,9 @@ def build_config(args) -> GenerateConfig:
 def run(args) -> int:
     cfg = build_config(args)
     device = select_device(cfg.device)
-    generator, meta = load_generator(args.checkpoint, device)
-    distance, fov = gan_camera(meta)
-    shape, target = load_shape(args.mesh, generator, model_face_count(meta, cfg.faces), up=args.up, uv=args.uv,
+    model = load_generator(args.checkpoint, device)
+    generator, distance, fov = model.network, model.camera.distance, model.camera.fov
+    shape, target = load_shape(args.mesh, generator, model.face_count(cfg.faces), up=args.up, uv=args.uv,
                                output_mesh=args.output_mesh)
     batch = collate_shapes([shape]).to(device)
     encoded = generator.encoder(batch)

@@ -85,9 +85,9 @@ from mesh2tex.evaluation.paired import oracle_check
 from mesh2tex.evaluation.surfaces import generator_surface
 from mesh2tex.evaluation.world import load_world, world_spec
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.io.image_sets import list_images, load_set, square_resize
+from mesh2tex.photos import list_images, load_set, square_resize
 from mesh2tex.io.images import colours_to_uint8, save_png
-from mesh2tex.io.models import load_generator, trained_lit
+from mesh2tex.models import load_generator
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
@@ -187,7 +187,7 @@ def on_white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tenso
 
 def as_photos(out: dict[str, np.ndarray], resolution: int) -> tuple[torch.Tensor, torch.Tensor]:
     """``render_views`` output at the world's photo resolution, read as the photo set is read
-    (:func:`mesh2tex.io.image_sets.load_set`: composited on white, then resized to ``resolution``)
+    (:func:`mesh2tex.photos.load_set`: composited on white, then resized to ``resolution``)
     -> images (B, 3, R, R) in [0, 1], masks (B, 1, R, R).
 
     Rendering straight at ``resolution`` is another image pipeline: the world's own materials on its
@@ -342,11 +342,14 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     start = time.perf_counter()
     device = device or torch.device("cpu")
     world = read_world(world_dir)
-    trained, meta = load_generator(checkpoint, device)
-    resolution = cfg.resolution or int(meta["config"]["resolution"])
+    model = load_generator(checkpoint, device)
+    trained = model.network
+    if not cfg.resolution and model.resolution is None:
+        raise UserError(f"{checkpoint}: the checkpoint does not say the resolution it was trained at; give --resolution")
+    resolution = cfg.resolution or model.resolution
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
-    lit = trained_lit(meta) if cfg.lighting == "auto" else cfg.lighting == "lit"
+    lit = model.lit if cfg.lighting == "auto" else cfg.lighting == "lit"
     photo_side = cfg.photo_side(world)
     names = world.held_out if cfg.split == "held_out" else world.train
     names = names[: cfg.max_shapes] if cfg.max_shapes > 0 else names
@@ -446,7 +449,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     ref = summary["reference_materials"]
     result = {
         "world": str(world.root), "checkpoint": str(checkpoint), "split": cfg.split, "shapes": names, "resolution": resolution,
-        "iteration": int(meta.get("iteration", 0)), "rows": rows, "generator_lit": lit,
+        "iteration": model.iteration or 0, "rows": rows, "generator_lit": lit,
         "gap_closed": gap_closed(rows["untrained"]["object_swd"], rows["trained"]["object_swd"], rows["oracle"]["object_swd"]),
         # The same figure from each draw alone: how much one draw of latents and materials moves it.
         "gap_closed_per_draw": [gap_closed(r["untrained"]["object_swd"], r["trained"]["object_swd"], r["oracle"]["object_swd"])

@@ -26,14 +26,14 @@ import numpy as np
 import torch
 
 from mesh2tex.config import load_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import UserError, note
 from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface, unit_transform
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.assets import TEXTURE_FORMATS
 from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.io.models import load_nca
+from mesh2tex.models import load_nca
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.limits import check_range
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
@@ -46,7 +46,7 @@ from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
-from mesh2tex.texture import note, read_user_mesh, source_mesh, write_automaton_mesh
+from mesh2tex.texture import read_user_mesh, source_mesh, write_automaton_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
 

@@ -81,10 +81,10 @@ from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth,
 from mesh2tex.geometry.prepared import PreparedShape, shape_paths
 from mesh2tex.io.atomic import atomic_path, json_ready, write_json, write_text
 from mesh2tex.io.checkpoint import checkpoint_digest
-from mesh2tex.io.image_sets import list_images, load_set
+from mesh2tex.photos import list_images, load_set
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.io.outputs import guard_outputs
-from mesh2tex.io.models import gan_camera, is_model_name, load_generator, resolve_checkpoint, trained_lit
+from mesh2tex.models import is_model_name, load_generator, resolve_checkpoint
 from mesh2tex.metrics import get_feature_extractor, to_unit
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.nn.batch import collate_shapes
@@ -490,8 +490,8 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     device = select_device(cfg.device)
     started = time.perf_counter()
     world = load_world(world_dir, cfg.queries)
-    generator, meta = load_generator(gan_checkpoint, device)
-    distance, fov = gan_camera(meta)
+    model = load_generator(gan_checkpoint, device)
+    generator, distance, fov = model.network, model.camera.distance, model.camera.fov
     paths = shape_paths(shapes_dir)
     needed, targets = set(world.query_shapes), {}
     if "other_shape" in cfg.protocols:
@@ -515,7 +515,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         inputs = {"world": str(Path(world_dir).resolve()), "shapes": str(Path(shapes_dir).resolve()),
                   "gan": _file_digest(gan_checkpoint, "gan"), "pose": _file_digest(pose_checkpoint, "pose"),
                   "noc": _file_digest(noc_checkpoint, "noc")}
-        cache = TransferCache(out, {"settings": json_ready(cache_settings(cfg, trained_lit(meta))), "inputs": inputs}, overwrite)
+        cache = TransferCache(out, {"settings": json_ready(cache_settings(cfg, model.lit)), "inputs": inputs}, overwrite)
     result = {"world": str(world_dir), "shapes": str(shapes_dir), "gan": str(gan_checkpoint),
               "pose_checkpoint": str(pose_checkpoint) if pose_checkpoint else None,
               "noc_checkpoint": str(noc_checkpoint) if noc_checkpoint else None,
@@ -532,7 +532,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
             bar.update(1)
         else:
             entry = run_transfer_protocol(protocol, generator, world, shapes, targets, vgg, cfg, pose_checkpoint,
-                                          noc_checkpoint, distance, fov, device, out, log, cache, generator_lit=trained_lit(meta),
+                                          noc_checkpoint, distance, fov, device, out, log, cache, generator_lit=model.lit,
                                           step=bar.update)
             result["comparison"][protocol] = compare_to_full(entry["methods"])
             entry["oracle_loses"] = oracle_check(entry["methods"])

@@ -51,21 +51,21 @@ import torch
 from PIL import Image
 
 from mesh2tex.config import load_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import UserError, note, warning
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, save_png
-from mesh2tex.io.models import gan_camera, is_model_name, load_generator, model_has, trained_lit
+from mesh2tex.models import is_model_name, load_generator, model_has
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views, render_states
 from mesh2tex.nn.vgg import load_vgg19
-from mesh2tex.options import config_overrides, warning
+from mesh2tex.options import config_overrides
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
-from mesh2tex.texture import load_shape, model_face_count, note, write_automaton_mesh, write_textured_mesh
+from mesh2tex.texture import load_shape, write_automaton_mesh, write_textured_mesh
 from mesh2tex.transfer import (AutomatonFit, AutomatonFitConfig, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
                                check_style_sizes, estimate_pose, fit_automaton, photo_candidates, pick_by_outline, predict_noc,
                                transfer_texture, view_at_pose)
@@ -201,9 +201,9 @@ def run(args) -> int:
     started = time.perf_counter()
     seconds: dict[str, float] = {}
 
-    generator, meta = load_generator(args.checkpoint, device)
-    distance, fov = gan_camera(meta)
-    shape, target = load_shape(args.mesh, generator, model_face_count(meta, cfg.faces), cfg.seed, up=args.up, uv=args.uv,
+    model = load_generator(args.checkpoint, device)
+    generator, distance, fov = model.network, model.camera.distance, model.camera.fov
+    shape, target = load_shape(args.mesh, generator, model.face_count(cfg.faces), cfg.seed, up=args.up, uv=args.uv,
                                output_mesh=args.output_mesh)
     candidates = photo_candidates(args.image, args.mask, cfg, mask_checkpoint=args.mask_checkpoint)
     photo, mask_source = candidates[0]
@@ -230,7 +230,7 @@ def run(args) -> int:
         seconds["automaton"] = fit.seconds
         losses, light, render = {"automaton": fit.losses}, None, fit.render
     else:
-        result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, generator_lit=trained_lit(meta))
+        result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, generator_lit=model.lit)
         seconds.update({f"stage_{k}": v for k, v in result.seconds.items()})
         losses, light, render = result.losses, result.light, result.render
 

@@ -22,8 +22,8 @@ import sys
 import warnings
 from pathlib import Path
 
-from mesh2tex.errors import InputError, UserError, one_line
-from mesh2tex.options import HelpFormatter, Parser, warning
+from mesh2tex.errors import InputError, UserError, one_line, warning
+from mesh2tex.options import HelpFormatter, Parser
 
 # (command, subcommand or None) -> (stage module, one-line help)
 COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {

@@ -3,8 +3,11 @@
 The library raises :class:`InputError`, a ``ValueError``, so that a program calling it catches bad
 input as it catches any other bad value; the commands (``data_prep``, ``train``, ``infer``) raise
 :class:`UserError` for a bad option or combination of options. ``mesh2tex/cli.py`` prints either as
-``mesh2tex: error: <message>``.
+``mesh2tex: error: <message>``. The one-line messages that are not errors live here too: a warning
+(:func:`warning`, something the user should act on) and a note (:func:`note`, a choice made for them).
 """
+
+import sys
 
 
 class InputError(ValueError):
@@ -37,3 +40,21 @@ def one_line(message) -> str:
     text = " ".join(part.strip() for part in str(message).splitlines() if part.strip())
     text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)  # no terminal control characters
     return text if len(text) <= MAX_MESSAGE_CHARS else text[: MAX_MESSAGE_CHARS - 30] + f" ... ({len(text)} characters)"
+
+
+def _line(prefix: str, message) -> None:
+    text = " ".join(line.strip() for line in str(message).splitlines() if line.strip())
+    if "tqdm" in sys.modules:  # a progress bar may be showing: print above it, not through it
+        sys.modules["tqdm"].tqdm.write(f"mesh2tex: {prefix}: {text}", file=sys.stderr)
+    else:
+        print(f"mesh2tex: {prefix}: {text}", file=sys.stderr)
+
+
+def warning(message) -> None:
+    """``mesh2tex: warning: <message>`` as one line on stderr."""
+    _line("warning", message)
+
+
+def note(message) -> None:
+    """``mesh2tex: note: <message>`` as one line on stderr."""
+    _line("note", message)

@@ -18,8 +18,8 @@ them from the source with ``ast`` (literal values, nested configs, names of modu
   ``--texture-format png|jpeg|webp`` on every command that writes a GLB; :func:`parse_seeds`: the
   ``--seeds`` lists and ranges (``0-7``, ``0,2,5-9``).
 * :func:`renamed`: an old spelling of a flag keeps working, hidden from ``--help``, and says once
-  ``mesh2tex: warning: --gan is renamed --checkpoint``; :func:`warning` prints that one-line form,
-  the form of every warning the commands give (``mesh2tex/cli.py`` shows Python warnings the same way).
+  ``mesh2tex: warning: --gan is renamed --checkpoint`` (:func:`mesh2tex.errors.warning`, the one-line form
+  of every warning the commands give; ``mesh2tex/cli.py`` shows Python warnings the same way).
 """
 
 from __future__ import annotations
@@ -31,16 +31,9 @@ import functools
 import sys
 from pathlib import Path
 
+from mesh2tex.errors import warning
+
 DEVICES = ("auto", "cpu", "cuda")
-
-
-def warning(message) -> None:
-    """``mesh2tex: warning: <message>`` as one line on stderr."""
-    text = " ".join(line.strip() for line in str(message).splitlines() if line.strip())
-    if "tqdm" in sys.modules:  # a progress bar may be showing: print above it, not through it
-        sys.modules["tqdm"].tqdm.write(f"mesh2tex: warning: {text}", file=sys.stderr)
-    else:
-        print(f"mesh2tex: warning: {text}", file=sys.stderr)
 
 
 class Parser(argparse.ArgumentParser):
@@ -124,7 +117,7 @@ SHIPPED_MODELS_HELP = "or a shipped model's name (chair, car)"
 def add_checkpoint(parser, help: str, *, config: "ConfigOptions | None" = None, key: str | None = None, required: bool = False,
                    alias: str | None = None) -> argparse.Action:
     """``--checkpoint NAME|PATH``: a generator (a 'train gan' checkpoint, or a shipped model's name,
-    which :func:`mesh2tex.io.models.resolve_checkpoint` turns into its file); ``help`` says what it
+    which :func:`mesh2tex.models.resolve_checkpoint` turns into its file); ``help`` says what it
     is for. With ``config`` it overrides that config's field ``key``; ``alias``: an old spelling (:func:`renamed`)."""
     flags = ["--checkpoint"] + ([alias] if alias else [])
     kwargs = dict(dest="checkpoint", metavar="NAME|PATH", help=help)

@@ -8,7 +8,11 @@ A photo set (``train gan --images``, ``evaluate --images/--renders``) is read on
 :func:`read_photo_set`, which checks every file (:func:`read_set_photo`: readable, a photo's kind
 of image, at least :data:`mesh2tex.limits.MIN_SET_PHOTO_SIDE` pixels a side, a mask of its size
 that is a mask and holds the object) and collects one line per rejected file instead of stopping at
-the first; :func:`refuse_rejected` prints them and stops the command with one error line.
+the first; :func:`refuse_rejected` prints them and stops the command with one error line. Every set is
+listed the same way (:func:`list_images`: the suffixes of :data:`mesh2tex.io.images.IMAGE_SUFFIXES`)
+and framed the same way (:func:`square_resize`: centre-cropped to a square, never stretched, then
+resized): the GAN's photo collection (:func:`load_photo_collection`) and the metrics' sets
+(:func:`load_set`) alike.
 """
 
 from __future__ import annotations
@@ -16,10 +20,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import torch
+import torch.nn.functional as F
 
-from mesh2tex.errors import InputError
+from mesh2tex.errors import InputError, one_line, warning
+from mesh2tex.io.images import IMAGE_SUFFIXES, is_image_file, load_image, load_mask
 from mesh2tex.limits import MIN_SET_PHOTO_SIDE
-from mesh2tex.render.crop import object_box
+from mesh2tex.render.crop import crop_mask, crop_square, object_box
+from mesh2tex.render.shading import composite_images
 
 # PIL modes of files that hold no photo, though PIL reads them: what the file probably is instead
 NOT_PHOTO_MODES = {"1": "a 1-bit black-and-white image (a mask?)", "I": "a 32-bit integer image (depth or labels?)",
@@ -75,27 +83,18 @@ def estimate_mask(rgb: np.ndarray, iterations: int = 5) -> np.ndarray:
 
 
 def square_crop(rgb: np.ndarray, mask: np.ndarray, size: int, margin: float = MARGIN) -> tuple[np.ndarray, np.ndarray]:
-    """Crop the square around the mask's bounding box (plus ``margin``, :func:`mesh2tex.render.object_box`) and
-    resize it with OpenCV (area averaging when shrinking).
+    """The square around the mask's bounding box (plus ``margin``), cut and resized as every image the
+    networks see is (:func:`mesh2tex.render.crop.crop_square`, white outside the photo).
 
     Args:
         rgb: (H, W, 3) uint8; mask: (H, W) bool, not empty.
     Returns:
-        (size, size, 3) uint8 image (white outside the photo) and (size, size) bool mask.
+        (size, size, 3) uint8 image and (size, size) bool mask.
     """
-    import cv2
-
-    y0, x0, side = object_box(mask, margin)
-    h, w = mask.shape
-    canvas = np.full((side, side, 3), 255, np.uint8)
-    canvas_mask = np.zeros((side, side), np.uint8)
-    sy0, sx0, sy1, sx1 = max(0, y0), max(0, x0), min(h, y0 + side), min(w, x0 + side)
-    canvas[sy0 - y0:sy1 - y0, sx0 - x0:sx1 - x0] = rgb[sy0:sy1, sx0:sx1]
-    canvas_mask[sy0 - y0:sy1 - y0, sx0 - x0:sx1 - x0] = mask[sy0:sy1, sx0:sx1]
-    interpolation = cv2.INTER_AREA if side > size else cv2.INTER_LINEAR
-    image = cv2.resize(canvas, (size, size), interpolation=interpolation)
-    out_mask = cv2.resize(canvas_mask * 255, (size, size), interpolation=interpolation) >= 128
-    return image, out_mask
+    box = object_box(mask, margin)
+    image = crop_square(torch.from_numpy(np.ascontiguousarray(rgb)).permute(2, 0, 1)[None].float() / 255.0, box, size, fill=1.0)
+    image = (image[0].permute(1, 2, 0).clamp(0, 1) * 255.0).round().to(torch.uint8).numpy()
+    return image, crop_mask(mask, box, size)[0, 0].numpy() > 0.5
 
 
 def _mode(path: Path) -> str:
@@ -110,8 +109,6 @@ def _mode(path: Path) -> str:
 def _mask_from_file(path: Path) -> np.ndarray:
     """A mask file as (H, W) uint8 coverage: its alpha where it has transparency, else its gray level;
     InputError for a file that is a photo, not a mask (colours: the folders swapped?)."""
-    from mesh2tex.io.images import load_image
-
     rgb, alpha = load_image(path)
     if alpha is not None and alpha.min() < 255:
         return alpha
@@ -128,8 +125,6 @@ def read_set_photo(path: str | Path, mask_path: str | Path | None = None) -> tup
     Raises InputError naming the file: unreadable (:func:`mesh2tex.io.images.read_image`), not a
     photo (:data:`NOT_PHOTO_MODES`), smaller than ``MIN_SET_PHOTO_SIDE`` on a side, a mask file that
     is missing, of another size or coloured, or a mask with no object pixel (coverage >= 128)."""
-    from mesh2tex.io.images import load_image
-
     path = Path(path)
     rgb, alpha = load_image(path)  # first: it names the file for every way of not being an image
     mode = _mode(path)
@@ -172,10 +167,101 @@ def refuse_rejected(rejected: list[str], total: int, where: str | Path, what: st
         return
     if len(rejected) == 1:
         raise InputError(f"{where}: 1 of {total} {what} cannot be used: {rejected[0]}; fix or remove it")
-    from mesh2tex.errors import one_line
-    from mesh2tex.options import warning
-
     for line in rejected:
         warning(f"rejected: {one_line(line)}")
     raise InputError(f"{where}: {len(rejected)} of {total} {what} cannot be used (each named above), the first: {rejected[0]}; "
                      f"fix or remove them")
+
+
+# ------------------------------------------------------------------------------ photo sets as tensors
+def image_tensor(path: str | Path) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """RGB [3, H, W] float in [0, 1] and alpha [1, H, W] (None without an alpha channel); InputError if not an image."""
+    rgb, alpha = load_image(path)
+    rgb = torch.from_numpy(np.array(rgb)).permute(2, 0, 1).contiguous().float() / 255.0
+    return rgb, (None if alpha is None else torch.from_numpy(np.array(alpha))[None].float() / 255.0)
+
+
+def mask_tensor(path: str | Path) -> torch.Tensor:
+    """A mask file -> [1, H, W] float in {0, 1} (:func:`mesh2tex.io.images.load_mask`)."""
+    return torch.from_numpy(load_mask(path))[None].float()
+
+
+def list_images(folder: str | Path, what: str) -> dict[str, Path]:
+    """{file stem: path} of the image files in ``folder`` (sorted); InputError if missing, empty or ambiguous."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{folder}: {what} folder not found")
+    found: dict[str, Path] = {}
+    for path in sorted(folder.iterdir()):
+        if is_image_file(path) and path.is_file():
+            if path.stem in found:
+                raise InputError(f"{folder}: two {what} files share the name '{path.stem}' ({found[path.stem].name}, {path.name})")
+            found[path.stem] = path
+    if not found:
+        raise InputError(f"{folder}: no {what} images ({', '.join(IMAGE_SUFFIXES)})")
+    return found
+
+
+def square_resize(image: torch.Tensor, resolution: int) -> torch.Tensor:
+    """Centre-crop [C, H, W] to a square and resize it (antialiased bilinear) to resolution^2."""
+    height, width = image.shape[-2:]
+    side = min(height, width)
+    top, left = (height - side) // 2, (width - side) // 2
+    crop = image[:, top:top + side, left:left + side]
+    if side == resolution:
+        return crop
+    return F.interpolate(crop[None], size=(resolution, resolution), mode="bilinear", align_corners=False, antialias=True)[0]
+
+
+def load_set(folder: str | Path, what: str, resolution: int, background: float,
+             masks: dict[str, Path] | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """All images of ``folder`` as [N, 3, R, R] in [0, 1], masked-out pixels set to ``background``, and
+    their object masks [N, 1, R, R] (0/1) when every image has one (a ``masks`` file or an alpha
+    channel), else None. Every file is checked first (:func:`read_set_photo`); any
+    rejected one is an InputError counting them, each named (:func:`refuse_rejected`)."""
+    def read(path: Path, mask_path: Path | None) -> tuple[torch.Tensor, torch.Tensor | None]:
+        rgb, coverage = read_set_photo(path, mask_path)
+        image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1).contiguous().float() / 255.0
+        if coverage is None:
+            return square_resize(image, resolution), None
+        mask = torch.from_numpy(coverage >= 128)[None].float()
+        return square_resize(composite_images(image, mask, background), resolution), (square_resize(mask, resolution) > 0.5).float()
+
+    listed = list_images(folder, what)
+    items = [(path, masks.get(stem) if masks is not None else None) for stem, path in listed.items()]
+    read_set, rejected = read_photo_set(items, read)
+    refuse_rejected(rejected, len(items), folder, f"{what}s")
+    images = [image for image, _ in read_set]
+    object_masks = [mask for _, mask in read_set if mask is not None]
+    return torch.stack(images), (torch.stack(object_masks) if len(object_masks) == len(images) else None)
+
+
+def load_photo_collection(folder: str | Path, resolution: int) -> torch.Tensor:
+    """The GAN's photo collection as uint8 (N, 4, R, R): RGB plus mask (255: object).
+
+    Layouts: ``folder/images/*`` with same-named ``folder/masks/*`` (white = object), or ``folder/*``
+    whose alpha channel is the mask (no alpha: the whole image is the object). Every photo is checked
+    once (:func:`read_photo_set`) and framed as every set is (:func:`square_resize`); a set with any
+    rejected file (unreadable, too small, not a photo, a bad or empty mask, an object smaller than a
+    pixel at R x R) is an InputError, each file named.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{folder}: images folder not found")
+    image_dir = folder / "images" if (folder / "images").is_dir() else folder
+    masks = list_images(folder / "masks", "mask") if (folder / "masks").is_dir() else None
+
+    def read(path: Path, mask_path: Path | None) -> torch.Tensor:
+        rgb, coverage = read_set_photo(path, mask_path)
+        coverage = np.full(rgb.shape[:2], 255, np.uint8) if coverage is None else coverage
+        rgba = torch.from_numpy(np.dstack([rgb, coverage])).permute(2, 0, 1).float()
+        small = square_resize(rgba, resolution).round().clamp(0, 255).to(torch.uint8)
+        if not (small[3] >= 128).any():  # a speck of an object vanishes at the training resolution
+            raise InputError(f"{mask_path or path}: the object covers no pixel once resized to {resolution}x{resolution}")
+        return small
+
+    listed = list_images(image_dir, "image")
+    items = [(path, None if masks is None else masks.get(stem, image_dir.parent / "masks" / f"{stem}.png")) for stem, path in listed.items()]
+    photos, rejected = read_photo_set(items, read)
+    refuse_rejected(rejected, len(items), image_dir)
+    return torch.stack(photos)

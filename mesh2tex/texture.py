@@ -4,47 +4,26 @@ assets written: the user's own mesh with the texture baked into its atlas
 (:mod:`mesh2tex.render.bake`), or the prepared shape itself.
 
 Rendering the texture in views is :func:`mesh2tex.nn.render_texture.render_field_views`; loading a
-generator is :func:`mesh2tex.io.models.load_generator`.
+generator is :func:`mesh2tex.models.load_generator`; a note to the user, :func:`mesh2tex.errors.note`.
 """
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from mesh2tex.errors import InputError
+from mesh2tex.errors import InputError, note, warning
 from mesh2tex.geometry.mesh_io import UserMesh
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.images import colours_to_uint8
-from mesh2tex.io.models import model_hierarchy
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
 from mesh2tex.nn.render_texture import field_colours
 from mesh2tex.render.bake import BakedUserMesh, BakeTarget, MeshBaker
 from mesh2tex.render.uv import bake_surface_colours
-
-
-def note(message: str) -> None:
-    """One line on stderr: ``mesh2tex: note: message``."""
-    print(f"mesh2tex: note: {message}", file=sys.stderr)
-
-
-def model_face_count(meta: dict, face_count: int = 0) -> int:
-    """The finest quad count a raw mesh is prepared with for a GAN checkpoint ``meta``: ``face_count``
-    when given (> 0; with a note when it differs from the model's), else the model's own hierarchy."""
-    trained, recorded = model_hierarchy(meta)
-    if face_count < 0:
-        raise InputError(f"--faces {face_count}: must be positive (or 0: the hierarchy the model was trained on)")
-    if face_count and recorded and face_count != trained:
-        note(f"--faces {face_count}: the model learnt on {trained}-quad hierarchies; the texture's features will come out "
-             f"at about {(trained / face_count) ** 0.5:.2g}x their learnt size")
-    if not face_count and not recorded:
-        note(f"the checkpoint does not record the hierarchy its shapes were prepared with; preparing with {trained} quads (--faces to change)")
-    return face_count or trained
 
 
 def read_user_mesh(path: str | Path, up: str = "auto") -> UserMesh:
@@ -94,8 +73,8 @@ def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, s
 
         mesh = read_user_mesh(path, up)
         shape = prepare_user_mesh(mesh, face_count=face_count, levels=generator.cfg.num_levels, seed=seed)
-        for warning in coarseness_warning(shape.metadata["coarseness"]):
-            print(f"mesh2tex: warning: {path}: {warning}", file=sys.stderr)
+        for problem in coarseness_warning(shape.metadata["coarseness"]):
+            warning(f"{path}: {problem}")
         if output_mesh == "prepared":
             mesh = None
     problem = shape_mismatch(shape, generator)

@@ -13,7 +13,7 @@ of training one: the run must have been trained with this script's settings (``G
 ``RECIPES``, WORLD, SHAPES below) for the card to be true.
 
 The model folder gets generator.safetensors, pose.safetensors, noc.safetensors, mask.safetensors (float16 inference
-checkpoints, :mod:`mesh2tex.io.models`), card.json (settings, commands, iterations, hardware, wall
+checkpoints, :mod:`mesh2tex.models`), card.json (settings, commands, iterations, hardware, wall
 time, the generation protocol's figures) and build_log.md (the same for people; the model card,
 card.md, is written by hand from it). ``--variety real`` builds the world of real families of chairs
 and cars (``prepare synthetic --variety``); ``--seed`` the GAN's training seed.
@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT))
 from mesh2tex.infer.generation import GenerationConfig, generation_markdown, run_generation_protocol  # noqa: E402
 from mesh2tex.cli import main as cli  # noqa: E402
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
-from mesh2tex.io.models import MODEL_FILES, export_inference_checkpoint  # noqa: E402
+from mesh2tex.models import MODEL_FILES, export_inference_checkpoint  # noqa: E402
 
 WORLD = {"shapes": 32, "views": 8, "query_shapes": 8, "query_views": 2, "seed": 0, "resolution": 128}
 SHAPES = {"faces": 1536, "levels": 4, "seed": 0}

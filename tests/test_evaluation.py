@@ -183,12 +183,12 @@ def test_a_generator_texture_is_judged_as_the_generator_paints_it(tiny_gan):
     from mesh2tex.evaluation import generator_surface
     from mesh2tex.evaluation.surfaces import SurfacePoints
     from mesh2tex.geometry.prepared import PreparedShape
-    from mesh2tex.io.models import load_generator
+    from mesh2tex.models import load_generator
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
     from mesh2tex.render import orbit_camera
 
-    generator, _ = load_generator(tiny_gan / "run" / "checkpoint.safetensors", torch.device("cpu"))
+    generator = load_generator(tiny_gan / "run" / "checkpoint.safetensors", torch.device("cpu")).network
     batch = collate_shapes([PreparedShape.load(tiny_gan / "shapes" / "box0.npz")])
     torch.manual_seed(0)
     texture = generator.synthesize(batch, generator.mapping(torch.randn(1, generator.cfg.z_dim)), noise_mode="none")

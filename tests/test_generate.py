@@ -10,7 +10,7 @@ from PIL import Image
 
 from mesh2tex.cli import main
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.io.models import load_generator
+from mesh2tex.models import load_generator
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import field_colours
 from mesh2tex.texture import latent
@@ -77,7 +77,7 @@ def test_baked_texture_matches_the_field(trained, tmp_path):
     rows = np.clip(((1 - centroid_uv[:, 1]) * 256).astype(int), 0, 255)
     baked = texture[rows, cols]
 
-    generator, _ = load_generator(ckpt, torch.device("cpu"))
+    generator = load_generator(ckpt, torch.device("cpu")).network
     shape = PreparedShape.load(trained / "shapes" / "box1.npz")
     batch = collate_shapes([shape])
     with torch.no_grad():

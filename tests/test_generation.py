@@ -12,7 +12,7 @@ import yaml
 
 from conftest import TINY_GAN, make_tiny_world
 from mesh2tex.infer.generation import GenerationConfig, fresh_photo_set, generation_markdown, ground_truth_renders, read_world, run_generation_protocol
-from mesh2tex.io.image_sets import list_images, load_set
+from mesh2tex.photos import list_images, load_set
 from mesh2tex.cli import main
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
 from mesh2tex.synthetic.world import sample_views
@@ -84,7 +84,7 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     from mesh2tex.evaluation.compare import render_for_comparison
     from mesh2tex.evaluation.surfaces import flat_surface
     from mesh2tex.geometry.prepared import PreparedShape
-    from mesh2tex.io.models import load_generator
+    from mesh2tex.models import load_generator
     from mesh2tex.nn import render_texture
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.render import composite_images
@@ -92,7 +92,7 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     world = read_world(world_and_gan / "world")
     name = world.held_out[0]
     shape = PreparedShape.load(world_and_gan / "shapes" / f"{name}.npz")
-    generator, _ = load_generator(world_and_gan / "gan" / "checkpoint.safetensors", torch.device("cpu"))
+    generator = load_generator(world_and_gan / "gan" / "checkpoint.safetensors", torch.device("cpu")).network
     monkeypatch.setattr(render_texture, "field_colours", lambda generator, texture, batch, triangle_id, bary, **_: torch.full((len(triangle_id), 3), 0.2))
     views = sample_views(world.spec, world.indices[name], 2)
     z = torch.randn(2, generator.cfg.z_dim)
@@ -166,10 +166,10 @@ def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp
     original = generation.load_generator
 
     def collapsed(path, device):
-        generator, meta = original(path, device)
-        mapping = generator.mapping.forward
-        generator.mapping.forward = lambda z, *a, **k: mapping(torch.zeros_like(z) + 1.0, *a, **k)
-        return generator, meta
+        model = original(path, device)
+        mapping = model.network.mapping.forward
+        model.network.mapping.forward = lambda z, *a, **k: mapping(torch.zeros_like(z) + 1.0, *a, **k)
+        return model
 
     monkeypatch.setattr(generation, "load_generator", collapsed)
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
@@ -211,9 +211,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     seen, sides, oracle, diversity_reference, fresh_photos = [], [], [], [], []
 
     def load(path, device):
-        generator, meta = original_load(path, device)
-        meta = {**meta, "config": {**meta["config"], "lighting": {**meta["config"]["lighting"], "enabled": enabled}}}
-        return generator, meta
+        return dataclasses.replace(original_load(path, device), lit=enabled)
 
     def render(*args, **kwargs):
         seen.append(args[6] if len(args) > 6 else kwargs.get("lit", False))

@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 import torch
 
-from mesh2tex.io.models import load_generator
+from mesh2tex.models import load_generator
 from mesh2tex.cli import main
 from mesh2tex.errors import InputError
 from mesh2tex.io.checkpoint import check_training_checkpoint, load_checkpoint
-from mesh2tex.io.models import MODEL_FILES, export_inference_checkpoint, list_models, resolve_checkpoint
+from mesh2tex.models import MODEL_FILES, export_inference_checkpoint, list_models, resolve_checkpoint
 
 
 def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny_gan, tmp_path, monkeypatch, capsys):
@@ -26,8 +26,8 @@ def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny
     assert all(t.dtype == torch.float16 for t in groups["generator_ema"].values() if t.is_floating_point())
     assert (models / "tiny" / MODEL_FILES["gan"]).stat().st_size < source.stat().st_size / 4
 
-    shipped, _ = load_generator("tiny", torch.device("cpu"))
-    full, _ = load_generator(source, torch.device("cpu"))
+    shipped = load_generator("tiny", torch.device("cpu")).network
+    full = load_generator(source, torch.device("cpu")).network
     for (name, a), b in zip(shipped.state_dict().items(), full.state_dict().values()):
         assert a.dtype == b.dtype and torch.allclose(a, b, rtol=2e-3, atol=2e-3), name
 
@@ -54,11 +54,11 @@ def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch)
 def test_the_shipped_models_load(monkeypatch):
     """Every model in the package's models/ folder (mesh2tex/models) loads and has all three networks."""
     monkeypatch.delenv("MESH2TEX_MODELS", raising=False)
-    from mesh2tex.io.models import load_view_network
+    from mesh2tex.models import load_view_network
 
     for name in list_models():
-        generator, meta = load_generator(name, torch.device("cpu"))
-        assert generator.cfg.input_features > 0 and meta["iteration"] > 0
+        model = load_generator(name, torch.device("cpu"))
+        assert model.network.cfg.input_features > 0 and model.iteration > 0 and model.resolution > 0 and model.hierarchy_recorded
         for kind in ("pose", "noc"):
             load_view_network(name, kind)
 

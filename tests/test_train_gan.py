@@ -272,7 +272,7 @@ def test_after_one_step_the_ema_is_the_live_generator(tiny_data, tmp_path):
 
 
 def test_snapshots_keep_loadable_float16_generators(tiny_data, tmp_path):
-    from mesh2tex.io.models import load_generator
+    from mesh2tex.models import load_generator
 
     config = tmp_path / "snap.yaml"
     config.write_text(yaml.safe_dump({**TINY, "snapshot_every": 1}))
@@ -281,8 +281,9 @@ def test_snapshots_keep_loadable_float16_generators(tiny_data, tmp_path):
                  "--config", str(config), "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu", "--iters", "2"]) == 0
     snaps = sorted((out / "snapshots").glob("iter*.safetensors"))
     assert [p.name for p in snaps] == ["iter0000001.safetensors", "iter0000002.safetensors"]
-    generator, meta = load_generator(snaps[-1], torch.device("cpu"))
-    assert meta["iteration"] == 2
+    model = load_generator(snaps[-1], torch.device("cpu"))
+    generator = model.network
+    assert model.iteration == 2 and model.resolution == 16
     groups, _ = load_checkpoint(out / "checkpoint.safetensors", kind="gan")
     for name, tensor in generator.state_dict().items():
         torch.testing.assert_close(tensor, groups["generator_ema"][name].float(), rtol=2e-3, atol=2e-3)
@@ -317,7 +318,7 @@ def test_a_run_starts_from_another_runs_checkpoint(tiny_data, tmp_path, capsys):
 def refused_sources(tiny_data, tmp_path_factory):
     """Checkpoints a run must not start from: another kind, an inference snapshot, a shipped model, a missing file."""
     from mesh2tex.io.checkpoint import save_checkpoint
-    from mesh2tex.io.models import save_inference_checkpoint
+    from mesh2tex.models import save_inference_checkpoint
 
     root = tmp_path_factory.mktemp("refused")
     save_checkpoint(root / "pose.safetensors", {"net": {"w": torch.zeros(2)}}, kind="pose",
@@ -388,7 +389,7 @@ def test_keep_snapshots_keeps_the_newest(tiny_data, tmp_path, capsys):
 
 
 def test_the_held_out_metric_keeps_the_best_generator(tiny_data, tmp_path, capsys):
-    from mesh2tex.io.models import load_generator
+    from mesh2tex.models import load_generator
 
     config = tmp_path / "metric.yaml"
     config.write_text(yaml.safe_dump({**TINY, "metric_every": 2, "metric_photos": 2}))
@@ -399,8 +400,9 @@ def test_the_held_out_metric_keeps_the_best_generator(tiny_data, tmp_path, capsy
     assert all(np.isfinite(r["metric_swd"]) and r["metric_swd"] > 0 and np.isfinite(r["metric_diversity"]) for r in measured)
     best = min(measured, key=lambda r: r["metric_swd"])
     assert [r["best"] for r in measured] == [True, measured[1]["metric_swd"] < measured[0]["metric_swd"]]
-    generator, meta = load_generator(out / "best.safetensors", torch.device("cpu"))
-    assert meta["iteration"] == best["iteration"] and meta["metric"]["swd"] == best["metric_swd"]
+    model = load_generator(out / "best.safetensors", torch.device("cpu"))
+    meta = model.meta
+    assert model.iteration == best["iteration"] and meta["metric"]["swd"] == best["metric_swd"]
     _, state = load_checkpoint(out / "checkpoint.safetensors", kind="gan")
     assert state["best"] == meta["metric"]
     # Holding out every photo leaves none to train on.

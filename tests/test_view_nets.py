@@ -10,7 +10,7 @@ import trimesh
 from mesh2tex.cli import main
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepare import prepare_shape
-from mesh2tex.io.models import load_view_network
+from mesh2tex.models import load_view_network
 from mesh2tex.nn.view_nets import ViewDataConfig
 from mesh2tex.train.view_nets import render_view_dataset
 

@@ -19,14 +19,13 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from PIL import Image
 
 from mesh2tex.config import check_fields, load_config
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.io.models import (D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY, save_inference_checkpoint,
-                                shape_hierarchy)
+from mesh2tex.models import save_inference_checkpoint, shape_hierarchy
+from mesh2tex.models.store import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY
 from mesh2tex.losses.augment import AdaptiveAugment, AugmentConfig, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanLossConfig
 from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
@@ -35,7 +34,7 @@ from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import SurfaceSamples, rasterize_batch, render_field_views, render_proxy_views
 from mesh2tex.options import config_overrides
-from mesh2tex.photos import read_photo_set, read_set_photo, refuse_rejected
+from mesh2tex.photos import load_photo_collection
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import CameraConfig, LightConfig, Lights, composite_images, orbit_camera, random_lights, turntable_angles
 from mesh2tex.train import runs
@@ -114,38 +113,6 @@ class TrainGanConfig:
 
 
 # ------------------------------------------------------------------------------------------ data
-def load_images(folder: str | Path, resolution: int) -> torch.Tensor:
-    """The photo collection as uint8 (N, 4, R, R): RGB plus mask.
-
-    Layouts: ``folder/images/*.png`` with same-named ``folder/masks/*.png`` (white = object), or
-    ``folder/*.png`` whose alpha channel is the mask (no alpha: the whole image is the object).
-    Every photo is checked once (:func:`mesh2tex.photos.read_photo_set`); a set with any rejected
-    file (unreadable, too small, not a photo, a bad or empty mask, an object smaller than a pixel at
-    R x R) stops the command, each file named.
-    """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise UserError(f"{folder}: images folder not found")
-    image_dir = folder / "images" if (folder / "images").is_dir() else folder
-    mask_dir = folder / "masks" if (folder / "masks").is_dir() else None
-    paths = sorted(p for p in image_dir.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
-    if not paths:
-        raise UserError(f"{image_dir}: no images (*.png, *.jpg)")
-
-    def read(path: Path, mask_path: Path | None) -> np.ndarray:
-        rgb, alpha = read_set_photo(path, mask_path)
-        full = np.full(rgb.shape[:2], 255, np.uint8)
-        small = np.asarray(Image.fromarray(np.dstack([rgb, full if alpha is None else alpha])).resize((resolution, resolution), Image.LANCZOS))
-        if alpha is not None and not (small[..., 3] >= 128).any():  # a speck of an object vanishes at the training resolution
-            raise InputError(f"{mask_path or path}: the object covers no pixel once resized to {resolution}x{resolution}")
-        return small
-
-    items = [(path, None if mask_dir is None else mask_dir / (path.stem + ".png")) for path in paths]
-    photos, rejected = read_photo_set(items, read)
-    refuse_rejected(rejected, len(paths), image_dir)
-    return torch.from_numpy(np.stack(photos)).permute(0, 3, 1, 2).contiguous()
-
-
 def composite_real(images: torch.Tensor, background: torch.Tensor) -> torch.Tensor:
     """uint8 (N, 4, R, R) photos over solid (N, 3) backgrounds in [-1, 1] -> float (N, 3, R, R) in [-1, 1]."""
     rgb = images[:, :3].float() / 127.5 - 1.0
@@ -488,7 +455,7 @@ def run(args) -> int:
         run_dir = runs.RunDirectory(args.out)
         source = runs.start_from(args.resume, run_dir, KIND, note=distributed.is_main, overwrite=args.overwrite)  # checked before the data is read
         shapes, _ = load_shapes(args.shapes)
-        images = load_images(args.images, cfg.resolution)
+        images = load_photo_collection(args.images, cfg.resolution)
         if cfg.metric_every and len(images) <= cfg.metric_photos:
             raise UserError(f"metric_photos {cfg.metric_photos}: the photo collection has {len(images)} photos, the metric holds out fewer "
                             f"than that (or set metric_every: 0)")

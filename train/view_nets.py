@@ -35,7 +35,8 @@ from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.atomic import atomic_path
 from mesh2tex.io.checkpoint import checkpoint_digest, read_checkpoint_meta
-from mesh2tex.io.models import VIEW_NET, load_generator, resolve_checkpoint
+from mesh2tex.models import load_generator, resolve_checkpoint
+from mesh2tex.models.store import VIEW_NET
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.mask import mask_iou, mask_loss
 from mesh2tex.nn.noc import noc_error, noc_loss
@@ -124,7 +125,7 @@ class _GanTextures:
 
     def __init__(self, checkpoint: str, shapes: list[PreparedShape]):
         self.device = torch.device("cpu")
-        self.generator, _ = load_generator(checkpoint, self.device)
+        self.generator = load_generator(checkpoint, self.device).network
         problem = shape_mismatch(shapes[0], self.generator)  # all shapes share levels and features (load_shapes)
         if problem:
             raise UserError(f"{checkpoint}: the prepared shapes have {problem}; prepare them with the GAN's settings")

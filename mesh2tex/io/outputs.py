@@ -40,7 +40,7 @@ import time
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
-from mesh2tex.errors import InputError
+from mesh2tex.errors import InputError, warning
 
 LOCK_NAME = ".mesh2tex-lock"
 MANIFEST_NAME = ".mesh2tex-manifest.json"
@@ -298,7 +298,6 @@ def guard_outputs(out: str | os.PathLike, names: Iterable[str], overwrite: bool,
     if foreign and not overwrite:
         raise InputError(f"{out}: already holds {_shown(foreign)}; pass --overwrite to replace them, or choose another --out")
     if foreign:
-        from mesh2tex.options import warning
 
         folder = move_aside(out, foreign)
         warning(f"{out}: --overwrite moved {_shown(foreign)} (not written by this command) aside to {folder}")

@@ -1,7 +1,7 @@
 """Renders against images, as tensors: unpaired set metrics (KID/FID on named features, SWD, pooled
 colour histograms) and paired metrics (masked PSNR/SSIM, colour histograms), with the meaning of
-each metric name. ``mesh2tex evaluate`` reads the folders (:mod:`mesh2tex.io.image_sets`) and writes
-the results.
+each metric name; renders and images paired by file name (:func:`load_pairs`; a set is read by
+:func:`mesh2tex.photos.load_set`). ``mesh2tex evaluate`` writes the results.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from mesh2tex.metrics.distribution import fid, kid
 from mesh2tex.metrics.features import FeatureExtractor, get_feature_extractor
 from mesh2tex.metrics.image import colour_histogram_distance, colour_histograms, masked_psnr, masked_ssim
 from mesh2tex.metrics.swd import swd_per_level
+from mesh2tex.photos import image_tensor, list_images, mask_tensor
 
 
 @dataclass
@@ -157,3 +158,37 @@ def markdown_table(result: dict) -> str:
             shown += f" ± {metrics[name + '_std']:.2g}"
         lines.append(f"| {name} | {shown} | {describe_metric(name)} |")
     return "\n".join(lines) + "\n"
+
+
+def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str, Path] | None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, list[str]]:
+    """Renders and images matched by file stem, with masks; InputError for unmatched names or size mismatches."""
+    renders = list_images(renders_dir, "render")
+    images = list_images(images_dir, "image")
+    missing = sorted(set(renders) - set(images))
+    if missing:
+        raise InputError(f"{images_dir}: no image for render(s) {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} (pairs match by file name)")
+    names = sorted(renders)
+    render_list, image_list, mask_list = [], [], []
+    any_mask = False
+    for name in names:
+        render, render_alpha = image_tensor(renders[name])
+        image, image_alpha = image_tensor(images[name])
+        if render.shape != image.shape:
+            raise InputError(f"{images[name]}: size {tuple(image.shape[-2:])} differs from its render's {tuple(render.shape[-2:])}")
+        if masks is not None and name in masks:
+            mask = mask_tensor(masks[name])
+        elif render_alpha is not None or image_alpha is not None:
+            alphas = [(a > 0.5).float() for a in (render_alpha, image_alpha) if a is not None]
+            mask = alphas[0] if len(alphas) == 1 else alphas[0] * alphas[1]
+        else:
+            mask = None
+        if mask is not None and mask.shape[-2:] != render.shape[-2:]:
+            raise InputError(f"{masks[name] if masks is not None and name in masks else images[name]}: mask size {tuple(mask.shape[-2:])} "
+                            f"differs from the render's {tuple(render.shape[-2:])}")
+        any_mask = any_mask or mask is not None
+        render_list.append(render)
+        image_list.append(image)
+        mask_list.append(mask if mask is not None else torch.ones_like(render[:1]))
+    if len({tuple(r.shape) for r in render_list}) > 1:
+        raise InputError(f"{renders_dir}: renders of different sizes; paired metrics need one size")
+    return torch.stack(render_list), torch.stack(image_list), torch.stack(mask_list) if any_mask else None, names

@@ -1,7 +1,7 @@
 """The three image networks of texture transfer, the pose classifier, the NOC U-Net and the mask
 U-Net: the config they are trained with (kept in their checkpoints) and their construction from it.
 
-``mesh2tex train pose|noc|mask`` trains them (:mod:`train.view_nets`); :func:`mesh2tex.io.models.load_view_network`
+``mesh2tex train pose|noc|mask`` trains them (:mod:`train.view_nets`); :func:`mesh2tex.models.load_view_network`
 reads them back.
 """
 

@@ -31,7 +31,7 @@ DEFAULT_FAR = 100.0
 @dataclass
 class CameraConfig:
     """The texture GAN's cameras: the random training views, and the camera its textures are shown and
-    transferred with (a GAN checkpoint keeps it in ``config.camera``; :func:`mesh2tex.io.models.gan_camera`)."""
+    transferred with (a GAN checkpoint keeps it in ``config.camera``; :func:`mesh2tex.models.TrainedGenerator`)."""
 
     distance: float = 1.7  # camera distance from the origin (shapes have a bounding-box diagonal of 1)
     fov: float = 40.0  # vertical field of view, degrees

@@ -21,7 +21,7 @@ def network_probability(checkpoint: str | Path, rgb: np.ndarray, device: torch.d
     rgb: (H, W, 3) uint8. The photo is padded to a square (edge pixels repeated), resized to the
     network's training side, and the prediction is resized back and unpadded.
     """
-    from mesh2tex.io.models import load_view_network
+    from mesh2tex.models import load_view_network
 
     net, cfg = load_view_network(checkpoint, "mask", device)
     h, w = rgb.shape[:2]

@@ -120,7 +120,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     ``generator`` is modified in place by stage 2 (its last ``refine_blocks`` synthesis blocks):
     pass a copy if the original is needed again. ``photo_noc`` (R,R,3) is needed when
     ``cfg.use_noc`` and ``cfg.use_patches``. ``generator_lit``: the generator was trained under the
-    light prior (:func:`mesh2tex.io.models.trained_lit`), which ``cfg.light`` 'auto' follows.
+    light prior (:func:`mesh2tex.models.TrainedGenerator`), which ``cfg.light`` 'auto' follows.
     With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose.
     """
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)

@@ -10,7 +10,7 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.io.models import load_view_network
+from mesh2tex.models import load_view_network
 from mesh2tex.nn.pose import PoseBins
 from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig

@@ -1,6 +1,6 @@
-"""Every checkpoint kind in one place: the tensor groups and metadata keys each kind holds, the
-loaders of the trained networks (:func:`load_generator`, :func:`load_view_network`), and the
-shipped models, trained checkpoints a user names instead of a path (``--checkpoint chair``).
+"""Every checkpoint kind in one place: the tensor groups and metadata keys each kind holds, and the
+shipped models, trained checkpoints a user names instead of a path (``--checkpoint chair``); the
+loaders of the trained networks are :mod:`mesh2tex.models.loading`.
 
 Checkpoint kinds and their tensor groups (the file format itself is :mod:`mesh2tex.io.checkpoint`):
 
@@ -20,7 +20,7 @@ A model is a folder ``<models>/<name>/`` with one inference checkpoint per kind 
                            photo without a mask is cut out by GrabCut alone)
     card.md, card.json     how it was made (world, commands, iterations, hardware, wall time) and its figures
 
-``<models>`` is ``$MESH2TEX_MODELS`` when set, else the package's own ``mesh2tex/models/`` (package
+``<models>`` is ``$MESH2TEX_MODELS`` when set, else this package's own folder ``mesh2tex/models/`` (package
 data: the shipped models travel in the wheel, so they are there after any install). Loading a float16 state into a model's float32 parameters
 (``load_state_dict``) casts it back.
 """
@@ -30,15 +30,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import torch
-
-from mesh2tex.config import config_from_dict
 from mesh2tex.errors import InputError
-from mesh2tex.io.checkpoint import load_checkpoint, meta_mapping, save_checkpoint
-from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
-from mesh2tex.nn.nca import MeshNCA, NCAConfig
-from mesh2tex.nn.view_nets import ViewTrainConfig, build_network
-from mesh2tex.render.cameras import CameraConfig
+from mesh2tex.io.checkpoint import load_checkpoint, save_checkpoint
 
 # Tensor groups of the 'gan' kind.
 GENERATOR, GENERATOR_EMA, D_FIELD, D_PROXY, GAN_LOSS = "generator", "generator_ema", "d_field", "d_proxy", "loss"
@@ -57,7 +50,7 @@ INFERENCE_GROUPS = {"gan": GENERATOR_EMA, "pose": VIEW_NET, "noc": VIEW_NET, "ma
 def models_root() -> Path:
     """The folder that holds the shipped models."""
     env = os.environ.get("MESH2TEX_MODELS")
-    return Path(env) if env else Path(__file__).resolve().parents[1] / "models"
+    return Path(env) if env else Path(__file__).resolve().parent
 
 
 def list_models() -> list[str]:
@@ -122,91 +115,3 @@ def save_inference_checkpoint(target: str | os.PathLike, kind: str, state: dict,
     meta = {**meta, "dtype": "float16" if half else "float32"}
     save_checkpoint(target, {INFERENCE_GROUPS[kind]: tensors}, kind, meta)
     return meta
-
-
-# ------------------------------------------------------------------------------------- loaders
-def load_generator(path: str | os.PathLike, device: torch.device) -> tuple[TextureGenerator, dict]:
-    """The EMA generator of a GAN checkpoint (a path, or a shipped model's name such as ``chair``), in
-    eval mode without gradients, and the checkpoint's metadata."""
-    path = resolve_checkpoint(path, "gan")
-    groups, meta = load_checkpoint(path, kind="gan")
-    saved = dict(meta_mapping(meta, GENERATOR_CONFIG, path))
-    saved.setdefault("field_residual", False)  # written before psi became a residual on the proxy colours
-    cfg = config_from_dict(GeneratorConfig, saved, f"{path}: {GENERATOR_CONFIG}")
-    generator = TextureGenerator(cfg)
-    try:
-        generator.load_state_dict(groups[GENERATOR_EMA])
-    except (KeyError, RuntimeError) as error:
-        raise InputError(f"{path}: generator weights missing or damaged ({str(error).splitlines()[0]})") from None
-    return generator.to(device).eval().requires_grad_(False), meta
-
-
-def shape_hierarchy(shapes) -> dict:
-    """{"faces": requested finest quads, "levels": levels} of prepared shapes (the first one's record:
-    a training set is prepared with one setting)."""
-    first = shapes[0]
-    targets = first.metadata.get("targets") or [len(first.quads[0])]
-    return {"faces": int(targets[0]), "levels": int(first.num_levels)}
-
-
-def model_hierarchy(meta: dict) -> tuple[int, bool]:
-    """(finest quad count, whether the checkpoint recorded it) a raw mesh is prepared with for a GAN
-    checkpoint's generator: the hierarchy its training shapes had, else :data:`DEFAULT_HIERARCHY_FACES`."""
-    recorded = meta.get(HIERARCHY)
-    if isinstance(recorded, dict) and isinstance(recorded.get("faces"), int) and recorded["faces"] > 0:
-        return recorded["faces"], True
-    return DEFAULT_HIERARCHY_FACES, False
-
-
-def trained_lit(meta: dict) -> bool:
-    """Whether a GAN checkpoint's run shaded its renders (``lighting.enabled``); runs from before the
-    light prior have no ``lighting`` and were unlit."""
-    return bool(meta.get("config", {}).get("lighting", {}).get("enabled", False))
-
-
-def gan_camera(meta: dict) -> tuple[float, float]:
-    """(distance, fov) of the camera a GAN was trained with, from its checkpoint's metadata
-    (``config.camera``; :class:`mesh2tex.render.CameraConfig`'s defaults where it has none)."""
-    config = meta.get("config", {})
-    camera = config.get("camera", {}) if isinstance(config, dict) else {}
-    camera = camera if isinstance(camera, dict) else {}
-    default = CameraConfig()
-    try:
-        checked = CameraConfig(distance=float(camera.get("distance", default.distance)), fov=float(camera.get("fov", default.fov)))
-    except (TypeError, ValueError) as error:
-        raise InputError(f"the checkpoint's config.camera is not usable ({error})") from None
-    return checked.distance, checked.fov
-
-
-def load_view_network(path: str | os.PathLike, kind: str, device: torch.device | str = "cpu") -> tuple[torch.nn.Module, ViewTrainConfig]:
-    """A trained pose, NOC or mask network (eval mode) and its config, from a ``train pose|noc|mask`` checkpoint
-    (a path, or a shipped model's name such as ``chair``)."""
-    path = resolve_checkpoint(path, kind)
-    groups, meta = load_checkpoint(path, kind=kind)
-    cfg = config_from_dict(ViewTrainConfig, meta_mapping(meta, "config", path), where=str(path))
-    net = build_network(kind, cfg)
-    try:
-        net.load_state_dict(groups[VIEW_NET])
-    except (KeyError, RuntimeError) as error:
-        raise InputError(f"{path}: the {kind} weights do not fit its config ({str(error).splitlines()[0]})") from None
-    return net.to(device).eval(), cfg
-
-
-def load_nca(path: str | os.PathLike, device="cpu"):
-    """A trained cellular automaton from a ``train nca`` checkpoint (training or exported).
-
-    Returns (model :class:`mesh2tex.nn.nca.MeshNCA` in eval mode on ``device``, meta, exemplar
-    (H, W, 3) uint8 or None). Raises InputError naming ``path`` for a missing, foreign or damaged file.
-    """
-    groups, meta = load_checkpoint(path, kind="nca")
-    if "model" not in groups or "nca" not in meta:
-        raise InputError(f"{path}: the nca checkpoint holds no automaton")
-    cfg = config_from_dict(NCAConfig, meta["nca"], where=f"{path} nca")  # its errors name the file
-    model = MeshNCA(cfg)
-    try:
-        model.load_state_dict({k: v.float() for k, v in groups["model"].items()})
-    except RuntimeError as error:
-        raise InputError(f"{path}: the automaton weights do not fit its config ({str(error).splitlines()[0]})") from None
-    exemplar = groups.get("exemplar", {}).get("image")
-    exemplar = None if exemplar is None else exemplar.permute(1, 2, 0).numpy()
-    return model.to(device).eval(), meta, exemplar

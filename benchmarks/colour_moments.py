@@ -26,7 +26,7 @@ from kornia.color import lab_to_rgb
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.infer.generation import _ORACLE_STREAM, draw_key, fresh_photo_set, generator_renders, material_draws, read_world, sample_views  # noqa: E402
+from mesh2tex.evaluation.generation import _ORACLE_STREAM, draw_key, fresh_photo_set, generator_renders, material_draws, read_world, sample_views  # noqa: E402
 from mesh2tex.render import composite_images  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.photos import list_images, load_set  # noqa: E402

@@ -56,7 +56,7 @@ def read_tile(spec: str) -> Image.Image:
 
 
 def strip_view(path: Path, view: int) -> Image.Image:
-    """View ``view`` of a strip of square views 2 px apart (``mesh2tex.infer.protocols._strip``)."""
+    """View ``view`` of a strip of square views 2 px apart (``mesh2tex.evaluation.protocols._strip``)."""
     strip = read_tile(str(path))
     side = strip.height
     count = (strip.width + 2) // (side + 2)

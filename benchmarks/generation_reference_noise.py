@@ -3,7 +3,7 @@
     python benchmarks/generation_reference_noise.py --world WORLD [--resolution 64] [--seeds 3] [--threads 2]
 
 On a synthetic world (``mesh2tex prepare synthetic``), the figures behind the protocol's choice of
-reference (:mod:`infer.generation`, docs/gan.md):
+reference (:mod:`mesh2tex.evaluation.generation`, docs/gan.md):
 
     photo set halves          the training photos of one half of the training shapes against the other
                               half's: how far two samples of a few materials each lie apart
@@ -29,7 +29,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.infer.generation import fresh_photo_set, ground_truth_renders, on_white, read_world  # noqa: E402
+from mesh2tex.evaluation.generation import fresh_photo_set, ground_truth_renders, on_white, read_world  # noqa: E402
 from mesh2tex.photos import list_images, load_set  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd  # noqa: E402
 from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_views  # noqa: E402

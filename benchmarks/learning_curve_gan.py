@@ -7,7 +7,7 @@
 RUN is a ``mesh2tex train gan`` run directory; its generators are ``RUN/snapshots/*.safetensors``
 (``snapshot_every`` in the training config) unless ``--checkpoints`` names files (any GAN
 checkpoints: snapshots, training checkpoints, shipped models). Each one goes through the
-generation protocol of ``mesh2tex evaluate --generation`` (:mod:`infer.generation`) on the world's
+generation protocol of ``mesh2tex evaluate --generation`` (:mod:`mesh2tex.evaluation.generation`) on the world's
 held-out shapes (or, with ``--split train`` and --shapes the prepared training shapes, on the
 shapes the GAN trained on), without KID/FID: the gap closed on log object SWD (0 untrained, 1 the ground
 truth) against the protocol's fresh photo set, the same on the colour histogram, the gap closed
@@ -27,7 +27,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.infer.generation import GENERATOR_RENDERS, LIGHTING_MODES, SPLITS, GenerationConfig, run_generation_protocol  # noqa: E402
+from mesh2tex.evaluation.generation import GENERATOR_RENDERS, LIGHTING_MODES, SPLITS, GenerationConfig, run_generation_protocol  # noqa: E402
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 
 

@@ -8,7 +8,7 @@ The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_s
 apart from the world's code, and for chairs the stool of ``tests/user_assets.py``; each is read as a
 user's file is (``infer generate --mesh FILE``: turned y-up, prepared with the model's hierarchy).
 Each is seen from ``--views`` of the world's photo cameras and lights, rendered as the world renders
-its photos (the generation protocol's photo pipeline, ``mesh2tex.infer.generation``), and read as the
+its photos (the generation protocol's photo pipeline, ``mesh2tex.evaluation.generation``), and read as the
 photo set is. Rows, one texture per view:
 
   trained     each checkpoint's generator, a latent per view
@@ -75,7 +75,7 @@ def main() -> None:
     from mesh2tex.evaluation.compare import render_for_comparison
     from mesh2tex.evaluation.surfaces import material_surface
     from mesh2tex.geometry.prepared import quads_to_triangles
-    from mesh2tex.infer.generation import (draw_key, fresh_photo_set, generator_renders, photo_set_spread, read_as_photos, read_world,
+    from mesh2tex.evaluation.generation import (draw_key, fresh_photo_set, generator_renders, photo_set_spread, read_as_photos, read_world,
                                            seeded_generator)
     from mesh2tex.photos import list_images, load_set
     from mesh2tex.models import load_generator

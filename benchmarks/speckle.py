@@ -6,7 +6,7 @@
 On the held-out shapes of the shipped model's world (its card's world settings; ``--variety real``:
 the same indices of the varied world, shapes the model never saw, with the materials a photo would
 show), every row rendered the same way: the world's photo pipeline (``render_views`` for materials,
-``render_for_comparison`` for generators, via :mod:`mesh2tex.infer.generation`), unlit (the texture's
+``render_for_comparison`` for generators, via :mod:`mesh2tex.evaluation.generation`), unlit (the texture's
 albedo: faceted shading would add power of its own), at ``--resolution`` px supersampled twice, at
 the world's photo cameras. The share is :func:`mesh2tex.metrics.spectrum.high_frequency_share`:
 the power above ``--cutoff`` cycles per object diagonal (L*, and L*a*b* summed) on patches wholly on
@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
-from mesh2tex.infer.generation import WorldData, generator_renders, ground_truth_renders, material_renders  # noqa: E402
+from mesh2tex.evaluation.generation import WorldData, generator_renders, ground_truth_renders, material_renders  # noqa: E402
 from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.metrics.spectrum import DEFAULT_CUTOFF, high_frequency_share, view_pixels_per_unit  # noqa: E402
 from mesh2tex.nn.generator import TextureGenerator  # noqa: E402

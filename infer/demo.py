@@ -35,7 +35,7 @@ import numpy as np
 import torch
 import yaml
 
-from mesh2tex.infer.generation import GenerationConfig, run_generation_protocol
+from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.cli import main as cli_main
 from mesh2tex.config import check_fields, load_config, save_config
 from mesh2tex.errors import UserError
@@ -309,7 +309,7 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
 
 
 def generation_metrics(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
-    """The generation protocol (:mod:`infer.generation`) on the world's held-out shapes: trained,
+    """The generation protocol (:mod:`mesh2tex.evaluation.generation`) on the world's held-out shapes: trained,
     untrained and oracle rows against a fresh photo set, the gap closed and the diversity across latents;
     writes the samples grid ``gan/generation_samples.png`` (rows latents, columns views, last row the
     ground truth)."""

@@ -39,7 +39,7 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
     ("infer", "transfer"): ("mesh2tex.infer.transfer", "texture a mesh after one photo"),
     ("infer", "nca"): ("mesh2tex.infer.nca", "grow a trained cellular automaton's texture on any mesh"),
     ("infer", "synthesize"): ("mesh2tex.infer.synthesize", "texture a mesh after one exemplar image, no model"),
-    ("evaluate", None): ("mesh2tex.infer.evaluate", "metrics between renders and images"),
+    ("evaluate", None): ("mesh2tex.evaluate.evaluate", "metrics between renders and images"),
     ("demo", None): ("mesh2tex.infer.demo", "run the whole pipeline on the embedded synthetic world"),
 }
 

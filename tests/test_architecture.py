@@ -17,7 +17,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 LIBRARY = "mesh2tex"
-STAGES = ("data_prep", "train", "infer")
+STAGES = ("data_prep", "train", "infer", "evaluate")
 MAX_LINES = 500
 USER_ERROR_MODULES = {"mesh2tex.cli", "mesh2tex.errors"}  # the command line's own error, and where it is defined
 
@@ -130,7 +130,7 @@ def test_the_graph_sees_the_imports(graph):
     """A guard for the checks below: the walker finds imports of every form the code uses."""
     assert "mesh2tex.render.cameras" in graph["mesh2tex.render"]  # relative, from a package's __init__
     assert "mesh2tex.runtime" in graph["mesh2tex.infer.generate"]  # from a module import a name
-    assert "mesh2tex.transfer" in graph["mesh2tex.infer.protocols"]  # from a package import a submodule
+    assert "mesh2tex.transfer" in graph["mesh2tex.evaluation.protocols"]  # from a package import a submodule
     assert all(top(t) in (LIBRARY, *STAGES) for targets in graph.values() for t in targets)
 
 
@@ -260,10 +260,11 @@ def test_the_user_error_check_finds_what_it_forbids():
 
 # Files over MAX_LINES and functions over MAX_FUNCTION_LINES not yet split, each at its length today: it may
 # shrink, not grow, and leaves the list once it fits (the target is an empty list).
-LONG_FILES = {"benchmarks/bad_inputs.py": 554, "tests/test_train_gan.py": 503, "infer/protocols.py": 592, "infer/generation.py": 571, "infer/demo.py": 525, "mesh2tex/geometry/quadremesh.py": 521,
+LONG_FILES = {"benchmarks/bad_inputs.py": 554, "tests/test_train_gan.py": 503, "infer/demo.py": 525, "mesh2tex/geometry/quadremesh.py": 521,
               "mesh2tex/synthetic/chair_families.py": 509}
 MAX_FUNCTION_LINES = 80
-LONG_FUNCTIONS = {"infer/generation.py:run_generation_protocol": 143, "infer/protocols.py:run_transfer_protocol": 142,
+LONG_FUNCTIONS = {"mesh2tex/evaluation/generation.py:run_generation_protocol": 143,
+                  "mesh2tex/evaluation/protocols.py:run_transfer_protocol": 142,
                   "mesh2tex/synthetic/shapes.py:_chair": 117, "infer/nca.py:run": 105, "mesh2tex/geometry/quadremesh.py:remesh_hierarchy": 101,
                   "mesh2tex/transfer/optimise.py:transfer_texture": 95, "infer/transfer.py:run": 93, "train/gan.py:step": 87}
 SOURCE_FOLDERS = (LIBRARY, *STAGES)

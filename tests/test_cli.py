@@ -26,8 +26,8 @@ CONFIG_COMMANDS = {  # argv -> the config class --print-config prints
     ("train", "gan"): "mesh2tex.train.gan:TrainGanConfig", ("train", "pose"): "mesh2tex.nn.view_nets:ViewTrainConfig",
     ("train", "noc"): "mesh2tex.nn.view_nets:ViewTrainConfig", ("train", "nca"): "mesh2tex.train.nca:TrainNCAConfig",
     ("infer", "generate"): "mesh2tex.infer.generate:GenerateConfig", ("infer", "transfer"): "mesh2tex.transfer.config:TransferConfig",
-    ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig", ("evaluate", "--protocols"): "mesh2tex.infer.protocols:ProtocolConfig",
-    ("evaluate", "--generation"): "mesh2tex.infer.generation:GenerationConfig", ("demo",): "mesh2tex.infer.demo:DemoConfig",
+    ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig", ("evaluate", "--protocols"): "mesh2tex.evaluation.protocols:ProtocolConfig",
+    ("evaluate", "--generation"): "mesh2tex.evaluation.generation:GenerationConfig", ("demo",): "mesh2tex.infer.demo:DemoConfig",
 }
 DEVICE_COMMANDS = [argv for argv in ARGVS if argv[0] != "prepare"]  # preparation runs on the CPU
 
@@ -201,8 +201,8 @@ def test_prepare_keeps_output_as_a_hidden_alias_of_out(sub, capsys):
 
 
 def test_backgrounds_named_in_the_options_are_the_commands():
-    from mesh2tex.infer.evaluate import BACKGROUNDS
-    from mesh2tex.infer.options import BACKGROUNDS as NAMES
+    from mesh2tex.evaluate.evaluate import BACKGROUNDS
+    from mesh2tex.evaluate.options import BACKGROUNDS as NAMES
 
     assert sorted(BACKGROUNDS) == sorted(NAMES)
 
@@ -220,7 +220,7 @@ def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
 # --------------------------------------------------------------------------- config flags
 def flag_value(action: argparse.Action, default):
     """(text for the command line, the field's value it must give) of a config flag: anything but the default."""
-    from mesh2tex.infer.protocols import ABLATIONS, BASELINES, PROTOCOLS
+    from mesh2tex.evaluation.protocols import ABLATIONS, BASELINES, PROTOCOLS
     from mesh2tex.models import resolve_checkpoint
 
     lists = {"--only": PROTOCOLS, "--ablations": ABLATIONS, "--baselines": BASELINES}  # comma-separated names

@@ -17,7 +17,7 @@ def figures(*args) -> subprocess.CompletedProcess:
 
 
 def strip(path: Path, colours: list[int], side: int = 8) -> None:
-    """A strip of square views 2 px apart (as infer.protocols writes them), view k filled with colours[k]."""
+    """A strip of square views 2 px apart (as mesh2tex.evaluation.protocols writes them), view k filled with colours[k]."""
     image = np.full((side, len(colours) * (side + 2) - 2, 3), 255, np.uint8)
     for k, c in enumerate(colours):
         image[:, k * (side + 2): k * (side + 2) + side] = c

@@ -11,7 +11,8 @@ import torch
 import yaml
 
 from conftest import TINY_GAN, make_tiny_world
-from mesh2tex.infer.generation import GenerationConfig, fresh_photo_set, generation_markdown, ground_truth_renders, read_world, run_generation_protocol
+from mesh2tex.evaluation.generation import GenerationConfig, fresh_photo_set, ground_truth_renders, read_world, run_generation_protocol
+from mesh2tex.evaluation.report import generation_markdown
 from mesh2tex.photos import list_images, load_set
 from mesh2tex.cli import main
 from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
@@ -80,7 +81,7 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     the world's resolution, supersampled, on white, resized as the photo set is read): a generator that
     paints one colour gives exactly the world pipeline's render of that colour on its mesh, antialiased
     edges included, which the GAN's own renderer straight at the metric's resolution does not."""
-    from mesh2tex.infer import generation
+    from mesh2tex.evaluation import generation
     from mesh2tex.evaluation.compare import render_for_comparison
     from mesh2tex.evaluation.surfaces import flat_surface
     from mesh2tex.geometry.prepared import PreparedShape
@@ -161,7 +162,7 @@ def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
 
 def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp_path, monkeypatch):
     root = world_and_gan
-    from mesh2tex.infer import generation
+    from mesh2tex.evaluation import generation
 
     original = generation.load_generator
 
@@ -205,7 +206,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     """A generator trained under the light prior is rendered under each view's light on every held-out
     shape (as the oracle is), together with its material reference; one trained unlit is rendered unlit."""
     root = world_and_gan
-    from mesh2tex.infer import generation
+    from mesh2tex.evaluation import generation
 
     original_load, original_render, original_draws = generation.load_generator, generation.generator_renders, generation.material_draws
     seen, sides, oracle, diversity_reference, fresh_photos = [], [], [], [], []
@@ -278,7 +279,7 @@ def test_pose_view_turns_the_light_with_the_camera():
     """The diversity pose keeps a photo's light where the photo had it relative to the camera."""
     import math
 
-    from mesh2tex.infer.generation import pose_view
+    from mesh2tex.evaluation.generation import pose_view
     from mesh2tex.render import orbit_direction as light_direction
     from mesh2tex.synthetic.world import PhotoSetup
 
@@ -292,11 +293,11 @@ def test_pose_view_turns_the_light_with_the_camera():
 
 
 def test_the_commands_offer_the_protocols_lightings_and_splits():
-    """infer/options.py spells the choices out (it must not import torch); they stay the protocol's."""
+    """evaluate/options.py spells the choices out (it must not import torch); they stay the protocol's."""
     import argparse
 
-    from mesh2tex.infer.generation import LIGHTING_MODES, SPLITS
-    from mesh2tex.infer.options import evaluate
+    from mesh2tex.evaluation.generation import LIGHTING_MODES, SPLITS
+    from mesh2tex.evaluate.options import evaluate
 
     parser = argparse.ArgumentParser()
     evaluate(parser)
@@ -308,7 +309,7 @@ def test_the_commands_offer_the_protocols_lightings_and_splits():
 def test_a_world_of_one_training_shape_reports_its_photo_spread_as_undefined(tmp_path):
     """The photo set's spread across shapes needs two shapes: with one, the protocol still finishes and
     its report says the figure is undefined, instead of ending in a traceback."""
-    from mesh2tex.infer.generation import photo_set_spread
+    from mesh2tex.evaluation.generation import photo_set_spread
 
     photos, masks = torch.rand(3, 3, 8, 8), torch.ones(3, 1, 8, 8)
     assert np.isnan(photo_set_spread(None, photos, masks, ["chair_0001_00", "chair_0001_01", "chair_0001_02"]))

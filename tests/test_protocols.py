@@ -97,7 +97,7 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
 def test_an_automaton_fitted_to_the_photo_is_judged_beside_the_baselines_when_asked_for(setup, tmp_path, monkeypatch):
     """``--baselines ...,automaton`` adds a mesh automaton fitted to the photo (no GAN) as one more row, scored
     alike; its fit is set under ``automaton:`` and is left out of the transfer cache's fingerprint."""
-    from mesh2tex.infer.protocols import ProtocolConfig, cache_settings
+    from mesh2tex.evaluation.protocols import ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
 
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "no_weights"))
@@ -264,7 +264,7 @@ def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, ca
     not TransferConfig's; an unknown key, a field the protocol owns and an ablation's switch are one-line errors."""
     from mesh2tex.config import load_config
     from mesh2tex.metrics.evaluate import EvaluateConfig
-    from mesh2tex.infer.protocols import ProtocolConfig
+    from mesh2tex.evaluation.protocols import ProtocolConfig
 
     from dataclasses import replace
 
@@ -298,9 +298,10 @@ def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):
     before the transfer's settings were nested wrote for the same settings, so their folders still resume."""
     from dataclasses import asdict
 
-    from mesh2tex.infer.protocols import ProtocolConfig, TransferCache, cache_settings
+    from mesh2tex.evaluation.cache import TransferCache
+    from mesh2tex.evaluation.protocols import ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
-    from mesh2tex.errors import UserError
+    from mesh2tex.errors import InputError
 
     cfg = config_from_dict(ProtocolConfig, {"device": "cpu", "transfer": {"latent_iters": 50, "refine_iters": 150, "w_anchor": 10.0}})
     settings = cache_settings(cfg, True)
@@ -316,5 +317,5 @@ def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):
     # A folder whose config set a field to its default (an older run's ``transfer: {w_colour: 10.0}``) still matches.
     TransferCache(tmp_path, {**fingerprint, "settings": {**fingerprint["settings"], "transfer": {"w_anchor": 10.0, "w_colour": 10.0}}})
     other = config_from_dict(ProtocolConfig, {"device": "cpu", "transfer": {"latent_iters": 50, "refine_iters": 150, "w_anchor": 5.0}})
-    with pytest.raises(UserError, match="other settings"):
+    with pytest.raises(InputError, match="other settings"):
         TransferCache(tmp_path, {"settings": cache_settings(other, True), "inputs": {"gan": "abc"}})

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from mesh2tex.config import check_fields, load_config
-from mesh2tex.errors import InputError, UserError
+from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.models import save_inference_checkpoint, shape_hierarchy

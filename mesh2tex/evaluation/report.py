@@ -1,6 +1,7 @@
-"""The markdown report of ``mesh2tex evaluate --protocols``: the protocols and methods by name, one
-table per protocol (a row per method, seen then unseen columns), the oracle check and the paired
-comparisons with the full method."""
+"""The markdown reports of ``mesh2tex evaluate``: of ``--protocols`` (the protocols and methods by
+name, one table per protocol, a row per method, seen then unseen columns, the oracle check and the
+paired comparisons with the full method) and of ``--generation`` (:func:`generation_markdown`: the
+rows against the fresh photo set, the gap closed and the diversity)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,10 @@ import math
 
 from mesh2tex.evaluation.compare import METRIC_TITLES, METRICS, metric_direction
 from mesh2tex.evaluation.paired import flat_colour_targets, oracle_check, scored_metrics
+
+# the generation protocol's rows and the words for its splits (mesh2tex.evaluation.generation runs them)
+GENERATION_ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture")
+SPLITS = {"held_out": "held-out", "train": "training"}  # split -> the word for its shapes
 
 PROTOCOLS = ("unconditional", "known_pose", "unknown_pose", "other_shape")
 TRANSFER_PROTOCOLS = PROTOCOLS[1:]
@@ -141,4 +146,70 @@ def protocols_markdown(result: dict) -> str:
                             + ", ".join(f"{m} in {w} of {n}" + _paired_note(c.get("query_tests", {}).get(m))
                                         for m, (w, n) in c["query_wins"].items()) + "."))
         lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+GENERATION_ROW_LABELS = {"oracle": "oracle (world's sampler, a draw per view)", "oracle_unlit": "oracle, unlit",
+              "ground_truth": "each shape's own ground truth",
+              "training_materials": "the training shapes' materials (a generator that reproduced them)",
+              "flat_colour": "flat colour (the photo set's mean, baseline)", "mean_texture": "generator's mean texture (w_avg, baseline)"}
+
+
+def label_of(row: str) -> str:
+    """A row's name in the markdown table."""
+    return GENERATION_ROW_LABELS.get(row, row)
+
+
+def generation_markdown(result: dict) -> str:
+    """The rows and the diversity of a :func:`run_generation_protocol` result as markdown."""
+    rows = result["rows"]
+    fresh = "object_swd_vs_photos" in rows["trained"]  # False for results from before the fresh photo set
+    names = (["object_swd", "swd"] + [k for k in rows["trained"] if k.startswith(("kid", "fid")) and not k.endswith("_std")]
+             + ["color_hist_tv"] + (["object_swd_vs_photos"] if fresh else []))
+    lighting = ("the generator's rows lit by each view's light, as the oracle" if result.get("generator_lit")
+                else "the generator's rows unlit, as it was trained")
+    draws = result.get("settings", {}).get("repeats", 1)
+    averaged = (f", each the mean of {draws} draws of the latents, the oracle's materials and the fresh photo set (KID and FID: "
+                f"the first draw)" if draws > 1 else "")
+    reference = ("distances to a fresh photo set (the training shapes at their photos' cameras and lights, a new material of "
+                 f"the world's sampler on each photo){averaged}, the last column to the training photos; lower is better" if fresh
+                 else "distances to the training photos; lower is better")
+    lines = [f"Generation protocol on {len(result['shapes'])} {SPLITS[result.get('split', 'held_out')]} shapes at {result['resolution']} px "
+             f"(checkpoint iteration {result['iteration']}; {lighting}); {reference}.", "",
+             "| row | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
+    for row in GENERATION_ROWS:
+        if row not in rows:  # results from before the baseline rows
+            continue
+        values = [rows[row].get(n, float("nan")) for n in names]
+        lines.append(f"| {label_of(row)} | " + " | ".join(f"{v:.4g}" for v in values) + " |")
+    d = result["diversity"]
+    gap = result["gap_closed"]
+    def share(value: float) -> str:
+        return f"{value:.2f}" if math.isfinite(value) else "undefined (the oracle does not beat the untrained generator)"
+
+    def across(value) -> str:  # None: read back from generation.json, where NaN is null
+        return f"{value:.2f}" if value is not None and math.isfinite(value) else "undefined (one training shape)"
+
+    per_draw = result.get("gap_closed_per_draw", [])
+    spread = f" (single draws: {', '.join(f'{v:.2f}' for v in per_draw)})" if len(per_draw) > 1 else ""
+    gap_line = (f"Gap closed (log object SWD, untrained 0 -> oracle 1; higher is better): **{share(gap)}**{spread}; "
+                f"on the colour histogram {share(result['gap_closed_histogram'])}; on the whole-image SWD "
+                f"{share(result['gap_closed_whole_image_swd'])}")
+    if fresh:
+        gap_line += (f". Reproducing the training textures exactly would close {share(result['gap_closed_training_materials'])}. "
+                     f"Against the training photos instead (the protocol's reference before the fresh photo set; the oracle "
+                     f"can lose there): {share(result['gap_closed_vs_photos'])}")
+    for column in result.get("oracle_loses", []):
+        winners = [f"{label_of(row)} {rows[row][column]:.4g}" for row in GENERATION_ROWS
+                   if row in rows and row != "oracle" and rows[row][column] < rows["oracle"][column]]
+        lines += ["", f"The oracle ({rows['oracle'][column]:.4g}) does not win `{column}`, so it does not rank textures: " + "; ".join(winners) + "."]
+    lines += ["", gap_line, "",
+              "| diversity (higher is more varied) | colour spread (Delta E) | mean pairwise Delta E |", "| --- | --- | --- |",
+              f"| trained, {result['settings']['latents']} latents per shape | {d['trained']['spread']:.2f} | {d['trained']['pairwise']:.2f} |",
+              f"| untrained | {d['untrained']['spread']:.2f} | {d['untrained']['pairwise']:.2f} |",
+              f"| world's material sampler, same shapes and pose (reference) | {d['reference_materials']['spread']:.2f} | {d['reference_materials']['pairwise']:.2f} |",
+              f"| photo set, across shapes (reference) | {across(d['photo_set_spread'])} | |", "",
+              f"Trained diversity: colour spread {across(d['trained_spread_vs_photo_set'])} of the photo set's, "
+              f"{d['trained_spread_vs_materials']:.2f} of the material sampler's; pairwise Delta E "
+              f"{d['trained_pairwise_vs_materials']:.2f} of the material sampler's."]
     return "\n".join(lines) + "\n"

@@ -22,6 +22,7 @@ from mesh2tex.evaluation.surfaces import Surface, material_surface, textured_sur
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
+from mesh2tex.synthetic.world import WorldSpec
 from mesh2tex.transfer.photo import FramedView
 
 
@@ -159,8 +160,6 @@ class QueryTruth:
 
 def world_spec(index: dict):
     """The ``WorldSpec`` of a world's ``index.json`` (its ``settings``)."""
-    from mesh2tex.synthetic.world import WorldSpec
-
     settings = {k: v for k, v in index.get("settings", {}).items() if k in WorldSpec.__dataclass_fields__}
     return WorldSpec(**settings)
 
@@ -224,3 +223,25 @@ def reference_renders(query: QueryTruth, views: list, lighting: str = "photo", s
                 render.rgb[b] = query.photo[0]
                 render.mask[b] = query.photo_mask[0]
     return render
+
+
+@dataclass
+class WorldData:
+    """A world as the generation protocol reads it: its spec and the names of its shapes by split."""
+
+    spec: WorldSpec
+    root: Path
+    held_out: list[str]  # shape names
+    train: list[str]  # the training shapes' names
+    indices: dict[str, int]  # shape name -> world index
+
+
+def read_world(root: str | Path) -> WorldData:
+    """The world's spec, its held-out shapes (the query split) and its training shapes from ``root/index.json``."""
+    world = load_world(root)  # checks the index (format, complete, query files)
+    spec = world_spec(world.index)
+    held_out = list(world.index["split"]["query_shapes"])
+    if not held_out:
+        raise InputError(f"{world.root / 'index.json'}: the world holds no held-out shapes")
+    return WorldData(spec=spec, root=world.root, held_out=held_out, train=list(world.index["split"]["train_shapes"]),
+                     indices={spec.shape_name(i): i for i in range(spec.shapes)})

@@ -40,7 +40,7 @@ import numpy as np
 
 from scipy.spatial import cKDTree
 
-from mesh2tex.geometry.clean import decimate, isotropic_remesh, triangle_areas
+from mesh2tex.geometry.clean import isotropic_remesh, triangle_areas
 from mesh2tex.geometry.hierarchy import orient_coherently
 from mesh2tex.geometry.levelset import marching_cubes, solid_field, surface_net_quads, surface_samples
 from mesh2tex.geometry.prepared import quads_to_triangles

@@ -25,11 +25,11 @@ modes :class:`mesh2tex.metrics.evaluate.EvaluateConfig`, ``--protocols`` the pro
 ``--generation`` the generation config. Long steps show a progress bar on a terminal.
 
 ``--generation`` measures a texture GAN against a synthetic world's ground truth (trained, untrained
-and oracle rows, the gap closed, diversity across latents) given as ``--checkpoint NAME|PATH``: see :mod:`infer.generation`.
+and oracle rows, the gap closed, diversity across latents) given as ``--checkpoint NAME|PATH``: see :mod:`mesh2tex.evaluation.generation`.
 
 ``--protocols`` runs the paper's evaluation protocols on a synthetic world instead (unconditional
 generation; transfer with known pose, unknown pose, to another shape; each with the ablations of
-Table 8): see :mod:`infer.protocols`.
+Table 8): see :mod:`mesh2tex.evaluation.protocols`.
 """
 
 from __future__ import annotations
@@ -39,14 +39,15 @@ import sys
 import time
 from dataclasses import asdict
 
-from mesh2tex.infer.generation import GenerationConfig, generation_markdown, run_generation_protocol
-from mesh2tex.infer.options import GENERATION_CONFIG, SETS_CONFIG
-from mesh2tex.infer.protocols import protocol_config, run_protocols_command
+from mesh2tex.evaluate.options import GENERATION_CONFIG, PROTOCOL_CONFIG, SETS_CONFIG
+from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
+from mesh2tex.evaluation.protocols import ProtocolConfig, run_protocols
+from mesh2tex.evaluation.report import generation_markdown, protocols_markdown
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.photos import list_images, load_set
-from mesh2tex.models import resolve_checkpoint
+from mesh2tex.models import is_model_name, resolve_checkpoint
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, load_pairs, markdown_table
@@ -58,7 +59,7 @@ BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
 
 
 # ----------------------------------------------------------------------------------------------
-# Command line (the options are in infer/options.py)
+# Command line (the options are in evaluate/options.py)
 
 
 def generation_config(args: argparse.Namespace) -> GenerationConfig:
@@ -70,6 +71,36 @@ def generation_config(args: argparse.Namespace) -> GenerationConfig:
 def sets_config(args: argparse.Namespace) -> EvaluateConfig:
     """``--config``, then the flags given."""
     return load_config(EvaluateConfig, args.config, config_overrides(args, SETS_CONFIG, computed={"resolution": args.resolution}))
+
+
+def _split(text: str | None) -> list[str] | None:
+    return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
+
+
+def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
+    """The protocol config: its defaults, then ``--config``, then the flags given."""
+    return load_config(ProtocolConfig, args.config, config_overrides(args, PROTOCOL_CONFIG, computed={
+        "protocols": _split(args.only), "ablations": _split(args.ablations), "baselines": _split(args.baselines),
+        # the options evaluate's other modes share
+        "resolution": args.resolution, "evaluate.features": args.features, "evaluate.kid_subsets": args.kid_subsets, "seed": args.seed,
+        "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
+        "inception_weights": args.inception_weights}))
+
+
+def run_protocols_command(args: argparse.Namespace) -> int:
+    """``mesh2tex evaluate --protocols ...``: writes OUT/protocols.json, OUT/protocols.md and OUT/renders/."""
+    for flag in ("world", "shapes", "checkpoint"):
+        if not getattr(args, flag):
+            raise UserError(f"--protocols needs --{flag}")
+    cfg = protocol_config(args)
+    out = guard_outputs(args.out, ["protocols.json", "protocols.md"], args.overwrite)  # finished transfers are a cache (TransferCache)
+    pose, noc = args.pose_checkpoint, args.noc_checkpoint
+    if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks, as in 'infer transfer'
+        pose, noc = pose or args.checkpoint, noc or args.checkpoint
+    result = run_protocols(args.world, args.shapes, args.checkpoint, pose, noc, cfg, out, log=write_line, overwrite=args.overwrite)
+    print(protocols_markdown(result), end="")
+    print(f"wrote {out / 'protocols.json'} and {out / 'protocols.md'} ({result['seconds']:.0f} s)")
+    return 0
 
 
 def build_config(args: argparse.Namespace):

@@ -79,11 +79,12 @@ import numpy as np
 import torch
 
 from mesh2tex.config import check_fields
-from mesh2tex.errors import UserError
+from mesh2tex.errors import InputError
 from mesh2tex.evaluation.compare import render_for_comparison
 from mesh2tex.evaluation.paired import oracle_check
+from mesh2tex.evaluation.report import GENERATION_ROWS, SPLITS
 from mesh2tex.evaluation.surfaces import generator_surface
-from mesh2tex.evaluation.world import load_world, world_spec
+from mesh2tex.evaluation.world import WorldData, read_world
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.photos import list_images, load_set, square_resize
 from mesh2tex.io.images import colours_to_uint8, save_png
@@ -96,13 +97,11 @@ from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import Lights, composite_images, orbit_camera
-from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_material, sample_views
+from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_material, sample_views
 from mesh2tex.texture import mean_latent, shape_mismatch
 
-ROWS = ("trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture")
 LIGHTING_MODES = ("auto", "lit", "unlit")
 GENERATOR_RENDERS = ("photo", "direct")
-SPLITS = {"held_out": "held-out", "train": "training"}  # split -> the word for its shapes
 _REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 _ORACLE_STREAM = 7927  # seeds the oracle's material draws
 _FRESH_PHOTOS_STREAM = 7933  # seeds the materials of the fresh photo set, the distances' reference
@@ -156,26 +155,6 @@ class GenerationConfig:
         """:func:`generator_renders`' ``photo_resolution`` for the generator rows: the world's photo
         resolution, or 0 with ``generator_render: direct``."""
         return world.spec.resolution if self.generator_render == "photo" else 0
-
-
-@dataclass
-class WorldData:
-    spec: WorldSpec
-    root: Path
-    held_out: list[str]  # shape names
-    train: list[str]  # the training shapes' names
-    indices: dict[str, int]  # shape name -> world index
-
-
-def read_world(root: str | Path) -> WorldData:
-    """The world's spec, its held-out shapes (the query split) and its training shapes from ``root/index.json``."""
-    world = load_world(root)  # checks the index (format, complete, query files)
-    spec = world_spec(world.index)
-    held_out = list(world.index["split"]["query_shapes"])
-    if not held_out:
-        raise UserError(f"{world.root / 'index.json'}: the world holds no held-out shapes")
-    return WorldData(spec=spec, root=world.root, held_out=held_out, train=list(world.index["split"]["train_shapes"]),
-                     indices={spec.shape_name(i): i for i in range(spec.shapes)})
 
 
 def on_white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
@@ -345,7 +324,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     model = load_generator(checkpoint, device)
     trained = model.network
     if not cfg.resolution and model.resolution is None:
-        raise UserError(f"{checkpoint}: the checkpoint does not say the resolution it was trained at; give --resolution")
+        raise InputError(f"{checkpoint}: the checkpoint does not say the resolution it was trained at; give --resolution")
     resolution = cfg.resolution or model.resolution
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
@@ -357,18 +336,18 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     for name in names:
         path = Path(shapes_dir) / f"{name}.npz"
         if not path.is_file():
-            raise UserError(f"{path}: the {SPLITS[cfg.split]} shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
+            raise InputError(f"{path}: the {SPLITS[cfg.split]} shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
         shape = PreparedShape.load(path)
         problem = shape_mismatch(shape, trained)
         if problem:
-            raise UserError(f"{path}: {problem}")
+            raise InputError(f"{path}: {problem}")
         shapes[name] = shape
 
     photos, photo_masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
     photo_names = list(list_images(world.root / "images", "image"))
     photo_mean = (photos * photo_masks).sum(dim=(0, 2, 3)) / (photo_masks.sum() * 1.0).clamp_min(1.0)  # (3,) the mean object colour
     views_of = {name: sample_views(world.spec, world.indices[name], cfg.views) for name in names}  # fresh for held-out shapes
-    fixed = {row: ([], []) for row in ROWS if row not in DRAWN_ROWS}  # rows that draw nothing: rendered once
+    fixed = {row: ([], []) for row in GENERATION_ROWS if row not in DRAWN_ROWS}  # rows that draw nothing: rendered once
     diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
     z_div_gen = seeded_generator((cfg.seed,), _DIVERSITY_STREAM)
     generator_rows = (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0))  # (row, generator, truncation psi)
@@ -428,7 +407,7 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
         reference_features = extractor(reference * 2 - 1) if kid_fid else None  # once for every row
         swd_seed = cfg.seed + repeat
         rows = {}
-        for row in ROWS:
+        for row in GENERATION_ROWS:
             images, masks = sets[row]
             metrics = evaluate_sets(images, reference, extractor, dataclasses.replace(eval_cfg, seed=swd_seed), masks, reference_masks,
                                     kid_fid=kid_fid, image_features=reference_features)["metrics"]
@@ -503,69 +482,3 @@ def average_rows(per_repeat: list[dict[str, dict[str, float]]]) -> dict[str, dic
         rows[row] = {name: float(np.mean([r[row][name] for r in per_repeat if name in r[row]])) for name in names}
         rows[row]["object_swd_per_draw"] = [r[row]["object_swd"] for r in per_repeat]
     return rows
-
-
-ROW_LABELS = {"oracle": "oracle (world's sampler, a draw per view)", "oracle_unlit": "oracle, unlit",
-              "ground_truth": "each shape's own ground truth",
-              "training_materials": "the training shapes' materials (a generator that reproduced them)",
-              "flat_colour": "flat colour (the photo set's mean, baseline)", "mean_texture": "generator's mean texture (w_avg, baseline)"}
-
-
-def label_of(row: str) -> str:
-    """A row's name in the markdown table."""
-    return ROW_LABELS.get(row, row)
-
-
-def generation_markdown(result: dict) -> str:
-    """The rows and the diversity of a :func:`run_generation_protocol` result as markdown."""
-    rows = result["rows"]
-    fresh = "object_swd_vs_photos" in rows["trained"]  # False for results from before the fresh photo set
-    names = (["object_swd", "swd"] + [k for k in rows["trained"] if k.startswith(("kid", "fid")) and not k.endswith("_std")]
-             + ["color_hist_tv"] + (["object_swd_vs_photos"] if fresh else []))
-    lighting = ("the generator's rows lit by each view's light, as the oracle" if result.get("generator_lit")
-                else "the generator's rows unlit, as it was trained")
-    draws = result.get("settings", {}).get("repeats", 1)
-    averaged = (f", each the mean of {draws} draws of the latents, the oracle's materials and the fresh photo set (KID and FID: "
-                f"the first draw)" if draws > 1 else "")
-    reference = ("distances to a fresh photo set (the training shapes at their photos' cameras and lights, a new material of "
-                 f"the world's sampler on each photo){averaged}, the last column to the training photos; lower is better" if fresh
-                 else "distances to the training photos; lower is better")
-    lines = [f"Generation protocol on {len(result['shapes'])} {SPLITS[result.get('split', 'held_out')]} shapes at {result['resolution']} px "
-             f"(checkpoint iteration {result['iteration']}; {lighting}); {reference}.", "",
-             "| row | " + " | ".join(names) + " |", "| --- |" + " --- |" * len(names)]
-    for row in ROWS:
-        if row not in rows:  # results from before the baseline rows
-            continue
-        values = [rows[row].get(n, float("nan")) for n in names]
-        lines.append(f"| {label_of(row)} | " + " | ".join(f"{v:.4g}" for v in values) + " |")
-    d = result["diversity"]
-    gap = result["gap_closed"]
-    def share(value: float) -> str:
-        return f"{value:.2f}" if math.isfinite(value) else "undefined (the oracle does not beat the untrained generator)"
-
-    def across(value) -> str:  # None: read back from generation.json, where NaN is null
-        return f"{value:.2f}" if value is not None and math.isfinite(value) else "undefined (one training shape)"
-
-    per_draw = result.get("gap_closed_per_draw", [])
-    spread = f" (single draws: {', '.join(f'{v:.2f}' for v in per_draw)})" if len(per_draw) > 1 else ""
-    gap_line = (f"Gap closed (log object SWD, untrained 0 -> oracle 1; higher is better): **{share(gap)}**{spread}; "
-                f"on the colour histogram {share(result['gap_closed_histogram'])}; on the whole-image SWD "
-                f"{share(result['gap_closed_whole_image_swd'])}")
-    if fresh:
-        gap_line += (f". Reproducing the training textures exactly would close {share(result['gap_closed_training_materials'])}. "
-                     f"Against the training photos instead (the protocol's reference before the fresh photo set; the oracle "
-                     f"can lose there): {share(result['gap_closed_vs_photos'])}")
-    for column in result.get("oracle_loses", []):
-        winners = [f"{label_of(row)} {rows[row][column]:.4g}" for row in ROWS
-                   if row in rows and row != "oracle" and rows[row][column] < rows["oracle"][column]]
-        lines += ["", f"The oracle ({rows['oracle'][column]:.4g}) does not win `{column}`, so it does not rank textures: " + "; ".join(winners) + "."]
-    lines += ["", gap_line, "",
-              "| diversity (higher is more varied) | colour spread (Delta E) | mean pairwise Delta E |", "| --- | --- | --- |",
-              f"| trained, {result['settings']['latents']} latents per shape | {d['trained']['spread']:.2f} | {d['trained']['pairwise']:.2f} |",
-              f"| untrained | {d['untrained']['spread']:.2f} | {d['untrained']['pairwise']:.2f} |",
-              f"| world's material sampler, same shapes and pose (reference) | {d['reference_materials']['spread']:.2f} | {d['reference_materials']['pairwise']:.2f} |",
-              f"| photo set, across shapes (reference) | {across(d['photo_set_spread'])} | |", "",
-              f"Trained diversity: colour spread {across(d['trained_spread_vs_photo_set'])} of the photo set's, "
-              f"{d['trained_spread_vs_materials']:.2f} of the material sampler's; pairwise Delta E "
-              f"{d['trained_pairwise_vs_materials']:.2f} of the material sampler's."]
-    return "\n".join(lines) + "\n"

@@ -54,10 +54,7 @@ features named for what they are).
 
 from __future__ import annotations
 
-import argparse
 import copy
-import json
-import shutil
 import sys
 import time
 import typing
@@ -68,32 +65,28 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mesh2tex.infer.options import PROTOCOL_CONFIG
 from mesh2tex import transfer
-from mesh2tex.config import load_config
-from mesh2tex.errors import InputError, UserError
+from mesh2tex.errors import InputError
 from mesh2tex.evaluation import (LIGHTING, ComparisonRender, ScoreSettings, backproject_photo, common_mask, flat_surface,
                                  generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
                                  seen_and_unseen, vertex_colour_surface)
+from mesh2tex.evaluation.cache import TransferCache
 from mesh2tex.evaluation.paired import compare_to_full, flat_colour_targets, mean_scores, oracle_check
 from mesh2tex.evaluation.report import BASELINES, EXTRA_METHODS, PROTOCOLS, TRANSFER_PROTOCOLS, protocols_markdown
 from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth, load_world, other_shape_name, reference_renders
 from mesh2tex.geometry.prepared import PreparedShape, shape_paths
-from mesh2tex.io.atomic import atomic_path, json_ready, write_json, write_text
+from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.io.checkpoint import checkpoint_digest
 from mesh2tex.photos import list_images, load_set
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.io.outputs import guard_outputs
-from mesh2tex.models import is_model_name, load_generator, resolve_checkpoint
+from mesh2tex.models import load_generator, resolve_checkpoint
 from mesh2tex.metrics import get_feature_extractor, to_unit
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.nn.generator import FaceTexture
 from mesh2tex.nn.pose import azimuth_error
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
-from mesh2tex.options import config_overrides
-from mesh2tex.progress import progress_bar, write_line
+from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
 from mesh2tex.texture import latent, mean_latent, shape_mismatch
@@ -143,18 +136,18 @@ class ProtocolConfig:
         unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
                    + [b for b in self.baselines if b not in (*BASELINES, *EXTRA_METHODS)])
         if unknown:
-            raise UserError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
+            raise InputError(f"unknown protocol, ablation or baseline {', '.join(unknown)}; protocols: {', '.join(PROTOCOLS)}; "
                             f"ablations: {', '.join(ABLATIONS)}; baselines: {', '.join((*BASELINES, *EXTRA_METHODS))}")
         if self.lighting not in LIGHTING:
-            raise UserError(f"lighting {self.lighting!r}: must be one of {', '.join(LIGHTING)}")
+            raise InputError(f"lighting {self.lighting!r}: must be one of {', '.join(LIGHTING)}")
         if not 0 <= self.unseen_views <= 35 or self.lowpass_sigma < 0:
-            raise UserError(f"unseen_views {self.unseen_views}, lowpass_sigma {self.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
+            raise InputError(f"unseen_views {self.unseen_views}, lowpass_sigma {self.lowpass_sigma}: need 0-35 unseen views and a sigma >= 0")
         if self.resolution < 32:
-            raise UserError(f"--resolution {self.resolution}: must be at least 32")
+            raise InputError(f"--resolution {self.resolution}: must be at least 32")
         self.transfer = self._shared_into("transfer", SHARED)
         ablated = [name for name in ABLATED if getattr(self.transfer, name) != getattr(self._default("transfer"), name)]
         if ablated:
-            raise UserError(f"transfer: {', '.join(ablated)} cannot be set there: choose an ablation (--ablations)")
+            raise InputError(f"transfer: {', '.join(ablated)} cannot be set there: choose an ablation (--ablations)")
         self.evaluate = self._shared_into("evaluate", ("resolution", "seed"))
 
     def _default(self, name: str):
@@ -170,7 +163,7 @@ class ProtocolConfig:
         wrong = [key for key in shared
                  if getattr(nested, key) not in (getattr(self, key), getattr(default, key)) and getattr(nested, key) != given.get(key)]
         if wrong:
-            raise UserError(f"{name}: {', '.join(wrong)} cannot be set there: set the protocol's own {', '.join(wrong)}")
+            raise InputError(f"{name}: {', '.join(wrong)} cannot be set there: set the protocol's own {', '.join(wrong)}")
         resolved = replace(nested, **{key: getattr(self, key) for key in shared})
         resolved._from_protocol = {key: getattr(self, key) for key in shared}
         return resolved
@@ -281,7 +274,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             truth = load_query_truth(world.root, world.index, query.record)
             target_truth = truth.truth if exact else load_shape_truth(world.root, world.index, target)
         except ValueError as error:
-            raise UserError(str(error)) from None
+            raise InputError(str(error)) from None
         views = [truth.view] + other_views(truth.view, offsets)
         size = truth.resolution
 
@@ -335,7 +328,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                 rendered = render(generator_surface(generator, texture, batch))
             elif name == "automaton":  # fitted at the pose the transfer uses, with its losses
                 if base.use_noc and base.use_patches and photo_noc is None:
-                    raise UserError("the automaton uses NOC-guided patches: give --noc-checkpoint")
+                    raise InputError("the automaton uses NOC-guided patches: give --noc-checkpoint")
                 fit = fit_automaton(shape, photo, view, photo_noc, vgg, base, cfg.automaton, device, show_progress=False)
                 rendered = render(vertex_colour_surface(vertices, triangles, fit.colours.cpu()))
                 row = {"loss_last": fit.losses[-1]}
@@ -345,7 +338,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
                                                 dist, view_fov, align="photo" if protocol == "known_pose" else "silhouette",
                                                 margin=base.margin)
                 except ValueError as error:
-                    raise UserError(f"{query.image}: {error}") from None
+                    raise InputError(f"{query.image}: {error}") from None
                 rendered = render(surface)
             keep(name, rendered, {"seconds": round(time.perf_counter() - start, 2), **row})
 
@@ -353,7 +346,7 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
             tcfg = replace(base, **ABLATIONS[ablation])
             guided = tcfg.use_noc and tcfg.use_patches
             if guided and photo_noc is None:
-                raise UserError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
+                raise InputError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
             cached = cache.load(protocol, ablation, query.name) if cache is not None else None
             if cached is not None:  # made by an earlier run into this folder with the same settings
                 texture, row = cached
@@ -413,62 +406,6 @@ def cache_settings(cfg: ProtocolConfig, generator_lit: bool) -> dict:
     return settings
 
 
-class TransferCache:
-    """Finished transfers of protocol runs into one folder: an interrupted run resumes where it stopped,
-    and a run with more queries or ablations redoes none of the transfers already made.
-
-    ``DIR/transfers/<protocol>/<ablation>/<query>.npz`` holds the result of one transfer, the
-    synthesis output: face features [F_0, C] and face colours [F_0, 3] (float32; with the unchanged
-    psi they are the whole texture, so
-    the evaluation can be redone with other metrics, views or lighting without redoing the transfer),
-    and its row (JSON: last losses, seconds); ``DIR/transfers/settings.json`` what they were made
-    with: every setting that changes a transfer (not the choice of protocols, ablations or number of
-    queries) and the digests of the checkpoints. Transfers made with other settings are never mixed
-    in: the run is refused, or with ``--overwrite`` they are discarded. Because each transfer is its
-    own file, a long run can be split across processes into the same folder (``--ablations full``
-    in one, ``--ablations no_noc`` in another...); one more run with every ablation then only builds
-    the tables.
-    """
-
-    def __init__(self, out: Path, fingerprint: dict, overwrite: bool = False):
-        self.root = out / "transfers"
-        settings = self.root / "settings.json"
-        if settings.is_file() and _comparable(json.loads(settings.read_text())) != _comparable(fingerprint):
-            if not overwrite:
-                raise UserError(f"{out}: holds transfers made with other settings or checkpoints ({settings}); "
-                                "use the same settings to reuse them, or pass --overwrite to discard them")
-            shutil.rmtree(self.root)
-        if not settings.is_file():
-            write_json(settings, fingerprint)
-
-    def _path(self, protocol: str, ablation: str, query: str) -> Path:
-        return self.root / protocol / ablation / f"{query}.npz"
-
-    def load(self, protocol: str, ablation: str, query: str) -> tuple[FaceTexture, dict] | None:
-        """(the synthesis output, row) of a finished transfer, or None (also for a file of an older
-        layout, which kept only a render or only the face features: that transfer is made again)."""
-        path = self._path(protocol, ablation, query)
-        if not path.is_file():
-            return None
-        with np.load(path, allow_pickle=False) as data:
-            if "field_features" not in data or "face_rgb" not in data:
-                return None
-            texture = FaceTexture(field_features=torch.from_numpy(data["field_features"]), face_rgb=torch.from_numpy(data["face_rgb"]))
-            return texture, json.loads(str(data["row"]))
-
-    def save(self, protocol: str, ablation: str, query: str, texture: FaceTexture, row: dict) -> None:
-        with atomic_path(self._path(protocol, ablation, query)) as tmp:
-            np.savez(tmp, field_features=texture.field_features.detach().float().cpu().numpy(),
-                     face_rgb=texture.face_rgb.detach().float().cpu().numpy(), row=np.array(json.dumps(row)))
-
-
-def _comparable(fingerprint: dict) -> dict:
-    """A fingerprint without ``settings.transfer`` (the TransferConfig fields a config set, beside the former
-    ones), which ``settings.transfer_config`` holds resolved: a folder made with a field set to its default matches."""
-    settings = {k: v for k, v in fingerprint.get("settings", {}).items() if k != "transfer"}
-    return {**fingerprint, "settings": settings}
-
-
 # ------------------------------------------------------------------------------------------- entry
 def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint: str | Path,
                   pose_checkpoint: str | Path | None, noc_checkpoint: str | Path | None, cfg: ProtocolConfig,
@@ -483,10 +420,10 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
     if transfers:
         check_style_sizes(cfg.transfer_config())
     if any(p != "known_pose" for p in transfers) and not pose_checkpoint:
-        raise UserError("the unknown_pose and other_shape protocols need --pose-checkpoint (from 'mesh2tex train pose')")
+        raise InputError("the unknown_pose and other_shape protocols need --pose-checkpoint (from 'mesh2tex train pose')")
     if transfers and any(ABLATIONS[a].get("use_noc", True) and ABLATIONS[a].get("use_patches", True) for a in cfg.ablations) \
             and not noc_checkpoint:
-        raise UserError("NOC-guided ablations (full, no_refine) need --noc-checkpoint (from 'mesh2tex train noc')")
+        raise InputError("NOC-guided ablations (full, no_refine) need --noc-checkpoint (from 'mesh2tex train noc')")
     device = select_device(cfg.device)
     started = time.perf_counter()
     world = load_world(world_dir, cfg.queries)
@@ -499,7 +436,7 @@ def run_protocols(world_dir: str | Path, shapes_dir: str | Path, gan_checkpoint:
         needed |= set(targets.values())
     missing = sorted(needed - set(paths))
     if missing:
-        raise UserError(f"{shapes_dir}: no prepared shape for {', '.join(missing)} (prepare the world's meshes with 'mesh2tex prepare shapes')")
+        raise InputError(f"{shapes_dir}: no prepared shape for {', '.join(missing)} (prepare the world's meshes with 'mesh2tex prepare shapes')")
     shapes = {name: load_prepared(paths[name], generator) for name in sorted(needed)}
     eval_cfg = cfg.evaluate_config()
     with warnings.catch_warnings(record=True) as caught:
@@ -560,33 +497,3 @@ def load_prepared(path: Path, generator) -> PreparedShape:
 def _file_digest(path: str | Path | None, kind: str) -> str | None:
     """:func:`mesh2tex.io.checkpoint.checkpoint_digest` of a path or a shipped model's ``kind`` file, None for None."""
     return None if path is None else checkpoint_digest(resolve_checkpoint(path, kind))
-
-
-def _split(text: str | None) -> list[str] | None:
-    return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
-
-
-def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
-    """The protocol config: its defaults, then ``--config``, then the flags given."""
-    return load_config(ProtocolConfig, args.config, config_overrides(args, PROTOCOL_CONFIG, computed={
-        "protocols": _split(args.only), "ablations": _split(args.ablations), "baselines": _split(args.baselines),
-        # the options evaluate's other modes share
-        "resolution": args.resolution, "evaluate.features": args.features, "evaluate.kid_subsets": args.kid_subsets, "seed": args.seed,
-        "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
-        "inception_weights": args.inception_weights}))
-
-
-def run_protocols_command(args: argparse.Namespace) -> int:
-    """``mesh2tex evaluate --protocols ...``: writes OUT/protocols.json, OUT/protocols.md and OUT/renders/."""
-    for flag in ("world", "shapes", "checkpoint"):
-        if not getattr(args, flag):
-            raise UserError(f"--protocols needs --{flag}")
-    cfg = protocol_config(args)
-    out = guard_outputs(args.out, ["protocols.json", "protocols.md"], args.overwrite)  # finished transfers are a cache (TransferCache)
-    pose, noc = args.pose_checkpoint, args.noc_checkpoint
-    if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks, as in 'infer transfer'
-        pose, noc = pose or args.checkpoint, noc or args.checkpoint
-    result = run_protocols(args.world, args.shapes, args.checkpoint, pose, noc, cfg, out, log=write_line, overwrite=args.overwrite)
-    print(protocols_markdown(result), end="")
-    print(f"wrote {out / 'protocols.json'} and {out / 'protocols.md'} ({result['seconds']:.0f} s)")
-    return 0

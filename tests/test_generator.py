@@ -266,7 +266,7 @@ def test_nca_generator_follows_the_latent_and_trains_end_to_end():
     gradients from both discriminators' inputs reach every parameter (the automaton included)."""
     torch.manual_seed(0)
     gen, batch = tiny_generator(kind="nca"), tiny_batch()
-    assert gen.num_ws == 1 and len(gen.synthesis) == 0
+    assert gen.num_ws == 1 and len(gen.encoder.blocks) == 1
     ws = gen.mapping(torch.randn(2, 16))
     a = gen.synthesize(batch, ws, noise_mode="none")
     again = gen.synthesize(batch, ws, noise_mode="none")
@@ -281,7 +281,39 @@ def test_nca_generator_follows_the_latent_and_trains_end_to_end():
         if name.startswith("mapping"):
             continue  # reached through ws, which this test feeds directly
         assert p.grad is not None and p.grad.abs().sum() > 0, name
-    assert set(map(id, gen.last_synthesis_parameters())) == set(map(id, list(gen.nca.update.parameters()) + list(gen.nca_torgb.parameters())))
+    automaton = gen.synthesis
+    assert set(map(id, gen.last_synthesis_parameters())) == set(map(id, list(automaton.nca.update.parameters()) + list(automaton.torgb.parameters())))
+
+
+def test_an_automaton_checkpoint_from_before_the_kinds_had_one_interface_still_loads():
+    """Its keys were ``nca.*`` and ``nca_torgb.*`` of the generator; they load into today's
+    ``synthesis.nca.*`` and ``synthesis.torgb.*`` with every weight in place."""
+    cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * 2, synthesis_channels=[8] * 2,
+                          field_hidden=16, aux_latent_dim=8, kind="nca", nca_channels=4, nca_hidden=8, nca_steps=2, nca_condition=4)
+    torch.manual_seed(0)
+    trained = TextureGenerator(cfg)
+    former = {k.replace("synthesis.torgb.", "nca_torgb.").replace("synthesis.nca.", "nca."): v for k, v in trained.state_dict().items()}
+    assert any(k.startswith("nca_torgb.") for k in former) and not any(k.startswith("synthesis.") for k in former)
+    torch.manual_seed(1)
+    loaded = TextureGenerator(cfg)
+    loaded.load_state_dict(former)
+    for name, value in trained.state_dict().items():
+        assert torch.equal(loaded.state_dict()[name], value), name
+
+
+def test_every_generator_kind_keeps_the_feature_synthesis_interface():
+    """A kind is a FeatureSynthesis registered by name: its sizes known before it is built agree with
+    what it builds, and the generator's texture has its channels."""
+    from mesh2tex.nn.synthesis import SYNTHESIS_KINDS, FeatureSynthesis
+
+    for kind, cls in SYNTHESIS_KINDS.items():
+        cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * 3, synthesis_channels=[8] * 3,
+                              field_hidden=16, aux_latent_dim=8, kind=kind, nca_channels=4, nca_hidden=8, nca_steps=2, nca_condition=4)
+        gen = TextureGenerator(cfg)
+        assert isinstance(gen.synthesis, FeatureSynthesis) and type(gen.synthesis) is cls
+        assert cls.sizes(cfg) == (gen.synthesis.num_ws, gen.synthesis.encoder_levels) and gen.num_ws == gen.synthesis.num_ws
+        assert len(gen.encoder.blocks) == gen.synthesis.encoder_levels
+        assert gen.field_dim == gen.synthesis.channels and gen.last_synthesis_parameters()
 
 
 def test_lit_renders_are_the_albedo_scaled_by_lambert_shading():

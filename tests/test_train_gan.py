@@ -202,7 +202,7 @@ def test_nca_generator_trains_resumes_and_generates(tiny_data, tmp_path):
     ga, meta = load_checkpoint(full / "checkpoint.safetensors")
     gb, _ = load_checkpoint(part / "checkpoint.safetensors")
     assert meta["generator_config"]["kind"] == "nca"
-    assert any(name.startswith("nca.") for name in ga["generator_ema"])
+    assert any(name.startswith("synthesis.nca.") for name in ga["generator_ema"])
     for name, tensor in ga["generator_ema"].items():
         torch.testing.assert_close(tensor, gb["generator_ema"][name], rtol=1e-5, atol=1e-6)
     out = tmp_path / "generated"

@@ -15,10 +15,11 @@ the proxy colours rgb_0 (mean face colour around each vertex): the texture start
 latent-dependent per-face colours, which the proxy discriminator trains directly, and psi adds the
 detail within faces (see :func:`mesh2tex.nn.render_texture.field_colours`).
 
-With ``kind: nca`` a mesh cellular automaton on the finest vertices replaces the synthesis U-Net
-(:class:`mesh2tex.nn.nca.ConditionedNCA`): each cell is conditioned on w and on the encoder's E_0,
-F_c is the mean state of each face's corners and a linear readout of it the face colour; psi and
-everything downstream are unchanged; num_ws = 1.
+The feature generator (the synthesis) is one of the kinds of :mod:`mesh2tex.nn.synthesis`, chosen by
+``kind``: the U-Net of face convolutions above (``faceconv``), or a mesh cellular automaton on the
+finest vertices (``nca``: each cell conditioned on w and on E_0, F_c the mean state of each face's
+corners, a linear readout of it the face colour; num_ws = 1); psi and everything downstream are the
+same for every kind.
 
 Each synthesis block uses three ws (conv0, conv1, toRGB), so num_ws = 3 * num_levels. Texture
 transfer optimises ws and then the parameters of the last (finest) synthesis blocks:
@@ -35,11 +36,9 @@ from torch import nn
 from mesh2tex.checks import check_shape, check_type
 from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.batch import MeshBatch
-from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, FullyConnected, ModulatedFaceConv, face_pool, face_unpool
+from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, FullyConnected, face_pool
 from mesh2tex.nn.field import NeuralField
-from mesh2tex.nn.nca import ConditionedNCA
-
-GENERATOR_KINDS = ("faceconv", "nca")
+from mesh2tex.nn.synthesis import SYNTHESIS_KINDS, AutomatonSynthesis
 
 
 @dataclass
@@ -60,7 +59,7 @@ class GeneratorConfig:
     rgb_output_init: float = 0.1  # initial weight scale of the toRGB layers (1: StyleGAN2's, fresh colours near +-2)
     field_output_init: float = 0.1  # initial weight scale of psi's output layer (1 starts from saturated colours)
     conv_clamp: float = 256.0  # clamp of synthesis activations (keeps mixed precision finite)
-    kind: str = "faceconv"  # the feature generator: "faceconv" (the synthesis U-Net) or "nca" (a mesh cellular automaton)
+    kind: str = "faceconv"  # the feature generator (mesh2tex.nn.synthesis): "faceconv" (the synthesis U-Net) or "nca" (a mesh cellular automaton)
     nca_channels: int = 16  # kind nca: state size per cell (the F_c channels psi blends)
     nca_hidden: int = 64  # kind nca: width of the update MLP
     nca_steps: int = 12  # kind nca: steps grown from the seed (a linear map of each cell's condition)
@@ -71,8 +70,8 @@ class GeneratorConfig:
                      positive=("mapping_lr_multiplier", "conv_clamp"),
                      between={name: (1, MAX_CHANNELS) for name in ("z_dim", "w_dim", "encoder_channels", "synthesis_channels", "field_hidden",
                                                                   "aux_latent_dim", "nca_channels", "nca_hidden", "nca_condition")})
-        if self.kind not in GENERATOR_KINDS:
-            raise ValueError(f"kind must be one of {GENERATOR_KINDS}, got {self.kind!r}")
+        if self.kind not in SYNTHESIS_KINDS:
+            raise ValueError(f"kind must be one of {tuple(SYNTHESIS_KINDS)}, got {self.kind!r}")
         if not self.synthesis_channels or len(self.encoder_channels) != len(self.synthesis_channels):
             raise ValueError(f"encoder_channels and synthesis_channels need one entry per level each "
                              f"(got {len(self.encoder_channels)} and {len(self.synthesis_channels)})")
@@ -124,24 +123,6 @@ class GeometryEncoder(nn.Module):
         return features
 
 
-class SynthesisBlock(nn.Module):
-    """One level of the synthesis U-Net: two modulated face convolutions and a per-face toRGB."""
-
-    def __init__(self, in_channels: int, skip_channels: int, out_channels: int, w_dim: int, conv_clamp: float | None):
-        super().__init__()
-        self.conv0 = ModulatedFaceConv(in_channels + skip_channels, out_channels, w_dim, clamp=conv_clamp)
-        self.conv1 = ModulatedFaceConv(out_channels, out_channels, w_dim, clamp=conv_clamp)
-        self.torgb = ModulatedFaceConv(out_channels, 3, w_dim, kernel_size=1, demodulate=False, activation="linear", use_noise=False, clamp=conv_clamp)
-
-    def forward(self, x, skip, neighbors, ws, sample_index, noise_mode):
-        """x: (F, in) or None, skip: (F, skip), ws: (B, 3, w_dim) -> (features (F, out), rgb (F, 3))."""
-        x = skip if x is None else torch.cat([x, skip.to(x.dtype)], dim=1)
-        x = self.conv0(x, neighbors, ws[:, 0], sample_index, noise_mode)
-        x = self.conv1(x, neighbors, ws[:, 1], sample_index, noise_mode)
-        rgb = self.torgb(x, neighbors, ws[:, 2], sample_index, noise_mode)
-        return x, rgb
-
-
 @dataclass
 class FaceTexture:
     """The generator's output on a batch: per finest face.
@@ -160,42 +141,19 @@ class TextureGenerator(nn.Module):
 
     def __init__(self, cfg: GeneratorConfig):
         super().__init__()
-        if cfg.input_features <= 0:
+        if cfg.input_features <= 0:  # the one check the config cannot make: it is filled in from the data
             raise ValueError("GeneratorConfig.input_features must be set to the face-feature count of the shapes")
-        if len(cfg.encoder_channels) != len(cfg.synthesis_channels):
-            raise ValueError("encoder_channels and synthesis_channels need one entry per level")
-        if cfg.kind not in GENERATOR_KINDS:
-            raise ValueError(f"GeneratorConfig.kind must be one of {GENERATOR_KINDS}, got {cfg.kind!r}")
         self.cfg = cfg
-        levels = cfg.num_levels
-        self.num_ws = 1 if cfg.kind == "nca" else 3 * levels  # nca: one w conditions every cell
-        # nca reads only the finest geometry features E_0: no coarser encoder levels to train for nothing.
-        self.encoder = GeometryEncoder(cfg.input_features, cfg.encoder_channels[:1] if cfg.kind == "nca" else cfg.encoder_channels, cfg.pool_mode)
+        kind = SYNTHESIS_KINDS[cfg.kind]
+        self.num_ws, encoder_levels = kind.sizes(cfg)
+        self.encoder = GeometryEncoder(cfg.input_features, cfg.encoder_channels[:encoder_levels], cfg.pool_mode)
         self.mapping = MappingNetwork(cfg.z_dim, cfg.w_dim, self.num_ws, cfg.mapping_layers, cfg.mapping_lr_multiplier)
-        if cfg.kind == "nca":
-            self.nca = ConditionedNCA(cfg.nca_channels, cfg.nca_hidden, cfg.nca_steps, cfg.nca_condition, cfg.w_dim, cfg.encoder_channels[0])
-            self.nca_torgb = nn.Linear(cfg.nca_channels, 3)
-            with torch.no_grad():
-                self.nca_torgb.weight.mul_(cfg.rgb_output_init)
-            self.synthesis = nn.ModuleList()
-            texture_channels = cfg.nca_channels
-        else:
-            # synthesis[i] works on level L-1-i (coarsest first).
-            blocks = []
-            for level in reversed(range(levels)):
-                in_ch = 0 if level == levels - 1 else cfg.synthesis_channels[level + 1]
-                blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
-            self.synthesis = nn.ModuleList(blocks)
-            with torch.no_grad():  # a fresh proxy (and, with field_residual, psi's base) starts near grey, not saturated
-                for block in self.synthesis:
-                    block.torgb.weight.mul_(cfg.rgb_output_init)
-            texture_channels = cfg.synthesis_channels[0]
-        if cfg.field_geometry_channels < 0:
-            raise ValueError("GeneratorConfig.field_geometry_channels must be >= 0")
+        self.synthesis = kind(cfg)
         self.field_geometry = (FullyConnected(cfg.encoder_channels[0], cfg.field_geometry_channels)
                                if cfg.field_geometry_channels > 0 else None)
-        self.field_dim = texture_channels + cfg.field_geometry_channels
+        self.field_dim = self.synthesis.channels + cfg.field_geometry_channels
         self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords, cfg.field_output_init)
+        self.register_load_state_dict_pre_hook(_rename_former_keys)
 
     def synthesize(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random") -> FaceTexture:
         """Per-face texture for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim) float, one row per shape
@@ -211,24 +169,7 @@ class TextureGenerator(nn.Module):
         if encoded is None:
             check_shape(batch.face_features, "TextureGenerator.synthesize: batch.face_features", (None, self.cfg.input_features))
             encoded = self.encoder(batch)
-        if self.cfg.kind == "nca":
-            states = self.nca(batch, ws[:, 0], encoded[0], noise_mode)  # (V, C)
-            x = states[batch.quads].mean(1)  # (F_0, C): each face the mean of its corner cells
-            rgb = self.nca_torgb(x)
-            return self._texture(x, rgb, encoded)
-        levels = self.cfg.num_levels
-        x = rgb = None
-        for i, block in enumerate(self.synthesis):
-            level = levels - 1 - i
-            neighbors = batch.neighbors[level]
-            if x is not None:
-                x = face_unpool(x, batch.pool[level], neighbors)
-                rgb = face_unpool(rgb, batch.pool[level], neighbors)
-            x, y = block(x, encoded[level], neighbors, ws[:, 3 * i : 3 * i + 3], batch.shape_index[level], noise_mode)
-            rgb = y if rgb is None else rgb + y
-        return self._texture(x, rgb, encoded)
-
-    def _texture(self, x: torch.Tensor, rgb: torch.Tensor, encoded: list[torch.Tensor]) -> FaceTexture:
+        x, rgb = self.synthesis(batch, ws, encoded, noise_mode)
         features = x
         if self.field_geometry is not None:
             features = torch.cat([x, self.field_geometry(encoded[0].to(x.dtype))], dim=1)
@@ -242,17 +183,23 @@ class TextureGenerator(nn.Module):
         return self.synthesize(batch, ws, noise_mode=noise_mode), ws
 
     def last_synthesis_parameters(self, num_blocks: int = 2) -> list[nn.Parameter]:
-        """Parameters of the last ``num_blocks`` synthesis blocks (the finest levels), for texture
-        transfer; with ``kind: nca`` the automaton's update rule and colour readout."""
-        if self.cfg.kind == "nca":
-            return list(self.nca.update.parameters()) + list(self.nca_torgb.parameters())
-        return [p for block in self.synthesis[-num_blocks:] for p in block.parameters()]
+        """The parameters texture transfer fine-tunes after the latent: the last ``num_blocks`` synthesis
+        blocks (the finest levels), or what the kind names instead (the automaton: its update rule and
+        colour readout)."""
+        return self.synthesis.transfer_parameters(num_blocks)
 
     def parameter_groups(self) -> dict[str, list[nn.Parameter]]:
         """{"encoder", "generator" (mapping + synthesis), "field"}: the groups that get the paper's learning rates."""
         return {
             "encoder": list(self.encoder.parameters()),
-            "generator": list(self.mapping.parameters()) + list(self.synthesis.parameters())
-                         + (list(self.nca.parameters()) + list(self.nca_torgb.parameters()) if self.cfg.kind == "nca" else []),
+            "generator": list(self.mapping.parameters()) + list(self.synthesis.parameters()),
             "field": list(self.field.parameters()) + (list(self.field_geometry.parameters()) if self.field_geometry is not None else []),
         }
+
+
+def _rename_former_keys(module, state_dict, prefix, *args) -> None:
+    """Checkpoints of the automaton kind written before the kinds had one interface: their keys take
+    today's names (:data:`AutomatonSynthesis.FORMER_PREFIXES`)."""
+    for old, new in AutomatonSynthesis.FORMER_PREFIXES.items():
+        for key in [k for k in state_dict if k.startswith(prefix + old)]:
+            state_dict[prefix + new + key[len(prefix + old):]] = state_dict.pop(key)

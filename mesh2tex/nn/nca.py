@@ -407,8 +407,16 @@ class ConditionedNCA(nn.Module):
     feature e_i of the encoder's finest output E_0 over its quads through G. The update reads
     [z_i, s_i, c_i]; states start from a linear seed of the condition, s_i = S c_i (so that
     different latents differ from the first iteration), and grow for ``steps`` asynchronous steps,
-    with gradients through every step. Output: the vertex states (V, C). The update's last layer
-    starts small (``output_init``).
+    with gradients through every step. Output: the vertex states (V, C).
+
+    Args:
+        channels: C, the state size per cell. hidden: width of the update MLP. steps: steps grown.
+        condition: width of each of the two conditions (the latent's, the geometry's).
+        w_dim: the latent w's size. geometry_dim: the channels of the encoder's E_0.
+        sh_order: order of the spherical harmonics the perception projects neighbours' differences on.
+        update_rate: the chance a cell fires at a step. nominal_valence: the neighbour count the
+            perception's sums are scaled to. neighbourhood: "edges" or "faces" (which vertices are neighbours).
+        output_init: scale of the update's last layer at initialisation (small: states start near the seed).
     """
 
     def __init__(self, channels: int, hidden: int, steps: int, condition: int, w_dim: int, geometry_dim: int,

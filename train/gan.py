@@ -35,7 +35,6 @@ from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import SurfaceSamples, rasterize_batch, render_field_views, render_proxy_views
 from mesh2tex.options import config_overrides
 from mesh2tex.photos import load_photo_collection
-from mesh2tex.progress import progress_bar
 from mesh2tex.render import CameraConfig, LightConfig, Lights, composite_images, orbit_camera, random_lights, turntable_angles
 from mesh2tex.train import runs
 
@@ -136,6 +135,7 @@ class GanTrainer:
     def __init__(self, cfg: TrainGanConfig, shapes: list[PreparedShape], images: torch.Tensor, run: runs.RunDirectory,
                  device: torch.device, distributed: runs.Distributed):
         self.cfg, self.shapes, self.images, self.run, self.device, self.dist = cfg, shapes, images, run, device, distributed
+        self.latest: dict[str, float] = {}  # the last value of every logged scalar, lazy terms included
         levels = shapes[0].num_levels
         gcfg = cfg.generator
         if len(gcfg.synthesis_channels) != levels or len(gcfg.encoder_channels) != levels:
@@ -300,16 +300,16 @@ class GanTrainer:
             if group == "G":
                 beta = runs.ema_beta(self.iteration * self.images_per_step, self.images_per_step, cfg.ema_halflife_images, cfg.ema_rampup)
                 runs.ema_update(self.ema, self.generator, beta)
-        self.generator.requires_grad_(True)
-        self.d_field.requires_grad_(True)
-        self.d_proxy.requires_grad_(True)
+        for module in (self.generator, self.d_field, self.d_proxy):
+            module.requires_grad_(True)
         signs = [float(v) for k, v in logs.items() if k.startswith("sign_real_")]
         if self.ada.adaptive and signs:
             self.ada.observe(self.dist.mean(sum(signs) / len(signs), self.device))  # every process keeps the same p
         self.ada.step(self.iteration, self.images_per_step)
         logs["augment_p"] = self.ada.augment.p
         self.iteration += 1
-        return runs.scalars(logs)
+        self.latest.update(runs.scalars(logs))  # the lazy terms (path length, R1, mode seeking) keep their last value between runs
+        return dict(self.latest)
 
     def write_snapshot(self) -> Path:
         """RUN/snapshots/iterNNNNNNN.safetensors: the EMA generator now, float16, loadable like a shipped model."""
@@ -384,49 +384,22 @@ class GanTrainer:
         return path
 
     def train(self) -> None:
-        cfg = self.cfg
-        main = self.dist.is_main
-        bar = progress_bar(total=cfg.iters, initial=self.iteration, desc="train gan") if main else None
-        throughput = runs.Throughput(self.iteration, self.device)
-        latest: dict[str, float] = {}
-        try:
-            while self.iteration < cfg.iters:
-                try:
-                    logs = self.step()
-                except runs.NonFiniteLoss as error:
-                    self.save(self.run.nonfinite_path)
-                    kept = f"; the last good checkpoint is {self.run.checkpoint_path}" if self.run.has_checkpoint() else ""
-                    raise UserError(f"{self.run.root}: training stopped, non-finite loss ({error}); state saved to {self.run.nonfinite_path}{kept}. "
-                                    f"Lower the optim.lr_* learning rates (or raise loss.r1_gamma) in {self.run.config_path} and re-run with --resume",
-                                    exit_code=4) from None
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix({k: f"{v:.3f}" for k, v in logs.items() if k.startswith("loss_g_field") or k.startswith("loss_d_field")})
-                latest.update(logs)  # the lazy terms (path length, R1, mode seeking) keep their last value between runs
-                logs = dict(latest)
-                it = self.iteration
-                if main and cfg.metric_every and (it % cfg.metric_every == 0 or it == cfg.iters):
-                    metric = self.measure()
-                    logs.update(metric, best=self.keep_if_best(metric))
-                if main and (it % cfg.log_every == 0 or it == cfg.iters or "best" in logs):
-                    # The thread count is logged because it changes float sums, so a long run's trajectory with it.
-                    self.run.log({"iteration": it, **logs, **throughput.fields(it), "world_size": self.dist.world_size,
-                                  "torch_threads": torch.get_num_threads()})
-                if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
-                    self.save(self.run.checkpoint_path)
-                if main and cfg.snapshot_every and it % cfg.snapshot_every == 0:
-                    self.write_snapshot()
-                if main and cfg.sample_every and it % cfg.sample_every == 0 and it < cfg.iters:
-                    self.write_samples()
-        except KeyboardInterrupt:
-            self.save(self.run.checkpoint_path)
-            raise
-        finally:
-            if bar is not None:
-                bar.close()
-        self.save(self.run.checkpoint_path)
+        cfg, main = self.cfg, self.dist.is_main
+        advice = (f"Lower the optim.lr_* learning rates (or raise loss.r1_gamma) in {self.run.config_path} and re-run with --resume")
+        runs.training_loop(self, self.run, iters=cfg.iters, desc="train gan", device=self.device, log_every=cfg.log_every,
+                           checkpoint_every=cfg.checkpoint_every, advice=advice, main=main,
+                           postfix=lambda logs: {k: f"{v:.3f}" for k, v in logs.items() if k.startswith(("loss_g_field", "loss_d_field"))},
+                           measure=runs.Every(cfg.metric_every, self.measure_and_keep, final="always"),
+                           periodic=[runs.Every(cfg.snapshot_every, self.write_snapshot),
+                                     runs.Every(cfg.sample_every, self.write_samples, final="never")],
+                           extra={"world_size": self.dist.world_size})
         if main:
             self.write_samples()
+
+    def measure_and_keep(self) -> dict:
+        """The run's metric (:meth:`measure`) and whether it is the best so far (``best``; best.safetensors kept)."""
+        metric = self.measure()
+        return {**metric, "best": self.keep_if_best(metric)}
 
 
 def build_config(args) -> TrainGanConfig:

@@ -34,7 +34,6 @@ from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, ove
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides
-from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.synthetic.world import contact_sheet
@@ -192,6 +191,7 @@ class NCATrainer:
         style = style_loss(self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator)
         overflow = overflow_penalty(state, self.model.vertex_colours(state))
         loss = style + cfg.overflow_weight * overflow
+        runs.check_finite({"loss": loss, "loss_style": style, "loss_overflow": overflow}, self.iteration)  # before any update
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         with torch.no_grad():  # per-parameter gradient normalisation (as texture NCAs train)
@@ -203,8 +203,7 @@ class NCATrainer:
         self.iteration += 1
         logs = {"loss": float(loss.detach()), "loss_style": float(style.detach()), "loss_overflow": float(overflow.detach()), "steps": steps,
                 "lr": self.learning_rate(self.iteration - 1)}
-        runs.check_finite(logs, self.iteration)
-        return logs
+        return {k: round(v, 6) for k, v in logs.items()}
 
     # -------------------------------------------------------------------------------- state I/O
     def meta(self) -> dict:
@@ -252,32 +251,10 @@ class NCATrainer:
 
     def train(self) -> None:
         cfg = self.cfg
-        bar = progress_bar(total=cfg.iters, initial=self.iteration, desc="train nca")
-        throughput = runs.Throughput(self.iteration, self.device)
-        try:
-            while self.iteration < cfg.iters:
-                try:
-                    logs = self.step()
-                except runs.NonFiniteLoss as error:
-                    self.save(self.run.nonfinite_path)
-                    raise UserError(f"{self.run.root}: training stopped, non-finite loss ({error}); state saved to {self.run.nonfinite_path}. "
-                                    f"Lower lr in {self.run.config_path} and --resume from the last checkpoint (the rate is read "
-                                    "from the run's config at every step)", exit_code=4) from None
-                bar.update(1)
-                bar.set_postfix({"style": f"{logs['loss_style']:.3f}"})
-                it = self.iteration
-                if it % cfg.log_every == 0 or it == cfg.iters:
-                    self.run.log({"iteration": it, **{k: round(v, 6) for k, v in logs.items()}, **throughput.fields(it)})
-                if cfg.checkpoint_every and it % cfg.checkpoint_every == 0 and it < cfg.iters:
-                    self.save(self.run.checkpoint_path)
-                if cfg.sample_every and it % cfg.sample_every == 0 and it < cfg.iters:
-                    self.write_samples()
-        except KeyboardInterrupt:
-            self.save(self.run.checkpoint_path)
-            raise
-        finally:
-            bar.close()
-        self.save(self.run.checkpoint_path)
+        advice = f"Lower lr in {self.run.config_path} and --resume (the rate is read from the run's config at every step)"
+        runs.training_loop(self, self.run, iters=cfg.iters, desc="train nca", device=self.device, log_every=cfg.log_every,
+                           checkpoint_every=cfg.checkpoint_every, advice=advice, postfix=lambda logs: {"style": f"{logs['loss_style']:.3f}"},
+                           periodic=[runs.Every(cfg.sample_every, self.write_samples, final="never")])
         self.save_model(self.run.root / MODEL_NAME)
         self.write_samples()
 

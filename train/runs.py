@@ -20,7 +20,9 @@ Python; one set per process of a distributed run) and the iteration, so that ``-
 exactly where the run stopped; ``--resume CHECKPOINT`` starts a new run from another run's
 (:func:`start_from`). The pieces live in the library (:mod:`mesh2tex.runtime` for devices,
 processes, RNG and EMA; :mod:`mesh2tex.io.checkpoint` for training states); this module keeps the
-run directory and the NaN guard, and names the library pieces for the trainers.
+run directory, the NaN guard and the one training loop of every trainer (:func:`training_loop`: steps,
+the NaN guard, metrics lines, checkpoints, periodic work, progress and the save on an interrupt),
+and names the library pieces for the trainers.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 import torch
@@ -41,11 +43,12 @@ from mesh2tex.io.atomic import json_ready
 from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
 from mesh2tex.io.checkpoint import check_training_checkpoint, load_training_state, read_checkpoint_meta, save_training_state  # noqa: F401
-from mesh2tex.progress import JsonLines
+from mesh2tex.progress import JsonLines, progress_bar
 from mesh2tex.runtime import (Distributed, ema_beta, ema_update, make_ema, peak_memory_gb, rng_from_state,  # noqa: F401
                               rng_to_state, seed_everything, select_device)
 
-__all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "NonFiniteLoss", "RunDirectory", "apply_learning_rates", "check_finite", "dumps_config",
+__all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "Every", "NonFiniteLoss", "RunDirectory", "Trainer", "apply_learning_rates",
+           "check_finite", "dumps_config", "training_loop",
            "ema_beta", "ema_update", "load_training_state", "make_ema", "peak_memory_gb", "rng_from_state", "rng_to_state",
            "save_training_state", "scalars", "seed_everything", "select_device", "start_from"]
 
@@ -235,3 +238,84 @@ def scalars(logs: dict[str, torch.Tensor | float]) -> dict[str, float]:
 def dumps_config(cfg) -> dict[str, Any]:
     """The config as plain JSON (for checkpoint metadata)."""
     return json_ready(dataclasses.asdict(cfg))
+
+
+# ------------------------------------------------------------------------------------ the loop
+class Trainer(Protocol):
+    """What :func:`training_loop` drives: ``iteration`` (steps done), ``step()`` (one step: advances
+    ``iteration``, returns its scalars, raises :class:`NonFiniteLoss` before any optimizer step of a
+    step whose losses are not finite) and ``save(path)`` (the whole training state)."""
+
+    iteration: int
+
+    def step(self) -> dict[str, float]: ...
+
+    def save(self, path: Path) -> None: ...
+
+
+@dataclasses.dataclass
+class Every:
+    """Work done every ``every`` iterations (0: never): ``action()``. At the last iteration, ``final``:
+    "if_multiple" (as at any other), "always", or "never" (the trainer does it after the loop);
+    ``main_only``: on the main process of a distributed run only."""
+
+    every: int
+    action: Callable[[], object]
+    final: str = "if_multiple"
+    main_only: bool = True
+
+    def due(self, iteration: int, last: int) -> bool:
+        if not self.every:
+            return False
+        if iteration == last and self.final != "if_multiple":
+            return self.final == "always"
+        return iteration % self.every == 0
+
+
+def training_loop(trainer: Trainer, run: RunDirectory, *, iters: int, desc: str, device: torch.device, log_every: int,
+                  checkpoint_every: int, advice: str, postfix: Callable[[dict], dict] = lambda logs: {},
+                  measure: Every | None = None, periodic: Sequence[Every] = (), main: bool = True, extra: dict | None = None) -> None:
+    """Run ``trainer`` from its iteration to ``iters``, as every trainer does:
+
+    * a progress bar on the main process (``postfix(logs)``: the step's figures it shows);
+    * a non-finite loss saves the state to ``RUN/nonfinite.safetensors`` and stops with one error line
+      naming the last good checkpoint and ``advice`` (what to change before ``--resume``), exit status 4;
+    * a metrics line every ``log_every`` iterations and at the last: the step's scalars, the run's own
+      ``measure`` when due (its dict merged in; a due measure always writes a line), iterations per
+      second of the training steps since the last line, peak memory, the torch thread count (it changes
+      float sums, so a long run's trajectory) and ``extra``;
+    * the checkpoint every ``checkpoint_every`` iterations (and at the end, and on Ctrl-C before the
+      interrupt goes on), and the ``periodic`` work (snapshots, samples) when due.
+    """
+    bar = progress_bar(total=iters, initial=trainer.iteration, desc=desc) if main else None
+    throughput = Throughput(trainer.iteration, device)
+    try:
+        while trainer.iteration < iters:
+            try:
+                logs = trainer.step()
+            except NonFiniteLoss as error:
+                trainer.save(run.nonfinite_path)
+                kept = f"; the last good checkpoint is {run.checkpoint_path}" if run.has_checkpoint() else ""
+                raise UserError(f"{run.root}: training stopped, non-finite loss ({error}); state saved to {run.nonfinite_path}{kept}. "
+                                f"{advice}", exit_code=4) from None
+            it = trainer.iteration
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(postfix(logs))
+            measured = main and measure is not None and measure.due(it, iters)
+            if main and (it % log_every == 0 or it == iters or measured):
+                speed = throughput.fields(it)  # before measuring: the measure counts towards the next interval
+                figures = measure.action() if measured else {}
+                run.log({"iteration": it, **logs, **figures, **speed, "torch_threads": torch.get_num_threads(), **(extra or {})})
+            if checkpoint_every and it % checkpoint_every == 0 and it < iters:
+                trainer.save(run.checkpoint_path)
+            for work in periodic:
+                if (main or not work.main_only) and work.due(it, iters):
+                    work.action()
+    except KeyboardInterrupt:
+        trainer.save(run.checkpoint_path)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    trainer.save(run.checkpoint_path)

@@ -243,6 +243,36 @@ def build_view_config(args) -> ViewTrainConfig:
     return cfg
 
 
+class ViewTrainer:
+    """One pose, NOC or mask network trained on the rendered views (:func:`mesh2tex.train.runs.training_loop` drives it)."""
+
+    def __init__(self, kind: str, cfg, views: dict, train_index: np.ndarray, device: torch.device):
+        self.kind, self.cfg, self.views, self.train_index, self.device = kind, cfg, views, train_index, device
+        self.net = build_network(kind, cfg).to(device)
+        self.opt = torch.optim.Adam(self.net.parameters(), lr=cfg.lr)
+        self.iteration = 0
+
+    def resume(self, path: Path) -> None:
+        _, meta = runs.load_training_state(path, self.kind, {VIEW_NET: self.net}, {"opt": self.opt}, self.device)
+        self.iteration = int(meta["iteration"])
+        runs.rng_from_state(meta["rng"][0])
+
+    def step(self) -> dict[str, float]:
+        cfg, index = self.cfg, self.train_index
+        pick = index[torch.randint(len(index), (min(cfg.batch, len(index)),)).numpy()]
+        loss = network_loss(self.kind, self.net, views_to_tensors(self.views, pick, self.device), cfg)
+        runs.check_finite({"loss": loss}, self.iteration)
+        self.opt.zero_grad(set_to_none=True)
+        loss.backward()
+        self.opt.step()
+        self.iteration += 1
+        return {"loss": round(float(loss.detach()), 6)}
+
+    def save(self, path: Path) -> None:
+        runs.save_training_state(path, self.kind, {VIEW_NET: self.net}, {"opt": self.opt}, {},
+                                 {"iteration": self.iteration, "config": runs.dumps_config(self.cfg)}, [runs.rng_to_state()])
+
+
 def run_view_training(args, kind: str) -> int:
     cfg = build_view_config(args)
     device = runs.select_device(cfg.device)
@@ -259,49 +289,16 @@ def run_view_training(args, kind: str) -> int:
     count = len(views["rgb"])
     held = max(1, int(round(count * cfg.data.holdout)))
     train_index, val_index = np.arange(count - held), np.arange(count - held, count)
-    net = build_network(kind, cfg).to(device)
-    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
-    iteration = 0
+    trainer = ViewTrainer(kind, cfg, views, train_index, device)
     if source is not None:
-        _, meta = runs.load_training_state(source, kind, {VIEW_NET: net}, {"opt": opt}, device)
-        iteration = int(meta["iteration"])
-        runs.rng_from_state(meta["rng"][0])
-        run.metrics.truncate_after("iteration", iteration)
-
-    def save(path: Path) -> None:
-        runs.save_training_state(path, kind, {VIEW_NET: net}, {"opt": opt}, {},
-                                 {"iteration": iteration, "config": runs.dumps_config(cfg)}, [runs.rng_to_state()])
-
-    bar = progress_bar(total=cfg.iters, initial=iteration, desc=f"train {kind}")
-    throughput = runs.Throughput(iteration, device, digits=3)
-    try:
-        while iteration < cfg.iters:
-            pick = train_index[torch.randint(len(train_index), (min(cfg.batch, len(train_index)),)).numpy()]
-            loss = network_loss(kind, net, views_to_tensors(views, pick, device), cfg)
-            try:
-                runs.check_finite({"loss": loss}, iteration)
-            except runs.NonFiniteLoss as error:
-                save(run.nonfinite_path)
-                raise UserError(f"{run.root}: training stopped, non-finite loss ({error}); the last good checkpoint is "
-                                f"{run.checkpoint_path}. Lower --config lr and --resume", exit_code=4) from None
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            iteration += 1
-            bar.update(1)
-            bar.set_postfix(loss=f"{float(loss.detach()):.4f}")
-            if iteration % cfg.log_every == 0 or iteration == cfg.iters:
-                speed = throughput.fields(iteration)  # before validating: the validation counts towards the next interval
-                run.log({"iteration": iteration, "loss": round(float(loss.detach()), 6),
-                                   **validate(kind, net, views, val_index, cfg, device), **speed})
-            if cfg.checkpoint_every and iteration % cfg.checkpoint_every == 0:
-                save(run.checkpoint_path)
-    except KeyboardInterrupt:
-        save(run.checkpoint_path)
-        raise
-    finally:
-        bar.close()
-    save(run.checkpoint_path)
+        trainer.resume(source)
+        run.metrics.truncate_after("iteration", trainer.iteration)
+    net = trainer.net
+    runs.training_loop(trainer, run, iters=cfg.iters, desc=f"train {kind}", device=device, log_every=cfg.log_every,
+                       checkpoint_every=cfg.checkpoint_every, advice="Lower --config lr and --resume",
+                       postfix=lambda logs: {"loss": f"{logs['loss']:.4f}"},
+                       measure=runs.Every(cfg.log_every, lambda: validate(kind, net, views, val_index, cfg, device), final="always"))
+    iteration = trainer.iteration
     final = validate(kind, net, views, val_index, cfg, device)
     print(f"trained {kind} network for {iteration} steps; held-out " + ", ".join(f"{k}={v}" for k, v in final.items())
           + f"; checkpoint {run.checkpoint_path}")

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import torch
 
+from mesh2tex.checks import check_shape
 from mesh2tex.config import check_fields
 
 TRANSFORMS = ("color", "translation", "cutout")
@@ -64,7 +65,8 @@ def _applied(n: int, p: float, device: torch.device) -> torch.Tensor:
 
 
 def augment_colour(x: torch.Tensor, p: float = 1.0) -> torch.Tensor:
-    """Random brightness, saturation and contrast. x: (N, C, H, W) in [-1, 1] -> same shape."""
+    """Random brightness, saturation and contrast. x: (N, C, H, W) float in [-1, 1] -> same shape."""
+    check_shape(x, "augment_colour: x", ("N", "C", "H", "W"), dtype="float")
     n, dev = x.shape[0], x.device
     on = _applied(n, p, dev).to(x.dtype)
     x = x + (torch.rand(n, 1, 1, 1, device=dev, dtype=x.dtype) - 0.5) * on
@@ -77,7 +79,8 @@ def augment_colour(x: torch.Tensor, p: float = 1.0) -> torch.Tensor:
 
 
 def augment_translation(x: torch.Tensor, ratio: float = 0.125, p: float = 1.0) -> torch.Tensor:
-    """Shift each image by whole pixels, up to ``ratio`` of its side; border filled with 0. (N, C, H, W)."""
+    """Shift each image by whole pixels, up to ``ratio`` of its side; border filled with 0. x: (N, C, H, W) float."""
+    check_shape(x, "augment_translation: x", ("N", "C", "H", "W"), dtype="float")
     n, _, h, w = x.shape
     dev = x.device
     on = _applied(n, p, dev).view(n, 1, 1)
@@ -93,7 +96,8 @@ def augment_translation(x: torch.Tensor, ratio: float = 0.125, p: float = 1.0) -
 
 
 def augment_cutout(x: torch.Tensor, ratio: float = 0.5, p: float = 1.0) -> torch.Tensor:
-    """Zero a square of ``ratio`` of the side at a random centre of each image. (N, C, H, W)."""
+    """Zero a square of ``ratio`` of the side at a random centre of each image. x: (N, C, H, W) float."""
+    check_shape(x, "augment_cutout: x", ("N", "C", "H", "W"), dtype="float")
     n, _, h, w = x.shape
     dev = x.device
     on = _applied(n, p, dev).view(n, 1, 1)
@@ -125,6 +129,8 @@ class DiffAugment:
         return bool(self.transforms) and self.p > 0
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        """x: (N, C, H, W) float -> augmented (N, C, H, W)."""
+        check_shape(x, "DiffAugment: x", ("N", "C", "H", "W"), dtype="float")
         if not self.enabled:
             return x
         c, p = self.cfg, self.p

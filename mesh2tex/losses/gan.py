@@ -50,6 +50,7 @@ from torch import nn
 
 from kornia.color import rgb_to_lab
 
+from mesh2tex.checks import check_shape
 from mesh2tex.config import check_fields
 
 PHASES = ("Gmain", "Greg", "Dmain", "Dreg")
@@ -91,6 +92,11 @@ def mode_seeking_ratio(proxy_a: torch.Tensor, proxy_b: torch.Tensor, mask: torch
 
     proxy_a, proxy_b: (N, 3, H, W) renders of latents z_a, z_b (B, z_dim) of the same views; mask (N, 1, H, W).
     """
+    sizes = check_shape(proxy_a, "mode_seeking_ratio: proxy_a", ("N", 3, "H", "W"), dtype="float")
+    check_shape(proxy_b, "mode_seeking_ratio: proxy_b", ("N", 3, "H", "W"), sizes=sizes, dtype="float")
+    check_shape(mask, "mode_seeking_ratio: mask", ("N", 1, "H", "W"), sizes=sizes)
+    check_shape(z_a, "mode_seeking_ratio: z_a", ("B", "Z"), sizes=sizes, dtype="float")
+    check_shape(z_b, "mode_seeking_ratio: z_b", ("B", "Z"), sizes=sizes, dtype="float")
     image_distance = ((proxy_a - proxy_b).abs().float() * mask).sum() / (3 * mask.sum()).clamp(min=1.0)
     return image_distance / (z_a - z_b).abs().mean().clamp(min=1e-8)
 
@@ -99,11 +105,18 @@ def object_lab_moments(images: torch.Tensor, mask: torch.Tensor) -> tuple[torch.
     """The CIELAB mean and mean square of object pixels, pooled over the batch, differentiable.
 
     images (N, 3, H, W) in [-1, 1]; mask (N, 1, H, W) (object > 0.5) -> (mean (3,), mean square (3,)) float32."""
+    _check_images(images, mask, "object_lab_moments", "images", "mask")
     lab = rgb_to_lab(((images.float() + 1) / 2).clamp(0, 1))  # (N, 3, H, W)
     weight = (mask > 0.5).float()
     count = weight.sum().clamp(min=1.0)
     mean = (lab * weight).sum(dim=(0, 2, 3)) / count
     return mean, (lab.square() * weight).sum(dim=(0, 2, 3)) / count
+
+
+def _check_images(images: torch.Tensor, masks: torch.Tensor, function: str, name: str, mask_name: str) -> None:
+    """images (N, 3, H, W) float and their masks (N, 1, H, W), named in the message as ``function: name``."""
+    sizes = check_shape(images, f"{function}: {name}", ("N", 3, "H", "W"), dtype="float")
+    check_shape(masks, f"{function}: {mask_name}", ("N", 1, "H", "W"), sizes=sizes)
 
 
 class GanLoss:
@@ -124,6 +137,7 @@ class GanLoss:
     def set_colour_target(self, photos: torch.Tensor, masks: torch.Tensor) -> None:
         """The colour term's target: the CIELAB moments of the photos' object pixels.
         photos (N, 3, H, W) in [-1, 1], masks (N, 1, H, W)."""
+        _check_images(photos, masks, "GanLoss.set_colour_target", "photos", "masks")
         mean, square = object_lab_moments(photos, masks)
         self.colour_target = (mean, (square - mean.square()).clamp(min=1e-6).sqrt())
 
@@ -131,6 +145,7 @@ class GanLoss:
         """The colour-moment term (unweighted) of fakes ``images`` (N, 3, H, W) with object ``mask``
         (N, 1, H, W); updates the running moments. Its value is the running moments' distance to the
         target; its gradient is that of this batch's moments."""
+        _check_images(images, mask, "GanLoss.colour_loss", "images", "mask")
         if self.colour_target is None:
             raise ValueError("GanLoss: colour_weight > 0 needs set_colour_target (the photos' moments)")
         batch = torch.stack(object_lab_moments(images, mask))  # (2, 3)
@@ -168,10 +183,15 @@ class GanLoss:
                              object_mask: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
         """Back-propagate the loss of ``phase`` (scaled by ``gain``); returns detached scalars to log.
 
-        z: (B, z_dim) latents, real: (N, 3, H, W) real images in [-1, 1]; proxy_of: renders a second
+        z: (B, z_dim) latents (only ``generate`` and ``proxy_of`` read them: (B,) for one that takes none),
+        real: (N, 3, H, W) real images in [-1, 1]; proxy_of: renders a second
         latent's proxy for the diversity term (G main, when ``diversity_weight`` and ``diversity_gain``
-        are > 0; the trainer passes :meth:`diversity_gain` of the iteration).
+        are > 0; the trainer passes :meth:`diversity_gain` of the iteration); object_mask: (N', 1, H', W')
+        object mask of the field renders ``generate`` makes (the colour term).
         """
+        check_shape(z, "GanLoss.accumulate_gradients: z", ("B", None), ("B",), dtype="float")
+        check_shape(real, "GanLoss.accumulate_gradients: real", (None, 3, None, None), dtype="float")
+        check_shape(object_mask, "GanLoss.accumulate_gradients: object_mask", (None, 1, None, None), optional=True)
         logs: dict[str, torch.Tensor] = {}
         if phase == "Gmain":
             with self.autocast():

@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 import torch
 import torch.nn.functional as F
 
-from mesh2tex.losses.structure import STRUCTURE_LOSSES, exemplar_band_statistics, ps_loss, sw_distance
+from mesh2tex.checks import check_shape, check_type
+from mesh2tex.losses.structure import STRUCTURE_LOSSES, check_point_sets, exemplar_band_statistics, ps_loss, sw_distance
 from mesh2tex.losses.style import masked_gram
 
 # "ot" and "gram" here; "sw" (sliced Wasserstein on the same features) and "ps" (oriented-band
@@ -36,7 +37,8 @@ STYLE_LOSSES = ("ot", "gram") + STRUCTURE_LOSSES
 
 
 def image_layers(vgg, images: torch.Tensor, depth: int) -> list[torch.Tensor]:
-    """[images, the first ``depth`` VGG style activations]: (N, C_l, H_l, W_l) each."""
+    """[images (N, 3, H, W), the first ``depth`` VGG style activations]: (N, C_l, H_l, W_l) each."""
+    check_shape(images, "image_layers: images", ("N", 3, "H", "W"), dtype="float")
     return [images] + (list(vgg(images, depth=depth)) if depth > 0 else [])
 
 
@@ -57,7 +59,11 @@ def _positions(mask: torch.Tensor | None, size: tuple[int, int], max_points: int
 
 def feature_sets(layers: list[torch.Tensor], mask: torch.Tensor | None, max_points: int,
                  generator: torch.Generator | None = None) -> list[torch.Tensor]:
-    """Per layer, the (P_l, C_l) features of image 0 of ``layers`` at object positions (all with mask None)."""
+    """Per layer, the (P_l, C_l) features of image 0 of ``layers`` ((N, C_l, H_l, W_l) each) at the positions
+    inside ``mask`` (1, H, W), area-resampled to each layer (all positions with mask None)."""
+    check_shape(mask, "feature_sets: mask", (1, None, None), optional=True)
+    for index, feats in enumerate(check_type(layers, "feature_sets: layers", list)):
+        check_shape(feats, f"feature_sets: layers[{index}]", (None, None, None, None), dtype="float")
     sets = []
     for feats in layers:
         c, h, w = feats.shape[1:]
@@ -66,8 +72,15 @@ def feature_sets(layers: list[torch.Tensor], mask: torch.Tensor | None, max_poin
     return sets
 
 
+def _check_sets(a: torch.Tensor, b: torch.Tensor, function: str) -> None:
+    """a (P, C) and b (Q, C) float, named ``function: a`` and ``function: b``."""
+    sizes = check_shape(a, f"{function}: a", ("P", "C"), dtype="float")
+    check_shape(b, f"{function}: b", ("Q", "C"), sizes=sizes, dtype="float")
+
+
 def relaxed_emd(a: torch.Tensor, b: torch.Tensor, l2: bool) -> torch.Tensor:
     """L_W between point sets a (P, C) and b (Q, C)."""
+    _check_sets(a, b, "relaxed_emd")
     cost = 1.0 - F.normalize(a, dim=1) @ F.normalize(b, dim=1).t()
     if l2:
         cost = cost + torch.cdist(a, b)
@@ -76,6 +89,7 @@ def relaxed_emd(a: torch.Tensor, b: torch.Tensor, l2: bool) -> torch.Tensor:
 
 def moment_loss(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """L_M between point sets a (P, C) and b (Q, C): mean absolute differences of means and covariances."""
+    _check_sets(a, b, "moment_loss")
     ma, mb = a.mean(0), b.mean(0)
     ca = (a - ma).t() @ (a - ma) / max(a.shape[0] - 1, 1)
     cb = (b - mb).t() @ (b - mb) / max(b.shape[0] - 1, 1)
@@ -83,7 +97,9 @@ def moment_loss(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 
 def ot_style_distance(render_sets: list[torch.Tensor], exemplar_sets: list[torch.Tensor]) -> torch.Tensor:
-    """sum over layers of L_W + L_M (layer 0, RGB, with the L2 term); an empty render set counts 0."""
+    """sum over layers of L_W + L_M (layer 0, RGB, with the L2 term); an empty render set counts 0.
+    render_sets (P_l, C_l) and exemplar_sets (Q_l, C_l), one of each per layer."""
+    check_point_sets(render_sets, exemplar_sets, "ot_style_distance")
     total = render_sets[0].new_zeros(())
     for layer, (a, b) in enumerate(zip(render_sets, exemplar_sets)):
         if a.shape[0] < 2:
@@ -107,6 +123,8 @@ class ExemplarFeatures:
 
     @classmethod
     def compute(cls, vgg, image: torch.Tensor, depth: int) -> "ExemplarFeatures":
+        """The layers of ``image`` (1, 3, H, W) in [-1, 1] to ``depth`` VGG layers (``vgg`` unused with depth 0)."""
+        check_shape(image, "ExemplarFeatures.compute: image", (1, 3, None, None), dtype="float")
         with torch.no_grad():
             return cls(image=image, layers=[t.detach() for t in image_layers(vgg, image, depth)])
 
@@ -120,6 +138,9 @@ def style_loss(vgg, images: torch.Tensor, masks: torch.Tensor, exemplar: Exempla
     summed over the layers), "sw" (sliced Wasserstein on the same layers) or "ps" (oriented-band
     statistics of the pixels; ``vgg`` unused). Differentiable with respect to ``images``.
     """
+    sizes = check_shape(images, "style_loss: images", ("N", 3, "H", "W"), dtype="float")
+    check_shape(masks, "style_loss: masks", ("N", 1, "H", "W"), sizes=sizes)
+    check_type(exemplar, "style_loss: exemplar", ExemplarFeatures)
     if kind not in STYLE_LOSSES:
         raise ValueError(f"style loss must be one of {STYLE_LOSSES}, got {kind!r}")
     if kind == "ps":

@@ -51,6 +51,8 @@ import math
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape, check_type
+
 STRUCTURE_LOSSES = ("sw", "ps")
 
 _BINOMIAL = torch.tensor([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
@@ -67,6 +69,7 @@ _MIN_POSITIONS = 8  # octaves with fewer valid positions than this are left out 
 # ------------------------------------------------------------------------------ sliced Wasserstein
 def quantile_resample(sorted_values: torch.Tensor, count: int) -> torch.Tensor:
     """(Q, K) values sorted along dim 0 -> (count, K): linear interpolation at the quantiles (i + 0.5) / count."""
+    check_shape(sorted_values, "quantile_resample: sorted_values", ("Q", "K"), dtype="float")
     q = sorted_values.shape[0]
     if q == count:
         return sorted_values
@@ -81,6 +84,9 @@ def sliced_wasserstein2(a: torch.Tensor, b: torch.Tensor, directions: torch.Tens
     """Squared sliced Wasserstein-2 distance between point sets a (P, C) and b (Q, C) along
     ``directions`` (C, K) unit columns: the mean over directions and ranks of the squared difference
     of sorted projections, b read at a's quantiles. Differentiable with respect to a and b."""
+    sizes = check_shape(a, "sliced_wasserstein2: a", ("P", "C"), dtype="float")
+    check_shape(b, "sliced_wasserstein2: b", ("Q", "C"), sizes=sizes, dtype="float")
+    check_shape(directions, "sliced_wasserstein2: directions", ("C", "K"), sizes=sizes, dtype="float")
     pa = torch.sort(a @ directions, dim=0).values
     pb = quantile_resample(torch.sort(b @ directions, dim=0).values, a.shape[0])
     return (pa - pb).square().mean()
@@ -92,9 +98,23 @@ def random_directions(channels: int, count: int, generator: torch.Generator | No
     return d / d.norm(dim=0, keepdim=True).clamp_min(1e-12)
 
 
+def check_point_sets(render_sets: list[torch.Tensor], exemplar_sets: list[torch.Tensor], function: str) -> None:
+    """Raise unless both are lists of one length (>= 1) of point sets, per layer l (P_l, C_l) and (Q_l, C_l) float;
+    the message names ``function`` and the set."""
+    check_type(render_sets, f"{function}: render_sets", list)
+    check_type(exemplar_sets, f"{function}: exemplar_sets", list)
+    if len(render_sets) != len(exemplar_sets) or not render_sets:
+        raise ValueError(f"{function}: render_sets and exemplar_sets must hold one set per layer alike, "
+                         f"got {len(render_sets)} and {len(exemplar_sets)}")
+    for layer, (a, b) in enumerate(zip(render_sets, exemplar_sets)):
+        sizes = check_shape(a, f"{function}: render_sets[{layer}]", ("P", "C"), dtype="float")
+        check_shape(b, f"{function}: exemplar_sets[{layer}]", ("Q", "C"), sizes=sizes, dtype="float")
+
+
 def sw_distance(render_sets: list[torch.Tensor], exemplar_sets: list[torch.Tensor], generator: torch.Generator | None = None,
                 min_projections: int = 32) -> torch.Tensor:
     """sum over layers of SW_l (module docstring); sets (P_l, C_l) and (Q_l, C_l); render sets under 2 points count 0."""
+    check_point_sets(render_sets, exemplar_sets, "sw_distance")
     total = render_sets[0].new_zeros(())
     for a, b in zip(render_sets, exemplar_sets):
         if a.shape[0] < 2:
@@ -186,6 +206,8 @@ def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scale
     of named 1D tensors; octaves with too few valid positions are left out (their keys absent), so
     compare two dicts on their shared keys. Differentiable with respect to ``image``.
     """
+    sizes = check_shape(image, "band_statistics: image", (1, 3, "H", "W"), dtype="float")
+    check_shape(mask, "band_statistics: mask", (1, 1, "H", "W"), sizes=sizes, optional=True)
     rgb = (image[0] + 1) / 2  # (3, H, W) in [0, 1]
     full = torch.ones_like(rgb[:1]) if mask is None else (mask[0] > 0.5).to(rgb.dtype)
     stats: dict[str, torch.Tensor] = {}
@@ -267,6 +289,7 @@ def statistics_distance(mine: dict[str, torch.Tensor], theirs: dict[str, torch.T
 
 def exemplar_band_statistics(image: torch.Tensor, **kwargs) -> dict[str, torch.Tensor]:
     """:func:`band_statistics` of a whole exemplar (1, 3, H, W), detached."""
+    check_shape(image, "exemplar_band_statistics: image", (1, 3, None, None), dtype="float")
     with torch.no_grad():
         return {k: v.detach() for k, v in band_statistics(image, None, **kwargs).items()}
 
@@ -274,9 +297,12 @@ def exemplar_band_statistics(image: torch.Tensor, **kwargs) -> dict[str, torch.T
 def ps_loss(images: torch.Tensor, masks: torch.Tensor, exemplar_stats: dict[str, torch.Tensor]) -> torch.Tensor:
     """Mean over the N images (N, 3, H, W) with masks (N, 1, H, W) of :func:`statistics_distance` to
     ``exemplar_stats`` (:func:`exemplar_band_statistics`). Differentiable with respect to ``images``."""
+    sizes = check_shape(images, "ps_loss: images", ("N", 3, "H", "W"), dtype="float")
+    check_shape(masks, "ps_loss: masks", ("N", 1, "H", "W"), sizes=sizes)
     return torch.stack([statistics_distance(band_statistics(images[n : n + 1], masks[n : n + 1]), exemplar_stats)
                         for n in range(images.shape[0])]).mean()
 
 
-__all__ = ["GROUP_WEIGHTS", "STRUCTURE_LOSSES", "band_statistics", "exemplar_band_statistics", "oriented_filters", "ps_loss", "quantile_resample",
-           "sliced_wasserstein2", "statistics_distance", "sw_distance"]
+__all__ = ["GROUP_WEIGHTS", "STRUCTURE_LOSSES", "band_statistics", "check_point_sets", "exemplar_band_statistics",
+           "oriented_filters", "ps_loss", "quantile_resample", "sliced_wasserstein2", "statistics_distance",
+           "sw_distance"]

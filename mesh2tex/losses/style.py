@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape, check_type
 from mesh2tex.errors import InputError
 from mesh2tex.metrics.appearance import masked_blur
 from mesh2tex.render.shading import composite_images
@@ -41,7 +42,10 @@ Grams = list[list[torch.Tensor]]
 
 
 def composite_background(images: torch.Tensor, masks: torch.Tensor | None, value: float = 0.0) -> torch.Tensor:
-    """images [B, 3, H, W] with the background (mask 0) replaced by ``value``; soft masks blend."""
+    """images [B, 3, H, W] with the background (mask 0 of masks [B, 1, H, W], or None) replaced by ``value``;
+    soft masks blend."""
+    sizes = check_shape(images, "composite_background: images", ("B", 3, "H", "W"), dtype="float")
+    check_shape(masks, "composite_background: masks", ("B", 1, "H", "W"), sizes=sizes, optional=True)
     if masks is None:
         return images
     return composite_images(images, masks, value)
@@ -55,6 +59,8 @@ def masked_gram(features: torch.Tensor, masks: torch.Tensor | None = None) -> to
     contribute nothing, and the result does not depend on the object's area. An empty mask gives 0.
     (No division by C: per-entry values then stay well above float32 noise at every layer.)
     """
+    sizes = check_shape(features, "masked_gram: features", ("B", "C", "h", "w"), dtype="float")
+    check_shape(masks, "masked_gram: masks", ("B", 1, None, None), sizes=sizes, optional=True)
     batch, channels, height, width = features.shape
     flat = features.reshape(batch, channels, height * width)
     if masks is None:
@@ -65,16 +71,20 @@ def masked_gram(features: torch.Tensor, masks: torch.Tensor | None = None) -> to
 
 
 def downsample(images: torch.Tensor, masks: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """Halve the resolution by 2x2 averaging (images [B, C, H, W] and masks [B, 1, H, W] alike)."""
+    """Halve the resolution by 2x2 averaging (images [B, C, H, W] and masks [B, 1, H, W] or None alike)."""
+    sizes = check_shape(images, "downsample: images", ("B", "C", "H", "W"), dtype="float")
+    check_shape(masks, "downsample: masks", ("B", 1, "H", "W"), sizes=sizes, optional=True)
     return F.avg_pool2d(images, 2), (F.avg_pool2d(masks, 2) if masks is not None else None)
 
 
 def style_grams(vgg, images: torch.Tensor, masks: torch.Tensor | None = None, scales: int = 3) -> Grams:
     """Masked Gram matrices of ``images`` [B, 3, H, W] at ``scales`` resolutions x the VGG style layers.
 
-    ``vgg``: a :class:`mesh2tex.nn.vgg.VGG19Features`. The coarsest level must be at least 16 pixels
-    on a side. Returns grams[scale][layer], each [B, C_layer, C_layer].
+    ``vgg``: a :class:`mesh2tex.nn.vgg.VGG19Features`; masks [B, 1, H, W] or None. The coarsest level must
+    be at least 16 pixels on a side. Returns grams[scale][layer], each [B, C_layer, C_layer].
     """
+    sizes = check_shape(images, "style_grams: images", ("B", 3, "H", "W"), dtype="float")
+    check_shape(masks, "style_grams: masks", ("B", 1, "H", "W"), sizes=sizes, optional=True)
     if min(images.shape[-2:]) // 2 ** (scales - 1) < 16:
         raise ValueError(f"images of {tuple(images.shape[-2:])} are too small for {scales} style scales (coarsest < 16 px)")
     grams: Grams = []
@@ -107,8 +117,14 @@ def global_style_loss(vgg, images: torch.Tensor, masks: torch.Tensor | None, tar
 
     Give the photo either as ``target_images``/``target_masks`` or, to save recomputing it every
     iteration, as ``target_grams`` from :func:`style_grams` (computed under ``torch.no_grad()``).
+    masks [B, 1, H, W] or None; target_images [T, 3, H', W'] with target_masks [T, 1, H', W'] or None.
     Differentiable w.r.t. ``images``; scalar.
     """
+    sizes = check_shape(images, "global_style_loss: images", ("B", 3, "H", "W"), dtype="float")
+    check_shape(masks, "global_style_loss: masks", ("B", 1, "H", "W"), sizes=sizes, optional=True)
+    target = check_shape(target_images, "global_style_loss: target_images", ("T", 3, "H'", "W'"), dtype="float",
+                         optional=True)
+    check_shape(target_masks, "global_style_loss: target_masks", ("T", 1, "H'", "W'"), sizes=target, optional=True)
     if target_grams is None:
         if target_images is None:
             raise ValueError("give target_images or target_grams")
@@ -125,6 +141,9 @@ class PatchPairs:
     render_centres: torch.Tensor
 
 
+_MASK_SHAPES = (("H", "W"), (1, "H", "W"), (1, 1, "H", "W"))  # one mask, with or without its batch and channel
+
+
 def _object_pixels(mask: torch.Tensor, what: str) -> torch.Tensor:
     """(row, column) int64 [P, 2] of the pixels of mask [H, W] (or [1, H, W], [1, 1, H, W]) above 0.5."""
     mask = mask.reshape(mask.shape[-2:])
@@ -135,7 +154,9 @@ def _object_pixels(mask: torch.Tensor, what: str) -> torch.Tensor:
 
 
 def random_object_pixels(mask: torch.Tensor, count: int, generator: torch.Generator | None = None, what: str = "object") -> torch.Tensor:
-    """``count`` pixels drawn uniformly (with replacement) from mask [H, W] > 0.5: [count, 2] int64 (row, column)."""
+    """``count`` pixels drawn uniformly (with replacement) from mask [H, W] (or [1, H, W], [1, 1, H, W]) > 0.5:
+    [count, 2] int64 (row, column)."""
+    check_shape(mask, "random_object_pixels: mask", *_MASK_SHAPES)
     pixels = _object_pixels(mask, what)
     choice = torch.randint(pixels.shape[0], (count,), generator=generator, device="cpu")
     return pixels[choice.to(pixels.device)]
@@ -144,8 +165,12 @@ def random_object_pixels(mask: torch.Tensor, count: int, generator: torch.Genera
 def nearest_noc_pixels(query_noc: torch.Tensor, render_noc: torch.Tensor, render_mask: torch.Tensor) -> torch.Tensor:
     """For each query NOC [N, 3], the rendered object pixel whose NOC (render_noc [H, W, 3]) is nearest in l2.
 
-    Only pixels with render_mask [H, W] > 0.5 are candidates. Returns [N, 2] int64 (row, column).
+    Only pixels with render_mask [H, W] (or [1, H, W], [1, 1, H, W]) > 0.5 are candidates. Returns [N, 2]
+    int64 (row, column).
     """
+    check_shape(query_noc, "nearest_noc_pixels: query_noc", ("N", 3), dtype="float")
+    sizes = check_shape(render_noc, "nearest_noc_pixels: render_noc", ("H", "W", 3), dtype="float")
+    check_shape(render_mask, "nearest_noc_pixels: render_mask", *_MASK_SHAPES, sizes=sizes)
     pixels = _object_pixels(render_mask, "rendered")
     candidates = render_noc[pixels[:, 0], pixels[:, 1]].to(query_noc.dtype)  # [P, 3]
     nearest = torch.cdist(query_noc[None], candidates[None])[0].argmin(dim=1)
@@ -156,12 +181,17 @@ def sample_patch_pairs(photo_mask: torch.Tensor, render_mask: torch.Tensor, num_
                        render_noc: torch.Tensor | None = None, guided: bool = True, generator: torch.Generator | None = None) -> PatchPairs:
     """Pick ``num_patches`` pairs of patch centres (Mesh2Tex section 3.3).
 
-    photo_mask, render_mask: [H, W] float/bool, object > 0.5 (the two images may differ in size).
-    photo_noc: the photo's predicted NOC [H, W, 3]; render_noc: the render's NOC [H', W', 3].
+    photo_mask, render_mask: [H, W] and [H', W'] float/bool (or [1, H, W], [1, 1, H, W]), object > 0.5 (the two
+    images may differ in size). photo_noc: the photo's predicted NOC [H, W, 3]; render_noc: the render's NOC
+    [H', W', 3].
     guided=True (needs both NOC maps): photo centres uniform over the photo's object; each render
     centre is the rendered object pixel with the nearest NOC. guided=False: both centres uniform over
     their own object (the ablation without NOC). Raises InputError if a mask is empty.
     """
+    photo = check_shape(photo_mask, "sample_patch_pairs: photo_mask", *_MASK_SHAPES)
+    render = check_shape(render_mask, "sample_patch_pairs: render_mask", *_MASK_SHAPES)
+    check_shape(photo_noc, "sample_patch_pairs: photo_noc", ("H", "W", 3), sizes=photo, dtype="float", optional=True)
+    check_shape(render_noc, "sample_patch_pairs: render_noc", ("H", "W", 3), sizes=render, dtype="float", optional=True)
     photo_centres = random_object_pixels(photo_mask, num_patches, generator, "photo's object")
     if guided:
         if photo_noc is None or render_noc is None:
@@ -176,12 +206,12 @@ def sample_patch_pairs(photo_mask: torch.Tensor, render_mask: torch.Tensor, num_
 def crop_patches(images: torch.Tensor, centres: torch.Tensor, size: int) -> torch.Tensor:
     """Square crops of side ``size`` around ``centres`` [N, 2] (row, column), shifted to stay inside the image.
 
-    images: [C, H, W] or [1, C, H, W]. ``size`` is clipped to min(H, W). Returns [N, C, s, s];
+    images: [C, H, W] or [1, C, H, W]; centres int64. ``size`` is clipped to min(H, W). Returns [N, C, s, s];
     differentiable w.r.t. images.
     """
+    check_shape(images, "crop_patches: images", ("C", "H", "W"), (1, "C", "H", "W"))
+    check_shape(centres, "crop_patches: centres", ("N", 2), dtype="int")
     if images.dim() == 4:
-        if images.shape[0] != 1:
-            raise ValueError("crop_patches takes one image ([C, H, W] or [1, C, H, W])")
         images = images[0]
     height, width = images.shape[-2:]
     size = min(size, height, width)
@@ -201,6 +231,11 @@ def patch_style_loss(vgg, rendered: torch.Tensor, rendered_mask: torch.Tensor, p
     photo_mask likewise (any size). Patches of ``patch_size`` (clipped to the images) are cut around
     ``pairs`` (see :func:`sample_patch_pairs`) with their masks. Differentiable w.r.t. ``rendered``.
     """
+    sizes = check_shape(rendered, "patch_style_loss: rendered", (1, 3, "H", "W"), (3, "H", "W"), dtype="float")
+    check_shape(rendered_mask, "patch_style_loss: rendered_mask", (1, 1, "H", "W"), (1, "H", "W"), sizes=sizes)
+    photo_sizes = check_shape(photo, "patch_style_loss: photo", (1, 3, "H", "W"), (3, "H", "W"), dtype="float")
+    check_shape(photo_mask, "patch_style_loss: photo_mask", (1, 1, "H", "W"), (1, "H", "W"), sizes=photo_sizes)
+    check_type(pairs, "patch_style_loss: pairs", PatchPairs)
     rendered_patches = crop_patches(rendered, pairs.render_centres, patch_size)
     rendered_masks = crop_patches(rendered_mask.reshape(1, *rendered_mask.shape[-2:]), pairs.render_centres, patch_size)
     with torch.no_grad():
@@ -223,6 +258,11 @@ def lowpass_colour_loss(rendered: torch.Tensor, rendered_mask: torch.Tensor, pho
     colour of each region still has to match: where the style losses (Gram matrices) leave colours
     free to drift, this term pins them to the photo's. Differentiable w.r.t. ``rendered``.
     """
+    sizes = check_shape(rendered, "lowpass_colour_loss: rendered", ("B", 3, "H", "W"), dtype="float")
+    check_shape(rendered_mask, "lowpass_colour_loss: rendered_mask", ("B", 1, "H", "W"), sizes=sizes)
+    photo_sizes = check_shape(photo, "lowpass_colour_loss: photo", ("B", 3, "H", "W"), sizes={"B": sizes["B"]},
+                              dtype="float")
+    check_shape(photo_mask, "lowpass_colour_loss: photo_mask", ("B", 1, "H", "W"), sizes=photo_sizes)
     if rendered.shape[-2:] != photo.shape[-2:]:
         raise ValueError(f"lowpass_colour_loss: the render is {tuple(rendered.shape[-2:])}, the photo {tuple(photo.shape[-2:])}")
     both = (rendered_mask * photo_mask).to(rendered.dtype)

@@ -23,28 +23,38 @@ import kornia
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
 from mesh2tex.metrics.swd import laplacian_pyramid, sliced_wasserstein
 from mesh2tex.render.shading import composite_images
 
 
-def _check(images: torch.Tensor, name: str = "images") -> None:
-    if images.dim() != 4 or images.shape[1] != 3:
-        raise ValueError(f"{name} must be [B, 3, H, W], got {tuple(images.shape)}")
+def _check_pair(function: str, images: torch.Tensor, masks: torch.Tensor | None, references: torch.Tensor | None = None,
+                reference_masks: torch.Tensor | None = None, mask_needed: bool = True) -> dict:
+    """images [B, 3, H, W] float with masks [B, 1, H, W]; references [B, 3, H', W'] with reference_masks
+    [B, 1, H', W'] (the images' H, W when reference_masks is None). Returns the sizes, for further checks."""
+    sizes = check_shape(images, f"{function}: images", ("B", 3, "H", "W"), dtype="float")
+    check_shape(masks, f"{function}: masks", ("B", 1, "H", "W"), sizes=sizes, optional=not mask_needed)
+    if references is not None:
+        own = "H" if reference_masks is None else "H'"
+        check_shape(references, f"{function}: references", ("B", 3, own, own.replace("H", "W")), sizes=sizes,
+                    dtype="float")
+        check_shape(reference_masks, f"{function}: reference_masks", ("B", 1, "H'", "W'"), sizes=sizes, optional=True)
+    return sizes
 
 
 def rgb_to_lab(images: torch.Tensor) -> torch.Tensor:
     """[B, 3, H, W] sRGB in [0, 1] -> CIELAB (D65) [B, 3, H, W] float64: L in [0, 100], a and b about [-128, 127]."""
-    _check(images)
+    check_shape(images, "rgb_to_lab: images", ("B", 3, "H", "W"), dtype="float")
     return kornia.color.rgb_to_lab(images.float().clamp(0, 1)).double()
 
 
 def part_colours(images: torch.Tensor, parts: torch.Tensor, masks: torch.Tensor | None = None,
                  min_pixels: int = 4) -> list[dict[int, tuple[torch.Tensor, int]]]:
     """Per image, {part label: (mean CIELAB colour [3] float64, pixel count)} of the parts with at
-    least ``min_pixels`` pixels inside ``masks`` (None: every pixel with a label >= 0)."""
-    _check(images)
-    if parts.shape != (images.shape[0], *images.shape[-2:]):
-        raise ValueError(f"parts must be [B, H, W] = {(images.shape[0], *images.shape[-2:])}, got {tuple(parts.shape)}")
+    least ``min_pixels`` pixels inside ``masks`` (None: every pixel with a label >= 0). images [B, 3, H, W]
+    in [0, 1]; parts [B, H, W] integer labels; masks [B, 1, H, W] or None."""
+    sizes = _check_pair("part_colours", images, masks, mask_needed=False)
+    check_shape(parts, "part_colours: parts", ("B", "H", "W"), sizes=sizes, dtype="int")
     lab = rgb_to_lab(images)
     valid = parts >= 0
     if masks is not None:
@@ -69,9 +79,19 @@ def part_colour_error(images: torch.Tensor, references: torch.Tensor, parts: tor
     For each part label seen (``min_pixels`` or more) in both the image and the reference, the
     distance between their mean CIELAB colours; the mean of these distances weighted by the part's
     pixel count in the reference. ``reference_parts`` / ``reference_masks`` default to ``parts`` /
-    ``masks`` (pixel-aligned images of one geometry). NaN when no part is seen in both.
+    ``masks`` (pixel-aligned images of one geometry). NaN when no part is seen in both. images [B, 3, H, W]
+    with parts [B, H, W] and masks [B, 1, H, W] or None; references [B, 3, H', W'] with reference_parts
+    [B, H', W'] and reference_masks [B, 1, H', W'] (H', W' = H, W when they default to the images' own).
     """
-    _check(references, "references")
+    sizes = _check_pair("part_colour_error", images, masks, mask_needed=False)
+    check_shape(parts, "part_colour_error: parts", ("B", "H", "W"), sizes=sizes, dtype="int")
+    own = "H'" if reference_parts is not None and (reference_masks is not None or masks is None) else "H"  # own size
+    check_shape(references, "part_colour_error: references", ("B", 3, own, own.replace("H", "W")), sizes=sizes,
+                dtype="float")
+    check_shape(reference_parts, "part_colour_error: reference_parts", ("B", own, own.replace("H", "W")), sizes=sizes,
+                dtype="int", optional=True)
+    check_shape(reference_masks, "part_colour_error: reference_masks", ("B", 1, own, own.replace("H", "W")),
+                sizes=sizes, optional=True)
     reference_parts = parts if reference_parts is None else reference_parts
     reference_masks = masks if reference_masks is None else reference_masks
     mine = part_colours(images, parts, masks, min_pixels)
@@ -97,6 +117,8 @@ def masked_blur(images: torch.Tensor, masks: torch.Tensor, sigma: float) -> torc
 
     images [B, C, H, W], masks [B, 1, H, W] -> [B, C, H, W] float64; 0 where no masked pixel is near.
     """
+    sizes = check_shape(images, "masked_blur: images", ("B", "C", "H", "W"), dtype="float")
+    check_shape(masks, "masked_blur: masks", ("B", 1, "H", "W"), sizes=sizes)
     if sigma <= 0:
         return images.double() * masks
     kernel = gaussian_kernel(sigma).to(images.device)
@@ -111,9 +133,9 @@ def masked_blur(images: torch.Tensor, masks: torch.Tensor, sigma: float) -> torc
 
 def lowpass_psnr(images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor, sigma: float = 3.0) -> torch.Tensor:
     """PSNR in dB (peak 1) over ``masks`` after a Gaussian blur of ``sigma`` pixels of each image's
-    masked pixels (:func:`masked_blur`, with the same mask for both): [B] float64; +inf if equal."""
-    _check(images)
-    _check(references, "references")
+    masked pixels (:func:`masked_blur`, with the same mask for both): [B] float64; +inf if equal.
+    images and references [B, 3, H, W] in [0, 1], masks [B, 1, H, W]."""
+    _check_pair("lowpass_psnr", images, masks, references)
     a, b = masked_blur(images, masks, sigma), masked_blur(references, masks, sigma)
     weights = masks.double()
     mse = ((a - b) ** 2 * weights).sum(dim=(1, 2, 3)) / (weights.sum(dim=(1, 2, 3)) * images.shape[1])
@@ -154,10 +176,10 @@ def object_swd(images: torch.Tensor, references: torch.Tensor, masks: torch.Tens
     with the level) are drawn from each, normalised per channel by the reference's statistics, and
     compared with ``projections`` random directions (the same for every image: a fixed ``seed``
     makes paired comparisons of methods share their noise). The value averages the levels with at
-    least 8 patches on both sides; NaN if none has. ``reference_masks`` defaults to ``masks``.
+    least 8 patches on both sides; NaN if none has. images [B, 3, H, W] with masks [B, 1, H, W];
+    references [B, 3, H', W'] with reference_masks [B, 1, H', W'], which default to ``masks`` (then H', W' = H, W).
     """
-    _check(images)
-    _check(references, "references")
+    _check_pair("object_swd", images, masks, references, reference_masks)
     reference_masks = masks if reference_masks is None else reference_masks
     values = []
     for b in range(images.shape[0]):

@@ -11,6 +11,8 @@ import numpy as np
 import scipy.linalg
 import torch
 
+from mesh2tex.checks import check_array_shape, check_shape
+
 
 def kid(features_a: torch.Tensor, features_b: torch.Tensor, num_subsets: int = 100, subset_size: int = 1000,
         seed: int = 0) -> tuple[float, float]:
@@ -20,7 +22,10 @@ def kid(features_a: torch.Tensor, features_b: torch.Tensor, num_subsets: int = 1
 
     Returns (mean, standard deviation over subsets). Unbiased, so it can be slightly negative for
     two samples of one distribution. Published tables often show it times 100 (Mesh2Tex) or 1000.
+    features_a [N, D] and features_b [M, D] float.
     """
+    sizes = check_shape(features_a, "kid: features_a", ("N", "D"), dtype="float")
+    check_shape(features_b, "kid: features_b", ("M", "D"), sizes=sizes, dtype="float")
     a = features_a.double().cpu()
     b = features_b.double().cpu()
     dim = a.shape[1]
@@ -48,8 +53,11 @@ def fid(features_a: torch.Tensor, features_b: torch.Tensor) -> float:
 
     Computed exactly without a general matrix square root (see :func:`trace_sqrt_product`). With
     few vectors the estimate is biased upwards: FID needs thousands of images to be comparable
-    across papers; with tens of images, compare values only at equal set sizes.
+    across papers; with tens of images, compare values only at equal set sizes. features_a [N, D] and
+    features_b [M, D] float.
     """
+    sizes = check_shape(features_a, "fid: features_a", ("N", "D"), dtype="float")
+    check_shape(features_b, "fid: features_b", ("M", "D"), sizes=sizes, dtype="float")
     a = features_a.double().cpu().numpy()
     b = features_b.double().cpu().numpy()
     if a.shape[0] < 2 or b.shape[0] < 2:
@@ -68,7 +76,10 @@ def trace_sqrt_product(centred_a: np.ndarray, centred_b: np.ndarray) -> float:
     (A B^T)(A B^T)^T, so the trace is the sum of the singular values of A B^T [n_a, n_b]; when the
     sets are larger than D, the same sum comes from the D x D symmetric form S_a^(1/2) S_b S_a^(1/2).
     Both avoid a general matrix square root (slow, and inaccurate for singular covariances).
+    centred_a [n_a, D] and centred_b [n_b, D] NumPy arrays.
     """
+    sizes = check_array_shape(centred_a, "trace_sqrt_product: centred_a", ("n_a", "D"))
+    check_array_shape(centred_b, "trace_sqrt_product: centred_b", ("n_b", "D"), sizes=sizes)
     n_a, n_b = centred_a.shape[0], centred_b.shape[0]
     dim = centred_a.shape[1]
     if min(n_a, n_b) <= dim:

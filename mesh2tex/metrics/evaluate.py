@@ -12,6 +12,7 @@ from pathlib import Path
 
 import torch
 
+from mesh2tex.checks import check_shape
 from mesh2tex.errors import InputError
 from mesh2tex.metrics.distribution import fid, kid
 from mesh2tex.metrics.features import FeatureExtractor, get_feature_extractor
@@ -51,6 +52,8 @@ def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: Featur
     Returns {"metrics": {name: value}, "features": description, "counts": {"renders": N, "images": M}}.
     KID has a ``<name>_std`` entry (spread over subsets); SWD has one entry per pyramid level (``swd_<side>px``).
     """
+    sizes = _check_sets("evaluate_sets", renders, images, render_masks, image_masks)
+    check_shape(image_features, "evaluate_sets: image_features", ("M", None), sizes=sizes, dtype="float", optional=True)
     config = config or EvaluateConfig()
     if renders.shape[0] < 2 or images.shape[0] < 2:
         raise InputError(f"set metrics need at least 2 renders and 2 images (got {renders.shape[0]} and {images.shape[0]})")
@@ -70,13 +73,25 @@ def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: Featur
             "counts": {"renders": int(renders.shape[0]), "images": int(images.shape[0])}}
 
 
+def _check_sets(function: str, renders: torch.Tensor, images: torch.Tensor, render_masks: torch.Tensor | None,
+                image_masks: torch.Tensor | None) -> dict:
+    """renders [N, 3, H, W] and images [M, 3, H, W] float; render_masks [N, 1, H, W], image_masks [M, 1, H, W] or None.
+    Returns the sizes."""
+    sizes = check_shape(renders, f"{function}: renders", ("N", 3, "H", "W"), dtype="float")
+    check_shape(images, f"{function}: images", ("M", 3, "H", "W"), sizes=sizes, dtype="float")
+    check_shape(render_masks, f"{function}: render_masks", ("N", 1, "H", "W"), sizes=sizes, optional=True)
+    return check_shape(image_masks, f"{function}: image_masks", ("M", 1, "H", "W"), sizes=sizes, optional=True)
+
+
 def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, render_masks: torch.Tensor | None,
                               image_masks: torch.Tensor | None, bins: int) -> dict[str, float]:
     """TV distance between the colour histograms of two sets, each pooled as one distribution of pixels:
     {"color_hist_tv": d} over object pixels when both sets have masks, else {"color_hist_tv_whole_image": d}.
 
     Pooling counts every object pixel once (a large object weighs more than a small one), so the
-    distance compares the colours of the two sets, not of single images."""
+    distance compares the colours of the two sets, not of single images. renders [N, 3, H, W] and images
+    [M, 3, H, W] in [0, 1]; render_masks [N, 1, H, W] and image_masks [M, 1, H, W] or None."""
+    _check_sets("pooled_histogram_distance", renders, images, render_masks, image_masks)
     if render_masks is None or image_masks is None:
         name, render_masks, image_masks = "color_hist_tv_whole_image", None, None
     else:
@@ -101,6 +116,10 @@ def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Ten
     +inf if every pair is identical), "per_pair": [{"name", "psnr_masked", "ssim_masked", "color_hist_tv"}],
     "counts": {"pairs": N}}.
     """
+    # A size mismatch of the two sets is the InputError below (they are the user's files).
+    sizes = check_shape(renders, "evaluate_pairs: renders", ("N", 3, "H", "W"), dtype="float")
+    check_shape(images, "evaluate_pairs: images", (None, 3, None, None), dtype="float")
+    check_shape(masks, "evaluate_pairs: masks", ("N", 1, "H", "W"), sizes=sizes, optional=True)
     config = config or EvaluateConfig()
     if renders.shape != images.shape:
         raise InputError(f"paired metrics need renders and images of one shape, got {tuple(renders.shape)} and {tuple(images.shape)}")

@@ -26,6 +26,7 @@ from typing import Callable
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
 from mesh2tex.errors import InputError
 from mesh2tex.metrics.inception import FID_INCEPTION_URL, INCEPTION_FILE_NAMES, find_inception_weights, load_inception
 from mesh2tex.nn.vgg import VGG19Features, find_vgg19_weights, load_vgg19, torch_hub_checkpoint_dir
@@ -50,6 +51,7 @@ class FeatureExtractor:
     @torch.no_grad()
     def __call__(self, images: torch.Tensor, batch_size: int = 32) -> torch.Tensor:
         """Features of all images [N, 3, H, W] in [-1, 1], in batches: [N, D] float64 on the CPU."""
+        check_shape(images, "FeatureExtractor: images", ("N", 3, "H", "W"), dtype="float")
         chunks = [self.extract(images[i:i + batch_size]).double().cpu() for i in range(0, images.shape[0], batch_size)]
         return torch.cat(chunks)
 

@@ -23,14 +23,14 @@ import torch
 import torch.nn.functional as F
 from kornia.color import rgb_to_lab
 
+from mesh2tex.checks import check_shape
 from mesh2tex.metrics.appearance import _fill_background, _object_patches
 from mesh2tex.metrics.swd import laplacian_pyramid, sliced_wasserstein
 
 
 def srgb_to_lab(images: torch.Tensor) -> torch.Tensor:
     """images (N, 3, H, W) sRGB in [0, 1] -> (N, 3, H, W) CIELAB (L in [0, 100])."""
-    if images.dim() != 4 or images.shape[1] != 3:
-        raise ValueError(f"images must be (N, 3, H, W), got {tuple(images.shape)}")
+    check_shape(images, "srgb_to_lab: images", ("N", 3, "H", "W"), dtype="float")
     return rgb_to_lab(images.float().clamp(0, 1))
 
 
@@ -39,8 +39,8 @@ def mean_object_lab(images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
 
     Raises ValueError when an image has no object pixel.
     """
-    if masks.shape[0] != images.shape[0] or masks.shape[-2:] != images.shape[-2:]:
-        raise ValueError(f"masks {tuple(masks.shape)} do not match images {tuple(images.shape)}")
+    sizes = check_shape(images, "mean_object_lab: images", ("N", 3, "H", "W"), dtype="float")
+    check_shape(masks, "mean_object_lab: masks", ("N", 1, "H", "W"), sizes=sizes)
     weight = masks.float()
     area = weight.sum(dim=[1, 2, 3])
     if (area <= 0).any():
@@ -50,6 +50,7 @@ def mean_object_lab(images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
 
 def colour_spread(lab_means: torch.Tensor) -> float:
     """(K, 3) Lab colours -> sqrt of the summed per-channel variance (population), in Delta E units."""
+    check_shape(lab_means, "colour_spread: lab_means", ("K", 3), dtype="float")
     if lab_means.shape[0] < 2:
         raise ValueError("a colour spread needs at least two colours")
     return float(lab_means.float().var(dim=0, unbiased=False).sum().sqrt())
@@ -59,6 +60,8 @@ def mean_pairwise_delta_e(images: torch.Tensor, mask: torch.Tensor) -> float:
     """images (K, 3, H, W) in [0, 1] of one shape at one pose (K >= 2), mask (1, H, W) or (K, 1, H, W)
     -> mean over the K(K-1)/2 pairs of the mean per-pixel Delta E on the mask (the union of both
     images' masks when they differ)."""
+    sizes = check_shape(images, "mean_pairwise_delta_e: images", ("K", 3, "H", "W"), dtype="float")
+    check_shape(mask, "mean_pairwise_delta_e: mask", (1, "H", "W"), (1, 1, "H", "W"), ("K", 1, "H", "W"), sizes=sizes)
     k = images.shape[0]
     if k < 2:
         raise ValueError("pairwise distances need at least two images")
@@ -103,8 +106,10 @@ def object_set_swd(images: torch.Tensor, masks: torch.Tensor, references: torch.
     statistics and compared with ``projections`` random directions. The mean over the levels with at
     least 16 patches on both sides; NaN if none has.
     """
-    if images.shape[-2:] != references.shape[-2:]:
-        raise ValueError(f"images {tuple(images.shape)} and references {tuple(references.shape)} differ in size")
+    sizes = check_shape(images, "object_set_swd: images", ("N", 3, "H", "W"), dtype="float")
+    check_shape(masks, "object_set_swd: masks", ("N", 1, "H", "W"), sizes=sizes)
+    check_shape(references, "object_set_swd: references", ("M", 3, "H", "W"), sizes=sizes, dtype="float")
+    check_shape(reference_masks, "object_set_swd: reference_masks", ("M", 1, "H", "W"), sizes=sizes)
     generator = torch.Generator().manual_seed(seed)
 
     def pooled(batch: torch.Tensor, batch_masks: torch.Tensor) -> list[torch.Tensor]:

@@ -23,6 +23,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
 from mesh2tex.errors import InputError
 from mesh2tex.nn.vgg import find_weight_file, read_state_dict
 
@@ -190,6 +191,8 @@ class InceptionV3Features(nn.Module):
         self.source = "uninitialised"
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
+        """images [B, 3, H, W] float in [-1, 1] -> [B, 2048] pool features."""
+        check_shape(images, "InceptionV3Features: images", ("B", 3, "H", "W"), dtype="float")
         x = F.interpolate(images, size=(299, 299), mode="bilinear", align_corners=False)
         x = self.Conv2d_2b_3x3(self.Conv2d_2a_3x3(self.Conv2d_1a_3x3(x)))
         x = F.max_pool2d(x, 3, stride=2)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
 from mesh2tex.metrics.generation import srgb_to_lab
 
 SPACES = ("L", "lab")
@@ -62,6 +63,12 @@ def view_pixels_per_unit(distance: float, fov: float, resolution: int) -> float:
     return resolution / (2.0 * distance * math.tan(math.radians(fov) / 2.0))
 
 
+def _check_images(function: str, images: torch.Tensor, masks: torch.Tensor, channels: int | str = 3) -> None:
+    """images (B, channels, H, W) float and masks (B, 1, H, W), named ``function: images`` and ``function: masks``."""
+    sizes = check_shape(images, f"{function}: images", ("B", channels, "H", "W"), dtype="float")
+    check_shape(masks, f"{function}: masks", ("B", 1, "H", "W"), sizes=sizes)
+
+
 def object_patches(images: torch.Tensor, masks: torch.Tensor, patch: int = DEFAULT_PATCH, stride: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
     """Patches wholly on the object.
 
@@ -73,10 +80,7 @@ def object_patches(images: torch.Tensor, masks: torch.Tensor, patch: int = DEFAU
     Returns:
         patches (N, C, P, P) and owner (N,) int64, the image index of each patch.
     """
-    if images.dim() != 4:
-        raise ValueError(f"images must be (B, C, H, W), got {tuple(images.shape)}")
-    if masks.dim() != 4 or masks.shape[1] != 1 or masks.shape[0] != images.shape[0] or masks.shape[-2:] != images.shape[-2:]:
-        raise ValueError(f"masks must be (B, 1, H, W) matching images {tuple(images.shape)}, got {tuple(masks.shape)}")
+    _check_images("object_patches", images, masks, channels="C")
     if patch < 4 or patch > min(images.shape[-2:]):
         raise ValueError(f"patch must be between 4 and the image side {min(images.shape[-2:])}, got {patch}")
     stride = stride or max(1, patch // 2)
@@ -139,6 +143,7 @@ def high_frequency_share(images: torch.Tensor, masks: torch.Tensor, cutoff: floa
     Returns:
         :class:`SpeckleResult`; ``patches`` 0 (and share 0) when no patch fits on any object.
     """
+    _check_images("high_frequency_share", images, masks)
     patches, owner = object_patches(_channels(images, space), masks, patch)
     if len(patches) == 0:
         return SpeckleResult(0.0, 0.0, 0.0, 0)
@@ -156,8 +161,10 @@ def radial_power(images: torch.Tensor, masks: torch.Tensor, edges, *, pixels_per
 
     ``edges`` (K + 1,) increasing band edges, in cycles per pixel, or in cycles per unit with
     ``pixels_per_unit`` (as :func:`high_frequency_share`). -> (K,) float64: band power / all power
-    (the power outside the edges counts in the total; zeros when there is no power).
+    (the power outside the edges counts in the total; zeros when there is no power). images (B, 3, H, W) sRGB
+    in [0, 1], masks (B, 1, H, W).
     """
+    _check_images("radial_power", images, masks)
     patches, owner = object_patches(_channels(images, space), masks, patch)
     edges = torch.as_tensor(edges, dtype=torch.float64)
     if len(patches) == 0:

@@ -47,6 +47,7 @@ from dataclasses import asdict, dataclass
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
 from mesh2tex.metrics.spectrum import object_patches
 from mesh2tex.metrics.swd import sliced_wasserstein
 
@@ -75,18 +76,16 @@ class StructureScores:
 
 def luminance(images: torch.Tensor) -> torch.Tensor:
     """(N, 3, H, W) RGB in [0, 1] -> (N, 1, H, W) Rec. 601 luma."""
+    check_shape(images, "luminance: images", ("N", 3, "H", "W"), dtype="float")
     weights = torch.tensor([0.299, 0.587, 0.114], dtype=images.dtype, device=images.device)
     return (images * weights[:, None, None]).sum(1, keepdim=True)
 
 
-def _check(images: torch.Tensor, masks: torch.Tensor | None) -> torch.Tensor:
-    if images.dim() != 4 or images.shape[1] != 3:
-        raise ValueError(f"images must be (N, 3, H, W), got {tuple(images.shape)}")
-    if masks is None:
-        return torch.ones_like(images[:, :1])
-    if masks.shape != (images.shape[0], 1, *images.shape[-2:]):
-        raise ValueError(f"masks must be (N, 1, H, W) matching images {tuple(images.shape)}, got {tuple(masks.shape)}")
-    return masks
+def _check(function: str, images: torch.Tensor, masks: torch.Tensor | None) -> torch.Tensor:
+    """``masks`` (ones for None) once images (N, 3, H, W) float and masks (N, 1, H, W) or None are checked."""
+    sizes = check_shape(images, f"{function}: images", ("N", 3, "H", "W"), dtype="float")
+    check_shape(masks, f"{function}: masks", ("N", 1, "H", "W"), sizes=sizes, optional=True)
+    return torch.ones_like(images[:, :1]) if masks is None else masks
 
 
 def orientation_windows(images: torch.Tensor, masks: torch.Tensor | None = None, window: int = 24) -> tuple[torch.Tensor, torch.Tensor]:
@@ -97,7 +96,7 @@ def orientation_windows(images: torch.Tensor, masks: torch.Tensor | None = None,
     complex doubled-angle sums (M,) complex128, for the M windows wholly on the object (eroded by the
     gradient's one-pixel reach) whose mean energy is above the flat threshold.
     """
-    masks = _check(images, masks)
+    masks = _check("orientation_windows", images, masks)
     y = luminance(images.double())
     gx = torch.zeros_like(y)
     gy = torch.zeros_like(y)
@@ -122,7 +121,9 @@ def orientation_windows(images: torch.Tensor, masks: torch.Tensor | None = None,
 
 def orientation_scores(histograms: torch.Tensor, doubled: torch.Tensor) -> tuple[float, float, float]:
     """(mean coherence, mean weaker/stronger perpendicular energy ratio, set's mean direction in radians)
-    of :func:`orientation_windows`'s output; NaNs when there is no window."""
+    of :func:`orientation_windows`'s output (histograms (M, BINS), doubled (M,)); NaNs when there is no window."""
+    sizes = check_shape(histograms, "orientation_scores: histograms", ("M", BINS), dtype="float")
+    check_shape(doubled, "orientation_scores: doubled", ("M",), sizes=sizes)
     if len(histograms) == 0:
         return math.nan, math.nan, math.nan
     total = histograms.sum(1)
@@ -140,7 +141,7 @@ def orientation_scores(histograms: torch.Tensor, doubled: torch.Tensor) -> tuple
 def spectrum_period(images: torch.Tensor, masks: torch.Tensor | None = None, patch: int = 32, max_period: float = 28.0) -> float:
     """The dominant period in pixels of the luminance of the object's ``patch``-px windows (module
     docstring); NaN with no window or no power. images (N, 3, H, W) in [0, 1]; masks (N, 1, H, W) or None."""
-    masks = _check(images, masks)
+    masks = _check("spectrum_period", images, masks)
     patches, _ = object_patches(luminance(images.double()), masks, patch)
     if len(patches) == 0:
         return math.nan
@@ -180,7 +181,8 @@ def patch_swd(images: torch.Tensor, masks: torch.Tensor | None, exemplar: torch.
     masks (N, 1, H, W) or None. ``most``: patches per side and level at most (random); ``turns``:
     the exemplar in its eight orientations (for renders of meshes), else only as it is (for flat
     images that keep the exemplar's orientation)."""
-    masks = _check(images, masks).double()
+    masks = _check("patch_swd", images, masks).double()
+    check_shape(exemplar, "patch_swd: exemplar", (None, 3, None, None), dtype="float")
     generator = torch.Generator().manual_seed(seed)
     images, reference = images.double(), exemplar.double()
     values = []
@@ -210,7 +212,8 @@ def structure_scores(images: torch.Tensor, masks: torch.Tensor | None = None, ex
     images (N, 3, H, W) in [0, 1]; masks (N, 1, H, W) or None (whole images); exemplar (1, 3, h, w)
     in [0, 1] or None (then ``swd`` is NaN), at the renders' pixel scale.
     """
-    masks = _check(images, masks)
+    masks = _check("structure_scores", images, masks)
+    check_shape(exemplar, "structure_scores: exemplar", (None, 3, None, None), dtype="float", optional=True)
     histograms, doubled = orientation_windows(images, masks, window)
     coherence, ratio, direction = orientation_scores(histograms, doubled)
     distance = math.nan

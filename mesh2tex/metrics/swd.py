@@ -19,6 +19,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
+
 _BINOMIAL = torch.tensor([1.0, 4.0, 6.0, 4.0, 1.0]) / 16.0
 
 
@@ -40,6 +42,7 @@ def _blur(images: torch.Tensor) -> torch.Tensor:
 def laplacian_pyramid(images: torch.Tensor, min_size: int = 16) -> list[torch.Tensor]:
     """Laplacian pyramid of images [N, C, H, W]: band-pass levels from full resolution down, then the
     low-pass residual of side >= ``min_size``. Returns a list of [N, C, H / 2^l, W / 2^l]."""
+    check_shape(images, "laplacian_pyramid: images", ("N", "C", "H", "W"), dtype="float")
     levels = []
     current = images
     while min(current.shape[-2:]) // 2 >= min_size:
@@ -66,6 +69,8 @@ def _descriptors(level: torch.Tensor, patches_per_image: int, patch_size: int, g
 
 def sliced_wasserstein(descriptors_a: torch.Tensor, descriptors_b: torch.Tensor, num_projections: int, generator: torch.Generator) -> float:
     """Sliced Wasserstein-1 distance between two point sets [M, D] (equal M): mean over random directions."""
+    sizes = check_shape(descriptors_a, "sliced_wasserstein: descriptors_a", ("M", "D"), dtype="float")
+    check_shape(descriptors_b, "sliced_wasserstein: descriptors_b", ("M", "D"), sizes=sizes, dtype="float")
     directions = torch.randn(descriptors_a.shape[1], num_projections, generator=generator, dtype=descriptors_a.dtype)
     directions = directions / directions.norm(dim=0, keepdim=True)
     projected_a = sorted_rows(directions.T @ descriptors_a.T)
@@ -81,7 +86,14 @@ def sorted_rows(values: torch.Tensor) -> torch.Tensor:
     its time (``benchmarks/bench_swd.py``). Rows along the last, contiguous axis: torch sorts along
     the first several times slower.
     """
+    check_shape(values, "sorted_rows: values", ("P", "M"))
     return torch.from_numpy(np.sort(values.detach().contiguous().numpy(), axis=1))
+
+
+def _check_sets(function: str, images_a: torch.Tensor, images_b: torch.Tensor) -> None:
+    """images_a [N, 3, H, W] and images_b [M, 3, H, W] float, named ``function: images_a`` / ``images_b``."""
+    sizes = check_shape(images_a, f"{function}: images_a", ("N", 3, "H", "W"), dtype="float")
+    check_shape(images_b, f"{function}: images_b", ("M", 3, "H", "W"), sizes=sizes, dtype="float")
 
 
 def swd_per_level(images_a: torch.Tensor, images_b: torch.Tensor, patches_per_image: int = 128, patch_size: int = 7,
@@ -92,8 +104,7 @@ def swd_per_level(images_a: torch.Tensor, images_b: torch.Tensor, patches_per_im
     :func:`to_unit_range`), same H, W (>= 16). Descriptor sets are subsampled to equal size.
     Returns {"swd_<side>px": value for each level (finest first), "swd": average}.
     """
-    if images_a.shape[-2:] != images_b.shape[-2:]:
-        raise ValueError(f"SWD needs images of one size, got {tuple(images_a.shape[-2:])} and {tuple(images_b.shape[-2:])}")
+    _check_sets("swd_per_level", images_a, images_b)
     generator = torch.Generator().manual_seed(seed)
     images_a, images_b = to_unit_range(images_a.detach().cpu(), images_b.detach().cpu())
     result = {}
@@ -120,4 +131,5 @@ def swd(images_a: torch.Tensor, images_b: torch.Tensor, **options) -> float:
     """Sliced Wasserstein distance x 1000 between image sets [N, 3, H, W] in [0, 1] or [-1, 1],
     averaged over Laplacian-pyramid levels (see :func:`swd_per_level` for the options). Lower is closer;
     about 0 (up to sampling noise) for two samples of one distribution."""
+    _check_sets("swd", images_a, images_b)
     return swd_per_level(images_a, images_b, **options)["swd"]

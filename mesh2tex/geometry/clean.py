@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mesh2tex.checks import check_array_shape
 from mesh2tex.errors import InputError
 
 
@@ -68,6 +69,7 @@ def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
     Raises:
         InputError: all vertices coincide (zero-size bounding box), or the coordinates overflow.
     """
+    check_array_shape(vertices, "normalize: vertices", ("V", 3))
     vertices = np.asarray(vertices, dtype=np.float64)
     low, high = vertices.min(axis=0), vertices.max(axis=0)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -94,6 +96,8 @@ ISOTROPIC_MAX_SURFACE_DISTANCE = 1.0  # per cent of the bounding-box diagonal a 
 
 def mesh_set(vertices: np.ndarray, faces: np.ndarray):
     """A pymeshlab MeshSet holding one mesh: (V, 3) vertices (float64) and (T, 3) triangles (int32)."""
+    check_array_shape(vertices, "mesh_set: vertices", ("V", 3))
+    check_array_shape(faces, "mesh_set: faces", ("T", 3))
     import pymeshlab
 
     ms = pymeshlab.MeshSet()
@@ -129,6 +133,8 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, max_hole_edges: int = 30
     Raises:
         InputError: nothing with area is left.
     """
+    check_array_shape(vertices, "clean_mesh: vertices", ("V", 3))
+    check_array_shape(faces, "clean_mesh: faces", ("T", 3))
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     # faces with a repeated index have no area and would confuse pymeshlab's topology filters
@@ -158,6 +164,8 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, max_hole_edges: int = 30
 
 def triangle_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(T,) float64 area of each triangle of (V, 3) ``vertices`` and (T, 3) ``faces``."""
+    check_array_shape(vertices, "triangle_areas: vertices", ("V", 3))
+    check_array_shape(faces, "triangle_areas: faces", ("T", 3))
     v = np.asarray(vertices, dtype=np.float64)[faces]
     return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
 
@@ -167,6 +175,8 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> tupl
 
     Returns (V', 3) float64 and (T', 3) int64; the input when it already has few enough faces.
     """
+    check_array_shape(vertices, "decimate: vertices", ("V", 3))
+    check_array_shape(faces, "decimate: faces", ("T", 3))
     if len(faces) <= target_faces:
         return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
     ms = mesh_set(vertices, faces)
@@ -183,6 +193,8 @@ def isotropic_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float
     export. Inputs above 30 000 triangles are decimated first; sharp creases (above 30 degrees) are
     kept. Returns (V', 3) float64 and (T', 3) int64; the input when pymeshlab refuses it.
     """
+    check_array_shape(vertices, "isotropic_remesh: vertices", ("V", 3))
+    check_array_shape(faces, "isotropic_remesh: faces", ("T", 3))
     import pymeshlab
 
     vertices, faces = decimate(vertices, faces, 30_000)

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mesh2tex.checks import check_array_shape
 from mesh2tex.geometry.hierarchy import orient_coherently
 
 FEATURE_NAMES = ["normal_x", "normal_y", "normal_z", "fff_stretch", "fff_shear", "sff_sum", "sff_diff", "sff_twist",
@@ -54,12 +55,16 @@ def _normalize_rows(x: np.ndarray) -> np.ndarray:
 
 def quad_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """(F, 3) float64 unit normal of each quad: the cross product of its diagonals (v2-v0) x (v3-v1)."""
+    check_array_shape(vertices, "quad_normals: vertices", ("V", 3))
+    check_array_shape(quads, "quad_normals: quads", ("F", 4))
     v = np.asarray(vertices, dtype=np.float64)[np.asarray(quads)]
     return _normalize_rows(np.cross(v[:, 2] - v[:, 0], v[:, 3] - v[:, 1]))
 
 
 def vertex_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """(V, 3) float64 unit vertex normals: the area-weighted sum of the quads around each vertex."""
+    check_array_shape(vertices, "vertex_normals: vertices", ("V", 3))
+    check_array_shape(quads, "vertex_normals: quads", ("F", 4))
     v = np.asarray(vertices, dtype=np.float64)
     q = np.asarray(quads, dtype=np.int64)
     weighted = np.cross(v[q[:, 2]] - v[q[:, 0]], v[q[:, 3]] - v[q[:, 1]]) / 2.0  # normal x area
@@ -78,6 +83,8 @@ def fundamental_forms(vertices: np.ndarray, quads: np.ndarray) -> dict[str, np.n
         dict of (F,) float64 arrays: E, F, G, L, M, N, H (mean curvature), K (Gaussian curvature);
         H and K are 0 on degenerate quads.
     """
+    check_array_shape(vertices, "fundamental_forms: vertices", ("V", 3))
+    check_array_shape(quads, "fundamental_forms: quads", ("F", 4))
     v = np.asarray(vertices, dtype=np.float64)
     q = np.asarray(quads, dtype=np.int64)
     p0, p1, p2, p3 = (v[q[:, i]] for i in range(4))
@@ -106,6 +113,8 @@ def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, 
     Returns:
         (F, 10) float32 features, all finite, and their names (:data:`FEATURE_NAMES`).
     """
+    check_array_shape(vertices, "face_features: vertices", ("V", 3))
+    check_array_shape(quads, "face_features: quads", ("F", 4))
     quads = orient_coherently(vertices, quads)
     forms = fundamental_forms(vertices, quads)
     size_sq = np.maximum((forms["E"] + forms["G"]) / 2.0, 1e-30)
@@ -126,4 +135,5 @@ def noc_coordinates(vertices: np.ndarray) -> np.ndarray:
     The normalised frame has its bounding-box centre at 0 and diagonal 1, so every coordinate
     lies in [-0.5, 0.5]; the same map for every shape keeps NOC comparable across a category.
     """
+    check_array_shape(vertices, "noc_coordinates: vertices", ("V", 3))
     return np.clip(np.asarray(vertices, dtype=np.float64) + 0.5, 0.0, 1.0).astype(np.float32)

@@ -17,9 +17,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mesh2tex.checks import check_array_shape
+
 
 def edge_neighbors(quads: np.ndarray) -> np.ndarray:
     """(F, 4) int64: the face across edge ``(v_i, v_{i+1})`` of each quad, -1 on boundary or non-manifold edges."""
+    check_array_shape(quads, "edge_neighbors: quads", ("F", 4))
     quads = np.asarray(quads, dtype=np.int64)
     f = len(quads)
     edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
@@ -47,6 +50,8 @@ def face_neighborhoods(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     Returns:
         (F, 9) int64: column 0 the face itself, columns 1..8 its ring, -1 where missing.
     """
+    check_array_shape(vertices, "face_neighborhoods: vertices", ("V", 3))
+    check_array_shape(quads, "face_neighborhoods: quads", ("F", 4))
     vertices = np.asarray(vertices, dtype=np.float64)
     quads = np.asarray(quads, dtype=np.int64)
     f = len(quads)
@@ -88,6 +93,8 @@ def face_neighborhoods(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
 
 def face_centres(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """(F, 3) float64 mean of each quad's four vertices."""
+    check_array_shape(vertices, "face_centres: vertices", ("V", 3))
+    check_array_shape(quads, "face_centres: quads", ("F", 4))
     return np.asarray(vertices, dtype=np.float64)[np.asarray(quads)].mean(axis=1)
 
 
@@ -106,6 +113,10 @@ def pooling_map(fine_vertices: np.ndarray, fine_quads: np.ndarray, coarse_vertic
     Raises:
         ValueError: the coarse level has more faces than the fine one.
     """
+    check_array_shape(fine_vertices, "pooling_map: fine_vertices", ("V_f", 3))
+    check_array_shape(fine_quads, "pooling_map: fine_quads", ("F_f", 4))
+    check_array_shape(coarse_vertices, "pooling_map: coarse_vertices", ("V_c", 3))
+    check_array_shape(coarse_quads, "pooling_map: coarse_quads", ("F_c", 4))
     fine_centres = face_centres(fine_vertices, fine_quads)
     coarse_centres = face_centres(coarse_vertices, coarse_quads)
     n_fine, n_coarse = len(fine_centres), len(coarse_centres)
@@ -149,6 +160,8 @@ def orient_coherently(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     Returns:
         (F, 4) int64: every row the input row or its reverse.
     """
+    check_array_shape(vertices, "orient_coherently: vertices", ("V", 3))
+    check_array_shape(quads, "orient_coherently: quads", ("F", 4))
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, connected_components
 

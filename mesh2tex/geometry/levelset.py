@@ -24,6 +24,8 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from mesh2tex.checks import check_array_shape
+
 # above this many grid nodes the exact distances are only computed in a band around the surface
 _FULL_QUERY_NODES = 1_500_000
 
@@ -71,6 +73,8 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, spacing: float) -> 
     Returns:
         (P, 3) float64, duplicates at shared edges not removed.
     """
+    check_array_shape(vertices, "surface_samples: vertices", ("V", 3))
+    check_array_shape(faces, "surface_samples: faces", ("T", 3))
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     corners = v[f]  # (T, 3, 3)
@@ -111,6 +115,7 @@ def solid_field(samples: np.ndarray, spacing: float, offset: float, tree: cKDTre
     Returns:
         a :class:`SolidField` with ``phi = d - offset`` outside and ``-|d - offset|`` in the solid.
     """
+    check_array_shape(samples, "solid_field: samples", ("P", 3))
     samples = np.asarray(samples, dtype=np.float64)
     tree = cKDTree(samples) if tree is None else tree
     pad = offset + 3.0 * spacing
@@ -169,6 +174,7 @@ def make_well_composed(inside: np.ndarray, max_rounds: int = 64) -> np.ndarray:
     Returns:
         (nx, ny, nz) bool, a superset of ``inside``.
     """
+    check_array_shape(inside, "make_well_composed: inside", ("X", "Y", "Z"))
     x = np.asarray(inside, dtype=bool).copy()
     corners = [(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)]
     for _ in range(max_rounds):

@@ -7,6 +7,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mesh2tex.checks import check_array_shape
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.clean import clean_mesh, decimate, normalize
 from mesh2tex.geometry.features import face_features, noc_coordinates
@@ -62,6 +63,8 @@ def prepare_shape(vertices: np.ndarray, faces: np.ndarray, face_count: int = 614
     Raises:
         InputError: the mesh is unusable (no area, no quad mesh possible), or its budget was spent, with the reason.
     """
+    check_array_shape(vertices, "prepare_shape: vertices", ("V", 3))
+    check_array_shape(faces, "prepare_shape: faces", ("T", 3))
     start = time.perf_counter()
     budget = Budget(seconds=max_seconds, memory_gb=max_memory_gb)
     targets = level_face_counts(face_count, levels)
@@ -136,6 +139,10 @@ def surface_deviation(vertices: np.ndarray, triangles: np.ndarray, quad_vertices
     the quad mesh's triangles every 0.004; distances are point to nearest sample, so they read at most
     about 0.003 high. vertices: (V, 3), triangles: (T, 3) the input; quad_vertices: (V', 3), quads: (F, 4).
     """
+    check_array_shape(vertices, "surface_deviation: vertices", ("V", 3))
+    check_array_shape(triangles, "surface_deviation: triangles", ("T", 3))
+    check_array_shape(quad_vertices, "surface_deviation: quad_vertices", ("V'", 3))
+    check_array_shape(quads, "surface_deviation: quads", ("F", 4))
     diagonal = float(np.linalg.norm(np.ptp(np.asarray(vertices, dtype=np.float64), axis=0))) or 1.0
     probes = surface_samples(vertices, triangles, 0.01 * diagonal)
     if len(probes) > max_points:
@@ -155,6 +162,10 @@ def coarseness_check(vertices: np.ndarray, triangles: np.ndarray, quad_vertices:
     in proportion to the quad edge (halving per factor 4; measured on the synthetic chairs, it falls
     faster than that once the lost parts come back), is within the limit; None when not too coarse.
     """
+    check_array_shape(vertices, "coarseness_check: vertices", ("V", 3))
+    check_array_shape(triangles, "coarseness_check: triangles", ("T", 3))
+    check_array_shape(quad_vertices, "coarseness_check: quad_vertices", ("V'", 3))
+    check_array_shape(quads, "coarseness_check: quads", ("F", 4))
     deviation = surface_deviation(vertices, triangles, quad_vertices, quads)
     too_coarse = deviation > DEVIATION_LIMIT
     suggested = None

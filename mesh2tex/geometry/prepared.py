@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from mesh2tex.checks import check_array_shape
 from mesh2tex.errors import InputError
 from mesh2tex.io.atomic import atomic_path
 
@@ -45,6 +46,7 @@ def quads_to_triangles(quads):
     A torch tensor stays a tensor on its device (this module does not import torch, so it checks by
     duck type); anything else becomes an int64 numpy array.
     """
+    check_array_shape(quads, "quads_to_triangles: quads", ("F", 4))
     if not hasattr(quads, "device"):
         quads = np.asarray(quads, dtype=np.int64)
     return quads[:, [0, 1, 2, 0, 2, 3]].reshape(-1, 3)

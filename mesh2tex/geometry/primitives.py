@@ -11,6 +11,8 @@ import numpy as np
 # Each cube face: (normal axis, sign); its grid spans the other two axes so that (u, v, normal) is right-handed.
 _CUBE_FACES = ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0))
 
+from mesh2tex.checks import check_array_shape
+
 
 def cube_sphere(subdivisions: int, radius: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """A quad sphere: each face of a cube split into ``subdivisions`` x ``subdivisions`` quads.
@@ -55,6 +57,8 @@ def subdivide_quads(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray
     original vertices first and each shared edge's midpoint created once, so the result is welded
     wherever the input was.
     """
+    check_array_shape(vertices, "subdivide_quads: vertices", ("V", 3))
+    check_array_shape(quads, "subdivide_quads: quads", ("F", 4))
     vertices = np.asarray(vertices, dtype=np.float64)
     quads = np.asarray(quads, dtype=np.int64)
     v, f = vertices.shape[0], quads.shape[0]
@@ -119,6 +123,8 @@ def unit_surface(vertices: np.ndarray, faces: np.ndarray, subdivide: int = 0, na
     """A mesh of :func:`read_surface` with every face split into four ``subdivide`` times, then normalised
     to the unit ball: vertices (V', 3) float32, faces int64 (the inputs are not changed). InputError
     naming ``name`` for a mesh without extent."""
+    check_array_shape(vertices, "unit_surface: vertices", ("V", 3))
+    check_array_shape(faces, "unit_surface: faces", ("F", 4), ("F", 3))
     for _ in range(int(subdivide)):
         if faces.shape[1] == 4:
             vertices, faces = subdivide_quads(vertices, faces)
@@ -145,6 +151,7 @@ def _centre_radius(vertices: np.ndarray, name: str) -> tuple[np.ndarray, float]:
 def unit_transform(vertices: np.ndarray, name: str = "mesh"):
     """The :class:`~mesh2tex.geometry.clean.Normalization` of :func:`unit_surface` (up to rounding): the
     bounding box's centre to the origin, the farthest vertex to radius 1 (splitting faces moves neither)."""
+    check_array_shape(vertices, "unit_transform: vertices", ("V", 3))
     from mesh2tex.geometry.clean import Normalization
 
     centre, radius = _centre_radius(np.asarray(vertices, dtype=np.float64), name)
@@ -153,6 +160,8 @@ def unit_transform(vertices: np.ndarray, name: str = "mesh"):
 
 def mean_edge_length(vertices: np.ndarray, faces: np.ndarray) -> float:
     """Mean length of the face edges (each shared edge counted once per face)."""
+    check_array_shape(vertices, "mean_edge_length: vertices", ("V", 3))
+    check_array_shape(faces, "mean_edge_length: faces", ("F", 4), ("F", 3))
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces)
     return float(np.linalg.norm(v[f] - v[np.roll(f, -1, axis=1)], axis=-1).mean())

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mesh2tex.checks import check_array_shape
 from mesh2tex.errors import InputError
 
 
@@ -63,6 +64,7 @@ def expression_weights(expression: str, positions: np.ndarray) -> np.ndarray:
     """(V,) float32 in [0, 1]: ``expression`` evaluated at positions (V, 3), clipped. InputError (one
     line quoting at most 80 characters of it) for one that cannot be parsed or evaluated, or whose
     value overflows or is undefined at some vertex."""
+    check_array_shape(positions, "expression_weights: positions", ("V", 3))
     positions = np.asarray(positions, dtype=np.float64)
     names = {"x": positions[:, 0], "y": positions[:, 1], "z": positions[:, 2]}
     shown = repr(expression if len(expression) <= 80 else expression[:77] + "...")
@@ -84,6 +86,7 @@ def expression_weights(expression: str, positions: np.ndarray) -> np.ndarray:
 
 def region_weights(spec: str, positions: np.ndarray) -> np.ndarray:
     """(V,) weights from a file (.npy or text, one value per vertex) when ``spec`` names one, else from an expression."""
+    check_array_shape(positions, "region_weights: positions", ("V", 3))
     path = Path(spec)
     if path.suffix in (".npy", ".txt", ".csv") or path.is_file():
         if not path.is_file():

@@ -31,7 +31,7 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square
 from mesh2tex.transfer.config import TransferConfig
 from mesh2tex.transfer.optimise import PhotoLoss
-from mesh2tex.transfer.photo import FramedView, Photo
+from mesh2tex.transfer.photo import FramedView, Photo, check_query
 
 
 @dataclass
@@ -67,8 +67,10 @@ def fit_automaton(shape: PreparedShape, photo: Photo, view: FramedView, photo_no
 
     ``photo_noc`` (R,R,3) is needed when ``cfg.use_noc`` and ``cfg.use_patches``; the patch loss
     replaces the global one when ``cfg.use_patches`` (the transfer's stage 2), and ``cfg.seed``
-    seeds the growth and the patch pairs.
+    seeds the growth and the patch pairs. photo: image (1, 3, R, R), mask (1, 1, R, R); view: noc (R, R, 3),
+    mask (1, 1, R, R).
     """
+    check_query(photo, view, photo_noc, "fit_automaton")
     start = time.perf_counter()
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     graph = build_cell_graph(shape.vertices[0], shape.quads[0], fit.nca.neighbourhood).to(device)

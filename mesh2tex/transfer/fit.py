@@ -8,6 +8,7 @@ from dataclasses import asdict, dataclass
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape
 from mesh2tex.metrics.appearance import lowpass_psnr
 
 # Below these the result is reported as a poor fit (one warning line; the files are still written).
@@ -50,9 +51,10 @@ def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch
 
     photo_image, render: (1,3,R,R) in [-1,1]; photo_mask, render_mask: (1,1,R,R) {0,1}, the same crop.
     """
-    if photo_image.shape != render.shape or photo_mask.shape != render_mask.shape:
-        raise ValueError(f"photo {tuple(photo_image.shape)} / {tuple(photo_mask.shape)} and render {tuple(render.shape)} / "
-                         f"{tuple(render_mask.shape)} must be the same crop")
+    sizes = check_shape(photo_image, "check_fit: photo_image", (1, 3, "R", "R"), dtype="float")
+    check_shape(photo_mask, "check_fit: photo_mask", (1, 1, "R", "R"), sizes=sizes)
+    check_shape(render, "check_fit: render", (1, 3, "R", "R"), sizes=sizes, dtype="float")
+    check_shape(render_mask, "check_fit: render_mask", (1, 1, "R", "R"), sizes=sizes)
     photo_in = photo_mask.float().cpu() > 0.5
     render_in = render_mask.float().cpu() > 0.5
     union = float((photo_in | render_in).sum())
@@ -81,6 +83,8 @@ def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch
 def outline_agreement(a: torch.Tensor, b: torch.Tensor, tolerance: int) -> float:
     """F-score of two masks (1,1,R,R) bool, each pixel counted as matched when the other mask lies within
     ``tolerance`` pixels (a square neighbourhood): 1 for outlines that agree up to the tolerance."""
+    sizes = check_shape(a, "outline_agreement: a", (1, 1, "R", "R"), dtype="bool")
+    check_shape(b, "outline_agreement: b", (1, 1, "R", "R"), sizes=sizes, dtype="bool")
     size = 2 * tolerance + 1
 
     def grown(mask: torch.Tensor) -> torch.Tensor:

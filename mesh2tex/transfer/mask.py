@@ -9,6 +9,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_array_shape
 from mesh2tex.photos import grabcut_scale, largest_region
 
 SURE = 0.9  # network probabilities above this (below 1 - this) are fixed as object (background) for GrabCut
@@ -21,6 +22,7 @@ def network_probability(checkpoint: str | Path, rgb: np.ndarray, device: torch.d
     rgb: (H, W, 3) uint8. The photo is padded to a square (edge pixels repeated), resized to the
     network's training side, and the prediction is resized back and unpadded.
     """
+    check_array_shape(rgb, "network_probability: rgb", ("H", "W", 3))
     from mesh2tex.models import load_view_network
 
     net, cfg = load_view_network(checkpoint, "mask", device)
@@ -38,7 +40,9 @@ def network_probability(checkpoint: str | Path, rgb: np.ndarray, device: torch.d
 def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: int = 3) -> np.ndarray:
     """(H, W) bool: GrabCut started from the network's probability (sure object above :data:`SURE`,
     sure background below 1 - SURE, probable either way in between), then the largest connected
-    region. Falls back to the thresholded probability when GrabCut finds no object."""
+    region. Falls back to the thresholded probability when GrabCut finds no object. rgb (H, W, 3) uint8."""
+    sizes = check_array_shape(rgb, "refine_with_grabcut: rgb", ("H", "W", 3))
+    check_array_shape(probability, "refine_with_grabcut: probability", ("H", "W"), sizes=sizes)
     import cv2
 
     h, w = probability.shape

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import torch
 
+from mesh2tex.checks import check_shape
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.losses.style import global_style_loss, lowpass_colour_loss, patch_style_loss, sample_patch_pairs, style_grams
@@ -19,7 +20,7 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction
 from mesh2tex.texture import mean_latent
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.photo import FramedView, Photo, view_at_pose
+from mesh2tex.transfer.photo import FramedView, Photo, check_query, check_view, view_at_pose
 
 
 class PhotoLight(torch.nn.Module):
@@ -64,10 +65,12 @@ class PhotoLoss:
     :func:`mesh2tex.transfer.automaton.fit_automaton`.
 
     Calling it with an image (1, 3, R, R) in [-1, 1] returns (total loss, {part: float}); the patch
-    pairs are drawn from ``pick`` (default: its own generator, seeded with ``cfg.seed``).
+    pairs are drawn from ``pick`` (default: its own generator, seeded with ``cfg.seed``). photo: image (1, 3, R, R),
+    mask (1, 1, R, R); view: noc (R, R, 3), mask (1, 1, R, R); photo_noc (R, R, 3) or None.
     """
 
     def __init__(self, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig, device: torch.device):
+        self.sizes = check_query(photo, view, photo_noc, "PhotoLoss")
         self.guided = cfg.use_noc and cfg.use_patches
         if self.guided and photo_noc is None:
             raise InputError("NOC-guided patches need the photo's NOC: give --noc-checkpoint, or --no-noc")
@@ -82,6 +85,7 @@ class PhotoLoss:
         self.colour_sigma = cfg.colour_sigma * cfg.resolution
 
     def __call__(self, image: torch.Tensor, use_global: bool, pick: torch.Generator | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+        check_shape(image, "PhotoLoss: image", (1, 3, "R", "R"), sizes=dict(self.sizes), dtype="float")
         cfg, vgg = self.cfg, self.vgg
         parts: dict[str, torch.Tensor] = {}
         if use_global:
@@ -119,18 +123,18 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
 
     ``generator`` is modified in place by stage 2 (its last ``refine_blocks`` synthesis blocks):
     pass a copy if the original is needed again. ``photo_noc`` (R,R,3) is needed when
-    ``cfg.use_noc`` and ``cfg.use_patches``. ``generator_lit``: the generator was trained under the
-    light prior (:func:`mesh2tex.models.TrainedGenerator`), which ``cfg.light`` 'auto' follows.
-    With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose.
+    ``cfg.use_noc`` and ``cfg.use_patches``; photo: image (1,3,R,R), mask (1,1,R,R); view: noc (R,R,3), mask
+    (1,1,R,R). ``generator_lit``: trained under the light prior (:func:`mesh2tex.models.TrainedGenerator`), which
+    ``cfg.light`` 'auto' follows. With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose.
     """
+    check_query(photo, view, photo_noc, "transfer_texture")
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     batch = collate_shapes([shape]).to(device)
     generator = generator.to(device).requires_grad_(False)
     encoded = [e.detach() for e in generator.encoder(batch)]
     samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
-    grey = torch.zeros(1, 3, device=device)
+    grey, colour_sigma = torch.zeros(1, 3, device=device), loss_of.colour_sigma
     light = PhotoLight(view.azimuth).to(device) if learns_light(cfg, generator_lit) else None
-    colour_sigma = loss_of.colour_sigma
 
     def render(ws: torch.Tensor) -> torch.Tensor:
         full = render_field_views(generator, batch, ws, view.mvp.to(device), (view.render_size,) * 2, grey,
@@ -220,6 +224,7 @@ def unseen_anchors(shape: PreparedShape, view: FramedView, batch, samples, cfg: 
     the low-pass colour loss against these renders (``cfg.w_anchor``) keeps them on the generator's
     prior that stage 1 chose, while the photo's side is refined.
     """
+    check_view(view, "unseen_anchors")
     if view.distance <= 0:
         raise ValueError("unseen_anchors: the view records no camera distance (build it with view_at_pose)")
     seen = torch.zeros(batch.triangles().shape[0], dtype=torch.bool, device=device)

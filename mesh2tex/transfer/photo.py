@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from mesh2tex.checks import check_shape, check_type
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.images import load_image, load_mask
@@ -44,6 +45,29 @@ class FramedView:
     elevation: float = 0.0
     distance: float = 0.0  # of the orbit camera (0: not recorded)
     fov: float = 0.0
+
+
+def check_photo(photo: Photo, function: str, sizes: dict | None = None) -> dict:
+    """Raise unless ``photo`` is a :class:`Photo` of image (1, 3, R, R) float and mask (1, 1, R, R); the
+    message names ``function``. Returns the sizes (R), for the checks of the call's other arguments."""
+    check_type(photo, f"{function}: photo", Photo)
+    sizes = check_shape(photo.image, f"{function}: photo.image", (1, 3, "R", "R"), sizes=sizes, dtype="float")
+    return check_shape(photo.mask, f"{function}: photo.mask", (1, 1, "R", "R"), sizes=sizes)
+
+
+def check_view(view: FramedView, function: str, sizes: dict | None = None) -> dict:
+    """Raise unless ``view`` is a :class:`FramedView` of mvp (1, 4, 4), noc (R, R, 3) and mask (1, 1, R, R)
+    float; the message names ``function``. Returns the sizes (R)."""
+    check_type(view, f"{function}: view", FramedView)
+    check_shape(view.mvp, f"{function}: view.mvp", (1, 4, 4), dtype="float")
+    sizes = check_shape(view.noc, f"{function}: view.noc", ("R", "R", 3), sizes=sizes, dtype="float")
+    return check_shape(view.mask, f"{function}: view.mask", (1, 1, "R", "R"), sizes=sizes)
+
+
+def check_query(photo: Photo, view: FramedView, photo_noc: torch.Tensor | None, function: str) -> dict:
+    """:func:`check_photo` and :func:`check_view` of one side R, and photo_noc (R, R, 3) float or None."""
+    sizes = check_view(view, function, check_photo(photo, function))
+    return check_shape(photo_noc, f"{function}: photo_noc", ("R", "R", 3), sizes=sizes, dtype="float", optional=True)
 
 
 MIN_PHOTO_SIDE = 16  # the smallest query photo: fewer pixels hold no texture to transfer

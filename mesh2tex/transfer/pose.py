@@ -9,17 +9,20 @@ from pathlib import Path
 import torch
 import torch.nn.functional as F
 
+from mesh2tex.checks import check_shape, check_type
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.models import load_view_network
 from mesh2tex.nn.pose import PoseBins
 from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.photo import Photo
+from mesh2tex.transfer.photo import Photo, check_photo
 
 
 @torch.no_grad()
 def predict_pose(checkpoint: str | Path, photo: Photo, device: torch.device) -> tuple[float, float]:
-    """Azimuth and elevation (degrees, bin centres) of the photo by the pose network."""
+    """Azimuth and elevation (degrees, bin centres) of the photo (image (1, 3, R, R), mask (1, 1, R, R)) by the
+    pose network."""
+    check_photo(photo, "predict_pose")
     return pose_network_beliefs(checkpoint, photo, device).most_likely()
 
 
@@ -39,7 +42,8 @@ class PoseBeliefs:
 
 @torch.no_grad()
 def pose_network_beliefs(checkpoint: str | Path, photo: Photo, device: torch.device) -> PoseBeliefs:
-    """The pose network's bin probabilities for the photo."""
+    """The pose network's bin probabilities for the photo (image (1, 3, R, R), mask (1, 1, R, R))."""
+    check_photo(photo, "pose_network_beliefs")
     net, cfg = load_view_network(checkpoint, "pose", device)
     azimuth_logits, elevation_logits = net(_network_input(photo, cfg.data.resolution, device))
     return PoseBeliefs(net.bins, F.softmax(azimuth_logits, 1)[0].float().cpu(), F.softmax(elevation_logits, 1)[0].float().cpu())
@@ -54,6 +58,9 @@ def silhouette_iou(shape: PreparedShape, photo_mask: torch.Tensor, azimuths: tor
     elevations [N] degrees. Each silhouette is rasterized, cropped around itself with the same
     margin (so the camera distance does not matter) and compared at ``size`` x ``size``. Returns [N].
     """
+    check_shape(photo_mask, "silhouette_iou: photo_mask", (1, 1, "R", "R"))
+    sizes = check_shape(azimuths, "silhouette_iou: azimuths", ("N",))
+    check_shape(elevations, "silhouette_iou: elevations", ("N",), sizes=sizes)
     target = (F.interpolate(photo_mask.float().cpu(), size=(size, size), mode="area")[0, 0] > 0.5)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
     triangles = torch.as_tensor(shape.triangles(0))
@@ -91,8 +98,12 @@ def search_pose(shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distan
     likely bins); every azimuth ``pose_search_step`` degrees apart is tried with each, then the
     best one's neighbours at half the step in both angles. Silhouettes tell a chair's front from its
     back where the network, trained on few shapes, often does not (docs/style_and_pose.md has figures);
-    on ties the network's more likely bin wins.
+    on ties the network's more likely bin wins. photo: image (1, 3, R, R), mask (1, 1, R, R).
     """
+    check_photo(photo, "search_pose")
+    check_type(beliefs, "search_pose: beliefs", PoseBeliefs)
+    check_shape(beliefs.azimuth, "search_pose: beliefs.azimuth", ("A",), dtype="float")
+    check_shape(beliefs.elevation, "search_pose: beliefs.elevation", ("E",), dtype="float")
     bins, step = beliefs.bins, float(cfg.pose_search_step)
 
     def best_of(azimuths: torch.Tensor, elevations: torch.Tensor) -> tuple[float, float, float]:
@@ -115,7 +126,9 @@ def search_pose(shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distan
 
 def estimate_pose(checkpoint: str | Path, shape: PreparedShape, photo: Photo, distance: float, fov: float,
                   cfg: TransferConfig, device: torch.device) -> PoseEstimate:
-    """``--pose auto``: the pose network's bins, refined by :func:`search_pose` unless ``cfg.pose_search`` is off."""
+    """``--pose auto``: the pose network's bins, refined by :func:`search_pose` unless ``cfg.pose_search`` is off.
+    photo: image (1, 3, R, R), mask (1, 1, R, R)."""
+    check_photo(photo, "estimate_pose")
     beliefs = pose_network_beliefs(checkpoint, photo, device)
     if cfg.pose_search:
         return search_pose(shape, photo, beliefs, distance, fov, cfg)
@@ -135,7 +148,8 @@ def pick_by_outline(photos: list[Photo], estimate) -> tuple[int, PoseEstimate]:
 
 @torch.no_grad()
 def predict_noc(checkpoint: str | Path, photo: Photo, device: torch.device) -> torch.Tensor:
-    """(R,R,3) NOC map of the photo in [0,1], by the NOC network."""
+    """(R,R,3) NOC map of the photo (image (1, 3, R, R), mask (1, 1, R, R)) in [0,1], by the NOC network."""
+    check_photo(photo, "predict_noc")
     net, cfg = load_view_network(checkpoint, "noc", device)
     size = cfg.data.resolution
     image = _network_input(photo, size, device)

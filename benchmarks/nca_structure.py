@@ -2,6 +2,7 @@
 
     OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
         [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
+        [--direct ps sw ...] [--direct-iters 400] [--direct-size 512]
 
 For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over
 the unit square) and each loss, an automaton of the default config is trained from scratch on the
@@ -16,7 +17,11 @@ in pixels (the exemplar's own figures are printed in its header).
 Rows: ``oracle`` (the exemplar's pattern painted per pixel at the exemplar's pixel scale),
 ``vertex oracle`` (the pattern at the vertices, through a linear readout: what the cells can hold),
 ``flat`` (the exemplar's mean colour), ``vertex noise`` (each vertex a random exemplar pixel's
-colour), then one row per loss (``ot`` is today's default). Summary per loss: its SWD over the
+colour), then one row per loss (``ot`` is today's default), then with ``--direct`` one row per loss of
+the direct method (``direct LOSS``: ``infer synthesize``'s texels optimised through renders,
+:mod:`mesh2tex.texel_synthesis`, on a new xatlas atlas of each mesh with its defaults but the loss,
+``--direct-iters`` and ``--direct-size``; run on each mesh, since it needs no training).
+Summary per loss: its SWD over the
 oracle's and over ``ot``'s, on each mesh. One thread; with ``--runs`` the trained models are saved
 there (``<exemplar>_<loss>.safetensors``) and reused when present.
 """
@@ -44,7 +49,9 @@ from mesh2tex.nn.nca import build_cell_graph  # noqa: E402
 from mesh2tex.nn.render_texture import render_states  # noqa: E402
 from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
 from mesh2tex.render import interpolate, rasterize, transform_points  # noqa: E402
+from mesh2tex.render.bake import new_atlas  # noqa: E402
 from mesh2tex.synthetic.exemplars import EXEMPLARS, exemplar_image  # noqa: E402
+from mesh2tex.texel_synthesis import SynthesisConfig, TexelSurface, TexelSynthesis, render_texture  # noqa: E402
 from mesh2tex.train import runs  # noqa: E402
 from train.nca import NCATrainer, TrainNCAConfig  # noqa: E402
 
@@ -90,6 +97,24 @@ def state_views(model, state, graph, mvp) -> tuple[torch.Tensor, torch.Tensor]:
     return ((views.images.double().clamp(-1, 1) + 1) / 2), views.mask.double()
 
 
+def direct_views(exemplar: torch.Tensor, loss: str, graph, mvp: torch.Tensor, vgg, iters: int, size: int,
+                 seed: int) -> tuple[tuple[torch.Tensor, torch.Tensor], float]:
+    """The direct method's texture on ``graph``'s mesh (a new atlas over its triangles), optimised ``iters``
+    steps with the ``loss``, seen by ``mvp``: ((images (N, 3, H, W) in [0, 1], masks), seconds)."""
+    vertex_index, faces, uv = new_atlas(graph.positions.double().numpy(), graph.triangles.numpy())
+    surface = TexelSurface.from_arrays(graph.positions.numpy()[vertex_index], faces, uv)
+    cfg = SynthesisConfig(iters=iters, texture_size=size, loss=loss, exemplar_size=SIZE, resolution=RESOLUTION,
+                          seed=seed)
+    synthesis = TexelSynthesis(cfg, surface, exemplar, None if loss == "ps" else vgg)
+    start = time.perf_counter()
+    for _ in range(iters):
+        synthesis.step()
+    seconds = time.perf_counter() - start
+    with torch.no_grad():
+        images, masks = render_texture(surface, synthesis.texture().permute(2, 0, 1), mvp, RESOLUTION)
+    return ((images.double() + 1) / 2, masks.double()), seconds
+
+
 def fmt(value: float, digits: int = 2) -> str:
     return "-" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
 
@@ -103,6 +128,11 @@ def main() -> int:
     parser.add_argument("--meshes", nargs="*", default=[], help="held-out meshes (prepared .npz or mesh files)")
     parser.add_argument("--runs", help="folder to keep (and reuse) the trained models")
     parser.add_argument("--out", help="write every figure as JSON here")
+    parser.add_argument("--direct", nargs="*", default=[],
+                        help="losses of direct-method rows (infer synthesize), e.g. ps sw")
+    parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")
+    parser.add_argument("--direct-size", type=int, default=SynthesisConfig.texture_size,
+                        help="the direct method's texture side")
     args = parser.parse_args()
     torch.set_num_threads(1)
     unknown = [n for n in args.exemplars if n not in EXEMPLARS]
@@ -139,10 +169,14 @@ def main() -> int:
                 sets[row] = state_views(model, state, graph, mvp)
             for loss, model in models.items():
                 sets[loss] = state_views(model, grow(model, graph, STEPS, seed=args.seed), graph, mvp)
+            for loss in args.direct:
+                sets[f"direct {loss}"], seconds = direct_views(target.float() * 2 - 1, loss, graph, mvp, vgg,
+                                                               args.direct_iters, args.direct_size, args.seed)
+                record["train_seconds"][f"direct {loss} ({mesh})"] = seconds
             for row, (images, masks) in sets.items():
                 record["rows"].setdefault(row, {})[mesh] = structure_scores(images, masks, target).as_dict()
         results["exemplars"][name] = record
-        print_exemplar(name, record, list(graphs), args.losses)
+        print_exemplar(name, record, list(graphs), args.losses + [f"direct {loss}" for loss in args.direct])
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1))
     return 0

@@ -164,7 +164,6 @@ def fidelity(args) -> None:
     from mesh2tex.nn.render_texture import render_field_views
     from mesh2tex.render import orbit_camera, turntable_angles
     from mesh2tex.render.bake import MeshBaker
-    from mesh2tex.nn.render_texture import field_colours
     from mesh2tex.texture import bake_texture, latent, load_shape
 
     model = load_generator("chair", torch.device("cpu"))
@@ -181,10 +180,7 @@ def fidelity(args) -> None:
             texture = generator.synthesize(batch, latent(generator, 0, torch.device("cpu")), noise_mode="none")
             reference = render_field_views(generator, batch, None, mvp, (256, 256), white, texture=texture)
 
-            def colours_at(triangle, bary):
-                return field_colours(generator, texture, batch, triangle, bary)
-
-            baked = MeshBaker(target, batch.shape_vertices(0), batch.shape_triangles(0), args.size).bake(colours_at)
+            baked = MeshBaker(target, batch.shape_vertices(0), batch.shape_triangles(0), args.size).bake(texture)
             user_images, user_mask, user_points = render_baked(target.surface_points(baked.vertices), baked.faces, baked.uv,
                                                                baked.texture, mvp, 256)
             p_vertices, p_faces, p_uv, p_texture, _ = bake_texture(generator, texture, batch, args.size)
@@ -220,7 +216,6 @@ def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
     from mesh2tex.models import load_generator
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.render.bake import MeshBaker, mesh_atlas
-    from mesh2tex.nn.render_texture import field_colours
     from mesh2tex.texture import bake_texture, latent, load_shape, write_baked_mesh
 
     folder = Path(tempfile.mkdtemp(prefix="bake-time-"))
@@ -236,9 +231,6 @@ def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
     with torch.no_grad():
         texture = generator.synthesize(batch, latent(generator, 0, torch.device("cpu")), noise_mode="none")
 
-        def colours_at(triangle, bary):
-            return field_colours(generator, texture, batch, triangle, bary)
-
         tick = time.perf_counter()
         mesh_atlas(target.mesh, "new")
         seconds["atlas (xatlas)"] = time.perf_counter() - tick
@@ -249,7 +241,7 @@ def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
         baker = MeshBaker(target, batch.shape_vertices(0), batch.shape_triangles(0), size)
         seconds["map (atlas, raster, closest points)"] = time.perf_counter() - tick
         tick = time.perf_counter()
-        baked = baker.bake(colours_at)
+        baked = baker.bake(texture)
         seconds["colours"] = time.perf_counter() - tick
         tick = time.perf_counter()
         write_baked_mesh(folder / "out.glb", folder / "out.ply", baked, target.mesh)

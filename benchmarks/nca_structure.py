@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.nca_quality import RESOLUTION, STEPS, Judge, colour_model, grow, views_mvp  # noqa: E402
 from mesh2tex.geometry.primitives import load_surface  # noqa: E402
-from mesh2tex.io.models import load_nca  # noqa: E402
+from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.metrics.structure import structure_scores  # noqa: E402
 from mesh2tex.nn.nca import build_cell_graph  # noqa: E402
 from mesh2tex.nn.render_texture import render_states  # noqa: E402

@@ -24,7 +24,7 @@ from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.nn.batch import collate_shapes  # noqa: E402
 from mesh2tex.nn.generator import FaceTexture  # noqa: E402
-from mesh2tex.nn.render_texture import field_colours, rasterize_batch  # noqa: E402
+from mesh2tex.nn.render_texture import rasterize_batch  # noqa: E402
 from mesh2tex.render import orbit_camera  # noqa: E402
 
 
@@ -52,13 +52,13 @@ def main() -> None:
         colours, faces = [], []
         for k in range(args.latents):
             texture = generator.synthesize(batch, generator.mapping(z[k : k + 1]), encoded=encoded, noise_mode="none")
-            colours.append(field_colours(generator, texture, batch, triangle_id, bary))
+            colours.append(texture.colours(triangle_id, bary))
             faces.append(texture.face_rgb[triangle_id // 2])
             if generator.field_geometry is not None:
                 width = generator.cfg.field_geometry_channels
                 geometry = texture.field_features[:, -width:]
                 flat = torch.cat([texture.field_features[:, :-width], geometry.mean(0, keepdim=True).expand_as(geometry)], dim=1)
-                still = field_colours(generator, FaceTexture(field_features=flat, face_rgb=texture.face_rgb), batch, triangle_id, bary)
+                still = FaceTexture(flat, texture.face_rgb).bound(generator, batch).colours(triangle_id, bary)
                 frozen.append((still - colours[-1]).abs().mean())
         for i in range(args.latents):
             for j in range(i + 1, args.latents):

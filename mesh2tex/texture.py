@@ -21,7 +21,7 @@ from mesh2tex.io.assets import save_glb, save_ply, smooth_vertex_normals
 from mesh2tex.io.images import colours_to_uint8
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
-from mesh2tex.nn.render_texture import field_colours
+from mesh2tex.nn.nca import AutomatonTexture
 from mesh2tex.render.bake import BakedUserMesh, BakeTarget, MeshBaker
 from mesh2tex.render.uv import bake_surface_colours
 
@@ -117,12 +117,8 @@ def bake_texture(generator: TextureGenerator, texture: FaceTexture, batch: MeshB
     Returns (vertices (V', 3) float32, faces (T, 3) int64, uv (V', 2) float32, texture (size, size, 3)
     uint8, coverage (size, size) bool). Faces keep the order of ``batch.triangles()``.
     """
-    device = texture.face_rgb.device
-
-    def colours_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-        return field_colours(generator, texture, batch, triangle_id.to(device), bary.to(device))
-
-    return bake_surface_colours(batch.shape_vertices(0), batch.shape_triangles(0), colours_at, size, dilate)
+    return bake_surface_colours(batch.shape_vertices(0), batch.shape_triangles(0), texture.bound(generator, batch), size, dilate,
+                                device=texture.face_rgb.device)
 
 
 @torch.no_grad()
@@ -132,7 +128,7 @@ def vertex_colours(generator: TextureGenerator, texture: FaceTexture, batch: Mes
     t = triangles.shape[0]
     triangle_id = torch.arange(t, device=triangles.device).repeat_interleave(3) + 2 * batch.face_ranges[0][0]
     bary = torch.eye(3, device=triangles.device).repeat(t, 1)
-    colours = field_colours(generator, texture, batch, triangle_id, bary).float()  # (3T, 3)
+    colours = texture.bound(generator, batch).colours(triangle_id, bary).float()  # (3T, 3)
     v = batch.shape_vertices(0).shape[0]
     index = triangles.reshape(-1)
     summed = torch.zeros(v, 3, device=colours.device).index_add_(0, index, colours)
@@ -181,12 +177,8 @@ class TexturedMeshWriter:
             save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
                      vertex_colours(generator, texture, batch))
             return {"mesh": "prepared", "vertices": int(len(verts)), "triangles": int(len(faces)), "uv": "new"}
-        device = texture.face_rgb.device
-
-        def colours_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-            return field_colours(generator, texture, batch, triangle_id.to(device), bary.to(device))
-
-        return write_baked_mesh(glb_path, ply_path, self.baker.bake(colours_at, device), self.target.mesh, self.texture_format)
+        baked = self.baker.bake(texture.bound(generator, batch), texture.face_rgb.device)
+        return write_baked_mesh(glb_path, ply_path, baked, self.target.mesh, self.texture_format)
 
 
 @torch.no_grad()
@@ -207,15 +199,11 @@ def write_automaton_mesh(glb_path: str | Path, ply_path: str | Path, model, stat
     :class:`~mesh2tex.nn.nca.CellGraph`; graft: (other automaton, alpha (V,)) as in ``MeshNCA.colours``.
     Returns what a report says of the mesh written.
     """
-    device = state.device
-
-    def colours_at(triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-        return model.colours(state, graph.triangles, triangle_id.to(device), bary.to(device), graft=graft)
-
+    grown = AutomatonTexture(model, state, graph.triangles, graft)
     if target is not None:
-        baked = MeshBaker(target, graph.positions.cpu(), graph.triangles.cpu(), texture_size).bake(colours_at, device)
+        baked = MeshBaker(target, graph.positions.cpu(), graph.triangles.cpu(), texture_size).bake(grown, state.device)
         return write_baked_mesh(glb_path, ply_path, baked, target.mesh, texture_format)
-    verts, tris, uv, image, _ = bake_surface_colours(graph.positions, graph.triangles, colours_at, texture_size)
+    verts, tris, uv, image, _ = bake_surface_colours(graph.positions, graph.triangles, grown, texture_size, device=state.device)
     save_glb(glb_path, verts.numpy(), tris.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), tris.numpy()),
              texture_format=texture_format)
     save_ply(ply_path, graph.positions.cpu().numpy(), graph.triangles.cpu().numpy(), colours_to_uint8(model.vertex_colours(state, graft=graft)[0]))

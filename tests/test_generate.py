@@ -12,7 +12,6 @@ from mesh2tex.cli import main
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.models import load_generator
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.nn.render_texture import field_colours
 from mesh2tex.texture import latent
 
 @pytest.fixture(scope="module")
@@ -83,7 +82,7 @@ def test_baked_texture_matches_the_field(trained, tmp_path):
     with torch.no_grad():
         tex = generator.synthesize(batch, latent(generator, 3, torch.device("cpu")), noise_mode="none")
         t = batch.triangles().shape[0]
-        psi = field_colours(generator, tex, batch, torch.arange(t), torch.full((t, 3), 1 / 3))
+        psi = tex.colours(torch.arange(t), torch.full((t, 3), 1 / 3))
     expected = ((psi.clamp(-1, 1) + 1) * 127.5).numpy()
     assert len(faces) == t
     # The GLB keeps the triangles in order; texels near centroids agree up to texel discretisation.

@@ -86,7 +86,7 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     from mesh2tex.evaluation.surfaces import flat_surface
     from mesh2tex.geometry.prepared import PreparedShape
     from mesh2tex.models import load_generator
-    from mesh2tex.nn import render_texture
+    from mesh2tex.nn.generator import FaceTexture
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.render import composite_images
 
@@ -94,7 +94,7 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     name = world.held_out[0]
     shape = PreparedShape.load(world_and_gan / "shapes" / f"{name}.npz")
     generator = load_generator(world_and_gan / "gan" / "checkpoint.safetensors", torch.device("cpu")).network
-    monkeypatch.setattr(render_texture, "field_colours", lambda generator, texture, batch, triangle_id, bary, **_: torch.full((len(triangle_id), 3), 0.2))
+    monkeypatch.setattr(FaceTexture, "colours", lambda texture, triangle_id, bary: torch.full((len(triangle_id), 3), 0.2))
     views = sample_views(world.spec, world.indices[name], 2)
     z = torch.randn(2, generator.cfg.z_dim)
     images, masks = generation.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True,

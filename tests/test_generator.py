@@ -224,8 +224,6 @@ def test_discriminator_judges_fakes_apart_from_reals():
 def test_psi_colours_start_from_the_blended_proxy_colours():
     """With field_residual (the default), psi adds to the blend of the per-face (proxy) colours: a
     latent swap moves psi's colours about as much as the proxy's, which the proxy discriminator trains."""
-    from mesh2tex.nn.render_texture import field_colours
-
     torch.manual_seed(0)
     gen, batch = tiny_generator(), tiny_batch()
     triangle_id = torch.arange(0, 384, 7)
@@ -234,7 +232,7 @@ def test_psi_colours_start_from_the_blended_proxy_colours():
         torch.nn.init.zeros_(gen.field.head[-1].weight)
         torch.nn.init.zeros_(gen.field.head[-1].bias)  # psi's own output zero: what is left is the base
         texture, _ = gen(batch, torch.randn(2, 16), noise_mode="none")
-        base = field_colours(gen, texture, batch, triangle_id, bary)
+        base = texture.colours(triangle_id, bary)
         corner = batch.triangles()[triangle_id]
         # the base at a triangle's centre is the mean of its three vertices' mean face colours
         from mesh2tex.nn.field import vertex_features

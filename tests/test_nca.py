@@ -8,7 +8,7 @@ from mesh2tex.errors import InputError
 from mesh2tex.geometry.primitives import (cube_sphere, density_subdivisions, load_surface, mean_edge_length, read_surface,
                                           subdivide_quads, unit_surface)
 from mesh2tex.geometry.regions import region_weights
-from mesh2tex.nn.nca import MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
+from mesh2tex.nn.nca import AutomatonTexture, MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.uv import bake_surface_colours
@@ -267,15 +267,13 @@ def test_baked_texels_equal_the_readout(readout):
     model = MeshNCA(NCAConfig(channels=6, hidden=8, readout=readout))
     state = torch.rand(1, graph.num_cells, 6) * 1.6 - 0.8
 
-    def colours_at(triangle_id, bary):
-        return model.colours(state, graph.triangles, triangle_id, bary)
-
+    grown = AutomatonTexture(model, state, graph.triangles)
     with torch.no_grad():
-        _, faces, uv, texture, covered = bake_surface_colours(graph.positions, graph.triangles, colours_at, 64, dilate=0)
+        _, faces, uv, texture, covered = bake_surface_colours(graph.positions, graph.triangles, grown, 64, dilate=0)
         from mesh2tex.render import uv_rasterize
 
         raster = uv_rasterize(uv, faces, (64, 64))
-        expected = colours_at(raster.face_id[0][covered], raster.bary[0][covered]).clamp(-1, 1)
+        expected = model.colours(state, graph.triangles, raster.face_id[0][covered], raster.bary[0][covered]).clamp(-1, 1)
     baked = torch.from_numpy(texture)[covered].float() / 127.5 - 1
     assert covered.float().mean() > 0.3
     assert (baked - expected).abs().max() <= 1.0 / 255 + 1e-6

@@ -411,3 +411,21 @@ def test_unwrap_uv_keeps_geometry():
     # Every triangle gets its own non-degenerate patch of the atlas.
     raster = uv_rasterize(uv, new_f, (64, 64))
     assert set(raster.face_id.unique().tolist()) - {-1} == set(range(len(tri)))
+
+
+def test_a_uv_texture_reads_its_image_where_the_surface_points_map():
+    """UVTexture (a SurfaceTexture): the colour at a point is the image at the point's interpolated UV,
+    texel centres exactly, in the networks' [-1, 1]; a texture not bound to a batch refuses to colour."""
+    from mesh2tex.nn.generator import FaceTexture
+    from mesh2tex.render.surface_texture import UVTexture
+
+    image = torch.rand(1, 3, 4, 4) * 2 - 1
+    # one triangle whose corners sit at the centres of texels (col 0, row 3), (col 3, row 3), (col 0, row 0)
+    centre = lambda col, row: [(col + 0.5) / 4, 1 - (row + 0.5) / 4]  # noqa: E731
+    uv = torch.tensor([[centre(0, 3), centre(3, 3), centre(0, 0)]])
+    bary = torch.eye(3)
+    colours = UVTexture(uv, image).colours(torch.zeros(3, dtype=torch.long), bary)
+    expected = torch.stack([image[0, :, 3, 0], image[0, :, 3, 3], image[0, :, 0, 0]])
+    torch.testing.assert_close(colours, expected)
+    with pytest.raises(ValueError, match="not bound"):
+        FaceTexture(torch.zeros(2, 4), torch.zeros(2, 3)).colours(torch.zeros(1, dtype=torch.long), torch.ones(1, 3) / 3)

@@ -21,7 +21,7 @@ from mesh2tex.nn.generator import GeneratorConfig, MappingNetwork, TextureGenera
 from mesh2tex.nn.nca import ConditionedNCA, MeshNCA, NCAConfig, build_cell_graph
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseNet
-from mesh2tex.nn.render_texture import field_colours, rasterize_batch, render_field_views, render_states
+from mesh2tex.nn.render_texture import rasterize_batch, render_field_views, render_states
 from mesh2tex.render.uv import bake_surface_colours
 from test_faceconv import cube_shape
 from test_nca import grid_mesh
@@ -186,9 +186,9 @@ CASES = {
     "rasterize_batch mvp": (lambda w: rasterize_batch(w.batch, w.mvp, (8, 8)),
                             lambda w: rasterize_batch(w.batch, w.mvp[0], (8, 8)),
                             ValueError, r"rasterize_batch: mvp must have shape \[\*, 4, 4\], got \[4, 4\]"),
-    "field_colours bary": (lambda w: field_colours(w.gen, w.gen.synthesize(w.batch, w.ws), w.batch, torch.arange(3), torch.rand(3, 3)),
-                           lambda w: field_colours(w.gen, w.gen.synthesize(w.batch, w.ws), w.batch, torch.arange(3), torch.rand(4, 3)),
-                           ValueError, r"field_colours: bary must have shape \[P, 3\] \(P = 3 from triangle_id\), got \[4, 3\]"),
+    "FaceTexture.colours bary": (lambda w: w.gen.synthesize(w.batch, w.ws).colours(torch.arange(3), torch.rand(3, 3)),
+                                 lambda w: w.gen.synthesize(w.batch, w.ws).colours(torch.arange(3), torch.rand(4, 3)),
+                                 ValueError, r"FaceTexture.colours: bary must have shape \[P, 3\] \(P = 3 from triangle_id\), got \[4, 3\]"),
     "NeuralField features": (lambda w: NeuralField(6, hidden=8, aux_dim=4)(torch.rand(5, 6), torch.rand(5, 3)),
                              lambda w: NeuralField(6, hidden=8, aux_dim=4)(torch.rand(5, 7), torch.rand(5, 3)),
                              ValueError, r"NeuralField: features must have shape \[P, 6\], got \[5, 7\]"),

@@ -160,12 +160,13 @@ def test_the_bake_reads_the_surface_texture_at_each_texels_point():
     def colour(points: torch.Tensor) -> torch.Tensor:
         return torch.sin(8 * points)
 
-    def colours_at(triangle: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-        corners = torch.from_numpy(surface.vertices[surface.faces[triangle.numpy()]]).float()
-        return colour((corners * bary[:, :, None]).sum(1))
+    class PositionTexture:  # a SurfaceTexture: a function of the surface point
+        def colours(self, triangle: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+            corners = torch.from_numpy(surface.vertices[surface.faces[triangle.numpy()]]).float()
+            return colour((corners * bary[:, :, None]).sum(1))
 
     baker = MeshBaker(BakeTarget(user, transform), surface.vertices, surface.faces, 128)
-    baked = baker.bake(colours_at)
+    baked = baker.bake(PositionTexture())
     assert baked.atlas.source == "new" and baked.coverage.mean() > 0.3
     # the expected colour at each covered texel: the function at the texel's own point of the user's mesh
     raster = uv_rasterize(torch.from_numpy(baked.uv).float(), torch.from_numpy(baked.faces), (128, 128))

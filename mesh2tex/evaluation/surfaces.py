@@ -24,7 +24,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from mesh2tex.render import interpolate, rasterize, texture, transform_points
+from mesh2tex.render import interpolate, rasterize, transform_points
+from mesh2tex.render.surface_texture import UVTexture
 
 
 @dataclass
@@ -92,13 +93,8 @@ def textured_surface(vertices, faces, uv, image, face_parts=None) -> Surface:
     surface = Surface(vertices, faces, lambda p: p.face, face_parts)  # colour set below, once faces are tensors
     if uv.shape != (surface.vertices.shape[0], 2):
         raise ValueError(f"uv must be [V, 2] = [{surface.vertices.shape[0]}, 2], got {tuple(uv.shape)}")
-    tri = surface.faces
-
-    def colour(p: SurfacePoints) -> torch.Tensor:
-        coords = (uv[tri[p.face]] * p.bary[..., None]).sum(1)  # [P, 2]
-        return texture(image, coords[None, None]).reshape(-1, 3).clamp(0, 1)
-
-    surface.colour = colour
+    uv_texture = UVTexture(uv[surface.faces], image[None] * 2.0 - 1.0)
+    surface.colour = lambda p: ((uv_texture.colours(p.face, p.bary) + 1.0) * 0.5).clamp(0, 1)
     return surface
 
 
@@ -129,20 +125,18 @@ def generator_surface(generator, texture, batch, face_parts=None) -> Surface:
     [F_0, C] and per-face colours [F_0, 3], which psi's residual output is added to; the transfer's
     refinement changes only the synthesis blocks, so these two are the whole result)."""
     from mesh2tex.nn.generator import FaceTexture
-    from mesh2tex.nn.render_texture import field_colours
 
     if batch.num_shapes != 1:
         raise ValueError(f"generator_surface takes a batch of one shape, got {batch.num_shapes}")
     device = next(generator.parameters()).device
     faces = batch.shape_triangles(0).cpu()
-    face_texture = FaceTexture(field_features=texture.field_features.detach().to(device), face_rgb=texture.face_rgb.detach().to(device))
-    on_device = batch.to(device)
+    face_texture = FaceTexture(texture.field_features.detach().to(device), texture.face_rgb.detach().to(device)).bound(generator, batch.to(device))
 
     @torch.no_grad()
     def colour(p: SurfacePoints) -> torch.Tensor:
         if p.face.numel() == 0:
             return torch.zeros(0, 3)
-        rgb = field_colours(generator, face_texture, on_device, p.face.to(device), p.bary.to(device)).float().cpu()
+        rgb = face_texture.colours(p.face.to(device), p.bary.to(device)).float().cpu()
         return ((rgb + 1.0) * 0.5).clamp(0, 1)
 
     return Surface(batch.shape_vertices(0).cpu(), faces, colour, face_parts)

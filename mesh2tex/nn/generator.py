@@ -13,7 +13,7 @@ to read the latent-free, face-to-face noisy geometry channels and ignore F_c: ev
 gets the same texture. With ``field_residual`` psi's output is a residual on the barycentric blend of
 the proxy colours rgb_0 (mean face colour around each vertex): the texture starts from the
 latent-dependent per-face colours, which the proxy discriminator trains directly, and psi adds the
-detail within faces (see :func:`mesh2tex.nn.render_texture.field_colours`).
+detail within faces (see :meth:`FaceTexture.colours`).
 
 The feature generator (the synthesis) is one of the kinds of :mod:`mesh2tex.nn.synthesis`, chosen by
 ``kind``: the U-Net of face convolutions above (``faceconv``), or a mesh cellular automaton on the
@@ -37,7 +37,7 @@ from mesh2tex.checks import check_shape, check_type
 from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, FullyConnected, face_pool
-from mesh2tex.nn.field import NeuralField
+from mesh2tex.nn.field import NeuralField, blend_vertex_features, vertex_features
 from mesh2tex.nn.synthesis import SYNTHESIS_KINDS, AutomatonSynthesis
 
 
@@ -125,14 +125,45 @@ class GeometryEncoder(nn.Module):
 
 @dataclass
 class FaceTexture:
-    """The generator's output on a batch: per finest face.
+    """The generator's texture on a batch of shapes: per finest face, and bound to the generator and
+    the batch it was made for, the colour at any point of their triangles (a
+    :class:`mesh2tex.render.surface_texture.SurfaceTexture`).
 
     field_features (F_0, C_field) float  the features psi blends (F_c, or [F_c ‖ P E_0])
     face_rgb       (F_0, 3) float        the per-face colours (proxy texture), nominally in [-1, 1]
+    generator, batch                     what :meth:`colours` evaluates psi with (None until bound:
+                                         :meth:`bound`; ``TextureGenerator.synthesize`` returns it bound)
     """
 
     field_features: torch.Tensor
     face_rgb: torch.Tensor
+    generator: "TextureGenerator | None" = field(default=None, repr=False, compare=False)
+    batch: MeshBatch | None = field(default=None, repr=False, compare=False)
+
+    def bound(self, generator: "TextureGenerator", batch: MeshBatch) -> "FaceTexture":
+        """The same features bound to ``generator`` and ``batch`` (a texture read back from a file is not)."""
+        return FaceTexture(self.field_features, self.face_rgb, generator, batch)
+
+    def colours(self, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+        """psi at surface points: triangle_id (P,) int64 indices of ``batch.triangles()``, bary (P, 3) float
+        -> RGB (P, 3) in [-1, 1] nominally.
+
+        With ``field_residual`` (the default) psi's output is added to the barycentric blend of the
+        proxy's vertex colours (the mean face colour around each vertex), so the colour at a point
+        starts from the latent-dependent per-face texture and psi adds detail within the faces.
+        """
+        sizes = check_shape(triangle_id, "FaceTexture.colours: triangle_id", ("P",), dtype="int")
+        check_shape(bary, "FaceTexture.colours: bary", ("P", 3), sizes=sizes, dtype="float")
+        if self.generator is None or self.batch is None:
+            raise ValueError("FaceTexture.colours: the texture is not bound to a generator and a batch (FaceTexture.bound)")
+        features, residual = self.field_features, self.generator.cfg.field_residual
+        if residual:
+            features = torch.cat([features, self.face_rgb.to(features.dtype)], dim=1)
+        vertex = vertex_features(features, self.batch.quads, self.batch.num_vertices)
+        blended = blend_vertex_features(vertex, self.batch.triangles(), triangle_id, bary)
+        if not residual:
+            return self.generator.field(blended, bary)
+        return self.generator.field(blended[:, :-3], bary) + blended[:, -3:]
 
 
 class TextureGenerator(nn.Module):
@@ -173,7 +204,7 @@ class TextureGenerator(nn.Module):
         features = x
         if self.field_geometry is not None:
             features = torch.cat([x, self.field_geometry(encoded[0].to(x.dtype))], dim=1)
-        return FaceTexture(field_features=features, face_rgb=rgb)
+        return FaceTexture(field_features=features, face_rgb=rgb, generator=self, batch=batch)
 
     def forward(self, batch: MeshBatch, z: torch.Tensor, truncation_psi: float = 1.0, noise_mode: str = "random", update_w_avg: bool = False):
         """z: (B, z_dim), one per shape -> (FaceTexture, ws (B, num_ws, w_dim))."""

@@ -398,6 +398,22 @@ def overflow_penalty(state: torch.Tensor, rgb: torch.Tensor | None = None) -> to
 
 
 
+@dataclass
+class AutomatonTexture:
+    """An automaton's colours on its cell mesh (a :class:`mesh2tex.render.surface_texture.SurfaceTexture`):
+    ``model`` read out at ``state`` (1, V, C) over ``triangles`` (T, 3) of the cells; ``graft``:
+    (other automaton, alpha (V,)) as in :meth:`MeshNCA.colours`."""
+
+    model: "MeshNCA"
+    state: torch.Tensor
+    triangles: torch.Tensor
+    graft: tuple | None = None
+
+    def colours(self, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
+        device = self.state.device
+        return self.model.colours(self.state, self.triangles.to(device), triangle_id.to(device), bary.to(device), graft=self.graft)
+
+
 class ConditionedNCA(nn.Module):
     """The automaton as the texture GAN's feature generator (``generator.kind: nca``).
 

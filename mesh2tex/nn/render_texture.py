@@ -17,7 +17,6 @@ import torch
 from mesh2tex.checks import check_shape, check_type
 from mesh2tex.nn.batch import MeshBatch
 from mesh2tex.nn.faceconv import take_rows
-from mesh2tex.nn.field import blend_vertex_features, vertex_features
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
 from mesh2tex.nn.nca import CellGraph, MeshNCA
 from mesh2tex.render import Lights, quad_normals, rasterize, shade_colours, transform_points
@@ -76,25 +75,6 @@ def _views_per_item(function: str, batch: MeshBatch, mvp: torch.Tensor, items: i
     return mvp.shape[0] // items
 
 
-def field_colours(generator: TextureGenerator, texture: FaceTexture, batch: MeshBatch, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-    """psi at surface points: triangle_id (P,) int64 batch triangle indices, bary (P, 3) float -> RGB (P, 3).
-
-    With ``field_residual`` (the default) psi's output is added to the barycentric blend of the
-    proxy's vertex colours (the mean face colour around each vertex), so the colour at a point
-    starts from the latent-dependent per-face texture and psi adds detail within the faces.
-    """
-    check_shape(bary, "field_colours: bary", ("P", 3), sizes=check_shape(triangle_id, "field_colours: triangle_id", ("P",), dtype="int"), dtype="float")
-    features = texture.field_features
-    residual = generator.cfg.field_residual
-    if residual:
-        features = torch.cat([features, texture.face_rgb.to(features.dtype)], dim=1)
-    vfeat = vertex_features(features, batch.quads, batch.num_vertices)
-    blended = blend_vertex_features(vfeat, batch.triangles(), triangle_id, bary)
-    if not residual:
-        return generator.field(blended, bary)
-    return generator.field(blended[:, :-3], bary) + blended[:, -3:]
-
-
 def paint_pixels(background: torch.Tensor, flat_index: torch.Tensor, colours: torch.Tensor) -> torch.Tensor:
     """background (N, 3, H, W); colours (P, 3) at flat pixel indices into N*H*W -> (N, 3, H, W)."""
     n, _, h, w = background.shape
@@ -128,13 +108,12 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     if lights is not None:
         check_shape(lights.direction, "render_field_views: lights.direction", ("N", 3), sizes=views)
         check_shape(lights.ambient, "render_field_views: lights.ambient", ("N",), sizes=views)
-    if texture is None:
-        texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode)
+    texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode) if texture is None else texture.bound(generator, batch)
     if samples is None:
         samples = rasterize_batch(batch, mvp, (h, w))
     background, flat_index, triangle_id, bary = _covered_pixels(samples.triangle_id, samples.bary, background)
     shade = _pixel_lighting(batch, triangle_id, flat_index, lights, h * w)
-    images = paint_pixels(background, flat_index, shade(field_colours(generator, texture, batch, triangle_id, bary)))
+    images = paint_pixels(background, flat_index, shade(texture.colours(triangle_id, bary)))
     proxy_images = paint_pixels(background, flat_index, shade(_quad_colours(texture, triangle_id))) if proxy else None
     return RenderedViews(images=images, proxy=proxy_images, mask=samples.mask.unsqueeze(1).to(images.dtype))
 

@@ -19,8 +19,6 @@ The same closest-point map gives the colour at each of the user's vertices (the 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
-
 import numpy as np
 import torch
 from scipy import ndimage
@@ -32,11 +30,10 @@ from mesh2tex.geometry.mesh_io import UserMesh
 from mesh2tex.io.images import colours_to_uint8
 
 from .interpolate import interpolate
+from .surface_texture import SurfaceTexture
 from .uv import uv_atlas_problem, uv_rasterize
 
 UV_MODES = ("auto", "keep", "new")
-# colours_at(triangle_id (P,) int64, bary (P, 3) float) -> (P, 3) RGB in [-1, 1], on the working surface
-ColoursAt = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 
 
 @dataclass
@@ -146,13 +143,13 @@ def fill_empty_texels(colours: np.ndarray, covered: np.ndarray) -> np.ndarray:
     return colours[rows, cols]
 
 
-def _colours(colours_at: ColoursAt, found, device, chunk: int = 262_144) -> torch.Tensor:
-    """colours_at over closest points ``found``, in chunks: (P, 3) float in [-1, 1] on the CPU."""
+def _colours(texture: SurfaceTexture, found, device, chunk: int = 262_144) -> torch.Tensor:
+    """The texture's colours at closest points ``found``, in chunks: (P, 3) float in [-1, 1] on the CPU."""
     out = []
     for start in range(0, len(found.triangle), chunk):
         triangle = torch.from_numpy(found.triangle[start:start + chunk]).to(device)
         bary = torch.from_numpy(found.bary[start:start + chunk]).float().to(device)
-        out.append(colours_at(triangle, bary).float().cpu())
+        out.append(texture.colours(triangle, bary).float().cpu())
     return torch.cat(out) if out else torch.zeros(0, 3)
 
 
@@ -163,7 +160,7 @@ class MeshBaker:
     Args:
         target: the user's mesh and the map into the working surface's frame.
         surface_vertices: (V_s, 3) float, surface_triangles: (T_s, 3) int: the working surface, whose
-            triangles the ``colours_at`` of :meth:`bake` index.
+            triangles the texture of :meth:`bake` is bound to.
         size: texture side in texels.
     """
 
@@ -183,14 +180,15 @@ class MeshBaker:
         self._vertices = index.query(working.numpy())
 
     @torch.no_grad()
-    def bake(self, colours_at: ColoursAt, device: torch.device | str = "cpu") -> BakedUserMesh:
-        """The user's mesh with the texture ``colours_at`` (called on ``device``) baked into its atlas."""
+    def bake(self, texture: SurfaceTexture, device: torch.device | str = "cpu") -> BakedUserMesh:
+        """The user's mesh with ``texture`` (a :class:`~mesh2tex.render.surface_texture.SurfaceTexture` bound
+        to the working surface, read on ``device``) baked into its atlas."""
         mesh, atlas = self.target.mesh, self.atlas
         colours = np.zeros((self.size, self.size, 3), dtype=np.float32)
-        colours[self.coverage] = _colours(colours_at, self._texels, device).numpy()
-        texture = colours_to_uint8(torch.from_numpy(fill_empty_texels(colours, self.coverage)))
+        colours[self.coverage] = _colours(texture, self._texels, device).numpy()
+        image = colours_to_uint8(torch.from_numpy(fill_empty_texels(colours, self.coverage)))
         normals = None if mesh.normals is None else mesh.normals[atlas.vertex_index]
         return BakedUserMesh(vertices=mesh.vertices[atlas.vertex_index], faces=atlas.faces, uv=atlas.uv, normals=normals,
-                             texture=texture, coverage=self.coverage,
-                             vertex_colours=colours_to_uint8(_colours(colours_at, self._vertices, device)),
+                             texture=image, coverage=self.coverage,
+                             vertex_colours=colours_to_uint8(_colours(texture, self._vertices, device)),
                              atlas=atlas, surface_distance=self._vertices.distance)

@@ -131,21 +131,23 @@ def unwrap_uv(vertices, faces):
     return result
 
 
-def bake_surface_colours(vertices: torch.Tensor, triangles: torch.Tensor, colours_at, size: int, dilate: int = 8):
-    """Bake a colour function of surface points into a UV texture over a fresh atlas.
+def bake_surface_colours(vertices: torch.Tensor, triangles: torch.Tensor, texture, size: int, dilate: int = 8, device=None):
+    """Bake a texture bound to a mesh into a UV image over a fresh atlas.
 
     Args:
         vertices: (V,3) float, triangles: (T,3) int64 of the mesh (tensors).
-        colours_at: ``colours_at(triangle_id (P,), bary (P,3)) -> (P,3)`` RGB in [-1, 1], the colour at
-            P surface points given as a triangle of ``triangles`` and barycentrics in its corner order.
+        texture: a :class:`~mesh2tex.render.surface_texture.SurfaceTexture` bound to ``triangles``
+            (``texture.colours(triangle_id (P,), bary (P,3))`` in its corner order, RGB in [-1, 1]),
+            read on ``device`` (default: the vertices').
         size: texture side in texels; dilate: texels of padding around each chart.
     Returns:
         (vertices (V',3) float32, faces (T,3) int64, uv (V',2) float32, texture (size,size,3) uint8,
         coverage (size,size) bool), CPU tensors/arrays; faces keep the order and corners of
-        ``triangles`` (vertices are split on seams), so texel colours equal ``colours_at`` exactly.
+        ``triangles`` (vertices are split on seams), so texel colours equal the texture's exactly.
     """
     check_shape(vertices, "bake_surface_colours: vertices", ("V", 3), dtype="float")
     check_shape(triangles, "bake_surface_colours: triangles", ("T", 3), dtype="int")
+    device = vertices.device if device is None else device
     triangles = triangles.cpu()
     new_vertices, faces, uv, vertex_map = unwrap_uv(vertices.cpu(), triangles)
     if not torch.equal(vertex_map[faces], triangles):
@@ -153,6 +155,6 @@ def bake_surface_colours(vertices: torch.Tensor, triangles: torch.Tensor, colour
     raster = uv_rasterize(uv, faces, (size, size))
     covered = raster.face_id[0] >= 0
     colours = torch.zeros(size, size, 3)
-    colours[covered] = colours_at(raster.face_id[0][covered], raster.bary[0][covered]).float().cpu()
+    colours[covered] = texture.colours(raster.face_id[0][covered].to(device), raster.bary[0][covered].to(device)).float().cpu()
     image = dilate_texture(colours.permute(2, 0, 1), covered[None].float(), dilate).reshape(3, size, size)
     return new_vertices.float(), faces, uv.float(), images_to_uint8(image), covered

@@ -33,8 +33,8 @@ def add_resume(parser: argparse.ArgumentParser, kind: str, what: str = "the run"
                         help=f"alone: continue {what} in --out from its last checkpoint; with a CHECKPOINT (another 'train {kind}' run's "
                              f"checkpoint.safetensors, or its folder): start {what} in --out from that checkpoint's networks, optimizer "
                              f"states and iteration, with --out's config (or --config and the flags)")
-    add_overwrite(parser, f"start a new run in --out in place of the one there (its checkpoint, metrics and config are replaced); "
-                          f"without it, a folder holding a run is refused unless --resume")
+    add_overwrite(parser, "start a new run in --out in place of the one there (its checkpoint, metrics and config are replaced); "
+                          "without it, a folder holding a run is refused unless --resume")
 
 
 def _view_network(parser: argparse.ArgumentParser, kind: str) -> None:

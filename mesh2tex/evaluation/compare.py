@@ -140,14 +140,16 @@ class ScoreSettings:
 
 
 def score_views(candidate: ComparisonRender, reference_rgb: torch.Tensor, reference_parts: torch.Tensor, mask: torch.Tensor,
-                settings: ScoreSettings = ScoreSettings(), reference_mask: torch.Tensor | None = None) -> dict[str, list[float]]:
+                settings: ScoreSettings | None = None, reference_mask: torch.Tensor | None = None) -> dict[str, list[float]]:
     """Scores of B candidate views against their references: {metric: [B] floats} (see :data:`METRICS`).
 
     Pixel-aligned geometry (``reference_mask`` None): every metric on the common object ``mask``
     [B, 1, R, R], the part labels ``reference_parts`` [B, R, R] for both images. Another shape
     (``reference_mask`` given): the per-part colour error between the candidate's own parts and mask
     and the reference's, the SWD between their own object patches; the aligned metrics are left out.
+    ``settings``: :class:`ScoreSettings` (its defaults when None).
     """
+    settings = ScoreSettings() if settings is None else settings
     rgb = candidate.rgb
     if reference_mask is None:
         scores = {

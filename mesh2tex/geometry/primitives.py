@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from mesh2tex.checks import check_array_shape
+
 # Each cube face: (normal axis, sign); its grid spans the other two axes so that (u, v, normal) is right-handed.
 _CUBE_FACES = ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0))
-
-from mesh2tex.checks import check_array_shape
 
 
 def cube_sphere(subdivisions: int, radius: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

@@ -407,7 +407,7 @@ def rasterize(
     with torch.no_grad():
         if pos.dim() == 2:
             pos = pos[None]
-        B, V, device = pos.shape[0], pos.shape[1], pos.device
+        B, device = pos.shape[0], pos.device
         tri = tri.to(device=device, dtype=torch.long)
         T = tri.shape[0]
         face_id = torch.full((B, H, W), -1, dtype=torch.long, device=device)

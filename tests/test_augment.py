@@ -54,12 +54,17 @@ def test_gan_loss_augments_reals_and_fakes_in_every_discriminator_call():
         return x
 
     d = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16))
-    loss = GanLoss(GanLossConfig(proxy_weight=0.0), d, d, augment=augment)
     fake, real = torch.randn(4, 3, 16, 16), torch.randn(4, 3, 16, 16)
-    loss.accumulate_gradients("Dmain", lambda z: (fake, None, None), torch.zeros(1), real)
+
+    class FixedFakes(GanLoss):  # the discriminators' phases on given fakes, no generator
+        def fakes(self, z, scene, update_w_avg=False):
+            return fake, None, None, None
+
+    loss = FixedFakes(GanLossConfig(proxy_weight=0.0), None, d, d, augment=augment)
+    loss.accumulate_gradients("Dmain", None, torch.zeros(1), real)
     assert seen == [4, 4], "fakes and reals each augmented, in separate calls"
     seen.clear()
-    loss.accumulate_gradients("Dreg", lambda z: (fake, None, None), torch.zeros(1), real)
+    loss.accumulate_gradients("Dreg", None, torch.zeros(1), real)
     assert seen == [4]
 
 

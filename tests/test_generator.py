@@ -212,7 +212,7 @@ def test_discriminator_judges_fakes_apart_from_reals():
 
     torch.manual_seed(0)
     d = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16, mbstd_group=4))
-    loss = GanLoss(GanLossConfig(), d, d)
+    loss = GanLoss(GanLossConfig(), None, d, d)
     fake = torch.randn(1, 3, 16, 16).repeat(4, 1, 1, 1)  # a collapsed generator: four identical fakes
     real = torch.randn(4, 3, 16, 16)
     with torch.no_grad():
@@ -361,7 +361,7 @@ def test_lit_renders_are_the_albedo_scaled_by_lambert_shading():
 def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_target():
     """Mode seeking (loss.diversity_weight): the ratio is zero for a collapsed generator; a few steps of
     the term alone raise it; once it is over diversity_target the term adds no gradient."""
-    from mesh2tex.losses.gan import GanLoss, GanLossConfig, mode_seeking_ratio
+    from mesh2tex.losses.gan import GanLoss, GanLossConfig, GanScene, mode_seeking_ratio
     from mesh2tex.nn.render_texture import render_proxy_views
 
     torch.manual_seed(0)
@@ -376,9 +376,9 @@ def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_t
     full = render_field_views(gen, batch, gen.mapping(z), mvp, (16, 16), background, proxy=True, samples=samples, noise_mode="none")
     torch.testing.assert_close(proxy, full.proxy)
 
-    def generate(z_):
-        out = render_field_views(gen, batch, gen.mapping(z_), mvp, (16, 16), background, proxy=True, samples=samples, noise_mode="none")
-        return out.images, out.proxy, None
+    shapes = [cube_shape(3, seed=0), cube_shape(3, seed=1)]
+    scene = GanScene(shapes, batch, mvp, samples, background, None)
+    torch.testing.assert_close(scene.object_mask, mask)
 
     def proxy_of(z_):
         return render_proxy_views(gen.synthesize(batch, gen.mapping(z_), noise_mode="none"), batch, samples, background), mask
@@ -393,17 +393,17 @@ def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_t
             zs = torch.randn(8, 2, 16)
             return sum(float(mode_seeking_ratio(proxy_of(a)[0], proxy_of(b)[0], mask, a, b)) for a, b in zip(zs[:4], zs[4:])) / 4
 
-    loss = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_target=10.0), Zero(), Zero())
+    loss = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_target=10.0), gen, Zero(), Zero())
     opt = torch.optim.Adam(gen.parameters(), lr=1e-2)
     before = ratio()
     for _ in range(10):
         opt.zero_grad()
-        logs = loss.accumulate_gradients("Gmain", generate, torch.randn(2, 16), torch.zeros(4, 3, 16, 16), proxy_of=proxy_of)
+        logs = loss.accumulate_gradients("Gmain", scene, torch.randn(2, 16), torch.zeros(4, 3, 16, 16))
         opt.step()
     assert "mode_seeking" in logs and ratio() > 1.5 * before
-    reached = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_target=0.0), Zero(), Zero())
+    reached = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_target=0.0), gen, Zero(), Zero())
     opt.zero_grad()
-    reached.accumulate_gradients("Gmain", generate, torch.randn(2, 16), torch.zeros(4, 3, 16, 16), proxy_of=proxy_of)
+    reached.accumulate_gradients("Gmain", scene, torch.randn(2, 16), torch.zeros(4, 3, 16, 16))
     assert all(p.grad is None or float(p.grad.abs().max()) == 0.0 for p in gen.parameters())
 
 

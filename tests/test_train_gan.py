@@ -438,7 +438,7 @@ def test_the_path_length_phase_renders_the_first_half_of_the_batch(tiny_data, tm
     """As StyleGAN2 does (``loss.pl_batch_shrink`` 2), the path-length phase renders half of the
     batch's shapes, each from its own views, with the rasterization of those shapes alone; the other
     phases render the whole batch."""
-    import mesh2tex.train.gan as gan
+    import mesh2tex.losses.gan as gan
     from mesh2tex.losses.gan import GanLoss
     from mesh2tex.nn.render_texture import rasterize_batch
 
@@ -451,8 +451,6 @@ def test_the_path_length_phase_renders_the_first_half_of_the_batch(tiny_data, tm
 
     def recording_render(generator, batch, ws, mvp, resolution, background, **kwargs):
         samples = kwargs.get("samples")
-        if samples is None:  # the run's sample sheet, not a training phase
-            return render(generator, batch, ws, mvp, resolution, background, **kwargs)
         expected = rasterize_batch(batch, mvp, resolution)
         assert torch.equal(samples.triangle_id, expected.triangle_id) and torch.equal(samples.bary, expected.bary)
         assert background.shape[0] == kwargs["lights"].direction.shape[0] == mvp.shape[0] == 2 * batch.num_shapes
@@ -470,27 +468,25 @@ def test_supersampled_fakes_are_rendered_larger_and_box_filtered_to_the_photos_r
     as the photos were antialiased, so that the discriminators see fakes and photos of one size."""
     import torch.nn.functional as F
 
-    import mesh2tex.train.gan as gan
+    import mesh2tex.losses.gan as gan
+    import mesh2tex.train.gan as trainer
     from mesh2tex.losses.gan import GanLoss
 
     rendered, judged = [], []
-    render, accumulate = gan.render_field_views, GanLoss.accumulate_gradients
+    render, fakes = gan.render_field_views, GanLoss.fakes
 
     def recording_render(generator, batch, ws, mvp, resolution, background, **kwargs):
         out = render(generator, batch, ws, mvp, resolution, background, **kwargs)
-        if kwargs.get("samples") is not None:
-            rendered.append(out.images.detach())
+        rendered.append(out.images.detach())
         return out
 
-    def recording_accumulate(self, phase, generate, *args, **kwargs):
-        def spy(z, *a, **k):
-            images, proxy, ws = generate(z, *a, **k)
-            judged.append(images.detach())
-            return images, proxy, ws
-        return accumulate(self, phase, spy, *args, **kwargs)
+    def recording_fakes(self, *args, **kwargs):
+        images, proxy, ws, encoded = fakes(self, *args, **kwargs)
+        judged.append(images.detach())
+        return images, proxy, ws, encoded
 
     monkeypatch.setattr(gan, "render_field_views", recording_render)
-    monkeypatch.setattr(GanLoss, "accumulate_gradients", recording_accumulate)
+    monkeypatch.setattr(GanLoss, "fakes", recording_fakes)
     config = tmp_path / "ss.yaml"
     config.write_text(yaml.safe_dump({**TINY, "supersample": 2}))
     assert main(["train", "gan", "--shapes", str(tiny_data / "shapes"), "--images", str(tiny_data / "photos"), "--out", str(tmp_path / "run"),
@@ -500,4 +496,4 @@ def test_supersampled_fakes_are_rendered_larger_and_box_filtered_to_the_photos_r
     for big, small in zip(rendered, judged):
         assert small.shape[-1] == 16 and torch.allclose(small, F.avg_pool2d(big, 2))
     with pytest.raises(ValueError, match="supersample"):
-        gan.TrainGanConfig(supersample=0)
+        trainer.TrainGanConfig(supersample=0)

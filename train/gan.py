@@ -27,15 +27,15 @@ from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.models import save_inference_checkpoint, shape_hierarchy
 from mesh2tex.models.store import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY
 from mesh2tex.losses.augment import AdaptiveAugment, AugmentConfig, DiffAugment
-from mesh2tex.losses.gan import GanLoss, GanLossConfig
+from mesh2tex.losses.gan import GanLoss, GanLossConfig, GanScene
 from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
-from mesh2tex.nn.render_texture import SurfaceSamples, rasterize_batch, render_field_views, render_proxy_views
+from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.options import config_overrides
 from mesh2tex.photos import load_photo_collection
-from mesh2tex.render import CameraConfig, LightConfig, Lights, composite_images, orbit_camera, random_lights, turntable_angles
+from mesh2tex.render import CameraConfig, LightConfig, composite_images, orbit_camera, random_lights, turntable_angles
 from mesh2tex.train import runs
 
 KIND = "gan"
@@ -160,7 +160,7 @@ class GanTrainer:
             augment = DiffAugment(cfg.augment)
         except ValueError as error:
             raise UserError(f"augment: {error}") from None
-        self.loss = GanLoss(cfg.loss, self.d_field, self.d_proxy, autocast=autocast, augment=augment)
+        self.loss = GanLoss(cfg.loss, self.generator, self.d_field, self.d_proxy, autocast=autocast, augment=augment)
         self.ada = AdaptiveAugment(augment)
         if cfg.loss.colour_weight > 0:  # the training photos' colour moments (the metric's held-out photos excluded)
             photos = images[: -cfg.metric_photos] if cfg.metric_every else images
@@ -223,45 +223,31 @@ class GanTrainer:
         background = torch.rand(n, 3) * 2 - 1
         return composite_real(self.images[index], background).to(self.device)
 
+    def draw_scene(self) -> GanScene:
+        """This iteration's scene: ``batch`` random shapes, ``views`` jittered cameras each, random
+        backgrounds and (with the light prior) lights, rasterized once for every phase."""
+        cfg = self.cfg
+        n = cfg.batch * cfg.views
+        shapes = [self.shapes[i] for i in torch.randint(len(self.shapes), (cfg.batch,)).tolist()]
+        batch = collate_shapes(shapes).to(self.device)
+        mvp, azimuth = random_cameras(n, cfg.camera, self.device)
+        lights = random_lights(azimuth, cfg.lighting).to(self.device) if cfg.lighting.enabled else None
+        side = cfg.resolution * cfg.supersample  # the fakes' render side; box-filtered down to the photos' resolution
+        samples = rasterize_batch(batch, mvp, (side, side))
+        background = (torch.rand(n, 3) * 2 - 1).to(self.device)
+        return GanScene(shapes, batch, mvp, samples, background, lights, cfg.supersample)
+
     def step(self) -> dict[str, float]:
         """One iteration of all due phases; returns the logged scalars. Raises NonFiniteLoss before any
         optimizer step of an iteration whose losses are not finite."""
         cfg = self.cfg
-        n = cfg.batch * cfg.views
-        shape_index = torch.randint(len(self.shapes), (cfg.batch,)).tolist()
-        batch = collate_shapes([self.shapes[i] for i in shape_index]).to(self.device)
-        mvp, azimuth = random_cameras(n, cfg.camera, self.device)
-        lights = random_lights(azimuth, cfg.lighting).to(self.device) if cfg.lighting.enabled else None
-        ss = cfg.supersample
-        side = cfg.resolution * ss  # the fakes' render side; box-filtered down to the photos' resolution
-        samples = rasterize_batch(batch, mvp, (side, side))
-        fake_background = (torch.rand(n, 3) * 2 - 1).to(self.device)
-        down = (lambda images: images) if ss == 1 else (lambda images: torch.nn.functional.avg_pool2d(images, ss))
-        real = self.draw_real(n)
+        scene = self.draw_scene()
+        real = self.draw_real(cfg.batch * cfg.views)
         z_g = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
         z_d = torch.randn(cfg.batch, cfg.generator.z_dim, device=self.device)
         g = self.generator
         if cfg.optim.lr_decay_start:
             runs.apply_learning_rates({"g": self.opt_g, "d": self.opt_d}, cfg.optim.learning_rates(self.iteration))
-
-        encoded = []  # the latest generate's encoder output (it does not depend on the latent): proxy_of, called in G main, reuses G main's
-
-        def generate(z, update_w_avg=False, shapes=cfg.batch):
-            """Renders of latents z (shapes, z_dim) on the first ``shapes`` shapes of the batch and their views."""
-            scene = batch if shapes == cfg.batch else collate_shapes([self.shapes[i] for i in shape_index[:shapes]]).to(self.device)
-            m = shapes * cfg.views  # the first shapes' views come first, and their triangle ids are the same in the smaller batch
-            ws = g.mapping(z, update_w_avg=update_w_avg)
-            encoded[:] = g.encoder(scene)
-            out = render_field_views(g, scene, ws, mvp[:m], (side, side), fake_background[:m], proxy=True,
-                                     samples=SurfaceSamples(samples.triangle_id[:m], samples.bary[:m]),
-                                     lights=None if lights is None else Lights(lights.direction[:m], lights.ambient[:m]), encoded=encoded)
-            return down(out.images), down(out.proxy), ws
-
-        object_mask = down(samples.mask.unsqueeze(1).float())  # (n, 1, R, R) coverage
-
-        def proxy_of(z):
-            texture = g.synthesize(batch, g.mapping(z), encoded=encoded)
-            return down(render_proxy_views(texture, batch, samples, fake_background, lights)), object_mask
 
         logs: dict[str, torch.Tensor] = {}
         phases = self.loss.phases(self.iteration)
@@ -274,17 +260,8 @@ class GanTrainer:
             self.d_field.requires_grad_(group == "D")
             self.d_proxy.requires_grad_(group == "D")
             for phase, gain in phases:
-                if not phase.startswith(group):
-                    continue
-                z = z_g if group == "G" else z_d
-                fn = generate
-                if phase == "Gmain":
-                    fn = lambda z_: generate(z_, update_w_avg=True)  # noqa: E731
-                elif phase == "Greg":  # on fewer shapes (pl_batch_shrink)
-                    z = z[: self.loss.path_length_shapes(cfg.batch)]
-                    fn = lambda z_: generate(z_, shapes=z_.shape[0])  # noqa: E731
-                logs.update(self.loss.accumulate_gradients(phase, fn, z, real, gain, proxy_of=proxy_of, diversity_gain=diversity_gain,
-                                                           object_mask=object_mask))
+                if phase.startswith(group):
+                    logs.update(self.loss.accumulate_gradients(phase, scene, z_g if group == "G" else z_d, real, gain, diversity_gain))
             bad = None
             try:
                 runs.check_finite(logs, self.iteration)

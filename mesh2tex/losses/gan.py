@@ -52,6 +52,9 @@ from kornia.color import rgb_to_lab
 
 from mesh2tex.checks import check_shape
 from mesh2tex.config import check_fields
+from mesh2tex.nn.batch import MeshBatch, collate_shapes
+from mesh2tex.nn.render_texture import SurfaceSamples, render_field_views, render_proxy_views
+from mesh2tex.render import Lights
 
 PHASES = ("Gmain", "Greg", "Dmain", "Dreg")
 
@@ -80,11 +83,46 @@ class GanLossConfig:
                      between={"pl_decay": (0.0, 1.0), "colour_decay": (0.0, 1.0)})
 
 
-# generate(z) -> (psi images (N,3,H,W), proxy images (N,3,H,W) or None, ws (B,num_ws,w_dim))
-GenerateFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]]
-# proxy_of(z) -> (proxy images (N,3,H,W) of latents z on the same shapes, views, backgrounds and lights as
-# generate's, object mask (N,1,H,W) float 0/1)
-ProxyFn = Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
+@dataclass
+class GanScene:
+    """What one iteration's fakes are rendered into: the shapes, each seen by K views, their
+    backgrounds and lights (every phase of the iteration renders the same scene).
+
+    shapes: the B prepared shapes of the batch; batch: them collated on the device; mvp (N, 4, 4),
+    N = B K, view k of shape s at s K + k; samples: the finest level rasterized at ``side`` =
+    resolution x supersample; background (N, 3) in [-1, 1]; lights: one per view, or None (unlit);
+    supersample: fakes are rendered that much larger and box-filtered down to the photos' resolution.
+    """
+
+    shapes: list
+    batch: MeshBatch
+    mvp: torch.Tensor
+    samples: SurfaceSamples
+    background: torch.Tensor
+    lights: Lights | None
+    supersample: int = 1
+
+    @property
+    def side(self) -> int:
+        return int(self.samples.triangle_id.shape[-1])
+
+    def down(self, images: torch.Tensor) -> torch.Tensor:
+        """Renders at ``side`` -> the photos' resolution (box filter)."""
+        return images if self.supersample == 1 else F.avg_pool2d(images, self.supersample)
+
+    @property
+    def object_mask(self) -> torch.Tensor:
+        """(N, 1, R, R) object coverage of the views at the photos' resolution."""
+        return self.down(self.samples.mask.unsqueeze(1).float())
+
+    def first(self, count: int) -> "GanScene":
+        """The scene of the first ``count`` shapes and their views (the path-length phase's smaller batch)."""
+        if count == len(self.shapes):
+            return self
+        m = count * (self.mvp.shape[0] // len(self.shapes))  # their views come first, and their triangle ids are the same
+        lights = None if self.lights is None else Lights(self.lights.direction[:m], self.lights.ambient[:m])
+        return GanScene(self.shapes[:count], collate_shapes(self.shapes[:count]).to(self.mvp.device), self.mvp[:m],
+                        SurfaceSamples(self.samples.triangle_id[:m], self.samples.bary[:m]), self.background[:m], lights, self.supersample)
 
 
 def mode_seeking_ratio(proxy_a: torch.Tensor, proxy_b: torch.Tensor, mask: torch.Tensor, z_a: torch.Tensor, z_b: torch.Tensor) -> torch.Tensor:
@@ -120,15 +158,17 @@ def _check_images(images: torch.Tensor, masks: torch.Tensor, function: str, name
 
 
 class GanLoss:
-    """Computes and back-propagates one phase at a time; keeps the running path-length mean.
+    """Runs the generator and both discriminators for one phase at a time on an iteration's
+    :class:`GanScene` and back-propagates its loss (as stylegan2-ada's loss runs G and D itself); keeps
+    the running path-length mean and colour moments.
 
     ``autocast``: a context factory for the main phases (mixed precision on CUDA); the
     regularisation phases always run in float32.
     """
 
-    def __init__(self, cfg: GanLossConfig, d_field: nn.Module, d_proxy: nn.Module, autocast: Callable = contextlib.nullcontext,
-                 augment: Callable[[torch.Tensor], torch.Tensor] | None = None):
-        self.cfg, self.d_field, self.d_proxy, self.autocast = cfg, d_field, d_proxy, autocast
+    def __init__(self, cfg: GanLossConfig, generator: nn.Module | None = None, d_field: nn.Module | None = None, d_proxy: nn.Module | None = None,
+                 autocast: Callable = contextlib.nullcontext, augment: Callable[[torch.Tensor], torch.Tensor] | None = None):
+        self.cfg, self.generator, self.d_field, self.d_proxy, self.autocast = cfg, generator, d_field, d_proxy, autocast
         self.augment = augment or (lambda x: x)
         self.pl_mean = torch.zeros([])
         self.colour_target: tuple[torch.Tensor, torch.Tensor] | None = None  # the photos' CIELAB (mean (3,), std (3,))
@@ -178,24 +218,35 @@ class GanLoss:
             return 0.0
         return float(cfg.diversity_interval)
 
-    def accumulate_gradients(self, phase: str, generate: GenerateFn, z: torch.Tensor, real: torch.Tensor, gain: float = 1.0,
-                             proxy_of: ProxyFn | None = None, diversity_gain: float = 1.0,
-                             object_mask: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
-        """Back-propagate the loss of ``phase`` (scaled by ``gain``); returns detached scalars to log.
+    def fakes(self, z: torch.Tensor, scene: GanScene, update_w_avg: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, list]:
+        """The generator's renders of latents z (B, z_dim), one per shape of ``scene``: (psi images (N, 3, R, R),
+        proxy images (N, 3, R, R), ws (B, num_ws, w_dim), the encoder's output, which :meth:`proxy_fakes` reuses)."""
+        g = self.generator
+        ws = g.mapping(z, update_w_avg=update_w_avg)
+        encoded = g.encoder(scene.batch)
+        out = render_field_views(g, scene.batch, ws, scene.mvp, (scene.side, scene.side), scene.background, proxy=True,
+                                 samples=scene.samples, lights=scene.lights, encoded=encoded)
+        return scene.down(out.images), scene.down(out.proxy), ws, encoded
 
-        z: (B, z_dim) latents (only ``generate`` and ``proxy_of`` read them: (B,) for one that takes none),
-        real: (N, 3, H, W) real images in [-1, 1]; proxy_of: renders a second
-        latent's proxy for the diversity term (G main, when ``diversity_weight`` and ``diversity_gain``
-        are > 0; the trainer passes :meth:`diversity_gain` of the iteration); object_mask: (N', 1, H', W')
-        object mask of the field renders ``generate`` makes (the colour term).
+    def proxy_fakes(self, z: torch.Tensor, scene: GanScene, encoded: list) -> torch.Tensor:
+        """The proxy renders (N, 3, R, R) of other latents z on the same scene (the diversity term's second latent)."""
+        texture = self.generator.synthesize(scene.batch, self.generator.mapping(z), encoded=encoded)
+        return scene.down(render_proxy_views(texture, scene.batch, scene.samples, scene.background, scene.lights))
+
+    def accumulate_gradients(self, phase: str, scene: GanScene, z: torch.Tensor, real: torch.Tensor, gain: float = 1.0,
+                             diversity_gain: float = 1.0) -> dict[str, torch.Tensor]:
+        """Back-propagate the loss of ``phase`` on ``scene`` (scaled by ``gain``); returns detached scalars to log.
+
+        z: (B, z_dim) latents, one per shape of the scene (the path-length phase takes the first
+        :meth:`path_length_shapes` of them and their shapes); real: (N, 3, H, W) real images in [-1, 1];
+        diversity_gain: the diversity term's gain in G main (:meth:`diversity_gain` of the iteration).
         """
         check_shape(z, "GanLoss.accumulate_gradients: z", ("B", None), ("B",), dtype="float")
         check_shape(real, "GanLoss.accumulate_gradients: real", (None, 3, None, None), dtype="float")
-        check_shape(object_mask, "GanLoss.accumulate_gradients: object_mask", (None, 1, None, None), optional=True)
         logs: dict[str, torch.Tensor] = {}
         if phase == "Gmain":
             with self.autocast():
-                images, proxy, _ = generate(z)
+                images, proxy, _, encoded = self.fakes(z, scene, update_w_avg=True)
                 loss = F.softplus(-self.d_field(self.augment(images))).mean()
                 logs["loss_g_field"] = loss.detach()
                 if proxy is not None and self.cfg.proxy_weight > 0:
@@ -203,22 +254,18 @@ class GanLoss:
                     logs["loss_g_proxy"] = loss_proxy.detach()
                     loss = loss + self.cfg.proxy_weight * loss_proxy
                 if self.cfg.diversity_weight > 0 and diversity_gain > 0:
-                    if proxy is None or proxy_of is None:
-                        raise ValueError("GanLoss: diversity_weight > 0 needs proxy renders and proxy_of")
                     z_other = torch.randn_like(z)
-                    proxy_other, mask = proxy_of(z_other)
-                    ratio = mode_seeking_ratio(proxy, proxy_other, mask, z, z_other)
+                    ratio = mode_seeking_ratio(proxy, self.proxy_fakes(z_other, scene, encoded), scene.object_mask, z, z_other)
                     logs["mode_seeking"] = ratio.detach()
                     loss = loss + diversity_gain * self.cfg.diversity_weight * F.relu(self.cfg.diversity_target - ratio)
             if self.cfg.colour_weight > 0:
-                if object_mask is None:
-                    raise ValueError("GanLoss: colour_weight > 0 needs the renders' object_mask")
-                colour = self.colour_loss(images, object_mask)
+                colour = self.colour_loss(images, scene.object_mask)
                 logs["colour_moments"] = colour.detach()
                 loss = loss + self.cfg.colour_weight * colour
             (loss * gain).backward()
-        elif phase == "Greg":
-            images, _, ws = generate(z)
+        elif phase == "Greg":  # on the first batch / pl_batch_shrink shapes (StyleGAN2's smaller path-length batch)
+            count = self.path_length_shapes(z.shape[0])
+            images, _, ws, _ = self.fakes(z[:count], scene.first(count))
             h, w = images.shape[2], images.shape[3]
             noise = torch.randn_like(images) / math.sqrt(h * w)
             (grad,) = torch.autograd.grad((images * noise).sum(), ws, create_graph=True)
@@ -232,7 +279,7 @@ class GanLoss:
             logs["pl_mean"] = self.pl_mean.clone()
         elif phase == "Dmain":
             with torch.no_grad(), self.autocast():
-                images, proxy, _ = generate(z)
+                images, proxy, _, _ = self.fakes(z, scene)
             with self.autocast():
                 loss = self._d_main(self.d_field, images, real, logs, "field")
                 logs["loss_d_field"] = loss.detach()

@@ -105,10 +105,12 @@ class TrainGanConfig:
 
     def __post_init__(self):
         check_fields(self, at_least={"log_every": 1, "supersample": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0,
-                                     "metric_every": 0, "metric_photos": 1, "sample_shapes": 1, "ema_rampup": 0},
+                                     "metric_every": 0, "metric_photos": 1, "sample_shapes": 1, "ema_rampup": 0, "iters": 1, "batch": 1, "views": 1},
                      positive=("ema_halflife_images",))
-        if self.resolution >= 8:  # smaller ones are refused by build_config, naming --resolution
-            self.discriminator.check_resolution(self.resolution)
+        r = self.resolution
+        if r < 8 or r & (r - 1):  # the discriminators halve it down to 4 x 4
+            raise ValueError(f"resolution must be a power of two >= 8, got {r}")
+        self.discriminator.check_resolution(r)
 
 
 # ------------------------------------------------------------------------------------------ data
@@ -388,12 +390,6 @@ def build_config(args) -> TrainGanConfig:
         cfg = load_config(TrainGanConfig, run_config, overrides)
     else:
         cfg = load_config(TrainGanConfig, args.config, overrides)
-    r = cfg.resolution
-    if r < 8 or r & (r - 1):
-        raise UserError(f"--resolution {r}: must be a power of two >= 8")
-    for name in ("iters", "batch", "views"):
-        if getattr(cfg, name) < 1:
-            raise UserError(f"--{name} must be at least 1")
     return cfg
 
 

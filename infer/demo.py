@@ -44,7 +44,7 @@ from mesh2tex.evaluation import (METRIC_TITLES, METRICS, ScoreSettings, backproj
                                  other_views, photo_mean_colour, render_for_comparison, score_views, seen_and_unseen,
                                  textured_surface)
 from mesh2tex.evaluation.world import load_query_truth, reference_renders
-from mesh2tex.io.assets import TEXTURE_FORMATS, load_glb
+from mesh2tex.io.assets import check_texture_format, load_glb
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.models import load_generator, models_root
 from mesh2tex.io.outputs import guard_outputs, remove_outputs
@@ -94,8 +94,7 @@ class DemoTransferConfig:
 
     def __post_init__(self):
         check_fields(self, at_least={"resolution": 16, "latent_iters": 0, "refine_iters": 0, "texture_size": 16})
-        if self.texture_format not in TEXTURE_FORMATS:
-            raise ValueError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+        check_texture_format(self.texture_format)
 
 
 @dataclass

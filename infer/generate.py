@@ -24,7 +24,7 @@ import torch
 
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
-from mesh2tex.io.assets import TEXTURE_FORMATS
+from mesh2tex.io.assets import check_texture_format
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.models import load_generator
 from mesh2tex.io.outputs import guard_outputs
@@ -55,8 +55,7 @@ class GenerateConfig:
             raise UserError("--seeds: give at least one seed")
         if self.views < 1 or self.resolution < 8 or self.texture_size < 16:
             raise UserError("--views must be >= 1, --resolution >= 8 and --texture-size >= 16")
-        if self.texture_format not in TEXTURE_FORMATS:
-            raise UserError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+        check_texture_format(self.texture_format)
 
 
 def output_names(cfg: GenerateConfig) -> list[str]:

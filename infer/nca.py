@@ -29,7 +29,7 @@ from mesh2tex.errors import UserError, note
 from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface, unit_transform
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.atomic import atomic_path, write_json
-from mesh2tex.io.assets import TEXTURE_FORMATS
+from mesh2tex.io.assets import check_texture_format
 from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.models import load_nca
@@ -70,8 +70,7 @@ class InferNCAConfig:
                 raise UserError(f"--{name.replace('_', '-')} must be at least {low}, got {getattr(self, name)}")
         # one turn either way is every orientation; far beyond, the float32 rotation turns to NaN
         self.angle = check_range("--angle", self.angle, -360.0, 360.0, "degrees")
-        if self.texture_format not in TEXTURE_FORMATS:
-            raise UserError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+        check_texture_format(self.texture_format)
         self.subdivide = str(self.subdivide)
 
 

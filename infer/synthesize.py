@@ -31,7 +31,7 @@ from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.mesh_io import UserMesh
 from mesh2tex.geometry.primitives import unit_transform
-from mesh2tex.io.assets import TEXTURE_FORMATS
+from mesh2tex.io.assets import check_texture_format
 from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, load_image, save_png
 from mesh2tex.io.outputs import guard_outputs
@@ -61,8 +61,7 @@ class InferSynthesizeConfig:
     def __post_init__(self):
         if self.views < 1:
             raise UserError(f"--views must be at least 1, got {self.views}")
-        if self.texture_format not in TEXTURE_FORMATS:
-            raise UserError(f"texture_format {self.texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+        check_texture_format(self.texture_format)
 
 
 def build_config(args) -> InferSynthesizeConfig:

@@ -101,7 +101,7 @@ def test_lossy_texture_formats_make_smaller_glbs_on_a_noisy_texture():
 
 def test_glb_refuses_an_unknown_texture_format():
     vertices, faces, uv, texture = _quad()
-    with pytest.raises(ValueError, match="texture format 'gif'"):
+    with pytest.raises(ValueError, match="texture_format 'gif'"):
         glb_bytes(vertices, faces, uv, texture, texture_format="gif")
 
 

@@ -56,11 +56,16 @@ def png_bytes(image_rgb_uint8) -> bytes:
     return buffer.getvalue()
 
 
+def check_texture_format(texture_format: str) -> None:
+    """ValueError unless ``texture_format`` is one of :data:`TEXTURE_FORMATS` (every command's ``texture_format`` setting)."""
+    if texture_format not in TEXTURE_FORMATS:
+        raise ValueError(f"texture_format {texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+
+
 def image_bytes(image_rgb_uint8, texture_format: str = "png") -> bytes:
     """(H, W, 3) uint8 -> file bytes in ``texture_format`` (one of :data:`TEXTURE_FORMATS`; JPEG and
     WebP lossy at :data:`LOSSY_QUALITY`, an alpha channel dropped for JPEG)."""
-    if texture_format not in TEXTURE_FORMATS:
-        raise ValueError(f"texture format {texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
+    check_texture_format(texture_format)
     if texture_format == "png":
         return png_bytes(image_rgb_uint8)
     image = _array(image_rgb_uint8, np.uint8, "texture")

@@ -106,7 +106,7 @@ def surface_positions(vertices, faces, mvp: torch.Tensor, size: int):
 def render_baked(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texture: np.ndarray, mvp: torch.Tensor, size: int):
     """The baked mesh (vertices in the working frame) rendered with its texture: images (N, 3, H, W) in
     [-1, 1], mask (N, H, W), the surface point at each pixel (N, H, W, 3)."""
-    from mesh2tex.render import interpolate, texture as sample
+    from mesh2tex.render import interpolate, sample_texture as sample
 
     positions, mask, raster = surface_positions(vertices, faces, mvp, size)
     texel_uv = interpolate(torch.from_numpy(uv).float(), raster, torch.from_numpy(np.asarray(faces, dtype=np.int64)))
@@ -164,7 +164,7 @@ def fidelity(args) -> None:
     from mesh2tex.nn.render_texture import render_field_views
     from mesh2tex.render import orbit_camera, turntable_angles
     from mesh2tex.render.bake import MeshBaker
-    from mesh2tex.texture import bake_texture, latent, load_shape
+    from mesh2tex.texturing import bake_texture, latent, load_shape
 
     model = load_generator("chair", torch.device("cpu"))
     generator, distance, fov = model.network, model.camera.distance, model.camera.fov
@@ -216,7 +216,7 @@ def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
     from mesh2tex.models import load_generator
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.render.bake import MeshBaker, mesh_atlas
-    from mesh2tex.texture import bake_texture, latent, load_shape, write_baked_mesh
+    from mesh2tex.texturing import bake_texture, latent, load_shape, write_baked_mesh
 
     folder = Path(tempfile.mkdtemp(prefix="bake-time-"))
     path = folder / "chair.ply"

@@ -83,7 +83,7 @@ def main() -> None:
     from mesh2tex.nn.generator import TextureGenerator
     from mesh2tex.render import composite_images
     from mesh2tex.synthetic.world import sample_material, sample_views
-    from mesh2tex.texture import load_shape
+    from mesh2tex.texturing import load_shape
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--world", required=True)

@@ -156,7 +156,7 @@ def main() -> None:
     from mesh2tex.nn.vgg import load_vgg19
     from mesh2tex.photos import estimate_mask
     from mesh2tex.synthetic.world import WorldSpec, sample_material, sample_views
-    from mesh2tex.texture import load_shape
+    from mesh2tex.texturing import load_shape
     from mesh2tex.transfer import (TransferConfig, estimate_pose, photo_candidates, pick_by_outline, predict_noc, transfer_texture,
                                    view_at_pose)
     from mesh2tex.transfer.fit import check_fit

@@ -53,7 +53,7 @@ from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import JsonLines
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import load_shape, mean_latent
+from mesh2tex.texturing import load_shape, mean_latent
 
 
 @dataclass

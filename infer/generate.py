@@ -35,7 +35,7 @@ from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.render import orbit_camera, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.errors import note
-from mesh2tex.texture import TexturedMeshWriter, latent, load_shape
+from mesh2tex.texturing import TexturedMeshWriter, latent, load_shape
 
 
 @dataclass

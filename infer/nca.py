@@ -45,7 +45,7 @@ from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
-from mesh2tex.texture import read_user_mesh, source_mesh, write_automaton_mesh
+from mesh2tex.texturing import read_user_mesh, source_mesh, write_automaton_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")
 

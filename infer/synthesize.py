@@ -44,7 +44,7 @@ from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.texel_synthesis import (SynthesisConfig, TexelSurface, TexelSynthesis, exemplar_tensor, render_texture,
                                       vertex_texture_colours)
-from mesh2tex.texture import note, read_user_mesh, write_baked_mesh
+from mesh2tex.texturing import note, read_user_mesh, write_baked_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "texture.png", "report.json")
 MIN_EXEMPLAR = 8  # an exemplar's shorter side, pixels, at least

@@ -65,7 +65,7 @@ from mesh2tex.options import config_overrides
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
-from mesh2tex.texture import load_shape, write_automaton_mesh, write_textured_mesh
+from mesh2tex.texturing import load_shape, write_automaton_mesh, write_textured_mesh
 from mesh2tex.transfer import (AutomatonFit, AutomatonFitConfig, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
                                check_style_sizes, estimate_pose, fit_automaton, photo_candidates, pick_by_outline, predict_noc,
                                transfer_texture, view_at_pose)

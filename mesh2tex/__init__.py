@@ -11,7 +11,7 @@ Library layout (one home per concept):
     mesh2tex.transfer   texture transfer: the photo, the pose search, the optimisation
     mesh2tex.io         atomic writes, checkpoints of every kind (safetensors + JSON), images, textured assets
     mesh2tex.synthetic  the procedural synthetic world (shapes, materials)
-    mesh2tex.texture    a generator's texture on a shape: latents, vertex colours, UV baking
+    mesh2tex.texturing    a generator's texture on a shape: latents, vertex colours, UV baking
     mesh2tex.runtime    devices, processes, seeding, RNG state, EMA
     mesh2tex.photos     object masks (GrabCut) and square crops of photos
 The pipeline stages that read and write files live in the folders data_prep/, train/ and infer/ of the

@@ -50,7 +50,7 @@ import torch.nn.functional as F
 
 from mesh2tex.config import check_fields
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
-from mesh2tex.render import interpolate, orbit_camera, rasterize, texture, transform_points, uv_rasterize
+from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
 SYNTHESIS_LOSSES = ("ps", "sw", "ot")  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
@@ -174,7 +174,7 @@ def render_texture(surface: TexelSurface, image: torch.Tensor, mvp: torch.Tensor
     """
     raster = rasterize(transform_points(surface.positions, mvp), surface.faces, (resolution, resolution))
     covered = (raster.face_id >= 0)[..., None]
-    colours = texture(image, interpolate(surface.uv, raster, surface.faces))  # (N, R, R, 3)
+    colours = sample_texture(image, interpolate(surface.uv, raster, surface.faces))  # (N, R, R, 3)
     images = torch.where(covered, colours, torch.full_like(colours, background))
     return images.permute(0, 3, 1, 2), covered.permute(0, 3, 1, 2).to(images.dtype)
 
@@ -311,7 +311,7 @@ def vertex_texture_colours(image: torch.Tensor, uv: np.ndarray, vertex_index: np
     atlas vertex's ``uv`` (V', 2) and averaged over the atlas vertices (``vertex_index`` (V',) into the
     mesh's) that split the same vertex; a vertex no face uses reads uv (0, 0)."""
     grid = torch.tensor(np.asarray(uv), dtype=torch.float32)[None, None]  # (1, 1, V', 2)
-    sampled = texture(image.permute(2, 0, 1).float(), grid)[0, 0]  # (V', 3)
+    sampled = sample_texture(image.permute(2, 0, 1).float(), grid)[0, 0]  # (V', 3)
     index = torch.tensor(np.asarray(vertex_index), dtype=torch.long)
     summed = torch.zeros(count, 3).index_add_(0, index, sampled)
     return summed / torch.zeros(count).index_add_(0, index, torch.ones(len(index))).clamp_min(1)[:, None]

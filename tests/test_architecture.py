@@ -158,7 +158,7 @@ FLOORS = [
     ("rendering", {"render"}),
     ("content", {"nn", "photos", "synthetic"}),
     ("measures and objectives", {"metrics", "losses"}),
-    ("trained models", {"models", "texture"}),
+    ("trained models", {"models", "texturing"}),
     ("methods", {"transfer", "evaluation", "texel_synthesis"}),
     ("commands", {"options", "cli", "__main__", *STAGES}),
 ]

@@ -8,7 +8,7 @@ import torch
 
 from mesh2tex.checks import check_shape
 from mesh2tex.nn.faceconv import FaceConv, ModulatedFaceConv, face_pool, face_unpool
-from mesh2tex.render import interpolate, rasterize, texture
+from mesh2tex.render import interpolate, rasterize, sample_texture
 
 
 def test_check_shape_sizes_alternatives_and_types():
@@ -42,8 +42,8 @@ def test_rasterize_and_interpolate_name_the_wrong_argument():
         rasterize(pos, tri, (8,))
     with pytest.raises(ValueError, match=r"interpolate: attr must have shape \[V, C\] or \[1, V, C\] or \[B, V, C\], got \[3\]"):
         interpolate(torch.rand(3), raster, tri)
-    with pytest.raises(ValueError, match=r"texture: uv must have shape \[B, H, W, 2\]"):
-        texture(torch.rand(3, 4, 4), torch.rand(1, 8, 8, 3))
+    with pytest.raises(ValueError, match=r"sample_texture: uv must have shape \[B, H, W, 2\]"):
+        sample_texture(torch.rand(3, 4, 4), torch.rand(1, 8, 8, 3))
 
 
 def test_face_convolutions_name_the_wrong_argument():

@@ -12,7 +12,7 @@ from mesh2tex.cli import main
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.models import load_generator
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.texture import latent
+from mesh2tex.texturing import latent
 
 @pytest.fixture(scope="module")
 def trained(tiny_gan):

@@ -19,7 +19,7 @@ from mesh2tex.render import (
     render_noc,
     render_normals,
     shade_lambert,
-    texture,
+    sample_texture,
     transform_points,
     unwrap_uv,
     uv_rasterize,
@@ -347,7 +347,7 @@ def test_texture_orientation_v_up():
     image = torch.zeros(1, 4, 2)
     image[0, 0] = 1.0  # top row of the image
     uv = torch.tensor([[[[0.25, 0.875], [0.25, 0.125]]]])  # (1,1,2,2): near the top, near the bottom
-    out = texture(image, uv)
+    out = sample_texture(image, uv)
     assert out.shape == (1, 1, 2, 1)
     assert out[0, 0, 0, 0] == 1.0 and out[0, 0, 1, 0] == 0.0
 
@@ -385,9 +385,9 @@ def test_uv_rasterize_maps_texel_centres_v_up():
     r = torch.arange(8, dtype=torch.float32)
     assert torch.allclose(looked_up[..., 0], ((k + 0.5) / 16).expand(8, 16), atol=1e-6)
     assert torch.allclose(looked_up[..., 1], (1 - (r + 0.5) / 8)[:, None].expand(8, 16), atol=1e-6)
-    # Baking then sampling with texture() round-trips: texel (r, k) is read back at its own uv.
+    # Baking then sampling with sample_texture() round-trips: texel (r, k) is read back at its own uv.
     image = torch.rand(3, 8, 16)
-    assert torch.allclose(texture(image, looked_up[None]).permute(0, 3, 1, 2)[0], image, atol=1e-5)
+    assert torch.allclose(sample_texture(image, looked_up[None]).permute(0, 3, 1, 2)[0], image, atol=1e-5)
 
 
 def test_dilate_texture_fills_a_ring_and_keeps_defined_texels():

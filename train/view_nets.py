@@ -48,7 +48,7 @@ from mesh2tex.render import crop_square, object_box
 from mesh2tex.synthetic.backdrops import place_over_backdrops
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.world import WorldSpec, render_views, sample_material, sample_views, unit_to_uint8
-from mesh2tex.texture import latent, shape_mismatch, vertex_colours as field_vertex_colours  # _GanTextures.vertex_colours shadows the name
+from mesh2tex.texturing import latent, shape_mismatch, vertex_colours as field_vertex_colours  # _GanTextures.vertex_colours shadows the name
 from mesh2tex.train import runs
 
 # --------------------------------------------------------------------------------------- data

@@ -98,7 +98,7 @@ from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import Lights, composite_images, orbit_camera
 from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_material, sample_views
-from mesh2tex.texture import mean_latent, shape_mismatch
+from mesh2tex.texturing import mean_latent, shape_mismatch
 
 LIGHTING_MODES = ("auto", "lit", "unlit")
 GENERATOR_RENDERS = ("photo", "direct")

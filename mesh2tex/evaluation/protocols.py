@@ -89,7 +89,7 @@ from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
-from mesh2tex.texture import latent, mean_latent, shape_mismatch
+from mesh2tex.texturing import latent, mean_latent, shape_mismatch
 from mesh2tex.transfer import (ABLATIONS, AutomatonFitConfig, TransferConfig, check_style_sizes, estimate_pose, fit_automaton, load_photo,
                                predict_noc, view_at_pose)
 

@@ -13,7 +13,7 @@ Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in do
 
 from .cameras import Camera, CameraConfig, orbit_camera, orbit_direction, perspective, transform_points, turntable_angles
 from .crop import crop_mask, crop_square, object_box
-from .interpolate import face_attribute, interpolate, texture
+from .interpolate import face_attribute, interpolate, sample_texture
 from .rasterize import Raster, pixel_centres, rasterize
 from .shading import (
     LightConfig,
@@ -59,7 +59,7 @@ __all__ = [
     "render_normals",
     "shade_colours",
     "shade_lambert",
-    "texture",
+    "sample_texture",
     "transform_points",
     "turntable_angles",
     "unwrap_uv",

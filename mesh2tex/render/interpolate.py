@@ -77,7 +77,7 @@ def face_attribute(attr: torch.Tensor, raster: Raster) -> torch.Tensor:
     return values * mask[..., None].to(values.dtype)
 
 
-def texture(image: torch.Tensor, uv: torch.Tensor, mode: str = "bilinear") -> torch.Tensor:
+def sample_texture(image: torch.Tensor, uv: torch.Tensor, mode: str = "bilinear") -> torch.Tensor:
     """Sample a texture image at UV coordinates.
 
     Args:
@@ -89,8 +89,8 @@ def texture(image: torch.Tensor, uv: torch.Tensor, mode: str = "bilinear") -> to
     Returns:
         (B,H,W,C), differentiable with respect to ``image`` and ``uv``.
     """
-    sizes = check_shape(uv, "texture: uv", ("B", "H", "W", 2), dtype="float")
-    check_shape(image, "texture: image", ("C", "Ht", "Wt"), (1, "C", "Ht", "Wt"), ("B", "C", "Ht", "Wt"), sizes=sizes, dtype="float")
+    sizes = check_shape(uv, "sample_texture: uv", ("B", "H", "W", 2), dtype="float")
+    check_shape(image, "sample_texture: image", ("C", "Ht", "Wt"), (1, "C", "Ht", "Wt"), ("B", "C", "Ht", "Wt"), sizes=sizes, dtype="float")
     if image.dim() == 3:
         image = image[None]
     B = uv.shape[0]

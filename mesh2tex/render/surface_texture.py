@@ -18,7 +18,7 @@ import torch
 
 from mesh2tex.checks import check_shape
 
-from .interpolate import texture
+from .interpolate import sample_texture
 
 
 class SurfaceTexture(Protocol):
@@ -47,4 +47,4 @@ class UVTexture:
         check_shape(bary, "UVTexture.colours: bary", ("P", 3), sizes=sizes, dtype="float")
         corners = self.uv[triangle_id]  # (P, 3, 2)
         uv = (corners * bary.to(corners.dtype)[..., None]).sum(1)  # (P, 2)
-        return texture(self.image, uv.reshape(1, 1, -1, 2)).reshape(-1, 3)
+        return sample_texture(self.image, uv.reshape(1, 1, -1, 2)).reshape(-1, 3)

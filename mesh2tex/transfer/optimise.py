@@ -18,7 +18,7 @@ from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction
-from mesh2tex.texture import mean_latent
+from mesh2tex.texturing import mean_latent
 from mesh2tex.transfer.config import TransferConfig
 from mesh2tex.transfer.photo import FramedView, Photo, check_query, check_view, view_at_pose
 

@@ -81,8 +81,8 @@ import torch
 from mesh2tex.config import check_fields
 from mesh2tex.errors import InputError
 from mesh2tex.evaluation.compare import render_for_comparison
-from mesh2tex.evaluation.paired import oracle_check
 from mesh2tex.evaluation.report import GENERATION_ROWS, SPLITS
+from mesh2tex.evaluation.summary import generation_summary
 from mesh2tex.evaluation.surfaces import generator_surface
 from mesh2tex.evaluation.world import WorldData, read_world
 from mesh2tex.geometry.prepared import PreparedShape
@@ -91,7 +91,7 @@ from mesh2tex.io.images import colours_to_uint8, save_png
 from mesh2tex.models import load_generator
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
-from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
+from mesh2tex.metrics.generation import colour_spread, mean_object_lab, mean_pairwise_delta_e, object_set_swd
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
@@ -325,134 +325,124 @@ def run_generation_protocol(world_dir: str | Path, shapes_dir: str | Path, check
     trained = model.network
     if not cfg.resolution and model.resolution is None:
         raise InputError(f"{checkpoint}: the checkpoint does not say the resolution it was trained at; give --resolution")
-    resolution = cfg.resolution or model.resolution
     torch.manual_seed(cfg.seed)
     untrained = TextureGenerator(trained.cfg).to(device).eval().requires_grad_(False)
-    lit = model.lit if cfg.lighting == "auto" else cfg.lighting == "lit"
-    photo_side = cfg.photo_side(world)
     names = world.held_out if cfg.split == "held_out" else world.train
     names = names[: cfg.max_shapes] if cfg.max_shapes > 0 else names
-    shapes = {}
-    for name in names:
-        path = Path(shapes_dir) / f"{name}.npz"
-        if not path.is_file():
-            raise InputError(f"{path}: the {SPLITS[cfg.split]} shape {name} is not prepared; run 'mesh2tex prepare shapes' on {world.root / 'meshes' / (name + '.obj')}")
-        shape = PreparedShape.load(path)
-        problem = shape_mismatch(shape, trained)
-        if problem:
-            raise InputError(f"{path}: {problem}")
-        shapes[name] = shape
-
-    photos, photo_masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
-    photo_names = list(list_images(world.root / "images", "image"))
-    photo_mean = (photos * photo_masks).sum(dim=(0, 2, 3)) / (photo_masks.sum() * 1.0).clamp_min(1.0)  # (3,) the mean object colour
-    views_of = {name: sample_views(world.spec, world.indices[name], cfg.views) for name in names}  # fresh for held-out shapes
-    fixed = {row: ([], []) for row in GENERATION_ROWS if row not in DRAWN_ROWS}  # rows that draw nothing: rendered once
-    diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
-    z_div_gen = seeded_generator((cfg.seed,), _DIVERSITY_STREAM)
-    generator_rows = (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0))  # (row, generator, truncation psi)
+    run = _ProtocolRun(world, cfg, device, trained, untrained, _prepared_shapes(world, names, shapes_dir, cfg, trained),
+                       resolution=cfg.resolution or model.resolution, lit=model.lit if cfg.lighting == "auto" else cfg.lighting == "lit")
     bar = progress_bar(total=len(names) + cfg.repeats, desc="generation protocol", unit="step")
-    for position, name in enumerate(names):
-        views = views_of[name]
-        images, masks = generator_renders(trained, shapes[name], views, resolution, None, device, lit,
-                                          ws=mean_latent(trained).expand(len(views), -1, -1), photo_resolution=photo_side)
-        fixed["mean_texture"][0].append(images)
-        fixed["mean_texture"][1].append(masks)
-        fixed["flat_colour"][0].append(composite_images(photo_mean.reshape(1, 3, 1, 1).expand_as(images), masks, 1.0))
-        fixed["flat_colour"][1].append(masks)
-        for row, (images, masks) in (("ground_truth", ground_truth_renders(world, name, views, resolution, lit=True)),
-                                     ("training_materials", training_material_renders(world, name, views, resolution, first=position * len(views)))):
-            fixed[row][0].append(images)
-            fixed[row][1].append(masks)
-        # Diversity: many latents at one pose.
-        pose = pose_view(views[0], cfg.azimuth, cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
-        z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_div_gen)
-        for row, generator, psi in generator_rows:
-            images, masks = generator_renders(generator, shapes[name], [pose] * cfg.latents, resolution, z_div, device, lit, truncation=psi,
-                                              photo_resolution=photo_side)
-            diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
-            diversity[row]["pairwise"].append(mean_pairwise_delta_e(images, masks))
-        images, masks = material_draws(world, name, [pose] * cfg.latents, resolution, cfg.seed, lit=lit)
-        diversity["reference_materials"]["spread"].append(colour_spread(mean_object_lab(images, masks)))
-        diversity["reference_materials"]["pairwise"].append(mean_pairwise_delta_e(images, masks))
-        log(f"generation protocol: {name} done ({time.perf_counter() - start:.0f} s)")
-        bar.update(1)
-    fixed_sets = {row: (torch.cat(images), torch.cat(masks)) for row, (images, masks) in fixed.items()}
-
-    eval_cfg = EvaluateConfig(resolution=resolution, features=cfg.features, seed=cfg.seed)
+    fixed, diversity = run.fixed_rows_and_diversity(lambda name: (log(f"generation protocol: {name} done "
+                                                                      f"({time.perf_counter() - start:.0f} s)"), bar.update(1)))
     if cfg.kid_fid:
         extractor = extractor or get_feature_extractor(cfg.features, device=device)
     per_repeat = []  # {row: metrics} of every repeat
     for repeat in range(cfg.repeats):
-        key = draw_key(cfg.seed, repeat)
-        sets = dict(fixed_sets)
-        drawn = {row: ([], []) for row in DRAWN_ROWS}
-        z_gen = seeded_generator(key, _LATENT_STREAM)
-        for name in names:
-            views = views_of[name]
-            z = torch.randn(cfg.views, trained.cfg.z_dim, generator=z_gen)
-            for row, generator, psi in generator_rows:
-                images, masks = generator_renders(generator, shapes[name], views, resolution, z, device, lit, truncation=psi,
-                                                  photo_resolution=photo_side)
-                drawn[row][0].append(images)
-                drawn[row][1].append(masks)
-            for row, oracle_lit in (("oracle", True), ("oracle_unlit", False)):
-                images, masks = material_draws(world, name, views, resolution, key, _ORACLE_STREAM, oracle_lit)
-                drawn[row][0].append(images)
-                drawn[row][1].append(masks)
-        sets.update({row: (torch.cat(images), torch.cat(masks)) for row, (images, masks) in drawn.items()})
-        reference, reference_masks = fresh_photo_set(world, resolution, key)
-        # KID and FID (the feature network, most of the cost) on the first draw only.
-        kid_fid = cfg.kid_fid and repeat == 0
-        reference_features = extractor(reference * 2 - 1) if kid_fid else None  # once for every row
-        swd_seed = cfg.seed + repeat
-        rows = {}
-        for row in GENERATION_ROWS:
-            images, masks = sets[row]
-            metrics = evaluate_sets(images, reference, extractor, dataclasses.replace(eval_cfg, seed=swd_seed), masks, reference_masks,
-                                    kid_fid=kid_fid, image_features=reference_features)["metrics"]
-            levels = [v for k, v in metrics.items() if k.startswith("swd_") and k.endswith("px")]
-            metrics["swd"] = float(np.mean(levels))
-            metrics["object_swd"] = object_set_swd(images, masks, reference, reference_masks, seed=swd_seed)
-            # Against the training photos, as this protocol measured before the fresh photo set: for
-            # comparison with earlier figures only (the oracle can lose there).
-            metrics["object_swd_vs_photos"] = object_set_swd(images, masks, photos, photo_masks, seed=swd_seed)
-            rows[row] = metrics
-        per_repeat.append(rows)
+        per_repeat.append(run.measure_draw(repeat, fixed, extractor))
         log(f"generation protocol: draw {repeat + 1} of {cfg.repeats} measured ({time.perf_counter() - start:.0f} s)")
         bar.update(1)
     bar.close()
-    rows = average_rows(per_repeat)
-    photo_spread = photo_set_spread(world, photos, photo_masks, photo_names)
-    summary = {name: {k: float(np.mean(v)) for k, v in d.items()} for name, d in diversity.items()}
-    ref = summary["reference_materials"]
-    result = {
-        "world": str(world.root), "checkpoint": str(checkpoint), "split": cfg.split, "shapes": names, "resolution": resolution,
-        "iteration": model.iteration or 0, "rows": rows, "generator_lit": lit,
-        "gap_closed": gap_closed(rows["untrained"]["object_swd"], rows["trained"]["object_swd"], rows["oracle"]["object_swd"]),
-        # The same figure from each draw alone: how much one draw of latents and materials moves it.
-        "gap_closed_per_draw": [gap_closed(r["untrained"]["object_swd"], r["trained"]["object_swd"], r["oracle"]["object_swd"])
-                                for r in per_repeat],
-        "gap_closed_histogram": gap_closed(rows["untrained"]["color_hist_tv"], rows["trained"]["color_hist_tv"], rows["oracle"]["color_hist_tv"]),
-        "gap_closed_whole_image_swd": gap_closed(rows["untrained"]["swd"], rows["trained"]["swd"], rows["oracle"]["swd"]),
-        # What reproducing the training textures exactly would close: about the most a generator can learn from them alone.
-        "gap_closed_training_materials": gap_closed(rows["untrained"]["object_swd"], rows["training_materials"]["object_swd"],
-                                                    rows["oracle"]["object_swd"]),
-        "gap_closed_vs_photos": gap_closed(rows["untrained"]["object_swd_vs_photos"], rows["trained"]["object_swd_vs_photos"],
-                                           rows["oracle"]["object_swd_vs_photos"]),
-        # Columns some row beats the oracle on: such a column cannot rank textures.
-        "oracle_loses": oracle_check({row: {"query": metrics} for row, metrics in rows.items()}),
-        "diversity": {
-            **summary, "photo_set_spread": photo_spread,
-            "trained_spread_vs_photo_set": summary["trained"]["spread"] / max(photo_spread, 1e-9),
-            "trained_spread_vs_materials": summary["trained"]["spread"] / max(ref["spread"], 1e-9),
-            "trained_pairwise_vs_materials": summary["trained"]["pairwise"] / max(ref["pairwise"], 1e-9),
-        },
-        "settings": dataclasses.asdict(cfg), "seconds": round(time.perf_counter() - start, 1),
-    }
+    result = {"world": str(world.root), "checkpoint": str(checkpoint), "split": cfg.split, "shapes": names, "resolution": run.resolution,
+              "iteration": model.iteration or 0, **generation_summary(per_repeat, diversity, photo_set_spread(world, *run.photos, run.photo_names)),
+              "generator_lit": run.lit, "settings": dataclasses.asdict(cfg), "seconds": round(time.perf_counter() - start, 1)}
     if samples_path is not None:
-        write_samples_grid(samples_path, trained, shapes[names[0]], world, names[0], resolution, cfg, device, lit=lit)
+        write_samples_grid(samples_path, trained, run.shapes[names[0]], world, names[0], run.resolution, cfg, device, lit=run.lit)
     return result
+
+
+def _prepared_shapes(world: WorldData, names: list[str], shapes_dir: str | Path, cfg: GenerationConfig, generator) -> dict:
+    """{name: PreparedShape} of the measured shapes, each checked against the generator (InputError naming the file)."""
+    shapes = {}
+    for name in names:
+        path = Path(shapes_dir) / f"{name}.npz"
+        if not path.is_file():
+            raise InputError(f"{path}: the {SPLITS[cfg.split]} shape {name} is not prepared; run 'mesh2tex prepare shapes' on "
+                             f"{world.root / 'meshes' / (name + '.obj')}")
+        shape = PreparedShape.load(path)
+        problem = shape_mismatch(shape, generator)
+        if problem:
+            raise InputError(f"{path}: {problem}")
+        shapes[name] = shape
+    return shapes
+
+
+class _ProtocolRun:
+    """One run of the protocol: the world, the generators, the shapes and their views, and the photo set.
+    Its steps draw random numbers in the order the protocol has always drawn them (figures stay reproducible)."""
+
+    def __init__(self, world: WorldData, cfg: GenerationConfig, device, trained, untrained, shapes: dict, resolution: int, lit: bool):
+        self.world, self.cfg, self.device, self.trained, self.shapes = world, cfg, device, trained, shapes
+        self.resolution, self.lit, self.photo_side = resolution, lit, cfg.photo_side(world)
+        self.photos = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+        self.photo_names = list(list_images(world.root / "images", "image"))
+        photos, photo_masks = self.photos
+        self.photo_mean = (photos * photo_masks).sum(dim=(0, 2, 3)) / (photo_masks.sum() * 1.0).clamp_min(1.0)  # (3,) mean object colour
+        self.views_of = {name: sample_views(world.spec, world.indices[name], cfg.views) for name in shapes}  # fresh for held-out shapes
+        self.generator_rows = (("trained", trained, cfg.truncation), ("untrained", untrained, 1.0))  # (row, generator, truncation psi)
+
+    def renders(self, generator, name: str, views, z, psi: float = 1.0, ws=None):
+        return generator_renders(generator, self.shapes[name], views, self.resolution, z, self.device, self.lit, truncation=psi,
+                                 photo_resolution=self.photo_side, **({} if ws is None else {"ws": ws}))
+
+    def fixed_rows_and_diversity(self, done) -> tuple[dict, dict]:
+        """The rows that draw nothing (rendered once) and the diversity measures, shape by shape (``done(name)`` after each)."""
+        cfg, world, trained = self.cfg, self.world, self.trained
+        fixed = {row: ([], []) for row in GENERATION_ROWS if row not in DRAWN_ROWS}
+        diversity = {row: {"spread": [], "pairwise": []} for row in ("trained", "untrained", "reference_materials")}
+        z_div_gen = seeded_generator((cfg.seed,), _DIVERSITY_STREAM)
+        for position, name in enumerate(self.shapes):
+            views = self.views_of[name]
+            images, masks = self.renders(trained, name, views, None, ws=mean_latent(trained).expand(len(views), -1, -1))
+            rendered = {"mean_texture": (images, masks),
+                        "flat_colour": (composite_images(self.photo_mean.reshape(1, 3, 1, 1).expand_as(images), masks, 1.0), masks),
+                        "ground_truth": ground_truth_renders(world, name, views, self.resolution, lit=True),
+                        "training_materials": training_material_renders(world, name, views, self.resolution, first=position * len(views))}
+            for row, (images, masks) in rendered.items():
+                fixed[row][0].append(images)
+                fixed[row][1].append(masks)
+            # Diversity: many latents at one pose.
+            pose = pose_view(views[0], cfg.azimuth, cfg.elevation, (world.spec.distance_min + world.spec.distance_max) / 2)
+            z_div = torch.randn(cfg.latents, trained.cfg.z_dim, generator=z_div_gen)
+            draws = [(row, self.renders(generator, name, [pose] * cfg.latents, z_div, psi)) for row, generator, psi in self.generator_rows]
+            draws.append(("reference_materials", material_draws(world, name, [pose] * cfg.latents, self.resolution, cfg.seed, lit=self.lit)))
+            for row, (images, masks) in draws:
+                diversity[row]["spread"].append(colour_spread(mean_object_lab(images, masks)))
+                diversity[row]["pairwise"].append(mean_pairwise_delta_e(images, masks))
+            done(name)
+        return {row: (torch.cat(images), torch.cat(masks)) for row, (images, masks) in fixed.items()}, diversity
+
+    def measure_draw(self, repeat: int, fixed: dict, extractor) -> dict:
+        """{row: metrics} of one draw of the latents, the oracle's materials and the fresh photo set."""
+        cfg, world = self.cfg, self.world
+        key = draw_key(cfg.seed, repeat)
+        drawn = {row: ([], []) for row in DRAWN_ROWS}
+        z_gen = seeded_generator(key, _LATENT_STREAM)
+        for name, views in self.views_of.items():
+            z = torch.randn(cfg.views, self.trained.cfg.z_dim, generator=z_gen)
+            renders = [(row, self.renders(generator, name, views, z, psi)) for row, generator, psi in self.generator_rows]
+            renders += [(row, material_draws(world, name, views, self.resolution, key, _ORACLE_STREAM, oracle_lit))
+                        for row, oracle_lit in (("oracle", True), ("oracle_unlit", False))]
+            for row, (images, masks) in renders:
+                drawn[row][0].append(images)
+                drawn[row][1].append(masks)
+        sets = {**fixed, **{row: (torch.cat(images), torch.cat(masks)) for row, (images, masks) in drawn.items()}}
+        reference, reference_masks = fresh_photo_set(world, self.resolution, key)
+        kid_fid = cfg.kid_fid and repeat == 0  # KID and FID (the feature network, most of the cost) on the first draw only
+        reference_features = extractor(reference * 2 - 1) if kid_fid else None  # once for every row
+        eval_cfg = EvaluateConfig(resolution=self.resolution, features=cfg.features, seed=cfg.seed + repeat)
+        photos, photo_masks = self.photos
+        rows = {}
+        for row in GENERATION_ROWS:
+            images, masks = sets[row]
+            metrics = evaluate_sets(images, reference, extractor, eval_cfg, masks, reference_masks, kid_fid=kid_fid,
+                                    image_features=reference_features)["metrics"]
+            metrics["swd"] = float(np.mean([v for k, v in metrics.items() if k.startswith("swd_") and k.endswith("px")]))
+            metrics["object_swd"] = object_set_swd(images, masks, reference, reference_masks, seed=eval_cfg.seed)
+            # Against the training photos, as this protocol measured before the fresh photo set: for
+            # comparison with earlier figures only (the oracle can lose there).
+            metrics["object_swd_vs_photos"] = object_set_swd(images, masks, photos, photo_masks, seed=eval_cfg.seed)
+            rows[row] = metrics
+        return rows
 
 
 @torch.no_grad()
@@ -471,14 +461,3 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)
     save_png(path, colours_to_uint8(grid, signed=False))
-
-
-def average_rows(per_repeat: list[dict[str, dict[str, float]]]) -> dict[str, dict]:
-    """{row: metrics} of several draws -> the mean of every metric over the draws that have it (KID
-    and FID only the first), and each row's object SWD per draw (``object_swd_per_draw``)."""
-    rows = {}
-    for row in per_repeat[0]:
-        names = dict.fromkeys(k for r in per_repeat for k in r[row])
-        rows[row] = {name: float(np.mean([r[row][name] for r in per_repeat if name in r[row]])) for name in names}
-        rows[row]["object_swd_per_draw"] = [r[row]["object_swd"] for r in per_repeat]
-    return rows

@@ -67,13 +67,12 @@ import torch
 
 from mesh2tex import transfer
 from mesh2tex.errors import InputError
-from mesh2tex.evaluation import (LIGHTING, ComparisonRender, ScoreSettings, backproject_photo, common_mask, flat_surface,
-                                 generator_surface, other_views, photo_mean_colour, render_for_comparison, score_views,
-                                 seen_and_unseen, vertex_colour_surface)
+from mesh2tex.evaluation import LIGHTING, backproject_photo, generator_surface, vertex_colour_surface
 from mesh2tex.evaluation.cache import TransferCache
+from mesh2tex.evaluation.queries import QueryJudge, QuerySetup
 from mesh2tex.evaluation.paired import compare_to_full, flat_colour_targets, mean_scores, oracle_check
 from mesh2tex.evaluation.report import BASELINES, EXTRA_METHODS, PROTOCOLS, TRANSFER_PROTOCOLS, protocols_markdown
-from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth, load_world, other_shape_name, reference_renders
+from mesh2tex.evaluation.world import World, load_world, other_shape_name
 from mesh2tex.geometry.prepared import PreparedShape, shape_paths
 from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.io.checkpoint import checkpoint_digest
@@ -83,15 +82,13 @@ from mesh2tex.models import load_generator, resolve_checkpoint
 from mesh2tex.metrics import get_feature_extractor, to_unit
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.nn.pose import azimuth_error
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
 from mesh2tex.texturing import latent, mean_latent, shape_mismatch
-from mesh2tex.transfer import (ABLATIONS, AutomatonFitConfig, TransferConfig, check_style_sizes, estimate_pose, fit_automaton, load_photo,
-                               predict_noc, view_at_pose)
+from mesh2tex.transfer import ABLATIONS, AutomatonFitConfig, TransferConfig, check_style_sizes, fit_automaton
 
 
 # TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations set.
@@ -244,69 +241,22 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
     [rows], "seconds": s}}}; scores are named "seen <metric>" and "unseen <metric>".
     """
     base = cfg.transfer_config(str(device))
-    exact = protocol in ("known_pose", "unknown_pose")
-    settings = ScoreSettings(lowpass_sigma=cfg.lowpass_sigma, seed=cfg.seed)
-    offsets = [360.0 * k / (cfg.unseen_views + 1) for k in range(1, cfg.unseen_views + 1)]
     methods = {name: {"per_query": [], "seconds": 0.0} for name in (*cfg.baselines, *cfg.ablations)}
     setups = []
     for q, query in enumerate(world.queries):
-        photo, _ = load_photo(query.image, query.mask, base)
-        photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
-        target = query.shape if exact else targets[query.shape]
-        shape = shapes[target]
-        network_pose = None
-        if protocol == "known_pose":
-            azimuth, elevation, dist, view_fov = query.azimuth, query.elevation, query.distance, query.fov
-        else:
-            estimate = estimate_pose(pose_checkpoint, shape, photo, distance, fov, base, device)
-            azimuth, elevation, network_pose = estimate.azimuth, estimate.elevation, estimate.network
-            dist, view_fov = distance, fov
-        view = view_at_pose(shape, azimuth, elevation, dist, view_fov, base)
-        setups.append({"query": query.name, "shape": target, "azimuth": round(azimuth, 3), "elevation": round(elevation, 3),
-                       "true_azimuth": query.azimuth, "true_elevation": query.elevation,
-                       "azimuth_error": round(float(azimuth_error(azimuth, query.azimuth)), 3),
-                       "elevation_error": round(abs(elevation - query.elevation), 3)})
-        if network_pose is not None and cfg.transfer.pose_search:
-            setups[-1]["network_azimuth_error"] = round(float(azimuth_error(network_pose[0], query.azimuth)), 3)
-
-        # The ground truth, and one render function for every method.
-        try:
-            truth = load_query_truth(world.root, world.index, query.record)
-            target_truth = truth.truth if exact else load_shape_truth(world.root, world.index, target)
-        except ValueError as error:
-            raise InputError(str(error)) from None
-        views = [truth.view] + other_views(truth.view, offsets)
-        size = truth.resolution
-
-        def render(surface):
-            return render_for_comparison(surface, views, size, lighting=cfg.lighting)
-
-        reference = reference_renders(truth, views, cfg.lighting)
-        oracle = render(truth.truth.oracle if exact else truth.truth.material_on(target_truth))
-        vertices, triangles = shape.vertices[0], shape.triangles(0)
-        batch = collate_shapes([shape])
-        flat = render(flat_surface(vertices, triangles, photo_mean_colour(truth.photo[0], truth.photo_mask[0])))
-        # Exact geometry: every method on the pixels both the world's shape and the prepared one cover, with
-        # the world's part labels. Another shape: each image on its own object pixels, parts by label.
-        mask = common_mask(reference.mask, flat.mask) if exact else common_mask(flat.mask, oracle.mask)
-
-        def score(rendered) -> dict:
-            if exact:
-                scores = score_views(rendered, reference.rgb, reference.parts, mask, settings)
-            else:
-                scores = score_views(ComparisonRender(rendered.rgb, mask, oracle.parts), reference.rgb, reference.parts, mask,
-                                     settings, reference_mask=reference.mask)
-            return {k: round(v, 5) for k, v in seen_and_unseen(scores).items()}
+        setup = QuerySetup(protocol, query, shapes, targets, base, cfg, pose_checkpoint, noc_checkpoint, distance, fov, device)
+        setups.append(setup.record)
+        judge = QueryJudge(protocol, world, query, setup.target, setup.shape, cfg)
 
         def keep(name: str, rendered, row: dict) -> None:
-            row = {"query": query.name, **score(rendered), **row}
+            row = {"query": query.name, **judge.score(rendered), **row}
             methods[name]["per_query"].append(row)
             methods[name]["seconds"] += row.get("seconds", 0.0)
             if out is not None:
                 folder = out / "renders" / protocol / name
                 folder.mkdir(parents=True, exist_ok=True)
                 save_png(folder / f"{query.name}.png", _strip(rendered.rgb))
-            log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {target} {name}: "
+            log(f"{protocol} {q + 1}/{len(world.queries)} {query.name} -> {setup.target} {name}: "
                 + ", ".join(f"{k} {row[k]:.4g}" for k in ("seen part_delta_e", "unseen part_delta_e", "seen lowpass_psnr") if k in row)
                 + (f" ({row['seconds']:.0f} s)" if "seconds" in row else ""))
             if step is not None:  # one method of one query judged
@@ -314,59 +264,66 @@ def run_transfer_protocol(protocol: str, generator, world: World, shapes: dict[s
 
         if out is not None:
             (out / "renders" / protocol).mkdir(parents=True, exist_ok=True)
-            save_png(out / "renders" / protocol / f"{query.name}_reference.png", _strip(reference.rgb))
+            save_png(out / "renders" / protocol / f"{query.name}_reference.png", _strip(judge.reference.rgb))
         for name in cfg.baselines:
-            start, row = time.perf_counter(), {}
-            if name == "oracle":
-                rendered = oracle
-            elif name == "flat_colour":
-                rendered = flat
-            elif name == "mean_texture":
-                with torch.no_grad():
-                    ws = mean_latent(generator).to(device)
-                    texture = generator.synthesize(batch.to(device), ws, noise_mode="none")
-                rendered = render(generator_surface(generator, texture, batch))
-            elif name == "automaton":  # fitted at the pose the transfer uses, with its losses
-                if base.use_noc and base.use_patches and photo_noc is None:
-                    raise InputError("the automaton uses NOC-guided patches: give --noc-checkpoint")
-                fit = fit_automaton(shape, photo, view, photo_noc, vgg, base, cfg.automaton, device, show_progress=False)
-                rendered = render(vertex_colour_surface(vertices, triangles, fit.colours.cpu()))
-                row = {"loss_last": fit.losses[-1]}
-            else:  # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
-                try:
-                    surface = backproject_photo(vertices, triangles, truth.photo[0], truth.photo_mask[0, 0], azimuth, elevation,
-                                                dist, view_fov, align="photo" if protocol == "known_pose" else "silhouette",
-                                                margin=base.margin)
-                except ValueError as error:
-                    raise InputError(f"{query.image}: {error}") from None
-                rendered = render(surface)
+            start = time.perf_counter()
+            rendered, row = _baseline(name, judge, setup, generator, vgg, cfg, base, device)
             keep(name, rendered, {"seconds": round(time.perf_counter() - start, 2), **row})
-
         for ablation in cfg.ablations:
-            tcfg = replace(base, **ABLATIONS[ablation])
-            guided = tcfg.use_noc and tcfg.use_patches
-            if guided and photo_noc is None:
-                raise InputError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
-            cached = cache.load(protocol, ablation, query.name) if cache is not None else None
-            if cached is not None:  # made by an earlier run into this folder with the same settings
-                texture, row = cached
-            else:
-                torch.manual_seed(cfg.seed)
-                candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
-                result = transfer.transfer_texture(candidate, shape, photo, view, photo_noc if guided else None, vgg, tcfg, device,
-                                                   show_progress=False, generator_lit=generator_lit)
-                with torch.no_grad():
-                    texture = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none")
-                row = {"loss_last": {k: v[-1] for k, v in result.losses.items() if v}, "seconds": round(sum(result.seconds.values()), 2),
-                       **({"light": result.light} if result.light is not None else {})}
-                if cache is not None:
-                    cache.save(protocol, ablation, query.name, texture, row)
+            texture, row = _transferred(ablation, setup, generator, vgg, cfg, base, device, cache, generator_lit)
             # Stage 2 refines synthesis blocks only: psi is the original's, so the synthesis output is the whole result.
-            keep(ablation, render(generator_surface(generator, texture, batch)), dict(row))
+            keep(ablation, judge.render(generator_surface(generator, texture, setup.batch)), dict(row))
     for entry in methods.values():
         entry["query"] = mean_scores(entry["per_query"])
         entry["seconds"] = round(entry["seconds"], 2)
     return {"queries": setups, "methods": methods}
+
+
+def _baseline(name: str, judge: QueryJudge, setup: QuerySetup, generator, vgg, cfg: ProtocolConfig, base, device) -> tuple:
+    """(the render, extra row fields) of the simple method ``name`` (:data:`BASELINES`, or ``automaton``)."""
+    if name == "oracle":
+        return judge.oracle, {}
+    if name == "flat_colour":
+        return judge.flat, {}
+    if name == "mean_texture":
+        with torch.no_grad():
+            texture = generator.synthesize(setup.batch.to(device), mean_latent(generator).to(device), noise_mode="none")
+        return judge.render(generator_surface(generator, texture, setup.batch)), {}
+    if name == "automaton":  # fitted at the pose the transfer uses, with its losses
+        if base.use_noc and base.use_patches and setup.photo_noc is None:
+            raise InputError("the automaton uses NOC-guided patches: give --noc-checkpoint")
+        fit = fit_automaton(setup.shape, setup.photo, setup.view, setup.photo_noc, vgg, base, cfg.automaton, device, show_progress=False)
+        return judge.render(vertex_colour_surface(judge.vertices, judge.triangles, fit.colours.cpu())), {"loss_last": fit.losses[-1]}
+    # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
+    try:
+        surface = backproject_photo(judge.vertices, judge.triangles, judge.truth.photo[0], judge.truth.photo_mask[0, 0], setup.azimuth,
+                                    setup.elevation, setup.distance, setup.fov,
+                                    align="photo" if setup.protocol == "known_pose" else "silhouette", margin=base.margin)
+    except ValueError as error:
+        raise InputError(f"{setup.query.image}: {error}") from None
+    return judge.render(surface), {}
+
+
+def _transferred(ablation: str, setup: QuerySetup, generator, vgg, cfg: ProtocolConfig, base, device, cache, generator_lit: bool) -> tuple:
+    """(the synthesis output, row) of the transfer under ``ablation``: from ``cache`` when an earlier run made it."""
+    tcfg = replace(base, **ABLATIONS[ablation])
+    guided = tcfg.use_noc and tcfg.use_patches
+    if guided and setup.photo_noc is None:
+        raise InputError(f"ablation {ablation} uses NOC-guided patches: give --noc-checkpoint")
+    cached = cache.load(setup.protocol, ablation, setup.query.name) if cache is not None else None
+    if cached is not None:  # made by an earlier run into this folder with the same settings
+        return cached
+    torch.manual_seed(cfg.seed)
+    candidate = copy.deepcopy(generator)  # stage 2 changes the generator's weights
+    result = transfer.transfer_texture(candidate, setup.shape, setup.photo, setup.view, setup.photo_noc if guided else None, vgg, tcfg,
+                                       device, show_progress=False, generator_lit=generator_lit)
+    with torch.no_grad():
+        texture = candidate.synthesize(setup.batch.to(device), result.ws.to(device), noise_mode="none")
+    row = {"loss_last": {k: v[-1] for k, v in result.losses.items() if v}, "seconds": round(sum(result.seconds.values()), 2),
+           **({"light": result.light} if result.light is not None else {})}
+    if cache is not None:
+        cache.save(setup.protocol, ablation, setup.query.name, texture, row)
+    return texture, row
 
 
 def _strip(images: torch.Tensor) -> np.ndarray:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -113,9 +114,60 @@ def read_cells_surface(spec: str, up: str, uv: str, output_mesh: str) -> tuple[t
     return surface, BakeTarget(mesh, unit_transform(surface[0], spec), uv)
 
 
-def run(args) -> int:
+def grow(model, graph, cfg: InferNCAConfig, graft, damage, distance: float, fov: float, device) -> tuple:
+    """Grow the automaton from its seed for ``cfg.steps`` steps (and regrow the ``damage`` region as many
+    again): (final state (1, V, C), the GIF's frames, seconds spent in steps, phases run). Frames are
+    rendered along a quarter turn of the camera."""
+    angle = math.radians(cfg.angle)
+    generator = torch.Generator(device=device).manual_seed(cfg.seed)
+    frames_at = set(np.linspace(0, cfg.steps, cfg.frames, dtype=int).tolist()) if cfg.frames else set()
+    gif_size = min(cfg.resolution, 192)
+    frames: list[np.ndarray] = []
+
+    def frame(state, index, total):
+        azimuth = 30.0 + 90.0 * index / max(total - 1, 1)
+        mvp = orbit_camera(azimuth, 20.0, distance=distance, fov=fov).mvp.to(device)
+        frames.append(images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0, graft=graft).images)[0])
+
+    state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed))
+    total_frames = len(frames_at) * (2 if damage is not None else 1)
+    step_seconds = 0.0
+    with torch.no_grad():
+        phases = [("grow", cfg.steps)] + ([("regrow", cfg.steps)] if damage is not None else [])
+        for phase, steps in phases:
+            if phase == "regrow":
+                state = state.masked_fill(damage[None, :, None], 0.0) if model.cfg.seed == "zero" else torch.where(
+                    damage[None, :, None], model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed + 1)), state)
+            for step in progress_bar(range(steps + 1), desc=f"infer nca ({phase})"):
+                if step in frames_at:
+                    frame(state, len(frames), total_frames)
+                if step == steps:
+                    break
+                tick = time.perf_counter()
+                state = model.step(state, graph, angle=angle, graft=graft, generator=generator)
+                step_seconds += time.perf_counter() - tick
+    return state, frames, step_seconds, len(phases)
+
+
+def exemplar_style(views, exemplar: np.ndarray, meta: dict, cfg: InferNCAConfig, device) -> float:
+    """The style loss of the final renders against the model's exemplar (H, W, 3) uint8, with the training's VGG depth."""
+    vgg = load_vgg19(cfg.vgg_weights or None, device=device, warn=False)
+    depth = int(meta.get("config", {}).get("vgg_depth", 4))
+    target = torch.from_numpy(exemplar).permute(2, 0, 1)[None].float().to(device) / 127.5 - 1
+    return float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
+                            generator=torch.Generator().manual_seed(0)))
+
+
+def write_gif(path: Path, frames: list[np.ndarray]) -> None:
+    """The frames as an animated GIF (10 frames a second, looping), written atomically."""
     from PIL import Image
 
+    pictures = [Image.fromarray(f) for f in frames]
+    with atomic_path(path) as tmp:
+        pictures[0].save(tmp, format="GIF", save_all=True, append_images=pictures[1:], duration=100, loop=0)
+
+
+def run(args) -> int:
     cfg = build_config(args)
     out = guard_outputs(args.out, list(OUTPUTS) + [f"view_{k}.png" for k in range(cfg.views)], args.overwrite)
     device = select_device(cfg.device)
@@ -139,10 +191,7 @@ def run(args) -> int:
     edge_ratio = mean_edge_length(vertices, faces) / cell_spacing if cell_spacing > 0 else None
     graph = build_cell_graph(vertices, faces, model.cfg.neighbourhood).to(device)
     positions = graph.positions.cpu().numpy()
-    graft = None
-    if other is not None:
-        alpha = torch.from_numpy(region_weights(args.graft_mask, positions)).to(device)
-        graft = (other, alpha)
+    graft = None if other is None else (other, torch.from_numpy(region_weights(args.graft_mask, positions)).to(device))
     damage = None
     if args.regrow:
         damage = torch.from_numpy(region_weights(args.regrow, positions) > 0.5).to(device)
@@ -150,35 +199,9 @@ def run(args) -> int:
             raise UserError(f"--regrow {args.regrow}: the region holds no vertex of this mesh")
     out.mkdir(parents=True, exist_ok=True)
 
-    angle = math.radians(cfg.angle)
-    generator = torch.Generator(device=device).manual_seed(cfg.seed)
-    frames_at = set(np.linspace(0, cfg.steps, cfg.frames, dtype=int).tolist()) if cfg.frames else set()
-    gif_size = min(cfg.resolution, 192)
-    frames: list[np.ndarray] = []
-
-    def frame(state, index, total):
-        azimuth = 30.0 + 90.0 * index / max(total - 1, 1)
-        mvp = orbit_camera(azimuth, 20.0, distance=distance, fov=fov).mvp.to(device)
-        frames.append(images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0, graft=graft).images)[0])
-
-    state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed))
-    total_frames = len(frames_at) * (2 if damage is not None else 1)
     started = time.perf_counter()
-    step_seconds = 0.0
     with torch.no_grad():
-        phases = [("grow", cfg.steps)] + ([("regrow", cfg.steps)] if damage is not None else [])
-        for phase, steps in phases:
-            if phase == "regrow":
-                state = state.masked_fill(damage[None, :, None], 0.0) if model.cfg.seed == "zero" else torch.where(
-                    damage[None, :, None], model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed + 1)), state)
-            for step in progress_bar(range(steps + 1), desc=f"infer nca ({phase})"):
-                if step in frames_at:
-                    frame(state, len(frames), total_frames)
-                if step == steps:
-                    break
-                tick = time.perf_counter()
-                state = model.step(state, graph, angle=angle, graft=graft, generator=generator)
-                step_seconds += time.perf_counter() - tick
+        state, frames, step_seconds, phases = grow(model, graph, cfg, graft, damage, distance, fov, device)
         if not torch.isfinite(state).all():
             raise UserError(f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps")
 
@@ -186,13 +209,7 @@ def run(args) -> int:
         views = render_states(model, state, graph, mvp, cfg.resolution, background=1.0, graft=graft)
         for k, image in enumerate(images_to_uint8(views.images)):
             save_png(out / f"view_{k}.png", image)
-        style = None
-        if exemplar is not None:
-            vgg = load_vgg19(cfg.vgg_weights or None, device=device, warn=False)
-            depth = int(meta.get("config", {}).get("vgg_depth", 4))
-            target = torch.from_numpy(exemplar).permute(2, 0, 1)[None].float().to(device) / 127.5 - 1
-            style = float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
-                                     generator=torch.Generator().manual_seed(0)))
+        style = None if exemplar is None else exemplar_style(views, exemplar, meta, cfg, device)
 
         written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, cfg.texture_size,
                                        cfg.texture_format, graft=graft, target=bake_target)
@@ -201,14 +218,12 @@ def run(args) -> int:
     save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
                     meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": cfg.steps})
     if frames:
-        pictures = [Image.fromarray(f) for f in frames]
-        with atomic_path(out / "growth.gif") as tmp:
-            pictures[0].save(tmp, format="GIF", save_all=True, append_images=pictures[1:], duration=100, loop=0)
+        write_gif(out / "growth.gif", frames)
     report = {"checkpoint": str(args.checkpoint), "mesh": args.mesh, "cells": graph.num_cells, "subdivisions": subdivisions,
               "edge_ratio": None if edge_ratio is None else round(edge_ratio, 3),
               "steps": cfg.steps, "regrow": args.regrow, "graft": args.graft, "graft_mask": args.graft_mask if args.graft else None,
               "lineage": lineage_note, "angle_degrees": cfg.angle, "seconds": round(time.perf_counter() - started, 2),
-              "ms_per_step": round(1000 * step_seconds / (cfg.steps * len(phases)), 3), "style_loss": style, "output_mesh": written,
+              "ms_per_step": round(1000 * step_seconds / (cfg.steps * phases), 3), "style_loss": style, "output_mesh": written,
               "files": [f"view_{k}.png" for k in range(cfg.views)] + [n for n in OUTPUTS if (out / n).exists()]}
     write_json(out / "report.json", report)
     density = f"faces split into four {subdivisions}x" if subdivisions else "the mesh as it is"

@@ -181,13 +181,13 @@ def build_config(args) -> TransferConfig:
     return cfg
 
 
-def run(args) -> int:
-    cfg = build_config(args)
-    out = guard_outputs(args.out, output_names(cfg), args.overwrite)
+def checked_networks(args, cfg: TransferConfig) -> tuple[float, float] | None:
+    """The options that name networks, checked before anything is loaded: the pose given (or None: auto),
+    and a shipped model's own pose, NOC and (when it has one) mask networks filled in where none is given."""
     pose = parse_pose(args.pose)
     if args.automaton and args.automaton_iters < 1:
         raise UserError(f"--automaton-iters {args.automaton_iters}: must be at least 1")
-    if is_model_name(args.checkpoint):  # a shipped model brings its own pose, NOC and (when it has one) mask networks
+    if is_model_name(args.checkpoint):
         args.pose_checkpoint = args.pose_checkpoint or args.checkpoint
         args.noc_checkpoint = args.noc_checkpoint or args.checkpoint
         if not args.mask_checkpoint and model_has(args.checkpoint, "mask"):
@@ -196,6 +196,36 @@ def run(args) -> int:
         raise UserError("--pose auto needs --pose-checkpoint (from 'mesh2tex train pose'), or give --pose AZIMUTH,ELEVATION")
     if cfg.use_noc and cfg.use_patches and not args.noc_checkpoint:
         raise UserError("NOC-guided patches need --noc-checkpoint (from 'mesh2tex train noc'); or pass --no-noc")
+    return pose
+
+
+def find_pose(pose_checkpoint, shape, candidates: list, pose: tuple[float, float] | None, distance: float, fov: float,
+              cfg: TransferConfig, device) -> tuple:
+    """(photo, where its mask came from, PoseEstimate): the given pose, or the pose network and silhouette
+    search; with an estimated mask, the mesh picks among the mask estimates (the one its outline matches best)."""
+    photo, mask_source = candidates[0]
+    if pose is None and cfg.pose_search and len(candidates) > 1:
+        index, estimate = pick_by_outline([c[0] for c in candidates],
+                                          lambda p: estimate_pose(pose_checkpoint, shape, p, distance, fov, cfg, device))
+        photo, mask_source = candidates[index]
+        return photo, mask_source + f", the one of {len(candidates)} estimates the mesh's outline matched best", estimate
+    if pose is None:
+        return photo, mask_source, estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device)
+    return photo, mask_source, PoseEstimate(pose[0], pose[1], "given")
+
+
+def pose_record(estimate: PoseEstimate, source: str, distance: float, fov: float) -> dict:
+    """report.json's ``pose``: the pose used, where it came from, and the network's and the search's figures."""
+    searched = estimate.silhouette_iou is not None
+    return {"azimuth": estimate.azimuth, "elevation": estimate.elevation, "source": source, "distance": distance, "fov": fov,
+            **({"network": list(estimate.network), "silhouette_iou": estimate.silhouette_iou,
+                "network_silhouette_iou": estimate.network_silhouette_iou} if searched else {})}
+
+
+def run(args) -> int:
+    cfg = build_config(args)
+    out = guard_outputs(args.out, output_names(cfg), args.overwrite)
+    pose = checked_networks(args, cfg)
     device = select_device(cfg.device)
     torch.manual_seed(cfg.seed)
     started = time.perf_counter()
@@ -206,19 +236,10 @@ def run(args) -> int:
     shape, target = load_shape(args.mesh, generator, model.face_count(cfg.faces), cfg.seed, up=args.up, uv=args.uv,
                                output_mesh=args.output_mesh)
     candidates = photo_candidates(args.image, args.mask, cfg, mask_checkpoint=args.mask_checkpoint)
-    photo, mask_source = candidates[0]
     seconds["load"] = round(time.perf_counter() - started, 2)
 
     t = time.perf_counter()
-    if pose is None and cfg.pose_search and len(candidates) > 1:  # an estimated mask: the mesh picks among the estimates
-        index, estimate = pick_by_outline([c[0] for c in candidates],
-                                          lambda p: estimate_pose(args.pose_checkpoint, shape, p, distance, fov, cfg, device))
-        photo, mask_source = candidates[index]
-        mask_source += f", the one of {len(candidates)} estimates the mesh's outline matched best"
-    elif pose is None:
-        estimate = estimate_pose(args.pose_checkpoint, shape, photo, distance, fov, cfg, device)
-    else:
-        estimate = PoseEstimate(pose[0], pose[1], "given")
+    photo, mask_source, estimate = find_pose(args.pose_checkpoint, shape, candidates, pose, distance, fov, cfg, device)
     azimuth, elevation, pose_source = estimate.azimuth, estimate.elevation, estimate.source
     photo_noc = predict_noc(args.noc_checkpoint, photo, device) if args.noc_checkpoint else None
     view = view_at_pose(shape, azimuth, elevation, distance, fov, cfg)
@@ -254,21 +275,15 @@ def run(args) -> int:
     seconds["outputs"] = round(time.perf_counter() - t, 2)
     seconds["total"] = round(time.perf_counter() - started, 2)
     report = {
-        "image": str(args.image), "mesh": str(args.mesh), "checkpoint": str(args.checkpoint),
-        "mask_source": mask_source,
-        "pose": {"azimuth": azimuth, "elevation": elevation, "source": pose_source, "distance": distance, "fov": fov,
-                 **({"network": list(estimate.network), "silhouette_iou": estimate.silhouette_iou,
-                     "network_silhouette_iou": estimate.network_silhouette_iou} if estimate.silhouette_iou is not None else {})},
-        "fit": fit_check.as_dict(),
+        "image": str(args.image), "mesh": str(args.mesh), "checkpoint": str(args.checkpoint), "mask_source": mask_source,
+        "pose": pose_record(estimate, pose_source, distance, fov), "fit": fit_check.as_dict(),
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
         "method": f"automaton fitted to the photo ({args.automaton_iters} iterations)" if args.automaton else "transfer",
         "light": light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders
         "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in losses.items()},
-        "seconds": seconds,
-        "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
+        "seconds": seconds, "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
         "settings": {**asdict(cfg), "texture_format": args.texture_format},
-        "files": {**files, "photo_crop": "photo_crop.png", "render_at_pose": "render_at_pose.png"},
-        "output_mesh": written,
+        "files": {**files, "photo_crop": "photo_crop.png", "render_at_pose": "render_at_pose.png"}, "output_mesh": written,
     }
     write_json(out / "report.json", report)
     print(f"textured {args.mesh} after {args.image}: pose az {azimuth:.0f} el {elevation:.0f} ({pose_source}); "

@@ -149,19 +149,7 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         return crop_square(full, at.box, cfg.resolution)
 
     num_ws = generator.num_ws
-    with torch.no_grad():
-        starts = [mean_latent(generator)]
-        if cfg.latent_starts > 1:
-            z = torch.randn(cfg.latent_starts - 1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed)).to(device)
-            starts += list(generator.mapping(z, truncation_psi=0.7).split(1))  # each (1, num_ws, w_dim)
-            # Score each start as stage 1 will see it; the patch pairs are drawn from their own generator
-            # so that the run's later pairs do not depend on how many starts were tried.
-            scores = [float(loss_of(render(w.expand(1, num_ws, -1)), use_global=True, pick=torch.Generator().manual_seed(cfg.seed))[0])
-                      for w in starts]
-            starts = [starts[min(range(len(scores)), key=scores.__getitem__)]]
-        # (1, num_ws, w_dim) for w_plus; (1, 1, w_dim) shared by every style input for w
-        ws = (starts[0][:, :1] if cfg.latent_space == "w" else starts[0].expand(1, num_ws, -1)).clone()
-    ws.requires_grad_(True)
+    ws = starting_latent(generator, render, loss_of, cfg, device).requires_grad_(True)
 
     def styles() -> torch.Tensor:
         return ws.expand(1, num_ws, -1)
@@ -169,28 +157,17 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     result = TransferResult(ws=ws, render=torch.empty(0))
     light_params = list(light.parameters()) if light is not None else []
 
-    def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float, anchors=()) -> None:
-        opt = torch.optim.Adam(params, lr=lr)
-        history: list[float] = []
-        start = time.perf_counter()
-        iterator = progress_bar(range(iters), desc=f"transfer {stage}") if show_progress else range(iters)
-        for i in iterator:
-            total, parts = loss_of(render(styles()), use_global)
+    def loss_at(stage: str, use_global: bool, anchors=()):
+        def loss(i: int) -> torch.Tensor:
+            total, _ = loss_of(render(styles()), use_global)
             if anchors:
                 at, at_samples, mask, target = anchors[i % len(anchors)]
-                anchor = cfg.w_anchor * lowpass_colour_loss(render_unlit(styles(), at, at_samples), mask, target, mask, colour_sigma)
-                total = total + anchor
-            if not torch.isfinite(total):
-                raise InputError(f"transfer {stage}: the style loss became {float(total)}; lower the learning rate (lr)")
-            opt.zero_grad(set_to_none=True)
-            total.backward()
-            opt.step()
-            value = float(total.detach())
-            history.append(round(value, 6))
-            if show_progress:
-                iterator.set_postfix(loss=f"{value:.4f}")
-        result.losses[stage] = history
-        result.seconds[stage] = round(time.perf_counter() - start, 2)
+                total = total + cfg.w_anchor * lowpass_colour_loss(render_unlit(styles(), at, at_samples), mask, target, mask, colour_sigma)
+            return total
+        return loss
+
+    def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float, anchors=()) -> None:
+        run_stage(stage, params, iters, lr, loss_at(stage, use_global, anchors), result, show_progress)
 
     # The light is optimised in both stages: stage 2 changes the colours it has to explain.
     optimise("latent", [ws] + light_params, cfg.latent_iters, use_global=True, lr=cfg.lr)
@@ -211,6 +188,46 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     result.ws = styles().detach().clone()
     result.light = light.describe() if light is not None else None
     return result
+
+
+@torch.no_grad()
+def starting_latent(generator: TextureGenerator, render, loss_of, cfg: TransferConfig, device) -> torch.Tensor:
+    """Stage 1's starting latent: the mean latent ``w_avg``, or with ``cfg.latent_starts`` > 1 the best
+    scoring of it and random latents (truncation 0.7). (1, num_ws, w_dim) for w_plus; (1, 1, w_dim),
+    shared by every style input, for w."""
+    num_ws = generator.num_ws
+    starts = [mean_latent(generator)]
+    if cfg.latent_starts > 1:
+        z = torch.randn(cfg.latent_starts - 1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed)).to(device)
+        starts += list(generator.mapping(z, truncation_psi=0.7).split(1))  # each (1, num_ws, w_dim)
+        # Score each start as stage 1 will see it; the patch pairs are drawn from their own generator
+        # so that the run's later pairs do not depend on how many starts were tried.
+        scores = [float(loss_of(render(w.expand(1, num_ws, -1)), use_global=True, pick=torch.Generator().manual_seed(cfg.seed))[0])
+                  for w in starts]
+        starts = [starts[min(range(len(scores)), key=scores.__getitem__)]]
+    return (starts[0][:, :1] if cfg.latent_space == "w" else starts[0].expand(1, num_ws, -1)).clone()
+
+
+def run_stage(stage: str, params: list[torch.Tensor], iters: int, lr: float, loss, result: TransferResult, show_progress: bool) -> None:
+    """Adam on ``params`` for ``iters`` steps of ``loss(step)``; the loss curve and seconds go into ``result``
+    under ``stage``. InputError when the loss becomes non-finite."""
+    opt = torch.optim.Adam(params, lr=lr)
+    history: list[float] = []
+    start = time.perf_counter()
+    iterator = progress_bar(range(iters), desc=f"transfer {stage}") if show_progress else range(iters)
+    for i in iterator:
+        total = loss(i)
+        if not torch.isfinite(total):
+            raise InputError(f"transfer {stage}: the style loss became {float(total)}; lower the learning rate (lr)")
+        opt.zero_grad(set_to_none=True)
+        total.backward()
+        opt.step()
+        value = float(total.detach())
+        history.append(round(value, 6))
+        if show_progress:
+            iterator.set_postfix(loss=f"{value:.4f}")
+    result.losses[stage] = history
+    result.seconds[stage] = round(time.perf_counter() - start, 2)
 
 
 @torch.no_grad()

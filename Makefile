@@ -14,7 +14,7 @@ $(VPY):
 
 .install-stamp: pyproject.toml $(VPY)
 	$(VPY) -c "import torch" 2>/dev/null || $(VPY) -m pip install "$(TORCH_SPEC)"
-	$(VPY) -m pip install -e ".[test,docs]"
+	$(VPY) -m pip install -e ".[test,docs,app]"
 	$(VPY) -c "from mesh2tex.render.kernels import warm_up; warm_up()"  # compile the rasterizer's CPU loop once
 	touch .install-stamp
 
@@ -34,6 +34,10 @@ reference: .install-stamp
 demo: .install-stamp
 	$(VPY) -m mesh2tex demo --out demo_out
 
+# The local web page (docs/guide/app.md): http://127.0.0.1:7860/, this machine only; Ctrl-C stops it.
+app: .install-stamp
+	$(VPY) -m mesh2tex app
+
 # The README's picture of four seeds of the shipped chair on a held-out chair (docs/results/index.md lists
 # every image of the docs with the command that makes it).
 figures: .install-stamp
@@ -45,4 +49,4 @@ figures: .install-stamp
 	    --views 4 --resolution 128 --out $(FIGURES_WORK)/seeds --overwrite
 	$(VPY) benchmarks/figures.py generate $(FIGURES_WORK)/seeds --pad 0 --out docs/images/shipped_chair_seeds.png
 
-.PHONY: install test docs reference demo figures
+.PHONY: install test docs reference demo app figures

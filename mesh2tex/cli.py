@@ -41,6 +41,7 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
     ("infer", "synthesize"): ("mesh2tex.infer.synthesize", "texture a mesh after one exemplar image, no model"),
     ("evaluate", None): ("mesh2tex.evaluate.evaluate", "metrics between renders and images"),
     ("demo", None): ("mesh2tex.infer.demo", "run the whole pipeline on the embedded synthetic world"),
+    ("app", None): ("mesh2tex.app.server", "serve a local web page to texture a mesh and look at it in 3D"),
 }
 
 

@@ -17,7 +17,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 LIBRARY = "mesh2tex"
-STAGES = ("data_prep", "train", "infer", "evaluate")
+STAGES = ("data_prep", "train", "infer", "evaluate", "app")
 MAX_LINES = 500
 USER_ERROR_MODULES = {"mesh2tex.cli", "mesh2tex.errors"}  # the command line's own error, and where it is defined
 

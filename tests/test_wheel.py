@@ -27,7 +27,7 @@ def test_every_package_folder_is_in_the_wheel_list():
     from an installed wheel, though every test in the source tree passes."""
     found = {".".join(("mesh2tex", *p.parent.relative_to(ROOT / "mesh2tex").parts)).rstrip(".")
              for p in (ROOT / "mesh2tex").rglob("__init__.py")}
-    found |= {"mesh2tex." + ".".join(p.parent.relative_to(ROOT).parts) for stage in ("data_prep", "train", "infer", "evaluate")
+    found |= {"mesh2tex." + ".".join(p.parent.relative_to(ROOT).parts) for stage in ("data_prep", "train", "infer", "evaluate", "app")
               for p in (ROOT / stage).rglob("__init__.py")}
     assert found == listed_packages()
 
@@ -39,7 +39,7 @@ def wheel(tmp_path_factory) -> Path:
     folder, source = tmp_path_factory.mktemp("wheel"), tmp_path_factory.mktemp("source")
     tracked = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=ROOT, check=True, capture_output=True).stdout.decode().split("\0")
     for name in filter(None, tracked):
-        if (ROOT / name).is_file() and name.split("/")[0] in ("mesh2tex", "data_prep", "train", "infer", "evaluate", "pyproject.toml", "README.md", "LICENSE"):
+        if (ROOT / name).is_file() and name.split("/")[0] in ("mesh2tex", "data_prep", "train", "infer", "evaluate", "app", "pyproject.toml", "README.md", "LICENSE"):
             (source / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(ROOT / name, source / name)
     subprocess.run([sys.executable, "-m", "pip", "wheel", str(source), "--no-deps", "--no-build-isolation", "-q", "-w", str(folder)],

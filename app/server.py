@@ -42,6 +42,19 @@ def bind(host: str, port: int) -> socket.socket:
     return sock
 
 
+def announce(host: str, port: int) -> None:
+    """Say where the page is, and whether it is this machine's only."""
+    shown = f"[{host}]" if ":" in host else host
+    if host in LOCAL_HOSTS:
+        print(f"mesh2tex app: http://{shown}:{port}/ (this machine only; Ctrl-C stops it)", flush=True)
+        return
+    print(f"mesh2tex app: http://{shown}:{port}/ (Ctrl-C stops it)", flush=True)
+    warning(
+        f"--host {host}: the page is open to every machine that can reach this one; anyone there can upload "
+        "files and run jobs on it (use --host 127.0.0.1 to keep it to this machine)"
+    )
+
+
 def run(args) -> int:
     cfg = build_config(args)
     try:
@@ -53,25 +66,18 @@ def run(args) -> int:
     from mesh2tex.app.jobs import Workshop
 
     sock = bind(cfg.host, cfg.port)
-    port = sock.getsockname()[1]
-    shown = f"[{cfg.host}]" if ":" in cfg.host else cfg.host
-    if cfg.host in LOCAL_HOSTS:
-        print(f"mesh2tex app: http://{shown}:{port}/ (this machine only; Ctrl-C stops it)", flush=True)
-    else:
-        print(f"mesh2tex app: http://{shown}:{port}/ (Ctrl-C stops it)", flush=True)
-        warning(
-            f"--host {cfg.host}: the page is open to every machine that can reach this one; anyone there can upload "
-            "files and run jobs on it (use --host 127.0.0.1 to keep it to this machine)"
-        )
-    workshop = Workshop(cfg, keep=Path(args.out) if args.out else None, overwrite=args.overwrite)
-    workshop.start()
-    try:
+    workshop = None
+    try:  # Ctrl-C at any point stops the server and deletes the visitors' files
+        workshop = Workshop(cfg, keep=Path(args.out) if args.out else None, overwrite=args.overwrite)
         server = uvicorn.Server(uvicorn.Config(make_app(workshop), log_level="warning", access_log=False))
+        workshop.start()
+        announce(cfg.host, sock.getsockname()[1])
         server.run(sockets=[sock])
     except KeyboardInterrupt:  # uvicorn stops on Ctrl-C and SIGTERM, then raises the signal again: the way to stop
         pass
     finally:
-        workshop.shutdown()
+        if workshop is not None:
+            workshop.shutdown()
         sock.close()
     print("mesh2tex app: stopped; every visitor's files are deleted", flush=True)
     return 0

@@ -41,6 +41,25 @@ BROWSER_ARGS = [
     "--disable-component-update",
     "--disable-sync",
 ]
+# the tiny automaton of tests/test_train_nca.py
+TINY_NCA = {
+    "iters": 4,
+    "batch": 1,
+    "views": 1,
+    "resolution": 32,
+    "steps_min": 2,
+    "steps_max": 3,
+    "pool": 4,
+    "seed_every": 2,
+    "mesh": "sphere:3",
+    "exemplar_size": 32,
+    "vgg_depth": 1,
+    "max_points": 64,
+    "sample_every": 0,
+    "checkpoint_every": 1,
+    "log_every": 1,
+    "nca": {"channels": 6, "hidden": 16},
+}
 # small jobs: the page's flags, as a user would put them in --config
 CONFIG = {
     "max_mesh_mb": 1,
@@ -48,6 +67,8 @@ CONFIG = {
     "generate_flags": "--views 1 --resolution 32 --texture-size 64",
     "transfer_flags": "--resolution 64 --texture-size 64",
     "quick_transfer_flags": "--latent-iters 2 --refine-iters 2",
+    "nca_flags": "--steps 4 --views 1 --resolution 32 --texture-size 64 --frames 0",
+    "quick_synthesize_flags": "--iters 2 --texture-size 32 --resolution 32 --views 1",
 }
 
 
@@ -197,6 +218,59 @@ def test_a_cancelled_job_stops_and_leaves_nothing(server):
     assert not [p for p in server["tmp"].rglob("job-*")]
 
 
+def served_glb(server, token: str, state: dict, tmp_path) -> trimesh.Trimesh:
+    """The job's (first) textured GLB, downloaded as the page does; a textured mesh."""
+    assert state["status"] == "done", state
+    name = state["results"]["meshes"][0]["glb"]
+    url = f"{server['url']}/api/s/{token}/jobs/{state['id']}/files/{name}?download=1"
+    with urllib.request.urlopen(url, timeout=60) as answer:
+        (tmp_path / name).write_bytes(answer.read())
+    mesh = trimesh.load(tmp_path / name, force="mesh", process=False)
+    assert np.asarray(mesh.visual.material.baseColorTexture.convert("RGB")).std() > 0
+    return mesh
+
+
+def test_an_nca_model_and_an_exemplar_image_texture_the_mesh(server, tmp_path):
+    from PIL import Image
+
+    from mesh2tex.cli import main
+    from mesh2tex.synthetic.exemplars import exemplar_image
+
+    Image.fromarray(exemplar_image("stripes", 48)).save(tmp_path / "stripes.png")
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_NCA))
+    assert (
+        main(
+            [
+                "train",
+                "nca",
+                "--exemplar",
+                str(tmp_path / "stripes.png"),
+                "--out",
+                str(tmp_path / "nca"),
+                "--config",
+                str(tmp_path / "tiny.yaml"),
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
+    token = session(server)
+    base = f"{server['url']}/api/s/{token}"
+    assert request(f"{base}/example/mesh/chair.obj", "POST")[0] == 200
+    faces = len(trimesh.load(ROOT / "app" / "static" / "examples" / "chair.obj", force="mesh", process=False).faces)
+    model = (tmp_path / "nca" / "model.safetensors").read_bytes()
+    assert request(f"{base}/upload/nca?name=stripes.safetensors", "POST", model)[0] == 200
+    grown = run_job(server, token, {"kind": "generate", "source": "nca", "seed": 0})
+    assert grown["kind"] == "nca" and len(served_glb(server, token, grown, tmp_path).faces) == faces
+    assert (
+        request(f"{base}/upload/exemplar?name=stripes.png", "POST", (tmp_path / "stripes.png").read_bytes())[0] == 200
+    )
+    made = run_job(server, token, {"kind": "generate", "source": "exemplar", "seed": 0, "quick": True})
+    assert made["kind"] == "synthesize" and len(served_glb(server, token, made, tmp_path).faces) == faces
+    assert [p["file"] for p in made["results"]["pictures"]] == ["texture.png"]
+
+
 @pytest.fixture(scope="module")
 def browser():
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed: pip install -e '.[app]'")
@@ -244,6 +318,17 @@ def test_generate_in_the_browser_shows_and_downloads_the_users_mesh_textured(bro
     mesh = trimesh.creation.icosphere(subdivisions=1)
     mesh.export(tmp_path / "ball.obj")
     page = open_page(browser, server)
+    (tmp_path / "empty.obj").write_bytes(b"")
+    for path, says in (
+        (tmp_path / "empty.obj", "mesh2tex: error: empty.obj: empty file"),
+        (
+            {"name": "big.obj", "mimeType": "text/plain", "buffer": b"v 0 0 0\n" * 2**18},
+            "mesh2tex: error: big.obj: 2.0 MB is over the upload limit of 1.0 MB",
+        ),
+    ):
+        page.set_input_files("#mesh-file", path)  # a bad file: the command's line in the page
+        page.wait_for_function("!document.getElementById('error').hidden")
+        assert page.inner_text("#error") == says
     page.set_input_files("#mesh-file", str(tmp_path / "ball.obj"))
     page.wait_for_function("document.getElementById('mesh-summary').textContent.includes('vertices')")
     assert page.inner_text("#mesh-summary") == "ball.obj: 42 vertices, 80 triangles (y-up)"

@@ -20,6 +20,14 @@ runs N iterations of each from the same seed and prints the relative difference 
 scalar: the two versions should compute the same losses. ``--previous-config YAML`` gives the
 previous version its own config (default: --config's), so that ``--previous HEAD --config lazy.yaml``
 times two settings of one revision side by side.
+
+``--flops`` also counts the floating-point operations of a main-only iteration and of one with the
+path-length term (``torch.utils.flop_counter.FlopCounterMode``: matmuls and convolutions, forward and
+backward), measures what this process sustains on a 2048^3 float32 matmul and on a 3x3 convolution of
+the discriminators' shapes, and prints the step's achieved rate and its ratio to each. Work the
+counter does not see is named and timed apart: drawing the scene (the rasterizer, a few passes of
+integer and gather work per view) and everything else (gathers and scatters of the face
+convolutions, elementwise ops, Python) as the remainder.
 """
 
 from __future__ import annotations
@@ -44,6 +52,54 @@ from previous import Revision  # noqa: E402  (this folder)
 TARGET_SECONDS = 2.0
 
 
+def sustained_rates(reps: int = 5) -> dict[str, float]:
+    """GFLOP/s this process sustains now: a 2048^3 float32 matmul, and a 3x3 convolution of 64 channels on
+    8 images of 64 x 64 (the discriminators' middle blocks)."""
+    def rate(fn, flops: float) -> float:
+        fn()  # warm-up
+        start = time.perf_counter()
+        for _ in range(reps):
+            fn()
+        return flops * reps / (time.perf_counter() - start) / 1e9
+
+    a, b = torch.randn(2048, 2048), torch.randn(2048, 2048)
+    x, w = torch.randn(8, 64, 64, 64), torch.randn(64, 64, 3, 3)
+    return {"matmul 2048^3": rate(lambda: a @ b, 2 * 2048**3),
+            "conv 3x3, 64 ch, 8 x 64^2": rate(lambda: torch.nn.functional.conv2d(x, w, padding=1), 2 * 8 * 64 * 64 * 64 * 64 * 9)}
+
+
+def flop_account(version: "Version", trainer, seconds: dict[bool, float]) -> None:
+    """Count one main-only iteration and one with the path-length term, time the scene drawing (the
+    rasterizer), and print the achieved rate against the sustained ones (``seconds``: {has path length: s})."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    counted: dict[bool, float] = {}
+    while len(counted) < 2:
+        greg = any(phase == "Greg" for phase, _ in trainer.loss.phases(trainer.iteration))
+        with FlopCounterMode(display=False) as counter:
+            version.step(trainer)
+        counted.setdefault(greg, counter.get_total_flops())
+    scene = []
+    for _ in range(3):
+        start = time.perf_counter()
+        trainer.draw_scene()
+        scene.append(time.perf_counter() - start)
+    rates = sustained_rates()
+    print("\nfloating-point work (matmuls and convolutions, forward and backward; FlopCounterMode):")
+    for greg, flops in sorted(counted.items()):
+        s = seconds.get(greg, float("nan"))
+        achieved = flops / s / 1e9
+        shares = ", ".join(f"{achieved / r:.2f} of the {name}'s {r:.0f}" for name, r in rates.items())
+        print(f"  {'with path-length reg' if greg else 'main phases only'}: {flops / 1e9:.1f} GFLOP in {s:.3f} s = {achieved:.1f} GFLOP/s; "
+              f"{shares} GFLOP/s sustained")
+    main_s = seconds.get(False, float("nan"))
+    drawn = statistics.median(scene)
+    print(f"  not counted: the scene (rasterizing {trainer.cfg.batch * trainer.cfg.views} views) {drawn:.3f} s = {drawn / main_s:.0%} of a "
+          f"main-only step; at the matmul's rate the counted work would take {counted[False] / 1e9 / rates['matmul 2048^3']:.3f} s, "
+          f"the rest ({max(main_s - drawn - counted[False] / 1e9 / rates['matmul 2048^3'], 0.0):.3f} s) is gathers and scatters, "
+          "elementwise ops and Python")
+
+
 class Version:
     """One version of the trainer: today's packages, or a :class:`Revision`'s."""
 
@@ -62,7 +118,7 @@ class Version:
         """A fresh trainer (its constructor seeds every generator) on ``shapes`` and a random photo set."""
         with self.active():
             cfg = self.load_config(self.TrainGanConfig, config, {"batch": args.batch, "views": args.views, "resolution": args.resolution,
-                                                                      "device": args.device, "iters": 10**9})
+                                                                      "device": args.device, "iters": 10**6})
             cfg.generator.input_features = shapes[0].face_features.shape[1]
             device = self.runs.select_device(cfg.device)
             rng = np.random.default_rng(0)
@@ -127,6 +183,7 @@ def main() -> None:
     parser.add_argument("--previous", default="", help="also time the trainer of this git revision, in alternation")
     parser.add_argument("--previous-config", help="with --previous: that version's config (default: --config)")
     parser.add_argument("--check", type=int, default=0, help="with --previous: compare the logged losses of this many seeded iterations first")
+    parser.add_argument("--flops", action="store_true", help="count the step's FLOPs and compare with the sustained matmul and conv rates")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -161,6 +218,9 @@ def main() -> None:
             for k in order[::-1] if i % 2 else order:
                 times[k].append((versions[k].step(trainers[k])[0], "Greg" in due))
         peak = versions[-1].runs.peak_memory_gb(first.device)
+        if args.flops:
+            m, p, *_ = summary(times[-1], first.cfg.loss.pl_interval)
+            flop_account(versions[-1], first, {False: m, True: p})
     pl_interval = first.cfg.loss.pl_interval
     for version, t in zip(versions, times):
         m, p, amortised, n_m, n_p = summary(t, pl_interval)

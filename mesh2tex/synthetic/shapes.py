@@ -264,6 +264,32 @@ def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     seat_bottom = seat_height - seat_thick
     builder.add("seat", slab(width, depth, seat_thick, seat_radius, (0, seat_height - seat_thick / 2, 0)))
 
+    params_extra = _chair_legs(builder, rng, legs, width, depth, seat_bottom, seat_radius)
+    params = {"legs": legs, "back": back, "arms": arms, "width": round(width, 3), "depth": round(depth, 3),
+              "seat_height": round(seat_height, 3)}
+    params.update(params_extra)
+
+    # The back, built upright at the origin, then tilted and moved to the seat's rear edge.
+    back_width = width * u(0.8, 1.0) - (0.1 if arms == "panels" else 0.0)
+    back_height, back_thick = u(0.32, 0.58), u(0.025, 0.06)
+    tilt = u(0.0, 16.0)
+    pieces = _chair_back_pieces(rng, back, back_width, back_height, back_thick, params)
+    back_solid = mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
+    back_z = -depth / 2 + back_thick / 2
+    builder.add("back", _place(back_solid, _rotation_x(-tilt), (0, seat_top - 0.015, back_z)))
+    params["back_tilt_degrees"] = round(tilt, 1)
+
+    if arms != "none":
+        _chair_arms(builder, rng, arms, width, depth, seat_top, seat_bottom, back_z, tilt)
+    return params
+
+
+def _chair_legs(builder: _PartBuilder, rng: np.random.Generator, legs: str, width: float, depth: float, seat_bottom: float,
+                seat_radius: float) -> dict[str, Any]:
+    """The chair's legs under the seat (four legs with an optional H of stretchers, a pedestal on a star
+    or a disc, or sled runners); returns the parameters to record (the pedestal's base)."""
+    u = rng.uniform
+    params_extra: dict[str, Any] = {}
     leg_radius = u(0.015, 0.03)
     square_legs = bool(rng.random() < 0.4)
     if legs == "four":
@@ -312,15 +338,14 @@ def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
             builder.add("leg", rod((x, r, zf + 0.04), (x, r, zb - 0.04), r, segments=12))
             builder.add("leg", rod((x, r, zf), (x, seat_bottom + 0.01, zf - 0.02), r, segments=12))
             builder.add("leg", rod((x, r, zb), (x, seat_bottom + 0.01, zb + 0.02), r, segments=12))
-    params = {"legs": legs, "back": back, "arms": arms, "width": round(width, 3), "depth": round(depth, 3),
-              "seat_height": round(seat_height, 3)}
-    if legs == "pedestal":
-        params.update(params_extra)
+    return params_extra
 
-    # The back, built upright at the origin, then tilted and moved to the seat's rear edge.
-    back_width = width * u(0.8, 1.0) - (0.1 if arms == "panels" else 0.0)
-    back_height, back_thick = u(0.32, 0.58), u(0.025, 0.06)
-    tilt = u(0.0, 16.0)
+
+def _chair_back_pieces(rng: np.random.Generator, back: str, back_width: float, back_height: float, back_thick: float,
+                       params: dict) -> list:
+    """The back's pieces, built upright at the origin: a panel, or posts and a top rail with vertical or
+    horizontal slats or an upholstered pad (``params["back_pieces"]`` counts them)."""
+    u = rng.uniform
     pieces: list[mf.Manifold] = []
     if back == "solid":
         pieces.append(panel(back_width, back_height + 0.02, back_thick, u(0.0, 0.15)))
@@ -346,27 +371,27 @@ def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
             pad_height = (back_height - rail) * u(0.5, 0.85)
             pieces.append(box((inner_width + 0.01, pad_height, back_thick * 1.3), (0, (back_height - rail) / 2 + 0.02, 0)))
         params["back_pieces"] = len(pieces) - 3  # slats, or the pad of a frame back
-    back_solid = mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
-    back_z = -depth / 2 + back_thick / 2
-    builder.add("back", _place(back_solid, _rotation_x(-tilt), (0, seat_top - 0.015, back_z)))
-    params["back_tilt_degrees"] = round(tilt, 1)
+    return pieces
 
-    if arms != "none":
-        arm_height = seat_top + u(0.17, 0.26)
-        arm_width, arm_thick = u(0.035, 0.08), u(0.025, 0.045)
-        front = depth / 2 - u(0.0, 0.08)
-        back_at_arm = back_z - math.tan(math.radians(tilt)) * (arm_height - seat_top)
-        length = front - back_at_arm
-        for sx in (-1, 1):
-            x = sx * (width / 2 - arm_width / 2)
-            if arms == "posts":
-                builder.add("arm", box((arm_width, arm_thick, length), (x, arm_height, back_at_arm + length / 2)))
-                builder.add("arm", rod((x, seat_top - 0.01, front - 0.05), (x, arm_height, front - 0.04), arm_width * 0.35, segments=12))
-            else:
-                panel_height = arm_height - seat_bottom + 0.02
-                # Slightly wider than the seat: flush faces would leave slivers in the union.
-                builder.add("arm", box((0.1, panel_height, length), (sx * (width / 2 - 0.045), seat_bottom - 0.02 + panel_height / 2, back_at_arm + length / 2)))
-    return params
+
+def _chair_arms(builder: _PartBuilder, rng: np.random.Generator, arms: str, width: float, depth: float, seat_top: float,
+                seat_bottom: float, back_z: float, tilt: float) -> None:
+    """Arm rests on posts, or arm panels on the seat's sides, from the front of the seat to the tilted back."""
+    u = rng.uniform
+    arm_height = seat_top + u(0.17, 0.26)
+    arm_width, arm_thick = u(0.035, 0.08), u(0.025, 0.045)
+    front = depth / 2 - u(0.0, 0.08)
+    back_at_arm = back_z - math.tan(math.radians(tilt)) * (arm_height - seat_top)
+    length = front - back_at_arm
+    for sx in (-1, 1):
+        x = sx * (width / 2 - arm_width / 2)
+        if arms == "posts":
+            builder.add("arm", box((arm_width, arm_thick, length), (x, arm_height, back_at_arm + length / 2)))
+            builder.add("arm", rod((x, seat_top - 0.01, front - 0.05), (x, arm_height, front - 0.04), arm_width * 0.35, segments=12))
+        else:
+            panel_height = arm_height - seat_bottom + 0.02
+            # Slightly wider than the seat: flush faces would leave slivers in the union.
+            builder.add("arm", box((0.1, panel_height, length), (sx * (width / 2 - 0.045), seat_bottom - 0.02 + panel_height / 2, back_at_arm + length / 2)))
 
 
 # ----------------------------------------------------------------------------------------------

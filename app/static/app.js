@@ -59,13 +59,15 @@ async function useExample(role, name) {
   }
 }
 
-// the mesh as uploaded, untextured: the viewer shows it (and is ready for the result) before any job
+// the mesh as uploaded, untextured: the viewer shows it (and is ready for the result) before any job,
+// and again while a job runs (the previous job's files are gone by then)
 function showPreview(name) {
   for (const id of ["gallery", "pictures"]) $(id).replaceChildren();
   $("pose").textContent = "";
   $("download").hidden = true;
+  if (name) state.meshName = name;
   $("viewer").src = api(`/preview?upload=${Date.now()}`);
-  $("result-label").textContent = `${name}, untextured: press Generate or Transfer`;
+  $("result-label").textContent = `${state.meshName}, untextured`;
 }
 
 function dropZone(zone, input, role) {
@@ -119,6 +121,7 @@ async function start(kind) {
     return;
   }
   setBusy(true);
+  showPreview();
   showJob(state.job);
   clearInterval(state.polling);
   state.polling = setInterval(poll, 250);

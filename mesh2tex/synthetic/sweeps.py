@@ -176,3 +176,31 @@ def place_rings(profile: np.ndarray, points: np.ndarray, across: np.ndarray, up:
     across = np.broadcast_to(np.asarray(across, dtype=np.float64), (len(points), 3))
     up = np.broadcast_to(np.asarray(up, dtype=np.float64), (len(points), 3))
     return points[:, None] + profile[..., :1] * across[:, None] + profile[..., 1:2] * up[:, None]
+
+
+def curved_panel(width: float, height: float, thickness: float, bend: float, bottom, recline: float = 0.0,
+                 lumbar: float = 0.0, top_round: float = 6.0, layers: int = 12):
+    """A back bent around the sitter: arc-shaped bands stacked upwards from ``bottom`` (x, y, z), leaning
+    back by ``recline`` degrees, bulging forward by ``lumbar`` at mid-height, its top corners rounded
+    (``top_round``: the exponent of the outline, large: square). The sides sit at the line through
+    ``bottom``; the middle lies ``bend`` behind it."""
+    h = np.linspace(0.0, 1.0, layers)
+    widths = width * np.maximum((1 - (0.985 * h) ** top_round) ** (1 / top_round), 0.3)
+    profiles = np.stack([band(w, thickness, bend * (w / width) ** 2) - [0.0, bend * (w / width) ** 2] for w in widths])
+    x0, y0, z0 = bottom
+    centres = np.stack([np.full(layers, x0), y0 + h * height,
+                        z0 - math.tan(math.radians(recline)) * h * height + lumbar * np.sin(math.pi * h)], axis=1)
+    return loft(place_rings(profiles, centres, [1.0, 0, 0], [0, 0, 1.0]))
+
+
+def rounded_path(points, corner: float, spacing: float = 0.02) -> np.ndarray:
+    """The polyline ``points`` (N, 3) with each inner corner replaced by a quadratic Bezier reaching ``corner``
+    metres along both sides (so that a tube can follow it), resampled at ``spacing``."""
+    points = np.asarray(points, dtype=np.float64)
+    path = [points[:1]]
+    for a, p, b in zip(points[:-2], points[1:-1], points[2:]):
+        ca = min(corner, 0.45 * np.linalg.norm(a - p))
+        cb = min(corner, 0.45 * np.linalg.norm(b - p))
+        path.append(bezier([p + (a - p) * ca / np.linalg.norm(a - p), p, p + (b - p) * cb / np.linalg.norm(b - p)], 8))
+    path.append(points[-1:])
+    return resample(np.concatenate(path), spacing)

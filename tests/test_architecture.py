@@ -262,7 +262,7 @@ def test_the_user_error_check_finds_what_it_forbids():
 # shrink, not grow, and leaves the list once it fits (the target is an empty list).
 LONG_FILES = {"benchmarks/bad_inputs.py": 554, "mesh2tex/geometry/quadremesh.py": 521}
 MAX_FUNCTION_LINES = 80
-LONG_FUNCTIONS = {"mesh2tex/geometry/quadremesh.py:remesh_hierarchy": 101}
+LONG_FUNCTIONS: dict[str, int] = {}
 SOURCE_FOLDERS = (LIBRARY, *STAGES)
 
 

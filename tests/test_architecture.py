@@ -260,7 +260,7 @@ def test_the_user_error_check_finds_what_it_forbids():
 
 # Files over MAX_LINES and functions over MAX_FUNCTION_LINES not yet split, each at its length today: it may
 # shrink, not grow, and leaves the list once it fits (the target is an empty list).
-LONG_FILES = {"benchmarks/bad_inputs.py": 554, "mesh2tex/geometry/quadremesh.py": 521}
+LONG_FILES: dict[str, int] = {}
 MAX_FUNCTION_LINES = 80
 LONG_FUNCTIONS: dict[str, int] = {}
 SOURCE_FOLDERS = (LIBRARY, *STAGES)

@@ -20,9 +20,12 @@ $(VPY):
 
 install: .install-stamp
 
-# The docs site in strict mode (a broken link or anchor fails), then the test suite.
-test: .install-stamp docs
+# The linter (ruff.toml), the docs site in strict mode (a broken link or anchor fails), then the test suite.
+test: .install-stamp lint docs
 	$(VPY) -m pytest -q
+
+lint: .install-stamp
+	$(VPY) -m ruff check .
 
 docs: .install-stamp
 	NO_MKDOCS_2_WARNING=1 $(VPY) -m mkdocs build --strict --site-dir build/site
@@ -49,4 +52,4 @@ figures: .install-stamp
 	    --views 4 --resolution 128 --out $(FIGURES_WORK)/seeds --overwrite
 	$(VPY) benchmarks/figures.py generate $(FIGURES_WORK)/seeds --pad 0 --out docs/images/shipped_chair_seeds.png
 
-.PHONY: install test docs reference demo app figures
+.PHONY: install test lint docs reference demo app figures

@@ -33,7 +33,7 @@ from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.assets import check_texture_format
 from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.models import load_nca
+from mesh2tex.models import TrainedAutomaton, load_nca
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.limits import check_range
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
@@ -149,10 +149,9 @@ def grow(model, graph, cfg: InferNCAConfig, graft, damage, distance: float, fov:
     return state, frames, step_seconds, len(phases)
 
 
-def exemplar_style(views, exemplar: np.ndarray, meta: dict, cfg: InferNCAConfig, device) -> float:
+def exemplar_style(views, exemplar: np.ndarray, depth: int, cfg: InferNCAConfig, device) -> float:
     """The style loss of the final renders against the model's exemplar (H, W, 3) uint8, with the training's VGG depth."""
     vgg = load_vgg19(cfg.vgg_weights or None, device=device, warn=False)
-    depth = int(meta.get("config", {}).get("vgg_depth", 4))
     target = torch.from_numpy(exemplar).permute(2, 0, 1)[None].float().to(device) / 127.5 - 1
     return float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
                             generator=torch.Generator().manual_seed(0)))
@@ -171,20 +170,21 @@ def run(args) -> int:
     cfg = build_config(args)
     out = guard_outputs(args.out, list(OUTPUTS) + [f"view_{k}.png" for k in range(cfg.views)], args.overwrite)
     device = select_device(cfg.device)
-    model, meta, exemplar = load_nca(args.checkpoint, device)
-    camera = meta.get("config", {}).get("camera", {})  # frame the unit ball as training did
-    distance, fov = float(camera.get("distance", 3.2)), float(camera.get("fov", 40.0))
+    trained = load_nca(args.checkpoint, device)
+    model, exemplar = trained.network, trained.exemplar
+    distance, fov = trained.camera.distance, trained.camera.fov  # frame the unit ball as training did
     other = None
     lineage_note = None
     if args.graft:
-        other, other_meta, _ = load_nca(args.graft, device)
+        grafted = load_nca(args.graft, device)
+        other = grafted.network
         if other.cfg != model.cfg:
             raise UserError(f"{args.graft}: its automaton config differs from {args.checkpoint}'s; only models of one lineage can be grafted")
-        lineage_note = lineage(meta, other_meta)
+        lineage_note = lineage(trained, grafted)
 
     surface, bake_target = read_cells_surface(args.mesh, args.up, args.uv, args.output_mesh)  # read once, subdivided from these arrays
     vertices, faces = unit_surface(*surface, name=args.mesh)
-    cell_spacing = float(meta.get("cell_spacing", 0.0))
+    cell_spacing = trained.cell_spacing
     subdivisions = choose_subdivisions(cfg.subdivide, vertices, faces, cell_spacing)
     if subdivisions:
         vertices, faces = unit_surface(*surface, subdivide=subdivisions, name=args.mesh)
@@ -209,7 +209,7 @@ def run(args) -> int:
         views = render_states(model, state, graph, mvp, cfg.resolution, background=1.0, graft=graft)
         for k, image in enumerate(images_to_uint8(views.images)):
             save_png(out / f"view_{k}.png", image)
-        style = None if exemplar is None else exemplar_style(views, exemplar, meta, cfg, device)
+        style = None if exemplar is None else exemplar_style(views, exemplar, trained.vgg_depth, cfg, device)
 
         written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, cfg.texture_size,
                                        cfg.texture_format, graft=graft, target=bake_target)
@@ -235,9 +235,9 @@ def run(args) -> int:
     return 0
 
 
-def lineage(meta: dict, other_meta: dict) -> str | None:
+def lineage(first: TrainedAutomaton, second: TrainedAutomaton) -> str | None:
     """None when two models are of one lineage (one trained from the other, or both from one ancestor), else a warning."""
-    if meta.get("lineage") and meta.get("lineage") == other_meta.get("lineage"):
+    if first.lineage and first.lineage == second.lineage:
         return None
     return "the two models are not of one lineage (train the second with --parent FIRST); the graft may not blend"
 

@@ -35,26 +35,13 @@ from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides
 from mesh2tex.render import orbit_camera
-from mesh2tex.render.cameras import turntable_angles
+from mesh2tex.render.cameras import NCACameraConfig, turntable_angles
 from mesh2tex.synthetic.world import contact_sheet
 from mesh2tex.train import runs
 
 KIND = "nca"
 VIEW_START = 30.0  # azimuth of the first sample view: off the cube-sphere's face centres
 MODEL_NAME = "model.safetensors"  # the trained automaton alone, what infer nca reads
-
-
-@dataclass
-class NCACameraConfig:
-    distance: float = 3.2  # in units of the mesh's radius (meshes are scaled into the unit ball)
-    fov: float = 40.0  # vertical field of view, degrees
-    elevation_min: float = -60.0  # random views: elevation range, degrees
-    elevation_max: float = 60.0
-
-    def __post_init__(self):
-        check_fields(self, positive=("distance",), between={"fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0)})
-        if self.elevation_max < self.elevation_min:
-            raise ValueError(f"elevation_max {self.elevation_max} is below elevation_min {self.elevation_min}")
 
 
 @dataclass

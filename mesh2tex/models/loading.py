@@ -11,6 +11,9 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
 
 import torch
 
@@ -20,7 +23,7 @@ from mesh2tex.io.checkpoint import load_checkpoint, meta_mapping
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.nca import MeshNCA, NCAConfig
 from mesh2tex.nn.view_nets import ViewTrainConfig, build_network
-from mesh2tex.render.cameras import CameraConfig
+from mesh2tex.render.cameras import CameraConfig, NCACameraConfig
 
 from .store import DEFAULT_HIERARCHY_FACES, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY, VIEW_NET, resolve_checkpoint
 
@@ -130,11 +133,44 @@ def load_view_network(path: str | os.PathLike, kind: str, device: torch.device |
     return net.to(device).eval(), cfg
 
 
-def load_nca(path: str | os.PathLike, device="cpu"):
+class TrainedAutomaton(NamedTuple):
+    """A trained cellular automaton and what inference needs from its checkpoint (it unpacks as
+    ``(network, meta, exemplar)``).
+
+    network: the :class:`mesh2tex.nn.nca.MeshNCA` in eval mode; meta: the checkpoint's metadata, for
+    provenance; exemplar: (H, W, 3) uint8 the image it was trained on, or None.
+    """
+
+    network: MeshNCA
+    meta: dict
+    exemplar: np.ndarray | None
+
+    @property
+    def camera(self) -> NCACameraConfig:
+        """The cameras it was trained with (``config.camera``; the defaults where the checkpoint has none)."""
+        camera = self.meta.get("config", {}).get("camera", {}) if isinstance(self.meta.get("config"), dict) else {}
+        return config_from_dict(NCACameraConfig, camera if isinstance(camera, dict) else {}, where="the checkpoint's config.camera")
+
+    @property
+    def vgg_depth(self) -> int:
+        """The VGG19 style layers its loss used (``config.vgg_depth``, 4 when not recorded)."""
+        return int(self.meta.get("config", {}).get("vgg_depth", 4))
+
+    @property
+    def cell_spacing(self) -> float:
+        """The mean edge length of its training cell mesh in the unit ball (0: not recorded)."""
+        return float(self.meta.get("cell_spacing", 0.0))
+
+    @property
+    def lineage(self) -> str | None:
+        """The id its family of models shares (a model trained with ``--parent`` keeps its parent's)."""
+        return self.meta.get("lineage")
+
+
+def load_nca(path: str | os.PathLike, device="cpu") -> TrainedAutomaton:
     """A trained cellular automaton from a ``train nca`` checkpoint (training or exported).
 
-    Returns (model :class:`mesh2tex.nn.nca.MeshNCA` in eval mode on ``device``, meta, exemplar
-    (H, W, 3) uint8 or None). Raises InputError naming ``path`` for a missing, foreign or damaged file.
+    Raises InputError naming ``path`` for a missing, foreign or damaged file.
     """
     groups, meta = load_checkpoint(path, kind="nca")
     if "model" not in groups or "nca" not in meta:
@@ -147,4 +183,4 @@ def load_nca(path: str | os.PathLike, device="cpu"):
         raise InputError(f"{path}: the automaton weights do not fit its config ({str(error).splitlines()[0]})") from None
     exemplar = groups.get("exemplar", {}).get("image")
     exemplar = None if exemplar is None else exemplar.permute(1, 2, 0).numpy()
-    return model.to(device).eval(), meta, exemplar
+    return TrainedAutomaton(model.to(device).eval(), meta, exemplar)

@@ -48,6 +48,22 @@ class CameraConfig:
 
 
 @dataclass
+class NCACameraConfig:
+    """The cameras of a mesh automaton (``train nca``): around a mesh scaled into the unit ball; ``infer nca``
+    frames its renders with the training's distance and field of view."""
+
+    distance: float = 3.2  # in units of the mesh's radius (meshes are scaled into the unit ball)
+    fov: float = 40.0  # vertical field of view, degrees
+    elevation_min: float = -60.0  # random views: elevation range, degrees
+    elevation_max: float = 60.0
+
+    def __post_init__(self):
+        check_fields(self, positive=("distance",), between={"fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0)})
+        if self.elevation_max < self.elevation_min:
+            raise ValueError(f"elevation_max {self.elevation_max} is below elevation_min {self.elevation_min}")
+
+
+@dataclass
 class Camera:
     """A batch of B cameras.
 

@@ -261,7 +261,7 @@ def load_photo_collection(folder: str | Path, resolution: int) -> torch.Tensor:
         return small
 
     listed = list_images(image_dir, "image")
-    items = [(path, None if masks is None else masks.get(stem, image_dir.parent / "masks" / f"{stem}.png")) for stem, path in listed.items()]
+    items = [(path, None if masks is None else masks.get(stem, folder / "masks" / f"{stem}.png")) for stem, path in listed.items()]
     photos, rejected = read_photo_set(items, read)
     refuse_rejected(rejected, len(items), image_dir)
     return torch.stack(photos)

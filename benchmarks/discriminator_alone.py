@@ -44,9 +44,9 @@ def main() -> int:
     cfg.device = "cpu"
     shapes, _ = load_shapes(args.shapes)
     cfg.generator.input_features = shapes[0].face_features.shape[1]
-    trainer = GanTrainer(cfg, shapes, load_photo_collection(args.images, cfg.resolution), runs.RunDirectory(args.run), torch.device("cpu"),
-                         runs.Distributed("cpu"))
-    trainer.resume()
+    run = runs.RunDirectory(args.run)
+    trainer = GanTrainer(cfg, shapes, load_photo_collection(args.images, cfg.resolution), run, torch.device("cpu"), runs.Distributed("cpu"))
+    trainer.resume(run.checkpoint_path)
     fakes = []
     with torch.no_grad():
         for _ in range(6):

@@ -10,7 +10,6 @@ file deleted.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from dataclasses import dataclass
@@ -117,23 +116,6 @@ def sniff(path: Path, role: str) -> None:
         raise Refused(422, f"{path.name}: is {found}, not {ROLES[role][0]} ({suffix} file)")
     if expected is not None and found != expected:
         raise Refused(422, f"{path.name}: not a valid {suffix} file")
-    if role == "nca":
-        _check_safetensors(path, head)
-
-
-def _check_safetensors(path: Path, head: bytes) -> None:
-    """A safetensors file starts with the length of its JSON header, then the header."""
-    size = int.from_bytes(head[:8], "little") if len(head) >= 8 else 0
-    if not 2 <= size <= min(path.stat().st_size - 8, 100 * 2**20):
-        raise Refused(422, f"{path.name}: not a safetensors file")
-    with open(path, "rb") as handle:
-        handle.seek(8)
-        try:
-            header = json.loads(handle.read(size))
-        except ValueError:
-            header = None
-    if not isinstance(header, dict):
-        raise Refused(422, f"{path.name}: not a safetensors file (its header is not JSON)")
 
 
 def check(path: Path, role: str, preview: Path | None = None) -> str:
@@ -154,6 +136,10 @@ def check(path: Path, role: str, preview: Path | None = None) -> str:
 
             rgb, alpha = load_image(path)
             return f"{path.name}: {rgb.shape[1]} x {rgb.shape[0]} pixels{' with a mask' if alpha is not None else ''}"
+        if role == "nca":  # read as 'infer nca' reads it: a mesh2tex automaton checkpoint, its weights fitting its config
+            from mesh2tex.models import load_nca
+
+            load_nca(path)
     except InputError as error:
         raise Refused(422, str(error).replace(f"{path.parent}{os.sep}", "")) from None
     return f"{path.name}: {megabytes(path.stat().st_size)}"
@@ -161,10 +147,6 @@ def check(path: Path, role: str, preview: Path | None = None) -> str:
 
 def write_mesh_preview(mesh, target: Path) -> None:
     """The user's mesh as the commands read it, untextured, as a GLB (a z-up file turned y-up, as their GLBs are)."""
-    import numpy as np
     import trimesh
 
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    if mesh.up == "z":
-        vertices = vertices[:, [0, 2, 1]] * np.array([1.0, 1.0, -1.0])
-    trimesh.Trimesh(vertices, mesh.faces, process=False).export(target, file_type="glb")
+    trimesh.Trimesh(mesh.working_vertices(), mesh.faces, process=False).export(target, file_type="glb")

@@ -50,6 +50,7 @@ import torch.nn.functional as F
 
 from mesh2tex.config import check_fields
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
+from mesh2tex.photos import square_resize
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
@@ -140,15 +141,10 @@ def mip_level(surface: TexelSurface, cfg: SynthesisConfig) -> int:
 
 
 def exemplar_tensor(rgb: np.ndarray, size: int) -> torch.Tensor:
-    """(H, W, 3) uint8 image -> (1, 3, size, size) float32 in [-1, 1]: its centred square, resized
-    with antialiasing."""
-    h, w = rgb.shape[:2]
-    side = min(h, w)
-    top, left = (h - side) // 2, (w - side) // 2
-    crop = np.ascontiguousarray(rgb[top:top + side, left:left + side])
-    square = torch.from_numpy(crop).float().permute(2, 0, 1)[None]
-    resized = F.interpolate(square, size=(size, size), mode="bilinear", align_corners=False, antialias=side > size)
-    return (resized / 127.5 - 1).clamp(-1, 1)
+    """(H, W, 3) uint8 image -> (1, 3, size, size) float32 in [-1, 1]: its centred square, resized with
+    antialiasing, as every photo set is framed (:func:`mesh2tex.photos.square_resize`)."""
+    square = square_resize(torch.from_numpy(np.ascontiguousarray(rgb)).float().permute(2, 0, 1), size)
+    return (square[None] / 127.5 - 1).clamp(-1, 1)
 
 
 def view_cameras(cfg: SynthesisConfig, count: int, generator: torch.Generator) -> torch.Tensor:

@@ -37,7 +37,7 @@ def main() -> None:
         seconds["shapes and materials"] += time.perf_counter() - t
         triangles += len(shape.faces)
         t = time.perf_counter()
-        render_views(shape, material, sample_views(spec, i, spec.views), spec.resolution, spec.supersample)
+        render_views(shape, material, sample_views(spec, i, spec.views), spec.photo_render)
         seconds["photos"] += time.perf_counter() - t
         t = time.perf_counter()
         bake_material(shape, material, spec.texture_size)

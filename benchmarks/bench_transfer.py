@@ -27,7 +27,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.render import CameraConfig  # noqa: E402
+from mesh2tex.render import CameraConfig, RenderSettings  # noqa: E402
 from mesh2tex.transfer import Photo, TransferConfig, transfer_texture, view_at_pose  # noqa: E402
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator  # noqa: E402
@@ -65,7 +65,7 @@ def main() -> None:
     shape = prepare_shape(target.vertices, target.faces, face_count=args.faces, levels=5, seed=0, source="chair 0")
     print(f"prepared the mesh: {shape.face_counts} quads ({time.perf_counter() - start:.1f} s)")
     query_view = sample_views(spec, 1, 1, query=True)[0]
-    query = render_views(make_shape(spec, 1), make_material(spec, 1), [query_view], args.resolution)
+    query = render_views(make_shape(spec, 1), make_material(spec, 1), [query_view], RenderSettings(args.resolution, 2))
     image = torch.from_numpy(query["rgb"]).permute(0, 3, 1, 2).contiguous().float() / 127.5 - 1
     mask = torch.from_numpy(query["mask"] > 127)[:, None].float()
     photo = Photo(image=image, mask=mask)

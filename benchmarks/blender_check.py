@@ -33,6 +33,7 @@ from mesh2tex.evaluation.compare import render_for_comparison  # noqa: E402
 from mesh2tex.evaluation.surfaces import textured_surface  # noqa: E402
 from mesh2tex.io.assets import load_glb  # noqa: E402
 from mesh2tex.synthetic.world import PhotoSetup  # noqa: E402
+from mesh2tex.render import RenderSettings  # noqa: E402
 
 SCENE = Path(__file__).resolve().parent / "blender_scene.py"
 
@@ -52,7 +53,7 @@ def mesh2tex_render(glb: Path, args) -> tuple[np.ndarray, np.ndarray]:
     """mesh2tex's albedo render (S, S, 3) uint8 and its object mask (S, S) bool."""
     vertices, faces, uv, image = load_glb(glb)
     view = PhotoSetup(args.azimuth, args.elevation, args.distance, args.fov, (0.0, 1.0, 0.0), 1.0, "solid", 0)
-    out = render_for_comparison(textured_surface(vertices, faces, uv, image), [view], args.size, lighting="albedo")
+    out = render_for_comparison(textured_surface(vertices, faces, uv, image), [view], RenderSettings(args.size, 2, "albedo"))
     rgb = (out.rgb[0].permute(1, 2, 0).clamp(0, 1).numpy() * 255 + 0.5).astype(np.uint8)
     return rgb, out.mask[0, 0].numpy() > 0.5
 

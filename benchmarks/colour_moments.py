@@ -115,7 +115,7 @@ def main() -> None:
             z = torch.randn(len(views[name]), generator.cfg.z_dim, generator=latents)
             with torch.no_grad():
                 image, mask = generator_renders(generator, shape, views[name], args.resolution, z, torch.device("cpu"), lit=True,
-                                               photo_resolution=world.spec.resolution)
+                                               photo_render=world.spec.photo_render)
             images.append(image)
             masks.append(mask)
         report(label, torch.cat(images), torch.cat(masks))

@@ -33,6 +33,7 @@ from mesh2tex.evaluation.generation import fresh_photo_set, ground_truth_renders
 from mesh2tex.photos import list_images, load_set  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd  # noqa: E402
 from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_views  # noqa: E402
+from mesh2tex.render import RenderSettings  # noqa: E402
 
 
 def main() -> None:
@@ -60,7 +61,7 @@ def main() -> None:
             if as_photos:
                 image, mask = ground_truth_renders(world, name, views, r)
             else:
-                out = render_views(make_shape(world.spec, index), make_material(world.spec, index), views, r)
+                out = render_views(make_shape(world.spec, index), make_material(world.spec, index), views, RenderSettings(r, 2))
                 image, mask = on_white(out["rgb"], out["mask"])
             images.append(image)
             image_masks.append(mask)

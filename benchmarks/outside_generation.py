@@ -81,7 +81,7 @@ def main() -> None:
     from mesh2tex.models import load_generator
     from mesh2tex.metrics.generation import colour_spread, mean_object_lab, object_set_swd
     from mesh2tex.nn.generator import TextureGenerator
-    from mesh2tex.render import composite_images
+    from mesh2tex.render import RenderSettings, composite_images
     from mesh2tex.synthetic.world import sample_material, sample_views
     from mesh2tex.texturing import load_shape
 
@@ -117,9 +117,9 @@ def main() -> None:
             for repeat in range(args.repeats):
                 z = torch.randn(args.views, generator.cfg.z_dim, generator=seeded_generator(draw_key(0, repeat), 1))
                 rows.setdefault((label, repeat), []).append(generator_renders(generator, shape, views, resolution, z, device, lit,
-                                                                               photo_resolution=side))
+                                                                               photo_render=RenderSettings(side, 2)))
             z = torch.randn(args.latents, generator.cfg.z_dim, generator=torch.Generator().manual_seed(7))
-            images, masks = generator_renders(generator, shape, [views[0]] * args.latents, resolution, z, device, lit, photo_resolution=side)
+            images, masks = generator_renders(generator, shape, [views[0]] * args.latents, resolution, z, device, lit, photo_render=RenderSettings(side, 2))
             spread.setdefault(label, []).append(colour_spread(mean_object_lab(images, masks)))
         vertices, faces = shape.vertices[0], quads_to_triangles(shape.quads[0])
         parts = height_parts(vertices, faces, args.category)
@@ -127,7 +127,7 @@ def main() -> None:
             images, masks = [], []
             for k, view in enumerate(views):
                 material = sample_material(world.spec, np.random.default_rng([repeat, 99, index, k]))
-                out = render_for_comparison(material_surface(vertices, faces, parts, material), [view], side, lighting="photo")
+                out = render_for_comparison(material_surface(vertices, faces, parts, material), [view], RenderSettings(side, 2))
                 images.append(composite_images(out.rgb, out.mask, 1.0))
                 masks.append(out.mask)
             rows.setdefault(("materials", repeat), []).append(read_as_photos(torch.cat(images), torch.cat(masks), resolution))

@@ -144,6 +144,7 @@ def main() -> None:
     import cv2
 
     from mesh2tex.evaluation.compare import ScoreSettings, common_mask, render_for_comparison, score_views
+    from mesh2tex.render import RenderSettings
     from mesh2tex.evaluation.surfaces import flat_surface, generator_surface, material_surface, photo_mean_colour
     from mesh2tex.io.images import save_png
     from mesh2tex.nn.pose import azimuth_error
@@ -207,7 +208,7 @@ def main() -> None:
         views = sample_views(spec, 1000 + index, args.poses, query=True)
         turns = azimuth_symmetries(vertices)
         for k, view in enumerate(views):
-            photo_render = render_for_comparison(truth, [view], args.photo_size, lighting="photo")
+            photo_render = render_for_comparison(truth, [view], RenderSettings(args.photo_size, 2))
             rgb = photo_render.rgb[0].permute(1, 2, 0).numpy()
             true_mask = photo_render.mask[0, 0].numpy() > 0.5
             rng = np.random.default_rng([11, index, k])
@@ -265,7 +266,7 @@ def main() -> None:
                         texture = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none")
                     judged = [view, dataclasses.replace(view, azimuth=(view.azimuth + 180.0) % 360.0)]
                     side = 128
-                    reference = render_for_comparison(truth, judged, side, lighting="photo")
+                    reference = render_for_comparison(truth, judged, RenderSettings(side, 2))
                     # At the photo's view the reference is the photo file as the transfer read it (8-bit, JPEG for
                     # the backdrop variant): the oracle row is then the truth against that file, finite.
                     as_read = cv2.cvtColor(cv2.imread(str(file)), cv2.COLOR_BGR2RGB)
@@ -275,8 +276,8 @@ def main() -> None:
                     photo_mask = torch.from_numpy(true_mask if variant == "alpha" else estimated).float()
                     flat_colour = photo_mean_colour(torch.from_numpy(over).permute(2, 0, 1).float(), photo_mask)
                     methods = {"oracle": reference,
-                               "transfer": render_for_comparison(generator_surface(generator, texture, batch), judged, side, lighting="photo"),
-                               "flat": render_for_comparison(flat_surface(vertices, faces, flat_colour), judged, side, lighting="photo")}
+                               "transfer": render_for_comparison(generator_surface(generator, texture, batch), judged, RenderSettings(side, 2)),
+                               "flat": render_for_comparison(flat_surface(vertices, faces, flat_colour), judged, RenderSettings(side, 2))}
                     mask = common_mask(reference.mask, methods["flat"].mask)
                     for method, rendered in methods.items():
                         scores = score_views(rendered, reference_rgb, reference.parts, mask, settings)["lowpass_psnr"]

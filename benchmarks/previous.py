@@ -25,10 +25,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("mesh2tex", "train")
+# The stages are installed as mesh2tex.<stage> from their own top-level folders (pyproject's package-dir):
+# in the extracted tree each gets a link mesh2tex/<stage> -> <stage>, or the installed (today's) one would answer.
+STAGES = ("data_prep", "train", "infer", "evaluate", "app")
 
 
 def _ours(name: str) -> bool:
-    return name.split(".")[0] in PACKAGES
+    return name.split(".")[0] in PACKAGES + STAGES
 
 
 class Revision:
@@ -38,11 +41,18 @@ class Revision:
     def __init__(self, revision: str):
         self.commit = subprocess.run(["git", "rev-parse", "--short", revision], cwd=ROOT, check=True,
                                      capture_output=True, text=True).stdout.strip()
-        archive = subprocess.run(["git", "archive", "--format=tar", self.commit, *PACKAGES], cwd=ROOT, check=True,
+        present = subprocess.run(["git", "ls-tree", "--name-only", self.commit], cwd=ROOT, check=True,
+                                 capture_output=True, text=True).stdout.split()
+        folders = [name for name in dict.fromkeys(PACKAGES + STAGES) if name in present]
+        archive = subprocess.run(["git", "archive", "--format=tar", self.commit, *folders], cwd=ROOT, check=True,
                                  capture_output=True).stdout
         self._folder = tempfile.TemporaryDirectory(prefix=f"mesh2tex-{self.commit}-")
         with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
             tar.extractall(self._folder.name, filter="data")
+        package = Path(self._folder.name) / "mesh2tex"
+        for stage in STAGES:
+            if stage in folders and not (package / stage).exists():
+                (package / stage).symlink_to(Path("..") / stage, target_is_directory=True)
         self._modules: dict = {}
 
     @contextlib.contextmanager

@@ -45,7 +45,7 @@ from mesh2tex.evaluation.generation import WorldData, generator_renders, ground_
 from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.metrics.spectrum import DEFAULT_CUTOFF, high_frequency_share, view_pixels_per_unit  # noqa: E402
 from mesh2tex.nn.generator import TextureGenerator  # noqa: E402
-from mesh2tex.render import composite_images  # noqa: E402
+from mesh2tex.render import RenderSettings, composite_images  # noqa: E402
 from mesh2tex.synthetic.world import WorldSpec, make_shape, sample_material, sample_views  # noqa: E402
 
 _DRAW_STREAM = 7951  # seeds the world's material draws (the target) apart from every other stream
@@ -156,9 +156,9 @@ def main() -> None:
             add(f"oracle_{seed}", material_renders(world, name, views, materials, r, lit=False))
         for seed in seeds:
             z = torch.randn(len(views), generator.cfg.z_dim, generator=torch.Generator().manual_seed(seed * 1000 + index))
-            add(f"seed_{seed}", generator_renders(generator, prepared, views, r, z, device, lit=False, photo_resolution=r))
+            add(f"seed_{seed}", generator_renders(generator, prepared, views, r, z, device, lit=False, photo_render=RenderSettings(r, 2)))
         z = torch.randn(len(views), generator.cfg.z_dim, generator=torch.Generator().manual_seed(index))
-        add("untrained", generator_renders(untrained, prepared, views, r, z, device, lit=False, photo_resolution=r))
+        add("untrained", generator_renders(untrained, prepared, views, r, z, device, lit=False, photo_render=RenderSettings(r, 2)))
         print(f"{name} rendered ({time.perf_counter() - start:.0f} s)", file=sys.stderr)
 
     def measure(items, space, pixels):

@@ -17,6 +17,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from mesh2tex.io.images import save_png
+from mesh2tex.render import RenderSettings
 from mesh2tex.synthetic.variety import generate_varied_shape
 from mesh2tex.synthetic.world import PhotoSetup, WorldSpec, contact_sheet, make_material, make_shape, render_views
 
@@ -32,7 +33,7 @@ def gallery_tile(spec: WorldSpec, index: int, size: int, family: str | None = No
     chair = spec.category == "chair"
     view = PhotoSetup(azimuth=35.0 if chair else 40.0, elevation=20.0 if chair else 25.0, distance=1.6 if chair else 1.3, fov=40.0,
                       light=(0.45, 0.75, 0.48), ambient=0.45, background="solid", background_seed=0)
-    rendered = render_views(shape, material, [view], size, supersample=3)
+    rendered = render_views(shape, material, [view], RenderSettings(size, 3))
     mask = rendered["mask"][0][..., None] > 0
     tile = np.where(mask, rendered["rgb"][0], 255).astype(np.uint8)
     image = Image.fromarray(tile)

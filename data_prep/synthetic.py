@@ -166,7 +166,7 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
     todo = [r for r in records if not finished(r)]
     if todo:
         views = [PhotoSetup(**{k: (tuple(r[k]) if k == "light" else r[k]) for k in PhotoSetup.__dataclass_fields__}) for r in todo]
-        rendered = render_views(shape, material, views, spec.resolution, spec.supersample)
+        rendered = render_views(shape, material, views, spec.photo_render)
         for b, record in enumerate(todo):
             save_png(output / record["image"], rendered["rgb"][b])
             save_png(output / record["mask"], rendered["mask"][b])

@@ -50,6 +50,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import JsonLines
+from mesh2tex.render import RenderSettings
 from mesh2tex.runtime import select_device
 
 from .demo_report import TRANSFER_METHODS, write_report
@@ -233,14 +234,14 @@ def pick_query(world: Path, index: int) -> dict:
 
 
 # ------------------------------------------------------------------------------------------- metrics
-def render_glb_at_pose(glb: Path, views: list, size: int, lighting: str = "photo"):
+def render_glb_at_pose(glb: Path, views: list, settings: RenderSettings):
     """A textured GLB (as the pipeline writes it) rendered by ``mesh2tex.evaluation.render_for_comparison``
-    at ``views`` (``mesh2tex.synthetic.world.PhotoSetup``): a ``ComparisonRender`` (rgb [B,3,S,S] in [0,1], mask, parts)."""
+    at ``views`` (``mesh2tex.synthetic.world.PhotoSetup``) with ``settings``: a ``ComparisonRender`` (rgb [B,3,S,S] in [0,1], mask, parts)."""
     try:
         vertices, faces, uv, image = load_glb(glb)
     except ValueError as error:
         raise UserError(str(error)) from None
-    return render_for_comparison(textured_surface(vertices, faces, uv, image), views, size, lighting=lighting)
+    return render_for_comparison(textured_surface(vertices, faces, uv, image), views, settings)
 
 
 @torch.no_grad()
@@ -267,13 +268,13 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     except ValueError as error:
         raise UserError(str(error)) from None
     views = [truth.view] + other_views(truth.view, [360.0 * k / (unseen_views + 1) for k in range(1, unseen_views + 1)])
-    size = truth.resolution
+    settings = truth.render_settings(lighting)
 
     def render(surface):
-        return render_for_comparison(surface, views, size, lighting=lighting)
+        return render_for_comparison(surface, views, settings)
 
     reference = reference_renders(truth, views, lighting)
-    renders = {"oracle": render(truth.truth.oracle), "transfer": render_glb_at_pose(transfer / "textured.glb", views, size, lighting),
+    renders = {"oracle": render(truth.truth.oracle), "transfer": render_glb_at_pose(transfer / "textured.glb", views, settings),
                "flat_colour": render(flat_surface(vertices, faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])))}
     model = load_generator(report["checkpoint"], torch.device("cpu"))
     generator = model.network
@@ -289,15 +290,15 @@ def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, 
     except ValueError as error:
         raise UserError(f"{transfer / 'report.json'}: {error}") from None
     mask = common_mask(reference.mask, renders["transfer"].mask)
-    settings = ScoreSettings(lowpass_sigma=lowpass_sigma)
-    result = {name: {k: round(v, 5) for k, v in seen_and_unseen(score_views(rendered, reference.rgb, reference.parts, mask, settings)).items()}
+    scoring = ScoreSettings(lowpass_sigma=lowpass_sigma)
+    result = {name: {k: round(v, 5) for k, v in seen_and_unseen(score_views(rendered, reference.rgb, reference.parts, mask, scoring)).items()}
               for name, rendered in renders.items()}
     rows = [reference.rgb] + [renders[name].rgb for name in TRANSFER_METHODS]
     tiles = [np.concatenate(list(images_to_uint8(row, signed=False)), axis=1) for row in rows]
     save_png(transfer / "comparison_views.png", np.concatenate(tiles, axis=0))
-    save_png(transfer / "render_at_true_pose.png", tiles[2][:, :size])
+    save_png(transfer / "render_at_true_pose.png", tiles[2][:, :settings.resolution])
     result["settings"] = {"lighting": lighting, "views": [[round(v.azimuth, 2), round(v.elevation, 2)] for v in views],
-                          "lowpass_sigma_px": lowpass_sigma, "resolution": size, "pose_used": [pose["azimuth"], pose["elevation"]]}
+                          "lowpass_sigma_px": lowpass_sigma, "resolution": settings.resolution, "pose_used": [pose["azimuth"], pose["elevation"]]}
     return result
 
 

@@ -30,7 +30,7 @@ def test_the_exact_material_rendered_for_comparison_is_the_photo(world):
     """One render function for every candidate: the world's own material through it reproduces the
     query photo (same camera, light, background, anti-aliasing), up to the photo's 8-bit rounding."""
     _, _, truth = world
-    render = render_for_comparison(truth.truth.exact, [truth.view], truth.resolution)
+    render = render_for_comparison(truth.truth.exact, [truth.view], truth.render_settings())
     assert float((render.rgb[0] - truth.photo[0]).abs().max()) <= 1.01 / 255
     assert torch.equal(render.mask[0], truth.photo_mask[0])
     assert set(render.parts[0][render.mask[0, 0] > 0].tolist()) == set(truth.truth.shape.face_parts.tolist()) & set(
@@ -42,15 +42,15 @@ def test_the_oracle_wins_every_metric_seen_and_unseen(world):
     views = [truth.view] + other_views(truth.view)
     reference = reference_renders(truth, views)
     shape = truth.truth.shape
-    oracle = render_for_comparison(truth.truth.oracle, views, truth.resolution)
+    oracle = render_for_comparison(truth.truth.oracle, views, truth.render_settings())
     flat = render_for_comparison(flat_surface(shape.vertices, shape.faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])),
-                                 views, truth.resolution)
+                                 views, truth.render_settings())
     # A plausible wrong texture: the ground truth's own texture image, upside down.
     from mesh2tex.io.assets import load_glb
 
     root, _, _ = world
     v, f, uv, tex = load_glb(root / "textured" / f"{truth.truth.name}.glb")
-    flipped = render_for_comparison(textured_surface(v, f, uv, tex[::-1].copy()), views, truth.resolution)
+    flipped = render_for_comparison(textured_surface(v, f, uv, tex[::-1].copy()), views, truth.render_settings())
     mask = common_mask(reference.mask, oracle.mask)
     scores = {name: seen_and_unseen(score_views(r, reference.rgb, reference.parts, mask))
               for name, r in (("oracle", oracle), ("flat", flat), ("flipped", flipped))}
@@ -69,13 +69,13 @@ def test_back_projection_at_the_true_pose_reproduces_the_photo_on_visible_parts(
     surface = backproject_photo(shape.vertices, shape.faces, truth.photo[0], truth.photo_mask[0, 0], v.azimuth, v.elevation,
                                 v.distance, v.fov, align="photo", face_parts=shape.face_parts)
     # Unlit, the back-projected colours are the photo's pixels again.
-    render = render_for_comparison(surface, [v], truth.resolution, lighting="albedo")
+    render = render_for_comparison(surface, [v], truth.render_settings("albedo"))
     mask = common_mask(render.mask, truth.photo_mask)
     delta_e = float(part_colour_error(render.rgb, truth.photo, render.parts, mask)[0])
     assert delta_e < 1.5, f"per-part colour error {delta_e:.2f} of the photo against itself"
     assert float(lowpass_psnr(render.rgb, truth.photo, mask)[0]) > 30
     # Every point gets a colour, also where the photo does not see (the nearest seen point's).
-    back = render_for_comparison(surface, other_views(v, [180.0]), truth.resolution, lighting="albedo")
+    back = render_for_comparison(surface, other_views(v, [180.0]), truth.render_settings("albedo"))
     assert back.mask.sum() > 0 and torch.isfinite(back.rgb).all()
 
 
@@ -85,8 +85,8 @@ def test_silhouette_framing_matches_photo_framing_at_the_true_pose(world):
     _, _, truth = world
     shape, v = truth.truth.shape, truth.view
     args = (shape.vertices, shape.faces, truth.photo[0], truth.photo_mask[0, 0], v.azimuth, v.elevation, v.distance, v.fov)
-    a = render_for_comparison(backproject_photo(*args, align="photo", face_parts=shape.face_parts), [v], truth.resolution, lighting="albedo")
-    b = render_for_comparison(backproject_photo(*args, align="silhouette"), [v], truth.resolution, lighting="albedo")
+    a = render_for_comparison(backproject_photo(*args, align="photo", face_parts=shape.face_parts), [v], truth.render_settings("albedo"))
+    b = render_for_comparison(backproject_photo(*args, align="silhouette"), [v], truth.render_settings("albedo"))
     mask = common_mask(a.mask, b.mask)
     assert float(part_colour_error(b.rgb, a.rgb, a.parts, mask)[0]) < 2.0
 

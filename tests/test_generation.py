@@ -77,7 +77,7 @@ def test_ground_truth_rows_are_rendered_as_the_world_renders_its_photos(world_an
 
 
 def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan, monkeypatch):
-    """With ``photo_resolution``, a generator's texture is rendered as the oracle and the photos are (at
+    """With ``photo_render``, a generator's texture is rendered as the oracle and the photos are (at
     the world's resolution, supersampled, on white, resized as the photo set is read): a generator that
     paints one colour gives exactly the world pipeline's render of that colour on its mesh, antialiased
     edges included, which the GAN's own renderer straight at the metric's resolution does not."""
@@ -98,9 +98,9 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     views = sample_views(world.spec, world.indices[name], 2)
     z = torch.randn(2, generator.cfg.z_dim)
     images, masks = generation.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True,
-                                                 photo_resolution=world.spec.resolution)
+                                                 photo_render=world.spec.photo_render)
     batch = collate_shapes([shape])
-    out = render_for_comparison(flat_surface(batch.shape_vertices(0), batch.shape_triangles(0), [0.6, 0.6, 0.6]), views, world.spec.resolution)
+    out = render_for_comparison(flat_surface(batch.shape_vertices(0), batch.shape_triangles(0), [0.6, 0.6, 0.6]), views, world.spec.photo_render)
     expected, expected_masks = generation.read_as_photos(composite_images(out.rgb, out.mask, 1.0), out.mask, 16)
     assert torch.equal(masks, expected_masks) and (images - expected).abs().max() < 1e-5
     direct, _ = generation.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True)
@@ -216,7 +216,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
 
     def render(*args, **kwargs):
         seen.append(args[6] if len(args) > 6 else kwargs.get("lit", False))
-        sides.append(kwargs.get("photo_resolution", 0))
+        sides.append(kwargs.get("photo_render"))
         return original_render(*args, **kwargs)
 
     def material(*args, **kwargs):
@@ -237,8 +237,8 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
                                      GenerationConfig(views=2, latents=2, kid_fid=False), log=lambda line: None)
     assert result["generator_lit"] is enabled
     assert len(seen) >= 4 * len(result["shapes"]) and all(lit is enabled for lit in seen)
-    # Every generator render goes through the pipeline of the oracle and the photos, at the world's resolution.
-    assert sides == [read_world(root / "world").spec.resolution] * len(seen)
+    # Every generator render goes through the pipeline of the oracle and the photos, with the world's photos' settings.
+    assert sides == [read_world(root / "world").spec.photo_render] * len(seen)
     assert fresh_photos and all(fresh_photos)
     # The oracle is drawn lit and unlit for every shape in every draw; the diversity reference as the generator.
     assert oracle == [True, False] * (len(result["shapes"]) * result["settings"]["repeats"])

@@ -13,7 +13,7 @@ from mesh2tex.nn.faceconv import ModulatedFaceConv
 from mesh2tex.nn.field import NeuralField, blend_vertex_features, local_coordinates, sorted_cdf_coordinates, vertex_features
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
-from mesh2tex.render import orbit_camera
+from mesh2tex.render import RenderSettings, orbit_camera
 from test_faceconv import cube_shape
 
 
@@ -377,7 +377,7 @@ def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_t
     torch.testing.assert_close(proxy, full.proxy)
 
     shapes = [cube_shape(3, seed=0), cube_shape(3, seed=1)]
-    scene = GanScene(shapes, batch, mvp, samples, background, None)
+    scene = GanScene(shapes, batch, mvp, samples, background, None, RenderSettings(16, lighting="albedo"))
     torch.testing.assert_close(scene.object_mask, mask)
 
     def proxy_of(z_):

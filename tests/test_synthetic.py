@@ -188,13 +188,14 @@ def test_world_is_deterministic_for_a_seed(world, tmp_path):
 
 def test_vertex_colours_render_like_a_solid_material_and_change_only_the_object():
     from mesh2tex.synthetic.materials import Material, Solid
+    from mesh2tex.render import RenderSettings
     from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views
 
     shape = generate_shape("chair", np.random.default_rng([7, 0]))
     views = sample_views(WorldSpec(), 0, 3)
     red, blue = (0.8, 0.4, 0.2), (0.1, 0.3, 0.9)
-    by_vertex = {c: render_views(shape, None, views, 32, 1, vertex_colours=np.tile(c, (len(shape.vertices), 1))) for c in (red, blue)}
-    by_material = render_views(shape, Material(default=Solid(red)), views, 32, 1)
+    by_vertex = {c: render_views(shape, None, views, RenderSettings(32), vertex_colours=np.tile(c, (len(shape.vertices), 1))) for c in (red, blue)}
+    by_material = render_views(shape, Material(default=Solid(red)), views, RenderSettings(32))
     # A constant per-vertex colour is the solid material of that colour (same shading and background).
     assert np.abs(by_vertex[red]["rgb"].astype(int) - by_material["rgb"]).max() <= 1
     for key in ("mask", "noc"):
@@ -206,6 +207,6 @@ def test_vertex_colours_render_like_a_solid_material_and_change_only_the_object(
     assert np.allclose(lit[:, 1] / lit[:, 0], 0.5, atol=0.03) and np.allclose(lit[:, 2] / lit[:, 0], 0.25, atol=0.03), \
         "the albedo is uniform: only the shading scales it"
     with pytest.raises(ValueError, match="material or vertex_colours"):
-        render_views(shape, None, views, 32, 1)
+        render_views(shape, None, views, RenderSettings(32))
     with pytest.raises(ValueError, match="one per vertex"):
-        render_views(shape, None, views, 32, 1, vertex_colours=np.zeros((3, 3)))
+        render_views(shape, None, views, RenderSettings(32), vertex_colours=np.zeros((3, 3)))

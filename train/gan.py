@@ -35,7 +35,7 @@ from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.options import config_overrides
 from mesh2tex.photos import load_photo_collection
-from mesh2tex.render import CameraConfig, LightConfig, composite_images, orbit_camera, random_lights, turntable_angles
+from mesh2tex.render import CameraConfig, LightConfig, RenderSettings, composite_images, orbit_camera, random_lights, turntable_angles
 from mesh2tex.train import runs
 
 KIND = "gan"
@@ -104,13 +104,18 @@ class TrainGanConfig:
     lighting: LightConfig = field(default_factory=LightConfig)  # fakes are shaded like photos, so the generator learns albedo
 
     def __post_init__(self):
-        check_fields(self, at_least={"log_every": 1, "supersample": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0,
+        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0,
                                      "metric_every": 0, "metric_photos": 1, "sample_shapes": 1, "ema_rampup": 0, "iters": 1, "batch": 1, "views": 1},
                      positive=("ema_halflife_images",))
-        r = self.resolution
+        r = self.render_settings.resolution  # checks resolution and supersample
         if r < 8 or r & (r - 1):  # the discriminators halve it down to 4 x 4
             raise ValueError(f"resolution must be a power of two >= 8, got {r}")
         self.discriminator.check_resolution(r)
+
+    @property
+    def render_settings(self) -> RenderSettings:
+        """How the fakes are rendered: ``resolution`` and ``supersample``, lit by the light prior when it is on."""
+        return RenderSettings(self.resolution, self.supersample, "photo" if self.lighting.enabled else "albedo")
 
 
 # ------------------------------------------------------------------------------------------ data
@@ -234,10 +239,10 @@ class GanTrainer:
         batch = collate_shapes(shapes).to(self.device)
         mvp, azimuth = random_cameras(n, cfg.camera, self.device)
         lights = random_lights(azimuth, cfg.lighting).to(self.device) if cfg.lighting.enabled else None
-        side = cfg.resolution * cfg.supersample  # the fakes' render side; box-filtered down to the photos' resolution
-        samples = rasterize_batch(batch, mvp, (side, side))
+        render = cfg.render_settings  # fakes rasterized at its raster side, box-filtered down to the photos' resolution
+        samples = rasterize_batch(batch, mvp, (render.raster_side, render.raster_side))
         background = (torch.rand(n, 3) * 2 - 1).to(self.device)
-        return GanScene(shapes, batch, mvp, samples, background, lights, cfg.supersample)
+        return GanScene(shapes, batch, mvp, samples, background, lights, render)
 
     def step(self) -> dict[str, float]:
         """One iteration of all due phases; returns the logged scalars. Raises NonFiniteLoss before any

@@ -71,7 +71,7 @@ def render_view_dataset(shapes: list[PreparedShape], cfg: ViewDataConfig, seed: 
                              np.zeros(2 * s.face_counts[0], dtype=np.int64)) for s in shapes]
     gan = _GanTextures(cfg.gan_checkpoint, shapes) if cfg.gan_checkpoint else None
     framed = cfg.frame_margin >= 0
-    size = cfg.resolution * (cfg.frame_oversample if framed else 1)  # rendered side before framing
+    render = cfg.render_settings  # before framing
     groups = -(-cfg.samples // cfg.views_per_material)
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("rgb", "mask", "noc", "gan_textured", "azimuth", "elevation")}
     for group in progress_bar(range(groups), desc="render views"):
@@ -81,10 +81,10 @@ def render_view_dataset(shapes: list[PreparedShape], cfg: ViewDataConfig, seed: 
         use_gan = gan is not None and choice.random() < cfg.gan_share
         if use_gan:
             colours = gan.vertex_colours(index, int(choice.integers(1 << 31)))
-            rendered = render_views(meshes[index], None, views, size, cfg.supersample, vertex_colours=colours)
+            rendered = render_views(meshes[index], None, views, render, vertex_colours=colours)
         else:
             material = sample_material(spec, spec.rng(group, 1))
-            rendered = render_views(meshes[index], material, views, size, cfg.supersample)
+            rendered = render_views(meshes[index], material, views, render)
         if framed:
             rendered = frame_views(rendered, cfg.frame_margin, cfg.resolution)
         for key in ("rgb", "mask", "noc"):

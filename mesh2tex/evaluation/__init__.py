@@ -8,12 +8,13 @@ the markdown tables of ``mesh2tex evaluate --protocols``.
 The metrics themselves live in :mod:`mesh2tex.metrics.appearance`.
 """
 
-from mesh2tex.evaluation.compare import (ALIGNED_ONLY, LIGHTING, METRIC_TITLES, METRICS, ComparisonRender, ScoreSettings,
+from mesh2tex.evaluation.compare import (ALIGNED_ONLY, METRIC_TITLES, METRICS, ComparisonRender, ScoreSettings,
                                          common_mask, images_to_unit, metric_direction, other_views, render_for_comparison,
                                          score_views, seen_and_unseen)
 from mesh2tex.evaluation.surfaces import (Surface, SurfacePoints, backproject_photo, backprojected_surface, flat_surface, generator_surface,
                                           material_surface, photo_mean_colour, textured_surface, vertex_colour_surface,
                                           with_parts)
+from mesh2tex.render.settings import LIGHTING
 
 __all__ = [
     "ALIGNED_ONLY", "LIGHTING", "METRICS", "METRIC_TITLES", "ComparisonRender", "ScoreSettings", "Surface", "SurfacePoints",

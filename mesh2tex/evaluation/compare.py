@@ -4,8 +4,9 @@ A quality table compares textured surfaces (:mod:`mesh2tex.evaluation.surfaces`)
 (the photo, or the synthetic world's own render of another view). Every image of such a table comes
 from :func:`render_for_comparison`: the same cameras, the same light, the same background, the same
 anti-aliasing as the synthetic world's photos (``mesh2tex.synthetic.world.render_views``), so the
-ground truth rendered this way reproduces the photo and wins every metric. ``lighting="albedo"``
-renders every candidate (and reference) unlit instead.
+ground truth rendered this way reproduces the photo and wins every metric. Settings with
+``lighting="albedo"`` (:class:`mesh2tex.render.RenderSettings`) render every candidate (and reference)
+unlit instead.
 
 Views are ``mesh2tex.synthetic.world.PhotoSetup`` records (camera, light, ambient, background), the ones the
 world's query sidecars hold; :func:`other_views` turns the photo's view into the views it does not
@@ -23,14 +24,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 from mesh2tex.evaluation.surfaces import Surface, SurfacePoints
 from mesh2tex.metrics.appearance import lowpass_psnr, object_swd, part_colour_error
 from mesh2tex.metrics.image import masked_psnr, masked_ssim
-from mesh2tex.render import composite, face_attribute, face_normals, interpolate, orbit_camera, rasterize, shade_lambert, transform_points
+from mesh2tex.render import RenderSettings, composite, face_attribute, face_normals, interpolate, orbit_camera, rasterize, shade_lambert, transform_points
 
-LIGHTING = ("photo", "albedo")
 # name -> +1 (higher is better) or -1 (lower is better); the order of the tables' columns.
 METRICS = {"part_delta_e": -1, "lowpass_psnr": 1, "swd": -1, "psnr": 1, "ssim": 1}
 METRIC_TITLES = {"part_delta_e": "per-part ΔE", "lowpass_psnr": "low-pass PSNR", "swd": "object SWD",
@@ -68,31 +67,22 @@ def other_views(view, azimuth_offsets=(72.0, 144.0, 216.0, 288.0)) -> list:
     return views
 
 
-def _box_down(image: torch.Tensor, factor: int) -> torch.Tensor:
-    """[B, H, W, C] -> [B, H/f, W/f, C] by averaging f x f blocks."""
-    if factor == 1:
-        return image
-    return F.avg_pool2d(image.permute(0, 3, 1, 2), factor).permute(0, 2, 3, 1)
-
-
 @torch.no_grad()
-def render_for_comparison(surface: Surface, views: list, resolution: int, supersample: int = 2,
-                          lighting: str = "photo") -> ComparisonRender:
+def render_for_comparison(surface: Surface, views: list, settings: RenderSettings) -> ComparisonRender:
     """Render ``surface`` at ``views`` exactly as the synthetic world renders its photos.
 
     ``views``: ``mesh2tex.synthetic.world.PhotoSetup`` records (camera, light, ambient, background kind and
-    seed). The mesh is rasterized at ``resolution * supersample``; each covered sub-pixel takes the
-    surface's albedo, Lambert-shaded with the view's flat face normals, light and ambient
-    (``lighting="photo"``) or left unlit (``"albedo"``), over the view's background
-    (``mesh2tex.synthetic.world.random_background``); the result is box-filtered to ``resolution``.
+    seed). ``settings``: the world's photos' (``WorldSpec.photo_render``), with the lighting wanted. The
+    mesh is rasterized at ``settings.raster_side``; each covered sub-pixel takes the surface's albedo,
+    Lambert-shaded with the view's flat face normals, light and ambient (``lighting="photo"``) or left
+    unlit (``"albedo"``), over the view's background (``mesh2tex.synthetic.world.random_background``);
+    the result is box-filtered to ``settings.resolution``.
     """
     from mesh2tex.synthetic.world import random_background
 
-    if lighting not in LIGHTING:
-        raise ValueError(f"lighting must be one of {', '.join(LIGHTING)}, got {lighting!r}")
     if not views:
         raise ValueError("render_for_comparison needs at least one view")
-    big = resolution * supersample
+    big, supersample = settings.raster_side, settings.supersample
     vertices, faces = surface.vertices, surface.faces
     camera = orbit_camera(torch.tensor([v.azimuth for v in views], dtype=torch.float32),
                           torch.tensor([v.elevation for v in views], dtype=torch.float32),
@@ -106,7 +96,7 @@ def render_for_comparison(surface: Surface, views: list, resolution: int, supers
     if covered.any():
         samples = SurfacePoints(raster.face_id[covered], raster.bary[covered], points[covered], normals[covered])
         albedo[covered] = surface.colour(samples).float()
-    if lighting == "photo":
+    if settings.lit:
         light = torch.tensor([v.light for v in views], dtype=torch.float32)
         ambient = torch.tensor([v.ambient for v in views], dtype=torch.float32)
         shaded = shade_lambert(albedo, normals, light, ambient[:, None, None, None])
@@ -115,7 +105,7 @@ def render_for_comparison(surface: Surface, views: list, resolution: int, supers
     background = torch.stack([torch.as_tensor(random_background(v.background, v.background_seed, big)) for v in views])
     mask = covered[..., None].float()
     rgb = composite(shaded, mask, background)
-    rgb, coverage = _box_down(rgb, supersample), _box_down(mask, supersample)
+    rgb, coverage = settings.down_channels_last(rgb), settings.down_channels_last(mask)
     keep = coverage[..., 0] >= 0.5
     # Each pixel's face: its centre sub-pixel's, or where that one misses the object another covered sub-pixel's.
     centre = supersample // 2

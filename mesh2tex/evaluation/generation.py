@@ -96,7 +96,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import Lights, composite_images, orbit_camera
+from mesh2tex.render import Lights, RenderSettings, composite_images, orbit_camera
 from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_material, sample_views
 from mesh2tex.texturing import mean_latent, shape_mismatch
 
@@ -151,10 +151,10 @@ class GenerationConfig:
         if self.split not in SPLITS:
             raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {self.split!r}")
 
-    def photo_side(self, world: WorldData) -> int:
-        """:func:`generator_renders`' ``photo_resolution`` for the generator rows: the world's photo
-        resolution, or 0 with ``generator_render: direct``."""
-        return world.spec.resolution if self.generator_render == "photo" else 0
+    def photo_render(self, world: WorldData) -> RenderSettings | None:
+        """:func:`generator_renders`' ``photo_render`` for the generator rows: the world's photos' render
+        settings, or None with ``generator_render: direct``."""
+        return world.spec.photo_render if self.generator_render == "photo" else None
 
 
 def on_white(rgb_uint8: np.ndarray, mask_uint8: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
@@ -189,10 +189,13 @@ def ground_truth_renders(world: WorldData, name: str, views, resolution: int, li
     world's photos are (:func:`as_photos`); ``lit`` False renders the albedo (ambient 1).
     -> images (B, 3, R, R) in [0, 1], masks (B, 1, R, R)."""
     index = world.indices[name]
-    if not lit:
-        views = [dataclasses.replace(v, ambient=1.0) for v in views]
-    out = render_views(make_shape(world.spec, index), make_material(world.spec, index), views, world.spec.resolution)
+    out = render_views(make_shape(world.spec, index), make_material(world.spec, index), views, _photo_render(world, lit))
     return as_photos(out, resolution)
+
+
+def _photo_render(world: WorldData, lit: bool) -> RenderSettings:
+    """How the world renders its photos, lit by each view's light or (``lit`` False) unlit."""
+    return dataclasses.replace(world.spec.photo_render, lighting="photo" if lit else "albedo")
 
 
 def material_renders(world: WorldData, name: str, views, materials, resolution: int, lit: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
@@ -203,7 +206,7 @@ def material_renders(world: WorldData, name: str, views, materials, resolution: 
     shape = make_shape(world.spec, world.indices[name])
     images, masks = [], []
     for view, material in zip(views, materials, strict=True):
-        out = render_views(shape, material, [view if lit else dataclasses.replace(view, ambient=1.0)], world.spec.resolution)
+        out = render_views(shape, material, [view], _photo_render(world, lit))
         image, mask = as_photos(out, resolution)
         images.append(image)
         masks.append(mask)
@@ -266,27 +269,28 @@ def view_lights(views) -> Lights:
 
 def generator_renders(generator: TextureGenerator, shape: PreparedShape, views, resolution: int, z: torch.Tensor | None,
                       device: torch.device, lit: bool = False, ws: torch.Tensor | None = None,
-                      truncation: float = 1.0, photo_resolution: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+                      truncation: float = 1.0, photo_render: RenderSettings | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """One latent per view: z (B, z_dim) mapped with ``truncation`` psi, or style inputs ``ws``
     (B, num_ws, w_dim) instead; ``views`` B world PhotoSetup records (their cameras, and with ``lit``
     their lights) -> images (B, 3, R, R) in [0, 1] on white, masks (B, 1, R, R).
 
-    ``photo_resolution`` S > 0: the texture rendered as the world renders its photos and as the oracle
-    is (:func:`mesh2tex.evaluation.render_for_comparison` at S, supersampled and box-filtered, Lambert
-    with flat face normals), then read as the photo set is (on white, resized to R). 0: the GAN's own
+    ``photo_render`` (the world's ``WorldSpec.photo_render``): the texture rendered as the world renders
+    its photos and as the oracle is (:func:`mesh2tex.evaluation.render_for_comparison` with these settings,
+    supersampled and box-filtered, Lambert with flat face normals, unlit unless ``lit``), then read as
+    the photo set is (on white, resized to R). None: the GAN's own
     renderer straight at R, as it trains (no antialiasing): another image pipeline than the oracle's,
     which costs the generator rows distance that is not the texture's (``docs/results/gan.md``, *One
     pipeline for every row*)."""
     b = len(views)
     ws = generator.mapping(z.to(device), truncation_psi=truncation) if ws is None else ws.to(device)
-    if photo_resolution > 0:
+    if photo_render is not None:
+        photo_render = dataclasses.replace(photo_render, lighting="photo" if lit else "albedo")
         batch = collate_shapes([shape]).to(device)
         encoded = generator.encoder(batch)  # the geometry's encoding: the same for every view's latent
         images, masks = [], []
         for view, w in zip(views, ws, strict=True):
             texture = generator.synthesize(batch, w[None], encoded=encoded, noise_mode="none")
-            out = render_for_comparison(generator_surface(generator, texture, batch), [view], photo_resolution,
-                                        lighting="photo" if lit else "albedo")
+            out = render_for_comparison(generator_surface(generator, texture, batch), [view], photo_render)
             images.append(composite_images(out.rgb, out.mask, 1.0))
             masks.append(out.mask)
         return read_as_photos(torch.cat(images).cpu(), torch.cat(masks).cpu(), resolution)
@@ -372,7 +376,7 @@ class _ProtocolRun:
 
     def __init__(self, world: WorldData, cfg: GenerationConfig, device, trained, untrained, shapes: dict, resolution: int, lit: bool):
         self.world, self.cfg, self.device, self.trained, self.shapes = world, cfg, device, trained, shapes
-        self.resolution, self.lit, self.photo_side = resolution, lit, cfg.photo_side(world)
+        self.resolution, self.lit, self.photo_render = resolution, lit, cfg.photo_render(world)
         self.photos = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
         self.photo_names = list(list_images(world.root / "images", "image"))
         photos, photo_masks = self.photos
@@ -382,7 +386,7 @@ class _ProtocolRun:
 
     def renders(self, generator, name: str, views, z, psi: float = 1.0, ws=None):
         return generator_renders(generator, self.shapes[name], views, self.resolution, z, self.device, self.lit, truncation=psi,
-                                 photo_resolution=self.photo_side, **({} if ws is None else {"ws": ws}))
+                                 photo_render=self.photo_render, **({} if ws is None else {"ws": ws}))
 
     def fixed_rows_and_diversity(self, done) -> tuple[dict, dict]:
         """The rows that draw nothing (rendered once) and the diversity measures, shape by shape (``done(name)`` after each)."""
@@ -456,7 +460,7 @@ def write_samples_grid(path: Path, generator: TextureGenerator, shape: PreparedS
     for k in range(latents):
         z = torch.randn(1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed * 1000 + k)).repeat(views, 1)
         rows.append(generator_renders(generator, shape, ring, resolution, z, device, lit, truncation=cfg.truncation,
-                                      photo_resolution=cfg.photo_side(world))[0])
+                                      photo_render=cfg.photo_render(world))[0])
     rows.append(ground_truth_renders(world, name, ring, resolution, lit=True)[0])
     grid = torch.stack(rows)  # (rows, views, 3, R, R)
     grid = grid.permute(0, 3, 1, 4, 2).reshape(len(rows) * resolution, views * resolution, 3)

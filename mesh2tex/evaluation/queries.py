@@ -68,7 +68,7 @@ class QueryJudge:
         self.mask = common_mask(self.reference.mask, self.flat.mask) if self.exact else common_mask(self.flat.mask, self.oracle.mask)
 
     def render(self, surface):
-        return render_for_comparison(surface, self.views, self.truth.resolution, lighting=self.cfg.lighting)
+        return render_for_comparison(surface, self.views, self.truth.render_settings(self.cfg.lighting))
 
     def score(self, rendered) -> dict:
         reference = self.reference

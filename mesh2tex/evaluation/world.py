@@ -9,7 +9,7 @@ truth texture (``textured/<s>.glb``), which is the oracle of every table.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -21,7 +21,7 @@ from mesh2tex.evaluation.compare import ComparisonRender, images_to_unit, render
 from mesh2tex.evaluation.surfaces import Surface, material_surface, textured_surface
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.images import load_image, load_mask
-from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
+from mesh2tex.render import RenderSettings, crop_mask, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.synthetic.world import WorldSpec
 from mesh2tex.transfer.photo import FramedView
 
@@ -145,6 +145,7 @@ class QueryTruth:
     name   file stem (``chair_0009_00``); view the sidecar's camera, light and background
     photo  [1, 3, R, R] float32 in [0, 1]; photo_mask [1, 1, R, R] {0, 1}; R = the world's resolution
     truth  the query shape's :class:`ShapeTruth`
+    photo_render  how the world rendered the photo (its resolution is R)
     """
 
     name: str
@@ -152,10 +153,15 @@ class QueryTruth:
     photo: torch.Tensor
     photo_mask: torch.Tensor
     truth: ShapeTruth
+    photo_render: RenderSettings
 
     @property
     def resolution(self) -> int:
         return int(self.photo.shape[-1])
+
+    def render_settings(self, lighting: str = "photo") -> RenderSettings:
+        """The photo's render settings with ``lighting`` ("photo" or "albedo"): what every render compared with it uses."""
+        return replace(self.photo_render, lighting=lighting)
 
 
 def world_spec(index: dict):
@@ -208,15 +214,17 @@ def load_query_truth(root: str | Path, index: dict, sidecar: dict) -> QueryTruth
     mask = np.asarray(load_mask(root / sidecar["mask"]), dtype=bool)
     photo = images_to_unit(rgb)
     name = Path(sidecar["image"]).stem
+    # rendered as the world renders its photos, at the photo's own size
+    photo_render = RenderSettings(int(photo.shape[-1]), world_spec(index).supersample)
     return QueryTruth(name=name, view=view, photo=photo, photo_mask=torch.from_numpy(mask)[None, None].float(),
-                      truth=load_shape_truth(root, index, sidecar["shape"]))
+                      truth=load_shape_truth(root, index, sidecar["shape"]), photo_render=photo_render)
 
 
-def reference_renders(query: QueryTruth, views: list, lighting: str = "photo", supersample: int = 2) -> ComparisonRender:
+def reference_renders(query: QueryTruth, views: list, lighting: str = "photo") -> ComparisonRender:
     """What the world would photograph at ``views``: the query shape's material rendered by
-    :func:`render_for_comparison`; where a view is the photo's own and ``lighting`` is "photo", the
-    photo file itself (the same image up to 8-bit rounding)."""
-    render = render_for_comparison(query.truth.exact, views, query.resolution, supersample, lighting)
+    :func:`render_for_comparison` as the photo was; where a view is the photo's own and ``lighting`` is
+    "photo", the photo file itself (the same image up to 8-bit rounding)."""
+    render = render_for_comparison(query.truth.exact, views, query.render_settings(lighting))
     if lighting == "photo":
         for b, view in enumerate(views):
             if view == query.view:

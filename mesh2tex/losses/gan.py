@@ -54,7 +54,7 @@ from mesh2tex.checks import check_shape
 from mesh2tex.config import check_fields
 from mesh2tex.nn.batch import MeshBatch, collate_shapes
 from mesh2tex.nn.render_texture import SurfaceSamples, render_field_views, render_proxy_views
-from mesh2tex.render import Lights
+from mesh2tex.render import Lights, RenderSettings
 
 PHASES = ("Gmain", "Greg", "Dmain", "Dreg")
 
@@ -90,8 +90,9 @@ class GanScene:
 
     shapes: the B prepared shapes of the batch; batch: them collated on the device; mvp (N, 4, 4),
     N = B K, view k of shape s at s K + k; samples: the finest level rasterized at ``side`` =
-    resolution x supersample; background (N, 3) in [-1, 1]; lights: one per view, or None (unlit);
-    supersample: fakes are rendered that much larger and box-filtered down to the photos' resolution.
+    ``render.raster_side``; background (N, 3) in [-1, 1]; lights: one per view, or None (unlit);
+    render: the fakes' settings, rasterized ``render.supersample`` times larger and box-filtered down to
+    the photos' resolution.
     """
 
     shapes: list
@@ -100,7 +101,7 @@ class GanScene:
     samples: SurfaceSamples
     background: torch.Tensor
     lights: Lights | None
-    supersample: int = 1
+    render: RenderSettings
 
     @property
     def side(self) -> int:
@@ -108,7 +109,7 @@ class GanScene:
 
     def down(self, images: torch.Tensor) -> torch.Tensor:
         """Renders at ``side`` -> the photos' resolution (box filter)."""
-        return images if self.supersample == 1 else F.avg_pool2d(images, self.supersample)
+        return self.render.down(images)
 
     @property
     def object_mask(self) -> torch.Tensor:
@@ -122,7 +123,7 @@ class GanScene:
         m = count * (self.mvp.shape[0] // len(self.shapes))  # their views come first, and their triangle ids are the same
         lights = None if self.lights is None else Lights(self.lights.direction[:m], self.lights.ambient[:m])
         return GanScene(self.shapes[:count], collate_shapes(self.shapes[:count]).to(self.mvp.device), self.mvp[:m],
-                        SurfaceSamples(self.samples.triangle_id[:m], self.samples.bary[:m]), self.background[:m], lights, self.supersample)
+                        SurfaceSamples(self.samples.triangle_id[:m], self.samples.bary[:m]), self.background[:m], lights, self.render)
 
 
 def mode_seeking_ratio(proxy_a: torch.Tensor, proxy_b: torch.Tensor, mask: torch.Tensor, z_a: torch.Tensor, z_b: torch.Tensor) -> torch.Tensor:

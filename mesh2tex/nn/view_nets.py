@@ -16,6 +16,7 @@ from mesh2tex.config import MAX_CHANNELS, check_fields
 from mesh2tex.nn.mask import MaskUNet
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseBins, PoseNet
+from mesh2tex.render import RenderSettings
 
 VIEWS_NAME = "views.npz"  # where a 'train pose|noc|mask' run directory caches its rendered views
 
@@ -40,12 +41,20 @@ class ViewDataConfig:
     gan_share: float = 0.5  # share of the view groups textured by the GAN when gan_checkpoint is given
 
     def __post_init__(self):
-        check_fields(self, at_least={"views_per_material": 1, "supersample": 1, "frame_oversample": 1},
+        check_fields(self, at_least={"views_per_material": 1, "frame_oversample": 1},
                      positive=("distance_min",), between={"holdout": (0.0, 0.9), "fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0),
                                                          "elevation_max": (-90.0, 90.0)})
+        _ = self.render_settings  # checks resolution and supersample
         if self.distance_min > self.distance_max or self.elevation_min > self.elevation_max:
             raise ValueError(f"distance {self.distance_min}..{self.distance_max}, elevation {self.elevation_min}..{self.elevation_max}: "
                              "a range's minimum is above its maximum")
+
+    @property
+    def render_settings(self) -> RenderSettings:
+        """How each view is rendered before framing: framed views (``frame_margin`` >= 0) at ``frame_oversample``
+        times ``resolution``, then cropped around their object and resized to ``resolution``."""
+        framed = self.frame_margin >= 0
+        return RenderSettings(self.resolution * (self.frame_oversample if framed else 1), self.supersample)
 
 
 @dataclass

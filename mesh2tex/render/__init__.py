@@ -15,6 +15,7 @@ from .cameras import Camera, CameraConfig, orbit_camera, orbit_direction, perspe
 from .crop import crop_mask, crop_square, object_box
 from .interpolate import face_attribute, interpolate, sample_texture
 from .rasterize import Raster, pixel_centres, rasterize
+from .settings import RenderSettings
 from .shading import (
     LightConfig,
     Lights,
@@ -38,6 +39,7 @@ __all__ = [
     "LightConfig",
     "Lights",
     "Raster",
+    "RenderSettings",
     "composite",
     "composite_images",
     "crop_mask",

@@ -16,13 +16,14 @@ from __future__ import annotations
 import colorsys
 import functools
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import torch
 
 from mesh2tex.render import (
     LightConfig,
+    RenderSettings,
     composite,
     dilate_texture,
     face_attribute,
@@ -75,6 +76,12 @@ class WorldSpec:
             raise ValueError(f"category must be one of {', '.join(CATEGORIES)}, got {self.category!r}")
         if self.variety not in VARIETIES:
             raise ValueError(f"variety must be one of {', '.join(VARIETIES)}, got {self.variety!r}")
+        _ = self.photo_render  # checks resolution and supersample
+
+    @property
+    def photo_render(self) -> RenderSettings:
+        """How the world's photos and queries are rendered (lit, supersampled): every render compared with them uses it."""
+        return RenderSettings(self.resolution, self.supersample)
 
     @property
     def query_count(self) -> int:
@@ -158,9 +165,10 @@ def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -
 # Rendering
 
 
-def render_views(shape: SyntheticShape, material: Material | None, views: list[PhotoSetup], resolution: int, supersample: int = 2,
+def render_views(shape: SyntheticShape, material: Material | None, views: list[PhotoSetup], settings: RenderSettings,
                  *, vertex_colours: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Render ``views`` of the textured shape over their backgrounds.
+    """Render ``views`` of the textured shape over their backgrounds, as ``settings`` say (the world's
+    photos: :attr:`WorldSpec.photo_render`); ``lighting="albedo"`` renders every view with ambient 1.
 
     The albedo is ``material`` evaluated at each covered pixel's surface point or, when
     ``vertex_colours`` (V, 3) float in [0, 1], one per vertex of ``shape.vertices``, is given, those
@@ -168,14 +176,16 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[P
     backgrounds, NOC and mask do not depend on the albedo's source.
 
     Returns uint8 arrays: ``rgb`` (B, R, R, 3), ``mask`` (B, R, R) 0/255, ``noc`` (B, R, R, 3) (NOC * 255,
-    0 on background), with R = ``resolution``. Rendering happens at ``resolution * supersample`` and
+    0 on background), with R = ``settings.resolution``. Rendering happens at ``settings.raster_side`` and
     is box-filtered down; the mask is coverage >= 1/2.
     """
     if material is None and vertex_colours is None:
         raise ValueError("render_views needs a material or vertex_colours")
     if vertex_colours is not None and np.shape(vertex_colours) != (len(shape.vertices), 3):
         raise ValueError(f"vertex_colours must be ({len(shape.vertices)}, 3), one per vertex, got {np.shape(vertex_colours)}")
-    big = resolution * supersample
+    if not settings.lit:
+        views = [replace(v, ambient=1.0) for v in views]
+    big = settings.raster_side
     vertices = torch.as_tensor(shape.vertices, dtype=torch.float32)
     faces = torch.as_tensor(shape.faces, dtype=torch.int64)
     normals_per_face = face_normals(vertices, faces)
@@ -203,7 +213,7 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[P
     rgb = composite(shaded, mask, background)
     noc = render_noc(torch.as_tensor(shape.noc), raster, faces)
 
-    rgb, coverage, noc = (_box_down(t, supersample) for t in (rgb, mask, noc))
+    rgb, coverage, noc = (settings.down_channels_last(t) for t in (rgb, mask, noc))
     noc = noc / coverage.clamp_min(1e-6)  # the mean NOC of the covered sub-pixels
     keep = coverage >= 0.5
     return {
@@ -211,13 +221,6 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[P
         "mask": (keep[..., 0].numpy().astype(np.uint8) * 255),
         "noc": unit_to_uint8(noc * keep),
     }
-
-
-def _box_down(image: torch.Tensor, factor: int) -> torch.Tensor:
-    """(B, H, W, C) -> (B, H/factor, W/factor, C) by averaging factor x factor blocks."""
-    if factor == 1:
-        return image
-    return torch.nn.functional.avg_pool2d(image.permute(0, 3, 1, 2), factor).permute(0, 2, 3, 1)
 
 
 def unit_to_uint8(image: torch.Tensor) -> np.ndarray:

@@ -46,7 +46,7 @@ def transfer(parser: argparse.ArgumentParser) -> None:
     config.add("--latent-iters", type=int, help="stage 1 iterations")
     config.add("--refine-iters", type=int, help="stage 2 iterations")
     config.add("--texture-size", type=int, help="side of the UV texture baked into textured.glb")
-    add_texture_format(parser)
+    add_texture_format(parser, config)
     parser.add_argument("--no-noc", action="store_true", help="ablation: patch pairs without NOC guidance")
     parser.add_argument("--no-patches", action="store_true", help="ablation: global style loss only")
     parser.add_argument("--no-refine", action="store_true", help="ablation: optimise the latent only")
@@ -54,7 +54,7 @@ def transfer(parser: argparse.ArgumentParser) -> None:
                         help="--pose auto takes the pose network's bin centres as they are (the paper), without the silhouette search")
     parser.add_argument("--automaton", action="store_true",
                         help="fit a mesh automaton to the photo with the same losses instead of the GAN's texture (unlit, no GAN prior)")
-    parser.add_argument("--automaton-iters", type=int, default=300, help="with --automaton: its iterations")
+    config.add("--automaton-iters", type=int, key="automaton.iters", help="with --automaton: its iterations")
     config.add("--faces", type=int, help="finest quad count when preparing a raw mesh (0: the hierarchy the model was trained on)")
     add_mesh_output(parser)
     config.add("--vgg-weights", help="VGG19 ImageNet weights (torchvision's vgg19-dcbb9e9d.pth; default: torch's cache, else random weights)")

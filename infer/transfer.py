@@ -66,7 +66,7 @@ from mesh2tex.render import Lights, composite, composite_images, orbit_camera, o
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
 from mesh2tex.texturing import load_shape, write_automaton_mesh, write_textured_mesh
-from mesh2tex.transfer import (AutomatonFit, AutomatonFitConfig, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
+from mesh2tex.transfer import (AutomatonFit, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
                                check_style_sizes, estimate_pose, fit_automaton, photo_candidates, pick_by_outline, predict_noc,
                                transfer_texture, view_at_pose)
 from mesh2tex.transfer.fit import check_fit
@@ -123,13 +123,12 @@ def save_turntable(out: Path, images: torch.Tensor) -> None:
 @torch.no_grad()
 def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, result: TransferResult, photo: Photo,
                   view: FramedView, photo_noc: torch.Tensor | None, distance: float, fov: float, elevation: float,
-                  cfg: TransferConfig, device: torch.device, texture_format: str = "png",
-                  target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
+                  cfg: TransferConfig, device: torch.device, target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
     """textured.glb/.ply (the user's mesh ``target``, or the prepared shape when None), comparison.png,
     turntable frames and GIF; returns ({what: file name}, what the report says of the mesh written)."""
     batch = collate_shapes([shape]).to(device)
     texture = generator.synthesize(batch, result.ws.to(device), noise_mode="none")
-    written = write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size, texture_format,
+    written = write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size, cfg.texture_format,
                                   target)
     save_comparison(out, photo, result.render, view, photo_noc)
 
@@ -154,10 +153,10 @@ OUTPUT_FILES = {"glb": "textured.glb", "ply": "textured.ply", "comparison": "com
 @torch.no_grad()
 def write_automaton_outputs(out: Path, fit: AutomatonFit, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None,
                             distance: float, fov: float, elevation: float, cfg: TransferConfig, device: torch.device,
-                            texture_format: str = "png", target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
+                            target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
     """The same files for an automaton fitted to the photo (``--automaton``); its turntable is unlit."""
     written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", fit.model, fit.state, fit.graph, cfg.texture_size,
-                                   texture_format, target=target)
+                                   cfg.texture_format, target=target)
     save_comparison(out, photo, fit.render, view, photo_noc)
     azimuths, elevations = turntable_angles(cfg.turntable_frames, elevation)
     mvp = orbit_camera(azimuths, elevations, distance=distance, fov=fov).mvp.to(device)
@@ -185,8 +184,6 @@ def checked_networks(args, cfg: TransferConfig) -> tuple[float, float] | None:
     """The options that name networks, checked before anything is loaded: the pose given (or None: auto),
     and a shipped model's own pose, NOC and (when it has one) mask networks filled in where none is given."""
     pose = parse_pose(args.pose)
-    if args.automaton and args.automaton_iters < 1:
-        raise UserError(f"--automaton-iters {args.automaton_iters}: must be at least 1")
     if is_model_name(args.checkpoint):
         args.pose_checkpoint = args.pose_checkpoint or args.checkpoint
         args.noc_checkpoint = args.noc_checkpoint or args.checkpoint
@@ -247,7 +244,7 @@ def run(args) -> int:
 
     vgg = load_vgg19(cfg.vgg_weights or None, device=device)
     if args.automaton:
-        fit = fit_automaton(shape, photo, view, photo_noc, vgg, cfg, AutomatonFitConfig(iters=args.automaton_iters), device)
+        fit = fit_automaton(shape, photo, view, photo_noc, vgg, cfg, cfg.automaton, device)
         seconds["automaton"] = fit.seconds
         losses, light, render = {"automaton": fit.losses}, None, fit.render
     else:
@@ -264,10 +261,10 @@ def run(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if args.automaton:
         files, written = write_automaton_outputs(out, fit, photo, view, photo_noc, distance, fov, elevation, cfg, device,
-                                                 args.texture_format, target)
+                                                 target)
     else:
         files, written = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device,
-                                       args.texture_format, target)
+                                       target)
     if written.get("uv_note"):
         note(f"{args.mesh}: a new UV atlas, as {written['uv_note']}")
     save_png(out / "photo_crop.png", to_uint8_image(photo.image))
@@ -278,11 +275,11 @@ def run(args) -> int:
         "image": str(args.image), "mesh": str(args.mesh), "checkpoint": str(args.checkpoint), "mask_source": mask_source,
         "pose": pose_record(estimate, pose_source, distance, fov), "fit": fit_check.as_dict(),
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
-        "method": f"automaton fitted to the photo ({args.automaton_iters} iterations)" if args.automaton else "transfer",
+        "method": f"automaton fitted to the photo ({cfg.automaton.iters} iterations)" if args.automaton else "transfer",
         "light": light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders
         "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in losses.items()},
         "seconds": seconds, "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
-        "settings": {**asdict(cfg), "texture_format": args.texture_format},
+        "settings": asdict(cfg),
         "files": {**files, "photo_crop": "photo_crop.png", "render_at_pose": "render_at_pose.png"}, "output_mesh": written,
     }
     write_json(out / "report.json", report)

@@ -96,13 +96,13 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
 
 def test_an_automaton_fitted_to_the_photo_is_judged_beside_the_baselines_when_asked_for(setup, tmp_path, monkeypatch):
     """``--baselines ...,automaton`` adds a mesh automaton fitted to the photo (no GAN) as one more row, scored
-    alike; its fit is set under ``automaton:`` and is left out of the transfer cache's fingerprint."""
+    alike; its fit is set under ``transfer: automaton:`` and is left out of the transfer cache's fingerprint."""
     from mesh2tex.evaluation.protocols import ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
 
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "no_weights"))
     root, _ = setup
-    config = _yaml(tmp_path / "automaton.yaml", automaton={"iters": 3, "steps_min": 2, "steps_max": 3, "final_steps": 2})
+    config = _yaml(tmp_path / "automaton.yaml", transfer={"automaton": {"iters": 3, "steps_min": 2, "steps_max": 3, "final_steps": 2}})
     out = tmp_path / "eval"
     args = protocol_args(root, out, "--only", "known_pose", "--ablations", "full", "--baselines", "oracle,flat_colour,automaton")
     args[args.index("--config") + 1] = str(config)
@@ -113,7 +113,7 @@ def test_an_automaton_fitted_to_the_photo_is_judged_beside_the_baselines_when_as
     assert len(automaton["per_query"]) == 2 and np.isfinite(automaton["query"]["seen part_delta_e"])
     assert np.isfinite(automaton["per_query"][0]["loss_last"])
     assert "| automaton fitted to the photo (no GAN) |" in (out / "protocols.md").read_text()
-    plain, tuned = (config_from_dict(ProtocolConfig, d) for d in ({}, {"automaton": {"iters": 7}}))
+    plain, tuned = (config_from_dict(ProtocolConfig, d) for d in ({}, {"transfer": {"automaton": {"iters": 7}, "texture_format": "webp"}}))
     assert cache_settings(plain, True) == cache_settings(tuned, True)
 
 
@@ -299,13 +299,13 @@ def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):
     from dataclasses import asdict
 
     from mesh2tex.evaluation.cache import TransferCache
-    from mesh2tex.evaluation.protocols import ProtocolConfig, cache_settings
+    from mesh2tex.evaluation.protocols import NOT_TRANSFER, ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
     from mesh2tex.errors import InputError
 
     cfg = config_from_dict(ProtocolConfig, {"device": "cpu", "transfer": {"latent_iters": 50, "refine_iters": 150, "w_anchor": 10.0}})
     settings = cache_settings(cfg, True)
-    assert settings.pop("transfer_config") == {k: v for k, v in asdict(cfg.transfer).items() if k != "device"}
+    assert settings.pop("transfer_config") == {k: v for k, v in asdict(cfg.transfer).items() if k not in ("device", *NOT_TRANSFER)}
     assert settings == {"resolution": 64, "latent_iters": 50, "refine_iters": 150, "patch_size": 32, "scales": 2, "pose_search": True,
                         "latents": 4, "views": 6, "features": "auto", "kid_subsets": 100, "seed": 0, "device": "cpu", "vgg_weights": "",
                         "inception_weights": "", "transfer": {"w_anchor": 10.0}, "generator_lit": True}

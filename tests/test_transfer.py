@@ -85,7 +85,7 @@ def test_an_automaton_fitted_to_the_photo_writes_the_same_files(setup, tmp_path,
     assert main(transfer_args(setup, again, "--automaton", "--automaton-iters", "12", "--texture-size", "48")) == 0
     assert json.loads((again / "report.json").read_text())["losses"]["automaton"]["curve"] == curve
     assert main(transfer_args(setup, tmp_path / "bad", "--automaton", "--automaton-iters", "0")) == 2
-    assert capsys.readouterr().err.strip().endswith("--automaton-iters 0: must be at least 1")
+    assert capsys.readouterr().err.strip().endswith("config.automaton: iters must be at least 1, got 0")
 
 
 def test_pose_auto_searches_silhouettes_unless_told_not_to(setup, tmp_path):

@@ -88,7 +88,7 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
 from mesh2tex.runtime import select_device
 from mesh2tex.texturing import latent, mean_latent, shape_mismatch
-from mesh2tex.transfer import ABLATIONS, AutomatonFitConfig, TransferConfig, check_style_sizes, fit_automaton
+from mesh2tex.transfer import ABLATIONS, TransferConfig, check_style_sizes, fit_automaton
 
 
 # TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations set.
@@ -97,6 +97,11 @@ ABLATED = ("use_noc", "use_patches", "refine")
 # TransferConfig and EvaluateConfig fields that were ProtocolConfig's own before it nested them.
 FORMER_FIELDS = ("latent_iters", "refine_iters", "patch_size", "scales", "patch_scales", "pose_search")
 FORMER_EVALUATE_FIELDS = ("features", "kid_subsets")
+
+
+# TransferConfig fields that change no transfer (the automaton baseline's fit, the GLB's image format): left out of the
+# transfer cache's fingerprint, so that setting them reuses the cached transfers.
+NOT_TRANSFER = ("automaton", "texture_format")
 
 
 @dataclass
@@ -122,12 +127,13 @@ class ProtocolConfig:
     # The unconditional protocol's set metrics (KID/FID features, KID subsets, SWD sampling); its resolution and seed are
     # the fields above.
     evaluate: EvaluateConfig = field(default_factory=lambda: EvaluateConfig(resolution=64))
-    # The ``automaton`` method's fit (with the transfer's losses and settings above), when --baselines asks for it.
-    automaton: AutomatonFitConfig = field(default_factory=AutomatonFitConfig)
+    # The ``automaton`` method (when --baselines asks for it) is fitted with the transfer's losses and settings and its
+    # ``transfer.automaton`` section.
 
     # Keys of older protocol configs that now live under ``transfer`` (named by the unknown-key error).
     MOVED_KEYS: typing.ClassVar[dict[str, str]] = ({name: f"transfer.{name}" for name in FORMER_FIELDS}
-                                                   | {name: f"evaluate.{name}" for name in FORMER_EVALUATE_FIELDS})
+                                                   | {name: f"evaluate.{name}" for name in FORMER_EVALUATE_FIELDS}
+                                                   | {"automaton": "transfer.automaton"})
 
     def __post_init__(self):
         unknown = ([p for p in self.protocols if p not in PROTOCOLS] + [a for a in self.ablations if a not in ABLATIONS]
@@ -292,7 +298,7 @@ def _baseline(name: str, judge: QueryJudge, setup: QuerySetup, generator, vgg, c
     if name == "automaton":  # fitted at the pose the transfer uses, with its losses
         if base.use_noc and base.use_patches and setup.photo_noc is None:
             raise InputError("the automaton uses NOC-guided patches: give --noc-checkpoint")
-        fit = fit_automaton(setup.shape, setup.photo, setup.view, setup.photo_noc, vgg, base, cfg.automaton, device, show_progress=False)
+        fit = fit_automaton(setup.shape, setup.photo, setup.view, setup.photo_noc, vgg, base, base.automaton, device, show_progress=False)
         return judge.render(vertex_colour_surface(judge.vertices, judge.triangles, fit.colours.cpu())), {"loss_last": fit.losses[-1]}
     # backprojection: the photo painted on from the pose the transfer used, framed as the transfer frames it
     try:
@@ -353,12 +359,13 @@ def cache_settings(cfg: ProtocolConfig, generator_lit: bool) -> dict:
     judged = ("protocols", "ablations", "queries", "baselines", "lighting", "unseen_views", "lowpass_sigma")
     # The automaton's fit is not cached (a method beside the transfers, not a transfer).
     settings = {"resolution": cfg.resolution, **own, **{name: getattr(cfg.evaluate, name) for name in FORMER_EVALUATE_FIELDS},
-                **{k: v for k, v in asdict(cfg).items() if k not in (*judged, "resolution", "transfer", "evaluate", "automaton")}}
+                **{k: v for k, v in asdict(cfg).items() if k not in (*judged, "resolution", "transfer", "evaluate")}}
     defaults = asdict(TransferConfig())
-    further = {k: v for k, v in transfer.items() if k not in (*FORMER_FIELDS, *SHARED, *ABLATED) and v != defaults[k]}
+    further = {k: v for k, v in transfer.items()
+               if k not in (*FORMER_FIELDS, *SHARED, *ABLATED, *NOT_TRANSFER) and v != defaults[k]}
     if further:
         settings["transfer"] = further
-    settings["transfer_config"] = {k: v for k, v in asdict(cfg.transfer_config()).items() if k != "device"}
+    settings["transfer_config"] = {k: v for k, v in asdict(cfg.transfer_config()).items() if k not in ("device", *NOT_TRANSFER)}
     settings["generator_lit"] = generator_lit
     return settings
 

@@ -18,36 +18,19 @@ back-projection does.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import torch
 
-from mesh2tex.config import check_fields
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty
+from mesh2tex.nn.nca import CellGraph, MeshNCA, build_cell_graph, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square
-from mesh2tex.transfer.config import TransferConfig
+from mesh2tex.transfer.config import AutomatonFitConfig, TransferConfig
 from mesh2tex.transfer.optimise import PhotoLoss
 from mesh2tex.transfer.photo import FramedView, Photo, check_query
-
-
-@dataclass
-class AutomatonFitConfig:
-    iters: int = 300  # Adam steps
-    steps_min: int = 15  # growth per iteration: uniform in [steps_min, steps_max]
-    steps_max: int = 25
-    final_steps: int = 20  # growth of the result
-    lr: float = 2e-3  # Adam learning rate (gradients normalised per parameter, as train nca)
-    overflow_weight: float = 10.0
-    nca: NCAConfig = field(default_factory=NCAConfig)
-
-    def __post_init__(self):
-        check_fields(self, at_least={"iters": 1, "steps_min": 1, "steps_max": 1, "final_steps": 1, "overflow_weight": 0}, positive=("lr",))
-        if self.steps_max < self.steps_min:
-            raise ValueError(f"steps_max {self.steps_max} is below steps_min {self.steps_min}")
 
 
 @dataclass

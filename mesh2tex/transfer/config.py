@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from mesh2tex.config import check_fields
 from mesh2tex.errors import InputError
+from mesh2tex.io.assets import check_texture_format
+from mesh2tex.nn.nca import NCAConfig
 
 # Ablation name -> the TransferConfig fields it changes (paper Table 8), and "paper": the paper's
 # own losses and step (style losses alone, unlit renders), without what this project adds.
@@ -19,6 +21,22 @@ ABLATIONS = {
 
 LIGHT_MODES = ("auto", "learn", "off")
 LATENT_SPACES = ("w_plus", "w")
+
+
+@dataclass
+class AutomatonFitConfig:
+    iters: int = 300  # Adam steps
+    steps_min: int = 15  # growth per iteration: uniform in [steps_min, steps_max]
+    steps_max: int = 25
+    final_steps: int = 20  # growth of the result
+    lr: float = 2e-3  # Adam learning rate (gradients normalised per parameter, as train nca)
+    overflow_weight: float = 10.0
+    nca: NCAConfig = field(default_factory=NCAConfig)
+
+    def __post_init__(self):
+        check_fields(self, at_least={"iters": 1, "steps_min": 1, "steps_max": 1, "final_steps": 1, "overflow_weight": 0}, positive=("lr",))
+        if self.steps_max < self.steps_min:
+            raise ValueError(f"steps_max {self.steps_max} is below steps_min {self.steps_min}")
 
 
 @dataclass
@@ -52,12 +70,15 @@ class TransferConfig:
     render_oversample: float = 1.5  # render at this multiple of ``resolution`` before cropping to the object
     turntable_frames: int = 12  # frames of turntable.gif
     texture_size: int = 1024  # side of the baked UV texture in textured.glb
+    texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
     faces: int = 0  # finest quad count when a raw mesh is prepared on the fly (0: the hierarchy the model was trained on)
     seed: int = 0  # seed of the initial latent and the patch sampling
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
+    automaton: AutomatonFitConfig = field(default_factory=AutomatonFitConfig)  # infer transfer --automaton: the automaton fitted instead of the GAN's texture
 
     def __post_init__(self):
+        check_texture_format(self.texture_format)
         check_fields(self, positive=("lr",), at_least={"latent_iters": 0, "refine_iters": 0, "refine_lr": 0, "w_glob": 0, "w_patch": 0, "w_colour": 0, "patches": 1, "refine_blocks": 1, "turntable_frames": 1, "latent_starts": 1, "w_anchor": 0, "anchor_views": 1,
                                                        "resolution": 16, "texture_size": 16, "patch_size": 1},
                      between={"margin": (0.0, 1.0), "render_oversample": (1.0, 4.0), "scales": (1, 8), "patch_scales": (0, 8), "colour_sigma": (0.0, 0.5)})

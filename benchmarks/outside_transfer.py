@@ -23,10 +23,11 @@ world's query cameras and lights (random azimuth, elevation in the world's range
 
 Columns, per variant:
 
-  mask IoU     the estimated mask against the true one (1 for alpha): as infer transfer picks it,
-               the estimate whose found pose's silhouette matches it best
-               (:func:`mesh2tex.transfer.pick_by_outline`), and each estimate alone (GrabCut, the
-               network, the network with GrabCut edges; room, clutter)
+  mask IoU     the estimated mask against the true one (1 for alpha): as infer transfer makes it
+               (:func:`mesh2tex.transfer.locate_object`: the estimate whose found pose's silhouette
+               matches it best, then GrabCut from the mesh's outline at that pose unless
+               ``--no-mask-refine``), and each estimate alone (GrabCut, the network, the network with
+               GrabCut edges; room, clutter)
   pose error   the azimuth error (degrees, circular) of ``--pose auto`` (the pose network and the
                search ``infer transfer`` runs), median and share within 15 degrees, up to the mesh's
                own symmetries (a round stool with four legs looks the same turned by 90 degrees,
@@ -158,8 +159,7 @@ def main() -> None:
     from mesh2tex.photos import estimate_mask
     from mesh2tex.synthetic.world import WorldSpec, sample_material, sample_views
     from mesh2tex.texturing import load_shape
-    from mesh2tex.transfer import (TransferConfig, estimate_pose, photo_candidates, pick_by_outline, predict_noc, transfer_texture,
-                                   view_at_pose)
+    from mesh2tex.transfer import TransferConfig, locate_object, photo_masks, predict_noc, transfer_texture, view_at_pose
     from mesh2tex.transfer.fit import check_fit
     from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
     from outside_generation import height_parts, outside_meshes
@@ -179,6 +179,8 @@ def main() -> None:
     parser.add_argument("--photo-size", type=int, default=256)
     parser.add_argument("--images", help="a folder to keep the photos, masks and renders in")
     parser.add_argument("--out", help="write the per-photo rows here (JSON)")
+    parser.add_argument("--no-mask-refine", action="store_true", help="keep the picked estimate (no GrabCut from the mesh's outline)")
+    parser.add_argument("--first-photo", type=int, default=0, help="skip the first photos of each mesh (a fresh set of cameras)")
     parser.add_argument("--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter"])
     args = parser.parse_args()
     device = torch.device("cpu")
@@ -192,7 +194,7 @@ def main() -> None:
     model = load_generator(args.checkpoint, device)
     generator, distance, fov = model.network, model.camera.distance, model.camera.fov
     cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
-                         use_noc=noc_checkpoint is not None)
+                         use_noc=noc_checkpoint is not None, mask_refine=not args.no_mask_refine)
     vgg = load_vgg19(None, device=device)
     spec = WorldSpec(category=args.category, variety=args.variety)
     folder = Path(args.images) if args.images else Path(tempfile.mkdtemp(prefix="outside-transfer-"))
@@ -208,6 +210,8 @@ def main() -> None:
         views = sample_views(spec, 1000 + index, args.poses, query=True)
         turns = azimuth_symmetries(vertices)
         for k, view in enumerate(views):
+            if k < args.first_photo:
+                continue
             photo_render = render_for_comparison(truth, [view], RenderSettings(args.photo_size, 2))
             rgb = photo_render.rgb[0].permute(1, 2, 0).numpy()
             true_mask = photo_render.mask[0, 0].numpy() > 0.5
@@ -237,22 +241,23 @@ def main() -> None:
                         row[f"iou_{label}"] = float((estimate & true_mask).sum() / max((estimate | true_mask).sum(), 1))
                 else:
                     row["mask_iou"] = 1.0
-                # As infer transfer does: the photo framed by each mask estimate, the mesh's outline picks one.
-                framed_photos = photo_candidates(file, None, cfg, mask_checkpoint=mask_checkpoint)
+                # As infer transfer does: the mesh's outline picks among the mask estimates, then (unless
+                # --no-mask-refine) GrabCut from that outline makes the mask again and the pose is found again.
+                masked = photo_masks(file, None, mask_checkpoint=mask_checkpoint)
                 started = time.perf_counter()
-                index, estimate = pick_by_outline([p for p, _ in framed_photos],
-                                                  lambda p: estimate_pose(pose_checkpoint, shape, p, distance, fov, cfg, device))
-                photo, mask_source = framed_photos[index]
+                located = locate_object(masked, shape, pose_checkpoint, None, distance, fov, cfg, device)
+                photo, estimate = located.photo, located.estimate
                 if variant != "alpha":
-                    picked = SOURCE_LABELS[mask_source]
-                    estimated, row["mask_iou"], row["mask_picked"] = candidates[picked], row[f"iou_{picked}"], picked
+                    picked = next(label for source, label in SOURCE_LABELS.items() if located.mask_source.startswith(source))
+                    estimated, row["mask_picked"] = located.mask, picked
+                    row["mask_iou"] = float((estimated & true_mask).sum() / max((estimated | true_mask).sum(), 1))
                 row["pose_seconds"] = round(time.perf_counter() - started, 2)
                 row["found"] = [estimate.azimuth, estimate.elevation]
                 row["pose_error"] = symmetric_error(estimate.azimuth, view.azimuth, turns)
                 row["raw_pose_error"] = float(azimuth_error(estimate.azimuth, view.azimuth))
                 row["symmetries"] = len(turns)
                 row["network_error"] = float(azimuth_error(estimate.network[0], view.azimuth)) if estimate.network else None
-                if k < args.transfers:
+                if k - args.first_photo < args.transfers:
                     photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
                     framed = view_at_pose(shape, estimate.azimuth, estimate.elevation, distance, fov, cfg)
                     torch.manual_seed(0)

@@ -8,8 +8,9 @@
 Steps:
 1. The photo: mask from its alpha channel, from ``--mask``, or estimated (the mask network with
    GrabCut edges, the network alone, GrabCut alone; with ``--pose auto`` the silhouette search
-   picks the estimate its found pose matches best); a square crop around the object, resized to
-   ``resolution``.
+   picks the estimate its found pose matches best; then GrabCut from the mesh's outline at the pose
+   makes it again and the pose is found again: :func:`mesh2tex.transfer.locate_object`); a square
+   crop around the object, resized to ``resolution``.
 2. The pose: given as ``--pose AZ,EL`` (degrees, the orbit-camera convention), or ``--pose auto``
    (the default, needs ``--pose-checkpoint``): the pose network's bin probabilities, then a search
    for the pose whose silhouette best matches the photo's mask (``--no-pose-search``: the network's
@@ -67,8 +68,8 @@ from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
 from mesh2tex.texturing import load_shape, write_automaton_mesh, write_textured_mesh
 from mesh2tex.transfer import (AutomatonFit, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
-                               check_style_sizes, estimate_pose, fit_automaton, photo_candidates, pick_by_outline, predict_noc,
-                               transfer_texture, view_at_pose)
+                               check_style_sizes, fit_automaton, locate_object, photo_masks, predict_noc, transfer_texture,
+                               view_at_pose)
 from mesh2tex.transfer.fit import check_fit
 
 
@@ -196,21 +197,6 @@ def checked_networks(args, cfg: TransferConfig) -> tuple[float, float] | None:
     return pose
 
 
-def find_pose(pose_checkpoint, shape, candidates: list, pose: tuple[float, float] | None, distance: float, fov: float,
-              cfg: TransferConfig, device) -> tuple:
-    """(photo, where its mask came from, PoseEstimate): the given pose, or the pose network and silhouette
-    search; with an estimated mask, the mesh picks among the mask estimates (the one its outline matches best)."""
-    photo, mask_source = candidates[0]
-    if pose is None and cfg.pose_search and len(candidates) > 1:
-        index, estimate = pick_by_outline([c[0] for c in candidates],
-                                          lambda p: estimate_pose(pose_checkpoint, shape, p, distance, fov, cfg, device))
-        photo, mask_source = candidates[index]
-        return photo, mask_source + f", the one of {len(candidates)} estimates the mesh's outline matched best", estimate
-    if pose is None:
-        return photo, mask_source, estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device)
-    return photo, mask_source, PoseEstimate(pose[0], pose[1], "given")
-
-
 def pose_record(estimate: PoseEstimate, source: str, distance: float, fov: float) -> dict:
     """report.json's ``pose``: the pose used, where it came from, and the network's and the search's figures."""
     searched = estimate.silhouette_iou is not None
@@ -232,11 +218,12 @@ def run(args) -> int:
     generator, distance, fov = model.network, model.camera.distance, model.camera.fov
     shape, target = load_shape(args.mesh, generator, model.face_count(cfg.faces), cfg.seed, up=args.up, uv=args.uv,
                                output_mesh=args.output_mesh)
-    candidates = photo_candidates(args.image, args.mask, cfg, mask_checkpoint=args.mask_checkpoint)
+    masked = photo_masks(args.image, args.mask, mask_checkpoint=args.mask_checkpoint)
     seconds["load"] = round(time.perf_counter() - started, 2)
 
     t = time.perf_counter()
-    photo, mask_source, estimate = find_pose(args.pose_checkpoint, shape, candidates, pose, distance, fov, cfg, device)
+    located = locate_object(masked, shape, args.pose_checkpoint, pose, distance, fov, cfg, device)
+    photo, mask_source, estimate = located.photo, located.mask_source, located.estimate
     azimuth, elevation, pose_source = estimate.azimuth, estimate.elevation, estimate.source
     photo_noc = predict_noc(args.noc_checkpoint, photo, device) if args.noc_checkpoint else None
     view = view_at_pose(shape, azimuth, elevation, distance, fov, cfg)

@@ -103,3 +103,40 @@ def test_an_estimated_mask_gives_the_mesh_three_framings_to_pick_from(tmp_path):
     index, estimate = pick_by_outline([p for p, _ in estimated] + [estimated[0][0]],
                                       lambda photo: PoseEstimate(0.0, 0.0, "test", silhouette_iou=next(scores, 0.1)))
     assert index == 1 and estimate.silhouette_iou == 0.9
+
+
+def test_the_meshs_outline_at_the_pose_mends_an_estimated_mask():
+    """An estimated mask with a hole where the object is (a patch the estimate missed) is made again by
+    GrabCut from the mesh's outline at the pose: the hole is filled, nothing of the background is taken,
+    and the result says how it was made. A mask that came with the photo is kept as it is."""
+    from test_faceconv import cube_shape
+
+    from mesh2tex.render import orbit_camera, rasterize, transform_points
+    from mesh2tex.transfer import MaskedPhoto, TransferConfig, locate_object
+
+    shape = cube_shape(3)
+    distance, fov, size = 2.4, 40.0, 128
+    camera = orbit_camera(torch.tensor([30.0]), torch.tensor([20.0]), distance=distance, fov=fov)
+    raster = rasterize(transform_points(torch.as_tensor(shape.vertices[0], dtype=torch.float32), camera.mvp),
+                       torch.as_tensor(shape.triangles(0)), (size, size))
+    truth = (raster.face_id[0] >= 0).numpy()
+    rng = np.random.default_rng(0)
+    rgb = (rng.uniform(0.3, 0.6, (size, size, 3)) * 255).astype(np.uint8)
+    rgb[truth] = (200, 40, 30)
+    rows, cols = np.nonzero(truth)
+    r, c = int(rows.mean()), int(cols.mean())
+    estimate = truth.copy()
+    estimate[r - 8:r + 8, c - 8:c + 8] = False  # the estimate missed a patch in the middle of the object
+    cfg = TransferConfig(resolution=32)
+
+    def iou(mask):
+        return float((mask & truth).sum() / (mask | truth).sum())
+
+    located = locate_object(MaskedPhoto(rgb, [(estimate, "estimated (test)")], None, given=False), shape, None, (30.0, 20.0),
+                            distance, fov, cfg, torch.device("cpu"))
+    assert iou(located.mask) > 0.97 > iou(estimate), (iou(located.mask), iou(estimate))
+    assert located.mask_source.endswith("refined by GrabCut on the mesh's outline at the pose")
+    assert located.estimate.azimuth == 30.0 and located.photo.mask.shape == (1, 1, 32, 32)
+    kept = locate_object(MaskedPhoto(rgb, [(estimate, "alpha channel")], None, given=True), shape, None, (30.0, 20.0),
+                         distance, fov, cfg, torch.device("cpu"))
+    assert np.array_equal(kept.mask, estimate) and kept.mask_source == "alpha channel"

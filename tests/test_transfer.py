@@ -228,3 +228,18 @@ def test_the_anchor_covers_only_surfaces_the_photo_does_not_show(tiny_gan):
 def test_a_transfer_with_the_anchor_runs_both_stages(setup, tmp_path):
     report = transfer_report(setup, tmp_path / "out", "w_anchor: 5.0\nanchor_views: 3\n")
     assert report["settings"]["w_anchor"] == 5.0 and len(report["losses"]["refine"]["curve"]) == 3
+
+
+def test_a_photo_without_a_mask_is_segmented_with_the_meshs_help_and_the_report_says_how(setup, tmp_path):
+    """No mask file and no alpha: the mask is estimated (GrabCut without a mask network), then made again
+    from the mesh's outline at the pose the search found; ``transfer.mask_refine: false`` keeps the estimate."""
+    photo = np.array(Image.open(setup / "query.png"))
+    rgb = np.where(photo[..., 3:] > 0, photo[..., :3], 150).astype(np.uint8)  # on grey, no alpha channel
+    Image.fromarray(rgb).save(tmp_path / "query.jpg", quality=95)
+    args = ["--image", str(tmp_path / "query.jpg"), "--pose", "auto", "--pose-checkpoint", str(setup / "pose" / "checkpoint.safetensors")]
+    assert main(transfer_args(setup, tmp_path / "out", *args)) == 0
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["mask_source"] == "estimated (GrabCut); refined by GrabCut on the mesh's outline at the pose"
+    assert report["pose"]["source"] == "pose network + silhouette search" and report["settings"]["mask_refine"] is True
+    plain = transfer_report(setup, tmp_path / "plain", "mask_refine: false\n", *args)
+    assert plain["mask_source"] == "estimated (GrabCut)"

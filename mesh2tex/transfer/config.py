@@ -67,6 +67,7 @@ class TransferConfig:
     pose_search: bool = True  # --pose auto: pick the pose whose silhouette best matches the photo's mask (False: the network's bin centres, as the paper)
     pose_search_step: float = 10.0  # azimuth spacing of the silhouette search in degrees (then one finer pass at half of it)
     pose_search_elevations: int = 2  # elevation bins searched: the network's most likely ones
+    mask_refine: bool = True  # an estimated mask is made again by GrabCut from the mesh's outline at the found pose, and the pose found again
     render_oversample: float = 1.5  # render at this multiple of ``resolution`` before cropping to the object
     turntable_frames: int = 12  # frames of turntable.gif
     texture_size: int = 1024  # side of the baked UV texture in textured.glb

@@ -3,13 +3,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from mesh2tex.checks import check_shape, check_type
+from mesh2tex.checks import check_array_shape, check_shape, check_type
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.images import load_image, load_mask
@@ -83,16 +84,31 @@ def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: Transf
     return photo_candidates(image_path, mask_path, cfg, mask_checkpoint)[0]
 
 
-def photo_candidates(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig,
-                     mask_checkpoint: str | Path | None = None) -> list[tuple[Photo, str]]:
-    """The photo framed by each mask worth trying, best guess first: one when the mask is given
-    (``mask_path`` or an alpha channel); when it is estimated, the mask network's with GrabCut edges,
-    the network's alone and GrabCut's alone (GrabCut's alone without a network). The mesh picks
-    among them (:func:`mesh2tex.transfer.pose.pick_by_outline`): no estimate is right on every photo."""
+@dataclass
+class MaskedPhoto:
+    """A query photo with the masks worth trying, best guess first.
+
+    rgb (H, W, 3) uint8, the photo as read; masks: [((H, W) bool, where it came from)]; probability
+    (H, W) float32, the mask network's, when it made the estimates (else None); given: the mask came
+    with the photo (a mask file or an alpha channel), so nothing is estimated or refined.
+    """
+
+    rgb: np.ndarray
+    masks: list
+    probability: np.ndarray | None
+    given: bool
+
+
+def photo_masks(image_path: str | Path, mask_path: str | Path | None, mask_checkpoint: str | Path | None = None) -> MaskedPhoto:
+    """The photo and its masks: the ``mask_path`` file or the alpha channel when there is one; else the
+    estimates, the mask network's with GrabCut edges, the network's alone and GrabCut's alone (GrabCut's
+    alone without a network). The mesh picks among them (:func:`mesh2tex.transfer.pose.locate_object`):
+    no estimate is right on every photo."""
     rgb, alpha = load_image(image_path)
     if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
         raise InputError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
                         f"{MIN_PHOTO_SIDE}x{MIN_PHOTO_SIDE}")
+    probability, given = None, True
     if mask_path is not None:
         mask = load_mask(mask_path)
         if mask.shape != rgb.shape[:2]:
@@ -107,18 +123,44 @@ def photo_candidates(image_path: str | Path, mask_path: str | Path | None, cfg: 
                  (estimate_mask(rgb), "estimated (GrabCut)")]
     else:
         masks = [(estimate_mask(rgb), "estimated (GrabCut)")]
-    image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
-    candidates = []
-    for mask, source in masks:
-        mask = np.asarray(mask, dtype=bool)
-        if mask.sum() < 16:
-            continue
-        box = object_box(mask, cfg.margin)
-        candidates.append((Photo(image=crop_square(image, box, cfg.resolution, fill=1.0), mask=crop_mask(mask, box, cfg.resolution)),
-                           source))
-    if not candidates:
+    given = given and probability is None and masks[0][1] != "estimated (GrabCut)"
+    masks = [(np.asarray(mask, dtype=bool), source) for mask, source in masks if np.asarray(mask).sum() >= 16]
+    if not masks:
         raise InputError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")
-    return candidates
+    return MaskedPhoto(rgb, masks, probability, given)
+
+
+def frame_photo(rgb: np.ndarray, mask: np.ndarray, cfg: TransferConfig) -> Photo:
+    """rgb (H, W, 3) uint8 and its object mask (H, W) bool -> the :class:`Photo` cropped around the object
+    (``cfg.margin``) and resized to R = ``cfg.resolution``, white outside the photo."""
+    check_array_shape(mask, "frame_photo: mask", ("H", "W"), sizes=check_array_shape(rgb, "frame_photo: rgb", ("H", "W", 3)))
+    image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
+    box = object_box(mask, cfg.margin)
+    return Photo(image=crop_square(image, box, cfg.resolution, fill=1.0), mask=crop_mask(mask, box, cfg.resolution))
+
+
+def photo_candidates(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig,
+                     mask_checkpoint: str | Path | None = None) -> list[tuple[Photo, str]]:
+    """The photo framed by each of :func:`photo_masks`' masks, best guess first: [(Photo, where its mask came from)]."""
+    masked = photo_masks(image_path, mask_path, mask_checkpoint)
+    return [(frame_photo(masked.rgb, mask, cfg), source) for mask, source in masked.masks]
+
+
+def silhouette_in_photo(shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float,
+                        box: tuple[int, int, int], size: tuple[int, int], cfg: TransferConfig) -> np.ndarray:
+    """(H, W) bool: where the mesh would cover the photo at the pose, framed as the photo is: the mesh's
+    outline in its own square crop (:func:`view_at_pose`) laid onto the photo's crop ``box`` (top, left,
+    side), the square around the photo's object mask. ``size``: the photo's (H, W)."""
+    top, left, side = box
+    h, w = size
+    sharp = dataclasses.replace(cfg, resolution=int(min(max(side, 16), 1024)))  # the outline at about the photo's own scale
+    outline = view_at_pose(shape, azimuth, elevation, distance, fov, sharp).mask
+    outline = torch.nn.functional.interpolate(outline, size=(side, side), mode="bilinear", align_corners=False)[0, 0].numpy() >= 0.5
+    full = np.zeros((h, w), dtype=bool)
+    r0, c0, r1, c1 = max(0, top), max(0, left), min(h, top + side), min(w, left + side)
+    if r1 > r0 and c1 > c0:
+        full[r0:r1, c0:c1] = outline[r0 - top:r1 - top, c0 - left:c1 - left]
+    return full
 
 
 @torch.no_grad()

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -15,7 +16,8 @@ from mesh2tex.models import load_view_network
 from mesh2tex.nn.pose import PoseBins
 from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.photo import Photo, check_photo
+from mesh2tex.transfer.mask import refine_with_outline
+from mesh2tex.transfer.photo import MaskedPhoto, Photo, check_photo, frame_photo, silhouette_in_photo
 
 
 @torch.no_grad()
@@ -144,6 +146,51 @@ def pick_by_outline(photos: list[Photo], estimate) -> tuple[int, PoseEstimate]:
     results = [estimate(photo) for photo in photos]
     best = max(range(len(results)), key=lambda i: results[i].silhouette_iou or 0.0)
     return best, results[best]
+
+
+@dataclass
+class Located:
+    """Where the object is in the photo and where the camera was: the framed photo, where its mask came
+    from, that mask (H, W) bool at the photo's size, and the pose."""
+
+    photo: Photo
+    mask_source: str
+    mask: np.ndarray
+    estimate: PoseEstimate
+
+
+def locate_object(masked: MaskedPhoto, shape: PreparedShape, pose_checkpoint: str | Path | None, pose: tuple[float, float] | None,
+                  distance: float, fov: float, cfg: TransferConfig, device: torch.device) -> Located:
+    """The object's mask and the pose of the mesh ``shape`` in a photo, each helping the other.
+
+    ``pose`` (azimuth, elevation) given: used as it is. Else ``--pose auto`` (:func:`estimate_pose`);
+    with several mask estimates, the one the mesh's outline matches best (:func:`pick_by_outline`).
+    Then, unless the mask came with the photo or ``cfg.mask_refine`` is off, the mask is made again by
+    GrabCut started from the mesh's outline at that pose and the first estimate
+    (:func:`mesh2tex.transfer.mask.refine_with_outline`), and the pose found again from it (unless
+    given). Measured on photos of meshes from outside the world (docs/results/transfer.md)."""
+    photos = [frame_photo(masked.rgb, mask, cfg) for mask, _ in masked.masks]
+    index = 0
+    if pose is not None:
+        estimate = PoseEstimate(pose[0], pose[1], "given")
+    elif cfg.pose_search and len(photos) > 1:
+        index, estimate = pick_by_outline(photos, lambda photo: estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device))
+    else:
+        estimate = estimate_pose(pose_checkpoint, shape, photos[0], distance, fov, cfg, device)
+    mask, source = masked.masks[index]
+    source += f", the one of {len(photos)} estimates the mesh's outline matched best" if len(photos) > 1 and pose is None and cfg.pose_search else ""
+    if masked.given or not cfg.mask_refine:
+        return Located(photos[index], source, mask, estimate)
+    box = object_box(mask, cfg.margin)
+    outline = silhouette_in_photo(shape, estimate.azimuth, estimate.elevation, distance, fov, box, mask.shape, cfg)
+    prior = masked.probability if masked.probability is not None else mask.astype(np.float32)
+    refined = refine_with_outline(masked.rgb, outline, prior, box[2])
+    if refined.sum() < 16:
+        return Located(photos[index], source, mask, estimate)
+    photo = frame_photo(masked.rgb, refined, cfg)
+    if pose is None:
+        estimate = estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device)
+    return Located(photo, source + "; refined by GrabCut on the mesh's outline at the pose", refined, estimate)
 
 
 @torch.no_grad()

@@ -146,7 +146,7 @@ def run(args) -> int:
     save_png(out / "texture.png", colours_to_uint8(image))
     with torch.no_grad():
         angles = turntable_angles(cfg.views, 20.0, start=30.0)
-        mvp = orbit_camera(*angles, distance=settings.distance, fov=settings.fov).mvp
+        mvp = orbit_camera(*angles, distance=settings.camera.distance, fov=settings.camera.fov).mvp
         images, masks = render_texture(surface, image.permute(2, 0, 1), mvp, settings.resolution)
     for name, picture in zip(views, images_to_uint8(images)):
         save_png(out / name, picture)

@@ -42,7 +42,8 @@ Conventions: colours in [-1, 1] inside; positions in the unit ball, y up; UVs v 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import typing
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -51,6 +52,7 @@ import torch.nn.functional as F
 from mesh2tex.config import check_fields
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
 from mesh2tex.photos import square_resize
+from mesh2tex.render.cameras import NCACameraConfig
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
@@ -73,26 +75,23 @@ class SynthesisConfig:
     colour_weight: float = 100.0  # weight of the sliced Wasserstein distance of the RGB pixels (the joint palette)
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
     direction_field: str = "up"  # up: views upright (stripes keep the mesh's up); none: views rolled at random
-    distance: float = 3.2  # camera distance, in units of the mesh's radius
-    fov: float = 40.0  # vertical field of view, degrees
-    elevation_min: float = -60.0  # random views: elevation range, degrees
-    elevation_max: float = 60.0
+    camera: NCACameraConfig = field(default_factory=NCACameraConfig)  # the random views around the mesh in the unit ball, as train nca's
     seed: int = 0  # seed of the views, the loss's random projections and the initial noise
+
+    # Keys of configs written before the cameras became a section (named by the unknown-key error).
+    MOVED_KEYS: typing.ClassVar[dict[str, str]] = {name: f"camera.{name}" for name in ("distance", "fov", "elevation_min", "elevation_max")}
 
     def __post_init__(self):
         check_fields(self, at_least={"iters": 1, "texture_size": 16, "levels": 1, "views": 1, "resolution": 32,
                                      "exemplar_size": 16, "max_points": 2, "overflow_weight": 0,
                                      "colour_weight": 0},
-                     between={"vgg_depth": (0, 5), "fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0),
-                              "elevation_max": (-90.0, 90.0), "texture_size": (16, 8192), "resolution": (32, 4096),
+                     between={"vgg_depth": (0, 5), "texture_size": (16, 8192), "resolution": (32, 4096),
                               "exemplar_size": (16, 4096), "levels": (1, 12), "lr_end": (0.0, 1.0)},
-                     positive=("lr", "lr_end", "distance"))
+                     positive=("lr", "lr_end"))
         if self.loss not in SYNTHESIS_LOSSES or self.loss not in STYLE_LOSSES:
             raise ValueError(f"loss must be one of {', '.join(SYNTHESIS_LOSSES)}, got {self.loss!r}")
         if self.direction_field not in DIRECTIONS:
             raise ValueError(f"direction_field must be one of {', '.join(DIRECTIONS)}, got {self.direction_field!r}")
-        if self.elevation_max < self.elevation_min:
-            raise ValueError(f"elevation_max {self.elevation_max} is below elevation_min {self.elevation_min}")
 
 
 @dataclass
@@ -136,7 +135,7 @@ def pixels_per_unit(resolution: int, distance: float, fov: float) -> float:
 def mip_level(surface: TexelSurface, cfg: SynthesisConfig) -> int:
     """The pooling level m whose texels come nearest to one render pixel (log2 of texels per pixel,
     rounded; 0 when the texture is coarser than the renders), at most levels - 1."""
-    per_pixel = cfg.texture_size * surface.texel_density() / pixels_per_unit(cfg.resolution, cfg.distance, cfg.fov)
+    per_pixel = cfg.texture_size * surface.texel_density() / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)
     return int(min(max(round(math.log2(max(per_pixel, 1e-9))), 0), cfg.levels - 1))
 
 
@@ -151,8 +150,9 @@ def view_cameras(cfg: SynthesisConfig, count: int, generator: torch.Generator) -
     """(count, 4, 4) mvp of random orbit views of the unit ball: upright for ``direction_field`` up, else each
     rolled about its view axis by a random angle (a rotation of the clip-space x and y)."""
     azimuth = torch.rand(count, generator=generator) * 360.0
-    elevation = cfg.elevation_min + torch.rand(count, generator=generator) * (cfg.elevation_max - cfg.elevation_min)
-    mvp = orbit_camera(azimuth, elevation, distance=cfg.distance, fov=cfg.fov).mvp
+    camera = cfg.camera
+    elevation = camera.elevation_min + torch.rand(count, generator=generator) * (camera.elevation_max - camera.elevation_min)
+    mvp = orbit_camera(azimuth, elevation, distance=camera.distance, fov=camera.fov).mvp
     if cfg.direction_field == "none":
         angle = torch.rand(count, generator=generator) * (2 * math.pi)
         roll = torch.eye(4).repeat(count, 1, 1)

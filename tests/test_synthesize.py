@@ -123,3 +123,17 @@ def test_upright_views_keep_the_meshs_up_and_rolled_views_do_not():
 
     assert float(screen_up("up").max()) < 1e-4
     assert float(screen_up("none").max()) > 0.5
+
+
+def test_the_views_are_set_in_a_camera_section_as_the_automatons_and_old_keys_say_where_they_went():
+    from mesh2tex.config import config_from_dict
+    from mesh2tex.errors import InputError
+    from mesh2tex.render.cameras import NCACameraConfig
+    from mesh2tex.texel_synthesis import SynthesisConfig
+
+    cfg = config_from_dict(SynthesisConfig, {"camera": {"distance": 2.5, "elevation_min": -30.0}})
+    assert cfg.camera == NCACameraConfig(distance=2.5, elevation_min=-30.0)
+    with pytest.raises(InputError, match="moved: distance -> camera.distance"):
+        config_from_dict(SynthesisConfig, {"distance": 2.5})
+    with pytest.raises(InputError, match="elevation_max"):
+        config_from_dict(SynthesisConfig, {"camera": {"elevation_min": 10.0, "elevation_max": 0.0}})

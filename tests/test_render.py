@@ -429,3 +429,15 @@ def test_a_uv_texture_reads_its_image_where_the_surface_points_map():
     torch.testing.assert_close(colours, expected)
     with pytest.raises(ValueError, match="not bound"):
         FaceTexture(torch.zeros(2, 4), torch.zeros(2, 3)).colours(torch.zeros(1, dtype=torch.long), torch.ones(1, 3) / 3)
+
+
+def test_colours_read_in_chunks_are_the_colours_read_at_once():
+    """Bakers read a texture chunk by chunk (bounded memory for a 2048^2 bake); the colours are the same."""
+    from mesh2tex.render.surface_texture import UVTexture, read_colours
+
+    g = torch.Generator().manual_seed(0)
+    texture = UVTexture(torch.rand(5, 3, 2, generator=g), torch.rand(1, 3, 8, 8, generator=g) * 2 - 1)
+    triangle_id = torch.randint(0, 5, (23,), generator=g)
+    bary = torch.distributions.Dirichlet(torch.ones(3)).sample((23,))
+    torch.testing.assert_close(read_colours(texture, triangle_id, bary, chunk=7), texture.colours(triangle_id, bary), rtol=0, atol=0)
+    assert read_colours(texture, triangle_id[:0], bary[:0]).shape == (0, 3)

@@ -30,7 +30,7 @@ from mesh2tex.geometry.mesh_io import UserMesh
 from mesh2tex.io.images import colours_to_uint8
 
 from .interpolate import interpolate
-from .surface_texture import SurfaceTexture
+from .surface_texture import SurfaceTexture, read_colours
 from .uv import uv_atlas_problem, uv_rasterize
 
 UV_MODES = ("auto", "keep", "new")
@@ -143,14 +143,9 @@ def fill_empty_texels(colours: np.ndarray, covered: np.ndarray) -> np.ndarray:
     return colours[rows, cols]
 
 
-def _colours(texture: SurfaceTexture, found, device, chunk: int = 262_144) -> torch.Tensor:
+def _colours(texture: SurfaceTexture, found, device) -> torch.Tensor:
     """The texture's colours at closest points ``found``, in chunks: (P, 3) float in [-1, 1] on the CPU."""
-    out = []
-    for start in range(0, len(found.triangle), chunk):
-        triangle = torch.from_numpy(found.triangle[start:start + chunk]).to(device)
-        bary = torch.from_numpy(found.bary[start:start + chunk]).float().to(device)
-        out.append(texture.colours(triangle, bary).float().cpu())
-    return torch.cat(out) if out else torch.zeros(0, 3)
+    return read_colours(texture, torch.from_numpy(found.triangle), torch.from_numpy(found.bary).float(), device)
 
 
 class MeshBaker:

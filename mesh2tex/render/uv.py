@@ -10,6 +10,7 @@ from mesh2tex.checks import check_shape
 from mesh2tex.io.images import images_to_uint8
 
 from .rasterize import Raster, rasterize
+from .surface_texture import read_colours
 
 
 def uv_rasterize(uv: torch.Tensor, tri: torch.Tensor, resolution) -> Raster:
@@ -155,6 +156,6 @@ def bake_surface_colours(vertices: torch.Tensor, triangles: torch.Tensor, textur
     raster = uv_rasterize(uv, faces, (size, size))
     covered = raster.face_id[0] >= 0
     colours = torch.zeros(size, size, 3)
-    colours[covered] = texture.colours(raster.face_id[0][covered].to(device), raster.bary[0][covered].to(device)).float().cpu()
+    colours[covered] = read_colours(texture, raster.face_id[0][covered], raster.bary[0][covered], device)
     image = dilate_texture(colours.permute(2, 0, 1), covered[None].float(), dilate).reshape(3, size, size)
     return new_vertices.float(), faces, uv.float(), images_to_uint8(image), covered

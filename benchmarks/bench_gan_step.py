@@ -27,7 +27,9 @@ backward), measures what this process sustains on a 2048^3 float32 matmul and on
 the discriminators' shapes, and prints the step's achieved rate and its ratio to each. Work the
 counter does not see is named and timed apart: drawing the scene (the rasterizer, a few passes of
 integer and gather work per view) and everything else (gathers and scatters of the face
-convolutions, elementwise ops, Python) as the remainder.
+convolutions, elementwise ops, Python) as the remainder. ``--profile`` then splits a main-only step's
+wall time by what its operators do (:data:`OP_CATEGORIES`, torch.profiler's self time per operator),
+the rest being Python and the autograd engine.
 """
 
 from __future__ import annotations
@@ -98,6 +100,56 @@ def flop_account(version: "Version", trainer, seconds: dict[bool, float]) -> Non
           f"main-only step; at the matmul's rate the counted work would take {counted[False] / 1e9 / rates['matmul 2048^3']:.3f} s, "
           f"the rest ({max(main_s - drawn - counted[False] / 1e9 / rates['matmul 2048^3'], 0.0):.3f} s) is gathers and scatters, "
           "elementwise ops and Python")
+
+
+# Where a step's time goes, by what the operators do (torch.profiler's self time of each aten operator).
+# The first category whose names hold the operator's wins; anything else of aten is elementwise arithmetic.
+OP_CATEGORIES = (
+    ("matmuls and convolutions (the counted FLOPs)", ("mm", "addmm", "bmm", "baddbmm", "matmul", "linear", "conv", "addmv")),
+    ("gathers and scatters (face neighbourhoods, rows)", ("index", "gather", "scatter", "take", "embedding", "segment")),
+    ("copies, layout and allocation", ("copy", "clone", "contiguous", "_to_", "cat", "stack", "permute", "reshape", "view", "expand",
+                                       "narrow", "slice", "select", "transpose", "pad", "empty", "zero", "ones", "full", "fill",
+                                       "as_strided", "unsqueeze", "squeeze", "flatten", "split", "chunk", "unbind", "detach", "alias")),
+    ("reductions, pooling and sorting", ("sum", "mean", "amax", "amin", "max", "min", "norm", "pool", "var", "std", "softmax",
+                                         "logsumexp", "cumsum", "sort", "topk", "bincount", "nonzero", "unique")),
+)
+
+
+def op_category(name: str) -> str:
+    """The :data:`OP_CATEGORIES` entry of an aten operator's name (``aten::index_select`` -> gathers and scatters)."""
+    op = name.split("::", 1)[-1]
+    for category, words in OP_CATEGORIES:
+        if any(word in op for word in words):
+            return category
+    return "elementwise arithmetic (activations, adds, products, comparisons)"
+
+
+def profile_account(version: "Version", trainer, steps: int = 3) -> None:
+    """Run ``steps`` main-only iterations under torch.profiler and print their wall time split by
+    :func:`op_category` (operators' self time on the calling thread), the rest being Python and the
+    autograd engine's own work. Profiling slows every operator a little: the shares, not the seconds,
+    are what this tells."""
+    from torch.profiler import ProfilerActivity, profile
+
+    wall, done, by_category = 0.0, 0, {}
+    while done < steps:
+        if any(not phase.endswith("main") for phase, _ in trainer.loss.phases(trainer.iteration)):
+            version.step(trainer)  # a regulariser's iteration runs extra phases: not profiled
+            continue
+        with profile(activities=[ProfilerActivity.CPU]) as prof:
+            start = time.perf_counter()
+            version.step(trainer)
+            wall += time.perf_counter() - start
+        done += 1
+        for event in prof.key_averages():
+            if event.key.startswith("aten::"):
+                category = op_category(event.key)
+                by_category[category] = by_category.get(category, 0.0) + event.self_cpu_time_total / 1e6
+    print(f"\nwhere a main-only step's time goes (torch.profiler, {steps} steps, {wall / steps:.3f} s each while profiled):")
+    for category, seconds in sorted(by_category.items(), key=lambda item: -item[1]):
+        print(f"  {category:66s} {seconds / steps:7.3f} s  {seconds / wall:5.1%}")
+    rest = wall - sum(by_category.values())
+    print(f"  {'Python, autograd bookkeeping and the profiler':66s} {rest / steps:7.3f} s  {rest / wall:5.1%}")
 
 
 class Version:
@@ -184,6 +236,7 @@ def main() -> None:
     parser.add_argument("--previous-config", help="with --previous: that version's config (default: --config)")
     parser.add_argument("--check", type=int, default=0, help="with --previous: compare the logged losses of this many seeded iterations first")
     parser.add_argument("--flops", action="store_true", help="count the step's FLOPs and compare with the sustained matmul and conv rates")
+    parser.add_argument("--profile", action="store_true", help="split a main-only step's time by what its operators do (torch.profiler)")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -221,6 +274,8 @@ def main() -> None:
         if args.flops:
             m, p, *_ = summary(times[-1], first.cfg.loss.pl_interval)
             flop_account(versions[-1], first, {False: m, True: p})
+        if args.profile:
+            profile_account(versions[-1], first)
     pl_interval = first.cfg.loss.pl_interval
     for version, t in zip(versions, times):
         m, p, amortised, n_m, n_p = summary(t, pl_interval)

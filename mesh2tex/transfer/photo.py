@@ -108,7 +108,7 @@ def photo_masks(image_path: str | Path, mask_path: str | Path | None, mask_check
     if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
         raise InputError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
                         f"{MIN_PHOTO_SIDE}x{MIN_PHOTO_SIDE}")
-    probability, given = None, True
+    probability, given = None, True  # the mask came with the photo: nothing to estimate or mend
     if mask_path is not None:
         mask = load_mask(mask_path)
         if mask.shape != rgb.shape[:2]:
@@ -117,13 +117,12 @@ def photo_masks(image_path: str | Path, mask_path: str | Path | None, mask_check
     elif alpha is not None and (alpha < 128).any():
         masks = [(alpha >= 128, "alpha channel")]
     elif mask_checkpoint is not None:
-        probability = network_probability(mask_checkpoint, rgb)
+        probability, given = network_probability(mask_checkpoint, rgb), False
         masks = [(refine_with_grabcut(rgb, probability), "estimated (mask network, GrabCut edges)"),
                  (largest_region(probability >= 0.5), "estimated (mask network)"),
                  (estimate_mask(rgb), "estimated (GrabCut)")]
     else:
-        masks = [(estimate_mask(rgb), "estimated (GrabCut)")]
-    given = given and probability is None and masks[0][1] != "estimated (GrabCut)"
+        masks, given = [(estimate_mask(rgb), "estimated (GrabCut)")], False
     masks = [(np.asarray(mask, dtype=bool), source) for mask, source in masks if np.asarray(mask).sum() >= 16]
     if not masks:
         raise InputError(f"{mask_path or image_path}: the object mask is empty (fewer than 16 object pixels)")

@@ -166,9 +166,10 @@ def locate_object(masked: MaskedPhoto, shape: PreparedShape, pose_checkpoint: st
     ``pose`` (azimuth, elevation) given: used as it is. Else ``--pose auto`` (:func:`estimate_pose`);
     with several mask estimates, the one the mesh's outline matches best (:func:`pick_by_outline`).
     Then, unless the mask came with the photo or ``cfg.mask_refine`` is off, the mask is made again by
-    GrabCut started from the mesh's outline at that pose and the first estimate
-    (:func:`mesh2tex.transfer.mask.refine_with_outline`), and the pose found again from it (unless
-    given). Measured on photos of meshes from outside the world (docs/results/transfer.md)."""
+    GrabCut started from the mesh's outline at that pose and the mask network's probability (without
+    a network, the picked estimate) (:func:`mesh2tex.transfer.mask.refine_with_outline`), and the pose
+    found again from it (unless given). Measured on photos of meshes from outside the world
+    (docs/results/transfer.md)."""
     photos = [frame_photo(masked.rgb, mask, cfg) for mask, _ in masked.masks]
     index = 0
     if pose is not None:
@@ -178,7 +179,8 @@ def locate_object(masked: MaskedPhoto, shape: PreparedShape, pose_checkpoint: st
     else:
         estimate = estimate_pose(pose_checkpoint, shape, photos[0], distance, fov, cfg, device)
     mask, source = masked.masks[index]
-    source += f", the one of {len(photos)} estimates the mesh's outline matched best" if len(photos) > 1 and pose is None and cfg.pose_search else ""
+    if len(photos) > 1 and pose is None and cfg.pose_search:
+        source += f", the one of {len(photos)} estimates the mesh's outline matched best"
     if masked.given or not cfg.mask_refine:
         return Located(photos[index], source, mask, estimate)
     box = object_box(mask, cfg.margin)

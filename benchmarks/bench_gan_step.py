@@ -131,7 +131,7 @@ def profile_account(version: "Version", trainer, steps: int = 3) -> None:
     are what this tells."""
     from torch.profiler import ProfilerActivity, profile
 
-    wall, done, by_category = 0.0, 0, {}
+    wall, done, by_category, by_op = 0.0, 0, {}, {}
     while done < steps:
         if any(not phase.endswith("main") for phase, _ in trainer.loss.phases(trainer.iteration)):
             version.step(trainer)  # a regulariser's iteration runs extra phases: not profiled
@@ -145,11 +145,15 @@ def profile_account(version: "Version", trainer, steps: int = 3) -> None:
             if event.key.startswith("aten::"):
                 category = op_category(event.key)
                 by_category[category] = by_category.get(category, 0.0) + event.self_cpu_time_total / 1e6
+                by_op[event.key] = by_op.get(event.key, 0.0) + event.self_cpu_time_total / 1e6
     print(f"\nwhere a main-only step's time goes (torch.profiler, {steps} steps, {wall / steps:.3f} s each while profiled):")
     for category, seconds in sorted(by_category.items(), key=lambda item: -item[1]):
         print(f"  {category:66s} {seconds / steps:7.3f} s  {seconds / wall:5.1%}")
     rest = wall - sum(by_category.values())
     print(f"  {'Python, autograd bookkeeping and the profiler':66s} {rest / steps:7.3f} s  {rest / wall:5.1%}")
+    print("the ten slowest operators (self time per step):")
+    for name, seconds in sorted(by_op.items(), key=lambda item: -item[1])[:10]:
+        print(f"  {name:40s} {seconds / steps:7.3f} s  {op_category(name)}")
 
 
 class Version:

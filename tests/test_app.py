@@ -413,3 +413,52 @@ def test_the_pages_own_flags_and_a_taken_port_are_one_line_errors(tmp_path, caps
         assert main(["app", "--port", str(port)]) == 2
     err = capsys.readouterr().err
     assert err == f"mesh2tex: error: --port {port}: already in use; choose another, or --port 0 for a free one\n"
+
+
+def _sleeper_job(workshop, seconds: float, label: str):
+    """A visitor with a job whose command sleeps ``seconds`` (a stand-in for a long `infer` run)."""
+    from mesh2tex.app.jobs import Job
+
+    visitor = workshop.new_visitor()
+    job = Job(label, "generate", visitor.folder / f"job-{label}", [sys.executable, "-c", f"import time; time.sleep({seconds})"], label)
+    visitor.jobs[job.id] = job
+    return visitor, job
+
+
+def test_a_job_past_its_time_limit_is_stopped_with_one_line_and_leaves_nothing(tmp_path, monkeypatch):
+    from mesh2tex.app.jobs import Workshop
+    from mesh2tex.app.settings import AppConfig
+
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    workshop = Workshop(AppConfig(job_timeout=0.5))
+    visitor, job = _sleeper_job(workshop, 60, "slow")
+    job.folder.mkdir()
+    started = time.monotonic()
+    workshop._run(visitor, job)
+    assert time.monotonic() - started < 20, "stopped long before the command would have ended"
+    assert job.status == "failed" and job.process.poll() is not None
+    assert job.error == "mesh2tex: error: the job ran longer than 0.5 s and was stopped"
+    assert not job.folder.exists()
+    workshop.shutdown()
+
+
+def test_jobs_beyond_the_servers_slots_wait_their_turn(tmp_path, monkeypatch):
+    """With ``jobs: 1`` two pages' jobs run one after the other, never at once; both finish."""
+    import threading
+
+    from mesh2tex.app.jobs import Workshop
+    from mesh2tex.app.settings import AppConfig
+
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    workshop = Workshop(AppConfig(jobs=1))
+    runs = [_sleeper_job(workshop, 1.0, name) for name in ("first", "second")]
+    threads = [threading.Thread(target=workshop._run, args=run) for run in runs]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=60)
+    (_, a), (_, b) = runs
+    assert a.status == b.status == "done"
+    first, second = sorted([a, b], key=lambda job: job.started_at)
+    assert second.started_at >= first.ended_at, "the second job started while the first was running"
+    workshop.shutdown()

@@ -3,7 +3,12 @@ texture, against the photo's ground truth and a flat colour.
 
     python benchmarks/outside_transfer.py --checkpoint chair [--pose-checkpoint P] [--noc-checkpoint N]
         [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
-        [--resolution 64] [--photo-size 256] [--out FILE.json]
+        [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
+        [--first-photo 0] [--no-mask-refine]
+
+``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
+per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
+(``transfer.mask_refine: false``).
 
 The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py`` and, for
 chairs, the stool of ``tests/user_assets.py``, each read as a user's file is (turned y-up, prepared

@@ -99,13 +99,16 @@ def prepare_split(world: Path, part: str, folder: Path, commands: list[str]) -> 
 def pick_snapshot(work: Path, category: str, variety: str, gan_run: Path, gan_iters: int, pick: dict,
                   commands: list[str]) -> tuple[Path, dict[int, float]]:
     """The snapshot of ``gan_run`` that closes the most of the gap on the validation world, and every
-    snapshot's figure ({iteration: gap closed}). Figures are kept in WORK/validation/pick.json and reused
-    (delete it to measure again)."""
+    snapshot's figure ({iteration: gap closed}). Figures are kept in WORK/validation/pick.json with the
+    run they measured and reused for that run only (a work folder copied for another seed measures
+    its own; delete the file to measure again)."""
     folder = work / "validation"
     prepare_world(folder / "world", category, VALIDATION, variety, commands)
     prepare_split(folder / "world", "query", folder / "shapes", commands)
     record = folder / "pick.json"
-    figures = {int(k): v for k, v in json.loads(record.read_text()).items()} if record.is_file() else {}
+    kept = json.loads(record.read_text()) if record.is_file() else {}
+    run_id = str(gan_run.resolve())
+    figures = {int(k): v for k, v in kept.get("figures", {}).items()} if kept.get("gan_run") == run_id else {}
     for iteration in range(pick["from"], gan_iters + 1, pick["every"]):
         snapshot = gan_run / "snapshots" / f"iter{iteration:07d}.safetensors"
         if iteration in figures or not snapshot.is_file():
@@ -113,7 +116,7 @@ def pick_snapshot(work: Path, category: str, variety: str, gan_run: Path, gan_it
         print(f"\n== validation: the snapshot at iteration {iteration}", flush=True)
         result = run_generation_protocol(folder / "world", folder / "shapes", snapshot, GenerationConfig(**VALIDATION_PROTOCOL))
         figures[iteration] = round(float(result["gap_closed"]), 4)
-        record.write_text(json.dumps(figures, indent=1))
+        record.write_text(json.dumps({"gan_run": run_id, "figures": figures}, indent=1))
     if not figures:
         sys.exit(f"build_model: no snapshot of {gan_run} between iterations {pick['from']} and {gan_iters} to pick from")
     best = max(figures, key=lambda it: figures[it])

@@ -92,3 +92,39 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
         assert card["world"] == build_model.recipe_world(recipe)  # the card's world is the one the recipe prepares
         assert card["gan"]["config"] == gan_config  # and its training settings are the recipe's
     assert build_model.RECIPES["chair"]["loss"]["diversity_start"] == 3500
+
+
+def test_a_validation_pick_is_reused_only_for_the_run_it_measured(tmp_path, monkeypatch):
+    """build_model.py --pick keeps each snapshot's validation figure in WORK/validation/pick.json; a work
+    folder copied for another seed's run measures that run's snapshots instead of taking the first run's."""
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")
+    build_model = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build_model)
+    measured = []
+
+    def protocol(world, shapes, snapshot, cfg):
+        measured.append(Path(snapshot))
+        return {"gap_closed": 0.5 if "iter0000200" in Path(snapshot).name else 0.1}
+
+    monkeypatch.setattr(build_model, "prepare_world", lambda *args: None)
+    monkeypatch.setattr(build_model, "prepare_split", lambda *args: None)
+    monkeypatch.setattr(build_model, "run_generation_protocol", protocol)
+    (tmp_path / "validation").mkdir()
+    runs = []
+    for seed in (0, 1):
+        run = tmp_path / f"gan{seed}"
+        (run / "snapshots").mkdir(parents=True)
+        for iteration in (100, 200, 300):
+            (run / "snapshots" / f"iter{iteration:07d}.safetensors").write_bytes(b"")
+        runs.append(run)
+    pick = {"from": 100, "every": 100}
+    best, figures = build_model.pick_snapshot(tmp_path, "chair", "real", runs[0], 300, pick, [])
+    assert best.name == "iter0000200.safetensors" and len(measured) == 3
+    build_model.pick_snapshot(tmp_path, "chair", "real", runs[0], 300, pick, [])
+    assert len(measured) == 3, "the same run's figures are reused"
+    build_model.pick_snapshot(tmp_path, "chair", "real", runs[1], 300, pick, [])
+    assert len(measured) == 6 and all(path.parent.parent == runs[1] for path in measured[3:]), "another run is measured anew"

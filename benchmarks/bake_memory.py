@@ -11,7 +11,6 @@ before and after the bake is printed (run each size in a fresh process: the peak
 from __future__ import annotations
 
 import argparse
-import resource
 import sys
 import time
 from pathlib import Path
@@ -24,12 +23,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.nn.batch import collate_shapes  # noqa: E402
+from mesh2tex.runtime import peak_memory_gb  # noqa: E402
 from mesh2tex.synthetic.shapes import generate_shape  # noqa: E402
 from mesh2tex.texturing import bake_texture  # noqa: E402
 
 
 def peak_mb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return peak_memory_gb(torch.device("cpu")) * 1024
 
 
 def main() -> None:

@@ -47,6 +47,7 @@ from test_rasterize_reference import bevelled_table, normalised, scan_sphere  # 
 from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402
 
 from previous import Revision  # noqa: E402  (this folder)
+from resident_memory import reset_peak_rss, status_mib  # noqa: E402  (this folder)
 
 CASES = {"1x256": (1, 256), "1x512": (1, 512), "8x128": (8, 128)}
 CAMERAS = {  # (azimuths, elevations) of up to eight views, degrees
@@ -149,20 +150,6 @@ def compare(name, mesh, case, repeats, device, previous=None, cameras="orbit", c
     return result
 
 
-def _status_mib(field: str) -> float:
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith(field + ":"):
-            return int(line.split()[1]) / 1024
-    raise KeyError(field)
-
-
-def _reset_peak_rss() -> float:
-    """Reset the peak resident size (Linux: building the mesh may have set it higher than the
-    render will); returns the current resident size in MiB."""
-    Path("/proc/self/clear_refs").write_text("5")
-    return _status_mib("VmRSS")
-
-
 def memory_case(device):
     """Peak memory of one 1024x1024 render of a 98,304-triangle mesh (run in a fresh process)."""
     mesh = bumpy_torus(384, 128)
@@ -170,7 +157,7 @@ def memory_case(device):
     vertices = torch.tensor(mesh.vertices, dtype=torch.float32, device=device)
     faces = torch.tensor(mesh.faces, device=device)
     pos = transform_points(vertices, camera.mvp.to(device))
-    before = _reset_peak_rss()
+    before = reset_peak_rss()
     if device == "cuda":
         torch.cuda.reset_peak_memory_stats()
     start = time.perf_counter()
@@ -179,7 +166,7 @@ def memory_case(device):
         torch.cuda.synchronize()
     seconds = time.perf_counter() - start
     peak = (torch.cuda.max_memory_allocated() / 2**20 if device == "cuda"
-            else _status_mib("VmHWM") - before)
+            else status_mib("VmHWM") - before)
     covered = float((raster.face_id >= 0).float().mean())
     print(json.dumps({"case": "memory", "triangles": len(mesh.faces), "resolution": [1024, 1024],
                       "device": device, "peak_extra_mib": round(peak, 1), "seconds": round(seconds, 3),

@@ -57,6 +57,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))  # bench_gan_step, bench_bake, ... are imported, not copied
+from resident_memory import reset_peak_rss, status_mib  # noqa: E402  (this folder)
+
 MARK = "COST_RESULT "
 
 
@@ -138,13 +140,6 @@ def fit_sweep(sweep: Sweep) -> dict:
 
 
 # ---------------------------------------------------------------------------------- child side
-def _status_mb(field_name: str) -> float:
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith(field_name + ":"):
-            return int(line.split()[1]) / 1024
-    raise KeyError(field_name)
-
-
 def _cpu_seconds() -> float:
     """CPU seconds of this process's threads and of its finished children."""
     t = os.times()
@@ -159,8 +154,7 @@ class Measured:
         import gc
 
         gc.collect()
-        Path("/proc/self/clear_refs").write_text("5")  # the peak mark restarts from the resident size now
-        self.before_mb = _status_mb("VmRSS")
+        self.before_mb = reset_peak_rss()  # the peak mark restarts from the resident size now
         self.children_before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
         self.start, self.cpu_start = time.perf_counter(), _cpu_seconds()
         return self
@@ -168,7 +162,7 @@ class Measured:
     def __exit__(self, *exc):
         children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss  # forked workers (QuadriFlow), kB
         forked = children / 1024 if children > self.children_before else 0.0  # a new, higher peak: one of the section's
-        self.peak_mb = max(_status_mb("VmHWM"), forked)
+        self.peak_mb = max(status_mib("VmHWM"), forked)
         self.cores = (_cpu_seconds() - self.cpu_start) / max(time.perf_counter() - self.start, 1e-9)
         return False
 

@@ -2,7 +2,7 @@
 
     OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
         [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
-        [--direct ps sw ...] [--direct-iters 400] [--direct-size 512]
+        [--direct ps sw ...] [--direct-iters 400] [--direct-size 512] [--figure FILE.png [--figure-view 1]]
 
 For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over
 the unit square) and each loss, an automaton of the default config is trained from scratch on the
@@ -23,7 +23,9 @@ the direct method (``direct LOSS``: ``infer synthesize``'s texels optimised thro
 ``--direct-iters`` and ``--direct-size``; run on each mesh, since it needs no training).
 Summary per loss: its SWD over the
 oracle's and over ``ot``'s, on each mesh. One thread; with ``--runs`` the trained models are saved
-there (``<exemplar>_<loss>.safetensors``) and reused when present.
+there (``<exemplar>_<loss>.safetensors``) and reused when present. With ``--figure`` one picture
+is written: a row per exemplar (the exemplar, then on each mesh the oracle, each loss's automaton
+and each direct row, seen from ``--figure-view``, one of the 8 judged views).
 """
 
 from __future__ import annotations
@@ -132,6 +134,8 @@ def main() -> int:
     parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")
     parser.add_argument("--direct-size", type=int, default=SynthesisConfig.texture_size,
                         help="the direct method's texture side")
+    parser.add_argument("--figure", help="write a picture of every exemplar's rows here (PNG)")
+    parser.add_argument("--figure-view", type=int, default=1, choices=range(8), help="which judged view the picture shows")
     args = parser.parse_args()
     torch.set_num_threads(1)
     unknown = [n for n in args.exemplars if n not in EXEMPLARS]
@@ -146,12 +150,15 @@ def main() -> int:
     if runs_dir is not None:
         runs_dir.mkdir(parents=True, exist_ok=True)
     results: dict = {"iters": args.iters, "seed": args.seed, "meshes": meshes, "exemplars": {}}
+    shown = ["oracle", *args.losses, *(f"direct {loss}" for loss in args.direct)]
+    figure_rows: list[tuple[str, list[torch.Tensor]]] = []
     for name in args.exemplars:
         image = exemplar_image(name, SIZE)
         target = torch.from_numpy(image).permute(2, 0, 1)[None].double() / 255
         own = structure_scores(target, None, target)
         record: dict = {"exemplar": own.as_dict(), "rows": {}, "train_seconds": {}}
         pixels = torch.from_numpy(image.reshape(-1, 3)).float() / 127.5 - 1
+        tiles = [torch.nn.functional.interpolate(target, size=(RESOLUTION, RESOLUTION), mode="area")[0]]
         models = {}
         for loss in args.losses:
             save = runs_dir / f"{name}_{loss}.safetensors" if runs_dir else None
@@ -174,11 +181,34 @@ def main() -> int:
                 record["train_seconds"][f"direct {loss} ({mesh})"] = seconds
             for row, (images, masks) in sets.items():
                 record["rows"].setdefault(row, {})[mesh] = structure_scores(images, masks, target).as_dict()
+            tiles += [sets[row][0][args.figure_view] for row in shown]
         results["exemplars"][name] = record
+        figure_rows.append((name, tiles))
+        if args.figure:
+            write_figure(Path(args.figure), figure_rows, ["exemplar"] + [f"{m}: {row}" for m in graphs for row in shown])
         print_exemplar(name, record, list(graphs), args.losses + [f"direct {loss}" for loss in args.direct])
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1))
     return 0
+
+
+def write_figure(path: Path, rows: list[tuple[str, list[torch.Tensor]]], columns: list[str]) -> None:
+    """A grid of tiles ((3, H, W) in [0, 1]), one row per exemplar, the ``columns`` named above them."""
+    from PIL import Image, ImageDraw
+
+    side, label = RESOLUTION, 14
+    image = Image.new("RGB", (side * len(columns), label + (side + label) * len(rows)), "white")
+    draw = ImageDraw.Draw(image)
+    for c, title in enumerate(columns):
+        draw.text((c * side + 3, 1), title, fill="black")
+    for r, (name, tiles) in enumerate(rows):
+        top = label + r * (side + label)
+        draw.text((3, top + 1), name, fill="black")
+        for c, tile in enumerate(tiles):
+            pixels = (tile.clamp(0, 1).permute(1, 2, 0).numpy() * 255 + 0.5).astype("uint8")
+            image.paste(Image.fromarray(pixels), (c * side, top + label))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    image.save(path)
 
 
 def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]) -> None:

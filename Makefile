@@ -26,6 +26,7 @@ test: .install-stamp lint docs
 
 lint: .install-stamp
 	$(VPY) -m ruff check .
+	$(VPY) -m ruff format --check .
 
 docs: .install-stamp
 	NO_MKDOCS_2_WARNING=1 $(VPY) -m mkdocs build --strict --site-dir build/site

@@ -136,7 +136,9 @@ def check(path: Path, role: str, preview: Path | None = None) -> str:
 
             rgb, alpha = load_image(path)
             return f"{path.name}: {rgb.shape[1]} x {rgb.shape[0]} pixels{' with a mask' if alpha is not None else ''}"
-        if role == "nca":  # read as 'infer nca' reads it: a mesh2tex automaton checkpoint, its weights fitting its config
+        if (
+            role == "nca"
+        ):  # read as 'infer nca' reads it: a mesh2tex automaton checkpoint, its weights fitting its config
             from mesh2tex.models import load_nca
 
             load_nca(path)

@@ -25,15 +25,27 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "app" / "static" / "examples" / "chair.obj"
-BROWSER_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+BROWSER_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 
 def start_app(folder: Path) -> tuple[subprocess.Popen, str]:
     """``mesh2tex app --port 0`` in the background; its process and address."""
     env = {**os.environ, "TMPDIR": str(folder), "PYTHONPATH": str(ROOT)}
-    process = subprocess.Popen([sys.executable, "-m", "mesh2tex", "app", "--port", "0", "--device", "cpu"], env=env,
-                               stdout=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "mesh2tex", "app", "--port", "0", "--device", "cpu"],
+        env=env,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     line = process.stdout.readline()
     if "http://" not in line:
         raise SystemExit(f"the app did not start: {line}")
@@ -51,8 +63,9 @@ def generate(page, seed: int, timeout_s: float = 600) -> tuple[float, float]:
     page.fill("#seed", str(seed))
     page.dispatch_event("#seed", "change")
     page.click("#generate")
-    page.wait_for_function("window.mesh2tex.loaded > 0 || !document.getElementById('error').hidden",
-                           timeout=timeout_s * 1000)
+    page.wait_for_function(
+        "window.mesh2tex.loaded > 0 || !document.getElementById('error').hidden", timeout=timeout_s * 1000
+    )
     if not page.is_hidden("#error"):
         raise SystemExit(page.inner_text("#error"))
     return page.evaluate("[window.mesh2tex.seconds, window.mesh2tex.jobSeconds]")
@@ -94,8 +107,25 @@ def screenshot(args) -> None:
 
 def cli_seconds(folder: Path, seed: int) -> float:
     out = folder / f"cli{seed}"
-    command = [sys.executable, "-m", "mesh2tex", "infer", "generate", "--checkpoint", "chair", "--mesh", str(EXAMPLE),
-               "--seeds", str(seed), "--views", "1", "--device", "cpu", "--out", str(out)]
+    command = [
+        sys.executable,
+        "-m",
+        "mesh2tex",
+        "infer",
+        "generate",
+        "--checkpoint",
+        "chair",
+        "--mesh",
+        str(EXAMPLE),
+        "--seeds",
+        str(seed),
+        "--views",
+        "1",
+        "--device",
+        "cpu",
+        "--out",
+        str(out),
+    ]
     start = time.perf_counter()
     subprocess.run(command, check=True, capture_output=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
     seconds = time.perf_counter() - start
@@ -118,18 +148,23 @@ def timing(args) -> None:
                 job_s.append(job)
                 page.close()  # a turning model in a software-rendered viewer would take CPU from the command line's run
                 cli_s.append(cli_seconds(Path(folder), 0))
-                print(f"repeat {repeat}: page {seconds:.2f} s (its command {job:.2f} s), "
-                      f"command line {cli_s[-1]:.2f} s", flush=True)
+                print(
+                    f"repeat {repeat}: page {seconds:.2f} s (its command {job:.2f} s), command line {cli_s[-1]:.2f} s",
+                    flush=True,
+                )
             browser.close()
         finally:
             stop_app(process)
     own = [p - j for p, j in zip(page_s, job_s)]
     gaps = [p - c for p, c in zip(page_s, cli_s)]
     print("\n| | median | min | max |\n| --- | --- | --- | --- |")
-    rows = (("page: Generate pressed to the viewer's load event", page_s),
-            ("the page's command, from its start to its end", job_s),
-            ("the page's own time (the two above apart)", own),
-            ("command line: wall time of the same `infer generate`", cli_s), ("page minus command line", gaps))
+    rows = (
+        ("page: Generate pressed to the viewer's load event", page_s),
+        ("the page's command, from its start to its end", job_s),
+        ("the page's own time (the two above apart)", own),
+        ("command line: wall time of the same `infer generate`", cli_s),
+        ("page minus command line", gaps),
+    )
     for name, values in rows:
         print(f"| {name} | {statistics.median(values):.2f} s | {min(values):.2f} s | {max(values):.2f} s |")
 

@@ -37,13 +37,41 @@ os.environ["MESH2TEX_PROGRESS"] = "0"
 
 from bad_input_cases import BOX_OBJ, Case, cases, write  # noqa: E402  (this folder)
 
-TINY_GAN = {"sample_every": 0, "checkpoint_every": 2, "log_every": 1, "sample_shapes": 2,
-            "generator": {"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "encoder_channels": [8, 8, 8], "synthesis_channels": [8, 8, 8],
-                          "field_hidden": 16, "aux_latent_dim": 8},
-            "discriminator": {"channel_base": 64, "channel_max": 16}, "loss": {"r1_interval": 2, "pl_interval": 2}}
-TINY_NCA = {"iters": 2, "batch": 1, "views": 1, "resolution": 32, "steps_min": 2, "steps_max": 3, "pool": 4, "seed_every": 2,
-            "mesh": "sphere:3", "exemplar_size": 32, "vgg_depth": 1, "max_points": 64, "sample_every": 0, "checkpoint_every": 1,
-            "log_every": 1, "nca": {"channels": 6, "hidden": 16}}
+TINY_GAN = {
+    "sample_every": 0,
+    "checkpoint_every": 2,
+    "log_every": 1,
+    "sample_shapes": 2,
+    "generator": {
+        "z_dim": 16,
+        "w_dim": 16,
+        "mapping_layers": 2,
+        "encoder_channels": [8, 8, 8],
+        "synthesis_channels": [8, 8, 8],
+        "field_hidden": 16,
+        "aux_latent_dim": 8,
+    },
+    "discriminator": {"channel_base": 64, "channel_max": 16},
+    "loss": {"r1_interval": 2, "pl_interval": 2},
+}
+TINY_NCA = {
+    "iters": 2,
+    "batch": 1,
+    "views": 1,
+    "resolution": 32,
+    "steps_min": 2,
+    "steps_max": 3,
+    "pool": 4,
+    "seed_every": 2,
+    "mesh": "sphere:3",
+    "exemplar_size": 32,
+    "vgg_depth": 1,
+    "max_points": 64,
+    "sample_every": 0,
+    "checkpoint_every": 1,
+    "log_every": 1,
+    "nca": {"channels": 6, "hidden": 16},
+}
 USER_FILE = "my_notes.txt"
 
 
@@ -58,7 +86,10 @@ def make_fixtures(work: Path) -> dict[str, Path]:
     from mesh2tex.geometry.prepare import prepare_shape
     from mesh2tex.synthetic.exemplars import exemplar_image
 
-    fx = {name: work / name for name in ("shapes", "photos", "gan", "nca", "pose", "world", "exemplar.png", "query.png", "box.obj")}
+    fx = {
+        name: work / name
+        for name in ("shapes", "photos", "gan", "nca", "pose", "world", "exemplar.png", "query.png", "box.obj")
+    }
     if (work / "ready").exists():
         return fx
     fx["shapes"].mkdir(parents=True, exist_ok=True)
@@ -78,13 +109,76 @@ def make_fixtures(work: Path) -> dict[str, Path]:
     query.save(fx["query.png"])
     fx["box.obj"].write_text(BOX_OBJ)
     steps = [
-        ["train", "gan", "--shapes", str(fx["shapes"]), "--images", str(fx["photos"]), "--out", str(fx["gan"]), "--config", str(work / "gan.yaml"),
-         "--iters", "2", "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"],
-        ["train", "nca", "--exemplar", str(fx["exemplar.png"]), "--out", str(fx["nca"]), "--config", str(work / "nca.yaml"), "--device", "cpu"],
-        ["train", "pose", "--shapes", str(fx["shapes"]), "--out", str(fx["pose"]), "--iters", "1", "--samples", "8", "--resolution", "32",
-         "--batch", "4", "--device", "cpu"],
-        ["prepare", "synthetic", "--out", str(fx["world"]), "--shapes", "2", "--query-shapes", "1", "--views", "2", "--resolution", "32",
-         "--texture-size", "64", "--query-views", "1"],
+        [
+            "train",
+            "gan",
+            "--shapes",
+            str(fx["shapes"]),
+            "--images",
+            str(fx["photos"]),
+            "--out",
+            str(fx["gan"]),
+            "--config",
+            str(work / "gan.yaml"),
+            "--iters",
+            "2",
+            "--batch",
+            "2",
+            "--views",
+            "2",
+            "--resolution",
+            "16",
+            "--device",
+            "cpu",
+        ],
+        [
+            "train",
+            "nca",
+            "--exemplar",
+            str(fx["exemplar.png"]),
+            "--out",
+            str(fx["nca"]),
+            "--config",
+            str(work / "nca.yaml"),
+            "--device",
+            "cpu",
+        ],
+        [
+            "train",
+            "pose",
+            "--shapes",
+            str(fx["shapes"]),
+            "--out",
+            str(fx["pose"]),
+            "--iters",
+            "1",
+            "--samples",
+            "8",
+            "--resolution",
+            "32",
+            "--batch",
+            "4",
+            "--device",
+            "cpu",
+        ],
+        [
+            "prepare",
+            "synthetic",
+            "--out",
+            str(fx["world"]),
+            "--shapes",
+            "2",
+            "--query-shapes",
+            "1",
+            "--views",
+            "2",
+            "--resolution",
+            "32",
+            "--texture-size",
+            "64",
+            "--query-views",
+            "1",
+        ],
     ]
     for argv in steps:
         made = Path(argv[argv.index("--out") + 1])
@@ -98,7 +192,11 @@ def make_fixtures(work: Path) -> dict[str, Path]:
 
 # ------------------------------------------------------------------------------------------- cases
 def snapshot(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file() and not p.is_symlink()} if folder.is_dir() else {}
+    return (
+        {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file() and not p.is_symlink()}
+        if folder.is_dir()
+        else {}
+    )
 
 
 def run_case(case: Case, fx: dict, folder: Path, timeout: float) -> dict:
@@ -158,10 +256,18 @@ def run_case(case: Case, fx: dict, folder: Path, timeout: float) -> dict:
     else:
         silent = code != 0 or case.accept not in said  # an awkward input that is fine must be done, and said
     errors = [line for line in lines if line.startswith("mesh2tex: error:")]
-    return {"case": case.name, "kind": case.kind, "exit": code, "seconds": round(time.perf_counter() - start, 2),
-            "traceback": int(traceback_seen), "silent": int(bool(silent) and not hang), "lost": len(lost), "hang": int(hang),
-            "long": int(any(len(line.encode()) > 1024 for line in lines)),
-            "message": (errors[-1] if errors else (lines[-1] if lines else ""))[:300]}
+    return {
+        "case": case.name,
+        "kind": case.kind,
+        "exit": code,
+        "seconds": round(time.perf_counter() - start, 2),
+        "traceback": int(traceback_seen),
+        "silent": int(bool(silent) and not hang),
+        "lost": len(lost),
+        "hang": int(hang),
+        "long": int(any(len(line.encode()) > 1024 for line in lines)),
+        "message": (errors[-1] if errors else (lines[-1] if lines else ""))[:300],
+    }
 
 
 def main() -> int:
@@ -185,13 +291,26 @@ def main() -> int:
         results.append(result)
         bad = [key for key in ("traceback", "silent", "lost", "hang", "long") if result[key]]
         if args.list or bad:
-            print(f"{'BAD ' + ','.join(bad) if bad else 'ok':>16}  {result['exit']!s:>4}  {case.kind:6}  {case.name}: {result['message']}", flush=True)
+            print(
+                f"{'BAD ' + ','.join(bad) if bad else 'ok':>16}  {result['exit']!s:>4}  {case.kind:6}  {case.name}: "
+                f"{result['message']}",
+                flush=True,
+            )
     (runs / "results.json").write_text(json.dumps(results, indent=1))
     kinds = sorted({r["kind"] for r in results})
     per_kind = ", ".join(f"{sum(r['kind'] == k for r in results)} {k}" for k in kinds)
-    print(f"\n{len(results)} cases ({per_kind}) in {time.perf_counter() - start:.0f} s; details in {runs / 'results.json'}\n")
+    print(
+        f"\n{len(results)} cases ({per_kind}) in {time.perf_counter() - start:.0f} s; details in "
+        f"{runs / 'results.json'}\n"
+    )
     print("| count | value |\n| --- | --- |")
-    totals = {"tracebacks": "traceback", "silent results": "silent", "files lost": "lost", "hangs": "hang", "messages over 1 kB": "long"}
+    totals = {
+        "tracebacks": "traceback",
+        "silent results": "silent",
+        "files lost": "lost",
+        "hangs": "hang",
+        "messages over 1 kB": "long",
+    }
     for label, key in totals.items():
         print(f"| {label} | {sum(r[key] for r in results)} |")
     refused = sum(r["exit"] == 2 for r in results)

@@ -47,7 +47,10 @@ def main() -> None:
         before = peak_mb()
         start = time.perf_counter()
         bake_texture(generator, texture, batch, args.size)
-    print(f"bake at {args.size}^2: {time.perf_counter() - start:.1f} s, peak RSS {peak_mb():.0f} MB ({before:.0f} MB before the bake)")
+    print(
+        f"bake at {args.size}^2: {time.perf_counter() - start:.1f} s, peak RSS {peak_mb():.0f} MB ({before:.0f} MB "
+        "before the bake)"
+    )
 
 
 if __name__ == "__main__":

@@ -44,7 +44,8 @@ import torch
 import trimesh
 
 ROOT = Path(__file__).resolve().parents[1]
-SAME_POINT = 0.01  # fidelity: two renders show the same point of the object when their points are this close (bbox diagonals)
+# fidelity: two renders show the same point of the object when their points are this close (bbox diagonals)
+SAME_POINT = 0.01
 sys.path.insert(0, str(ROOT / "tests"))  # the meshes a user brings, made apart from the world (tests/user_assets.py)
 
 
@@ -103,7 +104,9 @@ def surface_positions(vertices, faces, mvp: torch.Tensor, size: int):
     return interpolate(vertices, raster, faces), raster.face_id >= 0, raster
 
 
-def render_baked(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texture: np.ndarray, mvp: torch.Tensor, size: int):
+def render_baked(
+    vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texture: np.ndarray, mvp: torch.Tensor, size: int
+):
     """The baked mesh (vertices in the working frame) rendered with its texture: images (N, 3, H, W) in
     [-1, 1], mask (N, H, W), the surface point at each pixel (N, H, W, 3)."""
     from mesh2tex.render import interpolate, sample_texture as sample
@@ -120,14 +123,22 @@ def plain_renders(vertices, faces, mvp: torch.Tensor, size: int) -> torch.Tensor
     from mesh2tex.render import render_normals
 
     _, mask, raster = surface_positions(vertices, faces, mvp, size)
-    normals = render_normals(torch.as_tensor(np.asarray(vertices), dtype=torch.float32), torch.as_tensor(np.asarray(faces), dtype=torch.int64),
-                             raster, smooth=False)
-    light = torch.nn.functional.normalize(torch.linalg.inv(mvp)[:, :3, 2], dim=-1)[:, None, None, :]  # towards the camera
+    normals = render_normals(
+        torch.as_tensor(np.asarray(vertices), dtype=torch.float32),
+        torch.as_tensor(np.asarray(faces), dtype=torch.int64),
+        raster,
+        smooth=False,
+    )
+    light = torch.nn.functional.normalize(torch.linalg.inv(mvp)[:, :3, 2], dim=-1)[
+        :, None, None, :
+    ]  # towards the camera
     grey = 0.35 + 0.55 * (normals * light).sum(-1).abs()
     return torch.where(mask, grey * 2 - 1, torch.ones_like(grey))[:, None].expand(-1, 3, -1, -1)
 
 
-def seam_zoom(vertices, faces, uv, texture, mvp: torch.Tensor, size: int = 512, window: int = 64, scale: int = 4) -> np.ndarray:
+def seam_zoom(
+    vertices, faces, uv, texture, mvp: torch.Tensor, size: int = 512, window: int = 64, scale: int = 4
+) -> np.ndarray:
     """A zoom on the atlas's seams in one view: the ``window``-pixel square of a ``size`` render where
     the most seams cross the object (neighbouring pixels whose UVs jump: another chart), enlarged
     ``scale`` times, beside the same square with those seams marked red. (H, 2W, 3) uint8."""
@@ -144,9 +155,13 @@ def seam_zoom(vertices, faces, uv, texture, mvp: torch.Tensor, size: int = 512, 
     counts = torch.nn.functional.avg_pool2d(seams[None, None], window, stride=8)[0, 0]
     row, col = divmod(int(counts.argmax()), counts.shape[1])
     top, left = row * 8, col * 8
-    crop = ((images[0].permute(1, 2, 0).numpy() + 1) * 127.5).clip(0, 255).astype(np.uint8)[top:top + window, left:left + window]
+    crop = (
+        ((images[0].permute(1, 2, 0).numpy() + 1) * 127.5)
+        .clip(0, 255)
+        .astype(np.uint8)[top : top + window, left : left + window]
+    )
     marked = crop.copy()
-    marked[seams.numpy()[top:top + window, left:left + window] > 0] = (255, 0, 0)
+    marked[seams.numpy()[top : top + window, left : left + window] > 0] = (255, 0, 0)
     return np.concatenate([crop, marked], axis=1).repeat(scale, axis=0).repeat(scale, axis=1)
 
 
@@ -172,7 +187,10 @@ def fidelity(args) -> None:
     white = torch.ones(8, 3)
     folder = Path(tempfile.mkdtemp(prefix="bake-"))
     print(f"texture {args.size}^2, 8 views at 256 px, pixels 2 px inside both silhouettes; CIELAB difference (CIE76)")
-    print(f"{'mesh':24s} {'target':9s} {'pixels of':11s} {'triangles':>9s} {'uv':>4s} {'pixels':>7s} {'median':>7s} {'p99':>6s} {'max dist':>8s}")
+    print(
+        f"{'mesh':24s} {'target':9s} {'pixels of':11s} {'triangles':>9s} {'uv':>4s} {'pixels':>7s} {'median':>7s} "
+        f"{'p99':>6s} {'max dist':>8s}"
+    )
     for name, path in fidelity_meshes(folder).items():
         shape, target = load_shape(path, generator, model.face_count())
         batch = collate_shapes([shape])
@@ -181,33 +199,52 @@ def fidelity(args) -> None:
             reference = render_field_views(generator, batch, None, mvp, (256, 256), white, texture=texture)
 
             baked = MeshBaker(target, batch.shape_vertices(0), batch.shape_triangles(0), args.size).bake(texture)
-            user_images, user_mask, user_points = render_baked(target.surface_points(baked.vertices), baked.faces, baked.uv,
-                                                               baked.texture, mvp, 256)
+            user_images, user_mask, user_points = render_baked(
+                target.surface_points(baked.vertices), baked.faces, baked.uv, baked.texture, mvp, 256
+            )
             p_vertices, p_faces, p_uv, p_texture, _ = bake_texture(generator, texture, batch, args.size)
-            prepared_images, prepared_mask, _ = render_baked(p_vertices.numpy(), p_faces.numpy(), p_uv.numpy(), p_texture, mvp, 256)
+            prepared_images, prepared_mask, _ = render_baked(
+                p_vertices.numpy(), p_faces.numpy(), p_uv.numpy(), p_texture, mvp, 256
+            )
             reference_points, _, _ = surface_positions(batch.shape_vertices(0), batch.shape_triangles(0), mvp, 256)
         inside = eroded(reference.mask[:, 0] > 0.5)
         # pixels where the two meshes show the same point of the object (within 1 % of its size): not
         # where one shows a leg and the other the seat behind it, an edge of the remeshed copy
         same_point = (user_points - reference_points).norm(dim=-1) < SAME_POINT
         for label, images, mask, triangles, uv, far, where in (
-                ("input", user_images, user_mask, len(baked.faces), baked.atlas.source, float(baked.surface_distance.max()), same_point),
-                ("prepared", prepared_images, prepared_mask, len(p_faces), "new", 0.0, torch.ones_like(same_point))):
+            (
+                "input",
+                user_images,
+                user_mask,
+                len(baked.faces),
+                baked.atlas.source,
+                float(baked.surface_distance.max()),
+                same_point,
+            ),
+            ("prepared", prepared_images, prepared_mask, len(p_faces), "new", 0.0, torch.ones_like(same_point)),
+        ):
             both = inside & eroded(mask)
             for scope, pixels in (("silhouettes", both), ("same point", both & where)):
                 delta = lab_difference(images, reference.images)[pixels]
-                print(f"{name:24s} {label:9s} {scope:11s} {triangles:9d} {uv:>4s} {int(pixels.sum()):7d} {float(delta.median()):7.2f} "
-                      f"{float(torch.quantile(delta, 0.99)):6.2f} {far:8.4f}")
+                print(
+                    f"{name:24s} {label:9s} {scope:11s} {triangles:9d} {uv:>4s} {int(pixels.sum()):7d} "
+                    f"{float(delta.median()):7.2f} {float(torch.quantile(delta, 0.99)):6.2f} {far:8.4f}"
+                )
         if args.out:
             out = Path(args.out)
             out.mkdir(parents=True, exist_ok=True)
-            strip = lambda images: np.concatenate([((i.permute(1, 2, 0).numpy() + 1) * 127.5).clip(0, 255).astype(np.uint8) for i in images[:4]], axis=1)
+            strip = lambda images: np.concatenate(
+                [((i.permute(1, 2, 0).numpy() + 1) * 127.5).clip(0, 255).astype(np.uint8) for i in images[:4]], axis=1
+            )
             slug = name.split(" ")[0] + ("_z_up" if "z-up" in name else "")
             before = plain_renders(target.surface_points(target.mesh.vertices), target.mesh.faces, mvp, 256)
-            Image.fromarray(np.concatenate([strip(before), strip(reference.images), strip(user_images)], axis=0)).save(out / f"bake_{slug}.png")
+            Image.fromarray(np.concatenate([strip(before), strip(reference.images), strip(user_images)], axis=0)).save(
+                out / f"bake_{slug}.png"
+            )
             Image.fromarray(baked.texture).save(out / f"bake_{slug}_texture.png")
-            Image.fromarray(seam_zoom(target.surface_points(baked.vertices), baked.faces, baked.uv, baked.texture, mvp[:1])).save(
-                out / f"bake_{slug}_seam.png")
+            Image.fromarray(
+                seam_zoom(target.surface_points(baked.vertices), baked.faces, baked.uv, baked.texture, mvp[:1])
+            ).save(out / f"bake_{slug}_seam.png")
 
 
 def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
@@ -249,15 +286,24 @@ def timed_bake(triangles: int, size: int, shape: str = "chair") -> dict:
         tick = time.perf_counter()
         bake_texture(generator, texture, batch, size)
         seconds["reference: bake onto the prepared shape"] = time.perf_counter() - tick
-    seconds["user bake (map + colours + write)"] = (seconds["map (atlas, raster, closest points)"] + seconds["colours"]
-                                                    + seconds["write GLB + PLY"])
-    return {"triangles": len(mesh.faces), "texels": size * size, "coverage": float(baked.coverage.mean()), "seconds": seconds}
+    seconds["user bake (map + colours + write)"] = (
+        seconds["map (atlas, raster, closest points)"] + seconds["colours"] + seconds["write GLB + PLY"]
+    )
+    return {
+        "triangles": len(mesh.faces),
+        "texels": size * size,
+        "coverage": float(baked.coverage.mean()),
+        "seconds": seconds,
+    }
 
 
 def time_bake(args) -> None:
     torch.set_num_threads(args.threads)
     result = timed_bake(args.triangles, args.size, args.shape)
-    print(f"{args.shape}: {result['triangles']} triangles, {args.size}^2 texels ({100 * result['coverage']:.0f} % covered), {args.threads} torch thread(s)")
+    print(
+        f"{args.shape}: {result['triangles']} triangles, {args.size}^2 texels ({100 * result['coverage']:.0f} % "
+        f"covered), {args.threads} torch thread(s)"
+    )
     reference = result["seconds"]["reference: bake onto the prepared shape"]
     for part, value in result["seconds"].items():
         print(f"  {part:42s} {value:7.2f} s  ({value / reference:5.2f}x the reference)")
@@ -269,12 +315,37 @@ def memory(args) -> None:
     mesh = chair_mesh(args.triangles)
     mesh.export(folder / "chair.ply")
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "mesh2tex", "infer", "generate", "--checkpoint", "chair", "--mesh", str(folder / "chair.ply"),
-                    "--out", str(folder / "out"), "--seeds", "0", "--views", "1", "--resolution", "64", "--texture-size", str(args.size)],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mesh2tex",
+            "infer",
+            "generate",
+            "--checkpoint",
+            "chair",
+            "--mesh",
+            str(folder / "chair.ply"),
+            "--out",
+            str(folder / "out"),
+            "--seeds",
+            "0",
+            "--views",
+            "1",
+            "--resolution",
+            "64",
+            "--texture-size",
+            str(args.size),
+        ],
+        check=True,
+        capture_output=True,
+    )
     seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20  # kB -> GiB
-    print(f"infer generate on {len(mesh.faces)} triangles at {args.size}^2 texels: {seconds:.0f} s, peak resident memory {peak:.2f} GiB")
+    print(
+        f"infer generate on {len(mesh.faces)} triangles at {args.size}^2 texels: {seconds:.0f} s, peak resident "
+        f"memory {peak:.2f} GiB"
+    )
 
 
 def main() -> None:
@@ -283,7 +354,9 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=1024)
     parser.add_argument("--triangles", type=int, default=None)
     parser.add_argument("--threads", type=int, default=1)
-    parser.add_argument("--shape", choices=["chair", "blob"], default="chair", help="time: a subdivided world chair, or a bumpy blob")
+    parser.add_argument(
+        "--shape", choices=["chair", "blob"], default="chair", help="time: a subdivided world chair, or a bumpy blob"
+    )
     parser.add_argument("--out", help="fidelity: folder for the side-by-side renders")
     args = parser.parse_args()
     if args.what == "fidelity":

@@ -65,8 +65,10 @@ def main() -> None:
                 if i >= 2:  # two warm-up rounds
                     times[layout].append((time.perf_counter() - start) * 1e3)
         medians = {layout: statistics.median(t) for layout, t in times.items()}
-        print(f"{name}: contiguous {medians['contiguous']:.1f} ms, channels-last {medians['channels-last']:.1f} ms, "
-              f"speed-up {medians['contiguous'] / medians['channels-last']:.2f}")
+        print(
+            f"{name}: contiguous {medians['contiguous']:.1f} ms, channels-last {medians['channels-last']:.1f} ms, "
+            f"speed-up {medians['contiguous'] / medians['channels-last']:.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -57,6 +57,7 @@ TARGET_SECONDS = 2.0
 def sustained_rates(reps: int = 5) -> dict[str, float]:
     """GFLOP/s this process sustains now: a 2048^3 float32 matmul, and a 3x3 convolution of 64 channels on
     8 images of 64 x 64 (the discriminators' middle blocks)."""
+
     def rate(fn, flops: float) -> float:
         fn()  # warm-up
         start = time.perf_counter()
@@ -66,8 +67,12 @@ def sustained_rates(reps: int = 5) -> dict[str, float]:
 
     a, b = torch.randn(2048, 2048), torch.randn(2048, 2048)
     x, w = torch.randn(8, 64, 64, 64), torch.randn(64, 64, 3, 3)
-    return {"matmul 2048^3": rate(lambda: a @ b, 2 * 2048**3),
-            "conv 3x3, 64 ch, 8 x 64^2": rate(lambda: torch.nn.functional.conv2d(x, w, padding=1), 2 * 8 * 64 * 64 * 64 * 64 * 9)}
+    return {
+        "matmul 2048^3": rate(lambda: a @ b, 2 * 2048**3),
+        "conv 3x3, 64 ch, 8 x 64^2": rate(
+            lambda: torch.nn.functional.conv2d(x, w, padding=1), 2 * 8 * 64 * 64 * 64 * 64 * 9
+        ),
+    }
 
 
 def flop_account(version: "Version", trainer, seconds: dict[bool, float]) -> None:
@@ -92,26 +97,89 @@ def flop_account(version: "Version", trainer, seconds: dict[bool, float]) -> Non
         s = seconds.get(greg, float("nan"))
         achieved = flops / s / 1e9
         shares = ", ".join(f"{achieved / r:.2f} of the {name}'s {r:.0f}" for name, r in rates.items())
-        print(f"  {'with path-length reg' if greg else 'main phases only'}: {flops / 1e9:.1f} GFLOP in {s:.3f} s = {achieved:.1f} GFLOP/s; "
-              f"{shares} GFLOP/s sustained")
+        print(
+            f"  {'with path-length reg' if greg else 'main phases only'}: {flops / 1e9:.1f} GFLOP in {s:.3f} s = "
+            f"{achieved:.1f} GFLOP/s; {shares} GFLOP/s sustained"
+        )
     main_s = seconds.get(False, float("nan"))
     drawn = statistics.median(scene)
-    print(f"  not counted: the scene (rasterizing {trainer.cfg.batch * trainer.cfg.views} views) {drawn:.3f} s = {drawn / main_s:.0%} of a "
-          f"main-only step; at the matmul's rate the counted work would take {counted[False] / 1e9 / rates['matmul 2048^3']:.3f} s, "
-          f"the rest ({max(main_s - drawn - counted[False] / 1e9 / rates['matmul 2048^3'], 0.0):.3f} s) is gathers and scatters, "
-          "elementwise ops and Python")
+    print(
+        f"  not counted: the scene (rasterizing {trainer.cfg.batch * trainer.cfg.views} views) {drawn:.3f} s = "
+        f"{drawn / main_s:.0%} of a main-only step; at the matmul's rate the counted work would take "
+        f"{counted[False] / 1e9 / rates['matmul 2048^3']:.3f} s, "
+        f"the rest ({max(main_s - drawn - counted[False] / 1e9 / rates['matmul 2048^3'], 0.0):.3f} s) is gathers and "
+        "scatters, elementwise ops and Python"
+    )
 
 
 # Where a step's time goes, by what the operators do (torch.profiler's self time of each aten operator).
 # The first category whose names hold the operator's wins; anything else of aten is elementwise arithmetic.
 OP_CATEGORIES = (
-    ("matmuls and convolutions (the counted FLOPs)", ("mm", "addmm", "bmm", "baddbmm", "matmul", "linear", "conv", "addmv")),
-    ("gathers and scatters (face neighbourhoods, rows)", ("index", "gather", "scatter", "take", "embedding", "segment")),
-    ("copies, layout and allocation", ("copy", "clone", "contiguous", "_to_", "cat", "stack", "permute", "reshape", "view", "expand",
-                                       "narrow", "slice", "select", "transpose", "pad", "empty", "zero", "ones", "full", "fill",
-                                       "as_strided", "unsqueeze", "squeeze", "flatten", "split", "chunk", "unbind", "detach", "alias")),
-    ("reductions, pooling and sorting", ("sum", "mean", "amax", "amin", "max", "min", "norm", "pool", "var", "std", "softmax",
-                                         "logsumexp", "cumsum", "sort", "topk", "bincount", "nonzero", "unique")),
+    (
+        "matmuls and convolutions (the counted FLOPs)",
+        ("mm", "addmm", "bmm", "baddbmm", "matmul", "linear", "conv", "addmv"),
+    ),
+    (
+        "gathers and scatters (face neighbourhoods, rows)",
+        ("index", "gather", "scatter", "take", "embedding", "segment"),
+    ),
+    (
+        "copies, layout and allocation",
+        (
+            "copy",
+            "clone",
+            "contiguous",
+            "_to_",
+            "cat",
+            "stack",
+            "permute",
+            "reshape",
+            "view",
+            "expand",
+            "narrow",
+            "slice",
+            "select",
+            "transpose",
+            "pad",
+            "empty",
+            "zero",
+            "ones",
+            "full",
+            "fill",
+            "as_strided",
+            "unsqueeze",
+            "squeeze",
+            "flatten",
+            "split",
+            "chunk",
+            "unbind",
+            "detach",
+            "alias",
+        ),
+    ),
+    (
+        "reductions, pooling and sorting",
+        (
+            "sum",
+            "mean",
+            "amax",
+            "amin",
+            "max",
+            "min",
+            "norm",
+            "pool",
+            "var",
+            "std",
+            "softmax",
+            "logsumexp",
+            "cumsum",
+            "sort",
+            "topk",
+            "bincount",
+            "nonzero",
+            "unique",
+        ),
+    ),
 )
 
 
@@ -146,7 +214,10 @@ def profile_account(version: "Version", trainer, steps: int = 3) -> None:
                 category = op_category(event.key)
                 by_category[category] = by_category.get(category, 0.0) + event.self_cpu_time_total / 1e6
                 by_op[event.key] = by_op.get(event.key, 0.0) + event.self_cpu_time_total / 1e6
-    print(f"\nwhere a main-only step's time goes (torch.profiler, {steps} steps, {wall / steps:.3f} s each while profiled):")
+    print(
+        f"\nwhere a main-only step's time goes (torch.profiler, {steps} steps, {wall / steps:.3f} s each while "
+        "profiled):"
+    )
     for category, seconds in sorted(by_category.items(), key=lambda item: -item[1]):
         print(f"  {category:66s} {seconds / steps:7.3f} s  {seconds / wall:5.1%}")
     rest = wall - sum(by_category.values())
@@ -165,7 +236,12 @@ class Version:
             from mesh2tex.config import load_config
             from mesh2tex.train import runs
             from mesh2tex.train.gan import GanTrainer, TrainGanConfig
-        self.load_config, self.runs, self.GanTrainer, self.TrainGanConfig = load_config, runs, GanTrainer, TrainGanConfig
+        self.load_config, self.runs, self.GanTrainer, self.TrainGanConfig = (
+            load_config,
+            runs,
+            GanTrainer,
+            TrainGanConfig,
+        )
 
     def active(self):
         return self.revision.active() if self.revision else contextlib.nullcontext()
@@ -173,13 +249,24 @@ class Version:
     def trainer(self, args, shapes, folder: str, config: str | None = None):
         """A fresh trainer (its constructor seeds every generator) on ``shapes`` and a random photo set."""
         with self.active():
-            cfg = self.load_config(self.TrainGanConfig, config, {"batch": args.batch, "views": args.views, "resolution": args.resolution,
-                                                                      "device": args.device, "iters": 10**6})
+            cfg = self.load_config(
+                self.TrainGanConfig,
+                config,
+                {
+                    "batch": args.batch,
+                    "views": args.views,
+                    "resolution": args.resolution,
+                    "device": args.device,
+                    "iters": 10**6,
+                },
+            )
             cfg.generator.input_features = shapes[0].face_features.shape[1]
             device = self.runs.select_device(cfg.device)
             rng = np.random.default_rng(0)
             images = torch.from_numpy(rng.integers(0, 256, (32, 4, cfg.resolution, cfg.resolution), dtype=np.uint8))
-            return self.GanTrainer(cfg, shapes, images, self.runs.RunDirectory(folder), device, self.runs.Distributed("cpu"))
+            return self.GanTrainer(
+                cfg, shapes, images, self.runs.RunDirectory(folder), device, self.runs.Distributed("cpu")
+            )
 
     def step(self, trainer) -> tuple[float, dict[str, float]]:
         """Seconds of one iteration and its logged scalars."""
@@ -199,12 +286,21 @@ def check(versions: list[Version], args, shapes, tmp: str) -> None:
     for version in versions:
         trainer = version.trainer(args, shapes, f"{tmp}/check-{version.name}", args.config)
         logs[version.name] = [version.step(trainer)[1] for _ in range(args.check)]
-        weights[version.name] = {name: module.state_dict() for name, module in
-                                 (("generator", trainer.generator), ("d_field", trainer.d_field), ("d_proxy", trainer.d_proxy))}
+        weights[version.name] = {
+            name: module.state_dict()
+            for name, module in (
+                ("generator", trainer.generator),
+                ("d_field", trainer.d_field),
+                ("d_proxy", trainer.d_proxy),
+            )
+        }
         del trainer
     old, new = (logs[v.name] for v in versions)
-    print(f"agreement of the logged scalars (rounded to 1e-6), |previous - current| relative to |previous|: in the first "
-          f"iteration (same weights) and the largest over {args.check} (Adam's normalised steps amplify rounding differences)")
+    print(
+        f"agreement of the logged scalars (rounded to 1e-6), |previous - current| relative to |previous|: in the first "
+        f"iteration (same weights) and the largest over {args.check} (Adam's normalised steps amplify rounding "
+        "differences)"
+    )
     for key in old[0]:
         a = np.array([step[key] for step in old if key in step])
         b = np.array([step[key] for step in new if key in step])
@@ -238,9 +334,20 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     parser.add_argument("--previous", default="", help="also time the trainer of this git revision, in alternation")
     parser.add_argument("--previous-config", help="with --previous: that version's config (default: --config)")
-    parser.add_argument("--check", type=int, default=0, help="with --previous: compare the logged losses of this many seeded iterations first")
-    parser.add_argument("--flops", action="store_true", help="count the step's FLOPs and compare with the sustained matmul and conv rates")
-    parser.add_argument("--profile", action="store_true", help="split a main-only step's time by what its operators do (torch.profiler)")
+    parser.add_argument(
+        "--check",
+        type=int,
+        default=0,
+        help="with --previous: compare the logged losses of this many seeded iterations first",
+    )
+    parser.add_argument(
+        "--flops",
+        action="store_true",
+        help="count the step's FLOPs and compare with the sustained matmul and conv rates",
+    )
+    parser.add_argument(
+        "--profile", action="store_true", help="split a main-only step's time by what its operators do (torch.profiler)"
+    )
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -260,12 +367,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         if args.check:
             check(versions, args, shapes, tmp)
-        configs = [args.previous_config or args.config, args.config][-len(versions):]
+        configs = [args.previous_config or args.config, args.config][-len(versions) :]
         trainers = [v.trainer(args, shapes, f"{tmp}/{i}", c) for i, (v, c) in enumerate(zip(versions, configs))]
         first = trainers[-1]
         params = sum(p.numel() for p in first.generator.parameters())
         dparams = sum(p.numel() for p in first.d_field.parameters())
-        print(f"device {first.device}, threads {torch.get_num_threads()}, generator {params / 1e6:.2f} M parameters, each discriminator {dparams / 1e6:.2f} M")
+        print(
+            f"device {first.device}, threads {torch.get_num_threads()}, generator {params / 1e6:.2f} M parameters, "
+            f"each discriminator {dparams / 1e6:.2f} M"
+        )
         for version, trainer in zip(versions, trainers):
             version.step(trainer)  # warm-up (iteration 0 runs every regulariser)
         times: list[list[tuple[float, bool]]] = [[] for _ in versions]
@@ -283,13 +393,17 @@ def main() -> None:
     pl_interval = first.cfg.loss.pl_interval
     for version, t in zip(versions, times):
         m, p, amortised, n_m, n_p = summary(t, pl_interval)
-        print(f"{version.name}: seconds per iteration: main phases {m:.3f} (n={n_m}), with path-length reg {p:.3f} (n={n_p}), "
-              f"amortised {amortised:.3f}, mean of all {len(t)} {statistics.mean(s for s, _ in t):.3f}")
+        print(
+            f"{version.name}: seconds per iteration: main phases {m:.3f} (n={n_m}), with path-length reg {p:.3f} "
+            f"(n={n_p}), amortised {amortised:.3f}, mean of all {len(t)} {statistics.mean(s for s, _ in t):.3f}"
+        )
     if len(versions) == 2:
         old, new = (summary(t, pl_interval) for t in times)
         mean_old, mean_new = (statistics.mean(s for s, _ in t) for t in times)
-        print(f"speed-up previous / current: main phases {old[0] / new[0]:.2f}, with path-length reg {old[1] / new[1]:.2f}, "
-              f"amortised {old[2] / new[2]:.2f}, mean of all {mean_old / mean_new:.2f}")
+        print(
+            f"speed-up previous / current: main phases {old[0] / new[0]:.2f}, with path-length reg "
+            f"{old[1] / new[1]:.2f}, amortised {old[2] / new[2]:.2f}, mean of all {mean_old / mean_new:.2f}"
+        )
     both = " (both versions)" if len(versions) == 2 else ""
     print(f"peak memory {peak:.2f} GB ({'CUDA allocator' if first.device.type == 'cuda' else 'process RSS'}){both}")
     print(f"ratio to the {TARGET_SECONDS:.0f} s target: {summary(times[-1], pl_interval)[2] / TARGET_SECONDS:.2f}")

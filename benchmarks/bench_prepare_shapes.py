@@ -47,8 +47,11 @@ def built_shapes() -> dict[str, tuple[np.ndarray, np.ndarray]]:
     parts = []
     for k in range(12):
         centre = rng.uniform(-1.5, 1.5, 3)
-        parts.append(trimesh.creation.icosphere(2, radius=rng.uniform(0.1, 0.3)).apply_translation(centre) if k % 2
-                     else _box(rng.uniform(0.1, 0.5, 3), centre))
+        parts.append(
+            trimesh.creation.icosphere(2, radius=rng.uniform(0.1, 0.3)).apply_translation(centre)
+            if k % 2
+            else _box(rng.uniform(0.1, 0.5, 3), centre)
+        )
     out["scattered_parts"] = trimesh.util.concatenate(parts)
     # holes and open boundaries: an open tube, a sphere with a large opening, a single sheet
     tube = trimesh.creation.cylinder(0.3, 1.5, sections=48)
@@ -58,8 +61,10 @@ def built_shapes() -> dict[str, tuple[np.ndarray, np.ndarray]]:
     out["open_bowl"] = trimesh.Trimesh(sphere.vertices, sphere.faces[sphere.triangles_center[:, 1] < 0.4])
     xs, zs = np.meshgrid(np.linspace(-1, 1, 40), np.linspace(-1, 1, 40))
     grid = np.stack([xs.ravel(), 0.2 * np.sin(3 * xs.ravel()) * np.cos(2 * zs.ravel()), zs.ravel()], axis=1)
-    cells = np.array([[r * 40 + c, (r + 1) * 40 + c, r * 40 + c + 1] for r in range(39) for c in range(39)]
-                     + [[r * 40 + c + 1, (r + 1) * 40 + c, (r + 1) * 40 + c + 1] for r in range(39) for c in range(39)])
+    cells = np.array(
+        [[r * 40 + c, (r + 1) * 40 + c, r * 40 + c + 1] for r in range(39) for c in range(39)]
+        + [[r * 40 + c + 1, (r + 1) * 40 + c, (r + 1) * 40 + c + 1] for r in range(39) for c in range(39)]
+    )
     out["wavy_sheet"] = trimesh.Trimesh(grid, cells)
     # non-manifold edges: two boxes sharing one edge, and a fin on a third box's edge
     a, b = _box((1, 1, 1), (0, 0, 0)), _box((1, 1, 1), (1, 1, 0))
@@ -75,7 +80,11 @@ def built_shapes() -> dict[str, tuple[np.ndarray, np.ndarray]]:
     out["triangle_soup"] = trimesh.Trimesh(soup_v, np.vstack([soup_f, soup_f[:200]]), process=False)
     # intersecting parts, not merged: a car-like body with wheels pushed into it
     body = _box((2.0, 0.5, 0.9), (0, 0.45, 0))
-    wheels = [trimesh.creation.cylinder(0.22, 0.2, sections=32).apply_translation((x, 0.22, z)) for x in (-0.7, 0.7) for z in (-0.4, 0.4)]
+    wheels = [
+        trimesh.creation.cylinder(0.22, 0.2, sections=32).apply_translation((x, 0.22, z))
+        for x in (-0.7, 0.7)
+        for z in (-0.4, 0.4)
+    ]
     out["intersecting_parts"] = trimesh.util.concatenate([body, _box((1.0, 0.4, 0.8), (-0.1, 0.85, 0))] + wheels)
     # 100k+ triangles: a bumpy sphere
     dense = trimesh.creation.icosphere(7)  # 327 680 triangles
@@ -91,9 +100,31 @@ def world_meshes(world: Path, category: str, count: int) -> dict[str, Path]:
     if count <= 0:
         return {}
     if not (folder / "index.json").exists() or len(list((folder / "meshes").glob("*.obj"))) < count:
-        subprocess.run([sys.executable, "-m", "mesh2tex", "prepare", "synthetic", "--out", str(folder), "--category", category,
-                        "--shapes", str(count), "--views", "1", "--resolution", "32", "--texture-size", "64", "--query-views", "1"],
-                       check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "mesh2tex",
+                "prepare",
+                "synthetic",
+                "--out",
+                str(folder),
+                "--category",
+                category,
+                "--shapes",
+                str(count),
+                "--views",
+                "1",
+                "--resolution",
+                "32",
+                "--texture-size",
+                "64",
+                "--query-views",
+                "1",
+            ],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
     return {p.stem: p for p in sorted((folder / "meshes").glob("*.obj"))[:count]}
 
 
@@ -110,7 +141,9 @@ def ring_fill(neighbors: np.ndarray) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--world", default="bench_world", help="folder of the synthetic chair and car worlds (built when missing)")
+    parser.add_argument(
+        "--world", default="bench_world", help="folder of the synthetic chair and car worlds (built when missing)"
+    )
     parser.add_argument("--chairs", type=int, default=24)
     parser.add_argument("--cars", type=int, default=24)
     parser.add_argument("--faces", type=int, default=6144)
@@ -133,20 +166,43 @@ def main() -> None:
         try:
             shape = prepare_shape(vertices, faces, face_count=args.faces, levels=args.levels, source=name)
         except InputError as error:
-            records.append({"name": name, "triangles": int(len(faces)), "status": "failed", "reason": str(error),
-                            "seconds": round(time.perf_counter() - start, 2)})
+            records.append(
+                {
+                    "name": name,
+                    "triangles": int(len(faces)),
+                    "status": "failed",
+                    "reason": str(error),
+                    "seconds": round(time.perf_counter() - start, 2),
+                }
+            )
             print(f"{name:20s} FAILED {records[-1]['seconds']:6.2f} s  {error}", flush=True)
             continue
         seconds, cpu = time.perf_counter() - start, _cpu_seconds() - cpu_start
         levels = shape.metadata["levels"]
-        record = {"name": name, "triangles": int(len(faces)), "status": "ok", "seconds": round(seconds, 2), "cpu_seconds": round(cpu, 2),
-                  "faces": shape.face_counts, "ratios": [l["ratio"] for l in levels[1:]], "methods": [l["method"] for l in levels],
-                  "warnings": shape.metadata["warnings"], "ring_fill": [round(ring_fill(n), 3) for n in shape.neighbors]}
+        record = {
+            "name": name,
+            "triangles": int(len(faces)),
+            "status": "ok",
+            "seconds": round(seconds, 2),
+            "cpu_seconds": round(cpu, 2),
+            "faces": shape.face_counts,
+            "ratios": [l["ratio"] for l in levels[1:]],
+            "methods": [l["method"] for l in levels],
+            "warnings": shape.metadata["warnings"],
+            "ring_fill": [round(ring_fill(n), 3) for n in shape.neighbors],
+        }
         records.append(record)
-        short = [m.split("(")[0].replace("quadriflow", "QF").replace("surface nets", "SN") + ("*" if m.startswith("quadriflow(input") else "")
-                 for m in record["methods"]]
-        print(f"{name:20s} {seconds:6.2f} s ({cpu:5.2f} s CPU)  faces {record['faces']}  ratios {record['ratios']}  methods {short}  "
-              f"ring {record['ring_fill']}  warnings {len(record['warnings'])}", flush=True)
+        short = [
+            m.split("(")[0].replace("quadriflow", "QF").replace("surface nets", "SN")
+            + ("*" if m.startswith("quadriflow(input") else "")
+            for m in record["methods"]
+        ]
+        print(
+            f"{name:20s} {seconds:6.2f} s ({cpu:5.2f} s CPU)  faces {record['faces']}  ratios {record['ratios']}  "
+            f"methods {short}  "
+            f"ring {record['ring_fill']}  warnings {len(record['warnings'])}",
+            flush=True,
+        )
 
     ok = [r for r in records if r["status"] == "ok"]
     if ok:
@@ -154,11 +210,16 @@ def main() -> None:
         level0 = np.array([r["faces"][0] / args.faces for r in ok])
         seconds = np.array([r["seconds"] for r in ok])
         cpu = np.array([r["cpu_seconds"] for r in ok])
-        print(f"\n{len(ok)} of {len(records)} shapes ok; copied levels (ratio 1.0): {int((ratios <= 1.0).sum())}; "
-              f"ratios {ratios.min():.2f}-{ratios.max():.2f}; level 0 / request {level0.min():.2f}-{level0.max():.2f}; "
-              f"levels with a warning: {sum(len(r['warnings']) for r in ok)}")
-        print(f"seconds per shape: mean {seconds.mean():.1f}, median {np.median(seconds):.1f}, max {seconds.max():.1f} (target: at most 20); "
-              f"CPU seconds (this process and QuadriFlow's child processes): mean {cpu.mean():.1f}, max {cpu.max():.1f}")
+        print(
+            f"\n{len(ok)} of {len(records)} shapes ok; copied levels (ratio 1.0): {int((ratios <= 1.0).sum())}; "
+            f"ratios {ratios.min():.2f}-{ratios.max():.2f}; level 0 / request {level0.min():.2f}-{level0.max():.2f}; "
+            f"levels with a warning: {sum(len(r['warnings']) for r in ok)}"
+        )
+        print(
+            f"seconds per shape: mean {seconds.mean():.1f}, median {np.median(seconds):.1f}, max {seconds.max():.1f} "
+            "(target: at most 20); "
+            f"CPU seconds (this process and QuadriFlow's child processes): mean {cpu.mean():.1f}, max {cpu.max():.1f}"
+        )
     if args.json:
         Path(args.json).write_text(json.dumps(records, indent=1))
 

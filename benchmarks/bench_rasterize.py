@@ -83,8 +83,7 @@ def previous_rasterize(revision: str):
 
 def embree_cast(intersector, mesh, origins, directions):
     """First hits with barycentrics, the way trimesh users get them."""
-    faces, rays, hits = intersector.intersects_id(origins, directions, multiple_hits=False,
-                                                  return_locations=True)
+    faces, rays, hits = intersector.intersects_id(origins, directions, multiple_hits=False, return_locations=True)
     bary = trimesh.triangles.points_to_barycentric(mesh.triangles[faces], hits)
     face_id = np.full(len(origins), -1, dtype=np.int64)
     face_id[rays] = faces
@@ -114,6 +113,7 @@ def compare(name, mesh, case, repeats, device, previous=None, cameras="orbit", c
             if device == "cuda":
                 torch.cuda.synchronize()
             return raster
+
         return call
 
     ours = run(rasterize)
@@ -135,15 +135,24 @@ def compare(name, mesh, case, repeats, device, previous=None, cameras="orbit", c
         for key, fn in contenders.items():
             times[key].append(timed(fn, repeats, CLOCKS[clock]))
     best = {key: min(value) for key, value in times.items()}
-    result = {"mesh": name, "triangles": len(mesh.faces), "case": case, "device": device,
-              "threads": torch.get_num_threads(), "cameras": cameras, "clock": clock,
-              "face_id_agreement": round(float(agree), 5),
-              "ratio": round(best["ours"][0] / best["embree"][0], 3)}
+    result = {
+        "mesh": name,
+        "triangles": len(mesh.faces),
+        "case": case,
+        "device": device,
+        "threads": torch.get_num_threads(),
+        "cameras": cameras,
+        "clock": clock,
+        "face_id_agreement": round(float(agree), 5),
+        "ratio": round(best["ours"][0] / best["embree"][0], 3),
+    }
     for key, (low, median) in best.items():
         result[f"{key}_ms"], result[f"{key}_median_ms"] = round(low * 1e3, 2), round(median * 1e3, 2)
-    line = (f"{name:6s} {len(mesh.faces):6d} tris  {case:5s}  ours {result['ours_ms']:7.2f} ms "
-            f"({result['ours_median_ms']:7.2f})  embree {result['embree_ms']:7.2f} ms ({result['embree_median_ms']:7.2f})  "
-            f"ratio {result['ratio']:5.2f}")
+    line = (
+        f"{name:6s} {len(mesh.faces):6d} tris  {case:5s}  ours {result['ours_ms']:7.2f} ms "
+        f"({result['ours_median_ms']:7.2f})  embree {result['embree_ms']:7.2f} ms ({result['embree_median_ms']:7.2f})  "
+        f"ratio {result['ratio']:5.2f}"
+    )
     if previous:
         line += f"  previous {result['previous_ms']:7.2f} ms ({result['previous_median_ms']:7.2f})"
     print(line + f"  ids agree {agree:.3%}", flush=True)
@@ -165,12 +174,21 @@ def memory_case(device):
     if device == "cuda":
         torch.cuda.synchronize()
     seconds = time.perf_counter() - start
-    peak = (torch.cuda.max_memory_allocated() / 2**20 if device == "cuda"
-            else status_mib("VmHWM") - before)
+    peak = torch.cuda.max_memory_allocated() / 2**20 if device == "cuda" else status_mib("VmHWM") - before
     covered = float((raster.face_id >= 0).float().mean())
-    print(json.dumps({"case": "memory", "triangles": len(mesh.faces), "resolution": [1024, 1024],
-                      "device": device, "peak_extra_mib": round(peak, 1), "seconds": round(seconds, 3),
-                      "covered": round(covered, 3)}))
+    print(
+        json.dumps(
+            {
+                "case": "memory",
+                "triangles": len(mesh.faces),
+                "resolution": [1024, 1024],
+                "device": device,
+                "peak_extra_mib": round(peak, 1),
+                "seconds": round(seconds, 3),
+                "covered": round(covered, 3),
+            }
+        )
+    )
 
 
 def main():
@@ -196,10 +214,16 @@ def main():
     spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)]
     try:
         time.sleep(1.0 if spinners else 0.0)
-        print(f"torch threads {torch.get_num_threads()}, {args.busy} busy processes, "
-              f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
-        results = [compare(name, mesh, case, args.repeats, args.device, previous, args.cameras, args.clock)
-                   for name, mesh in meshes.items() for case in args.cases.split(",")]
+        print(
+            f"torch threads {torch.get_num_threads()}, {args.busy} busy processes, "
+            f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores",
+            flush=True,
+        )
+        results = [
+            compare(name, mesh, case, args.repeats, args.device, previous, args.cameras, args.clock)
+            for name, mesh in meshes.items()
+            for case in args.cases.split(",")
+        ]
         print(f"load average after: {os.getloadavg()[0]:.2f}")
     finally:
         for process in spinners:

@@ -52,7 +52,9 @@ def timed(fn, repeats: int, device: str) -> tuple[float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--device", default="cuda", help="the device set beside the CPU (cuda; skipped where unavailable)")
+    parser.add_argument(
+        "--device", default="cuda", help="the device set beside the CPU (cuda; skipped where unavailable)"
+    )
     parser.add_argument("--repeats", type=int, default=10)
     parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     args = parser.parse_args()
@@ -62,7 +64,9 @@ def main() -> None:
     if len(devices) == 1 and args.device != "cpu":
         print(f"{args.device} is not available here: CPU figures only")
     mesh = bumpy_torus(96, 64)
-    camera = orbit_camera(torch.tensor([30.0 + 45.0 * i for i in range(VIEWS)]), torch.tensor([20.0] * VIEWS), distance=3.6, fov=45.0)
+    camera = orbit_camera(
+        torch.tensor([30.0 + 45.0 * i for i in range(VIEWS)]), torch.tensor([20.0] * VIEWS), distance=3.6, fov=45.0
+    )
     results = []
     for size in SIZES:
         outputs, row = {}, {"triangles": len(mesh.faces), "views": VIEWS, "size": size}
@@ -86,8 +90,11 @@ def main() -> None:
             row["face_id_agreement"] = round(float(same.float().mean()), 6)
             row["max_bary_difference"] = float((cpu_raster.bary - dev_raster.bary.cpu())[same].abs().max())
             row["max_grad_difference"] = float((cpu_grad - dev_grad.cpu()).abs().max())
-            line += (f"  {device} {row[f'{device}_ms']:7.2f} ms ({row[f'{device}_median_ms']:7.2f})  cpu / {device} {row['speed_up']:6.2f}"
-                     f"  ids agree {row['face_id_agreement']:.4%}  max bary diff {row['max_bary_difference']:.2e}")
+            line += (
+                f"  {device} {row[f'{device}_ms']:7.2f} ms ({row[f'{device}_median_ms']:7.2f})  cpu / {device} "
+                f"{row['speed_up']:6.2f}"
+                f"  ids agree {row['face_id_agreement']:.4%}  max bary diff {row['max_bary_difference']:.2e}"
+            )
         print(line, flush=True)
         results.append(row)
     print(json.dumps(results))

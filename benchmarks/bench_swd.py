@@ -45,7 +45,10 @@ def main() -> None:
                 figures[name] = swd.swd_per_level(images_a, images_b)
                 seconds[name].append(time.perf_counter() - start)
     best = {name: min(values) for name, values in seconds.items()}
-    print(f"{args.images} + {args.images} images at {args.size} px, {torch.get_num_threads()} torch threads, best of {args.repeats}")
+    print(
+        f"{args.images} + {args.images} images at {args.size} px, {torch.get_num_threads()} torch threads, best of "
+        f"{args.repeats}"
+    )
     for name, value in best.items():
         print(f"  {name:10s} {value:.3f} s per swd_per_level call")
     print(f"speed-up torch.sort / numpy sort: {best['torch.sort'] / best['numpy sort']:.2f}")

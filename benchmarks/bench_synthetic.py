@@ -26,8 +26,14 @@ def main() -> None:
     parser.add_argument("--supersample", type=int, default=2)
     parser.add_argument("--texture-size", type=int, default=512)
     args = parser.parse_args()
-    spec = WorldSpec(category=args.category, shapes=args.shapes, views=args.views, resolution=args.resolution,
-                     supersample=args.supersample, texture_size=args.texture_size)
+    spec = WorldSpec(
+        category=args.category,
+        shapes=args.shapes,
+        views=args.views,
+        resolution=args.resolution,
+        supersample=args.supersample,
+        texture_size=args.texture_size,
+    )
     bake_material(make_shape(spec, 0), make_material(spec, 0), 64)  # warm-up: imports, bundled images
     seconds = {"shapes and materials": 0.0, "photos": 0.0, "texture bake": 0.0}
     triangles = 0
@@ -43,9 +49,11 @@ def main() -> None:
         bake_material(shape, material, spec.texture_size)
         seconds["texture bake"] += time.perf_counter() - t
     total = sum(seconds.values())
-    print(f"{spec.shapes} {spec.category}s (mean {triangles / spec.shapes:.0f} triangles), {spec.views} photos each at "
-          f"{spec.resolution}px (x{spec.supersample} supersampled), {spec.texture_size}px textures; "
-          f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()[0]:.1f}")
+    print(
+        f"{spec.shapes} {spec.category}s (mean {triangles / spec.shapes:.0f} triangles), {spec.views} photos each at "
+        f"{spec.resolution}px (x{spec.supersample} supersampled), {spec.texture_size}px textures; "
+        f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()[0]:.1f}"
+    )
     for name, value in seconds.items():
         print(f"  {name:22s} {value:7.2f} s  ({value / total:5.1%})  {value / spec.shapes:.3f} s/shape")
     print(f"  {'total':22s} {total:7.2f} s")

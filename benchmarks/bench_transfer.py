@@ -48,7 +48,9 @@ def main() -> None:
     parser.add_argument("--latent-iters", type=int, default=100)
     parser.add_argument("--refine-iters", type=int, default=300)
     parser.add_argument("--faces", type=int, default=6144)
-    parser.add_argument("--patch-size", type=int, default=TransferConfig.patch_size, help="the paper's: 64 (with --patch-scales 3)")
+    parser.add_argument(
+        "--patch-size", type=int, default=TransferConfig.patch_size, help="the paper's: 64 (with --patch-scales 3)"
+    )
     parser.add_argument("--patch-scales", type=int, default=TransferConfig.patch_scales)
     parser.add_argument("--device", default="auto")
     parser.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
@@ -71,19 +73,27 @@ def main() -> None:
     photo = Photo(image=image, mask=mask)
     photo_noc = torch.from_numpy(query["noc"][0]).float() / 255
 
-    cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
-                         patch_size=args.patch_size, patch_scales=args.patch_scales)
+    cfg = TransferConfig(
+        resolution=args.resolution,
+        latent_iters=args.latent_iters,
+        refine_iters=args.refine_iters,
+        patch_size=args.patch_size,
+        patch_scales=args.patch_scales,
+    )
     generator = TextureGenerator(GeneratorConfig(input_features=shape.face_features.shape[1])).eval()
     view = view_at_pose(shape, query_view.azimuth, query_view.elevation, GAN_CAMERA.distance, GAN_CAMERA.fov, cfg)
     vgg = load_vgg19(None, device=device, warn=False)
     weights = {k: v.clone() for k, v in generator.state_dict().items()}  # stage 2 changes the generator
-    result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, show_progress=False,
-                              generator_lit=not args.unlit)
+    result = transfer_texture(
+        generator, shape, photo, view, photo_noc, vgg, cfg, device, show_progress=False, generator_lit=not args.unlit
+    )
 
     total = sum(result.seconds.values())
-    print(f"device {device}, torch threads {torch.get_num_threads()}, resolution {args.resolution}, "
-          f"{shape.face_counts[0]} finest quads, {cfg.patches} patches of {cfg.patch_size} px at {cfg.patch_levels} scales, "
-          f"VGG19 {'ImageNet' if vgg.pretrained else 'random-weight'} (same cost)")
+    print(
+        f"device {device}, torch threads {torch.get_num_threads()}, resolution {args.resolution}, "
+        f"{shape.face_counts[0]} finest quads, {cfg.patches} patches of {cfg.patch_size} px at {cfg.patch_levels} "
+        f"scales, VGG19 {'ImageNet' if vgg.pretrained else 'random-weight'} (same cost)"
+    )
     for stage, seconds in result.seconds.items():
         iters = len(result.losses[stage])
         print(f"  stage {stage:7s}: {iters:4d} iterations, {seconds:7.1f} s, {seconds / max(iters, 1):.3f} s/iteration")
@@ -101,13 +111,21 @@ def time_previous(revision: str, args, shape, photo, view, photo_noc, weights: d
     with old.active():
         config = old.module("mesh2tex.transfer.config").TransferConfig
         generator_module = old.module("mesh2tex.nn.generator")
-        cfg = config(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
-                     patch_size=args.patch_size, patch_scales=args.patch_scales)
-        generator = generator_module.TextureGenerator(generator_module.GeneratorConfig(input_features=shape.face_features.shape[1])).eval()
+        cfg = config(
+            resolution=args.resolution,
+            latent_iters=args.latent_iters,
+            refine_iters=args.refine_iters,
+            patch_size=args.patch_size,
+            patch_scales=args.patch_scales,
+        )
+        generator = generator_module.TextureGenerator(
+            generator_module.GeneratorConfig(input_features=shape.face_features.shape[1])
+        ).eval()
         generator.load_state_dict(weights)
         vgg = old.module("mesh2tex.nn.vgg").load_vgg19(None, device=device, warn=False)
-        result = old.module("mesh2tex.transfer.optimise").transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device,
-                                                                           show_progress=False)
+        result = old.module("mesh2tex.transfer.optimise").transfer_texture(
+            generator, shape, photo, view, photo_noc, vgg, cfg, device, show_progress=False
+        )
     return sum(result.seconds.values())
 
 

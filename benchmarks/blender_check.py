@@ -41,8 +41,23 @@ SCENE = Path(__file__).resolve().parent / "blender_scene.py"
 def blender_render(blender: str, glb: Path, folder: Path, args) -> tuple[np.ndarray, dict]:
     """Blender's render (S, S, 4) uint8 RGBA and its report on the file."""
     png, report = folder / f"{glb.stem}_blender.png", folder / f"{glb.stem}_blender.json"
-    cmd = [blender, "-b", "--factory-startup", "-noaudio", "-P", str(SCENE), "--", str(glb), str(png), str(report),
-           str(args.azimuth), str(args.elevation), str(args.distance), str(args.fov), str(args.size)]
+    cmd = [
+        blender,
+        "-b",
+        "--factory-startup",
+        "-noaudio",
+        "-P",
+        str(SCENE),
+        "--",
+        str(glb),
+        str(png),
+        str(report),
+        str(args.azimuth),
+        str(args.elevation),
+        str(args.distance),
+        str(args.fov),
+        str(args.size),
+    ]
     result = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     if result.returncode != 0 or not png.is_file():
         sys.exit(f"{glb}: Blender failed (exit {result.returncode}):\n{result.stdout[-2000:]}{result.stderr[-2000:]}")
@@ -53,7 +68,9 @@ def mesh2tex_render(glb: Path, args) -> tuple[np.ndarray, np.ndarray]:
     """mesh2tex's albedo render (S, S, 3) uint8 and its object mask (S, S) bool."""
     vertices, faces, uv, image = load_glb(glb)
     view = PhotoSetup(args.azimuth, args.elevation, args.distance, args.fov, (0.0, 1.0, 0.0), 1.0, "solid", 0)
-    out = render_for_comparison(textured_surface(vertices, faces, uv, image), [view], RenderSettings(args.size, 2, "albedo"))
+    out = render_for_comparison(
+        textured_surface(vertices, faces, uv, image), [view], RenderSettings(args.size, 2, "albedo")
+    )
     rgb = (out.rgb[0].permute(1, 2, 0).clamp(0, 1).numpy() * 255 + 0.5).astype(np.uint8)
     return rgb, out.mask[0, 0].numpy() > 0.5
 
@@ -67,7 +84,9 @@ def main() -> None:
     parser.add_argument("--distance", type=float, default=2.5)
     parser.add_argument("--fov", type=float, default=40.0)
     parser.add_argument("--size", type=int, default=256)
-    parser.add_argument("--out", type=Path, help="folder for the side-by-side images (mesh2tex | Blender | difference x4), on black")
+    parser.add_argument(
+        "--out", type=Path, help="folder for the side-by-side images (mesh2tex | Blender | difference x4), on black"
+    )
     args = parser.parse_args()
     blender = shutil.which(args.blender)
     if blender is None:
@@ -87,13 +106,25 @@ def main() -> None:
             mean_difference = difference[interior].mean() if interior.any() else float("nan")
             for mesh in report["meshes"]:
                 textures = [t for m in mesh["materials"] for t in m["base_color_textures"]]
-                print(f"{glb}: Blender {report['blender']} imported {mesh['vertices']} vertices, {mesh['polygons']} polygons; "
-                      f"UV layers {mesh['uv_layers']}; smooth polygons {mesh['smooth_polygons']}/{mesh['polygons']}; "
-                      f"custom normals {mesh['custom_normals']}; base-colour textures {textures}")
-            print(f"{glb}: object masks IoU {iou:.4f}; mean |mesh2tex - Blender| on {int(interior.sum())} interior pixels "
-                  f"{mean_difference:.2f} of 255 (95th percentile {np.percentile(difference[interior], 95):.0f})")
+                print(
+                    f"{glb}: Blender {report['blender']} imported {mesh['vertices']} vertices, {mesh['polygons']} "
+                    "polygons; "
+                    f"UV layers {mesh['uv_layers']}; smooth polygons {mesh['smooth_polygons']}/{mesh['polygons']}; "
+                    f"custom normals {mesh['custom_normals']}; base-colour textures {textures}"
+                )
+            print(
+                f"{glb}: object masks IoU {iou:.4f}; mean |mesh2tex - Blender| on {int(interior.sum())} interior "
+                f"pixels {mean_difference:.2f} of 255 (95th percentile {np.percentile(difference[interior], 95):.0f})"
+            )
             if args.out:
-                row = np.concatenate([ours * ours_mask[..., None], theirs[..., :3] * their_mask[..., None], np.clip(difference * 4, 0, 255).astype(np.uint8)], axis=1)
+                row = np.concatenate(
+                    [
+                        ours * ours_mask[..., None],
+                        theirs[..., :3] * their_mask[..., None],
+                        np.clip(difference * 4, 0, 255).astype(np.uint8),
+                    ],
+                    axis=1,
+                )
                 Image.fromarray(row).save(args.out / f"{glb.stem}_blender_check.png")
 
 

@@ -19,21 +19,29 @@ import bpy
 
 
 def main() -> None:
-    glb, png, report_path, azimuth, elevation, distance, fov, size = sys.argv[sys.argv.index("--") + 1:]
+    glb, png, report_path, azimuth, elevation, distance, fov, size = sys.argv[sys.argv.index("--") + 1 :]
     azimuth, elevation, distance, fov, size = float(azimuth), float(elevation), float(distance), float(fov), int(size)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     import numpy
-    if "bool" not in numpy.__dict__:  # Blender 3.4's glTF importer uses numpy.bool, gone since numpy 1.24 (Debian 12 pairs them)
+
+    if (
+        "bool" not in numpy.__dict__
+    ):  # Blender 3.4's glTF importer uses numpy.bool, gone since numpy 1.24 (Debian 12 pairs them)
         numpy.bool = bool
     bpy.ops.import_scene.gltf(filepath=glb)
     meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]
     report = {"blender": bpy.app.version_string, "objects": len(meshes), "meshes": []}
     for obj in meshes:
         mesh = obj.data
-        entry = {"name": obj.name, "vertices": len(mesh.vertices), "polygons": len(mesh.polygons),
-                 "uv_layers": [layer.name for layer in mesh.uv_layers],
-                 "smooth_polygons": sum(1 for p in mesh.polygons if p.use_smooth),
-                 "custom_normals": bool(mesh.has_custom_normals), "materials": []}
+        entry = {
+            "name": obj.name,
+            "vertices": len(mesh.vertices),
+            "polygons": len(mesh.polygons),
+            "uv_layers": [layer.name for layer in mesh.uv_layers],
+            "smooth_polygons": sum(1 for p in mesh.polygons if p.use_smooth),
+            "custom_normals": bool(mesh.has_custom_normals),
+            "materials": [],
+        }
         for material in mesh.materials:
             textures = []
             if material is not None and material.use_nodes:
@@ -44,8 +52,13 @@ def main() -> None:
                     image_node = bsdf.inputs["Base Color"].links[0].from_node
                 if image_node is not None and image_node.type == "TEX_IMAGE" and image_node.image is not None:
                     image = image_node.image
-                    textures.append({"size": list(image.size), "colorspace": image.colorspace_settings.name,
-                                     "file_format": image.file_format})
+                    textures.append(
+                        {
+                            "size": list(image.size),
+                            "colorspace": image.colorspace_settings.name,
+                            "file_format": image.file_format,
+                        }
+                    )
                     tree = material.node_tree
                     emission = nodes.new("ShaderNodeEmission")
                     tree.links.new(image_node.outputs["Color"], emission.inputs["Color"])

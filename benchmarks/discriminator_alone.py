@@ -45,21 +45,38 @@ def main() -> int:
     shapes, _ = load_shapes(args.shapes)
     cfg.generator.input_features = shapes[0].face_features.shape[1]
     run = runs.RunDirectory(args.run)
-    trainer = GanTrainer(cfg, shapes, load_photo_collection(args.images, cfg.resolution), run, torch.device("cpu"), runs.Distributed("cpu"))
+    trainer = GanTrainer(
+        cfg,
+        shapes,
+        load_photo_collection(args.images, cfg.resolution),
+        run,
+        torch.device("cpu"),
+        runs.Distributed("cpu"),
+    )
     trainer.resume(run.checkpoint_path)
     fakes = []
     with torch.no_grad():
         for _ in range(6):
             batch = collate_shapes([shapes[i] for i in torch.randint(len(shapes), (2,)).tolist()])
             ws = trainer.generator.mapping(torch.randn(2, cfg.generator.z_dim))
-            out = render_field_views(trainer.generator, batch, ws, random_cameras(8, cfg.camera, torch.device("cpu"))[0],
-                                     (cfg.resolution, cfg.resolution), torch.rand(8, 3) * 2 - 1)
+            out = render_field_views(
+                trainer.generator,
+                batch,
+                ws,
+                random_cameras(8, cfg.camera, torch.device("cpu"))[0],
+                (cfg.resolution, cfg.resolution),
+                torch.rand(8, 3) * 2 - 1,
+            )
             fakes.append(out.images)
         fakes = torch.cat(fakes)
+
         def logits(images):
             return " ".join(f"{v:+.2f}" for v in trainer.d_field(images).tolist())
 
-        print(f"iteration {trainer.iteration}: its d_field's logits on fakes {logits(fakes[:8])}; on photos {logits(trainer.draw_real(8))}")
+        print(
+            f"iteration {trainer.iteration}: its d_field's logits on fakes {logits(fakes[:8])}; on photos "
+            f"{logits(trainer.draw_real(8))}"
+        )
     for augment in (False, True):
         d = Discriminator(cfg.resolution, cfg.discriminator)
         opt = torch.optim.Adam(d.parameters(), lr=cfg.optim.lr_discriminator, betas=(cfg.optim.beta1, cfg.optim.beta2))

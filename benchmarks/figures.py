@@ -10,7 +10,8 @@
         rows: seeds; columns: views; from the seed{S}_view{V}.png files of 'infer generate'
     python benchmarks/figures.py rows --row A.png,B.gif:3,... [--row ...] --out FILE.png
         any images, one --row per row; FILE.gif:K is frame K of a GIF (the growth.gif of 'infer nca')
-    python benchmarks/figures.py screenshot demo_out/report.html [--width 1200] [--height 2400] [--scale 1] --out FILE.png
+    python benchmarks/figures.py screenshot demo_out/report.html [--width 1200] [--height 2400] [--scale 1] --out
+    FILE.png
         the page as headless Chromium shows it (the demo's self-contained report), white space below the
         content cropped; needs a Chromium or Chrome binary (Debian: apt-get install chromium), else it
         stops with that message; --browser PATH names one
@@ -36,8 +37,17 @@ from PIL import Image
 PANEL_GAP = 16  # white pixels between panels
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome")
 # Headless, offline and stateless: no sandbox (root in containers), no GPU, no network side traffic.
-CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-                  "--disable-component-update", "--disable-sync", "--hide-scrollbars")
+CHROMIUM_FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--hide-scrollbars",
+)
 
 
 def read_tile(spec: str) -> Image.Image:
@@ -69,7 +79,10 @@ def strip_view(path: Path, view: int) -> Image.Image:
 def grid(rows: list[list[Image.Image]], size: int | None, pad: int, panels: int = 1) -> Image.Image:
     """Tiles (rows of images) framed by ``pad`` white pixels, rows split into ``panels`` side by side."""
     size = size or rows[0][0].height
-    tiles = [[np.asarray(t.resize((size, size), Image.LANCZOS) if t.size != (size, size) else t) for t in row] for row in rows]
+    tiles = [
+        [np.asarray(t.resize((size, size), Image.LANCZOS) if t.size != (size, size) else t) for t in row]
+        for row in rows
+    ]
     cell = size + 2 * pad
     columns = max(len(row) for row in tiles)
     per_panel = -(-len(tiles) // panels)
@@ -80,7 +93,7 @@ def grid(rows: list[list[Image.Image]], size: int | None, pad: int, panels: int 
         for c, tile in enumerate(row):
             y = r_in * cell + pad
             x = panel * (columns * cell + PANEL_GAP) + c * cell + pad
-            canvas[y:y + size, x:x + size] = tile
+            canvas[y : y + size, x : x + size] = tile
     return Image.fromarray(canvas)
 
 
@@ -91,7 +104,10 @@ def protocol_rows(folder: Path, columns: list[str], view: int) -> list[list[Imag
     suffix = "_reference.png" if any(folder.glob("*_reference.png")) else "_photo.png"
     references = sorted(folder.glob(f"*{suffix}"))
     if not references:
-        sys.exit(f"figures: error: {folder}: no <query>_reference.png (a renders/<protocol> folder of 'evaluate --protocols')")
+        sys.exit(
+            f"figures: error: {folder}: no <query>_reference.png (a renders/<protocol> folder of 'evaluate "
+            "--protocols')"
+        )
     rows = []
     for reference in references:
         query = reference.name[: -len(suffix)]
@@ -114,28 +130,41 @@ def generate_rows(folder: Path, seeds: list[int] | None, views: list[int] | None
 
 def find_browser(name: str | None) -> str:
     """The Chromium (or Chrome) executable: ``name`` (a path or a command), else the first of BROWSERS on PATH."""
-    for candidate in ([name] if name else BROWSERS):
+    for candidate in [name] if name else BROWSERS:
         found = shutil.which(candidate)
         if found:
             return found
     wanted = name or " / ".join(BROWSERS)
-    sys.exit(f"figures: error: no {wanted} executable found; install Chromium (Debian/Ubuntu: apt-get install chromium) "
-             f"or pass --browser PATH")
+    sys.exit(
+        f"figures: error: no {wanted} executable found; install Chromium (Debian/Ubuntu: apt-get install chromium) "
+        f"or pass --browser PATH"
+    )
 
 
-def screenshot(page: Path, out: Path, width: int, height: int, browser: str | None = None, scale: float = 1.0,
-               margin: int = 24) -> Image.Image:
+def screenshot(
+    page: Path, out: Path, width: int, height: int, browser: str | None = None, scale: float = 1.0, margin: int = 24
+) -> Image.Image:
     """``page`` (an HTML file) rendered by headless Chromium in a ``width`` x ``height`` window (CSS
     pixels) at ``scale`` image pixels per CSS pixel, the uniform rows below its content cropped
     (``margin`` pixels kept)."""
     if not page.is_file():
-        sys.exit(f"figures: error: {page}: no such file (a demo's report.html: 'mesh2tex demo --out DIR' writes DIR/report.html)")
+        sys.exit(
+            f"figures: error: {page}: no such file (a demo's report.html: 'mesh2tex demo --out DIR' writes "
+            "DIR/report.html)"
+        )
     executable = find_browser(browser)
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="figures-chromium-") as profile:
         shot = Path(profile) / "shot.png"
-        command = [executable, *CHROMIUM_FLAGS, f"--force-device-scale-factor={scale:g}", f"--user-data-dir={profile}/profile", f"--screenshot={shot}",
-                   f"--window-size={width},{height}", page.resolve().as_uri()]
+        command = [
+            executable,
+            *CHROMIUM_FLAGS,
+            f"--force-device-scale-factor={scale:g}",
+            f"--user-data-dir={profile}/profile",
+            f"--screenshot={shot}",
+            f"--window-size={width},{height}",
+            page.resolve().as_uri(),
+        ]
         try:
             result = subprocess.run(command, capture_output=True, text=True, timeout=120)
         except subprocess.TimeoutExpired:
@@ -160,7 +189,9 @@ def main(argv: list[str] | None = None) -> int:
     kinds = parser.add_subparsers(dest="kind", required=True)
     protocols = kinds.add_parser("protocols", help="queries x methods from 'evaluate --protocols' renders")
     protocols.add_argument("folder", help="RUN/renders/<protocol>")
-    protocols.add_argument("--columns", required=True, help="comma-separated methods (ablations or baselines), after the reference")
+    protocols.add_argument(
+        "--columns", required=True, help="comma-separated methods (ablations or baselines), after the reference"
+    )
     protocols.add_argument("--view", type=int, default=0, help="view of each strip (0: the photo's)")
     protocols.add_argument("--panels", type=int, default=1, help="panels side by side the rows are split into")
     generate = kinds.add_parser("generate", help="seeds x views from 'infer generate' outputs")
@@ -168,7 +199,9 @@ def main(argv: list[str] | None = None) -> int:
     generate.add_argument("--seeds", help="comma-separated seeds (default: all found)")
     generate.add_argument("--views", help="comma-separated views (default: all found)")
     rows = kinds.add_parser("rows", help="any images, row by row")
-    rows.add_argument("--row", action="append", required=True, help="comma-separated images of one row (FILE.gif:K: frame K)")
+    rows.add_argument(
+        "--row", action="append", required=True, help="comma-separated images of one row (FILE.gif:K: frame K)"
+    )
     for sub in (protocols, generate, rows):
         sub.add_argument("--out", required=True, help="the PNG to write")
         sub.add_argument("--size", type=int, help="tile side in pixels (default: the first tile's height)")
@@ -178,8 +211,13 @@ def main(argv: list[str] | None = None) -> int:
     shot.add_argument("--out", required=True, help="the PNG to write")
     shot.add_argument("--width", type=int, default=1200, help="window width in pixels")
     shot.add_argument("--height", type=int, default=2400, help="window height in pixels (the page below it is cut)")
-    shot.add_argument("--scale", type=float, default=1.0, help="image pixels per CSS pixel (0.6: a smaller image of the same layout)")
-    shot.add_argument("--browser", help="Chromium or Chrome executable (default: the first of chromium, chromium-browser, google-chrome on PATH)")
+    shot.add_argument(
+        "--scale", type=float, default=1.0, help="image pixels per CSS pixel (0.6: a smaller image of the same layout)"
+    )
+    shot.add_argument(
+        "--browser",
+        help="Chromium or Chrome executable (default: the first of chromium, chromium-browser, google-chrome on PATH)",
+    )
     args = parser.parse_args(argv)
     if args.kind == "screenshot":
         if not 0.1 <= args.scale <= 4 or args.width < 100 or args.height < 100:

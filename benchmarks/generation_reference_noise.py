@@ -61,7 +61,9 @@ def main() -> None:
             if as_photos:
                 image, mask = ground_truth_renders(world, name, views, r)
             else:
-                out = render_views(make_shape(world.spec, index), make_material(world.spec, index), views, RenderSettings(r, 2))
+                out = render_views(
+                    make_shape(world.spec, index), make_material(world.spec, index), views, RenderSettings(r, 2)
+                )
                 image, mask = on_white(out["rgb"], out["mask"])
             images.append(image)
             image_masks.append(mask)
@@ -69,11 +71,14 @@ def main() -> None:
 
     fresh, fresh_again = fresh_photo_set(world, r, seed=0), fresh_photo_set(world, r, seed=1)
     figures = {
-        f"photo set halves ({len(world.train) // 2} vs {len(world.train) - len(world.train) // 2} materials)":
-            distance((photos[first_half], masks[first_half]), (photos[~first_half], masks[~first_half])),
+        f"photo set halves ({len(world.train) // 2} vs {len(world.train) - len(world.train) // 2} materials)": distance(
+            (photos[first_half], masks[first_half]), (photos[~first_half], masks[~first_half])
+        ),
         f"fresh vs fresh ({fresh[0].shape[0]} materials each)": distance(fresh, fresh_again),
         "training photos vs fresh": distance((photos, masks), fresh),
-        "own materials, straight at the evaluation resolution, vs photos": distance(own_materials(False), (photos, masks)),
+        "own materials, straight at the evaluation resolution, vs photos": distance(
+            own_materials(False), (photos, masks)
+        ),
         "own materials, as photos, vs photos": distance(own_materials(True), (photos, masks)),
     }
     print(f"{world.root}: {world.spec.category}, {len(world.train)} training shapes, {photos.shape[0]} photos, {r} px")

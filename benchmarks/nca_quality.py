@@ -93,8 +93,18 @@ class Judge:
     def loss(self, model, state, graph, pixel_mask: torch.Tensor | None = None) -> float:
         views = self.render(model, state, graph)
         mask = views.mask if pixel_mask is None else views.mask * pixel_mask
-        return float(np.mean([float(style_loss(self.vgg, views.images, mask, self.features, generator=torch.Generator().manual_seed(s)))
-                              for s in range(3)]))
+        return float(
+            np.mean(
+                [
+                    float(
+                        style_loss(
+                            self.vgg, views.images, mask, self.features, generator=torch.Generator().manual_seed(s)
+                        )
+                    )
+                    for s in range(3)
+                ]
+            )
+        )
 
     @staticmethod
     def pattern_scale(exemplar_pixels: float) -> float:
@@ -121,20 +131,30 @@ class Judge:
         raster = rasterize(transform_points(graph.positions, self.mvp), graph.triangles, (RESOLUTION, RESOLUTION))
         points = interpolate(graph.positions, raster, graph.triangles)  # (N, H, W, 3)
         normals = torch.nn.functional.normalize(interpolate(graph.normals, raster, graph.triangles), dim=-1)
-        mask = (raster.face_id >= 0)
+        mask = raster.face_id >= 0
         scale = self.pattern_scale(exemplar_pixels)
         rgb = EXEMPLARS[name](points[mask].double().numpy() * scale, normals[mask].double().numpy())
         images = torch.ones(self.mvp.shape[0], RESOLUTION, RESOLUTION, 3)
         images[mask] = torch.from_numpy(rgb).float()
         images = images.permute(0, 3, 1, 2) * 2 - 1
         masks = mask[:, None].float()
-        return float(np.mean([float(style_loss(self.vgg, images, masks, self.features, generator=torch.Generator().manual_seed(s)))
-                              for s in range(3)]))
+        return float(
+            np.mean(
+                [
+                    float(
+                        style_loss(self.vgg, images, masks, self.features, generator=torch.Generator().manual_seed(s))
+                    )
+                    for s in range(3)
+                ]
+            )
+        )
 
     @torch.no_grad()
     def swd(self, model, state, graph) -> float:
         views = self.render(model, state, graph)
-        target = torch.nn.functional.interpolate(self.target, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False)
+        target = torch.nn.functional.interpolate(
+            self.target, size=(RESOLUTION, RESOLUTION), mode="bilinear", align_corners=False
+        )
         refs = ((target + 1) / 2).expand(8, -1, -1, -1)
         return object_set_swd((views.images.clamp(-1, 1) + 1) / 2, views.mask, refs, torch.ones_like(refs[:, :1]))
 
@@ -175,12 +195,21 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", required=True)
     parser.add_argument("--meshes", nargs="*", default=[], help="unseen meshes (prepared .npz or mesh files)")
-    parser.add_argument("--splits", nargs="*", type=int, default=[], help="also run on each of --meshes split into four this many times")
+    parser.add_argument(
+        "--splits", nargs="*", type=int, default=[], help="also run on each of --meshes split into four this many times"
+    )
     parser.add_argument("--graft", help="a second model of the same lineage")
     parser.add_argument("--child", help="run folder trained with --parent MODEL")
     parser.add_argument("--scratch", help="run folder trained on the child's exemplar from scratch")
-    parser.add_argument("--exemplar-name", help="the model's exemplar by name (mesh2tex.synthetic.exemplars) for the oracle row")
-    parser.add_argument("--exemplar-extent", type=float, default=1.0, help="the extent the exemplar image was made with (exemplar_image)")
+    parser.add_argument(
+        "--exemplar-name", help="the model's exemplar by name (mesh2tex.synthetic.exemplars) for the oracle row"
+    )
+    parser.add_argument(
+        "--exemplar-extent",
+        type=float,
+        default=1.0,
+        help="the extent the exemplar image was made with (exemplar_image)",
+    )
     parser.add_argument("--out", help="write the figures as JSON here")
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -198,12 +227,16 @@ def main() -> int:
     results["untrained"] = judge.loss(untrained, grow(untrained, graph, STEPS), graph)
     pixels = torch.from_numpy(exemplar.reshape(-1, 3)).float() / 127.5 - 1
     flat = colour_model(pixels.mean(0).expand(graph.num_cells, 3).clone())
-    noise = colour_model(pixels[torch.randint(pixels.shape[0], (graph.num_cells,), generator=torch.Generator().manual_seed(0))])
+    noise = colour_model(
+        pixels[torch.randint(pixels.shape[0], (graph.num_cells,), generator=torch.Generator().manual_seed(0))]
+    )
     results["flat"] = judge.loss(flat[0], flat[1], graph)
     results["vertex_noise"] = judge.loss(noise[0], noise[1], graph)
     if args.exemplar_name:
         results["oracle"] = judge.oracle_loss(args.exemplar_name, graph, exemplar.shape[0] / args.exemplar_extent)
-        results["vertex_oracle"] = judge.vertex_oracle_loss(args.exemplar_name, graph, exemplar.shape[0] / args.exemplar_extent)
+        results["vertex_oracle"] = judge.vertex_oracle_loss(
+            args.exemplar_name, graph, exemplar.shape[0] / args.exemplar_extent
+        )
     best_baseline = min(results["flat"], results["vertex_noise"])
     results["ratio_to_untrained"] = results["trained"] / results["untrained"]
     results["ratio_to_best_baseline"] = results["trained"] / best_baseline
@@ -230,23 +263,38 @@ def main() -> int:
     for spec in ["sphere:48", *args.meshes]:
         g = sphere_graph(model, spec)
         subdivisions, edge_ratio = matched_subdivisions(spec, cell_spacing)
-        row = {"cells": g.num_cells, "edge_ratio": round(edge_ratio, 3), "ratio": judge.loss(model, grow(model, g, STEPS), g) / results["trained"]}
+        row = {
+            "cells": g.num_cells,
+            "edge_ratio": round(edge_ratio, 3),
+            "ratio": judge.loss(model, grow(model, g, STEPS), g) / results["trained"],
+        }
         if args.exemplar_name:
             row["oracle_ratio"] = judge.oracle_loss(args.exemplar_name, g, exemplar_pixels) / results["oracle"]
-            row["vertex_oracle_ratio"] = judge.vertex_oracle_loss(args.exemplar_name, g, exemplar_pixels) / results["vertex_oracle"]
+            row["vertex_oracle_ratio"] = (
+                judge.vertex_oracle_loss(args.exemplar_name, g, exemplar_pixels) / results["vertex_oracle"]
+            )
         if subdivisions:
             fine = sphere_graph(model, spec, subdivide=subdivisions)
-            row["matched"] = {"subdivisions": subdivisions, "cells": fine.num_cells,
-                              "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"]}
+            row["matched"] = {
+                "subdivisions": subdivisions,
+                "cells": fine.num_cells,
+                "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"],
+            }
             if args.exemplar_name:
-                row["matched"]["vertex_oracle_ratio"] = judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels) / results["vertex_oracle"]
+                row["matched"]["vertex_oracle_ratio"] = (
+                    judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels) / results["vertex_oracle"]
+                )
         if spec in args.meshes:
             for count in args.splits:
                 fine = sphere_graph(model, spec, subdivide=count)
-                row[f"split_{count}"] = {"cells": fine.num_cells, "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"]}
+                row[f"split_{count}"] = {
+                    "cells": fine.num_cells,
+                    "ratio": judge.loss(model, grow(model, fine, STEPS), fine) / results["trained"],
+                }
                 if args.exemplar_name:
-                    row[f"split_{count}"]["vertex_oracle_ratio"] = (judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels)
-                                                                    / results["vertex_oracle"])
+                    row[f"split_{count}"]["vertex_oracle_ratio"] = (
+                        judge.vertex_oracle_loss(args.exemplar_name, fine, exemplar_pixels) / results["vertex_oracle"]
+                    )
         unseen[Path(spec).stem] = row
     results["unseen"] = unseen
 
@@ -265,15 +313,20 @@ def main() -> int:
         right = (side_views.images[:, :1] > 0.4).float()
         left = (side_views.images[:, :1] < -0.4).float()
         results["graft"] = {
-            "left_vs_own": judge.loss(model, state, graph, left), "left_vs_other": other_judge.loss(model, state, graph, left),
-            "right_vs_own": other_judge.loss(model, state, graph, right), "right_vs_other": judge.loss(model, state, graph, right),
-            "lineage_shared": meta.get("lineage") == other_meta.get("lineage")}
+            "left_vs_own": judge.loss(model, state, graph, left),
+            "left_vs_other": other_judge.loss(model, state, graph, left),
+            "right_vs_own": other_judge.loss(model, state, graph, right),
+            "right_vs_other": judge.loss(model, state, graph, right),
+            "lineage_shared": meta.get("lineage") == other_meta.get("lineage"),
+        }
     if args.child and args.scratch:
         scratch_rows = [json.loads(line) for line in (Path(args.scratch) / "metrics.jsonl").read_text().splitlines()]
         target = float(np.mean([r["loss_style"] for r in scratch_rows[-5:]]))
-        results["lineage"] = {"scratch_final_style": target,
-                              "child_reaches_at": first_reaching(Path(args.child) / "metrics.jsonl", target),
-                              "scratch_reaches_at": first_reaching(Path(args.scratch) / "metrics.jsonl", target)}
+        results["lineage"] = {
+            "scratch_final_style": target,
+            "child_reaches_at": first_reaching(Path(args.child) / "metrics.jsonl", target),
+            "scratch_reaches_at": first_reaching(Path(args.scratch) / "metrics.jsonl", target),
+        }
 
     big = sphere_graph(model, "sphere:32")
     state = model.seed_state(1, big.num_cells)
@@ -287,7 +340,10 @@ def main() -> int:
 
     width = max(len(k) for k in results)
     for key, value in results.items():
-        print(f"{key:<{width}}  {json.dumps(value) if isinstance(value, dict) else (f'{value:.4f}' if isinstance(value, float) else value)}")
+        shown = (
+            json.dumps(value) if isinstance(value, dict) else (f"{value:.4f}" if isinstance(value, float) else value)
+        )
+        print(f"{key:<{width}}  {shown}")
     if args.out:
         Path(args.out).write_text(json.dumps(results, indent=1))
     return 0

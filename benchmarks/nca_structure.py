@@ -98,14 +98,16 @@ def state_views(model, state, graph, mvp) -> tuple[torch.Tensor, torch.Tensor]:
     return ((views.images.double().clamp(-1, 1) + 1) / 2), views.mask.double()
 
 
-def direct_views(exemplar: torch.Tensor, loss: str, graph, mvp: torch.Tensor, vgg, iters: int, size: int,
-                 seed: int) -> tuple[tuple[torch.Tensor, torch.Tensor], float]:
+def direct_views(
+    exemplar: torch.Tensor, loss: str, graph, mvp: torch.Tensor, vgg, iters: int, size: int, seed: int
+) -> tuple[tuple[torch.Tensor, torch.Tensor], float]:
     """The direct method's texture on ``graph``'s mesh (a new atlas over its triangles), optimised ``iters``
     steps with the ``loss``, seen by ``mvp``: ((images (N, 3, H, W) in [0, 1], masks), seconds)."""
     vertex_index, faces, uv = new_atlas(graph.positions.double().numpy(), graph.triangles.numpy())
     surface = TexelSurface.from_arrays(graph.positions.numpy()[vertex_index], faces, uv)
-    cfg = SynthesisConfig(iters=iters, texture_size=size, loss=loss, exemplar_size=SIZE, resolution=RESOLUTION,
-                          seed=seed)
+    cfg = SynthesisConfig(
+        iters=iters, texture_size=size, loss=loss, exemplar_size=SIZE, resolution=RESOLUTION, seed=seed
+    )
     synthesis = TexelSynthesis(cfg, surface, exemplar, None if loss == "ps" else vgg)
     start = time.perf_counter()
     for _ in range(iters):
@@ -122,20 +124,30 @@ def fmt(value: float, digits: int = 2) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--exemplars", nargs="+", default=["stripes", "checker", "bricks", "dots", "brick", "grass", "gravel"])
-    parser.add_argument("--losses", nargs="*", default=["ot", "sw", "ps"], help="none: only the oracle and baseline rows")
-    parser.add_argument("--iters", type=int, default=150, help="training iterations per model (train nca's default is 1500)")
+    parser.add_argument(
+        "--exemplars", nargs="+", default=["stripes", "checker", "bricks", "dots", "brick", "grass", "gravel"]
+    )
+    parser.add_argument(
+        "--losses", nargs="*", default=["ot", "sw", "ps"], help="none: only the oracle and baseline rows"
+    )
+    parser.add_argument(
+        "--iters", type=int, default=150, help="training iterations per model (train nca's default is 1500)"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--meshes", nargs="*", default=[], help="held-out meshes (prepared .npz or mesh files)")
     parser.add_argument("--runs", help="folder to keep (and reuse) the trained models")
     parser.add_argument("--out", help="write every figure as JSON here")
-    parser.add_argument("--direct", nargs="*", default=[],
-                        help="losses of direct-method rows (infer synthesize), e.g. ps sw")
+    parser.add_argument(
+        "--direct", nargs="*", default=[], help="losses of direct-method rows (infer synthesize), e.g. ps sw"
+    )
     parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")
-    parser.add_argument("--direct-size", type=int, default=SynthesisConfig.texture_size,
-                        help="the direct method's texture side")
+    parser.add_argument(
+        "--direct-size", type=int, default=SynthesisConfig.texture_size, help="the direct method's texture side"
+    )
     parser.add_argument("--figure", help="write a picture of every exemplar's rows here (PNG)")
-    parser.add_argument("--figure-view", type=int, default=1, choices=range(8), help="which judged view the picture shows")
+    parser.add_argument(
+        "--figure-view", type=int, default=1, choices=range(8), help="which judged view the picture shows"
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     unknown = [n for n in args.exemplars if n not in EXEMPLARS]
@@ -162,22 +174,37 @@ def main() -> int:
         models = {}
         for loss in args.losses:
             save = runs_dir / f"{name}_{loss}.safetensors" if runs_dir else None
-            models[loss], record["train_seconds"][loss] = train_model(target.float() * 2 - 1, loss, args.iters, args.seed, graphs["sphere"], vgg, save)
+            models[loss], record["train_seconds"][loss] = train_model(
+                target.float() * 2 - 1, loss, args.iters, args.seed, graphs["sphere"], vgg, save
+            )
         for mesh, graph in graphs.items():
             sets = {"oracle": oracle_views(name, graph, mvp)}
-            vertex_rgb = torch.from_numpy(EXEMPLARS[name](graph.positions.double().numpy() * Judge.pattern_scale(SIZE),
-                                                          graph.normals.double().numpy())).float() * 2 - 1
-            baselines = {"vertex oracle": colour_model(vertex_rgb),
-                         "flat": colour_model(pixels.mean(0).expand(graph.num_cells, 3).clone()),
-                         "vertex noise": colour_model(pixels[torch.randint(pixels.shape[0], (graph.num_cells,),
-                                                                           generator=torch.Generator().manual_seed(0))])}
+            vertex_rgb = (
+                torch.from_numpy(
+                    EXEMPLARS[name](
+                        graph.positions.double().numpy() * Judge.pattern_scale(SIZE), graph.normals.double().numpy()
+                    )
+                ).float()
+                * 2
+                - 1
+            )
+            baselines = {
+                "vertex oracle": colour_model(vertex_rgb),
+                "flat": colour_model(pixels.mean(0).expand(graph.num_cells, 3).clone()),
+                "vertex noise": colour_model(
+                    pixels[
+                        torch.randint(pixels.shape[0], (graph.num_cells,), generator=torch.Generator().manual_seed(0))
+                    ]
+                ),
+            }
             for row, (model, state) in baselines.items():
                 sets[row] = state_views(model, state, graph, mvp)
             for loss, model in models.items():
                 sets[loss] = state_views(model, grow(model, graph, STEPS, seed=args.seed), graph, mvp)
             for loss in args.direct:
-                sets[f"direct {loss}"], seconds = direct_views(target.float() * 2 - 1, loss, graph, mvp, vgg,
-                                                               args.direct_iters, args.direct_size, args.seed)
+                sets[f"direct {loss}"], seconds = direct_views(
+                    target.float() * 2 - 1, loss, graph, mvp, vgg, args.direct_iters, args.direct_size, args.seed
+                )
                 record["train_seconds"][f"direct {loss} ({mesh})"] = seconds
             for row, (images, masks) in sets.items():
                 record["rows"].setdefault(row, {})[mesh] = structure_scores(images, masks, target).as_dict()
@@ -185,7 +212,9 @@ def main() -> int:
         results["exemplars"][name] = record
         figure_rows.append((name, tiles))
         if args.figure:
-            write_figure(Path(args.figure), figure_rows, ["exemplar"] + [f"{m}: {row}" for m in graphs for row in shown])
+            write_figure(
+                Path(args.figure), figure_rows, ["exemplar"] + [f"{m}: {row}" for m in graphs for row in shown]
+            )
         print_exemplar(name, record, list(graphs), args.losses + [f"direct {loss}" for loss in args.direct])
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1))
@@ -213,8 +242,11 @@ def write_figure(path: Path, rows: list[tuple[str, list[torch.Tensor]]], columns
 
 def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]) -> None:
     own = record["exemplar"]
-    print(f"\n{name}: exemplar coherence {fmt(own['coherence'])}, ratio {fmt(own['ratio'])}, period {fmt(own['period'], 1)} px, "
-          f"self-SWD {fmt(own['swd'], 0)}; train s: " + ", ".join(f"{k} {fmt(v, 0)}" for k, v in record["train_seconds"].items()))
+    print(
+        f"\n{name}: exemplar coherence {fmt(own['coherence'])}, ratio {fmt(own['ratio'])}, period "
+        f"{fmt(own['period'], 1)} px, self-SWD {fmt(own['swd'], 0)}; train s: "
+        + ", ".join(f"{k} {fmt(v, 0)}" for k, v in record["train_seconds"].items())
+    )
     header = "| row | " + " | ".join(f"{m} SWD | {m} coh | {m} ratio | {m} period" for m in meshes) + " |"
     print(header)
     print("|" + " --- |" * (1 + 4 * len(meshes)))
@@ -228,7 +260,10 @@ def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]
         parts = []
         for m in meshes:
             swd = record["rows"][loss][m]["swd"]
-            parts.append(f"{m}: /oracle {fmt(swd / record['rows']['oracle'][m]['swd'])}, /ot {fmt(swd / record['rows']['ot'][m]['swd']) if 'ot' in record['rows'] else '-'}")
+            parts.append(
+                f"{m}: /oracle {fmt(swd / record['rows']['oracle'][m]['swd'])}, /ot "
+                f"{fmt(swd / record['rows']['ot'][m]['swd']) if 'ot' in record['rows'] else '-'}"
+            )
         print(f"  {loss}: " + "; ".join(parts))
 
 

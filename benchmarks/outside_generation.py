@@ -1,7 +1,8 @@
 """Generators on meshes the synthetic world did not make: how far their textures are from the world's
 photos, beside the untrained generator, the world's own materials and a flat colour.
 
-    python benchmarks/outside_generation.py --world WORK/world --checkpoint chair [--checkpoint RUN/checkpoint.safetensors]
+    python benchmarks/outside_generation.py --world WORK/world --checkpoint chair [--checkpoint
+    RUN/checkpoint.safetensors]
         [--category chair] [--views 8] [--latents 8] [--repeats 2]
 
 The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py``, made
@@ -65,7 +66,9 @@ def height_parts(vertices: np.ndarray, faces: np.ndarray, category: str) -> np.n
 
     centres = vertices[faces].mean(axis=1)
     low, high = vertices[:, 1].min(), vertices[:, 1].max()
-    upper = centres[:, 1] > low + 0.6 * (high - low) if category == "chair" else centres[:, 1] > low + 0.25 * (high - low)
+    upper = (
+        centres[:, 1] > low + 0.6 * (high - low) if category == "chair" else centres[:, 1] > low + 0.25 * (high - low)
+    )
     top, bottom = ("seat", "leg") if category == "chair" else ("body", "wheel")
     return np.where(upper, PART_ID[top], PART_ID[bottom])
 
@@ -75,8 +78,15 @@ def main() -> None:
     from mesh2tex.evaluation.compare import render_for_comparison
     from mesh2tex.evaluation.surfaces import material_surface
     from mesh2tex.geometry.prepared import quads_to_triangles
-    from mesh2tex.evaluation.generation import (draw_key, fresh_photo_set, generator_renders, photo_set_spread, read_as_photos, read_world,
-                                           seeded_generator)
+    from mesh2tex.evaluation.generation import (
+        draw_key,
+        fresh_photo_set,
+        generator_renders,
+        photo_set_spread,
+        read_as_photos,
+        read_world,
+        seeded_generator,
+    )
     from mesh2tex.photos import list_images, load_set
     from mesh2tex.models import load_generator
     from mesh2tex.metrics.generation import colour_spread, mean_object_lab, object_set_swd
@@ -102,7 +112,9 @@ def main() -> None:
     torch.manual_seed(0)
     untrained = TextureGenerator(first.network.cfg).eval().requires_grad_(False)
     generators = [(label, model.network, model.lit) for label, model in models.items()]
-    photos, photo_masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+    photos, photo_masks = load_set(
+        world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask")
+    )
     photo_names = list(list_images(world.root / "images", "image"))
     photo_mean = (photos * photo_masks).sum(dim=(0, 2, 3)) / photo_masks.sum().clamp_min(1.0)
     photo_spread = photo_set_spread(world, photos, photo_masks, photo_names)
@@ -116,10 +128,22 @@ def main() -> None:
         for label, generator, lit in [*generators, ("untrained", untrained, first.lit)]:
             for repeat in range(args.repeats):
                 z = torch.randn(args.views, generator.cfg.z_dim, generator=seeded_generator(draw_key(0, repeat), 1))
-                rows.setdefault((label, repeat), []).append(generator_renders(generator, shape, views, resolution, z, device, lit,
-                                                                               photo_render=RenderSettings(side, 2)))
+                rows.setdefault((label, repeat), []).append(
+                    generator_renders(
+                        generator, shape, views, resolution, z, device, lit, photo_render=RenderSettings(side, 2)
+                    )
+                )
             z = torch.randn(args.latents, generator.cfg.z_dim, generator=torch.Generator().manual_seed(7))
-            images, masks = generator_renders(generator, shape, [views[0]] * args.latents, resolution, z, device, lit, photo_render=RenderSettings(side, 2))
+            images, masks = generator_renders(
+                generator,
+                shape,
+                [views[0]] * args.latents,
+                resolution,
+                z,
+                device,
+                lit,
+                photo_render=RenderSettings(side, 2),
+            )
             spread.setdefault(label, []).append(colour_spread(mean_object_lab(images, masks)))
         vertices, faces = shape.vertices[0], quads_to_triangles(shape.quads[0])
         parts = height_parts(vertices, faces, args.category)
@@ -127,14 +151,25 @@ def main() -> None:
             images, masks = [], []
             for k, view in enumerate(views):
                 material = sample_material(world.spec, np.random.default_rng([repeat, 99, index, k]))
-                out = render_for_comparison(material_surface(vertices, faces, parts, material), [view], RenderSettings(side, 2))
+                out = render_for_comparison(
+                    material_surface(vertices, faces, parts, material), [view], RenderSettings(side, 2)
+                )
                 images.append(composite_images(out.rgb, out.mask, 1.0))
                 masks.append(out.mask)
-            rows.setdefault(("materials", repeat), []).append(read_as_photos(torch.cat(images), torch.cat(masks), resolution))
+            rows.setdefault(("materials", repeat), []).append(
+                read_as_photos(torch.cat(images), torch.cat(masks), resolution)
+            )
             generated_masks = rows[(generators[0][0], repeat)][-1][1]
             rows.setdefault(("flat", repeat), []).append(
-                (composite_images(photo_mean.reshape(1, 3, 1, 1).expand(len(views), 3, resolution, resolution), generated_masks, 1.0),
-                 generated_masks))
+                (
+                    composite_images(
+                        photo_mean.reshape(1, 3, 1, 1).expand(len(views), 3, resolution, resolution),
+                        generated_masks,
+                        1.0,
+                    ),
+                    generated_masks,
+                )
+            )
         print(f"{name}: rendered", flush=True)
     labels = [g[0] for g in generators] + ["untrained", "materials", "flat"]
     distance = {label: [] for label in labels}
@@ -145,8 +180,10 @@ def main() -> None:
             masks = torch.cat([m for _, m in rows[(label, repeat)]])
             distance[label].append(object_set_swd(images, masks, reference, reference_masks, seed=repeat))
     untrained_distance = float(np.mean(distance["untrained"]))
-    print(f"\n{len(meshes)} {args.category} meshes from outside the world, {args.views} views each, "
-          f"{args.repeats} draws; photo set spread {photo_spread:.2f}")
+    print(
+        f"\n{len(meshes)} {args.category} meshes from outside the world, {args.views} views each, "
+        f"{args.repeats} draws; photo set spread {photo_spread:.2f}"
+    )
     print(f"{'row':44s} {'object SWD':>10s} {'vs untrained':>12s} {'diversity':>9s}")
     for label in labels:
         d = float(np.mean(distance[label]))

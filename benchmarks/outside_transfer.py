@@ -68,8 +68,11 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT))
 
 # Photographs the world and the mask network's training never show (mesh2tex.synthetic.backdrops uses others).
-SOURCE_LABELS = {"estimated (mask network, GrabCut edges)": "network_grabcut", "estimated (mask network)": "network",
-                 "estimated (GrabCut)": "grabcut"}
+SOURCE_LABELS = {
+    "estimated (mask network, GrabCut edges)": "network_grabcut",
+    "estimated (mask network)": "network",
+    "estimated (GrabCut)": "grabcut",
+}
 BACKDROPS = ("astronaut", "chelsea", "camera", "coins", "clock", "page")
 
 
@@ -83,7 +86,9 @@ def backdrop(index: int, size: int, rng: np.random.Generator) -> np.ndarray:
     h, w = image.shape[:2]
     side = int(min(h, w) * rng.uniform(0.5, 0.9))
     y, x = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))
-    crop = cv2.resize(np.ascontiguousarray(image[y:y + side, x:x + side]), (size, size), interpolation=cv2.INTER_AREA)
+    crop = cv2.resize(
+        np.ascontiguousarray(image[y : y + side, x : x + side]), (size, size), interpolation=cv2.INTER_AREA
+    )
     return crop.astype(np.float32) / 255.0
 
 
@@ -95,16 +100,20 @@ def room(size: int, rng: np.random.Generator) -> np.ndarray:
 
     rows = np.arange(size, dtype=np.float32)[:, None, None]
     horizon = int(size * rng.uniform(0.45, 0.75))
-    wall = np.array(colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.05, 0.35), rng.uniform(0.55, 0.95)), np.float32)
+    wall = np.array(
+        colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.05, 0.35), rng.uniform(0.55, 0.95)), np.float32
+    )
     image = np.broadcast_to(wall * (0.85 + 0.15 * (1 - rows / size)), (size, size, 3)).copy()
-    wood = np.array(colorsys.hsv_to_rgb(rng.uniform(0.05, 0.11), rng.uniform(0.3, 0.7), rng.uniform(0.25, 0.7)), np.float32)
+    wood = np.array(
+        colorsys.hsv_to_rgb(rng.uniform(0.05, 0.11), rng.uniform(0.3, 0.7), rng.uniform(0.25, 0.7)), np.float32
+    )
     plank = max(3, int(size * rng.uniform(0.03, 0.08)))
     for top in range(horizon, size, plank):
         shade = float(rng.uniform(0.8, 1.15))
         grain = 1 + 0.06 * np.sin(np.arange(size) * rng.uniform(0.2, 0.6) + rng.uniform(0, 6))[None, :, None]
-        image[top:top + plank] = np.clip(wood * shade * grain, 0, 1)
-        image[top:top + 1] *= 0.7  # the gap between planks
-    image[horizon - 2:horizon] *= 0.6  # the skirting's shadow
+        image[top : top + plank] = np.clip(wood * shade * grain, 0, 1)
+        image[top : top + 1] *= 0.7  # the gap between planks
+    image[horizon - 2 : horizon] *= 0.6  # the skirting's shadow
     return np.clip(image, 0.0, 1.0)
 
 
@@ -123,7 +132,9 @@ def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float
     for degrees in angles:
         c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
         turned = points @ np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])
-        distances.append(max(np.percentile(tree.query(turned)[0], 99), np.percentile(cKDTree(turned).query(points)[0], 99)))
+        distances.append(
+            max(np.percentile(tree.query(turned)[0], 99), np.percentile(cKDTree(turned).query(points)[0], 99))
+        )
     distances = np.array(distances)
     close = distances < tolerance * diagonal
     if close.all():  # round: every azimuth shows the same
@@ -159,12 +170,20 @@ def main() -> None:
     def shipped_file(name: str, kind: str) -> str | None:
         path = models_root() / name / MODEL_FILES[kind]
         return str(path) if path.is_file() else None
+
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.vgg import load_vgg19
     from mesh2tex.photos import estimate_mask
     from mesh2tex.synthetic.world import WorldSpec, sample_material, sample_views
     from mesh2tex.texturing import load_shape
-    from mesh2tex.transfer import TransferConfig, locate_object, photo_masks, predict_noc, transfer_texture, view_at_pose
+    from mesh2tex.transfer import (
+        TransferConfig,
+        locate_object,
+        photo_masks,
+        predict_noc,
+        transfer_texture,
+        view_at_pose,
+    )
     from mesh2tex.transfer.fit import check_fit
     from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
     from outside_generation import height_parts, outside_meshes
@@ -173,9 +192,13 @@ def main() -> None:
     parser.add_argument("--checkpoint", default="chair")
     parser.add_argument("--pose-checkpoint")
     parser.add_argument("--noc-checkpoint")
-    parser.add_argument("--mask-checkpoint", help="a 'train mask' checkpoint (default: the shipped model's, if it has one)")
+    parser.add_argument(
+        "--mask-checkpoint", help="a 'train mask' checkpoint (default: the shipped model's, if it has one)"
+    )
     parser.add_argument("--category", default="chair", choices=["chair", "car"])
-    parser.add_argument("--variety", default="real", choices=["boxy", "real"], help="the world whose materials and cameras are used")
+    parser.add_argument(
+        "--variety", default="real", choices=["boxy", "real"], help="the world whose materials and cameras are used"
+    )
     parser.add_argument("--poses", type=int, default=4)
     parser.add_argument("--transfers", type=int, default=1)
     parser.add_argument("--latent-iters", type=int, default=60)
@@ -184,9 +207,15 @@ def main() -> None:
     parser.add_argument("--photo-size", type=int, default=256)
     parser.add_argument("--images", help="a folder to keep the photos, masks and renders in")
     parser.add_argument("--out", help="write the per-photo rows here (JSON)")
-    parser.add_argument("--no-mask-refine", action="store_true", help="keep the picked estimate (no GrabCut from the mesh's outline)")
-    parser.add_argument("--first-photo", type=int, default=0, help="skip the first photos of each mesh (a fresh set of cameras)")
-    parser.add_argument("--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter"])
+    parser.add_argument(
+        "--no-mask-refine", action="store_true", help="keep the picked estimate (no GrabCut from the mesh's outline)"
+    )
+    parser.add_argument(
+        "--first-photo", type=int, default=0, help="skip the first photos of each mesh (a fresh set of cameras)"
+    )
+    parser.add_argument(
+        "--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter"]
+    )
     args = parser.parse_args()
     device = torch.device("cpu")
     pose_checkpoint = args.pose_checkpoint or (args.checkpoint if is_model_name(args.checkpoint) else None)
@@ -198,8 +227,13 @@ def main() -> None:
         parser.error("--pose-checkpoint is needed with a checkpoint file")
     model = load_generator(args.checkpoint, device)
     generator, distance, fov = model.network, model.camera.distance, model.camera.fov
-    cfg = TransferConfig(resolution=args.resolution, latent_iters=args.latent_iters, refine_iters=args.refine_iters,
-                         use_noc=noc_checkpoint is not None, mask_refine=not args.no_mask_refine)
+    cfg = TransferConfig(
+        resolution=args.resolution,
+        latent_iters=args.latent_iters,
+        refine_iters=args.refine_iters,
+        use_noc=noc_checkpoint is not None,
+        mask_refine=not args.no_mask_refine,
+    )
     vgg = load_vgg19(None, device=device)
     spec = WorldSpec(category=args.category, variety=args.variety)
     folder = Path(args.images) if args.images else Path(tempfile.mkdtemp(prefix="outside-transfer-"))
@@ -225,16 +259,33 @@ def main() -> None:
             coverage = photo_render.mask[0, 0].numpy()[..., None]
             stem = f"{name}_{k}"
             photos = {"alpha": (folder / f"{stem}.png", rgb)}
-            save_png(photos["alpha"][0], np.concatenate([(rgb * 255).round().astype(np.uint8), (true_mask * 255).astype(np.uint8)[..., None]], 2))
-            for variant, backdrop_rgb in (("room", room(args.photo_size, rng)), ("clutter", backdrop(index + k, args.photo_size, rng))):
+            save_png(
+                photos["alpha"][0],
+                np.concatenate(
+                    [(rgb * 255).round().astype(np.uint8), (true_mask * 255).astype(np.uint8)[..., None]], 2
+                ),
+            )
+            for variant, backdrop_rgb in (
+                ("room", room(args.photo_size, rng)),
+                ("clutter", backdrop(index + k, args.photo_size, rng)),
+            ):
                 over = rgb * coverage + backdrop_rgb * (1 - coverage)
                 photos[variant] = (folder / f"{stem}_{variant}.jpg", over)
-                cv2.imwrite(str(photos[variant][0]), cv2.cvtColor((over * 255).round().astype(np.uint8), cv2.COLOR_RGB2BGR),
-                            [cv2.IMWRITE_JPEG_QUALITY, 90])
+                cv2.imwrite(
+                    str(photos[variant][0]),
+                    cv2.cvtColor((over * 255).round().astype(np.uint8), cv2.COLOR_RGB2BGR),
+                    [cv2.IMWRITE_JPEG_QUALITY, 90],
+                )
             for variant, (file, over) in photos.items():
                 if variant not in args.variants:
                     continue
-                row = {"mesh": name, "photo": k, "variant": variant, "azimuth": view.azimuth, "elevation": view.elevation}
+                row = {
+                    "mesh": name,
+                    "photo": k,
+                    "variant": variant,
+                    "azimuth": view.azimuth,
+                    "elevation": view.elevation,
+                }
                 if variant != "alpha":
                     as_read = cv2.cvtColor(cv2.imread(str(file)), cv2.COLOR_BGR2RGB)
                     candidates = {"grabcut": estimate_mask(as_read)}
@@ -253,7 +304,9 @@ def main() -> None:
                 located = locate_object(masked, shape, pose_checkpoint, None, distance, fov, cfg, device)
                 photo, estimate = located.photo, located.estimate
                 if variant != "alpha":
-                    picked = next(label for source, label in SOURCE_LABELS.items() if located.mask_source.startswith(source))
+                    picked = next(
+                        label for source, label in SOURCE_LABELS.items() if located.mask_source.startswith(source)
+                    )
                     estimated, row["mask_picked"] = located.mask, picked
                     row["mask_iou"] = float((estimated & true_mask).sum() / max((estimated | true_mask).sum(), 1))
                 row["pose_seconds"] = round(time.perf_counter() - started, 2)
@@ -261,14 +314,26 @@ def main() -> None:
                 row["pose_error"] = symmetric_error(estimate.azimuth, view.azimuth, turns)
                 row["raw_pose_error"] = float(azimuth_error(estimate.azimuth, view.azimuth))
                 row["symmetries"] = len(turns)
-                row["network_error"] = float(azimuth_error(estimate.network[0], view.azimuth)) if estimate.network else None
+                row["network_error"] = (
+                    float(azimuth_error(estimate.network[0], view.azimuth)) if estimate.network else None
+                )
                 if k - args.first_photo < args.transfers:
                     photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
                     framed = view_at_pose(shape, estimate.azimuth, estimate.elevation, distance, fov, cfg)
                     torch.manual_seed(0)
                     candidate = copy.deepcopy(generator)
-                    result = transfer_texture(candidate, shape, photo, framed, photo_noc, vgg, cfg, device, show_progress=False,
-                                              generator_lit=model.lit)
+                    result = transfer_texture(
+                        candidate,
+                        shape,
+                        photo,
+                        framed,
+                        photo_noc,
+                        vgg,
+                        cfg,
+                        device,
+                        show_progress=False,
+                        generator_lit=model.lit,
+                    )
                     batch = collate_shapes([shape])
                     fit = check_fit(photo.image, photo.mask, result.render, framed.mask)
                     row["fit_poor"], row["fit_iou"] = fit.poor, fit.silhouette_iou
@@ -285,26 +350,55 @@ def main() -> None:
                     reference_rgb[0] = torch.from_numpy(as_read).permute(2, 0, 1)
                     photo_mask = torch.from_numpy(true_mask if variant == "alpha" else estimated).float()
                     flat_colour = photo_mean_colour(torch.from_numpy(over).permute(2, 0, 1).float(), photo_mask)
-                    methods = {"oracle": reference,
-                               "transfer": render_for_comparison(generator_surface(generator, texture, batch), judged, RenderSettings(side, 2)),
-                               "flat": render_for_comparison(flat_surface(vertices, faces, flat_colour), judged, RenderSettings(side, 2))}
+                    methods = {
+                        "oracle": reference,
+                        "transfer": render_for_comparison(
+                            generator_surface(generator, texture, batch), judged, RenderSettings(side, 2)
+                        ),
+                        "flat": render_for_comparison(
+                            flat_surface(vertices, faces, flat_colour), judged, RenderSettings(side, 2)
+                        ),
+                    }
                     mask = common_mask(reference.mask, methods["flat"].mask)
                     for method, rendered in methods.items():
                         scores = score_views(rendered, reference_rgb, reference.parts, mask, settings)["lowpass_psnr"]
-                        row[f"{method} seen"], row[f"{method} unseen"] = scores[0], (scores[1] if method != "oracle" else None)
-                    save_png(folder / f"{stem}_{variant}_transfer.png",
-                             (torch.cat([reference.rgb, methods["transfer"].rgb], 3).permute(0, 2, 3, 1).reshape(-1, 2 * side, 3).numpy() * 255)
-                             .round().astype(np.uint8))
+                        row[f"{method} seen"], row[f"{method} unseen"] = (
+                            scores[0],
+                            (scores[1] if method != "oracle" else None),
+                        )
+                    save_png(
+                        folder / f"{stem}_{variant}_transfer.png",
+                        (
+                            torch.cat([reference.rgb, methods["transfer"].rgb], 3)
+                            .permute(0, 2, 3, 1)
+                            .reshape(-1, 2 * side, 3)
+                            .numpy()
+                            * 255
+                        )
+                        .round()
+                        .astype(np.uint8),
+                    )
                 rows.append(row)
                 print(json.dumps({k: (round(v, 2) if isinstance(v, float) else v) for k, v in row.items()}), flush=True)
-    print(f"\n{len({r['mesh'] for r in rows})} {args.category} meshes from outside the world, {args.poses} photos each; "
-          f"checkpoint {args.checkpoint}, pose {pose_checkpoint}, NOC {noc_checkpoint}")
+    print(
+        f"\n{len({r['mesh'] for r in rows})} {args.category} meshes from outside the world, {args.poses} photos each; "
+        f"checkpoint {args.checkpoint}, pose {pose_checkpoint}, NOC {noc_checkpoint}"
+    )
     for variant in [v for v in ("room", "clutter") if v in args.variants]:
         chosen = [r for r in rows if r["variant"] == variant]
-        print(f"mask IoU, {variant}: " + ", ".join(f"{k[4:]} {np.mean([r[k] for r in chosen]):.3f} (worst {np.min([r[k] for r in chosen]):.3f})"
-                                                 for k in chosen[0] if k.startswith("iou_")))
-    print(f"{'variant':12s} {'mask IoU':>9s} {'pose err median':>15s} {'<=15 deg':>8s} {'network median':>14s}"
-          f" {'poor fit':>8s} {'transfer seen':>13s} {'flat seen':>9s} {'transfer unseen':>15s} {'flat unseen':>11s} {'oracle seen':>11s}")
+        print(
+            f"mask IoU, {variant}: "
+            + ", ".join(
+                f"{k[4:]} {np.mean([r[k] for r in chosen]):.3f} (worst {np.min([r[k] for r in chosen]):.3f})"
+                for k in chosen[0]
+                if k.startswith("iou_")
+            )
+        )
+    print(
+        f"{'variant':12s} {'mask IoU':>9s} {'pose err median':>15s} {'<=15 deg':>8s} {'network median':>14s}"
+        f" {'poor fit':>8s} {'transfer seen':>13s} {'flat seen':>9s} {'transfer unseen':>15s} {'flat unseen':>11s} "
+        f"{'oracle seen':>11s}"
+    )
     for variant in args.variants:
         chosen = [r for r in rows if r["variant"] == variant]
         judged = [r for r in chosen if "transfer seen" in r]
@@ -312,10 +406,14 @@ def main() -> None:
         def mean(key):
             return float(np.mean([r[key] for r in judged])) if judged else float("nan")
 
-        print(f"{variant:12s} {np.mean([r['mask_iou'] for r in chosen]):9.3f} {np.median([r['pose_error'] for r in chosen]):15.1f} "
-              f"{np.mean([r['pose_error'] <= 15 for r in chosen]):8.2f} {np.median([r['network_error'] for r in chosen]):14.1f} "
-              f"{mean('fit_poor'):8.2f} {mean('transfer seen'):13.2f} {mean('flat seen'):9.2f} {mean('transfer unseen'):15.2f} {mean('flat unseen'):11.2f} "
-              f"{mean('oracle seen'):11.2f}")
+        print(
+            f"{variant:12s} {np.mean([r['mask_iou'] for r in chosen]):9.3f} "
+            f"{np.median([r['pose_error'] for r in chosen]):15.1f} "
+            f"{np.mean([r['pose_error'] <= 15 for r in chosen]):8.2f} "
+            f"{np.median([r['network_error'] for r in chosen]):14.1f} "
+            f"{mean('fit_poor'):8.2f} {mean('transfer seen'):13.2f} {mean('flat seen'):9.2f} "
+            f"{mean('transfer unseen'):15.2f} {mean('flat unseen'):11.2f} {mean('oracle seen'):11.2f}"
+        )
     if args.out:
         Path(args.out).write_text(json.dumps(rows, indent=1))
 

@@ -39,13 +39,16 @@ class Revision:
     (kept while the object lives)."""
 
     def __init__(self, revision: str):
-        self.commit = subprocess.run(["git", "rev-parse", "--short", revision], cwd=ROOT, check=True,
-                                     capture_output=True, text=True).stdout.strip()
-        present = subprocess.run(["git", "ls-tree", "--name-only", self.commit], cwd=ROOT, check=True,
-                                 capture_output=True, text=True).stdout.split()
+        self.commit = subprocess.run(
+            ["git", "rev-parse", "--short", revision], cwd=ROOT, check=True, capture_output=True, text=True
+        ).stdout.strip()
+        present = subprocess.run(
+            ["git", "ls-tree", "--name-only", self.commit], cwd=ROOT, check=True, capture_output=True, text=True
+        ).stdout.split()
         folders = [name for name in dict.fromkeys(PACKAGES + STAGES) if name in present]
-        archive = subprocess.run(["git", "archive", "--format=tar", self.commit, *folders], cwd=ROOT, check=True,
-                                 capture_output=True).stdout
+        archive = subprocess.run(
+            ["git", "archive", "--format=tar", self.commit, *folders], cwd=ROOT, check=True, capture_output=True
+        ).stdout
         self._folder = tempfile.TemporaryDirectory(prefix=f"mesh2tex-{self.commit}-")
         with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
             tar.extractall(self._folder.name, filter="data")

@@ -44,7 +44,9 @@ def main() -> None:
     z = torch.randn(args.latents, generator.cfg.z_dim, generator=torch.Generator().manual_seed(0))
     for path in paths:
         batch = collate_shapes([PreparedShape.load(path)])
-        mvp = orbit_camera(torch.tensor([30.0, 120.0, 210.0, 300.0]), torch.full((4,), 20.0), distance=distance, fov=fov).mvp
+        mvp = orbit_camera(
+            torch.tensor([30.0, 120.0, 210.0, 300.0]), torch.full((4,), 20.0), distance=distance, fov=fov
+        ).mvp
         samples = rasterize_batch(batch, mvp, (args.resolution, args.resolution))
         covered = samples.mask.reshape(-1)
         triangle_id, bary = samples.triangle_id.reshape(-1)[covered], samples.bary.reshape(-1, 3)[covered]
@@ -57,7 +59,9 @@ def main() -> None:
             if generator.field_geometry is not None:
                 width = generator.cfg.field_geometry_channels
                 geometry = texture.field_features[:, -width:]
-                flat = torch.cat([texture.field_features[:, :-width], geometry.mean(0, keepdim=True).expand_as(geometry)], dim=1)
+                flat = torch.cat(
+                    [texture.field_features[:, :-width], geometry.mean(0, keepdim=True).expand_as(geometry)], dim=1
+                )
                 still = FaceTexture(flat, texture.face_rgb).bound(generator, batch).colours(triangle_id, bary)
                 frozen.append((still - colours[-1]).abs().mean())
         for i in range(args.latents):

@@ -76,11 +76,17 @@ def albedo_table(draws: int = 40) -> None:
         return pattern
 
     kinds = {
-        "wood": lambda rng: rm.wood(rng, chair), "fabric": lambda rng: rm.fabric(rng, chair), "leather": lambda rng: rm.leather(rng, chair),
-        "upholstery with seams": lambda rng: rm.cover(rng, chair, True), "brushed metal": brushed,
-        "painted metal (car)": lambda rng: rm.painted(rng, car, PAINT[int(rng.integers(len(PAINT)))]), "plastic": lambda rng: rm.plastic(rng, chair),
+        "wood": lambda rng: rm.wood(rng, chair),
+        "fabric": lambda rng: rm.fabric(rng, chair),
+        "leather": lambda rng: rm.leather(rng, chair),
+        "upholstery with seams": lambda rng: rm.cover(rng, chair, True),
+        "brushed metal": brushed,
+        "painted metal (car)": lambda rng: rm.painted(rng, car, PAINT[int(rng.integers(len(PAINT)))]),
+        "plastic": lambda rng: rm.plastic(rng, chair),
         "tyre rubber": lambda rng: rm.Rubber(seed=int(rng.integers(99)), limit=car),
-        "dark glass": lambda rng: rm.DarkGlass(GLASS[int(rng.integers(len(GLASS)))], float(rng.uniform(0.3, 0.9)), 1.6, car),
+        "dark glass": lambda rng: rm.DarkGlass(
+            GLASS[int(rng.integers(len(GLASS)))], float(rng.uniform(0.3, 0.9)), 1.6, car
+        ),
     }
     n = 96
     y, z = np.meshgrid(np.linspace(-0.25, 0.25, n), np.linspace(-0.25, 0.25, n), indexing="ij")
@@ -109,7 +115,9 @@ def main() -> None:
     parser.add_argument("--work", default="/tmp/mesh2tex_speckle", help="prepared shapes are cached here")
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--json", default="", help="also write the rows here")
-    parser.add_argument("--albedo", action="store_true", help="print the varied world's materials' albedo statistics and stop")
+    parser.add_argument(
+        "--albedo", action="store_true", help="print the varied world's materials' albedo statistics and stop"
+    )
     args = parser.parse_args()
     if args.albedo:
         albedo_table()
@@ -117,12 +125,19 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     start = time.perf_counter()
     device = torch.device("cpu")
-    card = json.loads((Path(__file__).resolve().parents[1] / "mesh2tex" / "models" / args.category / "card.json").read_text())
+    card = json.loads(
+        (Path(__file__).resolve().parents[1] / "mesh2tex" / "models" / args.category / "card.json").read_text()
+    )
     spec = WorldSpec(category=args.category, variety=args.variety, **card["world"])
     train, held = spec.split()
     rendered = dataclasses.replace(spec, resolution=args.resolution)
-    world = WorldData(rendered, Path(args.work), [spec.shape_name(i) for i in held], [spec.shape_name(i) for i in train],
-                      {spec.shape_name(i): i for i in range(spec.shapes)})
+    world = WorldData(
+        rendered,
+        Path(args.work),
+        [spec.shape_name(i) for i in held],
+        [spec.shape_name(i) for i in train],
+        {spec.shape_name(i): i for i in range(spec.shapes)},
+    )
     model = load_generator(args.category, device)
     generator = model.network
     torch.manual_seed(0)
@@ -143,22 +158,42 @@ def main() -> None:
         shape = make_shape(spec, index)
         if not path.exists():
             s = card["shapes"]
-            prepare_shape(shape.vertices, shape.faces, face_count=s["faces"], levels=s["levels"], seed=s["seed"]).save(path)
+            prepare_shape(shape.vertices, shape.faces, face_count=s["faces"], levels=s["levels"], seed=s["seed"]).save(
+                path
+            )
         prepared = PreparedShape.load(path)
         views = sample_views(spec, index, args.views)
         ppu += [view_pixels_per_unit(v.distance, v.fov, r) for v in views]
         add("ground_truth", ground_truth_renders(world, name, views, r, lit=False))
         for d in range(args.draws):
-            materials = [sample_material(spec, np.random.default_rng([_DRAW_STREAM, d, index, k]), shape) for k in range(len(views))]
+            materials = [
+                sample_material(spec, np.random.default_rng([_DRAW_STREAM, d, index, k]), shape)
+                for k in range(len(views))
+            ]
             add(f"draw_{d}", material_renders(world, name, views, materials, r, lit=False))
-        for seed in seeds:  # the oracle: the world's sampler drawn again, one material per view, as a generator seed paints
-            materials = [sample_material(spec, np.random.default_rng([_ORACLE_STREAM, seed, index, k]), shape) for k in range(len(views))]
+        for (
+            seed
+        ) in seeds:  # the oracle: the world's sampler drawn again, one material per view, as a generator seed paints
+            materials = [
+                sample_material(spec, np.random.default_rng([_ORACLE_STREAM, seed, index, k]), shape)
+                for k in range(len(views))
+            ]
             add(f"oracle_{seed}", material_renders(world, name, views, materials, r, lit=False))
         for seed in seeds:
-            z = torch.randn(len(views), generator.cfg.z_dim, generator=torch.Generator().manual_seed(seed * 1000 + index))
-            add(f"seed_{seed}", generator_renders(generator, prepared, views, r, z, device, lit=False, photo_render=RenderSettings(r, 2)))
+            z = torch.randn(
+                len(views), generator.cfg.z_dim, generator=torch.Generator().manual_seed(seed * 1000 + index)
+            )
+            add(
+                f"seed_{seed}",
+                generator_renders(
+                    generator, prepared, views, r, z, device, lit=False, photo_render=RenderSettings(r, 2)
+                ),
+            )
         z = torch.randn(len(views), generator.cfg.z_dim, generator=torch.Generator().manual_seed(index))
-        add("untrained", generator_renders(untrained, prepared, views, r, z, device, lit=False, photo_render=RenderSettings(r, 2)))
+        add(
+            "untrained",
+            generator_renders(untrained, prepared, views, r, z, device, lit=False, photo_render=RenderSettings(r, 2)),
+        )
         print(f"{name} rendered ({time.perf_counter() - start:.0f} s)", file=sys.stderr)
 
     def measure(items, space, pixels):
@@ -175,18 +210,24 @@ def main() -> None:
             rows.setdefault(f"{label}, median of seeds", {})[space] = statistics.median(values)
             rows.setdefault(f"{label}, lowest seed", {})[space] = min(values)
             rows.setdefault(f"{label}, highest seed", {})[space] = max(values)
-    rows["ground truth: the held-out shapes' own materials"] = {s: measure(sets["ground_truth"], s, ppu) for s in ("L", "lab")}
+    rows["ground truth: the held-out shapes' own materials"] = {
+        s: measure(sets["ground_truth"], s, ppu) for s in ("L", "lab")
+    }
     rows["untrained generator"] = {s: measure(sets["untrained"], s, ppu) for s in ("L", "lab")}
     images, masks = torch.cat([a for a, _ in draws]), torch.cat([b for _, b in draws])
     mean = (images * masks).sum(dim=(0, 2, 3)) / masks.sum()
     flat = composite_images(mean.reshape(1, 3, 1, 1).expand_as(images), masks, 1.0)
-    rows["flat mean colour"] = {s: high_frequency_share(flat, masks, args.cutoff, pixels_per_unit=ppu * args.draws, space=s).share
-                                for s in ("L", "lab")}
+    rows["flat mean colour"] = {
+        s: high_frequency_share(flat, masks, args.cutoff, pixels_per_unit=ppu * args.draws, space=s).share
+        for s in ("L", "lab")
+    }
     target = rows["world's materials"]
     world_name = f"{args.category} world ({args.variety})"
-    print(f"\nSpeckle on the {len(world.held_out)} held-out shapes of the {world_name}, {args.views} views each at {r} px, "
-          f"unlit; power above {args.cutoff:g} cycles per object diagonal; generator seeds {args.seeds}; "
-          f"iteration {model.iteration}; {time.perf_counter() - start:.0f} s\n")
+    print(
+        f"\nSpeckle on the {len(world.held_out)} held-out shapes of the {world_name}, {args.views} views each at {r} "
+        f"px, unlit; power above {args.cutoff:g} cycles per object diagonal; generator seeds {args.seeds}; "
+        f"iteration {model.iteration}; {time.perf_counter() - start:.0f} s\n"
+    )
     print("| row | high-frequency share, L* | x the world's materials' | L*a*b* | x the world's materials' |")
     print("| --- | --- | --- | --- | --- |")
     for row, values in rows.items():
@@ -195,7 +236,11 @@ def main() -> None:
     print("\nper seed (L*): " + ", ".join(f"{seed}: {v['L']:.3f}" for seed, v in per_seed.items()))
     print("oracle per seed (L*): " + ", ".join(f"{seed}: {v['L']:.3f}" for seed, v in oracle.items()))
     if args.json:
-        Path(args.json).write_text(json.dumps({"rows": rows, "per_seed": per_seed, "oracle_per_seed": oracle, "settings": vars(args)}, indent=1))
+        Path(args.json).write_text(
+            json.dumps(
+                {"rows": rows, "per_seed": per_seed, "oracle_per_seed": oracle, "settings": vars(args)}, indent=1
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -42,7 +42,11 @@ def main():
     size = args.resolution
     rows, cols = torch.meshgrid(torch.arange(size), torch.arange(size), indexing="ij")
     mask = ((rows - size / 2) ** 2 + (cols - size / 2) ** 2 <= (0.4 * size) ** 2).float()[None, None].to(args.device)
-    noc = torch.stack([rows / size, cols / size, torch.full_like(rows, 0.5, dtype=torch.float)], -1).float().to(args.device)
+    noc = (
+        torch.stack([rows / size, cols / size, torch.full_like(rows, 0.5, dtype=torch.float)], -1)
+        .float()
+        .to(args.device)
+    )
     photo = torch.rand(1, 3, size, size, device=args.device) * 2 - 1
     render = (torch.rand(1, 3, size, size, device=args.device) * 2 - 1).requires_grad_()
     with torch.no_grad():
@@ -60,8 +64,14 @@ def main():
     name = torch.cuda.get_device_name() if args.device == "cuda" else f"cpu ({torch.get_num_threads()} threads)"
     print(f"device: {name}, resolution {size}, VGG19 {vgg.source}")
     print(f"global style loss step: {seconds_global:.3f} s")
-    print(f"patch style loss step (2 x 64x64): {seconds_patch:.3f} s  (ratio to global {seconds_patch / seconds_global:.2f})")
-    print(f"transfer style cost at 100 + 300 iterations: {100 * (seconds_global + seconds_patch) + 300 * seconds_patch:.1f} s")
+    print(
+        f"patch style loss step (2 x 64x64): {seconds_patch:.3f} s  (ratio to global "
+        f"{seconds_patch / seconds_global:.2f})"
+    )
+    print(
+        "transfer style cost at 100 + 300 iterations: "
+        f"{100 * (seconds_global + seconds_patch) + 300 * seconds_patch:.1f} s"
+    )
 
 
 if __name__ == "__main__":

@@ -39,7 +39,9 @@ class QuietHandler(http.server.SimpleHTTPRequestHandler):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("glb", type=Path)
-    parser.add_argument("--three", type=Path, required=True, help="folder holding node_modules/three (npm install --prefix DIR three)")
+    parser.add_argument(
+        "--three", type=Path, required=True, help="folder holding node_modules/three (npm install --prefix DIR three)"
+    )
     parser.add_argument("--out", type=Path, help="screenshot PNG (384 x 384)")
     parser.add_argument("--browser", help="Chromium or Chrome executable")
     args = parser.parse_args()
@@ -56,10 +58,21 @@ def main() -> None:
         server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), partial(QuietHandler, directory=str(root)))
         threading.Thread(target=server.serve_forever, daemon=True).start()
         shot = root / "shot.png"
-        command = [browser, "--headless=new", "--no-sandbox", "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                   "--virtual-time-budget=60000", "--enable-logging=stderr", "--v=0", "--window-size=384,384",
-                   f"--user-data-dir={root / 'profile'}", f"--screenshot={shot}",
-                   f"http://127.0.0.1:{server.server_address[1]}/page.html?glb=asset.glb"]
+        command = [
+            browser,
+            "--headless=new",
+            "--no-sandbox",
+            "--use-gl=angle",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--virtual-time-budget=60000",
+            "--enable-logging=stderr",
+            "--v=0",
+            "--window-size=384,384",
+            f"--user-data-dir={root / 'profile'}",
+            f"--screenshot={shot}",
+            f"http://127.0.0.1:{server.server_address[1]}/page.html?glb=asset.glb",
+        ]
         try:
             result = subprocess.run(command, capture_output=True, text=True, timeout=180)
         finally:
@@ -68,7 +81,7 @@ def main() -> None:
         found = next((line for line in lines if '"OK ' in line or '"ERROR ' in line), None)
         if found is None:
             sys.exit(f"{args.glb}: three.js reported nothing (exit {result.returncode}); console: {lines[-3:]}")
-        message = found[found.index('"') + 1:found.rindex('"')]
+        message = found[found.index('"') + 1 : found.rindex('"')]
         print(f"{args.glb}: {message}")
         if args.out and shot.is_file():
             args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,8 @@
 """Run the synthetic evaluation protocols and print their cost and the full-vs-ablation outcome.
 
     OMP_NUM_THREADS=1 python benchmarks/transfer_protocols.py --world WORLD --shapes SHAPES --checkpoint GAN \\
-        --pose-checkpoint POSE --noc-checkpoint NOC [--latent-iters 20] [--refine-iters 20] [--queries 4] [--only known_pose] [--out DIR]
+        --pose-checkpoint POSE --noc-checkpoint NOC [--latent-iters 20] [--refine-iters 20] [--queries 4] [--only
+        known_pose] [--out DIR]
 
 Prints, per transfer protocol and row (ablations and baselines): seconds in all, for ablations the
 seconds per transfer iteration and the time relative to the full method in the same run, and how
@@ -29,7 +30,13 @@ def main() -> None:
     parser.add_argument("--world", required=True)
     parser.add_argument("--shapes", required=True)
     # named as 'mesh2tex evaluate --protocols' names them (the former --gan, --pose, --noc still work)
-    parser.add_argument("--checkpoint", "--gan", dest="checkpoint", required=True, help="generator: a checkpoint or a shipped model's name")
+    parser.add_argument(
+        "--checkpoint",
+        "--gan",
+        dest="checkpoint",
+        required=True,
+        help="generator: a checkpoint or a shipped model's name",
+    )
     parser.add_argument("--pose-checkpoint", "--pose", dest="pose", required=True)
     parser.add_argument("--noc-checkpoint", "--noc", dest="noc", required=True)
     parser.add_argument("--latent-iters", type=int, default=20)
@@ -41,9 +48,14 @@ def main() -> None:
     transfer = replace(ProtocolConfig().transfer, latent_iters=args.latent_iters, refine_iters=args.refine_iters)
     cfg = ProtocolConfig(protocols=args.only.split(","), queries=args.queries, device="cpu", transfer=transfer)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="protocols_"))
-    result = run_protocols(args.world, args.shapes, args.checkpoint, args.pose, args.noc, cfg, out, log=lambda line: None)
+    result = run_protocols(
+        args.world, args.shapes, args.checkpoint, args.pose, args.noc, cfg, out, log=lambda line: None
+    )
     queries = result["counts"]["queries"]
-    print(f"{queries} queries, {cfg.transfer.latent_iters} + {cfg.transfer.refine_iters} iterations at {cfg.resolution} px; results in {out}")
+    print(
+        f"{queries} queries, {cfg.transfer.latent_iters} + {cfg.transfer.refine_iters} iterations at {cfg.resolution} "
+        f"px; results in {out}"
+    )
     for name, entry in result["protocols"].items():
         print(f"{name}: {entry['seconds']:.1f} s")
         if "methods" not in entry:

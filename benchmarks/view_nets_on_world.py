@@ -61,11 +61,22 @@ def main() -> None:
     parser.add_argument("--world", required=True, help="a world from 'mesh2tex prepare synthetic'")
     parser.add_argument("--pose-checkpoint", required=True)
     parser.add_argument("--noc-checkpoint")
-    parser.add_argument("--resolution", type=int, default=64, help="side of the photo crop (as infer transfer --resolution)")
+    parser.add_argument(
+        "--resolution", type=int, default=64, help="side of the photo crop (as infer transfer --resolution)"
+    )
     parser.add_argument("--queries-only", action="store_true", help="only the held-out query photos")
-    parser.add_argument("--shapes", nargs="+", default=[], help="folders of the world's prepared shapes: also time and score the silhouette search")
-    parser.add_argument("--show-misses", type=float, metavar="DEG",
-                        help="with --shapes: list each photo the search puts more than DEG degrees off, with both poses and IoUs")
+    parser.add_argument(
+        "--shapes",
+        nargs="+",
+        default=[],
+        help="folders of the world's prepared shapes: also time and score the silhouette search",
+    )
+    parser.add_argument(
+        "--show-misses",
+        type=float,
+        metavar="DEG",
+        help="with --shapes: list each photo the search puts more than DEG degrees off, with both poses and IoUs",
+    )
     args = parser.parse_args()
 
     world = Path(args.world)
@@ -95,31 +106,66 @@ def main() -> None:
             if entry["shape"] in shape_files:
                 shape = PreparedShape.load(shape_files[entry["shape"]])
                 start = time.perf_counter()
-                estimate = estimate_pose(args.pose_checkpoint, shape, photo, GAN_CAMERA.distance, GAN_CAMERA.fov, cfg, device)
+                estimate = estimate_pose(
+                    args.pose_checkpoint, shape, photo, GAN_CAMERA.distance, GAN_CAMERA.fov, cfg, device
+                )
                 search_seconds.append(time.perf_counter() - start)
                 search_errors.append(azimuth_error(estimate.azimuth, entry["azimuth"]))
                 if args.show_misses is not None and search_errors[-1] > args.show_misses:
-                    print(f"miss: {entry['image']} true az {entry['azimuth']:.0f} el {entry['elevation']:.0f}; search "
-                          f"{estimate.azimuth:.0f}, {estimate.elevation:.0f} (IoU {estimate.silhouette_iou}); network "
-                          f"{estimate.network[0]:.0f}, {estimate.network[1]:.0f} (IoU {estimate.network_silhouette_iou})")
+                    print(
+                        f"miss: {entry['image']} true az {entry['azimuth']:.0f} el {entry['elevation']:.0f}; search "
+                        f"{estimate.azimuth:.0f}, {estimate.elevation:.0f} (IoU {estimate.silhouette_iou}); network "
+                        f"{estimate.network[0]:.0f}, {estimate.network[1]:.0f} (IoU {estimate.network_silhouette_iou})"
+                    )
                 search_elevation_errors.append(abs(estimate.elevation - entry["elevation"]))
         e = np.array(errors)
-        rows.append((name, len(entries), np.mean(hits), np.mean(e <= 30), np.mean(e <= 45), e.mean(), np.mean(elevation_errors),
-                     np.mean(noc_errors) if noc_errors else float("nan")))
+        rows.append(
+            (
+                name,
+                len(entries),
+                np.mean(hits),
+                np.mean(e <= 30),
+                np.mean(e <= 45),
+                e.mean(),
+                np.mean(elevation_errors),
+                np.mean(noc_errors) if noc_errors else float("nan"),
+            )
+        )
         if search_errors:
             s = np.array(search_errors)
-            searched.append((name, len(s), np.mean(s <= 30), np.mean(s <= 45), s.mean(), s.max(), np.mean(search_elevation_errors),
-                             np.mean(search_seconds)))
-    print(f"pose {args.pose_checkpoint}" + (f", NOC {args.noc_checkpoint}" if args.noc_checkpoint else "")
-          + f"; photos cropped to {args.resolution} px")
-    print("| photos | n | azimuth bin acc | within 30 deg | within 45 deg | mean az error | mean el error | NOC error |")
+            searched.append(
+                (
+                    name,
+                    len(s),
+                    np.mean(s <= 30),
+                    np.mean(s <= 45),
+                    s.mean(),
+                    s.max(),
+                    np.mean(search_elevation_errors),
+                    np.mean(search_seconds),
+                )
+            )
+    print(
+        f"pose {args.pose_checkpoint}"
+        + (f", NOC {args.noc_checkpoint}" if args.noc_checkpoint else "")
+        + f"; photos cropped to {args.resolution} px"
+    )
+    print(
+        "| photos | n | azimuth bin acc | within 30 deg | within 45 deg | mean az error | mean el error | NOC error |"
+    )
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for name, n, acc, w30, w45, az, el, noc in rows:
-        print(f"| {name} | {n} | {acc:.2f} | {w30:.2f} | {w45:.2f} | {az:.1f} | {el:.1f} | "
-              + ("-" if np.isnan(noc) else f"{noc:.3f}") + " |")
+        print(
+            f"| {name} | {n} | {acc:.2f} | {w30:.2f} | {w45:.2f} | {az:.1f} | {el:.1f} | "
+            + ("-" if np.isnan(noc) else f"{noc:.3f}")
+            + " |"
+        )
     if searched:
         print("\npose network + silhouette search (infer transfer --pose auto):")
-        print("| photos | n | within 30 deg | within 45 deg | mean az error | max az error | mean el error | s per photo |")
+        print(
+            "| photos | n | within 30 deg | within 45 deg | mean az error | max az error | mean el error | s per "
+            "photo |"
+        )
         print("| --- | --- | --- | --- | --- | --- | --- | --- |")
         for name, n, w30, w45, az, worst, el, sec in searched:
             print(f"| {name} | {n} | {w30:.2f} | {w45:.2f} | {az:.1f} | {worst:.0f} | {el:.1f} | {sec:.2f} |")

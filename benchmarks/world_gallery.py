@@ -31,8 +31,16 @@ def gallery_tile(spec: WorldSpec, index: int, size: int, family: str | None = No
         shape = generate_varied_shape(spec.category, np.random.default_rng([spec.seed, index]), "real", family)
     material = make_material(spec, index)
     chair = spec.category == "chair"
-    view = PhotoSetup(azimuth=35.0 if chair else 40.0, elevation=20.0 if chair else 25.0, distance=1.6 if chair else 1.3, fov=40.0,
-                      light=(0.45, 0.75, 0.48), ambient=0.45, background="solid", background_seed=0)
+    view = PhotoSetup(
+        azimuth=35.0 if chair else 40.0,
+        elevation=20.0 if chair else 25.0,
+        distance=1.6 if chair else 1.3,
+        fov=40.0,
+        light=(0.45, 0.75, 0.48),
+        ambient=0.45,
+        background="solid",
+        background_seed=0,
+    )
     rendered = render_views(shape, material, [view], RenderSettings(size, 3))
     mask = rendered["mask"][0][..., None] > 0
     tile = np.where(mask, rendered["rgb"][0], 255).astype(np.uint8)
@@ -51,14 +59,18 @@ def main() -> None:
     parser.add_argument("--count", type=int, default=32, help="shapes shown (the world's first ones)")
     parser.add_argument("--columns", type=int, default=8)
     parser.add_argument("--size", type=int, default=160, help="side of each tile in pixels")
-    parser.add_argument("--family", default=None, help="only shapes of this family of the varied world (e.g. office, suv)")
+    parser.add_argument(
+        "--family", default=None, help="only shapes of this family of the varied world (e.g. office, suv)"
+    )
     parser.add_argument("--out", required=True, help="PNG to write")
     args = parser.parse_args()
     spec = WorldSpec(category=args.category, seed=args.seed, variety=args.variety, shapes=max(args.count, 2))
     tiles, captions = zip(*(gallery_tile(spec, i, args.size, args.family) for i in range(args.count)))
     save_png(args.out, contact_sheet(list(tiles), args.columns, gap=2, fill=235))
     families = {name: captions.count(name) for name in sorted(set(captions))}
-    print(f"{args.out}: {args.count} {args.category}s of the {args.variety} world, seed {args.seed}; families {families}")
+    print(
+        f"{args.out}: {args.count} {args.category}s of the {args.variety} world, seed {args.seed}; families {families}"
+    )
 
 
 if __name__ == "__main__":

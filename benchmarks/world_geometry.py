@@ -59,12 +59,18 @@ def shape_statistics(vertices: np.ndarray, faces: np.ndarray, face_count: int) -
     thickness = np.full(len(quads), np.inf)
     thickness[rays] = np.linalg.norm(hits - origins[rays], axis=1)
     column = {name: k for k, name in enumerate(FEATURE_NAMES)}
-    return {"features": features, "curved": float(np.mean(np.abs(features[:, column["mean_curvature"]]) > CURVED)),
-            "thin": float(areas[thickness < THIN].sum() / areas.sum())}
+    return {
+        "features": features,
+        "curved": float(np.mean(np.abs(features[:, column["mean_curvature"]]) > CURVED)),
+        "thin": float(areas[thickness < THIN].sum() / areas.sum()),
+    }
 
 
 def distances(values: dict[str, np.ndarray], reference: dict[str, np.ndarray]) -> dict[str, float]:
-    return {name: wasserstein_distance(values[name], reference[name]) / max(reference[name].std(), 1e-9) for name in COMPARED}
+    return {
+        name: wasserstein_distance(values[name], reference[name]) / max(reference[name].std(), 1e-9)
+        for name in COMPARED
+    }
 
 
 def pooled(stats: list[dict]) -> dict[str, np.ndarray]:
@@ -86,20 +92,29 @@ def main() -> None:
             spec = WorldSpec(category=category, seed=args.seed, variety=variety, shapes=max(args.shapes, 2))
             shapes = [make_shape(spec, i) for i in range(args.shapes)]
             sets[f"{variety} world"] = [shape_statistics(s.vertices, s.faces, args.faces) for s in shapes]
-        sets["hand-modelled"] = [shape_statistics(m.vertices, m.faces, args.faces) for _, m in reference_shapes(category)]
+        sets["hand-modelled"] = [
+            shape_statistics(m.vertices, m.faces, args.faces) for _, m in reference_shapes(category)
+        ]
         prepared = {name: [s for s in stats if s is not None] for name, stats in sets.items()}
         reference = pooled(prepared["hand-modelled"])
         print(f"\n{category}s: {args.faces} quads per prepared shape, seed {args.seed} ({time.time() - started:.0f} s)")
-        header = f"{'set':16s} {'prepared':>9s} {'curved':>7s} {'thin':>6s} " + " ".join(f"{n[:13]:>13s}" for n in COMPARED) + f" {'mean W1/sd':>10s}"
+        header = (
+            f"{'set':16s} {'prepared':>9s} {'curved':>7s} {'thin':>6s} "
+            + " ".join(f"{n[:13]:>13s}" for n in COMPARED)
+            + f" {'mean W1/sd':>10s}"
+        )
         print(header)
         for name, stats in prepared.items():
             if name == "hand-modelled":
                 distance = distances(pooled(stats[0::2]), pooled(stats[1::2]))
             else:
                 distance = distances(pooled(stats), reference)
-            print(f"{name:16s} {len(stats):>4d}/{len(sets[name]):<4d} {np.mean([s['curved'] for s in stats]):7.2f} "
-                  f"{np.mean([s['thin'] for s in stats]):6.2f} " + " ".join(f"{distance[n]:13.3f}" for n in COMPARED)
-                  + f" {np.mean(list(distance.values())):10.3f}")
+            print(
+                f"{name:16s} {len(stats):>4d}/{len(sets[name]):<4d} {np.mean([s['curved'] for s in stats]):7.2f} "
+                f"{np.mean([s['thin'] for s in stats]):6.2f} "
+                + " ".join(f"{distance[n]:13.3f}" for n in COMPARED)
+                + f" {np.mean(list(distance.values())):10.3f}"
+            )
 
 
 if __name__ == "__main__":

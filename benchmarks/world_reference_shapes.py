@@ -58,8 +58,11 @@ def _club_armchair() -> list[trimesh.Trimesh]:
     parts.append(_rotated_box((0.62, 0.45, 0.2), (0, 0.58, -0.33), -10))  # back
     for x in (-0.34, 0.34):
         parts.append(_at(box(extents=(0.18, 0.38, 0.84)), x, 0.3, 0))
-        parts.append(capsule(height=0.7, radius=0.1, count=(16, 16)).apply_transform(
-            trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0))).apply_translation((x, 0.55, 0)))
+        parts.append(
+            capsule(height=0.7, radius=0.1, count=(16, 16))
+            .apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)))
+            .apply_translation((x, 0.55, 0))
+        )
     parts += [_bar((x, 0, z), (x, 0.06, z), 0.025) for x in (-0.38, 0.38) for z in (-0.36, 0.36)]
     return parts
 
@@ -82,8 +85,10 @@ def _office_chair() -> list[trimesh.Trimesh]:
 
 def _bar_stool() -> list[trimesh.Trimesh]:
     parts = [_bar((0, 0.7, 0), (0, 0.75, 0), 0.19, 32)]
-    parts += [_bar((0.22 * np.sin(a), 0, 0.22 * np.cos(a)), (0.13 * np.sin(a), 0.71, 0.13 * np.cos(a)), 0.016)
-              for a in np.linspace(0, 2 * np.pi, 4, endpoint=False) + np.pi / 4]
+    parts += [
+        _bar((0.22 * np.sin(a), 0, 0.22 * np.cos(a)), (0.13 * np.sin(a), 0.71, 0.13 * np.cos(a)), 0.016)
+        for a in np.linspace(0, 2 * np.pi, 4, endpoint=False) + np.pi / 4
+    ]
     ring = torus(major_radius=0.19, minor_radius=0.01)
     ring.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)))
     parts.append(_at(ring, 0, 0.25, 0))
@@ -110,35 +115,65 @@ def _cantilever_chair() -> list[trimesh.Trimesh]:
 
 
 def _wheels(length: float, width: float, radius: float) -> list[trimesh.Trimesh]:
-    return [_bar((sx * width / 2 - 0.12 * sx, radius, z), (sx * width / 2 + 0.02 * sx, radius, z), radius, 32)
-            for sx in (-1, 1) for z in (-length * 0.32, length * 0.3)]
+    return [
+        _bar((sx * width / 2 - 0.12 * sx, radius, z), (sx * width / 2 + 0.02 * sx, radius, z), radius, 32)
+        for sx in (-1, 1)
+        for z in (-length * 0.32, length * 0.3)
+    ]
 
 
 def _boxy_sedan() -> list[trimesh.Trimesh]:
     lower = np.array([(x, y, z) for x in (-0.88, 0.88) for y in (0.2, 0.75) for z in (-2.3, 2.3)])
     nose = np.array([(x, 0.55, 2.4) for x in (-0.8, 0.8)])
-    cabin = np.array([(x, y, z) for x in (-0.78, 0.78) for y, zs in ((0.75, (-1.3, 1.0)), (1.42, (-0.7, 0.3))) for z in zs])
-    return [trimesh.convex.convex_hull(np.vstack([lower, nose])), trimesh.convex.convex_hull(cabin * (0.97, 1, 1)), *_wheels(4.6, 1.8, 0.32)]
+    cabin = np.array(
+        [(x, y, z) for x in (-0.78, 0.78) for y, zs in ((0.75, (-1.3, 1.0)), (1.42, (-0.7, 0.3))) for z in zs]
+    )
+    return [
+        trimesh.convex.convex_hull(np.vstack([lower, nose])),
+        trimesh.convex.convex_hull(cabin * (0.97, 1, 1)),
+        *_wheels(4.6, 1.8, 0.32),
+    ]
 
 
 def _round_beetle() -> list[trimesh.Trimesh]:
-    return [_ellipsoid((1.6, 0.8, 4.0), (0, 0.65, 0)), _ellipsoid((1.3, 0.9, 2.2), (0, 1.0, -0.2)), *_wheels(4.0, 1.6, 0.3)]
+    return [
+        _ellipsoid((1.6, 0.8, 4.0), (0, 0.65, 0)),
+        _ellipsoid((1.3, 0.9, 2.2), (0, 1.0, -0.2)),
+        *_wheels(4.0, 1.6, 0.3),
+    ]
 
 
 def _van() -> list[trimesh.Trimesh]:
-    corners = [_at(icosphere(subdivisions=2, radius=0.15), x, y, z) for x in (-0.85, 0.85) for y in (0.35, 1.85) for z in (-2.4, 2.2)]
-    body = trimesh.convex.convex_hull(np.vstack([c.vertices for c in corners] + [np.array([(x, 0.9, 2.55) for x in (-0.8, 0.8)])]))
+    corners = [
+        _at(icosphere(subdivisions=2, radius=0.15), x, y, z)
+        for x in (-0.85, 0.85)
+        for y in (0.35, 1.85)
+        for z in (-2.4, 2.2)
+    ]
+    body = trimesh.convex.convex_hull(
+        np.vstack([c.vertices for c in corners] + [np.array([(x, 0.9, 2.55) for x in (-0.8, 0.8)])])
+    )
     return [body, *_wheels(5.0, 2.0, 0.33)]
 
 
 def _suv() -> list[trimesh.Trimesh]:
     lower = _at(box(extents=(1.9, 0.75, 4.6)), 0, 0.65, 0)
-    upper = trimesh.convex.convex_hull(np.array([(x, y, z) for x in (-0.85, 0.85) for y, zs in ((1.0, (-2.25, 1.1)), (1.75, (-2.15, 0.35))) for z in zs]))
+    upper = trimesh.convex.convex_hull(
+        np.array(
+            [(x, y, z) for x in (-0.85, 0.85) for y, zs in ((1.0, (-2.25, 1.1)), (1.75, (-2.15, 0.35))) for z in zs]
+        )
+    )
     return [lower, upper, *_wheels(4.6, 1.9, 0.37)]
 
 
-_CHAIRS = {"windsor": _windsor_chair, "club_armchair": _club_armchair, "office": _office_chair, "bar_stool": _bar_stool,
-           "sofa": _sofa, "cantilever": _cantilever_chair}
+_CHAIRS = {
+    "windsor": _windsor_chair,
+    "club_armchair": _club_armchair,
+    "office": _office_chair,
+    "bar_stool": _bar_stool,
+    "sofa": _sofa,
+    "cantilever": _cantilever_chair,
+}
 _CARS = {"sedan": _boxy_sedan, "beetle": _round_beetle, "van": _van, "suv": _suv}
 
 

@@ -84,7 +84,13 @@ def earlier_outputs(output: Path, kept: set[str]) -> list[str]:
     names = []
     for record in earlier if isinstance(earlier, list) else []:
         name = record.get("name") if isinstance(record, dict) else None
-        if isinstance(name, str) and name not in kept and "/" not in name and os.sep not in name and not name.startswith("."):
+        if (
+            isinstance(name, str)
+            and name not in kept
+            and "/" not in name
+            and os.sep not in name
+            and not name.startswith(".")
+        ):
             names += [f"{folder}/{name}.png" for folder in ("images", "masks")]
     return names
 
@@ -92,7 +98,9 @@ def earlier_outputs(output: Path, kept: set[str]) -> list[str]:
 def run(args) -> int:
     input_dir, output = Path(args.input), Path(args.out)
     if not input_dir.is_dir():
-        raise UserError(f"{input_dir}: {'is a file; --input takes a folder of photos' if input_dir.is_file() else 'no such folder'}")
+        raise UserError(
+            f"{input_dir}: {'is a file; --input takes a folder of photos' if input_dir.is_file() else 'no such folder'}"
+        )
     if args.size < 8:
         raise UserError(f"--size must be at least 8 (got {args.size})")
     masks_dir = Path(args.masks) if args.masks else None
@@ -105,7 +113,9 @@ def run(args) -> int:
     if masks_dir is not None:
         photos = [p for p in photos if masks_dir.resolve() not in p.resolve().parents]
     if not photos:
-        raise UserError(f"{input_dir}: no images ({' '.join(s for s in ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.webp'))})")
+        raise UserError(
+            f"{input_dir}: no images ({' '.join(s for s in ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.webp'))})"
+        )
     names, used = [], set()
     for path in photos:
         name = re.sub(r"[^A-Za-z0-9_.-]", "_", str(path.relative_to(input_dir).with_suffix("")).replace(os.sep, "_"))
@@ -113,8 +123,14 @@ def run(args) -> int:
             name += "_"
         used.add(name)
         names.append(name)
-    earlier = earlier_outputs(output, set(names)) if args.overwrite else []  # read before guard_outputs moves index.json aside
-    guard_outputs(output, ["index.json"] + [f"{folder}/{name}.png" for name in names for folder in ("images", "masks")], args.overwrite)
+    earlier = (
+        earlier_outputs(output, set(names)) if args.overwrite else []
+    )  # read before guard_outputs moves index.json aside
+    guard_outputs(
+        output,
+        ["index.json"] + [f"{folder}/{name}.png" for name in names for folder in ("images", "masks")],
+        args.overwrite,
+    )
     move_aside(output, earlier)
     output.mkdir(parents=True, exist_ok=True)
     records = []
@@ -124,7 +140,17 @@ def run(args) -> int:
             print(f"mesh2tex: failed: {record['reason']}", file=sys.stderr)
         records.append(record)
     failed = sum(r["status"] == "failed" for r in records)
-    write_json(output / "index.json", {"settings": {"size": int(args.size), "masks": str(masks_dir) if masks_dir else None},
-                                       "images": records, "ok": len(records) - failed, "failed": failed})
-    print(f"prepared {len(records) - failed} of {len(records)} images into {output}" + (f"; failed: {failed}" if failed else ""))
+    write_json(
+        output / "index.json",
+        {
+            "settings": {"size": int(args.size), "masks": str(masks_dir) if masks_dir else None},
+            "images": records,
+            "ok": len(records) - failed,
+            "failed": failed,
+        },
+    )
+    print(
+        f"prepared {len(records) - failed} of {len(records)} images into {output}"
+        + (f"; failed: {failed}" if failed else "")
+    )
     return 2 if failed else 0

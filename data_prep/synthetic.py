@@ -45,7 +45,10 @@ CAMERA_CONVENTION = (
     "mesh2tex.render.orbit_camera: degrees, y up, camera at distance*(cos(el)sin(az), sin(el), cos(el)cos(az)) "
     "looking at the origin; the object's front faces +z (azimuth 0 sees the front)"
 )
-NOC_CONVENTION = "NOC = vertex position + 0.5 in the normalised frame (bbox centre 0, diagonal 1); PNG stores NOC*255, 0 off the mask"
+NOC_CONVENTION = (
+    "NOC = vertex position + 0.5 in the normalised frame (bbox centre 0, diagonal 1); PNG stores "
+    "NOC*255, 0 off the mask"
+)
 
 
 def spec_from_args(args):
@@ -66,9 +69,17 @@ def spec_from_args(args):
         if not ok:
             raise UserError(message)
     return WorldSpec(
-        category=args.category, shapes=args.shapes, views=args.views, seed=args.seed, resolution=args.resolution,
-        query_shapes=args.query_shapes, query_views=args.query_views, elevation_min=float(args.elevation[0]),
-        elevation_max=float(args.elevation[1]), texture_size=args.texture_size, variety=args.variety,
+        category=args.category,
+        shapes=args.shapes,
+        views=args.views,
+        seed=args.seed,
+        resolution=args.resolution,
+        query_shapes=args.query_shapes,
+        query_views=args.query_views,
+        elevation_min=float(args.elevation[0]),
+        elevation_max=float(args.elevation[1]),
+        texture_size=args.texture_size,
+        variety=args.variety,
     )
 
 
@@ -97,24 +108,33 @@ def _check_output(output: Path, settings: dict, overwrite: bool = False) -> None
         if existing.get("settings") != settings:
             changed = sorted(k for k in settings if existing.get("settings", {}).get(k) != settings[k])
             if not overwrite:
-                raise UserError(f"{output}: holds a world built with other settings ({', '.join(changed)}); pass --overwrite to "
-                                f"replace it, or choose another --out")
+                raise UserError(
+                    f"{output}: holds a world built with other settings ({', '.join(changed)}); pass --overwrite to "
+                    f"replace it, or choose another --out"
+                )
             remove_outputs(output, WORLD_ENTRIES)
     elif output.is_dir() and user_entries(output):
         if not overwrite:
-            raise UserError(f"{output}: folder is not empty and holds no synthetic world (no index.json); pass --overwrite to build "
-                            f"the world beside its files, or choose another --out")
+            raise UserError(
+                f"{output}: folder is not empty and holds no synthetic world (no index.json); pass --overwrite to "
+                f"build the world beside its files, or choose another --out"
+            )
         clashing = [name for name in WORLD_ENTRIES if (output / name).exists()]
         if clashing:
-            raise UserError(f"{output}: holds {', '.join(clashing)} of no synthetic world; --overwrite replaces only a world's "
-                            f"own files: move them or choose another --out")
+            raise UserError(
+                f"{output}: holds {', '.join(clashing)} of no synthetic world; --overwrite replaces only a world's "
+                f"own files: move them or choose another --out"
+            )
 
 
 def _photo_record(spec, view, shape_name: str, k: int, query: bool) -> dict:
     stem = f"{shape_name}_{k:02d}"
     folder = "queries" if query else "images"
-    record = {"shape": shape_name, "image": f"{folder}/{stem}.png",
-              "mask": f"queries/{stem}_mask.png" if query else f"masks/{stem}.png"}
+    record = {
+        "shape": shape_name,
+        "image": f"{folder}/{stem}.png",
+        "mask": f"queries/{stem}_mask.png" if query else f"masks/{stem}.png",
+    }
     if query:
         record.update({"noc": f"queries/{stem}_noc.png", "sidecar": f"queries/{stem}.json"})
     record.update(asdict(view))
@@ -129,14 +149,28 @@ def plan(spec) -> dict:
     train, held_out = spec.split()
     images, queries = [], []
     for i in train:
-        images += [_photo_record(spec, v, spec.shape_name(i), k, False) for k, v in enumerate(sample_views(spec, i, spec.views))]
+        images += [
+            _photo_record(spec, v, spec.shape_name(i), k, False)
+            for k, v in enumerate(sample_views(spec, i, spec.views))
+        ]
     for i in held_out:
-        queries += [_photo_record(spec, v, spec.shape_name(i), k, True) for k, v in enumerate(sample_views(spec, i, spec.query_views, query=True))]
+        queries += [
+            _photo_record(spec, v, spec.shape_name(i), k, True)
+            for k, v in enumerate(sample_views(spec, i, spec.query_views, query=True))
+        ]
     return {
-        "format": FORMAT, "settings": _settings(spec), "complete": False,
-        "camera_convention": CAMERA_CONVENTION, "noc_convention": NOC_CONVENTION,
-        "split": {"train_shapes": [spec.shape_name(i) for i in train], "query_shapes": [spec.shape_name(i) for i in held_out]},
-        "shapes": [], "images": images, "queries": queries,
+        "format": FORMAT,
+        "settings": _settings(spec),
+        "complete": False,
+        "camera_convention": CAMERA_CONVENTION,
+        "noc_convention": NOC_CONVENTION,
+        "split": {
+            "train_shapes": [spec.shape_name(i) for i in train],
+            "query_shapes": [spec.shape_name(i) for i in held_out],
+        },
+        "shapes": [],
+        "images": images,
+        "queries": queries,
     }
 
 
@@ -165,7 +199,10 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
 
     todo = [r for r in records if not finished(r)]
     if todo:
-        views = [PhotoSetup(**{k: (tuple(r[k]) if k == "light" else r[k]) for k in PhotoSetup.__dataclass_fields__}) for r in todo]
+        views = [
+            PhotoSetup(**{k: (tuple(r[k]) if k == "light" else r[k]) for k in PhotoSetup.__dataclass_fields__})
+            for r in todo
+        ]
         rendered = render_views(shape, material, views, spec.photo_render)
         for b, record in enumerate(todo):
             save_png(output / record["image"], rendered["rgb"][b])
@@ -173,13 +210,26 @@ def build_shape(spec, index: int, output: Path, records: list[dict], query: bool
             if query:
                 save_png(output / record["noc"], rendered["noc"][b])
                 sidecar = {key: value for key, value in record.items() if key != "sidecar"}
-                sidecar.update({"mesh": f"meshes/{name}.obj", "textured": f"textured/{name}.glb", "resolution": spec.resolution,
-                                "camera_convention": CAMERA_CONVENTION, "noc_convention": NOC_CONVENTION})
+                sidecar.update(
+                    {
+                        "mesh": f"meshes/{name}.obj",
+                        "textured": f"textured/{name}.glb",
+                        "resolution": spec.resolution,
+                        "camera_convention": CAMERA_CONVENTION,
+                        "noc_convention": NOC_CONVENTION,
+                    }
+                )
                 write_json(output / record["sidecar"], sidecar)
         wrote.append(f"{len(todo)} {'queries' if query else 'photos'}")
     return {
-        "name": name, "split": "query" if query else "train", "mesh": f"meshes/{name}.obj", "textured": f"textured/{name}.glb",
-        "triangles": int(len(shape.faces)), "parts": shape.part_names, "design": shape.params, "material": material.describe(),
+        "name": name,
+        "split": "query" if query else "train",
+        "mesh": f"meshes/{name}.obj",
+        "textured": f"textured/{name}.glb",
+        "triangles": int(len(shape.faces)),
+        "parts": shape.part_names,
+        "design": shape.params,
+        "material": material.describe(),
         "wrote": wrote,
     }
 
@@ -219,12 +269,21 @@ def run(args) -> int:
             records = [r for r in (index["queries"] if query else index["images"]) if r["shape"] == name]
             t0 = time.time()
             record = build_shape(spec, i, output, records, query)
-            log.write({"shape": name, "split": record["split"], "wrote": record["wrote"], "seconds": round(time.time() - t0, 3)})
+            log.write(
+                {
+                    "shape": name,
+                    "split": record["split"],
+                    "wrote": record["wrote"],
+                    "seconds": round(time.time() - t0, 3),
+                }
+            )
             shapes.append({k: v for k, v in record.items() if k != "wrote"})
             bar.update(1)
     index.update({"shapes": shapes, "complete": True})
     write_json(output / "index.json", index)
     write_preview(output, index)
-    print(f"{output}: {len(train)} training shapes with {len(index['images'])} photos, {len(held_out)} query shapes with "
-          f"{len(index['queries'])} queries ({time.time() - started:.1f} s)")
+    print(
+        f"{output}: {len(train)} training shapes with {len(index['images'])} photos, {len(held_out)} query shapes with "
+        f"{len(index['queries'])} queries ({time.time() - started:.1f} s)"
+    )
     return 0

@@ -70,17 +70,22 @@ def _option_row(action: argparse.Action) -> str | None:
     name = ", ".join(f"`{f}`" for f in flags)
     if action.required:
         name += " (required)"
-    return f"| {name} | {'`' + _cell(value) + '`' if value else ''} | {'`' + _cell(default) + '`' if default else ''} | {_cell(text)} |"
+    return (
+        f"| {name} | {'`' + _cell(value) + '`' if value else ''} | {'`' + _cell(default) + '`' if default else ''} "
+        f"| {_cell(text)} |"
+    )
 
 
 def cli_page() -> str:
     from mesh2tex.cli import build_parser
 
     parser = build_parser()
-    lines = [HEADER + "# Command-line reference\n",
-             "Every command of `mesh2tex`, with every option as `mesh2tex CMD --help` shows it. A command "
-             "with a config also reads `--config YAML` with any of the fields listed in the "
-             "[config reference](config.md); the flags given override it.\n"]
+    lines = [
+        HEADER + "# Command-line reference\n",
+        "Every command of `mesh2tex`, with every option as `mesh2tex CMD --help` shows it. A command "
+        "with a config also reads `--config YAML` with any of the fields listed in the "
+        "[config reference](config.md); the flags given override it.\n",
+    ]
     commands = list(_commands(parser))
     lines.append("| command | what it does |\n| --- | --- |")
     for words, _, help_text in commands:
@@ -196,20 +201,27 @@ def _fields_table(cls, prefix: str, nested: list) -> list[str]:
         key = prefix + f.name
         if dataclasses.is_dataclass(hint):
             nested.append((key, hint))
-            rows.append(f"| `{key}` | [`{hint.__name__}`](#{hint.__name__.lower()}) | | {_cell(comments.get(f.name, ''))} |")
+            rows.append(
+                f"| `{key}` | [`{hint.__name__}`](#{hint.__name__.lower()}) | | {_cell(comments.get(f.name, ''))} |"
+            )
             continue
-        rows.append(f"| `{key}` | `{_cell(_type_name(hint))}` | `{_cell(_show(_default(f)))}` | {_cell(comments.get(f.name, ''))} |")
+        rows.append(
+            f"| `{key}` | `{_cell(_type_name(hint))}` | `{_cell(_show(_default(f)))}` | "
+            f"{_cell(comments.get(f.name, ''))} |"
+        )
     return rows
 
 
 def config_page() -> str:
-    lines = [HEADER + "# Config reference\n",
-             "Every command with a config reads `--config YAML` holding any of these fields (nested "
-             "sections as YAML mappings, the dotted names below); `--print-config` prints the resolved "
-             "config. A flag of the command overrides its field. The run folder of a trainer keeps the "
-             "resolved config as `config.yaml`.\n",
-             "```yaml\n# mesh2tex train gan --config gan.yaml\niters: 8000\nsupersample: 2\ngenerator:\n"
-             "  encoder_channels: [32, 48, 64, 64]\nloss:\n  diversity_start: 3500\n```\n"]
+    lines = [
+        HEADER + "# Config reference\n",
+        "Every command with a config reads `--config YAML` holding any of these fields (nested "
+        "sections as YAML mappings, the dotted names below); `--print-config` prints the resolved "
+        "config. A flag of the command overrides its field. The run folder of a trainer keeps the "
+        "resolved config as `config.yaml`.\n",
+        "```yaml\n# mesh2tex train gan --config gan.yaml\niters: 8000\nsupersample: 2\ngenerator:\n"
+        "  encoder_channels: [32, 48, 64, 64]\nloss:\n  diversity_start: 3500\n```\n",
+    ]
     done: set[type] = set()
     for target, cls, commands in _config_classes():
         if cls in done:

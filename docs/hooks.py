@@ -42,7 +42,7 @@ def _readme_as_home(text: str) -> str:
     def fix(match):
         bang, label, target = match.groups()
         if target.startswith("docs/"):
-            target = target[len("docs/"):]
+            target = target[len("docs/") :]
         elif not re.match(r"[a-z]+:", target) and not target.startswith("#"):
             target = "../" + target  # a file of the repository: resolved by on_page_markdown
         return f"{bang}[{label}]({target})"
@@ -73,7 +73,7 @@ def on_page_markdown(markdown, page, config, files):
         else:
             in_repo = posixpath.normpath(posixpath.join(page_dir, path))
         if in_repo.startswith("docs/"):
-            site_target = in_repo[len("docs/"):]
+            site_target = in_repo[len("docs/") :]
         elif in_repo == "README.md":
             site_target = "index.md"
         elif re.fullmatch(r"mesh2tex/models/[^/]+/card\.md", in_repo):

@@ -25,7 +25,8 @@ modes :class:`mesh2tex.metrics.evaluate.EvaluateConfig`, ``--protocols`` the pro
 ``--generation`` the generation config. Long steps show a progress bar on a terminal.
 
 ``--generation`` measures a texture GAN against a synthetic world's ground truth (trained, untrained
-and oracle rows, the gap closed, diversity across latents) given as ``--checkpoint NAME|PATH``: see :mod:`mesh2tex.evaluation.generation`.
+and oracle rows, the gap closed, diversity across latents) given as ``--checkpoint NAME|PATH``: see
+:mod:`mesh2tex.evaluation.generation`.
 
 ``--protocols`` runs the paper's evaluation protocols on a synthetic world instead (unconditional
 generation; transfer with known pose, unknown pose, to another shape; each with the ablations of
@@ -64,13 +65,22 @@ BACKGROUNDS = {"white": 1.0, "black": 0.0, "grey": 0.5}
 
 def generation_config(args: argparse.Namespace) -> GenerationConfig:
     """``--config``, then its own flags, then --resolution and the flags it shares with the sets mode."""
-    return load_config(GenerationConfig, args.config, config_overrides(args, GENERATION_CONFIG, computed={
-        "resolution": args.resolution, "features": args.features, "seed": args.seed}))
+    return load_config(
+        GenerationConfig,
+        args.config,
+        config_overrides(
+            args,
+            GENERATION_CONFIG,
+            computed={"resolution": args.resolution, "features": args.features, "seed": args.seed},
+        ),
+    )
 
 
 def sets_config(args: argparse.Namespace) -> EvaluateConfig:
     """``--config``, then the flags given."""
-    return load_config(EvaluateConfig, args.config, config_overrides(args, SETS_CONFIG, computed={"resolution": args.resolution}))
+    return load_config(
+        EvaluateConfig, args.config, config_overrides(args, SETS_CONFIG, computed={"resolution": args.resolution})
+    )
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -79,12 +89,27 @@ def _split(text: str | None) -> list[str] | None:
 
 def protocol_config(args: argparse.Namespace) -> ProtocolConfig:
     """The protocol config: its defaults, then ``--config``, then the flags given."""
-    return load_config(ProtocolConfig, args.config, config_overrides(args, PROTOCOL_CONFIG, computed={
-        "protocols": _split(args.only), "ablations": _split(args.ablations), "baselines": _split(args.baselines),
-        # the options evaluate's other modes share
-        "resolution": args.resolution, "evaluate.features": args.features, "evaluate.kid_subsets": args.kid_subsets, "seed": args.seed,
-        "device": None if args.device == "auto" else args.device, "vgg_weights": args.vgg_weights,
-        "inception_weights": args.inception_weights}))
+    return load_config(
+        ProtocolConfig,
+        args.config,
+        config_overrides(
+            args,
+            PROTOCOL_CONFIG,
+            computed={
+                "protocols": _split(args.only),
+                "ablations": _split(args.ablations),
+                "baselines": _split(args.baselines),
+                # the options evaluate's other modes share
+                "resolution": args.resolution,
+                "evaluate.features": args.features,
+                "evaluate.kid_subsets": args.kid_subsets,
+                "seed": args.seed,
+                "device": None if args.device == "auto" else args.device,
+                "vgg_weights": args.vgg_weights,
+                "inception_weights": args.inception_weights,
+            },
+        ),
+    )
 
 
 def run_protocols_command(args: argparse.Namespace) -> int:
@@ -93,11 +118,15 @@ def run_protocols_command(args: argparse.Namespace) -> int:
         if not getattr(args, flag):
             raise UserError(f"--protocols needs --{flag}")
     cfg = protocol_config(args)
-    out = guard_outputs(args.out, ["protocols.json", "protocols.md"], args.overwrite)  # finished transfers are a cache (TransferCache)
+    out = guard_outputs(
+        args.out, ["protocols.json", "protocols.md"], args.overwrite
+    )  # finished transfers are a cache (TransferCache)
     pose, noc = args.pose_checkpoint, args.noc_checkpoint
     if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks, as in 'infer transfer'
         pose, noc = pose or args.checkpoint, noc or args.checkpoint
-    result = run_protocols(args.world, args.shapes, args.checkpoint, pose, noc, cfg, out, log=write_line, overwrite=args.overwrite)
+    result = run_protocols(
+        args.world, args.shapes, args.checkpoint, pose, noc, cfg, out, log=write_line, overwrite=args.overwrite
+    )
     print(protocols_markdown(result), end="")
     print(f"wrote {out / 'protocols.json'} and {out / 'protocols.md'} ({result['seconds']:.0f} s)")
     return 0
@@ -124,15 +153,28 @@ def run_generation_command(args: argparse.Namespace) -> int:
     out = guard_outputs(args.out, ["generation.json", "generation.md", "generation_samples.png"], args.overwrite)
     resolve_checkpoint(args.checkpoint, "gan")  # an unknown model name is refused before the feature network is built
     device = select_device(args.device)
-    extractor = get_feature_extractor(cfg.features, args.inception_weights, args.vgg_weights, device) if cfg.kid_fid else None
+    extractor = (
+        get_feature_extractor(cfg.features, args.inception_weights, args.vgg_weights, device) if cfg.kid_fid else None
+    )
     out.mkdir(parents=True, exist_ok=True)
-    result = run_generation_protocol(args.world, args.shapes, args.checkpoint, cfg, device, extractor, out / "generation_samples.png",
-                                     log=lambda line: write_line(line, sys.stderr))
+    result = run_generation_protocol(
+        args.world,
+        args.shapes,
+        args.checkpoint,
+        cfg,
+        device,
+        extractor,
+        out / "generation_samples.png",
+        log=lambda line: write_line(line, sys.stderr),
+    )
     write_json(out / "generation.json", json_ready(result))
     text = generation_markdown(result)
     write_text(out / "generation.md", text)
     print(text, end="")
-    print(f"wrote {out / 'generation.json'}, {out / 'generation.md'} and {out / 'generation_samples.png'} ({result['seconds']:.0f} s)")
+    print(
+        f"wrote {out / 'generation.json'}, {out / 'generation.md'} and {out / 'generation_samples.png'} "
+        f"({result['seconds']:.0f} s)"
+    )
     return 0
 
 
@@ -142,7 +184,10 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "protocols", False):
         return run_protocols_command(args)
     if not args.renders or not args.images:
-        raise UserError("evaluate needs --renders and --images (or --protocols or --generation with --world, --shapes and --checkpoint)")
+        raise UserError(
+            "evaluate needs --renders and --images (or --protocols or --generation with --world, --shapes and "
+            "--checkpoint)"
+        )
     config = sets_config(args)
     if config.resolution < 16:
         raise UserError(f"--resolution {config.resolution}: must be at least 16")
@@ -150,8 +195,13 @@ def run(args: argparse.Namespace) -> int:
     targets = [out / "metrics.json", out / "metrics.md"]
     masks = list_images(args.masks, "mask") if args.masks else None
     start = time.perf_counter()
-    steps = ["read the pairs", "paired metrics"] if args.pairs else ["read the renders", "read the images", "feature network", "set metrics"]
+    steps = (
+        ["read the pairs", "paired metrics"]
+        if args.pairs
+        else ["read the renders", "read the images", "feature network", "set metrics"]
+    )
     with progress_bar(total=len(steps), desc="evaluate", unit="step") as bar:
+
         def step(done: str) -> None:
             bar.update(1)
             bar.set_postfix_str(done)
@@ -168,17 +218,29 @@ def run(args: argparse.Namespace) -> int:
             step(steps[0])
             images, image_masks = load_set(args.images, "image", config.resolution, background, masks)
             step(steps[1])
-            extractor = get_feature_extractor(config.features, args.inception_weights, args.vgg_weights, select_device(args.device))
+            extractor = get_feature_extractor(
+                config.features, args.inception_weights, args.vgg_weights, select_device(args.device)
+            )
             step(steps[2])
             result = evaluate_sets(renders, images, extractor, config, render_masks, image_masks)
             step(steps[3])
             mode = "sets"
-    result = {"mode": mode, "renders": str(args.renders), "images": str(args.images), "masks": args.masks,
-              **result, "seconds": round(time.perf_counter() - start, 2), "settings": asdict(config)}
+    result = {
+        "mode": mode,
+        "renders": str(args.renders),
+        "images": str(args.images),
+        "masks": args.masks,
+        **result,
+        "seconds": round(time.perf_counter() - start, 2),
+        "settings": asdict(config),
+    }
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "metrics.json", json_ready(result))
-    header = (f"# mesh2tex evaluate ({mode})\n\nrenders: `{args.renders}`, images: `{args.images}`"
-              + (f", masks: `{args.masks}`" if args.masks else "") + f"; counts: {result['counts']}\n\n")
+    header = (
+        f"# mesh2tex evaluate ({mode})\n\nrenders: `{args.renders}`, images: `{args.images}`"
+        + (f", masks: `{args.masks}`" if args.masks else "")
+        + f"; counts: {result['counts']}\n\n"
+    )
     if "features" in result:
         header += f"KID/FID features: {result['features']}\n\n"
     write_text(out / "metrics.md", header + markdown_table(result))

@@ -47,7 +47,8 @@ class GenerateConfig:
     texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
     elevation: float = 20.0  # elevation of the orbit views, degrees
     truncation: float = 1.0  # truncation psi of the latent (1: none)
-    faces: int = 0  # finest quad count when a raw mesh is prepared on the fly (0: the hierarchy the model was trained on)
+    # finest quad count when a raw mesh is prepared on the fly (0: the hierarchy the model was trained on)
+    faces: int = 0
     device: str = "auto"  # auto, cpu or cuda
 
     def __post_init__(self):
@@ -60,13 +61,20 @@ class GenerateConfig:
 
 def output_names(cfg: GenerateConfig) -> list[str]:
     """The files the command writes into --out."""
-    return [name for seed in cfg.seeds for name in [f"seed{seed}_view{v}.png" for v in range(cfg.views)] + [f"seed{seed}.glb", f"seed{seed}.ply"]]
+    return [
+        name
+        for seed in cfg.seeds
+        for name in [f"seed{seed}_view{v}.png" for v in range(cfg.views)] + [f"seed{seed}.glb", f"seed{seed}.ply"]
+    ]
 
 
 def build_config(args) -> GenerateConfig:
     """The config's defaults, then ``--config``, then the flags given."""
-    return load_config(GenerateConfig, args.config, config_overrides(args, computed={
-        "seeds": None if args.seeds is None else parse_seeds(args.seeds)}))
+    return load_config(
+        GenerateConfig,
+        args.config,
+        config_overrides(args, computed={"seeds": None if args.seeds is None else parse_seeds(args.seeds)}),
+    )
 
 
 def run(args) -> int:
@@ -74,11 +82,14 @@ def run(args) -> int:
     device = select_device(cfg.device)
     model = load_generator(args.checkpoint, device)
     generator, distance, fov = model.network, model.camera.distance, model.camera.fov
-    shape, target = load_shape(args.mesh, generator, model.face_count(cfg.faces), up=args.up, uv=args.uv,
-                               output_mesh=args.output_mesh)
+    shape, target = load_shape(
+        args.mesh, generator, model.face_count(cfg.faces), up=args.up, uv=args.uv, output_mesh=args.output_mesh
+    )
     batch = collate_shapes([shape]).to(device)
     encoded = generator.encoder(batch)
-    out = guard_outputs(args.out, output_names(cfg), args.overwrite)  # after the inputs are checked, before anything is written
+    out = guard_outputs(
+        args.out, output_names(cfg), args.overwrite
+    )  # after the inputs are checked, before anything is written
     writer = TexturedMeshWriter(generator, batch, target, cfg.texture_size, cfg.texture_format)
     if writer.uv_note:
         note(f"{args.mesh}: a new UV atlas, as {writer.uv_note}")
@@ -93,10 +104,14 @@ def run(args) -> int:
             texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode="none")
             views = render_field_views(generator, batch, ws, mvp, res, white, texture=texture)
             if not bool(torch.isfinite(views.images).all()):  # would be written as black pixels without a word
-                raise UserError(f"{args.checkpoint}: the generator's colours for seed {seed} are not finite (damaged weights?)")
+                raise UserError(
+                    f"{args.checkpoint}: the generator's colours for seed {seed} are not finite (damaged weights?)"
+                )
             for v, image in enumerate(images_to_uint8(views.images)):
                 save_png(out / f"seed{seed}_view{v}.png", image)
             written = writer.write(out / f"seed{seed}.glb", out / f"seed{seed}.ply", texture)
-            write_line(f"seed {seed}: {cfg.views} views, {out / f'seed{seed}.glb'}, {out / f'seed{seed}.ply'} "
-                  f"({written['mesh']} mesh, {written['triangles']} triangles)")
+            write_line(
+                f"seed {seed}: {cfg.views} views, {out / f'seed{seed}.glb'}, {out / f'seed{seed}.ply'} "
+                f"({written['mesh']} mesh, {written['triangles']} triangles)"
+            )
     return 0

@@ -42,8 +42,14 @@ from mesh2tex.render import orbit_camera
 from mesh2tex.render.bake import BakedUserMesh, mesh_atlas
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.texel_synthesis import (SynthesisConfig, TexelSurface, TexelSynthesis, exemplar_tensor, render_texture,
-                                      vertex_texture_colours)
+from mesh2tex.texel_synthesis import (
+    SynthesisConfig,
+    TexelSurface,
+    TexelSynthesis,
+    exemplar_tensor,
+    render_texture,
+    vertex_texture_colours,
+)
 from mesh2tex.texturing import note, read_user_mesh, write_baked_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "texture.png", "report.json")
@@ -73,8 +79,10 @@ def read_exemplar(path: str, size: int) -> torch.Tensor:
     """(1, 3, size, size) in [-1, 1]: the exemplar's centred square; a one-line error for a bad or tiny image."""
     rgb, _ = load_image(path)
     if min(rgb.shape[:2]) < MIN_EXEMPLAR:
-        raise UserError(f"{path}: a {rgb.shape[1]}x{rgb.shape[0]} image is too small to be an exemplar "
-                        f"(at least {MIN_EXEMPLAR} px a side)")
+        raise UserError(
+            f"{path}: a {rgb.shape[1]}x{rgb.shape[0]} image is too small to be an exemplar "
+            f"(at least {MIN_EXEMPLAR} px a side)"
+        )
     return exemplar_tensor(rgb, size)
 
 
@@ -88,18 +96,26 @@ def atlas_surface(mesh: UserMesh, uv: str):
     return atlas, TexelSurface.from_arrays(unit[atlas.vertex_index], atlas.faces, atlas.uv), unit
 
 
-def write_mesh(out, mesh: UserMesh, atlas, unit: np.ndarray, image: torch.Tensor, output_mesh: str,
-               texture_format: str) -> dict:
+def write_mesh(
+    out, mesh: UserMesh, atlas, unit: np.ndarray, image: torch.Tensor, output_mesh: str, texture_format: str
+) -> dict:
     """textured.glb and textured.ply: the user's mesh (``output_mesh`` input) or its unit-ball working copy
     (prepared), with the atlas's UVs and ``image`` (S, S, 3) in [-1, 1]; returns what the report says of it."""
     if output_mesh == "prepared":
         mesh = UserMesh(mesh.path, unit, mesh.faces, None, None, "y", "the working copy")
     colours = vertex_texture_colours(image, atlas.uv, atlas.vertex_index, len(mesh.vertices))
     normals = None if mesh.normals is None else mesh.normals[atlas.vertex_index]
-    baked = BakedUserMesh(vertices=mesh.vertices[atlas.vertex_index], faces=atlas.faces, uv=atlas.uv, normals=normals,
-                          texture=colours_to_uint8(image), coverage=np.ones(image.shape[:2], dtype=bool),
-                          vertex_colours=colours_to_uint8(colours), atlas=atlas,
-                          surface_distance=np.zeros(len(mesh.vertices)))
+    baked = BakedUserMesh(
+        vertices=mesh.vertices[atlas.vertex_index],
+        faces=atlas.faces,
+        uv=atlas.uv,
+        normals=normals,
+        texture=colours_to_uint8(image),
+        coverage=np.ones(image.shape[:2], dtype=bool),
+        vertex_colours=colours_to_uint8(colours),
+        atlas=atlas,
+        surface_distance=np.zeros(len(mesh.vertices)),
+    )
     written = write_baked_mesh(out / "textured.glb", out / "textured.ply", baked, mesh, texture_format)
     written.pop("surface_distance_max")  # the texture is on the mesh itself: no closest-point map
     return {**written, "mesh": output_mesh}
@@ -153,17 +169,28 @@ def run(args) -> int:
     judge = structure_scores((images.double() + 1) / 2, masks.double(), (exemplar.double() + 1) / 2)
     exemplar_own = structure_scores((exemplar.double() + 1) / 2, None, (exemplar.double() + 1) / 2)
     written = write_mesh(out, mesh, atlas, unit, image, args.output_mesh, cfg.texture_format)
-    report = {"exemplar": args.exemplar, "mesh": args.mesh, "config": _plain(cfg), "mip_level": synthesis.mip,
-              "method": "texels optimised through rendered views (not the paper's surface convolutions)",
-              "seconds": round(time.perf_counter() - started, 2), "optimise_seconds": round(optimise_seconds, 2),
-              "ms_per_step": round(1000 * optimise_seconds / settings.iters, 2), "initial_loss": initial,
-              "final_loss": final, "losses": log, "structure": judge.as_dict(),
-              "exemplar_structure": exemplar_own.as_dict(), "output_mesh": written,
-              "files": views + list(OUTPUTS)}
+    report = {
+        "exemplar": args.exemplar,
+        "mesh": args.mesh,
+        "config": _plain(cfg),
+        "mip_level": synthesis.mip,
+        "method": "texels optimised through rendered views (not the paper's surface convolutions)",
+        "seconds": round(time.perf_counter() - started, 2),
+        "optimise_seconds": round(optimise_seconds, 2),
+        "ms_per_step": round(1000 * optimise_seconds / settings.iters, 2),
+        "initial_loss": initial,
+        "final_loss": final,
+        "losses": log,
+        "structure": judge.as_dict(),
+        "exemplar_structure": exemplar_own.as_dict(),
+        "output_mesh": written,
+        "files": views + list(OUTPUTS),
+    }
     write_json(out / "report.json", report)
-    print(f"{settings.iters} steps ({report['ms_per_step']} ms each), "
-          f"{settings.loss} loss {initial:.3f} -> {final:.3f}, "
-          f"judge SWD {judge.swd:.0f} (the exemplar against itself {exemplar_own.swd:.0f}): {out / 'textured.glb'}")
+    print(
+        f"{settings.iters} steps ({report['ms_per_step']} ms each), {settings.loss} loss {initial:.3f} -> {final:.3f}, "
+        f"judge SWD {judge.swd:.0f} (the exemplar against itself {exemplar_own.swd:.0f}): {out / 'textured.glb'}"
+    )
     return 0
 
 

@@ -49,8 +49,9 @@ def _matches(actual: tuple[int, ...], shape: Shape, sizes: dict[str, tuple[int, 
     return None
 
 
-def _fit(actual: tuple[int, ...], name: str, shapes: Sequence[Shape],
-         sizes: dict[str, tuple[int, str]]) -> dict[str, tuple[int, str]]:
+def _fit(
+    actual: tuple[int, ...], name: str, shapes: Sequence[Shape], sizes: dict[str, tuple[int, str]]
+) -> dict[str, tuple[int, str]]:
     """``sizes`` with the named sizes ``actual`` fixed when it fits one of ``shapes``; ValueError naming ``name``
     otherwise."""
     reasons = []
@@ -66,8 +67,14 @@ def _fit(actual: tuple[int, ...], name: str, shapes: Sequence[Shape],
     raise ValueError(f"{name} must have shape {expected}, got {_text(actual)}")
 
 
-def check_shape(tensor, name: str, *shapes: Shape, sizes: dict[str, tuple[int, str]] | None = None,
-                dtype: str | None = None, optional: bool = False) -> dict[str, tuple[int, str]]:
+def check_shape(
+    tensor,
+    name: str,
+    *shapes: Shape,
+    sizes: dict[str, tuple[int, str]] | None = None,
+    dtype: str | None = None,
+    optional: bool = False,
+) -> dict[str, tuple[int, str]]:
     """Raise unless ``tensor`` is a tensor of one of ``shapes``; returns ``sizes`` with the named sizes it fixed.
 
     Args:
@@ -87,14 +94,18 @@ def check_shape(tensor, name: str, *shapes: Shape, sizes: dict[str, tuple[int, s
     if optional and tensor is None:
         return sizes
     if not isinstance(tensor, torch.Tensor):
-        raise TypeError(f"{name} must be a torch.Tensor of shape {' or '.join(_text(s) for s in shapes)}, got {type(tensor).__name__}")
+        raise TypeError(
+            f"{name} must be a torch.Tensor of shape {' or '.join(_text(s) for s in shapes)}, got "
+            f"{type(tensor).__name__}"
+        )
     if dtype is not None and not _DTYPES[dtype][0](tensor.dtype):
         raise TypeError(f"{name} must be {_DTYPES[dtype][1]} tensor, got {str(tensor.dtype).replace('torch.', '')}")
     return _fit(tuple(tensor.shape), name, shapes, sizes)
 
 
-def check_array_shape(array, name: str, *shapes: Shape, sizes: dict[str, tuple[int, str]] | None = None,
-                      optional: bool = False) -> dict[str, tuple[int, str]]:
+def check_array_shape(
+    array, name: str, *shapes: Shape, sizes: dict[str, tuple[int, str]] | None = None, optional: bool = False
+) -> dict[str, tuple[int, str]]:
     """:func:`check_shape` for a NumPy array (or anything :func:`numpy.shape` reads: a nested list, a
     tensor): ValueError naming ``name`` unless its shape fits one of ``shapes``. Converts nothing."""
     import numpy as np

@@ -2,8 +2,8 @@
 
 Every subcommand is a stage module (``data_prep``, ``train``, ``infer``) that defines ``run(args) -> int``
 (and ``build_config(args)`` where the command has a config); its options are the function of the same
-name in the package's ``options.py`` (``mesh2tex.train.gan`` -> ``mesh2tex.train.options.gan(parser)``), which imports no
-torch. This file only routes: it builds the options of the one command asked for and imports its
+name in the package's ``options.py`` (``mesh2tex.train.gan`` -> ``mesh2tex.train.options.gan(parser)``), which imports
+no torch. This file only routes: it builds the options of the one command asked for and imports its
 stage when it runs, so that ``mesh2tex --help`` and ``mesh2tex CMD --help`` stay fast and one broken
 stage cannot break the others. ``--print-config`` prints the command's resolved config and exits.
 Every Python warning raised while a command runs (the library's ``warnings.warn``, a dependency's)
@@ -29,7 +29,10 @@ from mesh2tex.options import HelpFormatter, Parser
 COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
     ("prepare", "shapes"): ("mesh2tex.data_prep.shapes", "turn meshes into quad-mesh hierarchies (.npz)"),
     ("prepare", "images"): ("mesh2tex.data_prep.images", "turn a folder of photos into square crops with masks"),
-    ("prepare", "synthetic"): ("mesh2tex.data_prep.synthetic", "build the synthetic world (shapes, textures, photos, queries)"),
+    ("prepare", "synthetic"): (
+        "mesh2tex.data_prep.synthetic",
+        "build the synthetic world (shapes, textures, photos, queries)",
+    ),
     ("train", "gan"): ("mesh2tex.train.gan", "train the mesh-field texture GAN"),
     ("train", "pose"): ("mesh2tex.train.pose", "train the pose network"),
     ("train", "noc"): ("mesh2tex.train.noc", "train the NOC network"),
@@ -46,7 +49,17 @@ COMMANDS: dict[tuple[str, str | None], tuple[str, str]] = {
 
 
 # errno values an OSError without a file name still means the user's environment for
-USER_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO, errno.EMFILE, errno.ENAMETOOLONG}
+USER_ERRNOS = {
+    errno.ENOSPC,
+    errno.EDQUOT,
+    errno.EROFS,
+    errno.EACCES,
+    errno.EPERM,
+    errno.EFBIG,
+    errno.EIO,
+    errno.EMFILE,
+    errno.ENAMETOOLONG,
+}
 
 
 def _options(stage: str):
@@ -77,9 +90,13 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
             target = commands.add_parser(command, help=help_text, description=help_text, formatter_class=HelpFormatter)
         else:
             if command not in groups:
-                group_parser = commands.add_parser(command, help=f"{command} subcommands", formatter_class=HelpFormatter)
+                group_parser = commands.add_parser(
+                    command, help=f"{command} subcommands", formatter_class=HelpFormatter
+                )
                 groups[command] = group_parser.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
-            target = groups[command].add_parser(sub, help=help_text, description=help_text, formatter_class=HelpFormatter)
+            target = groups[command].add_parser(
+                sub, help=help_text, description=help_text, formatter_class=HelpFormatter
+            )
         target.set_defaults(_stage=stage, _parser=target)
         if words is not None and words[: 1 if sub is None else 2] != [command] + ([sub] if sub else []):
             continue
@@ -153,7 +170,10 @@ def _main(argv: list[str] | None = None, prepare=None) -> int:
         value = getattr(args, action.dest, None)  # nor a NUL character (no path can hold one)
         texts = [v for v in (value if isinstance(value, (list, tuple)) else [value]) if isinstance(v, str)]
         if action.option_strings and any(text == "" or "\x00" in text for text in texts):
-            args._parser.error(f"argument {action.option_strings[0]}: {'an empty value' if '' in texts else 'a NUL character in its value'}")
+            args._parser.error(
+                f"argument {action.option_strings[0]}: "
+                f"{'an empty value' if '' in texts else 'a NUL character in its value'}"
+            )
     name = args.command + (f" {args.subcommand}" if getattr(args, "subcommand", None) else "")
     if getattr(args, "_unfinished", False):
         print(f"mesh2tex: error: '{name}' is not available in this version yet", file=sys.stderr)
@@ -181,12 +201,17 @@ def _main(argv: list[str] | None = None, prepare=None) -> int:
             raise
         from mesh2tex.io.outputs import continue_command
 
-        print(f"mesh2tex: {name} interrupted; re-run the same command to resume: {continue_command(argv)}", file=sys.stderr)
+        print(
+            f"mesh2tex: {name} interrupted; re-run the same command to resume: {continue_command(argv)}",
+            file=sys.stderr,
+        )
         return 130
 
 
 # the commands running in this process, outermost first (the demo runs the other stages in-process)
 _NESTED: list[str] = []
+
+
 def os_error_line(error: OSError) -> str:
     """An OSError as the user reads it: the path (both of a rename) and the cause."""
     where = f"{error.filename}: " if error.filename is not None else ""
@@ -201,9 +226,14 @@ def os_error_line(error: OSError) -> str:
 
 
 # what to do about the system's refusals
-CAUSES = {errno.ENOSPC: "free some space or choose another --out", errno.EDQUOT: "over the disk quota; free some space",
-          errno.EFBIG: "a file larger than this file system or `ulimit -f` allows", errno.EROFS: "choose a writable --out",
-          errno.EACCES: "check the permissions", errno.EPERM: "check the permissions"}
+CAUSES = {
+    errno.ENOSPC: "free some space or choose another --out",
+    errno.EDQUOT: "over the disk quota; free some space",
+    errno.EFBIG: "a file larger than this file system or `ulimit -f` allows",
+    errno.EROFS: "choose a writable --out",
+    errno.EACCES: "check the permissions",
+    errno.EPERM: "check the permissions",
+}
 
 
 @contextlib.contextmanager
@@ -238,6 +268,7 @@ def console() -> int:
     # `kill PID` (what schedulers and `timeout` send) stops a run as Ctrl-C does: the long stages save
     # their checkpoint, and the same command resumes. A shell starts background jobs with SIGINT ignored.
     signal.signal(signal.SIGTERM, _interrupt)
+
     def prepare() -> None:
         from mesh2tex.runtime import configure_threads
 

@@ -62,8 +62,9 @@ def config_from_dict(cls: type[T], data: dict[str, Any] | None, where: str = "co
         if dataclasses.is_dataclass(hint):
             if not isinstance(value, dict):
                 raise InputError(f"{where}: '{f.name}' must be a mapping")
-            value = config_from_dict(hint, value, f"{where}.{f.name}",
-                                     getattr(base, f.name) if base is not None else _field_default(f))
+            value = config_from_dict(
+                hint, value, f"{where}.{f.name}", getattr(base, f.name) if base is not None else _field_default(f)
+            )
         else:
             value = _coerce(value, hint, f"{where}.{f.name}")
             check_config_value(f.name, value, f"{where}.{f.name}")  # sizes and angles: the same range in every command
@@ -117,7 +118,7 @@ def _coerce(value, hint, where: str):
     if hint in (int, str, bool):
         if not isinstance(value, hint) or (hint is int and isinstance(value, bool)):
             raise InputError(f"{where}: expected {hint.__name__}, got {short(value)}")
-        if hint is int and not -2**63 <= value < 2**63:  # seeds and counts alike: beyond 64 bits is a typo
+        if hint is int and not -(2**63) <= value < 2**63:  # seeds and counts alike: beyond 64 bits is a typo
             raise InputError(f"{where}: {value} is out of range (a 64-bit integer)")
         return value
     if origin in (list, tuple):
@@ -132,13 +133,19 @@ def _coerce(value, hint, where: str):
     return value
 
 
-def check_fields(cfg, *, at_least: dict[str, float] | None = None, positive: tuple[str, ...] = (),
-                 between: dict[str, tuple[float, float]] | None = None) -> None:
+def check_fields(
+    cfg,
+    *,
+    at_least: dict[str, float] | None = None,
+    positive: tuple[str, ...] = (),
+    between: dict[str, tuple[float, float]] | None = None,
+) -> None:
     """Range checks for a config's ``__post_init__``: ValueError naming the first field out of range.
 
     ``at_least`` maps a field to its lowest value, ``positive`` lists fields that must be > 0,
     ``between`` maps a field to its closed interval (a list field: every element).
     """
+
     def values(name):
         value = getattr(cfg, name)
         return list(value) if isinstance(value, (list, tuple)) else [value]
@@ -178,8 +185,10 @@ def read_yaml(path: Path):
         current = stack.pop()
         count += 1
         if count > MAX_CONFIG_NODES:
-            raise InputError(f"{path}: its aliases expand to more than {MAX_CONFIG_NODES} values; write the config out without "
-                             f"nested aliases")
+            raise InputError(
+                f"{path}: its aliases expand to more than {MAX_CONFIG_NODES} values; write the config out without "
+                f"nested aliases"
+            )
         if isinstance(current, yaml.SequenceNode):
             stack.extend(current.value)
         elif isinstance(current, yaml.MappingNode):

@@ -31,7 +31,8 @@ class UserError(Exception):
         self.exit_code = exit_code
 
 
-# The most an error message holds (the line under 1 kB with its prefix): a value quoted in it (a paragraph passed as a number) is cut to fit.
+# The most an error message holds (the line under 1 kB with its prefix): a value quoted in it (a paragraph passed as a
+# number) is cut to fit.
 MAX_MESSAGE_CHARS = 900
 
 

@@ -34,19 +34,39 @@ FOV = (1.0, 179.0)  # vertical field of view, degrees
 
 # config field name -> (lowest, highest); a list field: each element
 SIZE_FIELDS: dict[str, tuple[int, int]] = {
-    "resolution": (0, MAX_RESOLUTION), "photo_resolution": (1, MAX_RESOLUTION), "exemplar_size": (1, MAX_RESOLUTION),
-    "render_size": (1, MAX_RESOLUTION), "patch_size": (1, MAX_RESOLUTION),
+    "resolution": (0, MAX_RESOLUTION),
+    "photo_resolution": (1, MAX_RESOLUTION),
+    "exemplar_size": (1, MAX_RESOLUTION),
+    "render_size": (1, MAX_RESOLUTION),
+    "patch_size": (1, MAX_RESOLUTION),
     "texture_size": (1, MAX_TEXTURE_SIZE),
-    "views": (1, MAX_VIEWS), "query_views": (1, MAX_VIEWS), "anchor_views": (0, MAX_VIEWS), "unseen_views": (0, MAX_VIEWS),
-    "frames": (0, MAX_VIEWS), "turntable_frames": (0, MAX_VIEWS), "samples": (1, 100_000),
-    "faces": (0, MAX_FACES), "latents": (1, MAX_LATENTS), "batch": (1, MAX_BATCH),
-    "iters": (0, MAX_ITERS), "latent_iters": (0, MAX_ITERS), "refine_iters": (0, MAX_ITERS), "pose_iters": (0, MAX_ITERS),
-    "noc_iters": (0, MAX_ITERS), "lr_decay_iters": (0, MAX_ITERS),
-    "steps": (0, MAX_NCA_STEPS), "steps_min": (0, MAX_NCA_STEPS), "steps_max": (0, MAX_NCA_STEPS), "final_steps": (0, MAX_NCA_STEPS),
+    "views": (1, MAX_VIEWS),
+    "query_views": (1, MAX_VIEWS),
+    "anchor_views": (0, MAX_VIEWS),
+    "unseen_views": (0, MAX_VIEWS),
+    "frames": (0, MAX_VIEWS),
+    "turntable_frames": (0, MAX_VIEWS),
+    "samples": (1, 100_000),
+    "faces": (0, MAX_FACES),
+    "latents": (1, MAX_LATENTS),
+    "batch": (1, MAX_BATCH),
+    "iters": (0, MAX_ITERS),
+    "latent_iters": (0, MAX_ITERS),
+    "refine_iters": (0, MAX_ITERS),
+    "pose_iters": (0, MAX_ITERS),
+    "noc_iters": (0, MAX_ITERS),
+    "lr_decay_iters": (0, MAX_ITERS),
+    "steps": (0, MAX_NCA_STEPS),
+    "steps_min": (0, MAX_NCA_STEPS),
+    "steps_max": (0, MAX_NCA_STEPS),
+    "final_steps": (0, MAX_NCA_STEPS),
     "nca_steps": (0, MAX_NCA_STEPS),
 }
 ANGLE_FIELDS: dict[str, tuple[float, float]] = {
-    "elevation": ELEVATION, "elevation_min": ELEVATION, "elevation_max": ELEVATION, "fov": FOV,
+    "elevation": ELEVATION,
+    "elevation_min": ELEVATION,
+    "elevation_max": ELEVATION,
+    "fov": FOV,
 }
 TRUNCATION = (-2.0, 2.0)  # truncation psi: 1 none, 0 the mean latent; beyond +-2 the latents leave anything trained
 RANGE_FIELDS: dict[str, tuple[float, float]] = {"truncation": TRUNCATION}
@@ -86,7 +106,12 @@ def check_config_value(name: str, value, where: str) -> None:
     elif name in ANGLE_FIELDS or name in RANGE_FIELDS:
         for v in values:
             if isinstance(v, (int, float)) and not isinstance(v, bool):
-                check_range(where, v, *ANGLE_FIELDS.get(name, RANGE_FIELDS.get(name)), unit="degrees" if name in ANGLE_FIELDS else "")
+                check_range(
+                    where,
+                    v,
+                    *ANGLE_FIELDS.get(name, RANGE_FIELDS.get(name)),
+                    unit="degrees" if name in ANGLE_FIELDS else "",
+                )
 
 
 def short(value, limit: int = 60) -> str:

@@ -52,7 +52,9 @@ class Parser(argparse.ArgumentParser):
         for action in self._actions:  # name an option as its help does, without its hidden aliases
             hidden = getattr(action, "hidden_aliases", ())
             if hidden:
-                message = message.replace("/".join(action.option_strings), "/".join(s for s in action.option_strings if s not in hidden))
+                message = message.replace(
+                    "/".join(action.option_strings), "/".join(s for s in action.option_strings if s not in hidden)
+                )
         from mesh2tex.errors import one_line
 
         print(f"mesh2tex: error: {one_line(message)}; see '{self.prog} --help'", file=sys.stderr)
@@ -93,20 +95,27 @@ def renamed(action: argparse.Action, *old: str) -> argparse.Action:
     ``mesh2tex: warning: OLD is renamed NEW``."""
     missing = [flag for flag in old if flag not in action.option_strings]
     if missing or action.option_strings[0] in old:
-        raise ValueError(f"{', '.join(missing) or action.option_strings[0]}: not an old spelling of {action.option_strings}")
+        raise ValueError(
+            f"{', '.join(missing) or action.option_strings[0]}: not an old spelling of {action.option_strings}"
+        )
     action.hidden_aliases = tuple(getattr(action, "hidden_aliases", ())) + old
     action.renamed_from = tuple(getattr(action, "renamed_from", ())) + old
     return action
 
 
-def add_out(parser, help: str, *, required: bool = True, default: str | None = None, alias: str | None = None) -> argparse.Action:
+def add_out(
+    parser, help: str, *, required: bool = True, default: str | None = None, alias: str | None = None
+) -> argparse.Action:
     """``--out DIR``; ``alias`` (an older spelling such as ``--output``) still works but is not shown."""
     flags = ["--out"] + ([alias] if alias else [])
     action = parser.add_argument(*flags, dest="out", metavar="DIR", required=required, default=default, help=help)
     return renamed(action, alias) if alias else action
 
 
-def add_overwrite(parser, help: str = "replace files already in --out (without it, a command that would replace one stops before any work)") -> argparse.Action:
+def add_overwrite(
+    parser,
+    help: str = "replace files already in --out (without it, a command that would replace one stops before any work)",
+) -> argparse.Action:
     """``--overwrite``: without it a command refuses to replace a file already in ``--out``."""
     return parser.add_argument("--overwrite", action="store_true", help=help)
 
@@ -114,8 +123,15 @@ def add_overwrite(parser, help: str = "replace files already in --out (without i
 SHIPPED_MODELS_HELP = "or a shipped model's name (chair, car)"
 
 
-def add_checkpoint(parser, help: str, *, config: "ConfigOptions | None" = None, key: str | None = None, required: bool = False,
-                   alias: str | None = None) -> argparse.Action:
+def add_checkpoint(
+    parser,
+    help: str,
+    *,
+    config: "ConfigOptions | None" = None,
+    key: str | None = None,
+    required: bool = False,
+    alias: str | None = None,
+) -> argparse.Action:
     """``--checkpoint NAME|PATH``: a generator (a 'train gan' checkpoint, or a shipped model's name,
     which :func:`mesh2tex.models.resolve_checkpoint` turns into its file); ``help`` says what it
     is for. With ``config`` it overrides that config's field ``key``; ``alias``: an old spelling (:func:`renamed`)."""
@@ -145,9 +161,11 @@ def parse_seeds(text: str, flag: str = "--seeds") -> list[int]:
             continue
         split = part.find("-", 1)  # a range; a leading minus is a negative seed
         try:
-            first, last = (int(part), int(part)) if split < 0 else (int(part[:split]), int(part[split + 1:]))
+            first, last = (int(part), int(part)) if split < 0 else (int(part[:split]), int(part[split + 1 :]))
         except ValueError:
-            raise InputError(f"{flag} {text!r}: expected integers and ranges, comma-separated, e.g. 0,1,2 or 0-7 or 0,2,5-9") from None
+            raise InputError(
+                f"{flag} {text!r}: expected integers and ranges, comma-separated, e.g. 0,1,2 or 0-7 or 0,2,5-9"
+            ) from None
         if last < first:
             raise InputError(f"{flag} {text!r}: the range {part} runs backwards")
         if last - first >= 100_000:
@@ -171,9 +189,11 @@ def add_device(parser, help: str = "where to run", default: str | None = "auto")
 def add_texture_format(parser, config: "ConfigOptions | None" = None, key: str = "texture_format") -> argparse.Action:
     """``--texture-format png|jpeg|webp``: how the baked texture is embedded in the GLBs written
     (:data:`mesh2tex.io.assets.TEXTURE_FORMATS`); with ``config``, it overrides that config's field ``key``."""
-    kwargs = dict(choices=static_value("mesh2tex.io.assets:TEXTURE_FORMATS"),
-                  help="image format of the GLB's texture: png (lossless), jpeg or webp (lossy, smaller; "
-                       "webp needs a viewer with EXT_texture_webp)")
+    kwargs = dict(
+        choices=static_value("mesh2tex.io.assets:TEXTURE_FORMATS"),
+        help="image format of the GLB's texture: png (lossless), jpeg or webp (lossy, smaller; "
+        "webp needs a viewer with EXT_texture_webp)",
+    )
     if config is not None:
         return config.add("--texture-format", key=key, **kwargs)
     return parser.add_argument("--texture-format", default="png", **kwargs)
@@ -181,19 +201,32 @@ def add_texture_format(parser, config: "ConfigOptions | None" = None, key: str =
 
 def add_up(parser) -> argparse.Action:
     """``--up auto|y|z``: the up axis of the user's mesh file (:func:`mesh2tex.geometry.mesh_io.choose_up`)."""
-    return parser.add_argument("--up", default="auto", choices=static_value("mesh2tex.geometry.mesh_io:UP_AXES"),
-                               help="the mesh file's up axis; auto: y for glTF (by definition), OBJ, PLY and OFF, z for STL (the choice is printed)")
+    return parser.add_argument(
+        "--up",
+        default="auto",
+        choices=static_value("mesh2tex.geometry.mesh_io:UP_AXES"),
+        help="the mesh file's up axis; auto: y for glTF (by definition), OBJ, PLY and OFF, z for STL (the choice is "
+        "printed)",
+    )
 
 
 def add_mesh_output(parser) -> None:
     """The options of a command that hands the user's mesh back textured: ``--up``, ``--uv``, ``--output-mesh``."""
     add_up(parser)
-    parser.add_argument("--uv", default="auto", choices=static_value("mesh2tex.render.bake:UV_MODES"),
-                        help="the texture's atlas: the mesh's own UVs (keep), a new xatlas atlas (new), or auto: its own when "
-                             "they are usable (inside [0, 1], charts not overlapping), else new (the reason is printed)")
-    parser.add_argument("--output-mesh", default="input", choices=("input", "prepared"),
-                        help="input: the user's mesh as given (its vertices, faces, frame and units) with UVs and a baked texture; "
-                             "prepared: the quad-remeshed, normalised working copy")
+    parser.add_argument(
+        "--uv",
+        default="auto",
+        choices=static_value("mesh2tex.render.bake:UV_MODES"),
+        help="the texture's atlas: the mesh's own UVs (keep), a new xatlas atlas (new), or auto: its own when "
+        "they are usable (inside [0, 1], charts not overlapping), else new (the reason is printed)",
+    )
+    parser.add_argument(
+        "--output-mesh",
+        default="input",
+        choices=("input", "prepared"),
+        help="input: the user's mesh as given (its vertices, faces, frame and units) with UVs and a baked texture; "
+        "prepared: the quad-remeshed, normalised working copy",
+    )
 
 
 # The attribute of the parsed arguments that holds {config: {dest: field key}}: every flag ConfigOptions
@@ -207,8 +240,15 @@ class ConfigOptions:
     each override one field and show its default in ``--help``. The command turns the parsed flags
     into the overrides of its config with :func:`config_overrides`."""
 
-    def __init__(self, parser, config: str, *, config_flag: str | None = "--config", print_config: bool = True,
-                 what: str = "the config"):
+    def __init__(
+        self,
+        parser,
+        config: str,
+        *,
+        config_flag: str | None = "--config",
+        print_config: bool = True,
+        what: str = "the config",
+    ):
         self.parser, self.config = parser, config
         declared = parser.get_default(CONFIG_FLAGS)
         if declared is None:  # the first config of this parser (an argument group shares its parser's defaults)
@@ -216,7 +256,9 @@ class ConfigOptions:
             parser.set_defaults(**{CONFIG_FLAGS: declared})
         self.flags: dict[str, str | tuple[str, ...]] = declared.setdefault(config, {})
         if config_flag:
-            parser.add_argument(config_flag, metavar="YAML", help=f"YAML file with any fields of {what} (the flags given override it)")
+            parser.add_argument(
+                config_flag, metavar="YAML", help=f"YAML file with any fields of {what} (the flags given override it)"
+            )
         if print_config and config_flag:
             add_print_config(parser)
 
@@ -257,8 +299,11 @@ def config_overrides(args: argparse.Namespace, config: str | None = None, comput
 
 
 def add_print_config(parser) -> argparse.Action:
-    return parser.add_argument("--print-config", action="store_true",
-                               help="print the resolved config (its defaults, then --config, then the flags given) as YAML and exit")
+    return parser.add_argument(
+        "--print-config",
+        action="store_true",
+        help="print the resolved config (its defaults, then --config, then the flags given) as YAML and exit",
+    )
 
 
 # ------------------------------------------------------------------------------ static defaults
@@ -325,7 +370,12 @@ def _lookup(module: str, name: str) -> tuple[str, ast.AST]:
             return module, node
         if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == name for t in node.targets):
             return module, node.value
-        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and node.target.id == name and node.value:
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(node.target, ast.Name)
+            and node.target.id == name
+            and node.value
+        ):
             return module, node.value
         if isinstance(node, ast.ImportFrom):
             for alias in node.names:
@@ -346,8 +396,12 @@ def _value(module: str, node: ast.AST):
     if isinstance(node, ast.ClassDef):
         fields = {}
         for stmt in node.body:
-            if (isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and stmt.value is not None
-                    and "ClassVar" not in ast.unparse(stmt.annotation)):
+            if (
+                isinstance(stmt, ast.AnnAssign)
+                and isinstance(stmt.target, ast.Name)
+                and stmt.value is not None
+                and "ClassVar" not in ast.unparse(stmt.annotation)
+            ):
                 try:
                     fields[stmt.target.id] = _value(module, stmt.value)
                 except NotStatic:
@@ -372,7 +426,9 @@ def _value(module: str, node: ast.AST):
             return _value(module, factory)
         if node.func.id in ("list", "tuple") and len(node.args) == 1 and not node.keywords:
             return (list if node.func.id == "list" else tuple)(_value(module, node.args[0]))
-        if not node.args and None not in keywords:  # Config(field=value, ...): the class's defaults, those fields changed
+        if (
+            not node.args and None not in keywords
+        ):  # Config(field=value, ...): the class's defaults, those fields changed
             found = _lookup(module, node.func.id)
             if isinstance(found[1], ast.ClassDef):
                 return {**_value(*found), **{name: _value(module, value) for name, value in keywords.items()}}

@@ -30,8 +30,11 @@ from mesh2tex.render.crop import crop_mask, crop_square, object_box
 from mesh2tex.render.shading import composite_images
 
 # PIL modes of files that hold no photo, though PIL reads them: what the file probably is instead
-NOT_PHOTO_MODES = {"1": "a 1-bit black-and-white image (a mask?)", "I": "a 32-bit integer image (depth or labels?)",
-                   "F": "a 32-bit float image (depth or data?)"}
+NOT_PHOTO_MODES = {
+    "1": "a 1-bit black-and-white image (a mask?)",
+    "I": "a 32-bit integer image (depth or labels?)",
+    "F": "a 32-bit float image (depth or data?)",
+}
 
 MARGIN = 0.1  # fraction of the mask's larger side added around it before the square crop
 
@@ -66,7 +69,11 @@ def estimate_mask(rgb: np.ndarray, iterations: int = 5) -> np.ndarray:
 
     h, w = rgb.shape[:2]
     scale = grabcut_scale(h, w)
-    small = cv2.resize(rgb, (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA) if scale < 1 else rgb
+    small = (
+        cv2.resize(rgb, (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA)
+        if scale < 1
+        else rgb
+    )
     sh, sw = small.shape[:2]
     border = max(1, round(0.04 * min(sh, sw)))
     if sh <= 2 * border + 1 or sw <= 2 * border + 1:
@@ -75,7 +82,9 @@ def estimate_mask(rgb: np.ndarray, iterations: int = 5) -> np.ndarray:
     background, foreground = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
     rect = (border, border, sw - 2 * border, sh - 2 * border)
     cv2.setRNGSeed(0)
-    cv2.grabCut(cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, rect, background, foreground, iterations, cv2.GC_INIT_WITH_RECT)
+    cv2.grabCut(
+        cv2.cvtColor(small, cv2.COLOR_RGB2BGR), mask, rect, background, foreground, iterations, cv2.GC_INIT_WITH_RECT
+    )
     estimate = largest_region((mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)).astype(np.uint8)
     if scale < 1:
         estimate = cv2.resize(estimate, (w, h), interpolation=cv2.INTER_NEAREST)
@@ -92,7 +101,9 @@ def square_crop(rgb: np.ndarray, mask: np.ndarray, size: int, margin: float = MA
         (size, size, 3) uint8 image and (size, size) bool mask.
     """
     box = object_box(mask, margin)
-    image = crop_square(torch.from_numpy(np.ascontiguousarray(rgb)).permute(2, 0, 1)[None].float() / 255.0, box, size, fill=1.0)
+    image = crop_square(
+        torch.from_numpy(np.ascontiguousarray(rgb)).permute(2, 0, 1)[None].float() / 255.0, box, size, fill=1.0
+    )
     image = (image[0].permute(1, 2, 0).clamp(0, 1) * 255.0).round().to(torch.uint8).numpy()
     return image, crop_mask(mask, box, size)[0, 0].numpy() > 0.5
 
@@ -114,7 +125,10 @@ def _mask_from_file(path: Path) -> np.ndarray:
         return alpha
     spread = rgb.max(axis=2).astype(np.int16) - rgb.min(axis=2)
     if float((spread > 32).mean()) > 0.01:  # gray masks have equal channels; a few coloured edge pixels are forgiven
-        raise InputError(f"{path}: not a mask: {float((spread > 32).mean()):.0%} of its pixels are coloured (expected white object on black)")
+        raise InputError(
+            f"{path}: not a mask: {float((spread > 32).mean()):.0%} of its pixels are coloured (expected white object "
+            "on black)"
+        )
     return np.round(rgb.mean(axis=2)).astype(np.uint8)
 
 
@@ -132,7 +146,10 @@ def read_set_photo(path: str | Path, mask_path: str | Path | None = None) -> tup
         raise InputError(f"{path}: {NOT_PHOTO_MODES[mode]}, not a photo")
     h, w = rgb.shape[:2]
     if min(h, w) < MIN_SET_PHOTO_SIDE:
-        raise InputError(f"{path}: the photo is {w}x{h} pixels; a photo of a set needs at least {MIN_SET_PHOTO_SIDE}x{MIN_SET_PHOTO_SIDE}")
+        raise InputError(
+            f"{path}: the photo is {w}x{h} pixels; a photo of a set needs at least "
+            f"{MIN_SET_PHOTO_SIDE}x{MIN_SET_PHOTO_SIDE}"
+        )
     where = path
     if mask_path is not None:
         where = Path(mask_path)
@@ -169,8 +186,10 @@ def refuse_rejected(rejected: list[str], total: int, where: str | Path, what: st
         raise InputError(f"{where}: 1 of {total} {what} cannot be used: {rejected[0]}; fix or remove it")
     for line in rejected:
         warning(f"rejected: {one_line(line)}")
-    raise InputError(f"{where}: {len(rejected)} of {total} {what} cannot be used (each named above), the first: {rejected[0]}; "
-                     f"fix or remove them")
+    raise InputError(
+        f"{where}: {len(rejected)} of {total} {what} cannot be used (each named above), the first: {rejected[0]}; "
+        f"fix or remove them"
+    )
 
 
 # ------------------------------------------------------------------------------ photo sets as tensors
@@ -195,7 +214,9 @@ def list_images(folder: str | Path, what: str) -> dict[str, Path]:
     for path in sorted(folder.iterdir()):
         if is_image_file(path) and path.is_file():
             if path.stem in found:
-                raise InputError(f"{folder}: two {what} files share the name '{path.stem}' ({found[path.stem].name}, {path.name})")
+                raise InputError(
+                    f"{folder}: two {what} files share the name '{path.stem}' ({found[path.stem].name}, {path.name})"
+                )
             found[path.stem] = path
     if not found:
         raise InputError(f"{folder}: no {what} images ({', '.join(IMAGE_SUFFIXES)})")
@@ -207,25 +228,31 @@ def square_resize(image: torch.Tensor, resolution: int) -> torch.Tensor:
     height, width = image.shape[-2:]
     side = min(height, width)
     top, left = (height - side) // 2, (width - side) // 2
-    crop = image[:, top:top + side, left:left + side]
+    crop = image[:, top : top + side, left : left + side]
     if side == resolution:
         return crop
-    return F.interpolate(crop[None], size=(resolution, resolution), mode="bilinear", align_corners=False, antialias=True)[0]
+    return F.interpolate(
+        crop[None], size=(resolution, resolution), mode="bilinear", align_corners=False, antialias=True
+    )[0]
 
 
-def load_set(folder: str | Path, what: str, resolution: int, background: float,
-             masks: dict[str, Path] | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
+def load_set(
+    folder: str | Path, what: str, resolution: int, background: float, masks: dict[str, Path] | None = None
+) -> tuple[torch.Tensor, torch.Tensor | None]:
     """All images of ``folder`` as [N, 3, R, R] in [0, 1], masked-out pixels set to ``background``, and
     their object masks [N, 1, R, R] (0/1) when every image has one (a ``masks`` file or an alpha
     channel), else None. Every file is checked first (:func:`read_set_photo`); any
     rejected one is an InputError counting them, each named (:func:`refuse_rejected`)."""
+
     def read(path: Path, mask_path: Path | None) -> tuple[torch.Tensor, torch.Tensor | None]:
         rgb, coverage = read_set_photo(path, mask_path)
         image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1).contiguous().float() / 255.0
         if coverage is None:
             return square_resize(image, resolution), None
         mask = torch.from_numpy(coverage >= 128)[None].float()
-        return square_resize(composite_images(image, mask, background), resolution), (square_resize(mask, resolution) > 0.5).float()
+        return square_resize(composite_images(image, mask, background), resolution), (
+            square_resize(mask, resolution) > 0.5
+        ).float()
 
     listed = list_images(folder, what)
     items = [(path, masks.get(stem) if masks is not None else None) for stem, path in listed.items()]
@@ -257,11 +284,16 @@ def load_photo_collection(folder: str | Path, resolution: int) -> torch.Tensor:
         rgba = torch.from_numpy(np.dstack([rgb, coverage])).permute(2, 0, 1).float()
         small = square_resize(rgba, resolution).round().clamp(0, 255).to(torch.uint8)
         if not (small[3] >= 128).any():  # a speck of an object vanishes at the training resolution
-            raise InputError(f"{mask_path or path}: the object covers no pixel once resized to {resolution}x{resolution}")
+            raise InputError(
+                f"{mask_path or path}: the object covers no pixel once resized to {resolution}x{resolution}"
+            )
         return small
 
     listed = list_images(image_dir, "image")
-    items = [(path, None if masks is None else masks.get(stem, folder / "masks" / f"{stem}.png")) for stem, path in listed.items()]
+    items = [
+        (path, None if masks is None else masks.get(stem, folder / "masks" / f"{stem}.png"))
+        for stem, path in listed.items()
+    ]
     photos, rejected = read_photo_set(items, read)
     refuse_rejected(rejected, len(items), image_dir)
     return torch.stack(photos)

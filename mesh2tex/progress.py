@@ -14,14 +14,25 @@ from tqdm.auto import tqdm
 from mesh2tex.errors import InputError
 
 
-def progress_bar(iterable: Iterable | None = None, total: int | None = None, desc: str = "", initial: int = 0, **kwargs) -> tqdm:
+def progress_bar(
+    iterable: Iterable | None = None, total: int | None = None, desc: str = "", initial: int = 0, **kwargs
+) -> tqdm:
     """A tqdm bar on stderr, shown when stderr is a terminal: redirected logs get no ``\r`` frames.
 
     ``MESH2TEX_PROGRESS=1`` shows it anyway, ``MESH2TEX_PROGRESS=0`` hides it everywhere.
     """
     setting = os.environ.get("MESH2TEX_PROGRESS")
     disable = setting == "0" if setting in ("0", "1") else not sys.stderr.isatty()
-    return tqdm(iterable, total=total, desc=desc, initial=initial, file=sys.stderr, disable=disable, dynamic_ncols=True, **kwargs)
+    return tqdm(
+        iterable,
+        total=total,
+        desc=desc,
+        initial=initial,
+        file=sys.stderr,
+        disable=disable,
+        dynamic_ncols=True,
+        **kwargs,
+    )
 
 
 def write_line(text: str, file=None) -> None:

@@ -31,6 +31,7 @@ def busy_cores_now(interval: float = 0.2, stat_path: str = "/proc/stat") -> floa
     """Cores busy over the next ``interval`` seconds, from the kernel's CPU time counters (Linux's
     ``/proc/stat``: the share of non-idle time on its ``cpu`` line times its ``cpuN`` lines); None
     where they cannot be read."""
+
     def sample() -> tuple[int, int, int]:
         with open(stat_path) as stat:
             lines = stat.read().splitlines()
@@ -87,7 +88,7 @@ def configure_threads() -> int:
 
 # ----------------------------------------------------------------------------------------- devices
 def select_device(name: str) -> torch.device:
-    """"auto" (CUDA when available, else CPU), "cpu" or "cuda"; a missing GPU is a user error."""
+    """ "auto" (CUDA when available, else CPU), "cpu" or "cuda"; a missing GPU is a user error."""
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"
     if name == "cuda" and not torch.cuda.is_available():

@@ -75,19 +75,40 @@ class SynthesisConfig:
     colour_weight: float = 100.0  # weight of the sliced Wasserstein distance of the RGB pixels (the joint palette)
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
     direction_field: str = "up"  # up: views upright (stripes keep the mesh's up); none: views rolled at random
-    camera: NCACameraConfig = field(default_factory=NCACameraConfig)  # the random views around the mesh in the unit ball, as train nca's
+    camera: NCACameraConfig = field(
+        default_factory=NCACameraConfig
+    )  # the random views around the mesh in the unit ball, as train nca's
     seed: int = 0  # seed of the views, the loss's random projections and the initial noise
 
     # Keys of configs written before the cameras became a section (named by the unknown-key error).
-    MOVED_KEYS: typing.ClassVar[dict[str, str]] = {name: f"camera.{name}" for name in ("distance", "fov", "elevation_min", "elevation_max")}
+    MOVED_KEYS: typing.ClassVar[dict[str, str]] = {
+        name: f"camera.{name}" for name in ("distance", "fov", "elevation_min", "elevation_max")
+    }
 
     def __post_init__(self):
-        check_fields(self, at_least={"iters": 1, "texture_size": 16, "levels": 1, "views": 1, "resolution": 32,
-                                     "exemplar_size": 16, "max_points": 2, "overflow_weight": 0,
-                                     "colour_weight": 0},
-                     between={"vgg_depth": (0, 5), "texture_size": (16, 8192), "resolution": (32, 4096),
-                              "exemplar_size": (16, 4096), "levels": (1, 12), "lr_end": (0.0, 1.0)},
-                     positive=("lr", "lr_end"))
+        check_fields(
+            self,
+            at_least={
+                "iters": 1,
+                "texture_size": 16,
+                "levels": 1,
+                "views": 1,
+                "resolution": 32,
+                "exemplar_size": 16,
+                "max_points": 2,
+                "overflow_weight": 0,
+                "colour_weight": 0,
+            },
+            between={
+                "vgg_depth": (0, 5),
+                "texture_size": (16, 8192),
+                "resolution": (32, 4096),
+                "exemplar_size": (16, 4096),
+                "levels": (1, 12),
+                "lr_end": (0.0, 1.0),
+            },
+            positive=("lr", "lr_end"),
+        )
         if self.loss not in SYNTHESIS_LOSSES or self.loss not in STYLE_LOSSES:
             raise ValueError(f"loss must be one of {', '.join(SYNTHESIS_LOSSES)}, got {self.loss!r}")
         if self.direction_field not in DIRECTIONS:
@@ -107,16 +128,19 @@ class TexelSurface:
         if self.positions.dim() != 2 or self.positions.shape[1] != 3:
             raise ValueError(f"TexelSurface: positions must be (V, 3), got {tuple(self.positions.shape)}")
         if self.uv.shape != (self.positions.shape[0], 2):
-            raise ValueError(f"TexelSurface: uv must be (V, 2) with V = {self.positions.shape[0]}, "
-                             f"got {tuple(self.uv.shape)}")
+            raise ValueError(
+                f"TexelSurface: uv must be (V, 2) with V = {self.positions.shape[0]}, got {tuple(self.uv.shape)}"
+            )
         if self.faces.dim() != 2 or self.faces.shape[1] != 3 or self.faces.shape[0] == 0:
             raise ValueError(f"TexelSurface: faces must be (T, 3) with T > 0, got {tuple(self.faces.shape)}")
 
     @classmethod
     def from_arrays(cls, positions, faces, uv) -> "TexelSurface":
-        return cls(torch.tensor(np.asarray(positions), dtype=torch.float32),
-                   torch.tensor(np.asarray(faces), dtype=torch.long),
-                   torch.tensor(np.asarray(uv), dtype=torch.float32))
+        return cls(
+            torch.tensor(np.asarray(positions), dtype=torch.float32),
+            torch.tensor(np.asarray(faces), dtype=torch.long),
+            torch.tensor(np.asarray(uv), dtype=torch.float32),
+        )
 
     def texel_density(self) -> float:
         """Texels per unit length of the surface, per texel of texture side: sqrt(UV area / surface area)."""
@@ -135,7 +159,11 @@ def pixels_per_unit(resolution: int, distance: float, fov: float) -> float:
 def mip_level(surface: TexelSurface, cfg: SynthesisConfig) -> int:
     """The pooling level m whose texels come nearest to one render pixel (log2 of texels per pixel,
     rounded; 0 when the texture is coarser than the renders), at most levels - 1."""
-    per_pixel = cfg.texture_size * surface.texel_density() / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)
+    per_pixel = (
+        cfg.texture_size
+        * surface.texel_density()
+        / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)
+    )
     return int(min(max(round(math.log2(max(per_pixel, 1e-9))), 0), cfg.levels - 1))
 
 
@@ -151,7 +179,9 @@ def view_cameras(cfg: SynthesisConfig, count: int, generator: torch.Generator) -
     rolled about its view axis by a random angle (a rotation of the clip-space x and y)."""
     azimuth = torch.rand(count, generator=generator) * 360.0
     camera = cfg.camera
-    elevation = camera.elevation_min + torch.rand(count, generator=generator) * (camera.elevation_max - camera.elevation_min)
+    elevation = camera.elevation_min + torch.rand(count, generator=generator) * (
+        camera.elevation_max - camera.elevation_min
+    )
     mvp = orbit_camera(azimuth, elevation, distance=camera.distance, fov=camera.fov).mvp
     if cfg.direction_field == "none":
         angle = torch.rand(count, generator=generator) * (2 * math.pi)
@@ -161,8 +191,9 @@ def view_cameras(cfg: SynthesisConfig, count: int, generator: torch.Generator) -
     return mvp
 
 
-def render_texture(surface: TexelSurface, image: torch.Tensor, mvp: torch.Tensor, resolution: int,
-                   background: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+def render_texture(
+    surface: TexelSurface, image: torch.Tensor, mvp: torch.Tensor, resolution: int, background: float = 1.0
+) -> tuple[torch.Tensor, torch.Tensor]:
     """The mesh with texture ``image`` (3, H, W) in [-1, 1] (row 0 at v = 1) seen by ``mvp`` (N, 4, 4).
 
     Returns images (N, 3, R, R) in [-1, 1] (``background`` off the object) and masks (N, 1, R, R)
@@ -187,8 +218,9 @@ class TexelPyramid(torch.nn.Module):
     coarsest level; ``noise`` the finest (a small random start breaks the symmetry of a flat colour).
     """
 
-    def __init__(self, size: int, levels: int, mean: torch.Tensor, noise: float = 0.05,
-                 generator: torch.Generator | None = None):
+    def __init__(
+        self, size: int, levels: int, mean: torch.Tensor, noise: float = 0.05, generator: torch.Generator | None = None
+    ):
         super().__init__()
         sides = [max(size >> k, 1) for k in range(levels)]
         self.size = int(size)
@@ -217,8 +249,14 @@ class TexelSynthesis:
     the ``sw`` and ``ot`` losses (None for ``ps``).
     """
 
-    def __init__(self, cfg: SynthesisConfig, surface: TexelSurface, exemplar: torch.Tensor, vgg=None,
-                 device: torch.device | str = "cpu"):
+    def __init__(
+        self,
+        cfg: SynthesisConfig,
+        surface: TexelSurface,
+        exemplar: torch.Tensor,
+        vgg=None,
+        device: torch.device | str = "cpu",
+    ):
         if exemplar.dim() != 4 or exemplar.shape[:2] != (1, 3):
             raise ValueError(f"TexelSynthesis: exemplar must be (1, 3, h, w), got {tuple(exemplar.shape)}")
         if cfg.loss != "ps" and vgg is None:
@@ -313,6 +351,18 @@ def vertex_texture_colours(image: torch.Tensor, uv: np.ndarray, vertex_index: np
     return summed / torch.zeros(count).index_add_(0, index, torch.ones(len(index))).clamp_min(1)[:, None]
 
 
-__all__ = ["DIRECTIONS", "SYNTHESIS_LOSSES", "SynthesisConfig", "TexelPyramid", "TexelSurface", "TexelSynthesis",
-           "exemplar_tensor", "mip_level", "pixels_per_unit", "render_texture", "texture_coverage",
-           "vertex_texture_colours", "view_cameras"]
+__all__ = [
+    "DIRECTIONS",
+    "SYNTHESIS_LOSSES",
+    "SynthesisConfig",
+    "TexelPyramid",
+    "TexelSurface",
+    "TexelSynthesis",
+    "exemplar_tensor",
+    "mip_level",
+    "pixels_per_unit",
+    "render_texture",
+    "texture_coverage",
+    "vertex_texture_colours",
+    "view_cameras",
+]

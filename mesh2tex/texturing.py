@@ -47,8 +47,15 @@ def source_mesh(shape: PreparedShape, path: str | Path, instead: str) -> UserMes
     return None
 
 
-def load_shape(path: str | Path, generator: TextureGenerator, face_count: int, seed: int = 0, up: str = "auto",
-               uv: str = "auto", output_mesh: str = "input") -> tuple[PreparedShape, BakeTarget | None]:
+def load_shape(
+    path: str | Path,
+    generator: TextureGenerator,
+    face_count: int,
+    seed: int = 0,
+    up: str = "auto",
+    uv: str = "auto",
+    output_mesh: str = "input",
+) -> tuple[PreparedShape, BakeTarget | None]:
     """The shape a command textures, and where its texture goes.
 
     ``path`` is a mesh file, prepared on the fly (a one-line warning on stderr when ``face_count`` is too
@@ -117,8 +124,14 @@ def bake_texture(generator: TextureGenerator, texture: FaceTexture, batch: MeshB
     Returns (vertices (V', 3) float32, faces (T, 3) int64, uv (V', 2) float32, texture (size, size, 3)
     uint8, coverage (size, size) bool). Faces keep the order of ``batch.triangles()``.
     """
-    return bake_surface_colours(batch.shape_vertices(0), batch.shape_triangles(0), texture.bound(generator, batch), size, dilate,
-                                device=texture.face_rgb.device)
+    return bake_surface_colours(
+        batch.shape_vertices(0),
+        batch.shape_triangles(0),
+        texture.bound(generator, batch),
+        size,
+        dilate,
+        device=texture.face_rgb.device,
+    )
 
 
 @torch.no_grad()
@@ -137,17 +150,34 @@ def vertex_colours(generator: TextureGenerator, texture: FaceTexture, batch: Mes
     return colours_to_uint8(mean)
 
 
-def write_baked_mesh(glb_path: str | Path, ply_path: str | Path, baked: BakedUserMesh, mesh: UserMesh, texture_format: str = "png") -> dict:
+def write_baked_mesh(
+    glb_path: str | Path, ply_path: str | Path, baked: BakedUserMesh, mesh: UserMesh, texture_format: str = "png"
+) -> dict:
     """The user's mesh with its baked texture: a GLB (the file's vertex positions as they are, split on
     the atlas's seams; a z-up mesh's node stands it up, see :func:`mesh2tex.io.assets.save_glb`) with
     the file's normals, or smooth ones when it has none, and a PLY of the user's own vertices and faces
     with the texture's colour at each vertex. Returns what a report says of the mesh written."""
     normals = baked.normals if baked.normals is not None else smooth_vertex_normals(baked.vertices, baked.faces)
-    save_glb(glb_path, baked.vertices, baked.faces, baked.uv, baked.texture, normals, texture_format=texture_format, up_axis=mesh.up)
+    save_glb(
+        glb_path,
+        baked.vertices,
+        baked.faces,
+        baked.uv,
+        baked.texture,
+        normals,
+        texture_format=texture_format,
+        up_axis=mesh.up,
+    )
     save_ply(ply_path, mesh.vertices, mesh.faces, baked.vertex_colours)
-    return {"mesh": "input", "up": mesh.up, "vertices": int(len(baked.vertices)), "triangles": int(len(baked.faces)),
-            "uv": baked.atlas.source, "uv_note": baked.atlas.note,
-            "surface_distance_max": round(float(baked.surface_distance.max()), 5) if len(baked.surface_distance) else 0.0}
+    return {
+        "mesh": "input",
+        "up": mesh.up,
+        "vertices": int(len(baked.vertices)),
+        "triangles": int(len(baked.faces)),
+        "uv": baked.atlas.source,
+        "uv_note": baked.atlas.note,
+        "surface_distance_max": round(float(baked.surface_distance.max()), 5) if len(baked.surface_distance) else 0.0,
+    }
 
 
 class TexturedMeshWriter:
@@ -155,11 +185,21 @@ class TexturedMeshWriter:
     (``target``; the map to it made once, for every texture written) or, when ``target`` is None, onto
     the prepared shape itself (a fresh xatlas atlas over its finest triangles, :func:`bake_texture`)."""
 
-    def __init__(self, generator: TextureGenerator, batch: MeshBatch, target: BakeTarget | None, texture_size: int,
-                 texture_format: str = "png"):
+    def __init__(
+        self,
+        generator: TextureGenerator,
+        batch: MeshBatch,
+        target: BakeTarget | None,
+        texture_size: int,
+        texture_format: str = "png",
+    ):
         self.generator, self.batch, self.target = generator, batch, target
         self.texture_size, self.texture_format = int(texture_size), texture_format
-        self.baker = None if target is None else MeshBaker(target, batch.shape_vertices(0).cpu(), batch.shape_triangles(0).cpu(), texture_size)
+        self.baker = (
+            None
+            if target is None
+            else MeshBaker(target, batch.shape_vertices(0).cpu(), batch.shape_triangles(0).cpu(), texture_size)
+        )
 
     @property
     def uv_note(self) -> str:
@@ -172,25 +212,53 @@ class TexturedMeshWriter:
         generator, batch = self.generator, self.batch
         if self.baker is None:
             verts, faces, uv, image, _ = bake_texture(generator, texture, batch, self.texture_size)
-            save_glb(glb_path, verts.numpy(), faces.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), faces.numpy()),
-                     texture_format=self.texture_format)
-            save_ply(ply_path, batch.shape_vertices(0).cpu().numpy(), batch.shape_triangles(0).cpu().numpy(),
-                     vertex_colours(generator, texture, batch))
+            save_glb(
+                glb_path,
+                verts.numpy(),
+                faces.numpy(),
+                uv.numpy(),
+                image,
+                smooth_vertex_normals(verts.numpy(), faces.numpy()),
+                texture_format=self.texture_format,
+            )
+            save_ply(
+                ply_path,
+                batch.shape_vertices(0).cpu().numpy(),
+                batch.shape_triangles(0).cpu().numpy(),
+                vertex_colours(generator, texture, batch),
+            )
             return {"mesh": "prepared", "vertices": int(len(verts)), "triangles": int(len(faces)), "uv": "new"}
         baked = self.baker.bake(texture.bound(generator, batch), texture.face_rgb.device)
         return write_baked_mesh(glb_path, ply_path, baked, self.target.mesh, self.texture_format)
 
 
 @torch.no_grad()
-def write_textured_mesh(glb_path: str | Path, ply_path: str | Path, generator: TextureGenerator, texture: FaceTexture,
-                        batch: MeshBatch, texture_size: int, texture_format: str = "png", target: BakeTarget | None = None) -> dict:
+def write_textured_mesh(
+    glb_path: str | Path,
+    ply_path: str | Path,
+    generator: TextureGenerator,
+    texture: FaceTexture,
+    batch: MeshBatch,
+    texture_size: int,
+    texture_format: str = "png",
+    target: BakeTarget | None = None,
+) -> dict:
     """One texture written by a :class:`TexturedMeshWriter` (see there); returns what a report says of the mesh."""
     return TexturedMeshWriter(generator, batch, target, texture_size, texture_format).write(glb_path, ply_path, texture)
 
 
 @torch.no_grad()
-def write_automaton_mesh(glb_path: str | Path, ply_path: str | Path, model, state: torch.Tensor, graph, texture_size: int,
-                         texture_format: str = "png", graft=None, target: BakeTarget | None = None) -> dict:
+def write_automaton_mesh(
+    glb_path: str | Path,
+    ply_path: str | Path,
+    model,
+    state: torch.Tensor,
+    graph,
+    texture_size: int,
+    texture_format: str = "png",
+    graft=None,
+    target: BakeTarget | None = None,
+) -> dict:
     """An automaton's growth: baked onto the user's mesh (``target``, whose ``to_surface`` maps into the
     cell mesh's frame), or, without one, onto the cell mesh itself (an xatlas atlas over its triangles)
     with a PLY of the colour at each cell. ``texture_format`` as :func:`write_textured_mesh`.
@@ -203,8 +271,22 @@ def write_automaton_mesh(glb_path: str | Path, ply_path: str | Path, model, stat
     if target is not None:
         baked = MeshBaker(target, graph.positions.cpu(), graph.triangles.cpu(), texture_size).bake(grown, state.device)
         return write_baked_mesh(glb_path, ply_path, baked, target.mesh, texture_format)
-    verts, tris, uv, image, _ = bake_surface_colours(graph.positions, graph.triangles, grown, texture_size, device=state.device)
-    save_glb(glb_path, verts.numpy(), tris.numpy(), uv.numpy(), image, smooth_vertex_normals(verts.numpy(), tris.numpy()),
-             texture_format=texture_format)
-    save_ply(ply_path, graph.positions.cpu().numpy(), graph.triangles.cpu().numpy(), colours_to_uint8(model.vertex_colours(state, graft=graft)[0]))
+    verts, tris, uv, image, _ = bake_surface_colours(
+        graph.positions, graph.triangles, grown, texture_size, device=state.device
+    )
+    save_glb(
+        glb_path,
+        verts.numpy(),
+        tris.numpy(),
+        uv.numpy(),
+        image,
+        smooth_vertex_normals(verts.numpy(), tris.numpy()),
+        texture_format=texture_format,
+    )
+    save_ply(
+        ply_path,
+        graph.positions.cpu().numpy(),
+        graph.triangles.cpu().numpy(),
+        colours_to_uint8(model.vertex_colours(state, graft=graft)[0]),
+    )
     return {"mesh": "prepared", "vertices": int(len(verts)), "triangles": int(len(tris)), "uv": "new"}

@@ -1,7 +1,8 @@
 """Rebuild a shipped model from nothing: world, shapes, GAN, pose, NOC and mask networks, export, evaluation, card.
 
     python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out mesh2tex/models/chair]
-                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters 4000] [--device auto]
+                                 [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters
+                                 4000] [--device auto]
                                  [--pick FROM,EVERY]
                                  [--from-gan CKPT] [--views-gan CKPT]
 
@@ -45,7 +46,10 @@ WORLD = {"shapes": 32, "views": 8, "query_shapes": 8, "query_views": 2, "seed": 
 SHAPES = {"faces": 1536, "levels": 4, "seed": 0}
 GAN = {"resolution": 64, "views": 4, "seed": 0}
 GAN_CONFIG = {
-    "sample_every": 250, "checkpoint_every": 250, "snapshot_every": 250, "log_every": 10,
+    "sample_every": 250,
+    "checkpoint_every": 250,
+    "snapshot_every": 250,
+    "log_every": 10,
     "generator": {"encoder_channels": [32, 48, 64, 64], "synthesis_channels": [32, 48, 64, 64]},
     "discriminator": {"channel_base": 1024},
     "optim": {"lr_field": 0.0012},
@@ -59,8 +63,13 @@ GAN_CONFIG = {
 # exported generator is the snapshot, every EVERY iterations from FROM to gan_iters, that closes the
 # most of the gap on a validation world no table reports (VALIDATION), not the last one.
 RECIPES = {
-    "chair": {"gan_iters": 8000, "world_shapes": 64, "gan": {"supersample": 2}, "loss": {"diversity_start": 3500},
-              "views_gan_iteration": 2500},
+    "chair": {
+        "gan_iters": 8000,
+        "world_shapes": 64,
+        "gan": {"supersample": 2},
+        "loss": {"diversity_start": 3500},
+        "views_gan_iteration": 2500,
+    },
     "car": {"gan_iters": 3000, "gan": {}, "loss": {}, "views_gan_iteration": 1500},
 }
 
@@ -79,25 +88,61 @@ def recipe_world(recipe: dict) -> dict:
 
 def prepare_world(folder: Path, category: str, settings: dict, variety: str, commands: list[str]) -> None:
     """`prepare synthetic` into ``folder`` with ``settings`` (WORLD's keys); skipped when present with them."""
-    run(["prepare", "synthetic", "--out", str(folder), "--category", category, "--shapes", str(settings["shapes"]),
-         "--views", str(settings["views"]), "--query-shapes", str(settings["query_shapes"]),
-         "--query-views", str(settings["query_views"]), "--seed", str(settings["seed"]),
-         "--resolution", str(settings["resolution"]), "--variety", variety], commands)
+    run(
+        [
+            "prepare",
+            "synthetic",
+            "--out",
+            str(folder),
+            "--category",
+            category,
+            "--shapes",
+            str(settings["shapes"]),
+            "--views",
+            str(settings["views"]),
+            "--query-shapes",
+            str(settings["query_shapes"]),
+            "--query-views",
+            str(settings["query_views"]),
+            "--seed",
+            str(settings["seed"]),
+            "--resolution",
+            str(settings["resolution"]),
+            "--variety",
+            variety,
+        ],
+        commands,
+    )
 
 
 def prepare_split(world: Path, part: str, folder: Path, commands: list[str]) -> None:
     """Prepare the world's ``part`` shapes (train or query) into ``folder`` with the recipe's hierarchy."""
     split = json.loads((world / "index.json").read_text())["split"]
     names = split["train_shapes"] if part == "train" else split["query_shapes"]
-    argv = ["prepare", "shapes", "--input", *[str(world / "meshes" / f"{n}.obj") for n in names], "--out", str(folder),
-            "--faces", str(SHAPES["faces"]), "--levels", str(SHAPES["levels"]), "--seed", str(SHAPES["seed"]), "--workers", "2"]
+    argv = [
+        "prepare",
+        "shapes",
+        "--input",
+        *[str(world / "meshes" / f"{n}.obj") for n in names],
+        "--out",
+        str(folder),
+        "--faces",
+        str(SHAPES["faces"]),
+        "--levels",
+        str(SHAPES["levels"]),
+        "--seed",
+        str(SHAPES["seed"]),
+        "--workers",
+        "2",
+    ]
     print(f"\n== mesh2tex {' '.join(argv[:2])} ... ({part})", flush=True)
     commands.append("mesh2tex " + " ".join(shlex.quote(a) for a in argv))
     cli(argv)  # a shape that cannot be remeshed fails alone (exit 2); the others are prepared
 
 
-def pick_snapshot(work: Path, category: str, variety: str, gan_run: Path, gan_iters: int, pick: dict,
-                  commands: list[str]) -> tuple[Path, dict[int, float]]:
+def pick_snapshot(
+    work: Path, category: str, variety: str, gan_run: Path, gan_iters: int, pick: dict, commands: list[str]
+) -> tuple[Path, dict[int, float]]:
     """The snapshot of ``gan_run`` that closes the most of the gap on the validation world, and every
     snapshot's figure ({iteration: gap closed}). Figures are kept in WORK/validation/pick.json with the
     run they measured and reused for that run only (a work folder copied for another seed measures
@@ -114,14 +159,22 @@ def pick_snapshot(work: Path, category: str, variety: str, gan_run: Path, gan_it
         if iteration in figures or not snapshot.is_file():
             continue
         print(f"\n== validation: the snapshot at iteration {iteration}", flush=True)
-        result = run_generation_protocol(folder / "world", folder / "shapes", snapshot, GenerationConfig(**VALIDATION_PROTOCOL))
+        result = run_generation_protocol(
+            folder / "world", folder / "shapes", snapshot, GenerationConfig(**VALIDATION_PROTOCOL)
+        )
         figures[iteration] = round(float(result["gap_closed"]), 4)
         record.write_text(json.dumps({"gan_run": run_id, "figures": figures}, indent=1))
     if not figures:
-        sys.exit(f"build_model: no snapshot of {gan_run} between iterations {pick['from']} and {gan_iters} to pick from")
+        sys.exit(
+            f"build_model: no snapshot of {gan_run} between iterations {pick['from']} and {gan_iters} to pick from"
+        )
     best = max(figures, key=lambda it: figures[it])
-    print(f"\n== picked the snapshot at iteration {best} (validation gap closed {figures[best]}; "
-          + ", ".join(f"{it}: {g}" for it, g in sorted(figures.items())) + ")", flush=True)
+    print(
+        f"\n== picked the snapshot at iteration {best} (validation gap closed {figures[best]}; "
+        + ", ".join(f"{it}: {g}" for it, g in sorted(figures.items()))
+        + ")",
+        flush=True,
+    )
     return gan_run / "snapshots" / f"iter{best:07d}.safetensors", figures
 
 
@@ -131,10 +184,21 @@ def recipe_gan_config(recipe: dict) -> dict:
     return {**config, "loss": recipe["loss"]} if recipe["loss"] else config
 
 
-VIEWS = {"samples": 1536, "resolution": 64, "batch": 32, "seed": 0, "config": {"width": 16, "log_every": 25, "checkpoint_every": 100}}
+VIEWS = {
+    "samples": 1536,
+    "resolution": 64,
+    "batch": 32,
+    "seed": 0,
+    "config": {"width": 16, "log_every": 25, "checkpoint_every": 100},
+}
 # The mask network sees whole photos, not object crops: finer views, each placed over a fresh backdrop at every step.
-MASK = {"samples": 2048, "resolution": 96, "batch": 8, "seed": 0,
-        "config": {"width": 12, "lr": 0.001, "log_every": 50, "checkpoint_every": 250}}
+MASK = {
+    "samples": 2048,
+    "resolution": 96,
+    "batch": 8,
+    "seed": 0,
+    "config": {"width": 12, "lr": 0.001, "log_every": 50, "checkpoint_every": 250},
+}
 
 
 def run(argv: list[str], log: list[str]) -> None:
@@ -147,7 +211,8 @@ def run(argv: list[str], log: list[str]) -> None:
 
 
 def gan_run_dir(checkpoint: Path) -> Path:
-    """The run directory of a GAN checkpoint or snapshot (RUN/checkpoint.safetensors, RUN/snapshots/iter*.safetensors)."""
+    """The run directory of a GAN checkpoint or snapshot (RUN/checkpoint.safetensors,
+    RUN/snapshots/iter*.safetensors)."""
     return checkpoint.parent.parent if checkpoint.parent.name == "snapshots" else checkpoint.parent
 
 
@@ -180,18 +245,29 @@ def main() -> None:
     parser.add_argument("--work", required=True, help="folder for the world, shapes and runs (kept, resumable)")
     parser.add_argument("--out", help="model folder (default mesh2tex/models/<category>)")
     parser.add_argument("--gan-iters", type=int, help="GAN iterations in all (default: the category's recipe)")
-    parser.add_argument("--variety", choices=["boxy", "real"], help="the world's shapes (prepare synthetic --variety; default: the recipe's)")
+    parser.add_argument(
+        "--variety",
+        choices=["boxy", "real"],
+        help="the world's shapes (prepare synthetic --variety; default: the recipe's)",
+    )
     parser.add_argument("--seed", type=int, default=GAN["seed"], help="the GAN's training seed")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
     parser.add_argument("--mask-iters", type=int, default=4000)
-    parser.add_argument("--pick", metavar="FROM,EVERY", help="export the snapshot (every EVERY iterations from FROM) that the "
-                        "validation world ranks first, not the last one (default: the recipe's pick, if any)")
+    parser.add_argument(
+        "--pick",
+        metavar="FROM,EVERY",
+        help="export the snapshot (every EVERY iterations from FROM) that the "
+        "validation world ranks first, not the last one (default: the recipe's pick, if any)",
+    )
     parser.add_argument("--device", default="auto")
     parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
     parser.add_argument("--note", default="", help="a line for the card (e.g. how busy the machine was)")
-    parser.add_argument("--views-gan", help="the GAN that textures half of the pose and NOC training views "
-                        "(default: the model's own run, its snapshot at the recipe's views_gan_iteration)")
+    parser.add_argument(
+        "--views-gan",
+        help="the GAN that textures half of the pose and NOC training views "
+        "(default: the model's own run, its snapshot at the recipe's views_gan_iteration)",
+    )
     args = parser.parse_args()
     recipe = RECIPES[args.category]
     args.variety = args.variety or recipe.get("variety", "boxy")
@@ -215,15 +291,40 @@ def main() -> None:
         gan_ckpt = Path(args.from_gan)
         run_dir = gan_run_dir(gan_ckpt)
         it = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"]
-        commands.append(f"mesh2tex train gan --shapes {work / 'shapes' / 'train'} --images {world} --out {run_dir} "
-                        f"--config {run_dir / 'config.yaml'} --resolution {GAN['resolution']} --views {GAN['views']} "
-                        f"--seed {gan_settings['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it")
+        commands.append(
+            f"mesh2tex train gan --shapes {work / 'shapes' / 'train'} --images {world} --out {run_dir} "
+            f"--config {run_dir / 'config.yaml'} --resolution {GAN['resolution']} --views {GAN['views']} "
+            f"--seed {gan_settings['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it"
+        )
     else:
         gan_yaml = work / "gan.yaml"
         gan_yaml.write_text(yaml.safe_dump(gan_config, sort_keys=False))
-        run(["train", "gan", "--shapes", str(work / "shapes" / "train"), "--images", str(world), "--out", str(work / "gan"),
-             "--config", str(gan_yaml), "--iters", str(args.gan_iters), "--resolution", str(GAN["resolution"]),
-             "--views", str(GAN["views"]), "--seed", str(gan_settings["seed"]), "--device", args.device, "--resume"], commands)
+        run(
+            [
+                "train",
+                "gan",
+                "--shapes",
+                str(work / "shapes" / "train"),
+                "--images",
+                str(world),
+                "--out",
+                str(work / "gan"),
+                "--config",
+                str(gan_yaml),
+                "--iters",
+                str(args.gan_iters),
+                "--resolution",
+                str(GAN["resolution"]),
+                "--views",
+                str(GAN["views"]),
+                "--seed",
+                str(gan_settings["seed"]),
+                "--device",
+                args.device,
+                "--resume",
+            ],
+            commands,
+        )
         gan_ckpt = work / "gan" / "checkpoint.safetensors"
     picked: dict[int, float] = {}
     pick = recipe.get("pick")
@@ -231,7 +332,9 @@ def main() -> None:
         start_at, every = (int(v) for v in args.pick.split(","))
         pick = {"from": start_at, "every": every}
     if pick and not args.from_gan:
-        gan_ckpt, picked = pick_snapshot(work, args.category, args.variety, work / "gan", args.gan_iters, pick, commands)
+        gan_ckpt, picked = pick_snapshot(
+            work, args.category, args.variety, work / "gan", args.gan_iters, pick, commands
+        )
     snapshot = gan_run_dir(gan_ckpt) / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors"
     if not args.views_gan and snapshot.is_file():  # else the GAN itself (a run shorter than the recipe's iteration)
         args.views_gan = str(snapshot)
@@ -239,57 +342,147 @@ def main() -> None:
     views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
     views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt
     for kind, iters in (("pose", args.pose_iters), ("noc", args.noc_iters)):
-        run(["train", kind, "--shapes", str(work / "shapes" / "train"), "--out", str(work / kind), "--config", str(views_yaml),
-             "--iters", str(iters), "--samples", str(VIEWS["samples"]), "--resolution", str(VIEWS["resolution"]),
-             "--batch", str(VIEWS["batch"]), "--category", args.category, "--variety", args.variety, "--seed", str(VIEWS["seed"]),
-             "--checkpoint", str(views_gan),
-             "--device", args.device, "--resume"], commands)
+        run(
+            [
+                "train",
+                kind,
+                "--shapes",
+                str(work / "shapes" / "train"),
+                "--out",
+                str(work / kind),
+                "--config",
+                str(views_yaml),
+                "--iters",
+                str(iters),
+                "--samples",
+                str(VIEWS["samples"]),
+                "--resolution",
+                str(VIEWS["resolution"]),
+                "--batch",
+                str(VIEWS["batch"]),
+                "--category",
+                args.category,
+                "--variety",
+                args.variety,
+                "--seed",
+                str(VIEWS["seed"]),
+                "--checkpoint",
+                str(views_gan),
+                "--device",
+                args.device,
+                "--resume",
+            ],
+            commands,
+        )
     mask_yaml = work / "mask.yaml"
     mask_yaml.write_text(yaml.safe_dump(MASK["config"]))
-    run(["train", "mask", "--shapes", str(work / "shapes" / "train"), "--out", str(work / "mask"), "--config", str(mask_yaml),
-         "--iters", str(args.mask_iters), "--samples", str(MASK["samples"]), "--resolution", str(MASK["resolution"]),
-         "--batch", str(MASK["batch"]), "--category", args.category, "--variety", args.variety, "--seed", str(MASK["seed"]),
-         "--device", args.device, "--resume"], commands)
+    run(
+        [
+            "train",
+            "mask",
+            "--shapes",
+            str(work / "shapes" / "train"),
+            "--out",
+            str(work / "mask"),
+            "--config",
+            str(mask_yaml),
+            "--iters",
+            str(args.mask_iters),
+            "--samples",
+            str(MASK["samples"]),
+            "--resolution",
+            str(MASK["resolution"]),
+            "--batch",
+            str(MASK["batch"]),
+            "--category",
+            args.category,
+            "--variety",
+            args.variety,
+            "--seed",
+            str(MASK["seed"]),
+            "--device",
+            args.device,
+            "--resume",
+        ],
+        commands,
+    )
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
     for kind in ("pose", "noc", "mask"):
         export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])
     gan_meta = read_checkpoint_meta(gan_ckpt)["meta"]
     print("\n== generation protocol on the held-out shapes", flush=True)
-    result = run_generation_protocol(world, work / "shapes" / "query", out / MODEL_FILES["gan"],
-                                     GenerationConfig(views=8, latents=16, kid_fid=False), samples_path=out / "samples.png")
+    result = run_generation_protocol(
+        world,
+        work / "shapes" / "query",
+        out / MODEL_FILES["gan"],
+        GenerationConfig(views=8, latents=16, kid_fid=False),
+        samples_path=out / "samples.png",
+    )
     size_mb = sum((out / f).stat().st_size for f in MODEL_FILES.values()) / 1e6
     card = {
-        "name": args.category, "category": args.category, "world": world_settings, "shapes": SHAPES, "gan": {**gan_settings, "config": gan_config},
-        "views": VIEWS, "gan_iterations": int(gan_meta["iteration"]), "gan_trained_iterations": args.gan_iters,
-        **({"pick": {**pick, "validation_world": VALIDATION, "protocol": VALIDATION_PROTOCOL, "gap_closed": picked}}
-           if picked else {}), "pose_iterations": args.pose_iters,
-        "noc_iterations": args.noc_iters, "mask": MASK, "mask_iterations": args.mask_iters, "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
-        "commands": commands, "gan_training_seconds": training_seconds(gan_run_dir(gan_ckpt), args.gan_iters if picked else int(gan_meta["iteration"])),
-        "hardware": f"{platform.machine()}, {os.cpu_count()} CPU cores, {platform.system()}; device {args.device}", "note": args.note,
-        "build_seconds_this_invocation": round(time.perf_counter() - start, 1), "size_mb": round(size_mb, 2),
+        "name": args.category,
+        "category": args.category,
+        "world": world_settings,
+        "shapes": SHAPES,
+        "gan": {**gan_settings, "config": gan_config},
+        "views": VIEWS,
+        "gan_iterations": int(gan_meta["iteration"]),
+        "gan_trained_iterations": args.gan_iters,
+        **(
+            {"pick": {**pick, "validation_world": VALIDATION, "protocol": VALIDATION_PROTOCOL, "gap_closed": picked}}
+            if picked
+            else {}
+        ),
+        "pose_iterations": args.pose_iters,
+        "noc_iterations": args.noc_iters,
+        "mask": MASK,
+        "mask_iterations": args.mask_iters,
+        "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
+        "commands": commands,
+        "gan_training_seconds": training_seconds(
+            gan_run_dir(gan_ckpt), args.gan_iters if picked else int(gan_meta["iteration"])
+        ),
+        "hardware": f"{platform.machine()}, {os.cpu_count()} CPU cores, {platform.system()}; device {args.device}",
+        "note": args.note,
+        "build_seconds_this_invocation": round(time.perf_counter() - start, 1),
+        "size_mb": round(size_mb, 2),
         "generation": result,
     }
     (out / "card.json").write_text(json.dumps(card, indent=1, default=float))
-    rebuild = f"python models/build_model.py --category {args.category} --work WORK" + (
-        "" if args.gan_iters == recipe["gan_iters"] else f" --gan-iters {args.gan_iters}") + (
-        f" --variety {args.variety}" if args.variety != recipe.get("variety", "boxy") else "") + (
-        f" --seed {args.seed}" if args.seed != GAN["seed"] else "") + (f" --pick {args.pick}" if args.pick else "")
+    rebuild = (
+        f"python models/build_model.py --category {args.category} --work WORK"
+        + ("" if args.gan_iters == recipe["gan_iters"] else f" --gan-iters {args.gan_iters}")
+        + (f" --variety {args.variety}" if args.variety != recipe.get("variety", "boxy") else "")
+        + (f" --seed {args.seed}" if args.seed != GAN["seed"] else "")
+        + (f" --pick {args.pick}" if args.pick else "")
+    )
     (out / "build_log.md").write_text(
         f"# Shipped model `{args.category}` ({args.category})\n\n"
         f"Texture GAN (EMA generator), pose, NOC and mask networks trained on the synthetic {args.category} world "
-        f"({world_settings['shapes'] - world_settings['query_shapes']} training shapes, {world_settings['views']} photos each at "
-        f"{world_settings['resolution']} px; {world_settings['query_shapes']} held-out shapes for the figures below). Float16, {size_mb:.1f} MB in all.\n\n"
-        f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch 2, "
-        + (f"the snapshot picked of {args.gan_iters} by the validation world's gap closed ("
-           + ", ".join(f"{it}: {g}" for it, g in sorted(picked.items())) + "), " if picked else "")
+        f"({world_settings['shapes'] - world_settings['query_shapes']} training shapes, {world_settings['views']} "
+        "photos each at "
+        f"{world_settings['resolution']} px; {world_settings['query_shapes']} held-out shapes for the figures below). "
+        f"Float16, {size_mb:.1f} MB in all.\n\n"
+        f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch "
+        "2, "
+        + (
+            f"the snapshot picked of {args.gan_iters} by the validation world's gap closed ("
+            + ", ".join(f"{it}: {g}" for it, g in sorted(picked.items()))
+            + "), "
+            if picked
+            else ""
+        )
         + (f"{card['gan_training_seconds'] / 3600:.2f} h of training; " if card["gan_training_seconds"] else "")
         + f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
         f"{card['views_gan_iteration']} and half by the world's procedural materials; mask: {args.mask_iters} steps on "
         f"{MASK['resolution']} px views placed over backdrops\n"
         f"- Hardware of this build: {card['hardware']}" + (f"; {args.note}" if args.note else "") + "\n"
-        f"- Rebuild from nothing: `{rebuild}`\n\n"
-        f"## Commands\n\n```\n" + "\n".join(commands) + "\n```\n\n## Figures (generation protocol)\n\n"
-        + generation_markdown(result) + "\n![samples](samples.png)\n")
+        f"- Rebuild from nothing: `{rebuild}`\n\n## Commands\n\n```\n"
+        + "\n".join(commands)
+        + "\n```\n\n## Figures (generation protocol)\n\n"
+        + generation_markdown(result)
+        + "\n![samples](samples.png)\n"
+    )
     print(generation_markdown(result))
     print(f"wrote {out} ({size_mb:.1f} MB)")
 

@@ -15,9 +15,17 @@ from PIL import Image  # noqa: E402
 
 # The smallest GAN config the tests train (every network a few channels wide).
 TINY_GAN = {
-    "sample_every": 0, "checkpoint_every": 0,
-    "generator": {"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "encoder_channels": [8, 8, 8], "synthesis_channels": [8, 8, 8],
-                  "field_hidden": 16, "aux_latent_dim": 8},
+    "sample_every": 0,
+    "checkpoint_every": 0,
+    "generator": {
+        "z_dim": 16,
+        "w_dim": 16,
+        "mapping_layers": 2,
+        "encoder_channels": [8, 8, 8],
+        "synthesis_channels": [8, 8, 8],
+        "field_hidden": 16,
+        "aux_latent_dim": 8,
+    },
     "discriminator": {"channel_base": 64, "channel_max": 16},
 }
 
@@ -42,8 +50,30 @@ def tiny_gan(tmp_path_factory):
         rgba[4:12, 4:12] = (200, 40 * i, 30, 255)
         Image.fromarray(rgba).save(photos / f"{i}.png")
     (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
-    code = main(["train", "gan", "--shapes", str(root / "shapes"), "--images", str(photos), "--out", str(root / "run"),
-                 "--config", str(root / "tiny.yaml"), "--iters", "2", "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"])
+    code = main(
+        [
+            "train",
+            "gan",
+            "--shapes",
+            str(root / "shapes"),
+            "--images",
+            str(photos),
+            "--out",
+            str(root / "run"),
+            "--config",
+            str(root / "tiny.yaml"),
+            "--iters",
+            "2",
+            "--batch",
+            "2",
+            "--views",
+            "2",
+            "--resolution",
+            "16",
+            "--device",
+            "cpu",
+        ]
+    )
     assert code == 0
     trimesh.creation.box((0.8, 0.8, 0.3)).export(root / "slab.obj")
     return root
@@ -60,8 +90,29 @@ def make_tiny_world(root, views: int, resolution: int, query_views: int) -> dict
     from mesh2tex.geometry.prepare import prepare_shape
 
     world = root / "world"
-    assert main(["prepare", "synthetic", "--out", str(world), "--shapes", "3", "--views", str(views), "--resolution",
-                 str(resolution), "--texture-size", "64", "--seed", "3", "--query-views", str(query_views)]) == 0
+    assert (
+        main(
+            [
+                "prepare",
+                "synthetic",
+                "--out",
+                str(world),
+                "--shapes",
+                "3",
+                "--views",
+                str(views),
+                "--resolution",
+                str(resolution),
+                "--texture-size",
+                "64",
+                "--seed",
+                "3",
+                "--query-views",
+                str(query_views),
+            ]
+        )
+        == 0
+    )
     index = json.loads((world / "index.json").read_text())
     shapes = root / "shapes"
     shapes.mkdir()

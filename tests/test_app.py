@@ -420,7 +420,13 @@ def _sleeper_job(workshop, seconds: float, label: str):
     from mesh2tex.app.jobs import Job
 
     visitor = workshop.new_visitor()
-    job = Job(label, "generate", visitor.folder / f"job-{label}", [sys.executable, "-c", f"import time; time.sleep({seconds})"], label)
+    job = Job(
+        label,
+        "generate",
+        visitor.folder / f"job-{label}",
+        [sys.executable, "-c", f"import time; time.sleep({seconds})"],
+        label,
+    )
     visitor.jobs[job.id] = job
     return visitor, job
 

@@ -143,8 +143,14 @@ def test_no_import_cycles(graph):
 
 
 def test_the_checks_find_what_they_forbid():
-    graph = {"mesh2tex.infer.a": {"mesh2tex.train.b", "mesh2tex.c"}, "mesh2tex.train.b": set(), "mesh2tex.c": {"mesh2tex.infer.a"}, "mesh2tex.d": {"mesh2tex.e"},
-             "mesh2tex.e": {"mesh2tex.f"}, "mesh2tex.f": {"mesh2tex.d"}}
+    graph = {
+        "mesh2tex.infer.a": {"mesh2tex.train.b", "mesh2tex.c"},
+        "mesh2tex.train.b": set(),
+        "mesh2tex.c": {"mesh2tex.infer.a"},
+        "mesh2tex.d": {"mesh2tex.e"},
+        "mesh2tex.e": {"mesh2tex.f"},
+        "mesh2tex.f": {"mesh2tex.d"},
+    }
     assert cross_package_imports(graph) == ["mesh2tex.c -> mesh2tex.infer.a", "mesh2tex.infer.a -> mesh2tex.train.b"]
     assert import_cycles(graph) == [["mesh2tex.c", "mesh2tex.infer.a"], ["mesh2tex.d", "mesh2tex.e", "mesh2tex.f"]]
 
@@ -203,7 +209,9 @@ def test_every_package_stands_on_a_floor(graph):
 
 
 def test_no_module_imports_a_higher_floor(graph):
-    assert floor_violations(graph) == [], "an import climbs a floor: move the shared piece down (docs/architecture.md, 'Floors')"
+    assert floor_violations(graph) == [], (
+        "an import climbs a floor: move the shared piece down (docs/architecture.md, 'Floors')"
+    )
 
 
 def test_no_two_packages_import_each_other(graph):
@@ -217,7 +225,9 @@ def test_the_floors_in_the_docs_are_the_floors_checked():
     for line in text.split("## Floors", 1)[1].split("\n## ", 1)[0].splitlines():
         head, _, units = line.partition(":")
         if head[:1].isdigit() and ". " in head:
-            listed.append((head.split(". ", 1)[1].strip(), {u.strip(" `") for u in units.split("(")[0].split(",") if u.strip()}))
+            listed.append(
+                (head.split(". ", 1)[1].strip(), {u.strip(" `") for u in units.split("(")[0].split(",") if u.strip()})
+            )
     assert listed[::-1] == FLOORS
 
 
@@ -247,14 +257,20 @@ def user_error_lines(source: str) -> list[int]:
 def test_the_library_raises_no_user_error():
     """A program calling the library catches its bad-input errors as ValueError; turning them into the
     one-line ``mesh2tex: error:`` is the command line's job (mesh2tex/cli.py)."""
-    uses = [f"{path.relative_to(ROOT)}:{line}" for name, path in module_files().items()
-            if top(name) == LIBRARY and name not in USER_ERROR_MODULES for line in user_error_lines(path.read_text())]
+    uses = [
+        f"{path.relative_to(ROOT)}:{line}"
+        for name, path in module_files().items()
+        if top(name) == LIBRARY and name not in USER_ERROR_MODULES
+        for line in user_error_lines(path.read_text())
+    ]
     assert uses == [], "the library raises InputError (mesh2tex/errors.py)"
 
 
 def test_the_user_error_check_finds_what_it_forbids():
-    source = ("from mesh2tex.errors import InputError, UserError\nimport mesh2tex.errors as e\n\n"
-              "def f():\n    raise e.UserError('x')\n\ndef g():\n    raise InputError('y')\n")
+    source = (
+        "from mesh2tex.errors import InputError, UserError\nimport mesh2tex.errors as e\n\n"
+        "def f():\n    raise e.UserError('x')\n\ndef g():\n    raise InputError('y')\n"
+    )
     assert user_error_lines(source) == [1, 5]
 
 
@@ -267,14 +283,22 @@ SOURCE_FOLDERS = (LIBRARY, *STAGES)
 
 
 def long_files(folders=(LIBRARY, *STAGES, "tests", "benchmarks", "models")) -> dict[str, int]:
-    return {str(p.relative_to(ROOT)): n for folder in folders for p in sorted((ROOT / folder).rglob("*.py"))
-            if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    return {
+        str(p.relative_to(ROOT)): n
+        for folder in folders
+        for p in sorted((ROOT / folder).rglob("*.py"))
+        if (n := len(p.read_text().splitlines())) > MAX_LINES
+    }
 
 
 def long_functions(source: str) -> dict[str, int]:
     """{name: lines} of the functions and methods of ``source`` longer than MAX_FUNCTION_LINES."""
-    return {node.name: node.end_lineno - node.lineno + 1 for node in ast.walk(ast.parse(source))
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES}
+    return {
+        node.name: node.end_lineno - node.lineno + 1
+        for node in ast.walk(ast.parse(source))
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+        and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES
+    }
 
 
 def test_no_source_file_is_longer_than_500_lines():
@@ -285,8 +309,12 @@ def test_no_source_file_is_longer_than_500_lines():
 
 
 def test_no_function_is_longer_than_80_lines():
-    found = {f"{p.relative_to(ROOT)}:{name}": n for folder in SOURCE_FOLDERS for p in sorted((ROOT / folder).rglob("*.py"))
-             for name, n in long_functions(p.read_text()).items()}
+    found = {
+        f"{p.relative_to(ROOT)}:{name}": n
+        for folder in SOURCE_FOLDERS
+        for p in sorted((ROOT / folder).rglob("*.py"))
+        for name, n in long_functions(p.read_text()).items()
+    }
     grown = {f: n for f, n in found.items() if n > LONG_FUNCTIONS.get(f, MAX_FUNCTION_LINES)}
     assert grown == {}, "split a long function into named steps"
     assert sorted(set(LONG_FUNCTIONS) - set(found)) == [], "a listed function fits now: drop it from LONG_FUNCTIONS"
@@ -332,19 +360,35 @@ def american_spellings(source: str) -> list[tuple[int, str]]:
 
 
 def test_identifiers_spell_colour_and_centre():
-    found = {(str(p.relative_to(ROOT)), name): line for folder in SPELLING_FOLDERS for p in sorted((ROOT / folder).rglob("*.py"))
-             for line, name in american_spellings(p.read_text())}
-    assert sorted(f"{path}:{line}: {name}" for (path, name), line in found.items() if (path, name) not in KEPT_SPELLINGS) == [], \
-        "spell project identifiers 'colour' and 'centre' (or add an external or persisted name to KEPT_SPELLINGS)"
+    found = {
+        (str(p.relative_to(ROOT)), name): line
+        for folder in SPELLING_FOLDERS
+        for p in sorted((ROOT / folder).rglob("*.py"))
+        for line, name in american_spellings(p.read_text())
+    }
+    assert (
+        sorted(f"{path}:{line}: {name}" for (path, name), line in found.items() if (path, name) not in KEPT_SPELLINGS)
+        == []
+    ), "spell project identifiers 'colour' and 'centre' (or add an external or persisted name to KEPT_SPELLINGS)"
     assert sorted(set(KEPT_SPELLINGS) - set(found)) == [], "a kept name is gone: drop it from KEPT_SPELLINGS"
 
 
 def test_the_spelling_check_finds_what_it_forbids():
-    source = ("import numpy as colorful\n\nclass Colors:\n    color_a: int\n\n    def centers(self, center, *colors):\n"
-              "        self.colour = 1\n        self.centerline = [c for c in center]\n        for tint_color in colors:\n"
-              "            pass\n        return image.vertex_colors, f(color=1)\n")
-    assert american_spellings(source) == [(1, "colorful"), (3, "Colors"), (4, "color_a"), (6, "center"), (6, "centers"),
-                                          (6, "colors"), (8, "centerline"), (9, "tint_color")]
+    source = (
+        "import numpy as colorful\n\nclass Colors:\n    color_a: int\n\n    def centers(self, center, *colors):\n"
+        "        self.colour = 1\n        self.centerline = [c for c in center]\n        for tint_color in colors:\n"
+        "            pass\n        return image.vertex_colors, f(color=1)\n"
+    )
+    assert american_spellings(source) == [
+        (1, "colorful"),
+        (3, "Colors"),
+        (4, "color_a"),
+        (6, "center"),
+        (6, "centers"),
+        (6, "colors"),
+        (8, "centerline"),
+        (9, "tint_color"),
+    ]
 
 
 # Public names defined at module level in more than one module, each for a stated reason; any other repeat is a name
@@ -365,16 +409,22 @@ def public_definitions(root: Path = ROOT) -> dict[str, list[str]]:
     found: dict[str, list[str]] = {}
     for module, path in module_files(root).items():
         for node in ast.parse(path.read_text(), str(path)).body:
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and not node.name.startswith("_"):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and not node.name.startswith(
+                "_"
+            ):
                 found.setdefault(node.name, []).append(module)
     return found
 
 
 def test_a_public_name_means_one_thing():
     repeated = {name: modules for name, modules in public_definitions().items() if len(modules) > 1}
-    assert sorted(set(repeated) - set(SHARED_NAMES)) == [], \
-        f"defined in more than one module: {({n: m for n, m in repeated.items() if n not in SHARED_NAMES})}; rename one, or say why in SHARED_NAMES"
-    assert sorted(set(SHARED_NAMES) - set(repeated)) == [], "a shared name is defined once now: drop it from SHARED_NAMES"
+    assert sorted(set(repeated) - set(SHARED_NAMES)) == [], (
+        f"defined in more than one module: { ({n: m for n, m in repeated.items() if n not in SHARED_NAMES}) }; rename "
+        "one, or say why in SHARED_NAMES"
+    )
+    assert sorted(set(SHARED_NAMES) - set(repeated)) == [], (
+        "a shared name is defined once now: drop it from SHARED_NAMES"
+    )
 
 
 def test_the_name_check_finds_what_it_forbids(tmp_path):

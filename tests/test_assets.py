@@ -66,12 +66,16 @@ def _glb_document(data: bytes) -> dict:
 def _noisy_texture(size: int = 128, noise: float = 24.0) -> np.ndarray:
     """A colour gradient with per-texel noise: lossless PNG cannot squeeze it, lossy formats can."""
     ramp = np.linspace(0, 1, size)
-    smooth = np.stack([np.add.outer(ramp, ramp) * 100, np.outer(ramp, 1 - ramp) * 600, np.tile(ramp * 200, (size, 1))], axis=2)
+    smooth = np.stack(
+        [np.add.outer(ramp, ramp) * 100, np.outer(ramp, 1 - ramp) * 600, np.tile(ramp * 200, (size, 1))], axis=2
+    )
     noisy = smooth + np.random.default_rng(0).normal(0, noise, smooth.shape)
     return np.clip(noisy + 28, 0, 255).astype(np.uint8)
 
 
-@pytest.mark.parametrize("texture_format, mime_type", [("png", "image/png"), ("jpeg", "image/jpeg"), ("webp", "image/webp")])
+@pytest.mark.parametrize(
+    "texture_format, mime_type", [("png", "image/png"), ("jpeg", "image/jpeg"), ("webp", "image/webp")]
+)
 def test_glb_embeds_its_texture_in_the_format_asked(tmp_path, texture_format, mime_type):
     vertices, faces, uv, _ = _quad()
     texture = _noisy_texture(noise=4.0)
@@ -79,7 +83,9 @@ def test_glb_embeds_its_texture_in_the_format_asked(tmp_path, texture_format, mi
     save_glb(path, vertices, faces, uv, texture, texture_format=texture_format)
     document = _glb_document(path.read_bytes())
     assert document["images"] == [{"bufferView": 3, "mimeType": mime_type}]
-    if texture_format == "webp":  # glTF core knows PNG and JPEG only: WebP comes through its extension, declared required
+    if (
+        texture_format == "webp"
+    ):  # glTF core knows PNG and JPEG only: WebP comes through its extension, declared required
         assert document["extensionsUsed"] == document["extensionsRequired"] == ["EXT_texture_webp"]
         assert document["textures"][0]["extensions"] == {"EXT_texture_webp": {"source": 0}}
     else:

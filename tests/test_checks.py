@@ -40,7 +40,9 @@ def test_rasterize_and_interpolate_name_the_wrong_argument():
         rasterize(pos, tri[0], (8, 8))
     with pytest.raises(ValueError, match="rasterize: resolution must be"):
         rasterize(pos, tri, (8,))
-    with pytest.raises(ValueError, match=r"interpolate: attr must have shape \[V, C\] or \[1, V, C\] or \[B, V, C\], got \[3\]"):
+    with pytest.raises(
+        ValueError, match=r"interpolate: attr must have shape \[V, C\] or \[1, V, C\] or \[B, V, C\], got \[3\]"
+    ):
         interpolate(torch.rand(3), raster, tri)
     with pytest.raises(ValueError, match=r"sample_texture: uv must have shape \[B, H, W, 2\]"):
         sample_texture(torch.rand(3, 4, 4), torch.rand(1, 8, 8, 3))
@@ -52,14 +54,18 @@ def test_face_convolutions_name_the_wrong_argument():
     assert conv(torch.rand(faces, 4), neighbors).shape == (faces, 8)
     with pytest.raises(ValueError, match=r"FaceConv: x must have shape \[F, 4\], got \[6, 5\]"):
         conv(torch.rand(faces, 5), neighbors)
-    with pytest.raises(ValueError, match=r"FaceConv: neighbors must have shape \[F, 9\] \(F = 6 from x\), got \[5, 9\]"):
+    with pytest.raises(
+        ValueError, match=r"FaceConv: neighbors must have shape \[F, 9\] \(F = 6 from x\), got \[5, 9\]"
+    ):
         conv(torch.rand(faces, 4), neighbors[:5])
     modulated = ModulatedFaceConv(4, 8, w_dim=16)
     sample_index = torch.zeros(faces, dtype=torch.long)
     assert modulated(torch.rand(faces, 4), neighbors, torch.rand(1, 16), sample_index).shape == (faces, 8)
     with pytest.raises(ValueError, match=r"ModulatedFaceConv: w must have shape \[B, 16\], got \[1, 8\]"):
         modulated(torch.rand(faces, 4), neighbors, torch.rand(1, 8), sample_index)
-    with pytest.raises(ValueError, match=r"ModulatedFaceConv: sample_index must have shape \[F\] \(F = 6 from x\), got \[3\]"):
+    with pytest.raises(
+        ValueError, match=r"ModulatedFaceConv: sample_index must have shape \[F\] \(F = 6 from x\), got \[3\]"
+    ):
         modulated(torch.rand(faces, 4), neighbors, torch.rand(1, 16), sample_index[:3])
     pool = torch.tensor([0, 0, 1, 1, 2, 2])
     assert face_pool(torch.rand(faces, 3), pool, 3).shape == (3, 3)

@@ -23,11 +23,16 @@ from mesh2tex.options import HelpFormatter, show_default, static_defaults
 ROOT = Path(__file__).resolve().parents[1]
 ARGVS = [[command] + ([sub] if sub else []) for command, sub in COMMANDS]
 CONFIG_COMMANDS = {  # argv -> the config class --print-config prints
-    ("train", "gan"): "mesh2tex.train.gan:TrainGanConfig", ("train", "pose"): "mesh2tex.nn.view_nets:ViewTrainConfig",
-    ("train", "noc"): "mesh2tex.nn.view_nets:ViewTrainConfig", ("train", "nca"): "mesh2tex.train.nca:TrainNCAConfig",
-    ("infer", "generate"): "mesh2tex.infer.generate:GenerateConfig", ("infer", "transfer"): "mesh2tex.transfer.config:TransferConfig",
-    ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig", ("evaluate", "--protocols"): "mesh2tex.evaluation.protocols:ProtocolConfig",
-    ("evaluate", "--generation"): "mesh2tex.evaluation.generation:GenerationConfig", ("demo",): "mesh2tex.infer.demo:DemoConfig",
+    ("train", "gan"): "mesh2tex.train.gan:TrainGanConfig",
+    ("train", "pose"): "mesh2tex.nn.view_nets:ViewTrainConfig",
+    ("train", "noc"): "mesh2tex.nn.view_nets:ViewTrainConfig",
+    ("train", "nca"): "mesh2tex.train.nca:TrainNCAConfig",
+    ("infer", "generate"): "mesh2tex.infer.generate:GenerateConfig",
+    ("infer", "transfer"): "mesh2tex.transfer.config:TransferConfig",
+    ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig",
+    ("evaluate", "--protocols"): "mesh2tex.evaluation.protocols:ProtocolConfig",
+    ("evaluate", "--generation"): "mesh2tex.evaluation.generation:GenerationConfig",
+    ("demo",): "mesh2tex.infer.demo:DemoConfig",
 }
 DEVICE_COMMANDS = [argv for argv in ARGVS if argv[0] != "prepare"]  # preparation runs on the CPU
 
@@ -55,17 +60,20 @@ def test_help_does_not_import_torch():
     result = run_cli("-X", "importtime", "-m", "mesh2tex", "train", "gan", "--help")
     assert result.returncode == 0, result.stderr[-2000:]
     assert "--iters" in result.stdout
-    imported = [line.rsplit("|", 1)[-1].strip() for line in result.stderr.splitlines() if line.startswith("import time:")]
+    imported = [
+        line.rsplit("|", 1)[-1].strip() for line in result.stderr.splitlines() if line.startswith("import time:")
+    ]
     assert "mesh2tex.options" in imported  # the import log is there
     assert not [m for m in imported if m.split(".")[0] in ("torch", "numpy")], "--help imported torch or numpy"
 
 
 def test_every_help_exits_0_without_torch():
     argvs = [[]] + [[c] for c in sorted({c for c, _ in COMMANDS})] + ARGVS
-    script = ("import json, sys\nfrom mesh2tex.cli import main\ncodes = []\n"
-              f"for argv in {argvs!r}:\n"
-              "    try:\n        main(argv + ['--help'])\n    except SystemExit as e:\n        codes.append(e.code)\n"
-              "print(json.dumps({'codes': codes, 'torch': 'torch' in sys.modules}), file=sys.stderr)")
+    script = (
+        f"import json, sys\nfrom mesh2tex.cli import main\ncodes = []\nfor argv in {argvs!r}:\n"
+        "    try:\n        main(argv + ['--help'])\n    except SystemExit as e:\n        codes.append(e.code)\n"
+        "print(json.dumps({'codes': codes, 'torch': 'torch' in sys.modules}), file=sys.stderr)"
+    )
     result = run_cli("-c", script)
     report = json.loads(result.stderr.strip().splitlines()[-1])
     assert report == {"codes": [0] * len(argvs), "torch": False}, result.stderr[-2000:]
@@ -144,7 +152,12 @@ def test_every_command_takes_out_and_device_alike(argv):
         assert "--device" not in actions
 
 
-GLB_COMMANDS = [["infer", "generate"], ["infer", "transfer"], ["infer", "nca"], ["demo"]]  # every command that writes a textured GLB
+GLB_COMMANDS = [
+    ["infer", "generate"],
+    ["infer", "transfer"],
+    ["infer", "nca"],
+    ["demo"],
+]  # every command that writes a textured GLB
 
 
 @pytest.mark.parametrize("argv", GLB_COMMANDS, ids=" ".join)
@@ -159,7 +172,10 @@ def test_every_command_writing_a_glb_takes_the_texture_format_alike(argv):
 def test_a_texture_format_from_a_config_file_is_checked(tmp_path, capsys):
     (tmp_path / "c.yaml").write_text("texture_format: gif\n")
     (tmp_path / "demo.yaml").write_text("transfer: {texture_format: gif}\n")
-    for argv, config in ((["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"], "c.yaml"), (["demo"], "demo.yaml")):
+    for argv, config in (
+        (["infer", "generate", "--checkpoint", "c", "--mesh", "m", "--out", "o"], "c.yaml"),
+        (["demo"], "demo.yaml"),
+    ):
         assert main([*argv, "--config", str(tmp_path / config), "--print-config"]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "texture_format 'gif': choose one of png, jpeg, webp" in err, err
@@ -176,12 +192,21 @@ def test_a_bad_device_is_one_line_and_exit_2(argv, capsys):
     assert err.count("\n") == 1 and err.startswith("mesh2tex: error: argument --device: invalid choice: 'gpu'"), err
 
 
-@pytest.mark.parametrize("argv, says", [
-    (["train", "gan", "--out", "o"], "required: --shapes, --images; see 'mesh2tex train gan --help'"),
-    (["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--bogus", "1"], "unrecognized arguments: --bogus 1; see 'mesh2tex train gan --help'"),
-    (["prepare", "shapes", "--input", "x"], "required: --out; see"),  # not '--out/--output': the alias stays hidden
-    (["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--iters", "many"], "argument --iters: invalid int value: 'many'"),
-])
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["train", "gan", "--out", "o"], "required: --shapes, --images; see 'mesh2tex train gan --help'"),
+        (
+            ["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--bogus", "1"],
+            "unrecognized arguments: --bogus 1; see 'mesh2tex train gan --help'",
+        ),
+        (["prepare", "shapes", "--input", "x"], "required: --out; see"),  # not '--out/--output': the alias stays hidden
+        (
+            ["train", "gan", "--shapes", "s", "--images", "i", "--out", "o", "--iters", "many"],
+            "argument --iters: invalid int value: 'many'",
+        ),
+    ],
+)
 def test_a_bad_option_is_one_line_naming_the_commands_help(argv, says, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(argv)
@@ -205,7 +230,6 @@ def test_backgrounds_named_in_the_options_are_the_commands():
     from mesh2tex.evaluate.options import BACKGROUNDS as NAMES
 
     assert sorted(BACKGROUNDS) == sorted(NAMES)
-
 
 
 def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
@@ -261,8 +285,11 @@ def test_every_config_flag_reaches_its_field(argv, tmp_path, monkeypatch, capsys
     monkeypatch.chdir(tmp_path)
     target = CONFIG_COMMANDS[argv]
     defaults = config_to_dict(config_class(target)())
-    flags = [a for a in leaf_parser([w for w in argv if not w.startswith("-")])._actions
-             if getattr(a, "config_source", (None,))[0] == target]
+    flags = [
+        a
+        for a in leaf_parser([w for w in argv if not w.startswith("-")])._actions
+        if getattr(a, "config_source", (None,))[0] == target
+    ]
     assert flags, f"{target} declares no flags"
     for action in flags:
         key = action.config_source[1]
@@ -274,7 +301,9 @@ def test_every_config_flag_reaches_its_field(argv, tmp_path, monkeypatch, capsys
 
 
 # ----------------------------------------------------------------------------------- errors
-@pytest.mark.parametrize("error, code", [(InputError("m.obj: the mesh has no faces"), 2), (UserError("--pool 0: too small", exit_code=4), 4)])
+@pytest.mark.parametrize(
+    "error, code", [(InputError("m.obj: the mesh has no faces"), 2), (UserError("--pool 0: too small", exit_code=4), 4)]
+)
 def test_input_and_user_errors_are_one_line(error, code, monkeypatch, capsys):
     """The library's InputError (a ValueError) and a command's UserError end as one line and their exit status."""
     import mesh2tex.infer.generate

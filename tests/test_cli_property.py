@@ -16,8 +16,20 @@ import pytest
 
 from mesh2tex.cli import COMMANDS, build_parser, main
 
-BAD_VALUES = ["not-a-number", "nan", "inf", "-inf", "1e400", "99999999999999999999", "-99999999999999999999", "",
-              "x" * 3000, "1,2,,3", "\x1b[2J\x00", "0x10"]
+BAD_VALUES = [
+    "not-a-number",
+    "nan",
+    "inf",
+    "-inf",
+    "1e400",
+    "99999999999999999999",
+    "-99999999999999999999",
+    "",
+    "x" * 3000,
+    "1,2,,3",
+    "\x1b[2J\x00",
+    "0x10",
+]
 ARGVS = [(command,) + ((sub,) if sub else ()) for command, sub in COMMANDS]
 # options a bad value of which is not an error: free text
 FREE_TEXT = {"--out", "--output", "--name", "--tag"}
@@ -33,8 +45,15 @@ def leaf(argv) -> argparse.ArgumentParser:
 
 
 def valued_options(argv) -> list[argparse.Action]:
-    return [a for a in leaf(argv)._actions if a.option_strings and a.nargs != 0 and not isinstance(a, argparse._HelpAction)
-            and a.option_strings[0] not in FREE_TEXT and a.dest not in ("print_config",)]
+    return [
+        a
+        for a in leaf(argv)._actions
+        if a.option_strings
+        and a.nargs != 0
+        and not isinstance(a, argparse._HelpAction)
+        and a.option_strings[0] not in FREE_TEXT
+        and a.dest not in ("print_config",)
+    ]
 
 
 def base_argv(argv, tmp_path, skip: str) -> list[str]:
@@ -42,7 +61,9 @@ def base_argv(argv, tmp_path, skip: str) -> list[str]:
     words = list(argv) + ["--out", str(tmp_path / "out")]
     for action in leaf(argv)._actions:
         if action.required and action.option_strings and action.option_strings[0] not in ("--out", skip):
-            words += [action.option_strings[0]] + [str(tmp_path / "missing")] * (action.nargs if isinstance(action.nargs, int) else 1)
+            words += [action.option_strings[0]] + [str(tmp_path / "missing")] * (
+                action.nargs if isinstance(action.nargs, int) else 1
+            )
     return words
 
 
@@ -89,8 +110,23 @@ def test_every_bad_value_of_every_option_is_one_line(argv, flag, tmp_path, capsy
         assert not (tmp_path / "out").exists(), f"{flag} {value[:40]!r}: --out was created"
 
 
-@pytest.mark.parametrize("expression", ["10**400", "9" * 400, "2.0**2.0**2.0**2.0**2.0**2.0", "1/0", "x/0", "(-8)**0.5", "exp(1000)",
-                                        "x" + "+x" * 2000, "-(" * 300 + "x" + ")" * 300, "-" * 999 + "x", "x >", "__import__('os')"])
+@pytest.mark.parametrize(
+    "expression",
+    [
+        "10**400",
+        "9" * 400,
+        "2.0**2.0**2.0**2.0**2.0**2.0",
+        "1/0",
+        "x/0",
+        "(-8)**0.5",
+        "exp(1000)",
+        "x" + "+x" * 2000,
+        "-(" * 300 + "x" + ")" * 300,
+        "-" * 999 + "x",
+        "x >",
+        "__import__('os')",
+    ],
+)
 def test_a_bad_mask_expression_is_one_line(expression):
     """``infer nca --graft-mask/--regrow`` expressions: an arithmetic overflow, a division by zero, a
     root of a negative number, a paragraph, deep nesting: one InputError line under 1 kB, no traceback."""
@@ -112,5 +148,9 @@ def test_an_angle_beyond_a_turn_names_angle(angle, tmp_path, capsys):
     words = base_argv(("infer", "nca"), tmp_path, "--angle") + [f"--angle={angle}"]
     assert main(words) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and f"--angle {float(angle)!r}: must be in [-360, 360] degrees" in err and "--steps" not in err, err
+    assert (
+        err.count("\n") == 1
+        and f"--angle {float(angle)!r}: must be in [-360, 360] degrees" in err
+        and "--steps" not in err
+    ), err
     assert not (tmp_path / "out").exists()

@@ -35,10 +35,26 @@ DEVICE_LESS = {("prepare", "shapes"), ("prepare", "images"), ("prepare", "synthe
 # Commands that read a generator (a 'train gan' checkpoint or a shipped model).
 GENERATOR_READERS = {("train", "pose"), ("train", "noc"), ("infer", "generate"), ("infer", "transfer"), ("evaluate",)}
 # Spellings of a shared flag that no command shows (an old one may stay as a hidden alias).
-OTHER_SPELLINGS = {"--output", "--output-dir", "--outdir", "--gan", "--generator", "--gan-checkpoint", "--ckpt", "--model",
-                   "--protocol-config", "--config-file", "--force", "--replace", "--random-seed", "--rng-seed", "--cpu", "--gpu", "--cuda"}
-EXCEPTIONS: dict[tuple[tuple[str, ...], str], str] = {
+OTHER_SPELLINGS = {
+    "--output",
+    "--output-dir",
+    "--outdir",
+    "--gan",
+    "--generator",
+    "--gan-checkpoint",
+    "--ckpt",
+    "--model",
+    "--protocol-config",
+    "--config-file",
+    "--force",
+    "--replace",
+    "--random-seed",
+    "--rng-seed",
+    "--cpu",
+    "--gpu",
+    "--cuda",
 }
+EXCEPTIONS: dict[tuple[tuple[str, ...], str], str] = {}
 
 
 def leaf_parser(argv) -> argparse.ArgumentParser:
@@ -78,7 +94,9 @@ def stage_defines(argv, function: str) -> bool:
 def test_the_walk_covers_every_subcommand_and_the_exceptions_are_real():
     assert len(ARGVS) == len(COMMANDS) >= 12
     for argv, flag in EXCEPTIONS:
-        assert argv in ARGVS and flag not in actions(argv), f"{' '.join(argv)} {flag} is no longer an exception: remove it"
+        assert argv in ARGVS and flag not in actions(argv), (
+            f"{' '.join(argv)} {flag} is no longer an exception: remove it"
+        )
 
 
 @pytest.mark.parametrize("argv", ARGVS, ids=" ".join)
@@ -87,7 +105,11 @@ def test_every_command_writes_into_out_and_refuses_to_replace_without_overwrite(
     found = actions(argv)
     assert found["--out"].dest == "out" and found["--out"].metavar == "DIR" and shown(found["--out"]) == ["--out"]
     overwrite = found["--overwrite"]
-    assert isinstance(overwrite, argparse._StoreTrueAction) and overwrite.dest == "overwrite" and shown(overwrite) == ["--overwrite"]
+    assert (
+        isinstance(overwrite, argparse._StoreTrueAction)
+        and overwrite.dest == "overwrite"
+        and shown(overwrite) == ["--overwrite"]
+    )
 
 
 @pytest.mark.parametrize("argv", ARGVS, ids=" ".join)
@@ -110,14 +132,19 @@ def test_no_command_shows_another_spelling_of_a_shared_flag(argv):
 
 @pytest.mark.parametrize("argv", ARGVS, ids=" ".join)
 def test_every_command_with_a_config_reads_and_prints_it(argv):
-    assert stage_defines(argv, "build_config") == (argv not in CONFIG_LESS) or (argv, "--config") in EXCEPTIONS, \
+    assert stage_defines(argv, "build_config") == (argv not in CONFIG_LESS) or (argv, "--config") in EXCEPTIONS, (
         "a command has a config exactly when its stage builds one"
+    )
     if argv in CONFIG_LESS:
         assert "--config" not in actions(argv) and "--print-config" not in actions(argv)
         return
     assert has(argv, "--config") and has(argv, "--print-config")
     found = actions(argv)
-    assert found["--config"].metavar == "YAML" and found["--config"].dest == "config" and shown(found["--config"]) == ["--config"]
+    assert (
+        found["--config"].metavar == "YAML"
+        and found["--config"].dest == "config"
+        and shown(found["--config"]) == ["--config"]
+    )
     assert isinstance(found["--print-config"], argparse._StoreTrueAction)
 
 
@@ -142,25 +169,44 @@ def test_seeds_are_spelled_and_read_alike(argv, tmp_path, monkeypatch, capsys):
         assert "- 7" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("text, seeds", [("3", [3]), ("0,1,2", [0, 1, 2]), ("0-7", list(range(8))), ("0,2,5-9", [0, 2, 5, 6, 7, 8, 9]),
-                                         (" 4 , 1-2 ,", [4, 1, 2]), ("1,1,0-2", [1, 0, 2])])
+@pytest.mark.parametrize(
+    "text, seeds",
+    [
+        ("3", [3]),
+        ("0,1,2", [0, 1, 2]),
+        ("0-7", list(range(8))),
+        ("0,2,5-9", [0, 2, 5, 6, 7, 8, 9]),
+        (" 4 , 1-2 ,", [4, 1, 2]),
+        ("1,1,0-2", [1, 0, 2]),
+    ],
+)
 def test_seeds_take_lists_and_ranges(text, seeds):
     assert parse_seeds(text) == seeds
 
 
-@pytest.mark.parametrize("text, says", [("a", "expected integers and ranges"), ("5-2", "runs backwards"), ("", "at least one seed"),
-                                        ("0-9999999", "more than 100000"), ("1-2-3", "expected integers")])
+@pytest.mark.parametrize(
+    "text, says",
+    [
+        ("a", "expected integers and ranges"),
+        ("5-2", "runs backwards"),
+        ("", "at least one seed"),
+        ("0-9999999", "more than 100000"),
+        ("1-2-3", "expected integers"),
+    ],
+)
 def test_bad_seeds_are_one_line_naming_the_text(text, says):
     with pytest.raises(InputError, match=says):
         parse_seeds(text)
 
 
 # ------------------------------------------------------------------------------------ old spellings
-RENAMED = [(("train", "pose"), "--gan", "--checkpoint", ["--shapes", "s", "--out", "o"]),
-           (("train", "noc"), "--gan", "--checkpoint", ["--shapes", "s", "--out", "o"]),
-           (("evaluate",), "--gan", "--checkpoint", ["--out", "o"]),
-           (("evaluate",), "--protocol-config", "--config", ["--out", "o"]),
-           (("prepare", "images"), "--output", "--out", ["--input", "i"])]
+RENAMED = [
+    (("train", "pose"), "--gan", "--checkpoint", ["--shapes", "s", "--out", "o"]),
+    (("train", "noc"), "--gan", "--checkpoint", ["--shapes", "s", "--out", "o"]),
+    (("evaluate",), "--gan", "--checkpoint", ["--out", "o"]),
+    (("evaluate",), "--protocol-config", "--config", ["--out", "o"]),
+    (("prepare", "images"), "--output", "--out", ["--input", "i"]),
+]
 
 
 @pytest.mark.parametrize("argv, old, new, rest", RENAMED, ids=lambda v: v if isinstance(v, str) else " ".join(v))
@@ -178,19 +224,35 @@ def test_every_old_spelling_is_marked_renamed():
     """A hidden alias without the warning would keep an old spelling alive unnoticed."""
     for argv in ARGVS:
         for action in leaf_parser(argv)._actions:
-            assert set(getattr(action, "hidden_aliases", ())) == set(getattr(action, "renamed_from", ())), (argv, action.option_strings)
-            assert all(flag in {old for _, old, _, _ in RENAMED} for flag in getattr(action, "renamed_from", ())), (argv, action.option_strings)
+            assert set(getattr(action, "hidden_aliases", ())) == set(getattr(action, "renamed_from", ())), (
+                argv,
+                action.option_strings,
+            )
+            assert all(flag in {old for _, old, _, _ in RENAMED} for flag in getattr(action, "renamed_from", ())), (
+                argv,
+                action.option_strings,
+            )
 
 
 # ----------------------------------------------------------------------------------------- warnings
 def test_a_library_warning_is_one_line_without_its_source(capsys):
     import mesh2tex.nn.vgg as vgg
 
-    text = "no ImageNet VGG19 weights found (looked for X); using a random-weight VGG19.\nStyle losses still match colour."
+    text = (
+        "no ImageNet VGG19 weights found (looked for X); using a random-weight VGG19.\nStyle losses still match colour."
+    )
     show_warning(UserWarning(text), UserWarning, vgg.__file__, 204)
     err = capsys.readouterr().err
-    assert err == "mesh2tex: warning: no ImageNet VGG19 weights found (looked for X); using a random-weight VGG19. Style losses still match colour.\n"
-    show_warning(UserWarning("sparse CSR support is in beta"), UserWarning, "/x/lib/python3/site-packages/torch/sparse/__init__.py", 9)
+    assert (
+        err == "mesh2tex: warning: no ImageNet VGG19 weights found (looked for X); using a random-weight VGG19. Style "
+        "losses still match colour.\n"
+    )
+    show_warning(
+        UserWarning("sparse CSR support is in beta"),
+        UserWarning,
+        "/x/lib/python3/site-packages/torch/sparse/__init__.py",
+        9,
+    )
     assert capsys.readouterr().err == "mesh2tex: warning: sparse CSR support is in beta (UserWarning from torch)\n"
 
 
@@ -199,7 +261,9 @@ def test_warnings_raised_while_a_command_runs_are_one_line(monkeypatch, capsys):
     import mesh2tex.nn.vgg as vgg
 
     def run(args):  # a warning raised in the library, as the VGG fallback is
-        warnings.warn_explicit("random-weight VGG19", UserWarning, vgg.__file__, 204, module="mesh2tex.nn.vgg", registry={})
+        warnings.warn_explicit(
+            "random-weight VGG19", UserWarning, vgg.__file__, 204, module="mesh2tex.nn.vgg", registry={}
+        )
         return 0
 
     monkeypatch.setattr(mesh2tex.infer.generate, "run", run)
@@ -217,10 +281,25 @@ def test_evaluate_shows_progress(tmp_path, monkeypatch, capsys):
     for folder in ("renders", "images"):
         (tmp_path / folder).mkdir()
         for k in range(2):
-            Image.fromarray(np.full((16, 16, 3), 40 * k + (folder == "images") * 10, np.uint8)).save(tmp_path / folder / f"v{k}.png")
+            Image.fromarray(np.full((16, 16, 3), 40 * k + (folder == "images") * 10, np.uint8)).save(
+                tmp_path / folder / f"v{k}.png"
+            )
     monkeypatch.setenv("MESH2TEX_PROGRESS", "1")
-    assert main(["evaluate", "--pairs", "--renders", str(tmp_path / "renders"), "--images", str(tmp_path / "images"),
-                 "--out", str(tmp_path / "out")]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--pairs",
+                "--renders",
+                str(tmp_path / "renders"),
+                "--images",
+                str(tmp_path / "images"),
+                "--out",
+                str(tmp_path / "out"),
+            ]
+        )
+        == 0
+    )
     assert "evaluate: 100%" in capsys.readouterr().err
 
 
@@ -236,6 +315,19 @@ def test_evaluate_reads_the_config_of_the_mode_asked_for(tmp_path, capsys):
     (tmp_path / "generation.yaml").write_text("latents: 5\n")
     assert main(["evaluate", "--config", str(tmp_path / "sets.yaml"), "--print-config"]) == 0
     assert yaml.safe_load(capsys.readouterr().out)["kid_subsets"] == 7
-    assert main(["evaluate", "--generation", "--config", str(tmp_path / "generation.yaml"), "--repeats", "3", "--print-config"]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--generation",
+                "--config",
+                str(tmp_path / "generation.yaml"),
+                "--repeats",
+                "3",
+                "--print-config",
+            ]
+        )
+        == 0
+    )
     printed = yaml.safe_load(capsys.readouterr().out)
     assert (printed["latents"], printed["repeats"]) == (5, 3)

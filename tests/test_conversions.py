@@ -32,7 +32,9 @@ def test_compositing_is_one_formula_in_both_layouts():
     assert torch.equal(out, images * masks + colours[:, :, None, None] * (1 - masks))
     assert torch.equal(composite_images(images, masks, 1.0), images * masks + (1 - masks))
     channels_last = composite(images.permute(0, 2, 3, 1), masks.permute(0, 2, 3, 1), colours[0])
-    assert torch.equal(channels_last.permute(0, 3, 1, 2), composite_images(images, masks, colours[0][None].expand(2, 3)))
+    assert torch.equal(
+        channels_last.permute(0, 3, 1, 2), composite_images(images, masks, colours[0][None].expand(2, 3))
+    )
 
 
 def test_json_ready_writes_strict_json():

@@ -27,8 +27,17 @@ def test_fit_is_least_squares_over_noisy_points():
     assert 1.0 < fit_exponent(sizes, sizes * [1.0, 1.0, 1.1]) < 1.05
 
 
-@pytest.mark.parametrize("exponent, kind", [(0.05, "flat"), (0.5, "sublinear"), (1.02, "linear"), (1.5, "superlinear"),
-                                            (2.0, "quadratic"), (3.1, "worse than quadratic")])
+@pytest.mark.parametrize(
+    "exponent, kind",
+    [
+        (0.05, "flat"),
+        (0.5, "sublinear"),
+        (1.02, "linear"),
+        (1.5, "superlinear"),
+        (2.0, "quadratic"),
+        (3.1, "worse than quadratic"),
+    ],
+)
 def test_verdict_names_the_growth(exponent, kind):
     line = verdict(exponent, "faces")
     assert line.startswith(kind) and line.endswith(f"in faces: exponent {exponent:.2f}")
@@ -36,8 +45,18 @@ def test_verdict_names_the_growth(exponent, kind):
 
 def test_table_lists_each_size_and_the_fitted_verdicts():
     sweep = Sweep("triangles", [{"triangles": t} for t in (10, 100, 1000)])
-    sweep.results = [{"status": "ok", "params": {"triangles": t}, "size": t, "seconds": 0.01 * t, "cores": 1.0,
-                      "peak_mb": 300 + t * t / 10, "added_mb": t * t / 10} for t in (10, 100)]
+    sweep.results = [
+        {
+            "status": "ok",
+            "params": {"triangles": t},
+            "size": t,
+            "seconds": 0.01 * t,
+            "cores": 1.0,
+            "peak_mb": 300 + t * t / 10,
+            "added_mb": t * t / 10,
+        }
+        for t in (10, 100)
+    ]
     sweep.results.append({"status": "timed out after 900 s", "params": {"triangles": 1000}})
     text = table("prepare", sweep)
     assert "prepare over triangles" in text and "timed out after 900 s" in text

@@ -19,13 +19,24 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     assert main(["demo", "--out", str(out), "--quick"]) == 0
     report = (out / "report.html").read_text()
     images = re.findall(r'src="([^"]+)"', report)
-    assert len(images) >= 5 and all(src.startswith("data:image/") for src in images), "every image is embedded: the report moves alone"
+    assert len(images) >= 5 and all(src.startswith("data:image/") for src in images), (
+        "every image is embedded: the report moves alone"
+    )
     linked = re.findall(r'href="([^"]+)"', report)
     assert linked and all((out / path).is_file() for path in linked), "every file the report links exists"
     metrics = json.loads((out / "metrics.json").read_text())
     assert all(np.isfinite(v) for v in metrics["transfer"]["transfer"].values() if v != float("inf"))
     generation = metrics["generation"]
-    assert set(generation["rows"]) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture"}
+    assert set(generation["rows"]) == {
+        "trained",
+        "untrained",
+        "oracle",
+        "oracle_unlit",
+        "ground_truth",
+        "training_materials",
+        "flat_colour",
+        "mean_texture",
+    }
     assert {"gap_closed", "diversity"} <= set(generation) and (out / "gan" / "generation_samples.png").is_file()
     stages = [json.loads(line)["stage"] for line in (out / "demo_log.jsonl").read_text().splitlines()]
     assert stages[:2] == ["prepare synthetic", "prepare shapes (train)"]
@@ -35,7 +46,9 @@ def test_quick_demo_runs_every_stage_and_resumes(tmp_path):
     assert pose_views["gan_textured"].any(), "some training views are textured by the demo's GAN"
     nets = load_config(DemoConfig, None, QUICK).view_nets
     widths = {kind: yaml.safe_load((out / kind / "config.yaml").read_text())["width"] for kind in ("pose", "noc")}
-    assert widths == {"pose": nets.width, "noc": nets.noc_width} and nets.width != nets.noc_width, "each network its own width"
+    assert widths == {"pose": nets.width, "noc": nets.noc_width} and nets.width != nets.noc_width, (
+        "each network its own width"
+    )
 
     assert main(["demo", "--out", str(out), "--quick"]) == 0, "a second run resumes from what is there"
     assert read_checkpoint_meta(out / "gan" / "checkpoint.safetensors")["meta"]["iteration"] == iteration
@@ -47,10 +60,32 @@ def test_settings_recorded_before_they_were_nested_still_resume(tmp_path):
     with the flat names (gan_iters, view_samples, latent_iters ...) reads as the same nested settings."""
     from mesh2tex.infer.demo import saved_config
 
-    flat = {"shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1, "gan_iters": 2,
-            "gan_resolution": 32, "gan_views": 1, "gan_channels": [8, 8, 8], "view_samples": 16, "view_resolution": 32,
-            "view_width": 4, "pose_iters": 2, "noc_iters": 2, "latent_iters": 3, "refine_iters": 2, "texture_size": 64,
-            "eval_views": 2, "eval_latents": 2, "tiny_networks": True, "transfer_resolution": 64, "texture_format": "png", "query": 0}
+    flat = {
+        "shapes": 4,
+        "views": 2,
+        "photo_resolution": 64,
+        "faces": 96,
+        "levels": 3,
+        "workers": 1,
+        "gan_iters": 2,
+        "gan_resolution": 32,
+        "gan_views": 1,
+        "gan_channels": [8, 8, 8],
+        "view_samples": 16,
+        "view_resolution": 32,
+        "view_width": 4,
+        "pose_iters": 2,
+        "noc_iters": 2,
+        "latent_iters": 3,
+        "refine_iters": 2,
+        "texture_size": 64,
+        "eval_views": 2,
+        "eval_latents": 2,
+        "tiny_networks": True,
+        "transfer_resolution": 64,
+        "texture_format": "png",
+        "query": 0,
+    }
     (tmp_path / "demo_config.yaml").write_text(yaml.safe_dump(flat))
     quick = load_config(DemoConfig, None, QUICK)
     assert saved_config(tmp_path / "demo_config.yaml") == quick

@@ -23,8 +23,29 @@ def scored(tmp_path_factory, tiny_gan):
     truth GLB, scored by transfer_metrics (whose crops, 64 px, differ from the photos' size)."""
     root = tmp_path_factory.mktemp("demo_metrics")
     world = root / "world"
-    assert main(["prepare", "synthetic", "--out", str(world), "--shapes", "3", "--views", "1", "--resolution", "48",
-                 "--texture-size", "128", "--seed", "4", "--query-views", "1"]) == 0
+    assert (
+        main(
+            [
+                "prepare",
+                "synthetic",
+                "--out",
+                str(world),
+                "--shapes",
+                "3",
+                "--views",
+                "1",
+                "--resolution",
+                "48",
+                "--texture-size",
+                "128",
+                "--seed",
+                "4",
+                "--query-views",
+                "1",
+            ]
+        )
+        == 0
+    )
     index = json.loads((world / "index.json").read_text())
     query = json.loads((world / index["queries"][0]["sidecar"]).read_text())
     vertices, faces = load_mesh(world / "meshes" / f"{query['shape']}.obj")
@@ -32,9 +53,12 @@ def scored(tmp_path_factory, tiny_gan):
     transfer = root / "transfer"
     transfer.mkdir()
     shutil.copyfile(world / query["textured"], transfer / "textured.glb")
-    report = {"checkpoint": str(tiny_gan / "run" / "checkpoint.safetensors"), "mesh": str(root / "shape.npz"),
-              "settings": {"faces": 96, "seed": 0, "margin": 0.1},
-              "pose": {k: query[k] for k in ("azimuth", "elevation", "distance", "fov")}}
+    report = {
+        "checkpoint": str(tiny_gan / "run" / "checkpoint.safetensors"),
+        "mesh": str(root / "shape.npz"),
+        "settings": {"faces": 96, "seed": 0, "margin": 0.1},
+        "pose": {k: query[k] for k in ("azimuth", "elevation", "distance", "fov")},
+    }
     (transfer / "report.json").write_text(json.dumps(report))
     return transfer_metrics(world, transfer, query, 64), transfer
 

@@ -19,7 +19,8 @@ def test_committed_reference_is_what_the_code_generates():
     for name, make in gen.PAGES.items():
         committed = (ROOT / "docs" / "reference" / name).read_text(encoding="utf-8")
         assert committed == make().rstrip("\n") + "\n", (
-            f"docs/reference/{name} differs from what the code gives: run `make reference` and commit it")
+            f"docs/reference/{name} differs from what the code gives: run `make reference` and commit it"
+        )
 
 
 def test_reference_lists_every_command_and_config():

@@ -10,8 +10,17 @@ import pytest
 import torch
 
 from mesh2tex.cli import main
-from mesh2tex.evaluation import (backproject_photo, common_mask, flat_surface, other_views, photo_mean_colour, render_for_comparison,
-                                 score_views, seen_and_unseen, textured_surface)
+from mesh2tex.evaluation import (
+    backproject_photo,
+    common_mask,
+    flat_surface,
+    other_views,
+    photo_mean_colour,
+    render_for_comparison,
+    score_views,
+    seen_and_unseen,
+    textured_surface,
+)
 from mesh2tex.evaluation.world import load_query_truth, reference_renders
 from mesh2tex.metrics.appearance import lowpass_psnr, object_swd, part_colour_error
 
@@ -20,8 +29,29 @@ from mesh2tex.metrics.appearance import lowpass_psnr, object_swd, part_colour_er
 def world(tmp_path_factory):
     """A 3-chair world at 64 px (1 held-out shape, 2 queries) and the truth of its first query."""
     root = tmp_path_factory.mktemp("evaluation") / "world"
-    assert main(["prepare", "synthetic", "--out", str(root), "--shapes", "3", "--views", "1", "--resolution", "64",
-                 "--texture-size", "256", "--seed", "2", "--query-views", "2"]) == 0
+    assert (
+        main(
+            [
+                "prepare",
+                "synthetic",
+                "--out",
+                str(root),
+                "--shapes",
+                "3",
+                "--views",
+                "1",
+                "--resolution",
+                "64",
+                "--texture-size",
+                "256",
+                "--seed",
+                "2",
+                "--query-views",
+                "2",
+            ]
+        )
+        == 0
+    )
     index = json.loads((root / "index.json").read_text())
     return root, index, load_query_truth(root, index, index["queries"][0])
 
@@ -34,7 +64,8 @@ def test_the_exact_material_rendered_for_comparison_is_the_photo(world):
     assert float((render.rgb[0] - truth.photo[0]).abs().max()) <= 1.01 / 255
     assert torch.equal(render.mask[0], truth.photo_mask[0])
     assert set(render.parts[0][render.mask[0, 0] > 0].tolist()) == set(truth.truth.shape.face_parts.tolist()) & set(
-        render.parts[0].unique().tolist()), "every object pixel carries a part label"
+        render.parts[0].unique().tolist()
+    ), "every object pixel carries a part label"
 
 
 def test_the_oracle_wins_every_metric_seen_and_unseen(world):
@@ -43,8 +74,11 @@ def test_the_oracle_wins_every_metric_seen_and_unseen(world):
     reference = reference_renders(truth, views)
     shape = truth.truth.shape
     oracle = render_for_comparison(truth.truth.oracle, views, truth.render_settings())
-    flat = render_for_comparison(flat_surface(shape.vertices, shape.faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])),
-                                 views, truth.render_settings())
+    flat = render_for_comparison(
+        flat_surface(shape.vertices, shape.faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])),
+        views,
+        truth.render_settings(),
+    )
     # A plausible wrong texture: the ground truth's own texture image, upside down.
     from mesh2tex.io.assets import load_glb
 
@@ -52,22 +86,36 @@ def test_the_oracle_wins_every_metric_seen_and_unseen(world):
     v, f, uv, tex = load_glb(root / "textured" / f"{truth.truth.name}.glb")
     flipped = render_for_comparison(textured_surface(v, f, uv, tex[::-1].copy()), views, truth.render_settings())
     mask = common_mask(reference.mask, oracle.mask)
-    scores = {name: seen_and_unseen(score_views(r, reference.rgb, reference.parts, mask))
-              for name, r in (("oracle", oracle), ("flat", flat), ("flipped", flipped))}
+    scores = {
+        name: seen_and_unseen(score_views(r, reference.rgb, reference.parts, mask))
+        for name, r in (("oracle", oracle), ("flat", flat), ("flipped", flipped))
+    }
     assert len(scores["oracle"]) == 10, "five metrics, the photo's view and the unseen views apart"
     for column, value in scores["oracle"].items():
         sign = -1 if column.endswith(("part_delta_e", "swd")) else 1
         for other in ("flat", "flipped"):
             assert (value - scores[other][column]) * sign > 0, f"the oracle loses {column} to {other}"
-    assert scores["oracle"]["seen part_delta_e"] < 2.3, "the baked texture's part colours are the photo's (below one JND)"
+    assert scores["oracle"]["seen part_delta_e"] < 2.3, (
+        "the baked texture's part colours are the photo's (below one JND)"
+    )
 
 
 def test_back_projection_at_the_true_pose_reproduces_the_photo_on_visible_parts(world):
     _, _, truth = world
     shape = truth.truth.shape
     v = truth.view
-    surface = backproject_photo(shape.vertices, shape.faces, truth.photo[0], truth.photo_mask[0, 0], v.azimuth, v.elevation,
-                                v.distance, v.fov, align="photo", face_parts=shape.face_parts)
+    surface = backproject_photo(
+        shape.vertices,
+        shape.faces,
+        truth.photo[0],
+        truth.photo_mask[0, 0],
+        v.azimuth,
+        v.elevation,
+        v.distance,
+        v.fov,
+        align="photo",
+        face_parts=shape.face_parts,
+    )
     # Unlit, the back-projected colours are the photo's pixels again.
     render = render_for_comparison(surface, [v], truth.render_settings("albedo"))
     mask = common_mask(render.mask, truth.photo_mask)
@@ -84,8 +132,19 @@ def test_silhouette_framing_matches_photo_framing_at_the_true_pose(world):
     pose that gives (nearly) the same colours as the photo's own frame."""
     _, _, truth = world
     shape, v = truth.truth.shape, truth.view
-    args = (shape.vertices, shape.faces, truth.photo[0], truth.photo_mask[0, 0], v.azimuth, v.elevation, v.distance, v.fov)
-    a = render_for_comparison(backproject_photo(*args, align="photo", face_parts=shape.face_parts), [v], truth.render_settings("albedo"))
+    args = (
+        shape.vertices,
+        shape.faces,
+        truth.photo[0],
+        truth.photo_mask[0, 0],
+        v.azimuth,
+        v.elevation,
+        v.distance,
+        v.fov,
+    )
+    a = render_for_comparison(
+        backproject_photo(*args, align="photo", face_parts=shape.face_parts), [v], truth.render_settings("albedo")
+    )
     b = render_for_comparison(backproject_photo(*args, align="silhouette"), [v], truth.render_settings("albedo"))
     mask = common_mask(a.mask, b.mask)
     assert float(part_colour_error(b.rgb, a.rgb, a.parts, mask)[0]) < 2.0
@@ -129,7 +188,9 @@ def test_lowpass_psnr_rewards_right_colours_not_texture_phase():
     assert float(lowpass_psnr((image + 0.2).clamp(0, 1), image, mask, sigma=3.0)[0]) < 18, "a colour shift still counts"
     other_background = image.clone()
     other_background[..., :8, :] = 0.0
-    assert float(lowpass_psnr(other_background, image, mask, sigma=3.0)[0]) == float("inf"), "the background never bleeds in"
+    assert float(lowpass_psnr(other_background, image, mask, sigma=3.0)[0]) == float("inf"), (
+        "the background never bleeds in"
+    )
 
 
 def test_object_swd_looks_at_object_patches_only():
@@ -159,7 +220,12 @@ def test_unseen_views_turn_the_light_with_the_camera(world):
     for w in views:
         assert abs(np.dot(w.light, towards_camera(w)) - np.dot(v.light, towards_camera(v))) < 1e-5
         assert (w.elevation, w.distance, w.ambient, w.background, w.background_seed) == (
-            v.elevation, v.distance, v.ambient, v.background, v.background_seed)
+            v.elevation,
+            v.distance,
+            v.ambient,
+            v.background,
+            v.background_seed,
+        )
 
 
 def test_glb_round_trip_keeps_face_order_and_texture(tmp_path):
@@ -194,11 +260,17 @@ def test_a_generator_texture_is_judged_as_the_generator_paints_it(tiny_gan):
     texture = generator.synthesize(batch, generator.mapping(torch.randn(1, generator.cfg.z_dim)), noise_mode="none")
     texture.face_rgb += torch.linspace(-0.5, 0.5, texture.face_rgb.shape[0])[:, None]  # per-face colours that matter
     mvp = orbit_camera(torch.tensor([30.0]), torch.tensor([20.0]), distance=2.5).mvp
-    painted = render_field_views(generator, batch, None, mvp, (32, 32), torch.ones(1, 3), texture=texture, noise_mode="none")
+    painted = render_field_views(
+        generator, batch, None, mvp, (32, 32), torch.ones(1, 3), texture=texture, noise_mode="none"
+    )
     samples = rasterize_batch(batch, mvp, (32, 32))
     covered = samples.mask.reshape(-1)
-    points = SurfacePoints(face=samples.triangle_id.reshape(-1)[covered], bary=samples.bary.reshape(-1, 3)[covered],
-                           points=torch.zeros(int(covered.sum()), 3), normals=torch.zeros(int(covered.sum()), 3))
+    points = SurfacePoints(
+        face=samples.triangle_id.reshape(-1)[covered],
+        bary=samples.bary.reshape(-1, 3)[covered],
+        points=torch.zeros(int(covered.sum()), 3),
+        normals=torch.zeros(int(covered.sum()), 3),
+    )
     judged = generator_surface(generator, texture, batch).colour(points)  # [P, 3] in [0, 1]
     expected = ((painted.images.permute(0, 2, 3, 1).reshape(-1, 3)[covered] + 1) * 0.5).clamp(0, 1)
     assert covered.sum() > 50

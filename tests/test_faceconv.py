@@ -10,8 +10,19 @@ import torch
 
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.nn.faceconv import (LRELU_GAIN, FaceConv, FaceResNetBlock, FullyConnected, ModulatedFaceConv, bias_act,
-                                  face_pool, face_unpool, gather_neighborhood, neighborhood_matmul, row_sums)
+from mesh2tex.nn.faceconv import (
+    LRELU_GAIN,
+    FaceConv,
+    FaceResNetBlock,
+    FullyConnected,
+    ModulatedFaceConv,
+    bias_act,
+    face_pool,
+    face_unpool,
+    gather_neighborhood,
+    neighborhood_matmul,
+    row_sums,
+)
 
 
 def quad_neighborhoods(quads: np.ndarray) -> np.ndarray:
@@ -76,12 +87,28 @@ def cube_shape(levels: int = 3, features: int = 4, seed: int = 0) -> PreparedSha
         quads_l.append(np.array(quads, dtype=np.int64))
         if level < levels - 1:
             m = n // 2
-            pools.append(np.array([s * m * m + (i // 2) * m + j // 2 for s in range(6) for i in range(n) for j in range(n)], dtype=np.int64))
-    normals = np.repeat(np.array([[s if a == axis else 0.0 for a in range(3)] for axis, s in sides], dtype=np.float32), 4 ** (levels - 1), axis=0)
+            pools.append(
+                np.array(
+                    [s * m * m + (i // 2) * m + j // 2 for s in range(6) for i in range(n) for j in range(n)],
+                    dtype=np.int64,
+                )
+            )
+    normals = np.repeat(
+        np.array([[s if a == axis else 0.0 for a in range(3)] for axis, s in sides], dtype=np.float32),
+        4 ** (levels - 1),
+        axis=0,
+    )
     face_features = np.concatenate([normals, rng.normal(size=(len(normals), features - 3)).astype(np.float32)], axis=1)
     noc = (verts_l[0] - verts_l[0].min(0)) / np.ptp(verts_l[0], axis=0)
-    return PreparedShape(vertices=verts_l, quads=quads_l, neighbors=[quad_neighborhoods(q) for q in quads_l], pool=pools,
-                         face_features=face_features, feature_names=["nx", "ny", "nz"] + [f"r{i}" for i in range(features - 3)], noc=noc.astype(np.float32))
+    return PreparedShape(
+        vertices=verts_l,
+        quads=quads_l,
+        neighbors=[quad_neighborhoods(q) for q in quads_l],
+        pool=pools,
+        face_features=face_features,
+        feature_names=["nx", "ny", "nz"] + [f"r{i}" for i in range(features - 3)],
+        noc=noc.astype(np.float32),
+    )
 
 
 def test_cube_fixture_is_a_closed_quad_hierarchy():
@@ -160,7 +187,9 @@ def test_pooling_and_unpooling():
     assert torch.equal(up, coarse[pool])
     blurred = face_unpool(coarse, pool, torch.as_tensor(shape.neighbors[0]))
     # A constant field stays constant under the normalised blur; a varying one is smoothed.
-    torch.testing.assert_close(face_unpool(torch.ones(24, 5), pool, torch.as_tensor(shape.neighbors[0])), torch.ones(96, 5))
+    torch.testing.assert_close(
+        face_unpool(torch.ones(24, 5), pool, torch.as_tensor(shape.neighbors[0])), torch.ones(96, 5)
+    )
     assert blurred.var() < up.var()
 
 
@@ -180,7 +209,9 @@ def test_collate_offsets_indices_and_keeps_missing():
     a, b = cube_shape(3), cube_shape(3, seed=2)
     batch = collate_shapes([a, b])
     assert batch.num_faces(0) == 192 and batch.num_vertices == 2 * len(a.vertices[0])
-    assert torch.equal(batch.neighbors[0][96:][b.neighbors[0] >= 0], torch.as_tensor(b.neighbors[0][b.neighbors[0] >= 0]) + 96)
+    assert torch.equal(
+        batch.neighbors[0][96:][b.neighbors[0] >= 0], torch.as_tensor(b.neighbors[0][b.neighbors[0] >= 0]) + 96
+    )
     assert (batch.neighbors[0][96:][b.neighbors[0] < 0] == -1).all()
     assert torch.equal(batch.pool[0][96:], torch.as_tensor(b.pool[0]) + 24)
     assert torch.equal(batch.quads[96:], torch.as_tensor(b.quads[0]) + len(a.vertices[0]))
@@ -194,14 +225,19 @@ def test_derived_geometry_is_computed_once_and_agrees_with_the_offsets():
     a, b = cube_shape(3), cube_shape(3, seed=2)
     batch = collate_shapes([a, b])
     faces, vertices = len(a.quads[0]), len(a.vertices[0])
-    assert batch.face_ranges == [(0, faces), (faces, 2 * faces)] and batch.vertex_ranges == [(0, vertices), (vertices, 2 * vertices)]
+    assert batch.face_ranges == [(0, faces), (faces, 2 * faces)] and batch.vertex_ranges == [
+        (0, vertices),
+        (vertices, 2 * vertices),
+    ]
     assert batch.vertex_shape.tolist() == [0] * vertices + [1] * vertices
     for s in (0, 1):
         first = 2 * batch.face_ranges[s][0]
-        local = batch.triangles()[first:first + 2 * faces] - batch.vertex_ranges[s][0]
+        local = batch.triangles()[first : first + 2 * faces] - batch.vertex_ranges[s][0]
         assert torch.equal(batch.shape_triangles(s), local)
         assert batch.shape_triangles(s) is batch.shape_triangles(s)
-        assert torch.equal(batch.shape_vertices(s), batch.vertices[batch.vertex_ranges[s][0]:batch.vertex_ranges[s][1]])
+        assert torch.equal(
+            batch.shape_vertices(s), batch.vertices[batch.vertex_ranges[s][0] : batch.vertex_ranges[s][1]]
+        )
     assert batch.triangles() is batch.triangles() and a.triangles(0) is a.triangles(0)
     moved = batch.to("cpu")
     assert moved.triangles() is not batch.triangles() and torch.equal(moved.triangles(), batch.triangles())
@@ -212,8 +248,12 @@ def test_fused_activation_equals_the_separate_operations_to_second_order():
     the gradients of gradients (R1, path length) are those of the plain operations, clamp included,
     on contiguous and on channels-last activations (the discriminator's)."""
     torch.manual_seed(3)
-    for shape, clamp, layout in (((6, 5), None, torch.contiguous_format), ((3, 4, 5, 5), 1.0, torch.contiguous_format),
-                                 ((3, 4, 5, 5), 1.0, torch.channels_last), ((3, 4, 5, 5), 100.0, torch.channels_last)):
+    for shape, clamp, layout in (
+        ((6, 5), None, torch.contiguous_format),
+        ((3, 4, 5, 5), 1.0, torch.contiguous_format),
+        ((3, 4, 5, 5), 1.0, torch.channels_last),
+        ((3, 4, 5, 5), 100.0, torch.channels_last),
+    ):
         x = torch.randn(shape).contiguous(memory_format=layout).requires_grad_(True)
         b = torch.randn(shape[1], requires_grad=True)
         g = torch.randn(shape)
@@ -222,7 +262,9 @@ def test_fused_activation_equals_the_separate_operations_to_second_order():
             if fused:
                 y = bias_act(x, b, "lrelu", gain=0.5**0.5, clamp=clamp)
             else:
-                y = torch.nn.functional.leaky_relu(x + b.reshape([1, -1] + [1] * (x.dim() - 2)), 0.2) * (LRELU_GAIN * 0.5**0.5)
+                y = torch.nn.functional.leaky_relu(x + b.reshape([1, -1] + [1] * (x.dim() - 2)), 0.2) * (
+                    LRELU_GAIN * 0.5**0.5
+                )
                 y = y if clamp is None else y.clamp(-clamp, clamp)
             gx, gb = torch.autograd.grad(y, [x, b], g, create_graph=True)
             second = torch.autograd.grad((gx.square() * x).sum() + gb.square().sum(), [x, b], allow_unused=True)

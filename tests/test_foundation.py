@@ -1,4 +1,5 @@
-"""The plumbing every stage relies on: the CLI routes, errors are one line, writes are atomic, checkpoints carry no pickle."""
+"""The plumbing every stage relies on: the CLI routes, errors are one line, writes are atomic, checkpoints carry no
+pickle."""
 
 import json
 
@@ -83,7 +84,12 @@ def test_progress_bars_show_on_a_terminal_only_unless_asked(monkeypatch):
         def isatty(self):
             return True
 
-    for stream, setting, shown in ((io.StringIO(), None, False), (Terminal(), None, True), (io.StringIO(), "1", True), (Terminal(), "0", False)):
+    for stream, setting, shown in (
+        (io.StringIO(), None, False),
+        (Terminal(), None, True),
+        (io.StringIO(), "1", True),
+        (Terminal(), "0", False),
+    ):
         monkeypatch.setattr(sys, "stderr", stream)
         if setting is None:
             monkeypatch.delenv("MESH2TEX_PROGRESS", raising=False)
@@ -113,7 +119,9 @@ def test_busy_cores_are_read_from_the_kernels_cpu_counters(tmp_path, monkeypatch
 
     stat = tmp_path / "stat"
     # user nice system idle iowait irq softirq steal guest guest_nice
-    stat.write_text("cpu  100 0 100 500 0 0 0 0 0 0\ncpu0 50 0 50 250 0 0 0 0 0 0\ncpu1 50 0 50 250 0 0 0 0 0 0\nintr 1\n")
+    stat.write_text(
+        "cpu  100 0 100 500 0 0 0 0 0 0\ncpu0 50 0 50 250 0 0 0 0 0 0\ncpu1 50 0 50 250 0 0 0 0 0 0\nintr 1\n"
+    )
     later = "cpu  350 0 150 580 20 0 0 0 0 0\ncpu0 1 0 1 1 0 0 0 0 0 0\ncpu1 1 0 1 1 0 0 0 0 0 0\n"
     monkeypatch.setattr(runtime.time, "sleep", lambda seconds: stat.write_text(later))
     assert runtime.busy_cores_now(stat_path=str(stat)) == pytest.approx(1.5)

@@ -14,6 +14,7 @@ from mesh2tex.models import load_generator
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.texturing import latent
 
+
 @pytest.fixture(scope="module")
 def trained(tiny_gan):
     return tiny_gan
@@ -21,8 +22,28 @@ def trained(tiny_gan):
 
 def test_generate_writes_renders_glb_and_ply(trained, tmp_path):
     out = tmp_path / "gen"
-    code = main(["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh", str(trained / "shapes" / "box0.npz"),
-                 "--out", str(out), "--seeds", "0,5", "--views", "3", "--resolution", "32", "--texture-size", "64", "--device", "cpu"])
+    code = main(
+        [
+            "infer",
+            "generate",
+            "--checkpoint",
+            str(trained / "run" / "checkpoint.safetensors"),
+            "--mesh",
+            str(trained / "shapes" / "box0.npz"),
+            "--out",
+            str(out),
+            "--seeds",
+            "0,5",
+            "--views",
+            "3",
+            "--resolution",
+            "32",
+            "--texture-size",
+            "64",
+            "--device",
+            "cpu",
+        ]
+    )
     assert code == 0
     for seed in (0, 5):
         for v in range(3):
@@ -35,16 +56,45 @@ def test_generate_writes_renders_glb_and_ply(trained, tmp_path):
     ply = trimesh.load(out / "seed0.ply")
     assert ply.visual.vertex_colors.shape[0] == len(ply.vertices)
     # Different seeds give different textures.
-    assert not np.array_equal(np.asarray(Image.open(out / "seed0_view0.png")), np.asarray(Image.open(out / "seed5_view0.png")))
+    assert not np.array_equal(
+        np.asarray(Image.open(out / "seed0_view0.png")), np.asarray(Image.open(out / "seed5_view0.png"))
+    )
 
 
 def test_generate_embeds_the_texture_format_asked(trained, tmp_path):
     out = tmp_path / "gen"
-    assert main(["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh", str(trained / "shapes" / "box0.npz"),
-                 "--out", str(out), "--seeds", "1", "--views", "1", "--resolution", "16", "--texture-size", "64",
-                 "--texture-format", "jpeg", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                str(trained / "run" / "checkpoint.safetensors"),
+                "--mesh",
+                str(trained / "shapes" / "box0.npz"),
+                "--out",
+                str(out),
+                "--seeds",
+                "1",
+                "--views",
+                "1",
+                "--resolution",
+                "16",
+                "--texture-size",
+                "64",
+                "--texture-format",
+                "jpeg",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     mesh = next(iter(trimesh.load(out / "seed1.glb").geometry.values()))
-    assert mesh.visual.material.baseColorTexture.format == "JPEG" and mesh.visual.material.baseColorTexture.size == (64, 64)
+    assert mesh.visual.material.baseColorTexture.format == "JPEG" and mesh.visual.material.baseColorTexture.size == (
+        64,
+        64,
+    )
 
 
 def test_a_mesh_prepared_on_the_fly_too_coarsely_is_one_warning(trained, tmp_path, capsys):
@@ -53,19 +103,68 @@ def test_a_mesh_prepared_on_the_fly_too_coarsely_is_one_warning(trained, tmp_pat
     chair = generate_shape("chair", np.random.default_rng(0))
     mesh = tmp_path / "chair.obj"
     trimesh.Trimesh(chair.vertices, chair.faces, process=False).export(mesh)
-    assert main(["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh", str(mesh),
-                 "--faces", "96", "--out", str(tmp_path / "gen"), "--seeds", "0", "--views", "1", "--resolution", "16",
-                 "--texture-size", "16", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                str(trained / "run" / "checkpoint.safetensors"),
+                "--mesh",
+                str(mesh),
+                "--faces",
+                "96",
+                "--out",
+                str(tmp_path / "gen"),
+                "--seeds",
+                "0",
+                "--views",
+                "1",
+                "--resolution",
+                "16",
+                "--texture-size",
+                "16",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     warnings = [line for line in capsys.readouterr().err.splitlines() if "too coarse" in line]
-    assert len(warnings) == 1 and warnings[0].startswith(f"mesh2tex: warning: {mesh}: 96 faces are too coarse for this shape"), warnings
+    assert len(warnings) == 1 and warnings[0].startswith(
+        f"mesh2tex: warning: {mesh}: 96 faces are too coarse for this shape"
+    ), warnings
 
 
 def test_baked_texture_matches_the_field(trained, tmp_path):
     """The GLB's texture, looked up at a triangle's centroid uv, is psi at that triangle's centroid."""
     out = tmp_path / "gen"
     ckpt = trained / "run" / "checkpoint.safetensors"
-    assert main(["infer", "generate", "--checkpoint", str(ckpt), "--mesh", str(trained / "shapes" / "box1.npz"), "--out", str(out),
-                 "--seeds", "3", "--views", "1", "--resolution", "16", "--texture-size", "256", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                str(ckpt),
+                "--mesh",
+                str(trained / "shapes" / "box1.npz"),
+                "--out",
+                str(out),
+                "--seeds",
+                "3",
+                "--views",
+                "1",
+                "--resolution",
+                "16",
+                "--texture-size",
+                "256",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     scene = trimesh.load(out / "seed3.glb")
     mesh = next(iter(scene.geometry.values())) if isinstance(scene, trimesh.Scene) else scene
     texture = np.asarray(mesh.visual.material.baseColorTexture.convert("RGB")).astype(np.float32)
@@ -94,8 +193,16 @@ def test_baked_texture_matches_the_field(trained, tmp_path):
 def test_generate_reads_a_config_file_and_flags_override_it(trained, tmp_path, capsys):
     config = tmp_path / "generate.yaml"
     config.write_text("seeds: [3]\nviews: 2\nresolution: 16\ntexture_size: 32\ndevice: cpu\n")
-    base = ["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh",
-            str(trained / "shapes" / "box0.npz"), "--config", str(config)]
+    base = [
+        "infer",
+        "generate",
+        "--checkpoint",
+        str(trained / "run" / "checkpoint.safetensors"),
+        "--mesh",
+        str(trained / "shapes" / "box0.npz"),
+        "--config",
+        str(config),
+    ]
     assert main(base + ["--out", str(tmp_path / "a")]) == 0
     assert sorted(p.name for p in (tmp_path / "a").glob("*.png")) == ["seed3_view0.png", "seed3_view1.png"]
     assert main(base + ["--out", str(tmp_path / "b"), "--views", "1", "--seeds", "4"]) == 0
@@ -108,12 +215,67 @@ def test_generate_reads_a_config_file_and_flags_override_it(trained, tmp_path, c
 def test_generate_prepares_a_raw_mesh_and_rejects_bad_input(trained, tmp_path, capsys):
     ckpt = str(trained / "run" / "checkpoint.safetensors")
     out = tmp_path / "raw"
-    assert main(["infer", "generate", "--checkpoint", ckpt, "--mesh", str(trained / "slab.obj"), "--out", str(out), "--faces", "96",
-                 "--seeds", "1", "--views", "2", "--resolution", "16", "--texture-size", "32", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                ckpt,
+                "--mesh",
+                str(trained / "slab.obj"),
+                "--out",
+                str(out),
+                "--faces",
+                "96",
+                "--seeds",
+                "1",
+                "--views",
+                "2",
+                "--resolution",
+                "16",
+                "--texture-size",
+                "32",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     assert (out / "seed1.glb").is_file() and (out / "seed1.ply").is_file()
-    assert main(["infer", "generate", "--checkpoint", str(trained / "slab.obj"), "--mesh", str(trained / "slab.obj"), "--out", str(out)]) == 2
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                str(trained / "slab.obj"),
+                "--mesh",
+                str(trained / "slab.obj"),
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
     assert "not a mesh2tex checkpoint" in capsys.readouterr().err
-    assert main(["infer", "generate", "--checkpoint", ckpt, "--mesh", str(trained / "slab.obj"), "--out", str(out), "--seeds", "a,b"]) == 2
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                ckpt,
+                "--mesh",
+                str(trained / "slab.obj"),
+                "--out",
+                str(out),
+                "--seeds",
+                "a,b",
+            ]
+        )
+        == 2
+    )
     assert "--seeds" in capsys.readouterr().err
 
 
@@ -126,9 +288,31 @@ def test_glb_carries_smooth_outward_normals(trained, tmp_path):
     from mesh2tex.io.assets import smooth_vertex_normals
 
     out = tmp_path / "gen"
-    assert main(["infer", "generate", "--checkpoint", str(trained / "run" / "checkpoint.safetensors"), "--mesh",
-                 str(trained / "shapes" / "box0.npz"), "--out", str(out), "--seeds", "0", "--views", "1", "--resolution", "16",
-                 "--texture-size", "32", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                str(trained / "run" / "checkpoint.safetensors"),
+                "--mesh",
+                str(trained / "shapes" / "box0.npz"),
+                "--out",
+                str(out),
+                "--seeds",
+                "0",
+                "--views",
+                "1",
+                "--resolution",
+                "16",
+                "--texture-size",
+                "32",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     data = (out / "seed0.glb").read_bytes()
     length = struct.unpack("<I", data[12:16])[0]
     gltf = json.loads(data[20 : 20 + length])

@@ -18,9 +18,15 @@ from mesh2tex.geometry.quadremesh import quadriflow, triangles_to_quads
 
 def box_chair() -> trimesh.Trimesh:
     """Seat, back and four legs: six overlapping boxes (the kind of shape QuadriFlow fails on when coarse)."""
-    parts = [trimesh.creation.box((1, 0.1, 1)).apply_translation((0, 0.5, 0)),
-             trimesh.creation.box((1, 1, 0.1)).apply_translation((0, 1.0, -0.45))]
-    parts += [trimesh.creation.box((0.1, 0.5, 0.1)).apply_translation((x, 0.22, z)) for x in (-0.45, 0.45) for z in (-0.45, 0.45)]
+    parts = [
+        trimesh.creation.box((1, 0.1, 1)).apply_translation((0, 0.5, 0)),
+        trimesh.creation.box((1, 1, 0.1)).apply_translation((0, 1.0, -0.45)),
+    ]
+    parts += [
+        trimesh.creation.box((0.1, 0.5, 0.1)).apply_translation((x, 0.22, z))
+        for x in (-0.45, 0.45)
+        for z in (-0.45, 0.45)
+    ]
     return trimesh.util.concatenate(parts)
 
 
@@ -54,7 +60,10 @@ SHAPES = {
 @pytest.fixture(scope="module")
 def prepared() -> dict[str, PreparedShape]:
     """Each test shape prepared once with a small hierarchy: 384, 96, 24 faces."""
-    return {name: prepare_shape(make().vertices, make().faces, face_count=384, levels=3, seed=0, source=name) for name, make in SHAPES.items()}
+    return {
+        name: prepare_shape(make().vertices, make().faces, face_count=384, levels=3, seed=0, source=name)
+        for name, make in SHAPES.items()
+    }
 
 
 def check_neighborhoods(quads: np.ndarray, neighbors: np.ndarray) -> None:
@@ -139,7 +148,9 @@ def test_neighbourhood_order_is_rotational_and_starts_deterministically():
     """A 3x3 grid of unit quads in the xy plane: the centre face sees all 8 ring faces in order."""
     xs, ys = np.meshgrid(np.arange(4.0), np.arange(4.0), indexing="xy")
     vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(16)], axis=1)
-    quads = np.array([[r * 4 + c, r * 4 + c + 1, (r + 1) * 4 + c + 1, (r + 1) * 4 + c] for r in range(3) for c in range(3)])
+    quads = np.array(
+        [[r * 4 + c, r * 4 + c + 1, (r + 1) * 4 + c + 1, (r + 1) * 4 + c] for r in range(3) for c in range(3)]
+    )
     neighbors = face_neighborhoods(vertices, quads)
     check_neighborhoods(quads, neighbors)
     # centre face 4; the edge with the smallest midpoint (x, then y) is its left edge (x = 1), face 3;
@@ -158,7 +169,9 @@ def test_pooling_covers_every_coarse_face_even_when_nearest_centres_miss_some():
     fine_vertices = rng.normal(size=(200, 3))
     fine_quads = rng.integers(0, 200, size=(40, 4))
     coarse_vertices = np.concatenate([fine_vertices[:40], np.full((4, 3), 50.0)])
-    coarse_quads = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11], [40, 41, 42, 43]])  # the last one is far from all
+    coarse_quads = np.array(
+        [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11], [40, 41, 42, 43]]
+    )  # the last one is far from all
     pool = pooling_map(fine_vertices, fine_quads, coarse_vertices, coarse_quads)
     assert pool.shape == (40,)
     assert set(pool.tolist()) == {0, 1, 2, 3}
@@ -203,11 +216,14 @@ def test_load_mesh_merges_scene_parts_and_reads_every_format(tmp_path):
         assert len(f) == 12, suffix
 
 
-@pytest.mark.parametrize("content,expected", [
-    (b"", "empty file"),
-    (b"\x00\x01\x02 not a mesh at all \xff" * 20, "cannot be read"),
-    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n".encode(), "point cloud"),
-])
+@pytest.mark.parametrize(
+    "content,expected",
+    [
+        (b"", "empty file"),
+        (b"\x00\x01\x02 not a mesh at all \xff" * 20, "cannot be read"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\n".encode(), "point cloud"),
+    ],
+)
 def test_load_mesh_rejects_bad_files_with_the_reason(tmp_path, content, expected):
     path = tmp_path / ("bad.ply" if b"\x00" in content else "bad.obj")
     path.write_bytes(content)
@@ -252,8 +268,14 @@ def test_features_do_not_depend_on_how_each_quad_is_listed(prepared):
 def test_orient_coherently_restores_the_outward_orientation_of_every_part():
     """Two closed parts, a random half of each part's quads reversed: every quad comes back outwards."""
     parts = [trimesh.creation.icosphere(2), trimesh.creation.box().apply_translation((3, 0, 0))]
-    v, q = triangles_to_quads(*[np.concatenate(x) for x in zip(*[(p.vertices, p.faces + sum(len(o.vertices) for o in parts[:i]))
-                                                                    for i, p in enumerate(parts)])])
+    v, q = triangles_to_quads(
+        *[
+            np.concatenate(x)
+            for x in zip(
+                *[(p.vertices, p.faces + sum(len(o.vertices) for o in parts[:i])) for i, p in enumerate(parts)]
+            )
+        ]
+    )
     rng = np.random.default_rng(1)
     mixed = np.stack([row[::-1] if rng.random() < 0.5 else row for row in q])
     oriented = orient_coherently(v, mixed)
@@ -277,11 +299,24 @@ def test_remeshing_and_decimation_do_not_depend_on_earlier_pymeshlab_calls():
     chair.vertices += np.random.default_rng(0).normal(scale=0.004, size=chair.vertices.shape)
     results = []
     for surface_check, adaptive in ((False, True), (True, False)):
-        _pymeshlab_call("meshing_isotropic_explicit_remeshing", targetlen=pymeshlab.PercentageValue(8.0), iterations=1,
-                        checksurfdist=surface_check, maxsurfdist=pymeshlab.PercentageValue(0.05), adaptive=adaptive, featuredeg=5.0,
-                        smoothflag=adaptive)
-        _pymeshlab_call("meshing_decimation_quadric_edge_collapse", targetfacenum=100, preservetopology=adaptive,
-                        planarquadric=adaptive, qualitythr=0.9 if adaptive else 0.1, preservenormal=adaptive)
+        _pymeshlab_call(
+            "meshing_isotropic_explicit_remeshing",
+            targetlen=pymeshlab.PercentageValue(8.0),
+            iterations=1,
+            checksurfdist=surface_check,
+            maxsurfdist=pymeshlab.PercentageValue(0.05),
+            adaptive=adaptive,
+            featuredeg=5.0,
+            smoothflag=adaptive,
+        )
+        _pymeshlab_call(
+            "meshing_decimation_quadric_edge_collapse",
+            targetfacenum=100,
+            preservetopology=adaptive,
+            planarquadric=adaptive,
+            qualitythr=0.9 if adaptive else 0.1,
+            preservenormal=adaptive,
+        )
         remeshed = isotropic_remesh(chair.vertices, chair.faces, 0.03)
         results.append((remeshed, decimate(chair.vertices, chair.faces, 600)))
     (iso_a, dec_a), (iso_b, dec_b) = results
@@ -295,4 +330,6 @@ def test_a_setting_pymeshlab_does_not_know_is_an_error_not_a_skipped_filter():
 
     sphere = trimesh.creation.icosphere(1)
     with pytest.raises(RuntimeError, match="no_such_setting"):
-        _apply_filter(mesh_set(sphere.vertices, sphere.faces), "meshing_isotropic_explicit_remeshing", no_such_setting=True)
+        _apply_filter(
+            mesh_set(sphere.vertices, sphere.faces), "meshing_isotropic_explicit_remeshing", no_such_setting=True
+        )

@@ -1,4 +1,5 @@
-"""Quad hierarchies that really coarsen: strict ratios, closed manifold quads, no silent fallback, failures with a reason."""
+"""Quad hierarchies that really coarsen: strict ratios, closed manifold quads, no silent fallback, failures with a
+reason."""
 
 from __future__ import annotations
 
@@ -20,7 +21,11 @@ from mesh2tex.synthetic.shapes import generate_shape
 def thin_legged_stool() -> trimesh.Trimesh:
     """A seat on four legs and two rungs about 1 % of the diagonal thick, all separate boxes."""
     parts = [trimesh.creation.box((1.0, 0.04, 1.0)).apply_translation((0, 1.0, 0))]
-    parts += [trimesh.creation.box((0.022, 1.0, 0.022)).apply_translation((x, 0.5, z)) for x in (-0.45, 0.45) for z in (-0.45, 0.45)]
+    parts += [
+        trimesh.creation.box((0.022, 1.0, 0.022)).apply_translation((x, 0.5, z))
+        for x in (-0.45, 0.45)
+        for z in (-0.45, 0.45)
+    ]
     parts += [trimesh.creation.box((0.9, 0.022, 0.022)).apply_translation((0, 0.3, z)) for z in (-0.45, 0.45)]
     return trimesh.util.concatenate(parts)
 
@@ -30,8 +35,12 @@ def scattered_open_parts() -> trimesh.Trimesh:
     tube = trimesh.creation.cylinder(0.3, 1.5, sections=32)
     tube = trimesh.Trimesh(tube.vertices, tube.faces[np.abs(tube.face_normals[:, 2]) < 0.5])
     sphere = trimesh.creation.icosphere(3)
-    bowl = trimesh.Trimesh(sphere.vertices, sphere.faces[sphere.triangles_center[:, 1] < 0.3]).apply_translation((2.0, 0, 0))
-    sheet = trimesh.Trimesh([[0, 0, 0], [0.8, 0, 0], [0.8, 0, 0.8], [0, 0, 0.8]], [[0, 2, 1], [0, 3, 2]]).apply_translation((-1.5, 0.5, 0))
+    bowl = trimesh.Trimesh(sphere.vertices, sphere.faces[sphere.triangles_center[:, 1] < 0.3]).apply_translation(
+        (2.0, 0, 0)
+    )
+    sheet = trimesh.Trimesh(
+        [[0, 0, 0], [0.8, 0, 0], [0.8, 0, 0.8], [0, 0, 0.8]], [[0, 2, 1], [0, 3, 2]]
+    ).apply_translation((-1.5, 0.5, 0))
     return trimesh.util.concatenate([tube, bowl, sheet])
 
 
@@ -58,10 +67,15 @@ def hierarchies():
     """Hard inputs prepared once as 1536, 384, 96, 24-quad hierarchies."""
     chair = generate_shape("chair", np.random.default_rng(3))
     car = generate_shape("car", np.random.default_rng(4))
-    inputs = {"chair": (chair.vertices, chair.faces), "car": (car.vertices, car.faces),
-              "stool": (thin_legged_stool().vertices, thin_legged_stool().faces),
-              "open_parts": (scattered_open_parts().vertices, scattered_open_parts().faces)}
-    return {name: prepare_shape(v, f, face_count=1536, levels=4, seed=0, source=name) for name, (v, f) in inputs.items()}
+    inputs = {
+        "chair": (chair.vertices, chair.faces),
+        "car": (car.vertices, car.faces),
+        "stool": (thin_legged_stool().vertices, thin_legged_stool().faces),
+        "open_parts": (scattered_open_parts().vertices, scattered_open_parts().faces),
+    }
+    return {
+        name: prepare_shape(v, f, face_count=1536, levels=4, seed=0, source=name) for name, (v, f) in inputs.items()
+    }
 
 
 @pytest.mark.parametrize("name", ["chair", "car", "stool", "open_parts"])
@@ -74,10 +88,14 @@ def test_every_level_is_strictly_coarser_closed_and_pooled(hierarchies, name):
     for level in range(4):
         check_level(shape.vertices[level].astype(np.float64), shape.quads[level], shape.neighbors[level])
     for level in range(3):
-        assert np.array_equal(np.unique(shape.pool[level]), np.arange(counts[level + 1])), "every coarse face receives a fine face"
+        assert np.array_equal(np.unique(shape.pool[level]), np.arange(counts[level + 1])), (
+            "every coarse face receives a fine face"
+        )
     levels = shape.metadata["levels"]
     assert [l["faces"] for l in levels] == counts
-    assert levels[0]["ratio"] is None and all(l["ratio"] == pytest.approx(counts[i] / counts[i + 1], abs=1e-3) for i, l in enumerate(levels[1:]))
+    assert levels[0]["ratio"] is None and all(
+        l["ratio"] == pytest.approx(counts[i] / counts[i + 1], abs=1e-3) for i, l in enumerate(levels[1:])
+    )
     assert not any("copy" in l["method"] for l in levels)
     # a level made by a fallback says so
     for level in levels:
@@ -88,7 +106,9 @@ def test_coarse_levels_keep_every_part_of_the_shape(hierarchies):
     """Every foot of the stool's 1 %-thick legs has quads near it on every level, the coarsest included."""
     shape = hierarchies["stool"]
     transform = shape.metadata["transform"]
-    feet = (np.array([[x, 0.0, z] for x in (-0.45, 0.45) for z in (-0.45, 0.45)]) - transform["center"]) * transform["scale"]
+    feet = (np.array([[x, 0.0, z] for x in (-0.45, 0.45) for z in (-0.45, 0.45)]) - transform["center"]) * transform[
+        "scale"
+    ]
     for level in range(4):
         v = shape.vertices[level].astype(np.float64)
         edge = np.sqrt(1.0 / shape.face_counts[level])  # about a quad's edge on a surface of area ~1
@@ -119,7 +139,9 @@ def test_well_composed_repair_removes_edge_and_vertex_contacts():
     field = SolidField(phi=np.where(corner, -1.0, 1.0), origin=np.zeros(3), spacing=1.0, offset=0.0)
     v, q = surface_net_quads(field)
     edges = np.sort(np.stack([q, np.roll(q, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    assert (np.unique(edges, axis=0, return_counts=True)[1] == 2).all(), "surface nets of the repaired solid are manifold"
+    assert (np.unique(edges, axis=0, return_counts=True)[1] == 2).all(), (
+        "surface nets of the repaired solid are manifold"
+    )
 
 
 def test_samples_of_a_sliver_grow_with_its_area_not_its_length():
@@ -137,7 +159,9 @@ def test_a_level_nothing_can_make_fails_the_shape_with_the_reasons(monkeypatch):
         raise quadremesh.QuadRemeshError("QuadriFlow crashed (signal 11)")
 
     monkeypatch.setattr(quadremesh, "quadriflow", broken)
-    monkeypatch.setattr(quadremesh, "surface_net_quads", lambda field: (np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)))
+    monkeypatch.setattr(
+        quadremesh, "surface_net_quads", lambda field: (np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64))
+    )
     with pytest.raises(InputError) as error:
         prepare_shape(box.vertices, box.faces, face_count=96, levels=2)
     message = str(error.value)
@@ -155,7 +179,23 @@ def test_a_fallback_level_is_ok_with_a_warning_in_index_json(tmp_path, monkeypat
     monkeypatch.setattr(quadremesh, "quadriflow", coarse_fails)
     trimesh.creation.icosphere(3).export(tmp_path / "ball.ply")
     out = tmp_path / "out"
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.ply"), "--out", str(out), "--faces", "384", "--levels", "2"]) == 0
+    assert (
+        main(
+            [
+                "prepare",
+                "shapes",
+                "--input",
+                str(tmp_path / "ball.ply"),
+                "--out",
+                str(out),
+                "--faces",
+                "384",
+                "--levels",
+                "2",
+            ]
+        )
+        == 0
+    )
     entry = json.loads((out / "index.json").read_text())["shapes"][0]
     assert entry["status"] == "ok"
     assert entry["levels"][1]["method"].startswith("surface nets") and entry["levels"][1]["ratio"] >= 2.0

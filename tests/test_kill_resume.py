@@ -33,9 +33,24 @@ from mesh2tex.io.outputs import LOCK_NAME
 from mesh2tex.synthetic.exemplars import exemplar_image
 
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "MESH2TEX_PROGRESS": "0"}
-TINY_NCA = {"iters": 8, "batch": 1, "views": 1, "resolution": 32, "steps_min": 2, "steps_max": 3, "pool": 4, "seed_every": 2,
-            "mesh": "sphere:3", "exemplar_size": 32, "vgg_depth": 1, "max_points": 64, "sample_every": 0, "checkpoint_every": 1,
-            "log_every": 1, "nca": {"channels": 6, "hidden": 16}}
+TINY_NCA = {
+    "iters": 8,
+    "batch": 1,
+    "views": 1,
+    "resolution": 32,
+    "steps_min": 2,
+    "steps_max": 3,
+    "pool": 4,
+    "seed_every": 2,
+    "mesh": "sphere:3",
+    "exemplar_size": 32,
+    "vgg_depth": 1,
+    "max_points": 64,
+    "sample_every": 0,
+    "checkpoint_every": 1,
+    "log_every": 1,
+    "nca": {"channels": 6, "hidden": 16},
+}
 
 
 @pytest.fixture(scope="module")
@@ -54,13 +69,60 @@ def files(tiny_gan, tmp_path_factory):
 def train_argv(files, kind: str, out, *extra) -> list[str]:
     root, gan = files["root"], files["gan"]
     if kind == "nca":
-        return ["train", "nca", "--exemplar", str(root / "stripes.png"), "--out", str(out), "--config", str(root / "nca.yaml"),
-                "--device", "cpu", *extra]
+        return [
+            "train",
+            "nca",
+            "--exemplar",
+            str(root / "stripes.png"),
+            "--out",
+            str(out),
+            "--config",
+            str(root / "nca.yaml"),
+            "--device",
+            "cpu",
+            *extra,
+        ]
     if kind == "gan":
-        return ["train", "gan", "--shapes", str(gan / "shapes"), "--images", str(gan / "photos"), "--out", str(out), "--config",
-                str(root / "gan.yaml"), "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu", *extra]
-    return ["train", kind, "--shapes", str(gan / "shapes"), "--out", str(out), "--config", str(root / "view.yaml"), "--samples", "8",
-            "--resolution", "32", "--batch", "4", "--device", "cpu", *extra]
+        return [
+            "train",
+            "gan",
+            "--shapes",
+            str(gan / "shapes"),
+            "--images",
+            str(gan / "photos"),
+            "--out",
+            str(out),
+            "--config",
+            str(root / "gan.yaml"),
+            "--batch",
+            "2",
+            "--views",
+            "2",
+            "--resolution",
+            "16",
+            "--device",
+            "cpu",
+            *extra,
+        ]
+    return [
+        "train",
+        kind,
+        "--shapes",
+        str(gan / "shapes"),
+        "--out",
+        str(out),
+        "--config",
+        str(root / "view.yaml"),
+        "--samples",
+        "8",
+        "--resolution",
+        "32",
+        "--batch",
+        "4",
+        "--device",
+        "cpu",
+        *extra,
+    ]
 
 
 @pytest.mark.parametrize("kind", ["gan", "pose", "noc", "nca"])
@@ -80,7 +142,9 @@ def test_resume_from_a_run_without_a_checkpoint_yet_is_one_line(kind, files, tmp
 
 
 @pytest.mark.parametrize("kind", ["nca", "pose"])
-def test_a_run_from_another_checkpoint_stopped_before_its_first_starts_from_it_again(kind, files, tmp_path, capsys, monkeypatch):
+def test_a_run_from_another_checkpoint_stopped_before_its_first_starts_from_it_again(
+    kind, files, tmp_path, capsys, monkeypatch
+):
     from mesh2tex.train import runs
 
     parent = tmp_path / "parent"
@@ -100,7 +164,10 @@ def test_a_run_from_another_checkpoint_stopped_before_its_first_starts_from_it_a
     capsys.readouterr()
     assert main(argv) == 0, "the same command runs again"
     err = capsys.readouterr().err
-    assert f"{child}: the interrupted run of this command saved no checkpoint yet; starting from {parent / 'checkpoint.safetensors'} again" in err
+    assert (
+        f"{child}: the interrupted run of this command saved no checkpoint yet; starting from "
+        f"{parent / 'checkpoint.safetensors'} again" in err
+    )
     _, meta = load_checkpoint(child / "checkpoint.safetensors", kind=kind)
     assert meta["iteration"] == 4
 
@@ -195,9 +262,29 @@ def test_infer_transfer_killed_and_rerun_with_the_same_command_finishes_whole(fi
 
     gan = files["gan"]
     out = tmp_path / "out"
-    argv = ["infer", "transfer", "--checkpoint", str(gan / "run" / "checkpoint.safetensors"), "--mesh", str(gan / "shapes" / "box0.npz"),
-            "--image", str(files["root"] / "query.png"), "--pose", "30,20", "--no-noc", "--out", str(out), "--resolution", "64",
-            "--latent-iters", "4", "--refine-iters", "4", "--device", "cpu"]
+    argv = [
+        "infer",
+        "transfer",
+        "--checkpoint",
+        str(gan / "run" / "checkpoint.safetensors"),
+        "--mesh",
+        str(gan / "shapes" / "box0.npz"),
+        "--image",
+        str(files["root"] / "query.png"),
+        "--pose",
+        "30,20",
+        "--no-noc",
+        "--out",
+        str(out),
+        "--resolution",
+        "64",
+        "--latent-iters",
+        "4",
+        "--refine-iters",
+        "4",
+        "--device",
+        "cpu",
+    ]
     # once mid-way (its first files written), once as it writes its last ones
     assert killed(argv, after(out / "photo_crop.png", 0.0))
     killed(argv, after(out / "turntable_00.png", 0.05))

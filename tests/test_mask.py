@@ -93,15 +93,20 @@ def test_an_estimated_mask_gives_the_mesh_three_framings_to_pick_from(tmp_path):
     Image.fromarray(np.dstack([rgb, alpha])).save(tmp_path / "alpha.png")
     cfg = TransferConfig(resolution=32)
     estimated = photo_candidates(tmp_path / "photo.png", None, cfg, mask_checkpoint="chair")
-    assert [source for _, source in estimated] == ["estimated (mask network, GrabCut edges)", "estimated (mask network)",
-                                                   "estimated (GrabCut)"][:len(estimated)] and len(estimated) >= 2
+    assert [source for _, source in estimated] == [
+        "estimated (mask network, GrabCut edges)",
+        "estimated (mask network)",
+        "estimated (GrabCut)",
+    ][: len(estimated)] and len(estimated) >= 2
     assert all(photo.mask.shape == (1, 1, 32, 32) for photo, _ in estimated)
     given = photo_candidates(tmp_path / "alpha.png", None, cfg, mask_checkpoint="chair")
     assert [source for _, source in given] == ["alpha channel"]
 
     scores = iter([0.6, 0.9, 0.9])
-    index, estimate = pick_by_outline([p for p, _ in estimated] + [estimated[0][0]],
-                                      lambda photo: PoseEstimate(0.0, 0.0, "test", silhouette_iou=next(scores, 0.1)))
+    index, estimate = pick_by_outline(
+        [p for p, _ in estimated] + [estimated[0][0]],
+        lambda photo: PoseEstimate(0.0, 0.0, "test", silhouette_iou=next(scores, 0.1)),
+    )
     assert index == 1 and estimate.silhouette_iou == 0.9
 
 
@@ -117,8 +122,11 @@ def test_the_meshs_outline_at_the_pose_mends_an_estimated_mask():
     shape = cube_shape(3)
     distance, fov, size = 2.4, 40.0, 128
     camera = orbit_camera(torch.tensor([30.0]), torch.tensor([20.0]), distance=distance, fov=fov)
-    raster = rasterize(transform_points(torch.as_tensor(shape.vertices[0], dtype=torch.float32), camera.mvp),
-                       torch.as_tensor(shape.triangles(0)), (size, size))
+    raster = rasterize(
+        transform_points(torch.as_tensor(shape.vertices[0], dtype=torch.float32), camera.mvp),
+        torch.as_tensor(shape.triangles(0)),
+        (size, size),
+    )
     truth = (raster.face_id[0] >= 0).numpy()
     rng = np.random.default_rng(0)
     rgb = (rng.uniform(0.3, 0.6, (size, size, 3)) * 255).astype(np.uint8)
@@ -126,17 +134,33 @@ def test_the_meshs_outline_at_the_pose_mends_an_estimated_mask():
     rows, cols = np.nonzero(truth)
     r, c = int(rows.mean()), int(cols.mean())
     estimate = truth.copy()
-    estimate[r - 8:r + 8, c - 8:c + 8] = False  # the estimate missed a patch in the middle of the object
+    estimate[r - 8 : r + 8, c - 8 : c + 8] = False  # the estimate missed a patch in the middle of the object
     cfg = TransferConfig(resolution=32)
 
     def iou(mask):
         return float((mask & truth).sum() / (mask | truth).sum())
 
-    located = locate_object(MaskedPhoto(rgb, [(estimate, "estimated (test)")], None, given=False), shape, None, (30.0, 20.0),
-                            distance, fov, cfg, torch.device("cpu"))
+    located = locate_object(
+        MaskedPhoto(rgb, [(estimate, "estimated (test)")], None, given=False),
+        shape,
+        None,
+        (30.0, 20.0),
+        distance,
+        fov,
+        cfg,
+        torch.device("cpu"),
+    )
     assert iou(located.mask) > 0.97 > iou(estimate), (iou(located.mask), iou(estimate))
     assert located.mask_source.endswith("refined by GrabCut on the mesh's outline at the pose")
     assert located.estimate.azimuth == 30.0 and located.photo.mask.shape == (1, 1, 32, 32)
-    kept = locate_object(MaskedPhoto(rgb, [(estimate, "alpha channel")], None, given=True), shape, None, (30.0, 20.0),
-                         distance, fov, cfg, torch.device("cpu"))
+    kept = locate_object(
+        MaskedPhoto(rgb, [(estimate, "alpha channel")], None, given=True),
+        shape,
+        None,
+        (30.0, 20.0),
+        distance,
+        fov,
+        cfg,
+        torch.device("cpu"),
+    )
     assert np.array_equal(kept.mask, estimate) and kept.mask_source == "alpha channel"

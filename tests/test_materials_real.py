@@ -11,7 +11,17 @@ import pytest
 
 from mesh2tex.synthetic.materials import UpFacing
 from mesh2tex.synthetic.real_materials import (
-    AtScale, BrushedMetal, DarkGlass, Fabric, Grain, Leather, Painted, Rubber, Seams, metres_per_unit, real_material,
+    AtScale,
+    BrushedMetal,
+    DarkGlass,
+    Fabric,
+    Grain,
+    Leather,
+    Painted,
+    Rubber,
+    Seams,
+    metres_per_unit,
+    real_material,
 )
 from mesh2tex.synthetic.variety import generate_varied_shape
 from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape
@@ -61,9 +71,13 @@ def test_every_material_is_deterministic_for_a_seed_and_in_range(kind):
 
 @pytest.mark.parametrize("kind", ["grain", "brushed"])
 def test_wood_and_brushed_metal_are_grained_along_their_axis(kind):
-    """Their power lies across the grain: the image varies along the rows (y) for a grain along z, and the other way round."""
-    along_z = Grain((0.8, 0.6, 0.4), (0.5, 0.3, 0.2), (0.0, 0.0, 1.0), seed=1) if kind == "grain" else \
-        BrushedMetal((0.7, 0.7, 0.72), (0.0, 0.0, 1.0), across=400.0, seed=1)
+    """Their power lies across the grain: the image varies along the rows (y) for a grain along z, and the other way
+    round."""
+    along_z = (
+        Grain((0.8, 0.6, 0.4), (0.5, 0.3, 0.2), (0.0, 0.0, 1.0), seed=1)
+        if kind == "grain"
+        else BrushedMetal((0.7, 0.7, 0.72), (0.0, 0.0, 1.0), across=400.0, seed=1)
+    )
     power = _power(_plane(along_z, 0.001))
     f = np.abs(np.fft.fftfreq(64))
     across = power[f[:, None] > f[None, :]].sum()  # frequencies mostly along y, across the grain
@@ -81,17 +95,24 @@ def test_a_fabrics_weave_is_periodic_at_its_thread_spacing():
     frequency = np.fft.fftfreq(64, d=spacing)  # cycles per metre
     radius = np.hypot(frequency[:, None], frequency[None, :])
     peak = radius.ravel()[power.argmax()]
-    assert peak == pytest.approx(250.0, rel=0.05) or peak == pytest.approx(500.0, rel=0.05)  # half or one thread frequency
+    assert peak == pytest.approx(250.0, rel=0.05) or peak == pytest.approx(
+        500.0, rel=0.05
+    )  # half or one thread frequency
 
 
 def test_detail_finer_than_the_band_limit_fades_to_its_mean():
     """At the world's band limit a chair's 1.7 mm weave is not drawn: no point-sampled speckle, the same mean colour."""
-    sharp, limited = Fabric((0.5, 0.4, 0.3), threads=600.0, heather=0.0, seed=2), Fabric((0.5, 0.4, 0.3), threads=600.0, heather=0.0, seed=2, limit=53.0)
+    sharp, limited = (
+        Fabric((0.5, 0.4, 0.3), threads=600.0, heather=0.0, seed=2),
+        Fabric((0.5, 0.4, 0.3), threads=600.0, heather=0.0, seed=2, limit=53.0),
+    )
     a, b = _plane(sharp, 0.0002, 128), _plane(limited, 0.0002, 128)
     assert b.std() < 0.1 * a.std()
     assert b.mean() == pytest.approx(a.mean(), rel=0.05)
     seam = Seams(Painted((0.6, 0.6, 0.6), peel_contrast=0.0, finish_contrast=0.0), panel=0.2, width=0.005, limit=53.0)
-    line = _plane(seam, 0.001, 200, normal=(0.0, 0.0, 1.0))  # rows along y; seams at x only: the plane x = 0.01 crosses none
+    line = _plane(
+        seam, 0.001, 200, normal=(0.0, 0.0, 1.0)
+    )  # rows along y; seams at x only: the plane x = 0.01 crosses none
     assert line.std() < 1e-6
     points = np.stack([np.linspace(-0.1, 0.1, 2001), np.zeros(2001), np.zeros(2001)], axis=1)
     profile = seam(points, np.tile([0.0, 0.0, 1.0], (2001, 1)))[:, 0]

@@ -10,8 +10,17 @@ from PIL import Image
 
 from mesh2tex.cli import main
 from mesh2tex.errors import InputError
-from mesh2tex.metrics import (InceptionV3Features, colour_histogram_distance, fid, get_feature_extractor, kid, load_inception,
-                              masked_psnr, masked_ssim, swd)
+from mesh2tex.metrics import (
+    InceptionV3Features,
+    colour_histogram_distance,
+    fid,
+    get_feature_extractor,
+    kid,
+    load_inception,
+    masked_psnr,
+    masked_ssim,
+    swd,
+)
 
 
 def test_kid_near_zero_for_one_distribution_and_grows_with_a_shift():
@@ -34,7 +43,11 @@ def test_fid_matches_the_matrix_square_root_formula():
         b = torch.randn(n_b, dim, generator=generator) * 1.5 + 0.3
         x, y = a.double().numpy(), b.double().numpy()
         sx, sy = np.cov(x, rowvar=False), np.cov(y, rowvar=False)
-        reference = ((x.mean(0) - y.mean(0)) ** 2).sum() + np.trace(sx + sy) - 2 * np.trace(np.real(scipy.linalg.sqrtm(sx @ sy)))
+        reference = (
+            ((x.mean(0) - y.mean(0)) ** 2).sum()
+            + np.trace(sx + sy)
+            - 2 * np.trace(np.real(scipy.linalg.sqrtm(sx @ sy)))
+        )
         assert fid(a, b) == pytest.approx(reference, rel=1e-6)
     assert fid(a, a) == pytest.approx(0.0, abs=1e-6)
 
@@ -62,10 +75,13 @@ def test_swd_grows_with_a_distribution_shift():
 def test_swd_sorts_projections_exactly_as_torch_does():
     # The SWD sorts with numpy for speed: its rows must be torch.sort's, ties and duplicates included.
     from mesh2tex.metrics.swd import sorted_rows
+
     values = torch.randn(64, 300, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
     values[:, ::7] = values[:, :1]  # repeated values in every row
     assert torch.equal(sorted_rows(values), torch.sort(values, dim=1).values)
-    assert torch.equal(sorted_rows(values[:, 1:]), torch.sort(values[:, 1:], dim=1).values)  # a view that is not contiguous
+    assert torch.equal(
+        sorted_rows(values[:, 1:]), torch.sort(values[:, 1:], dim=1).values
+    )  # a view that is not contiguous
 
 
 def test_paired_metrics():
@@ -142,8 +158,19 @@ def test_evaluate_command_sets_and_pairs(tmp_path, monkeypatch, capsys):
     _write_set(tmp_path / "renders", 6, 0, alpha=True)
     _write_set(tmp_path / "photos", 6, 1, shift=0.1)
     out = tmp_path / "eval"
-    args = ["evaluate", "--renders", str(tmp_path / "renders"), "--images", str(tmp_path / "photos"), "--out", str(out),
-            "--resolution", "32", "--kid-subsets", "3"]
+    args = [
+        "evaluate",
+        "--renders",
+        str(tmp_path / "renders"),
+        "--images",
+        str(tmp_path / "photos"),
+        "--out",
+        str(out),
+        "--resolution",
+        "32",
+        "--kid-subsets",
+        "3",
+    ]
     assert main(args) == 0
     assert "mesh2tex: warning: no Inception-v3 weights found" in capsys.readouterr().err
     result = json.loads((out / "metrics.json").read_text())
@@ -157,7 +184,21 @@ def test_evaluate_command_sets_and_pairs(tmp_path, monkeypatch, capsys):
     assert "--overwrite" in capsys.readouterr().err
 
     pairs_out = tmp_path / "pairs"
-    assert main(["evaluate", "--renders", str(tmp_path / "renders"), "--images", str(tmp_path / "renders"), "--pairs", "--out", str(pairs_out)]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--renders",
+                str(tmp_path / "renders"),
+                "--images",
+                str(tmp_path / "renders"),
+                "--pairs",
+                "--out",
+                str(pairs_out),
+            ]
+        )
+        == 0
+    )
     result = json.loads((pairs_out / "metrics.json").read_text())
     assert result["metrics"]["psnr_masked"] == "inf" and result["metrics"]["ssim_masked"] == pytest.approx(1.0)
     assert len(result["per_pair"]) == 6
@@ -170,19 +211,25 @@ def test_set_colour_histograms_compare_object_pixels_not_backgrounds():
         """n white 32x32 images with a centred square of ``colour`` and ``side`` pixels, and its masks."""
         images, masks = torch.ones(n, 3, 32, 32), torch.zeros(n, 1, 32, 32)
         lo = (32 - side) // 2
-        images[:, :, lo:lo + side, lo:lo + side] = torch.tensor(colour).reshape(1, 3, 1, 1)
-        masks[:, :, lo:lo + side, lo:lo + side] = 1
+        images[:, :, lo : lo + side, lo : lo + side] = torch.tensor(colour).reshape(1, 3, 1, 1)
+        masks[:, :, lo : lo + side, lo : lo + side] = 1
         return images, masks
 
     small_red, small_mask = objects([0.8, 0.1, 0.1], 8)
     large_red, large_mask = objects([0.8, 0.1, 0.1], 24)
     large_blue, blue_mask = objects([0.1, 0.1, 0.8], 24)
     # Same object colour, different object sizes: only the whole-image variant sees a difference.
-    assert pooled_histogram_distance(small_red, large_red, small_mask, large_mask, 8) == {"color_hist_tv": pytest.approx(0.0)}
+    assert pooled_histogram_distance(small_red, large_red, small_mask, large_mask, 8) == {
+        "color_hist_tv": pytest.approx(0.0)
+    }
     assert pooled_histogram_distance(small_red, large_red, None, large_mask, 8)["color_hist_tv_whole_image"] > 0.4
     # Disjoint object colours are as far apart as histograms get, however much white surrounds them.
-    assert pooled_histogram_distance(large_red, large_blue, large_mask, blue_mask, 8) == {"color_hist_tv": pytest.approx(1.0)}
-    assert pooled_histogram_distance(small_red, large_blue, small_mask, blue_mask, 8) == {"color_hist_tv": pytest.approx(1.0)}
+    assert pooled_histogram_distance(large_red, large_blue, large_mask, blue_mask, 8) == {
+        "color_hist_tv": pytest.approx(1.0)
+    }
+    assert pooled_histogram_distance(small_red, large_blue, small_mask, blue_mask, 8) == {
+        "color_hist_tv": pytest.approx(1.0)
+    }
     with pytest.raises(InputError, match="no object pixel"):
         pooled_histogram_distance(large_red, large_blue, torch.zeros_like(large_mask), blue_mask, 8)
 
@@ -197,8 +244,14 @@ def test_evaluate_sets_without_kid_fid_skips_the_feature_network(monkeypatch):
     generator = torch.Generator().manual_seed(0)
     renders, images = torch.rand(4, 3, 32, 32, generator=generator), torch.rand(5, 3, 32, 32, generator=generator)
     masks = torch.ones(4, 1, 32, 32), torch.ones(5, 1, 32, 32)
-    result = evaluate.evaluate_sets(renders, images, config=evaluate.EvaluateConfig(resolution=32), render_masks=masks[0],
-                                    image_masks=masks[1], kid_fid=False)
+    result = evaluate.evaluate_sets(
+        renders,
+        images,
+        config=evaluate.EvaluateConfig(resolution=32),
+        render_masks=masks[0],
+        image_masks=masks[1],
+        kid_fid=False,
+    )
     assert result["features"] is None
     assert not any(name.startswith(("kid", "fid")) for name in result["metrics"])
     assert {"swd", "color_hist_tv"} <= set(result["metrics"])
@@ -213,7 +266,9 @@ def test_evaluate_sets_takes_the_images_features_once_computed():
     extractor = get_feature_extractor("randvgg")
     config = evaluate.EvaluateConfig(resolution=32, kid_subsets=2, kid_subset_size=4)
     fresh = evaluate.evaluate_sets(renders, images, extractor, config)["metrics"]
-    reused = evaluate.evaluate_sets(renders, images, extractor, config, image_features=extractor(images * 2 - 1))["metrics"]
+    reused = evaluate.evaluate_sets(renders, images, extractor, config, image_features=extractor(images * 2 - 1))[
+        "metrics"
+    ]
     assert reused == pytest.approx(fresh)
 
 
@@ -221,11 +276,33 @@ def test_evaluate_names_a_bad_file(tmp_path, capsys):
     _write_set(tmp_path / "renders", 2, 0)
     _write_set(tmp_path / "photos", 2, 1)
     (tmp_path / "photos" / "view01.png").write_text("not an image")
-    code = main(["evaluate", "--renders", str(tmp_path / "renders"), "--images", str(tmp_path / "photos"), "--pairs", "--out", str(tmp_path / "o")])
+    code = main(
+        [
+            "evaluate",
+            "--renders",
+            str(tmp_path / "renders"),
+            "--images",
+            str(tmp_path / "photos"),
+            "--pairs",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     assert code == 2
     assert "view01.png: not a readable image" in capsys.readouterr().err
     (tmp_path / "photos" / "view01.png").unlink()
-    code = main(["evaluate", "--renders", str(tmp_path / "renders"), "--images", str(tmp_path / "photos"), "--pairs", "--out", str(tmp_path / "o")])
+    code = main(
+        [
+            "evaluate",
+            "--renders",
+            str(tmp_path / "renders"),
+            "--images",
+            str(tmp_path / "photos"),
+            "--pairs",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     assert code == 2
     assert "no image for render(s) view01" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()

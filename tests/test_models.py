@@ -32,19 +32,61 @@ def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny
         assert a.dtype == b.dtype and torch.allclose(a, b, rtol=2e-3, atol=2e-3), name
 
     out = tmp_path / "gen"
-    assert main(["infer", "generate", "--checkpoint", "tiny", "--mesh", str(tiny_gan / "shapes" / "box0.npz"), "--out", str(out),
-                 "--seeds", "0", "--views", "1", "--resolution", "32", "--texture-size", "32", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                "tiny",
+                "--mesh",
+                str(tiny_gan / "shapes" / "box0.npz"),
+                "--out",
+                str(out),
+                "--seeds",
+                "0",
+                "--views",
+                "1",
+                "--resolution",
+                "32",
+                "--texture-size",
+                "32",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     assert (out / "seed0.glb").is_file()
-    assert main(["infer", "generate", "--checkpoint", "nosuchmodel", "--mesh", str(tiny_gan / "shapes" / "box0.npz"),
-                 "--out", str(tmp_path / "x"), "--device", "cpu"]) == 2
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                "nosuchmodel",
+                "--mesh",
+                str(tiny_gan / "shapes" / "box0.npz"),
+                "--out",
+                str(tmp_path / "x"),
+                "--device",
+                "cpu",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
-    assert "nosuchmodel: no such checkpoint file or shipped model (shipped models: tiny)" in err and "Traceback" not in err
+    assert (
+        "nosuchmodel: no such checkpoint file or shipped model (shipped models: tiny)" in err and "Traceback" not in err
+    )
 
 
 def test_a_model_without_a_pose_network_says_so(tiny_gan, tmp_path, monkeypatch):
     models = tmp_path / "models"
     (models / "tiny").mkdir(parents=True)
-    export_inference_checkpoint(tiny_gan / "run" / "checkpoint.safetensors", "gan", models / "tiny" / MODEL_FILES["gan"])
+    export_inference_checkpoint(
+        tiny_gan / "run" / "checkpoint.safetensors", "gan", models / "tiny" / MODEL_FILES["gan"]
+    )
     monkeypatch.setenv("MESH2TEX_MODELS", str(models))
     with pytest.raises(InputError, match="has no pose network"):
         resolve_checkpoint("tiny", "pose")
@@ -58,7 +100,12 @@ def test_the_shipped_models_load(monkeypatch):
 
     for name in list_models():
         model = load_generator(name, torch.device("cpu"))
-        assert model.network.cfg.input_features > 0 and model.iteration > 0 and model.resolution > 0 and model.hierarchy_recorded
+        assert (
+            model.network.cfg.input_features > 0
+            and model.iteration > 0
+            and model.resolution > 0
+            and model.hierarchy_recorded
+        )
         for kind in ("pose", "noc"):
             load_view_network(name, kind)
 
@@ -127,4 +174,6 @@ def test_a_validation_pick_is_reused_only_for_the_run_it_measured(tmp_path, monk
     build_model.pick_snapshot(tmp_path, "chair", "real", runs[0], 300, pick, [])
     assert len(measured) == 3, "the same run's figures are reused"
     build_model.pick_snapshot(tmp_path, "chair", "real", runs[1], 300, pick, [])
-    assert len(measured) == 6 and all(path.parent.parent == runs[1] for path in measured[3:]), "another run is measured anew"
+    assert len(measured) == 6 and all(path.parent.parent == runs[1] for path in measured[3:]), (
+        "another run is measured anew"
+    )

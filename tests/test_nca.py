@@ -5,10 +5,25 @@ import pytest
 import torch
 
 from mesh2tex.errors import InputError
-from mesh2tex.geometry.primitives import (cube_sphere, density_subdivisions, load_surface, mean_edge_length, read_surface,
-                                          subdivide_quads, unit_surface)
+from mesh2tex.geometry.primitives import (
+    cube_sphere,
+    density_subdivisions,
+    load_surface,
+    mean_edge_length,
+    read_surface,
+    subdivide_quads,
+    unit_surface,
+)
 from mesh2tex.geometry.regions import region_weights
-from mesh2tex.nn.nca import AutomatonTexture, MeshNCA, NCAConfig, build_cell_graph, perceive, perceive_edges, spherical_harmonics
+from mesh2tex.nn.nca import (
+    AutomatonTexture,
+    MeshNCA,
+    NCAConfig,
+    build_cell_graph,
+    perceive,
+    perceive_edges,
+    spherical_harmonics,
+)
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.uv import bake_surface_colours
@@ -58,7 +73,9 @@ def test_sparse_perception_equals_the_edge_list_definition(order):
     graph = build_cell_graph(vertices, quads, "edges+diagonals")
     state = torch.randn(2, graph.num_cells, 5)
     for angle in (0.0, 0.4):
-        assert torch.allclose(perceive(state, graph, order, 4.0, angle), perceive_edges(state, graph, order, 4.0, angle), atol=1e-5)
+        assert torch.allclose(
+            perceive(state, graph, order, 4.0, angle), perceive_edges(state, graph, order, 4.0, angle), atol=1e-5
+        )
 
 
 def test_orientation_rotates_the_edge_directions_about_the_normal():
@@ -105,7 +122,9 @@ def test_gradients_reach_every_parameter_through_rollout_and_render(readout):
     torch.manual_seed(0)
     model = MeshNCA(NCAConfig(channels=8, hidden=16, readout=readout))
     torch.nn.init.normal_(model.update[2].weight, std=0.05)
-    state = model.rollout(model.seed_state(1, graph.num_cells, generator=torch.Generator().manual_seed(0)) + 0.1, graph, 3)
+    state = model.rollout(
+        model.seed_state(1, graph.num_cells, generator=torch.Generator().manual_seed(0)) + 0.1, graph, 3
+    )
     views = render_states(model, state, graph, orbit_camera(torch.tensor([0.0, 120.0]), 20.0, distance=3.2).mvp, 32)
     ((views.images - 0.3) ** 2 * views.mask).mean().backward()
     for name, p in model.named_parameters():
@@ -142,7 +161,10 @@ def test_a_grafted_growth_is_read_by_each_sides_own_readout(readout):
     bary = bary / bary.sum(1, keepdim=True)
     with torch.no_grad():
         grafted = a.colours(state, graph.triangles, triangle_id, bary, graft=(b, alpha))
-        own, other = a.colours(state, graph.triangles, triangle_id, bary), b.colours(state, graph.triangles, triangle_id, bary)
+        own, other = (
+            a.colours(state, graph.triangles, triangle_id, bary),
+            b.colours(state, graph.triangles, triangle_id, bary),
+        )
         weight = (alpha[graph.triangles[triangle_id]] * bary).sum(1, keepdim=True)
         torch.testing.assert_close(grafted, (1 - weight) * own + weight * other)
         left, right = (weight == 0).squeeze(1), (weight == 1).squeeze(1)
@@ -150,7 +172,10 @@ def test_a_grafted_growth_is_read_by_each_sides_own_readout(readout):
         torch.testing.assert_close(grafted[left], own[left])
         torch.testing.assert_close(grafted[right], other[right])
         vertex = a.vertex_colours(state, graft=(b, alpha))
-        torch.testing.assert_close(vertex, (1 - alpha[None, :, None]) * a.vertex_colours(state) + alpha[None, :, None] * b.vertex_colours(state))
+        torch.testing.assert_close(
+            vertex,
+            (1 - alpha[None, :, None]) * a.vertex_colours(state) + alpha[None, :, None] * b.vertex_colours(state),
+        )
         mvp = orbit_camera(torch.tensor([100.0, 280.0]), 10.0, distance=3.2).mvp
         views = render_states(a, state.expand(2, -1, -1), graph, mvp, 24, graft=(b, alpha))
         plain = render_states(a, state.expand(2, -1, -1), graph, mvp, 24)
@@ -209,7 +234,9 @@ def test_subdivision_keeps_the_surface_and_closed_meshes_closed(tmp_path):
         assert fine_f.shape == (coarse_f.shape[0] * 4**level, 3)
         triangles = np.repeat(coarse_v[coarse_f][None], len(fine_v), 0).reshape(-1, 3, 3)
         points = np.repeat(fine_v, len(coarse_f), 0)
-        distance = np.linalg.norm(trimesh.triangles.closest_point(triangles, points) - points, axis=1).reshape(len(fine_v), -1)
+        distance = np.linalg.norm(trimesh.triangles.closest_point(triangles, points) - points, axis=1).reshape(
+            len(fine_v), -1
+        )
         assert distance.min(axis=1).max() < 1e-5  # each new vertex lies on an original triangle
         fine = trimesh.Trimesh(fine_v, fine_f, process=False)
         assert fine.is_watertight and np.isclose(fine.volume, trimesh.Trimesh(coarse_v, coarse_f).volume, rtol=1e-5)
@@ -226,14 +253,26 @@ def test_a_surface_read_once_gives_each_subdivision_without_being_changed(tmp_pa
         kept = [array.copy() for array in surface]
         for level in (0, 1, 2):
             vertices, faces = unit_surface(*surface, subdivide=level, name=spec)
-            assert faces.shape[0] == kept[1].shape[0] * 4**level and np.isclose(np.linalg.norm(vertices, axis=1).max(), 1.0)
+            assert faces.shape[0] == kept[1].shape[0] * 4**level and np.isclose(
+                np.linalg.norm(vertices, axis=1).max(), 1.0
+            )
         assert all(np.array_equal(a, b) and a.dtype == b.dtype for a, b in zip(surface, kept))
     with pytest.raises(InputError, match="flat.obj: the mesh has no extent"):
         unit_surface(np.zeros((3, 3)), np.array([[0, 1, 2]]), name="flat.obj")
 
 
 def test_density_rule_picks_the_split_count_nearest_the_training_spacing():
-    assert [density_subdivisions(r, 1.0) for r in (0.3, 1.0, 1.4, 1.5, 2.0, 2.9, 3.0, 8.0, 100.0)] == [0, 0, 0, 1, 1, 2, 2, 3, 3]
+    assert [density_subdivisions(r, 1.0) for r in (0.3, 1.0, 1.4, 1.5, 2.0, 2.9, 3.0, 8.0, 100.0)] == [
+        0,
+        0,
+        0,
+        1,
+        1,
+        2,
+        2,
+        3,
+        3,
+    ]
     assert density_subdivisions(5.0, 0.0) == 0  # a model without the record: the mesh as it is
     # sphere:8 has edges 4x the training sphere's (sphere:32): two splits bring them level.
     target = mean_edge_length(*load_surface("sphere"))
@@ -273,7 +312,9 @@ def test_baked_texels_equal_the_readout(readout):
         from mesh2tex.render import uv_rasterize
 
         raster = uv_rasterize(uv, faces, (64, 64))
-        expected = model.colours(state, graph.triangles, raster.face_id[0][covered], raster.bary[0][covered]).clamp(-1, 1)
+        expected = model.colours(state, graph.triangles, raster.face_id[0][covered], raster.bary[0][covered]).clamp(
+            -1, 1
+        )
     baked = torch.from_numpy(texture)[covered].float() / 127.5 - 1
     assert covered.float().mean() > 0.3
     assert (baked - expected).abs().max() <= 1.0 / 255 + 1e-6
@@ -292,5 +333,5 @@ def test_points_read_the_state_of_their_own_sample():
     with torch.no_grad():
         mixed = model.colours(state, graph.triangles, triangle_id, bary, sample)
         for b in range(3):
-            alone = model.colours(state[b:b + 1], graph.triangles, triangle_id, bary)
+            alone = model.colours(state[b : b + 1], graph.triangles, triangle_id, bary)
             torch.testing.assert_close(mixed[sample == b], alone[sample == b])

@@ -44,8 +44,27 @@ def holder(folder, seconds: float = 60.0) -> subprocess.Popen:
 
 
 def generate_argv(gan, out, *extra):
-    return ["infer", "generate", "--checkpoint", str(gan / "run" / "checkpoint.safetensors"), "--mesh", str(gan / "shapes" / "box0.npz"),
-            "--out", str(out), "--seeds", "0,1", "--views", "1", "--resolution", "16", "--texture-size", "32", "--device", "cpu", *extra]
+    return [
+        "infer",
+        "generate",
+        "--checkpoint",
+        str(gan / "run" / "checkpoint.safetensors"),
+        "--mesh",
+        str(gan / "shapes" / "box0.npz"),
+        "--out",
+        str(out),
+        "--seeds",
+        "0,1",
+        "--views",
+        "1",
+        "--resolution",
+        "16",
+        "--texture-size",
+        "32",
+        "--device",
+        "cpu",
+        *extra,
+    ]
 
 
 def test_a_second_run_into_a_folder_in_use_stops_at_once_and_names_the_first(tmp_path, capsys):
@@ -90,11 +109,32 @@ def project_with_a_users_config(tmp_path):
 def train_argv(gan, tmp_path, out, *extra):
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump(TINY_GAN))
-    return ["train", "gan", "--shapes", str(gan / "shapes"), "--images", str(gan / "photos"), "--out", str(out),
-            "--config", str(config), "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu", *extra]
+    return [
+        "train",
+        "gan",
+        "--shapes",
+        str(gan / "shapes"),
+        "--images",
+        str(gan / "photos"),
+        "--out",
+        str(out),
+        "--config",
+        str(config),
+        "--batch",
+        "2",
+        "--views",
+        "2",
+        "--resolution",
+        "16",
+        "--device",
+        "cpu",
+        *extra,
+    ]
 
 
-def test_the_same_command_continues_an_interrupted_run_and_keeps_a_finished_one(tiny_gan, tmp_path, capsys, monkeypatch):
+def test_the_same_command_continues_an_interrupted_run_and_keeps_a_finished_one(
+    tiny_gan, tmp_path, capsys, monkeypatch
+):
     import mesh2tex.infer.generate as stage
 
     out = tmp_path / "out"
@@ -126,7 +166,10 @@ def test_the_same_command_continues_an_interrupted_run_and_keeps_a_finished_one(
     assert "--overwrite moved seed0" in err and "aside to" in err
     # the replaced files are kept, at their own names, in the folder the warning names
     aside = err.rsplit("aside to ", 1)[1].strip()
-    assert os.path.dirname(aside) == str(out / REPLACED_NAME) and (out / REPLACED_NAME / os.path.basename(aside) / "seed0.glb").read_bytes() == before
+    assert (
+        os.path.dirname(aside) == str(out / REPLACED_NAME)
+        and (out / REPLACED_NAME / os.path.basename(aside) / "seed0.glb").read_bytes() == before
+    )
 
 
 def test_train_keeps_a_users_config_yaml_and_continues_its_own_interrupted_run(tiny_gan, tmp_path, capsys):
@@ -134,7 +177,9 @@ def test_train_keeps_a_users_config_yaml_and_continues_its_own_interrupted_run(t
     argv = train_argv(tiny_gan, tmp_path, out, "--iters", "2")
     assert main(argv) == 2
     assert "already holds config.yaml" in capsys.readouterr().err
-    assert (out / "config.yaml").read_text() == "my: own settings\n" and sorted(p.name for p in out.iterdir()) == ["config.yaml"]
+    assert (out / "config.yaml").read_text() == "my: own settings\n" and sorted(p.name for p in out.iterdir()) == [
+        "config.yaml"
+    ]
 
 
 def test_train_overwrite_moves_a_users_file_and_the_replaced_run_aside(tiny_gan, tmp_path, capsys):
@@ -168,7 +213,9 @@ def test_move_aside_keeps_relative_paths_links_and_one_folder_per_run(tmp_path):
     assert move_aside(tmp_path, ["missing.png"]) is None
     (tmp_path / "index.json").write_text("{}")
     other = move_aside(tmp_path, ["index.json"])
-    assert other != first and other.parent == tmp_path / REPLACED_NAME, "another run (the same second) gets its own folder"
+    assert other != first and other.parent == tmp_path / REPLACED_NAME, (
+        "another run (the same second) gets its own folder"
+    )
 
 
 def test_what_overwrite_moved_aside_is_not_taken_for_input(tmp_path, capsys):
@@ -190,9 +237,27 @@ def test_prepare_shapes_keeps_a_users_index_json(tmp_path, capsys):
     out.mkdir()
     (out / "index.json").write_text('{"my": "list"}')
     (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n")
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "m.obj"), "--out", str(out), "--faces", "96", "--levels", "2"]) == 2
+    assert (
+        main(
+            [
+                "prepare",
+                "shapes",
+                "--input",
+                str(tmp_path / "m.obj"),
+                "--out",
+                str(out),
+                "--faces",
+                "96",
+                "--levels",
+                "2",
+            ]
+        )
+        == 2
+    )
     assert "already holds index.json" in capsys.readouterr().err
-    assert (out / "index.json").read_text() == '{"my": "list"}' and sorted(p.name for p in out.iterdir()) == ["index.json"]
+    assert (out / "index.json").read_text() == '{"my": "list"}' and sorted(p.name for p in out.iterdir()) == [
+        "index.json"
+    ]
 
 
 def test_guard_outside_a_run_refuses_every_existing_file(tmp_path):
@@ -202,8 +267,14 @@ def test_guard_outside_a_run_refuses_every_existing_file(tmp_path):
     assert not (tmp_path / MANIFEST_NAME).exists()
 
 
-@pytest.mark.parametrize("code, cause", [(errno.ENOSPC, "No space left on device"), (errno.EFBIG, "File too large"),
-                                         (errno.EROFS, "Read-only file system")])
+@pytest.mark.parametrize(
+    "code, cause",
+    [
+        (errno.ENOSPC, "No space left on device"),
+        (errno.EFBIG, "File too large"),
+        (errno.EROFS, "Read-only file system"),
+    ],
+)
 def test_the_systems_refusals_are_one_line_naming_the_path(code, cause, tmp_path, capsys, monkeypatch):
     """A write that fails inside an atomic write (no file name of its own) names the file being written."""
     import mesh2tex.io.atomic as atomic
@@ -218,7 +289,12 @@ def test_the_systems_refusals_are_one_line_naming_the_path(code, cause, tmp_path
         from PIL import Image
 
         Image.new("RGB", (16, 16), 128).save(folder / "a.png")
-    assert main(["evaluate", "--renders", str(renders), "--images", str(images), "--pairs", "--out", str(tmp_path / "out")]) == 2
+    assert (
+        main(
+            ["evaluate", "--renders", str(renders), "--images", str(images), "--pairs", "--out", str(tmp_path / "out")]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith("mesh2tex: error: ") and str(tmp_path / "out") in err and cause in err, err
@@ -231,8 +307,28 @@ def test_a_trainer_rerun_with_the_same_command_continues_its_checkpoint(tiny_gan
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump({**TINY_GAN, "log_every": 1}))
     out = tmp_path / "run"
-    argv = ["train", "gan", "--shapes", str(tiny_gan / "shapes"), "--images", str(tiny_gan / "photos"), "--out", str(out),
-            "--config", str(config), "--iters", "3", "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"]
+    argv = [
+        "train",
+        "gan",
+        "--shapes",
+        str(tiny_gan / "shapes"),
+        "--images",
+        str(tiny_gan / "photos"),
+        "--out",
+        str(out),
+        "--config",
+        str(config),
+        "--iters",
+        "3",
+        "--batch",
+        "2",
+        "--views",
+        "2",
+        "--resolution",
+        "16",
+        "--device",
+        "cpu",
+    ]
     real_log = runs.RunDirectory.log
 
     def interrupted(self, record):

@@ -33,18 +33,33 @@ def photo(path, size=(32, 32), alpha=None):
 
 def centre_alpha(size=32):
     alpha = np.zeros((size, size), np.uint8)
-    alpha[size // 4: 3 * size // 4, size // 4: 3 * size // 4] = 255
+    alpha[size // 4 : 3 * size // 4, size // 4 : 3 * size // 4] = 255
     return alpha
 
 
-@pytest.mark.parametrize("make, expected", [
-    (lambda d: photo(d / "tiny.png", (1, 1)), "tiny.png: the photo is 1x1 pixels; a photo of a set needs at least 8x8"),
-    (lambda d: photo(d / "strip.png", (300, 4)), "strip.png: the photo is 300x4 pixels"),
-    (lambda d: photo(d / "clear.png", alpha=np.zeros((32, 32), np.uint8)), "clear.png: the mask is empty (no object pixel in the alpha channel)"),
-    (lambda d: Image.new("1", (32, 32), 1).save(d / "bits.png") or d / "bits.png", "bits.png: a 1-bit black-and-white image (a mask?), not a photo"),
-    (lambda d: Image.fromarray(np.ones((32, 32), np.float32)).save(d / "depth.tif") or d / "depth.tif", "depth.tif: a 32-bit float image"),
-    (lambda d: (d / "empty.png").write_bytes(b"") or d / "empty.png", "empty.png: empty file"),
-])
+@pytest.mark.parametrize(
+    "make, expected",
+    [
+        (
+            lambda d: photo(d / "tiny.png", (1, 1)),
+            "tiny.png: the photo is 1x1 pixels; a photo of a set needs at least 8x8",
+        ),
+        (lambda d: photo(d / "strip.png", (300, 4)), "strip.png: the photo is 300x4 pixels"),
+        (
+            lambda d: photo(d / "clear.png", alpha=np.zeros((32, 32), np.uint8)),
+            "clear.png: the mask is empty (no object pixel in the alpha channel)",
+        ),
+        (
+            lambda d: Image.new("1", (32, 32), 1).save(d / "bits.png") or d / "bits.png",
+            "bits.png: a 1-bit black-and-white image (a mask?), not a photo",
+        ),
+        (
+            lambda d: Image.fromarray(np.ones((32, 32), np.float32)).save(d / "depth.tif") or d / "depth.tif",
+            "depth.tif: a 32-bit float image",
+        ),
+        (lambda d: (d / "empty.png").write_bytes(b"") or d / "empty.png", "empty.png: empty file"),
+    ],
+)
 def test_a_bad_photo_is_refused_naming_the_file(make, expected, tmp_path):
     path = make(tmp_path)
     with pytest.raises(InputError) as caught:
@@ -78,8 +93,11 @@ def test_good_photos_pass_with_their_masks_and_16_bit_gray_keeps_its_level(tmp_p
 
 
 def test_the_whole_set_is_read_and_every_bad_file_named(tmp_path, capsys):
-    items = [(photo(tmp_path / "good.png"), None), (photo(tmp_path / "tiny.png", (2, 2)), None),
-             (photo(tmp_path / "clear.png", alpha=np.zeros((32, 32), np.uint8)), None)]
+    items = [
+        (photo(tmp_path / "good.png"), None),
+        (photo(tmp_path / "tiny.png", (2, 2)), None),
+        (photo(tmp_path / "clear.png", alpha=np.zeros((32, 32), np.uint8)), None),
+    ]
     kept, rejected = read_photo_set(items)
     assert len(kept) == 1 and len(rejected) == 2 and "tiny.png" in rejected[0] and "clear.png" in rejected[1]
     with pytest.raises(InputError, match=r"2 of 3 photos cannot be used \(each named above\), the first: .*tiny.png"):
@@ -101,8 +119,28 @@ def test_train_gan_stops_on_a_set_with_bad_photos_naming_each(tiny_gan, tmp_path
     speck[10, 10] = 255  # one pixel of object: nothing of it is left at 16x16
     photo(photos / "speck.png", (64, 64), alpha=speck)
     out = tmp_path / "run"
-    code = main(["train", "gan", "--shapes", str(tiny_gan / "shapes"), "--images", str(photos), "--out", str(out), "--iters", "1",
-                 "--batch", "2", "--views", "2", "--resolution", "16", "--device", "cpu"])
+    code = main(
+        [
+            "train",
+            "gan",
+            "--shapes",
+            str(tiny_gan / "shapes"),
+            "--images",
+            str(photos),
+            "--out",
+            str(out),
+            "--iters",
+            "1",
+            "--batch",
+            "2",
+            "--views",
+            "2",
+            "--resolution",
+            "16",
+            "--device",
+            "cpu",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err, err
     lines = [line for line in err.splitlines() if line.startswith("mesh2tex: ")]
@@ -131,6 +169,8 @@ def test_prepare_images_fails_a_tiny_photo_and_prepares_the_rest(tmp_path, capsy
     photo(src / "tiny.png", (1, 1))
     assert main(["prepare", "images", "--input", str(src), "--out", str(out), "--size", "16"]) == 2
     records = {r["name"]: r for r in json.loads((out / "index.json").read_text())["images"]}
-    assert records["a"]["status"] == "ok" and records["tiny"]["status"] == "failed" and "1x1" in records["tiny"]["reason"]
+    assert (
+        records["a"]["status"] == "ok" and records["tiny"]["status"] == "failed" and "1x1" in records["tiny"]["reason"]
+    )
     assert "tiny.png: the photo is 1x1" in capsys.readouterr().err
     assert not (out / "images" / "tiny.png").exists()

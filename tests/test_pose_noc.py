@@ -19,7 +19,9 @@ def test_bin_centres_map_back_to_their_bins():
 
 
 def test_bin_edges_wrap_and_clamp():
-    az_bin, el_bin = angle_to_bin(torch.tensor([14.9, 15.0, -15.1, 359.0, 720.0 + 31.0]), torch.tensor([-30.0, 0.0, 9.99, 10.0, 89.0]))
+    az_bin, el_bin = angle_to_bin(
+        torch.tensor([14.9, 15.0, -15.1, 359.0, 720.0 + 31.0]), torch.tensor([-30.0, 0.0, 9.99, 10.0, 89.0])
+    )
     assert az_bin.tolist() == [0, 1, 11, 0, 1]
     assert el_bin.tolist() == [0, 0, 0, 1, 4]
     assert azimuth_error(torch.tensor([350.0]), torch.tensor([10.0])).item() == pytest.approx(20.0)

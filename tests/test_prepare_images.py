@@ -63,7 +63,9 @@ def test_prepare_images_masks_from_alpha_file_and_estimate(tmp_path, capsys):
     save_png(masks / "with_file.png", mask)
     Image.fromarray(rgb).save(src / "estimated.png")
     (src / "corrupt.jpg").write_bytes(b"\xff\xd8\xff not really a jpeg")
-    Image.fromarray(np.dstack([rgb, np.zeros_like(mask, dtype=np.uint8)])).save(src / "invisible.png")  # fully transparent
+    Image.fromarray(np.dstack([rgb, np.zeros_like(mask, dtype=np.uint8)])).save(
+        src / "invisible.png"
+    )  # fully transparent
 
     code = main(["prepare", "images", "--input", str(src), "--out", str(out), "--size", "64", "--masks", str(masks)])
     assert code == 2, "corrupt and empty-mask inputs make the run fail, the rest still done"
@@ -79,13 +81,15 @@ def test_prepare_images_masks_from_alpha_file_and_estimate(tmp_path, capsys):
     expected = np.zeros((64, 64), bool)
     side = 80 * 1.2
     half_h, half_w = 60 / side * 32, 80 / side * 32
-    expected[round(32 - half_h):round(32 + half_h), round(32 - half_w):round(32 + half_w)] = True
+    expected[round(32 - half_h) : round(32 + half_h), round(32 - half_w) : round(32 + half_w)] = True
     for name in ("with_alpha", "sub_with_file", "estimated"):
         image = np.asarray(Image.open(out / "images" / f"{name}.png"))
         out_mask = np.asarray(Image.open(out / "masks" / f"{name}.png")) > 127
         assert image.shape == (64, 64, 3) and out_mask.shape == (64, 64)
         assert iou(out_mask, expected) > 0.85, name
-        assert image[out_mask].mean(axis=0)[0] > 150 and image[out_mask].mean(axis=0)[1] < 80, "the object is what is masked"
+        assert image[out_mask].mean(axis=0)[0] > 150 and image[out_mask].mean(axis=0)[1] < 80, (
+            "the object is what is masked"
+        )
 
 
 def test_prepare_images_missing_folder_is_a_user_error(tmp_path, capsys):

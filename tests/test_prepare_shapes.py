@@ -20,7 +20,9 @@ def make_inputs(root):
     shapenet.mkdir(parents=True)
     trimesh.creation.box((1.0, 0.5, 0.8)).export(shapenet / "model_normalized.obj")
     trimesh.creation.box().export(shapenet / "model_normalized_extra.stl")  # ShapeNet side files are not shapes
-    trimesh.Scene([trimesh.creation.box(), trimesh.creation.box().apply_translation((2, 0, 0))]).export(root / "pair.glb")
+    trimesh.Scene([trimesh.creation.box(), trimesh.creation.box().apply_translation((2, 0, 0))]).export(
+        root / "pair.glb"
+    )
     (root / "empty.obj").write_text("")
     (root / "garbage.ply").write_bytes(b"\x89 definitely not a ply file \x00\xff" * 8)
     (root / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n")
@@ -30,18 +32,49 @@ def make_inputs(root):
 def test_prepare_shapes_folder_reports_failures_and_resumes(tmp_path, capsys):
     make_inputs(tmp_path / "in")
     out = tmp_path / "out"
-    argv = ["prepare", "shapes", "--input", str(tmp_path / "in"), "--out", str(out), "--faces", "96", "--levels", "2", "--workers", "2"]
+    argv = [
+        "prepare",
+        "shapes",
+        "--input",
+        str(tmp_path / "in"),
+        "--out",
+        str(out),
+        "--faces",
+        "96",
+        "--levels",
+        "2",
+        "--workers",
+        "2",
+    ]
     assert main(argv) == 2, "a failed input gives exit status 2"
 
     index = json.loads((out / "index.json").read_text())
     by_name = {entry["file"]: entry for entry in index["shapes"]}
-    assert set(by_name) == {"ball.npz", "ring.npz", "03001627_1a2b3c.npz", "pair.npz", "empty.npz", "garbage.npz", "points.npz"}
+    assert set(by_name) == {
+        "ball.npz",
+        "ring.npz",
+        "03001627_1a2b3c.npz",
+        "pair.npz",
+        "empty.npz",
+        "garbage.npz",
+        "points.npz",
+    }
     for name in ("ball.npz", "ring.npz", "03001627_1a2b3c.npz", "pair.npz"):
         entry = by_name[name]
         assert entry["status"] == "ok" and len(entry["face_counts"]) == 2 and entry["seconds"] > 0
         with np.load(out / name, allow_pickle=False) as data:  # loads without pickle
-            assert {"vertices_0", "quads_0", "neighbors_0", "pool_0", "vertices_1", "quads_1", "neighbors_1",
-                    "face_features", "feature_names", "metadata"} <= set(data.files)
+            assert {
+                "vertices_0",
+                "quads_0",
+                "neighbors_0",
+                "pool_0",
+                "vertices_1",
+                "quads_1",
+                "neighbors_1",
+                "face_features",
+                "feature_names",
+                "metadata",
+            } <= set(data.files)
             assert "pool_1" not in data.files
             assert json.loads(str(data["metadata"]))["schema_version"] == 1
         shape = PreparedShape.load(out / name)
@@ -67,8 +100,23 @@ def test_prepare_shapes_all_good_exits_zero_and_files_are_named_after_inputs(tmp
     trimesh.creation.box().export(tmp_path / "cube.stl")
     trimesh.creation.icosphere(2).export(tmp_path / "ball.obj")
     out = tmp_path / "out"
-    code = main(["prepare", "shapes", "--input", str(tmp_path / "cube.stl"), str(tmp_path / "ball.obj"),
-                 "--out", str(out), "--faces", "96", "--levels", "2", "--seed", "3"])
+    code = main(
+        [
+            "prepare",
+            "shapes",
+            "--input",
+            str(tmp_path / "cube.stl"),
+            str(tmp_path / "ball.obj"),
+            "--out",
+            str(out),
+            "--faces",
+            "96",
+            "--levels",
+            "2",
+            "--seed",
+            "3",
+        ]
+    )
     assert code == 0
     assert sorted(p.name for p in out.glob("*.npz")) == ["ball.npz", "cube.npz"]
     assert PreparedShape.load(out / "cube.npz").metadata["seed"] == 3
@@ -87,15 +135,39 @@ def test_two_invocations_into_one_folder_keep_every_entry(tmp_path):
     import subprocess
     import sys
 
-    for name, mesh in (("a1", trimesh.creation.box()), ("a2", trimesh.creation.icosphere(1)),
-                       ("b1", trimesh.creation.box((1.0, 0.5, 0.3))), ("b2", trimesh.creation.cylinder(0.5, 1.0, sections=12))):
+    for name, mesh in (
+        ("a1", trimesh.creation.box()),
+        ("a2", trimesh.creation.icosphere(1)),
+        ("b1", trimesh.creation.box((1.0, 0.5, 0.3))),
+        ("b2", trimesh.creation.cylinder(0.5, 1.0, sections=12)),
+    ):
         (tmp_path / name[0]).mkdir(exist_ok=True)
         mesh.export(tmp_path / name[0] / f"{name}.obj")
     out = tmp_path / "out"
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MESH2TEX_PROGRESS": "0"}
-    runs = [subprocess.Popen([sys.executable, "-m", "mesh2tex", "prepare", "shapes", "--input", str(tmp_path / group), "--out", str(out),
-                              "--faces", "96", "--levels", "2"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-            for group in ("a", "b")]
+    runs = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "mesh2tex",
+                "prepare",
+                "shapes",
+                "--input",
+                str(tmp_path / group),
+                "--out",
+                str(out),
+                "--faces",
+                "96",
+                "--levels",
+                "2",
+            ],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        for group in ("a", "b")
+    ]
     for run in runs:
         _, err = run.communicate(timeout=300)
         assert run.returncode == 0, err.decode()
@@ -105,16 +177,25 @@ def test_two_invocations_into_one_folder_keep_every_entry(tmp_path):
     # one after another, too: a run over one group keeps the other's entries
     (tmp_path / "c").mkdir()
     trimesh.creation.box((0.3, 0.6, 0.9)).export(tmp_path / "c" / "c1.obj")
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "c"), "--out", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert (
+        main(["prepare", "shapes", "--input", str(tmp_path / "c"), "--out", str(out), "--faces", "96", "--levels", "2"])
+        == 0
+    )
     index = json.loads((out / "index.json").read_text())
     assert sorted(entry["file"] for entry in index["shapes"]) == ["a1.npz", "a2.npz", "b1.npz", "b2.npz", "c1.npz"]
     # a later input of a name already taken gets another, and the first keeps its file
     (tmp_path / "d").mkdir()
     before = (out / "a1.npz").read_bytes()
     trimesh.creation.icosphere(2).export(tmp_path / "d" / "a1.obj")
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "d"), "--out", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert (
+        main(["prepare", "shapes", "--input", str(tmp_path / "d"), "--out", str(out), "--faces", "96", "--levels", "2"])
+        == 0
+    )
     assert (out / "a1.npz").read_bytes() == before and (out / "d_a1.npz").is_file()
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "a"), "--out", str(out), "--faces", "96", "--levels", "2"]) == 0
+    assert (
+        main(["prepare", "shapes", "--input", str(tmp_path / "a"), "--out", str(out), "--faces", "96", "--levels", "2"])
+        == 0
+    )
     assert (out / "a1.npz").read_bytes() == before, "a re-run keeps the names (and skips the shapes) it made"
     assert not (out / ".mesh2tex-partial").exists(), "no half-written files left"
 
@@ -136,12 +217,32 @@ def test_a_symlink_loop_fails_alone_and_the_mesh_beside_it_is_prepared(tmp_path,
 def test_a_shape_past_its_time_budget_fails_with_that_reason(tmp_path, capsys):
     trimesh.creation.icosphere(3).export(tmp_path / "ball.obj")
     out = tmp_path / "out"
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--out", str(out), "--faces", "96", "--levels", "2",
-                 "--max-seconds", "0.001"]) == 2
+    assert (
+        main(
+            [
+                "prepare",
+                "shapes",
+                "--input",
+                str(tmp_path / "ball.obj"),
+                "--out",
+                str(out),
+                "--faces",
+                "96",
+                "--levels",
+                "2",
+                "--max-seconds",
+                "0.001",
+            ]
+        )
+        == 2
+    )
     entry = json.loads((out / "index.json").read_text())["shapes"][0]
     assert entry["status"] == "failed" and "time budget of 0.001 s" in entry["reason"]
     assert entry["seconds"] < 30
-    assert main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--out", str(out), "--max-seconds", "-1"]) == 2
+    assert (
+        main(["prepare", "shapes", "--input", str(tmp_path / "ball.obj"), "--out", str(out), "--max-seconds", "-1"])
+        == 2
+    )
     assert "--max-seconds -1.0: must be a positive number" in capsys.readouterr().err
 
 
@@ -166,13 +267,31 @@ def test_a_hierarchy_too_coarse_for_a_chair_is_one_warning_and_recorded(tmp_path
     trimesh.Trimesh(chair.vertices, chair.faces, process=False).export(mesh)
     for faces, levels in ((96, 3), (1536, 3)):
         out = tmp_path / f"shapes{faces}"
-        assert main(["prepare", "shapes", "--input", str(mesh), "--out", str(out), "--faces", str(faces), "--levels", str(levels)]) == 0
+        assert (
+            main(
+                [
+                    "prepare",
+                    "shapes",
+                    "--input",
+                    str(mesh),
+                    "--out",
+                    str(out),
+                    "--faces",
+                    str(faces),
+                    "--levels",
+                    str(levels),
+                ]
+            )
+            == 0
+        )
         coarse = [line for line in capsys.readouterr().err.splitlines() if "too coarse" in line]
         index = json.loads((out / "index.json").read_text())
         record = index["shapes"][0]["coarseness"]
         assert PreparedShape.load(out / "chair.npz").metadata["coarseness"] == record
         if faces == 96:
-            assert len(coarse) == 1 and coarse[0].startswith(f"mesh2tex: warning: {mesh}: 96 faces are too coarse"), coarse
+            assert len(coarse) == 1 and coarse[0].startswith(f"mesh2tex: warning: {mesh}: 96 faces are too coarse"), (
+                coarse
+            )
             assert f"at least {record['suggested_faces']} faces" in coarse[0] and record["suggested_faces"] > 96
             assert record["too_coarse"] and record["deviation"] > DEVIATION_LIMIT and index["too_coarse"] == 1
         else:
@@ -187,7 +306,18 @@ def test_overwrite_prepares_every_shape_again(tmp_path):
 
     trimesh.creation.box().export(tmp_path / "cube.stl")
     out = tmp_path / "out"
-    args = ["prepare", "shapes", "--input", str(tmp_path / "cube.stl"), "--out", str(out), "--faces", "96", "--levels", "2"]
+    args = [
+        "prepare",
+        "shapes",
+        "--input",
+        str(tmp_path / "cube.stl"),
+        "--out",
+        str(out),
+        "--faces",
+        "96",
+        "--levels",
+        "2",
+    ]
     assert main(args) == 0
     (out / "notes.txt").write_text("mine")
     first = (out / "cube.npz").stat().st_mtime_ns

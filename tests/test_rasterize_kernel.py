@@ -35,13 +35,19 @@ def meshes():
 
 
 @pytest.mark.parametrize("name", ["torus", "table", "scan"])
-@pytest.mark.parametrize("dtype,cull,resolution", [(torch.float32, False, (64, 64)), (torch.float32, True, (97, 150)),
-                                                   (torch.float64, False, (200, 120))])
+@pytest.mark.parametrize(
+    "dtype,cull,resolution",
+    [(torch.float32, False, (64, 64)), (torch.float32, True, (97, 150)), (torch.float64, False, (200, 120))],
+)
 def test_compiled_loop_equals_vectorised_passes(meshes, monkeypatch, name, dtype, cull, resolution):
     vertices, faces = meshes[name]
     # Orbit views at several distances: small and large triangles, part of the mesh off screen.
-    camera = orbit_camera(torch.tensor([30.0, 75.0, 160.0, 290.0]), torch.tensor([25.0, -10.0, 60.0, 5.0]),
-                          distance=torch.tensor([1.6, 0.9, 2.5, 1.2]), fov=45.0)
+    camera = orbit_camera(
+        torch.tensor([30.0, 75.0, 160.0, 290.0]),
+        torch.tensor([25.0, -10.0, 60.0, 5.0]),
+        distance=torch.tensor([1.6, 0.9, 2.5, 1.2]),
+        fov=45.0,
+    )
     pos = transform_points(vertices.to(dtype), camera.mvp.to(dtype))
     compiled, vectorised = both_paths(monkeypatch, pos, faces, resolution, cull_backfaces=cull)
     assert compiled.mask.float().mean() > 0.1
@@ -80,8 +86,18 @@ def test_the_loop_uses_the_constants_of_the_vectorised_passes():
 
 def test_degenerate_triangles_and_vertices_at_the_eye(monkeypatch):
     """Zero-area triangles, a vertex with w = 0 and NaN coordinates draw nothing on either path."""
-    pos = torch.tensor([[[0.0, 0.0, 0.5, 1.0], [0.5, 0.0, 0.5, 1.0], [0.0, 0.5, 0.5, 1.0], [0.25, 0.0, 0.5, 1.0],
-                         [0.3, 0.3, 0.0, 0.0], [float("nan"), 0.1, 0.5, 1.0]]])
+    pos = torch.tensor(
+        [
+            [
+                [0.0, 0.0, 0.5, 1.0],
+                [0.5, 0.0, 0.5, 1.0],
+                [0.0, 0.5, 0.5, 1.0],
+                [0.25, 0.0, 0.5, 1.0],
+                [0.3, 0.3, 0.0, 0.0],
+                [float("nan"), 0.1, 0.5, 1.0],
+            ]
+        ]
+    )
     tri = torch.tensor([[0, 1, 3], [0, 0, 2], [0, 1, 4], [0, 2, 5], [0, 1, 2]])
     compiled, vectorised = both_paths(monkeypatch, pos, tri, (32, 32))
     assert_bitwise(compiled, vectorised)

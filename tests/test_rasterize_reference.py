@@ -77,8 +77,10 @@ def overlapping_giants() -> tuple[torch.Tensor, torch.Tensor]:
 @pytest.fixture(scope="module")
 def meshes():
     table = bevelled_table(48)
-    return {"table": (torch.tensor(table.vertices, dtype=torch.float32), torch.tensor(table.faces)),
-            "giants": overlapping_giants()}
+    return {
+        "table": (torch.tensor(table.vertices, dtype=torch.float32), torch.tensor(table.faces)),
+        "giants": overlapping_giants(),
+    }
 
 
 def assert_bitwise(a, b):
@@ -92,8 +94,12 @@ def assert_bitwise(a, b):
 def test_fast_rasterizer_equals_reference(meshes, name, dtype, cull, max_pairs, raster_path):
     vertices, faces = meshes[name]
     # Close cameras put the giants and the table's faces across the near plane and the whole image.
-    camera = orbit_camera(torch.tensor([20.0, 140.0, 260.0]), torch.tensor([30.0, -15.0, 70.0]),
-                          distance=torch.tensor([1.4, 0.35, 2.5]), fov=60.0)
+    camera = orbit_camera(
+        torch.tensor([20.0, 140.0, 260.0]),
+        torch.tensor([30.0, -15.0, 70.0]),
+        distance=torch.tensor([1.4, 0.35, 2.5]),
+        fov=60.0,
+    )
     pos = transform_points(vertices.to(dtype), camera.mvp.to(dtype))
     fast = rasterize(pos, faces, (120, 97), cull_backfaces=cull, max_pairs=max_pairs)
     assert fast.mask.float().mean() > 0.2 and len(fast.face_id.unique()) > 30
@@ -121,8 +127,12 @@ def test_fast_rasterizer_equals_reference_with_centres_on_edges(name, monkeypatc
     signs = edges.exact_edge_signs
     monkeypatch.setattr(edges, "exact_edge_signs", lambda c, *a: exact.append(c.shape[1]) or signs(c, *a))
     vertices, faces = closed_meshes()[name]
-    camera = orbit_camera(torch.tensor([0.0, 90.0, 45.0, 180.0]), torch.tensor([0.0, 0.0, 90.0, -45.0]),
-                          distance=torch.tensor([2.0, 1.1, 2.5, 3.0]), fov=45.0)
+    camera = orbit_camera(
+        torch.tensor([0.0, 90.0, 45.0, 180.0]),
+        torch.tensor([0.0, 0.0, 90.0, -45.0]),
+        distance=torch.tensor([2.0, 1.1, 2.5, 3.0]),
+        fov=45.0,
+    )
     pos = transform_points(vertices, camera.mvp)
     for resolution, max_pairs in (((25, 25), 1 << 21), ((64, 48), 3000)):
         fast = rasterize(pos, faces, resolution, max_pairs=max_pairs)

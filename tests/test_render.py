@@ -31,8 +31,10 @@ DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
 
 def inside_triangle(points, a, b, c):
     """(N,2) points -> (N,) bool, inclusive point-in-triangle test in float64."""
+
     def edge(p, q, r):
         return (q[0] - p[0]) * (r[:, 1] - p[1]) - (q[1] - p[1]) * (r[:, 0] - p[0])
+
     e0, e1, e2 = edge(a, b, points), edge(b, c, points), edge(c, a, points)
     return ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
 
@@ -95,8 +97,7 @@ def test_nearest_of_two_overlapping_triangles_wins_in_any_order():
 @pytest.mark.parametrize("device", DEVICES)
 def test_cube_faces_seen_from_orbit_cameras(device):
     v, tri = cube()
-    camera = orbit_camera(torch.tensor([0.0, 90.0, 45.0]), torch.tensor([0.0, 0.0, 35.0]), distance=3.0,
-                          fov=40.0)
+    camera = orbit_camera(torch.tensor([0.0, 90.0, 45.0]), torch.tensor([0.0, 0.0, 35.0]), distance=3.0, fov=40.0)
     pos = transform_points(v.to(device), camera.mvp.to(device))
     raster = rasterize(pos, tri.to(device), (96, 96))
     normals = torch.tensor([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1.0]])
@@ -128,8 +129,17 @@ def test_triangles_crossing_the_near_plane_or_behind_the_camera():
     of the near plane; one entirely behind the camera draws nothing."""
     H, W = 48, 64
     camera = orbit_camera(0.0, 10.0, distance=2.0, fov=60.0, near=0.5, far=50.0, aspect=W / H)
-    ground = torch.tensor([[-3.0, -0.3, 2.0 + 4.0], [3.0, -0.3, 2.0 + 4.0], [0.0, -0.3, -6.0],
-                           [-1, 0.2, 9.0], [1, 0.2, 9.0], [0, 1.0, 9.0]], dtype=torch.float64)
+    ground = torch.tensor(
+        [
+            [-3.0, -0.3, 2.0 + 4.0],
+            [3.0, -0.3, 2.0 + 4.0],
+            [0.0, -0.3, -6.0],
+            [-1, 0.2, 9.0],
+            [1, 0.2, 9.0],
+            [0, 1.0, 9.0],
+        ],
+        dtype=torch.float64,
+    )
     tri = torch.tensor([[0, 1, 2], [3, 4, 5]])
     pos = transform_points(ground, camera.mvp)
     assert (pos[0, :, 3] < 0).any() and (pos[0, :, 3] > 0).any()  # vertices on both sides of the eye
@@ -168,15 +178,18 @@ def test_perspective_correct_interpolation_reprojects_to_pixel_centres():
     m = raster.mask[0]
     assert m.sum() > 400
     assert torch.allclose(ndc[m], pixel_centres((40, 40), dtype=torch.float64)[m], atol=1e-9)
-    assert torch.allclose(raster.depth[0][m].double(), (clip[:, 2] / clip[:, 3]).reshape(40, 40)[m],
-                          atol=1e-6)
+    assert torch.allclose(raster.depth[0][m].double(), (clip[:, 2] / clip[:, 3]).reshape(40, 40)[m], atol=1e-6)
 
 
 def test_batch_views_chunks_and_tiles_agree(raster_path):
     """A batch equals its views rasterized one by one; tiny chunks and large triangles change nothing."""
     v, tri = cube()
-    camera = orbit_camera(torch.tensor([10.0, 100.0, 250.0]), torch.tensor([20.0, -30.0, 60.0]),
-                          distance=torch.tensor([1.2, 3.0, 2.0]), fov=50.0)
+    camera = orbit_camera(
+        torch.tensor([10.0, 100.0, 250.0]),
+        torch.tensor([20.0, -30.0, 60.0]),
+        distance=torch.tensor([1.2, 3.0, 2.0]),
+        fov=50.0,
+    )
     pos = transform_points(v, camera.mvp)
     whole = rasterize(pos, tri, (150, 170))
     small_chunks = rasterize(pos, tri, (150, 170), max_pairs=500)
@@ -195,12 +208,18 @@ def test_cuda_renders_what_the_cpu_renders():
     from test_render_raycast import bumpy_torus
 
     mesh = bumpy_torus(96, 64)
-    camera = orbit_camera(torch.tensor([30.0 + 45.0 * i for i in range(8)]), torch.tensor([20.0] * 8), distance=3.6, fov=45.0)
+    camera = orbit_camera(
+        torch.tensor([30.0 + 45.0 * i for i in range(8)]), torch.tensor([20.0] * 8), distance=3.6, fov=45.0
+    )
     results = {}
     for device in ("cpu", "cuda"):
         vertices = torch.tensor(mesh.vertices, dtype=torch.float32, device=device)
         faces = torch.tensor(mesh.faces, device=device)
-        colours = torch.rand(len(mesh.vertices), 3, generator=torch.Generator().manual_seed(0)).to(device).requires_grad_(True)
+        colours = (
+            torch.rand(len(mesh.vertices), 3, generator=torch.Generator().manual_seed(0))
+            .to(device)
+            .requires_grad_(True)
+        )
         raster = rasterize(transform_points(vertices, camera.mvp.to(device)), faces, (256, 256))
         interpolate(colours, raster, faces).mean().backward()
         results[device] = (raster.face_id.cpu(), raster.bary.cpu(), colours.grad.cpu())
@@ -225,10 +244,12 @@ def test_a_closed_mesh_has_no_cracks_where_pixel_centres_fall_on_shared_edges():
     whole = rasterize(transform_points(positions, camera.mvp), triangles, (24, 24))
     centres = positions[triangles].mean(1)
     for k in range(2):
-        single = rasterize(transform_points(positions, camera.mvp[k:k + 1]), triangles, (24, 24))
+        single = rasterize(transform_points(positions, camera.mvp[k : k + 1]), triangles, (24, 24))
         seen = whole.face_id[k][whole.face_id[k] >= 0]
         towards_camera = centres[seen] @ camera.position[k]
-        assert bool((towards_camera > 0).all()), f"view {k}: {int((towards_camera <= 0).sum())} pixels show the far side"
+        assert bool((towards_camera > 0).all()), (
+            f"view {k}: {int((towards_camera <= 0).sum())} pixels show the far side"
+        )
         assert torch.equal(single.face_id[0], whole.face_id[k])
 
 
@@ -242,8 +263,10 @@ def closed_meshes():
     for n in (4, 7):
         vertices, quads = cube_sphere(n)
         quads = torch.as_tensor(np.asarray(quads), dtype=torch.long)
-        meshes[f"cube_sphere_{n}"] = (torch.as_tensor(np.asarray(vertices), dtype=torch.float32),
-                                      torch.cat([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
+        meshes[f"cube_sphere_{n}"] = (
+            torch.as_tensor(np.asarray(vertices), dtype=torch.float32),
+            torch.cat([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]),
+        )
     box = trimesh.creation.box((1.0, 0.8, 0.6))
     meshes["box"] = (torch.tensor(box.vertices, dtype=torch.float32), torch.tensor(box.faces))
     box = box.subdivide().subdivide()
@@ -301,7 +324,7 @@ def test_pixel_centres_on_edges_and_vertices_are_drawn_once_by_the_top_left_rule
     cols, rows = torch.meshgrid(torch.arange(W), torch.arange(H), indexing="xy")
     x, y = 2 * cols - 8, 8 - 2 * rows
     expected = (x >= -6) & (x < 6) & (y > -6) & (y <= 6)
-    count = sum(rasterize(pos, tri[t:t + 1], (H, W)).mask[0].long() for t in range(8))
+    count = sum(rasterize(pos, tri[t : t + 1], (H, W)).mask[0].long() for t in range(8))
     assert torch.equal(count, expected.long())
     assert torch.equal(rasterize(pos, tri, (H, W)).mask[0], expected)
 
@@ -322,13 +345,15 @@ def test_orbit_camera_convention():
     assert torch.allclose(camera.view[:, :3, 3], torch.tensor([0.0, 0.0, -2.0]), atol=1e-6)  # origin ahead
     # Batched vertices (B,V,3) and shared vertices (V,3) give the same clip coordinates.
     verts = torch.randn(5, 3)
-    assert torch.allclose(transform_points(verts[None].expand(3, 5, 3), camera.mvp),
-                          transform_points(verts, camera.mvp))
+    assert torch.allclose(
+        transform_points(verts[None].expand(3, 5, 3), camera.mvp), transform_points(verts, camera.mvp)
+    )
 
 
 def test_interpolate_gradcheck_and_face_attribute():
-    pos = torch.tensor([[-0.9, -0.9, 0, 1], [0.9, -0.8, 0.2, 1.5], [0.0, 0.9, 0.1, 1.0], [0.9, 0.9, 0.5, 1]],
-                       dtype=torch.float64)
+    pos = torch.tensor(
+        [[-0.9, -0.9, 0, 1], [0.9, -0.8, 0.2, 1.5], [0.0, 0.9, 0.1, 1.0], [0.9, 0.9, 0.5, 1]], dtype=torch.float64
+    )
     tri = torch.tensor([[0, 1, 2], [1, 3, 2]])
     raster = rasterize(pos, tri, (6, 7))
     attr = torch.randn(2, 4, 3, dtype=torch.float64, requires_grad=True)
@@ -428,7 +453,9 @@ def test_a_uv_texture_reads_its_image_where_the_surface_points_map():
     expected = torch.stack([image[0, :, 3, 0], image[0, :, 3, 3], image[0, :, 0, 0]])
     torch.testing.assert_close(colours, expected)
     with pytest.raises(ValueError, match="not bound"):
-        FaceTexture(torch.zeros(2, 4), torch.zeros(2, 3)).colours(torch.zeros(1, dtype=torch.long), torch.ones(1, 3) / 3)
+        FaceTexture(torch.zeros(2, 4), torch.zeros(2, 3)).colours(
+            torch.zeros(1, dtype=torch.long), torch.ones(1, 3) / 3
+        )
 
 
 def test_colours_read_in_chunks_are_the_colours_read_at_once():
@@ -439,5 +466,7 @@ def test_colours_read_in_chunks_are_the_colours_read_at_once():
     texture = UVTexture(torch.rand(5, 3, 2, generator=g), torch.rand(1, 3, 8, 8, generator=g) * 2 - 1)
     triangle_id = torch.randint(0, 5, (23,), generator=g)
     bary = torch.distributions.Dirichlet(torch.ones(3)).sample((23,))
-    torch.testing.assert_close(read_colours(texture, triangle_id, bary, chunk=7), texture.colours(triangle_id, bary), rtol=0, atol=0)
+    torch.testing.assert_close(
+        read_colours(texture, triangle_id, bary, chunk=7), texture.colours(triangle_id, bary), rtol=0, atol=0
+    )
     assert read_colours(texture, triangle_id[:0], bary[:0]).shape == (0, 3)

@@ -52,7 +52,7 @@ def test_exact_edge_signs_agree_with_rational_arithmetic():
             scale = 2.0 ** float(rng.integers(-20, 4))
             coordinates[:3, on], coordinates[3:, on] = first[:, on] * scale, second[:, on] * scale
         if trial == 7:  # magnitudes beyond the error-free range: the rational fallback
-            coordinates[:, :5] *= 2.0 ** 400
+            coordinates[:, :5] *= 2.0**400
         got = torch.stack(exact_edge_signs(coordinates, u, v, float(W * H))).T.tolist()
         for (xj, yj, wj, xk, yk, wk), uu, vv, signs in zip(coordinates.T.tolist(), u.tolist(), v.tolist(), got):
             a = [Fraction(yj) * Fraction(wk), -Fraction(wj) * Fraction(yk)]

@@ -68,14 +68,15 @@ def ray_cast(mesh, camera, resolution):
     return face_id.reshape(H, W), bary.reshape(H, W, 3)
 
 
-@pytest.mark.parametrize("azimuth,elevation,distance,dtype", [
-    (30.0, 35.0, 2.6, torch.float64), (200.0, -20.0, 3.2, torch.float64), (30.0, 35.0, 2.6, torch.float32)])
+@pytest.mark.parametrize(
+    "azimuth,elevation,distance,dtype",
+    [(30.0, 35.0, 2.6, torch.float64), (200.0, -20.0, 3.2, torch.float64), (30.0, 35.0, 2.6, torch.float32)],
+)
 def test_rasterize_agrees_with_embree(azimuth, elevation, distance, dtype):
     mesh = bumpy_torus()
     assert len(mesh.faces) >= 40_000
     resolution = (160, 192)
-    camera = orbit_camera(azimuth, elevation, distance=distance, fov=45.0,
-                          aspect=resolution[1] / resolution[0])
+    camera = orbit_camera(azimuth, elevation, distance=distance, fov=45.0, aspect=resolution[1] / resolution[0])
     pos = transform_points(torch.tensor(mesh.vertices, dtype=dtype), camera.mvp)
     raster = rasterize(pos, torch.tensor(mesh.faces), resolution)
     ours_id = raster.face_id[0].numpy()
@@ -87,8 +88,9 @@ def test_rasterize_agrees_with_embree(azimuth, elevation, distance, dtype):
     assert either.sum() > 0.2 * either.size  # the mesh fills a good part of the frame
     assert same.sum() >= 0.995 * either.sum()
     error = np.abs(ours_bary[same] - ref_bary[same]).max(1)
-    print(f"{same.sum() / either.sum():.5f} agree, bary error max {error.max():.2e} "
-          f"99.9% {np.quantile(error, 0.999):.2e}")
+    print(
+        f"{same.sum() / either.sum():.5f} agree, bary error max {error.max():.2e} 99.9% {np.quantile(error, 0.999):.2e}"
+    )
     if dtype == torch.float64:
         assert error.max() < 1e-4
     else:  # float32 clip coordinates limit nearly edge-on triangles, not the rasterizer

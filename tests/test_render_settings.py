@@ -10,11 +10,18 @@ import torch
 from mesh2tex.render import RenderSettings
 
 
-@pytest.mark.parametrize("fields, named", [
-    ({"resolution": 0}, "resolution"), ({"resolution": 64.0}, "resolution"), ({"resolution": True}, "resolution"),
-    ({"resolution": 64, "supersample": 0}, "supersample"), ({"resolution": 64, "supersample": 9}, "supersample"),
-    ({"resolution": 4096, "supersample": 4}, "rasterizes 16384 px"), ({"resolution": 64, "lighting": "lit"}, "lighting"),
-])
+@pytest.mark.parametrize(
+    "fields, named",
+    [
+        ({"resolution": 0}, "resolution"),
+        ({"resolution": 64.0}, "resolution"),
+        ({"resolution": True}, "resolution"),
+        ({"resolution": 64, "supersample": 0}, "supersample"),
+        ({"resolution": 64, "supersample": 9}, "supersample"),
+        ({"resolution": 4096, "supersample": 4}, "rasterizes 16384 px"),
+        ({"resolution": 64, "lighting": "lit"}, "lighting"),
+    ],
+)
 def test_bad_settings_are_refused_when_made_naming_the_field(fields, named):
     with pytest.raises(ValueError, match=named):
         RenderSettings(**fields)

@@ -4,8 +4,15 @@ import pytest
 import torch
 
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
-from mesh2tex.losses.structure import (band_statistics, exemplar_band_statistics, oriented_filters, ps_loss, quantile_resample,
-                                       sliced_wasserstein2, statistics_distance)
+from mesh2tex.losses.structure import (
+    band_statistics,
+    exemplar_band_statistics,
+    oriented_filters,
+    ps_loss,
+    quantile_resample,
+    sliced_wasserstein2,
+    statistics_distance,
+)
 from mesh2tex.nn.vgg import VGG19Features
 from mesh2tex.synthetic.exemplars import exemplar_image
 
@@ -69,9 +76,12 @@ def test_ps_ranks_the_exemplar_first_and_sees_orientation():
     stripes, mask = _image("stripes"), _disc()
     target = exemplar_band_statistics(stripes)
     own = float(ps_loss(stripes, mask, target))
-    others = {"turned": stripes.transpose(2, 3).flip(3), "checker": _image("checker"),
-              "noise": torch.rand(1, 3, 64, 64, generator=torch.Generator().manual_seed(0)) * 2 - 1,
-              "flat": stripes.mean(dim=(2, 3), keepdim=True).expand_as(stripes)}
+    others = {
+        "turned": stripes.transpose(2, 3).flip(3),
+        "checker": _image("checker"),
+        "noise": torch.rand(1, 3, 64, 64, generator=torch.Generator().manual_seed(0)) * 2 - 1,
+        "flat": stripes.mean(dim=(2, 3), keepdim=True).expand_as(stripes),
+    }
     for name, image in others.items():
         assert float(ps_loss(image, mask, target)) > 10 * own, name
 
@@ -80,7 +90,9 @@ def test_ps_prefers_the_exemplars_colours_scattered_to_a_flat_colour():
     """A flat colour must not be the cheapest way out: the exemplar's own pixels shuffled score better."""
     stripes, mask = _image("stripes"), _disc()
     target = exemplar_band_statistics(stripes)
-    shuffled = stripes.flatten(2)[:, :, torch.randperm(64 * 64, generator=torch.Generator().manual_seed(4))].reshape(stripes.shape)
+    shuffled = stripes.flatten(2)[:, :, torch.randperm(64 * 64, generator=torch.Generator().manual_seed(4))].reshape(
+        stripes.shape
+    )
     flat = stripes.mean(dim=(2, 3), keepdim=True).expand_as(stripes)
     assert float(ps_loss(shuffled, mask, target)) < float(ps_loss(flat, mask, target))
 

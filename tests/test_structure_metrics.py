@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 import torch
 
-from mesh2tex.metrics.structure import orientation_scores, orientation_windows, patch_swd, spectrum_period, structure_scores
+from mesh2tex.metrics.structure import (
+    orientation_scores,
+    orientation_windows,
+    patch_swd,
+    spectrum_period,
+    structure_scores,
+)
 from mesh2tex.synthetic.exemplars import exemplar_image
 
 
@@ -69,7 +75,9 @@ def test_only_object_pixels_count():
     mask = torch.zeros(1, 1, 96, 96, dtype=torch.float64)
     mask[..., 20:76, 20:76] = 1
     noisy = image.clone()
-    noisy[..., mask[0, 0] < 0.5] = torch.rand(3, int((mask < 0.5).sum()), generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    noisy[..., mask[0, 0] < 0.5] = torch.rand(
+        3, int((mask < 0.5).sum()), generator=torch.Generator().manual_seed(0), dtype=torch.float64
+    )
     a, b = structure_scores(image, mask, _exemplar("stripes")), structure_scores(noisy, mask, _exemplar("stripes"))
     assert a.as_dict() == b.as_dict()
 

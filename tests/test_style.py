@@ -6,8 +6,16 @@ import pytest
 import torch
 
 from mesh2tex.errors import InputError
-from mesh2tex.losses.style import (crop_patches, global_style_loss, lowpass_colour_loss, masked_gram, nearest_noc_pixels, patch_style_loss,
-                                   sample_patch_pairs, style_grams)
+from mesh2tex.losses.style import (
+    crop_patches,
+    global_style_loss,
+    lowpass_colour_loss,
+    masked_gram,
+    nearest_noc_pixels,
+    patch_style_loss,
+    sample_patch_pairs,
+    style_grams,
+)
 from mesh2tex.nn.vgg import VGG19_FILE_NAME, VGG19Features, load_vgg19
 
 
@@ -22,12 +30,18 @@ def vgg():
 
 def _disk_mask(size=64, radius=20, centre=(32, 32)):
     rows, cols = torch.meshgrid(torch.arange(size), torch.arange(size), indexing="ij")
-    return (((rows - centre[0]) ** 2 + (cols - centre[1]) ** 2) <= radius ** 2).float()[None, None]
+    return (((rows - centre[0]) ** 2 + (cols - centre[1]) ** 2) <= radius**2).float()[None, None]
 
 
 def test_vgg_feature_shapes(vgg):
     features = vgg(torch.rand(2, 3, 64, 48) * 2 - 1)
-    assert [tuple(f.shape) for f in features] == [(2, 64, 64, 48), (2, 128, 32, 24), (2, 256, 16, 12), (2, 512, 8, 6), (2, 512, 4, 3)]
+    assert [tuple(f.shape) for f in features] == [
+        (2, 64, 64, 48),
+        (2, 128, 32, 24),
+        (2, 256, 16, 12),
+        (2, 512, 8, 6),
+        (2, 512, 4, 3),
+    ]
     assert all(float(f.min()) >= 0 for f in features)  # ReLU outputs
 
 
@@ -168,7 +182,8 @@ def test_lowpass_colour_loss_pins_colours_where_both_show_the_object_and_nowhere
     half = mask.clone()
     half[..., 32:, :] = 0
     other_half = photo.clone()
-    other_half[..., 40:, :] = 1.0  # wrong, but where the photo does not show the object, beyond the blur's reach (3 sigma)
+    # wrong, but where the photo does not show the object, beyond the blur's reach (3 sigma)
+    other_half[..., 40:, :] = 1.0
     assert lowpass_colour_loss(other_half, mask, photo, half, sigma=2.0) == 0
     # A wrong colour on the object is the loss, in [-1, 1] units per channel; the gradient reaches it.
     render = torch.zeros(1, 3, 64, 64, requires_grad=True)

@@ -89,8 +89,22 @@ def test_a_bad_exemplar_is_a_one_line_error(bad, inputs, tmp_path, capsys, monke
 def test_a_bad_mesh_is_a_one_line_error(inputs, tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
     capsys.readouterr()
-    assert main(["infer", "synthesize", "--exemplar", str(inputs / "stripes.png"), "--mesh", str(tmp_path / "none.obj"),
-                 "--out", str(tmp_path / "out"), *TINY]) != 0
+    assert (
+        main(
+            [
+                "infer",
+                "synthesize",
+                "--exemplar",
+                str(inputs / "stripes.png"),
+                "--mesh",
+                str(tmp_path / "none.obj"),
+                "--out",
+                str(tmp_path / "out"),
+                *TINY,
+            ]
+        )
+        != 0
+    )
     assert "none.obj" in one_error_line(capsys)
 
 
@@ -113,6 +127,7 @@ def test_the_loss_falls_over_a_short_run():
 
 def test_upright_views_keep_the_meshs_up_and_rolled_views_do_not():
     """direction field 'up': the y axis projects straight up the image in every view; 'none': it leans."""
+
     def screen_up(direction: str) -> torch.Tensor:
         mvp = view_cameras(SynthesisConfig(direction_field=direction), 16, torch.Generator().manual_seed(0))
         points = torch.tensor([[0.0, 0.0, 0.0, 1.0], [0.0, 0.1, 0.0, 1.0]])

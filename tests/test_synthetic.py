@@ -1,4 +1,5 @@
-"""The synthetic world: shapes are closed and look like their category, materials are sane, the dataset is consistent."""
+"""The synthetic world: shapes are closed and look like their category, materials are sane, the dataset is
+consistent."""
 
 import json
 
@@ -103,8 +104,24 @@ def test_photographic_textures_come_from_bundled_images():
 @pytest.fixture(scope="module")
 def world(tmp_path_factory):
     output = tmp_path_factory.mktemp("world") / "chairs"
-    argv = ["prepare", "synthetic", "--out", str(output), "--category", "chair", "--shapes", "4", "--views", "3",
-            "--resolution", "48", "--texture-size", "128", "--seed", "3"]
+    argv = [
+        "prepare",
+        "synthetic",
+        "--out",
+        str(output),
+        "--category",
+        "chair",
+        "--shapes",
+        "4",
+        "--views",
+        "3",
+        "--resolution",
+        "48",
+        "--texture-size",
+        "128",
+        "--seed",
+        "3",
+    ]
     assert main(argv) == 0
     return output, argv
 
@@ -148,7 +165,9 @@ def test_query_sidecars_match_their_noc_maps(world):
         assert mask.any() and (noc[~mask] == 0).all()
         rows, cols = np.nonzero(mask)
         points = torch.tensor(noc[rows, cols] - 0.5, dtype=torch.float32)
-        camera = orbit_camera(sidecar["azimuth"], sidecar["elevation"], distance=sidecar["distance"], fov=sidecar["fov"])
+        camera = orbit_camera(
+            sidecar["azimuth"], sidecar["elevation"], distance=sidecar["distance"], fov=sidecar["fov"]
+        )
         clip = transform_points(points, camera.mvp)[0]
         ndc = (clip[:, :2] / clip[:, 3:]).numpy()
         size = sidecar["resolution"]
@@ -194,18 +213,26 @@ def test_vertex_colours_render_like_a_solid_material_and_change_only_the_object(
     shape = generate_shape("chair", np.random.default_rng([7, 0]))
     views = sample_views(WorldSpec(), 0, 3)
     red, blue = (0.8, 0.4, 0.2), (0.1, 0.3, 0.9)
-    by_vertex = {c: render_views(shape, None, views, RenderSettings(32), vertex_colours=np.tile(c, (len(shape.vertices), 1))) for c in (red, blue)}
+    by_vertex = {
+        c: render_views(shape, None, views, RenderSettings(32), vertex_colours=np.tile(c, (len(shape.vertices), 1)))
+        for c in (red, blue)
+    }
     by_material = render_views(shape, Material(default=Solid(red)), views, RenderSettings(32))
     # A constant per-vertex colour is the solid material of that colour (same shading and background).
     assert np.abs(by_vertex[red]["rgb"].astype(int) - by_material["rgb"]).max() <= 1
     for key in ("mask", "noc"):
-        assert np.array_equal(by_vertex[red][key], by_material[key]) and np.array_equal(by_vertex[red][key], by_vertex[blue][key])
+        assert np.array_equal(by_vertex[red][key], by_material[key]) and np.array_equal(
+            by_vertex[red][key], by_vertex[blue][key]
+        )
     on = by_vertex[red]["mask"] > 127
-    assert on.any() and np.array_equal(by_vertex[red]["rgb"][~on], by_vertex[blue]["rgb"][~on]), "the background does not change"
+    assert on.any() and np.array_equal(by_vertex[red]["rgb"][~on], by_vertex[blue]["rgb"][~on]), (
+        "the background does not change"
+    )
     lit = by_vertex[red]["rgb"][on].astype(float)
     lit = lit[lit[:, 0] > 60]
-    assert np.allclose(lit[:, 1] / lit[:, 0], 0.5, atol=0.03) and np.allclose(lit[:, 2] / lit[:, 0], 0.25, atol=0.03), \
+    assert np.allclose(lit[:, 1] / lit[:, 0], 0.5, atol=0.03) and np.allclose(lit[:, 2] / lit[:, 0], 0.25, atol=0.03), (
         "the albedo is uniform: only the shading scales it"
+    )
     with pytest.raises(ValueError, match="material or vertex_colours"):
         render_views(shape, None, views, RenderSettings(32))
     with pytest.raises(ValueError, match="one per vertex"):

@@ -95,8 +95,28 @@ def test_a_varied_world_records_its_variety_and_is_rebuilt_from_its_index(tmp_pa
     from mesh2tex.geometry.mesh_io import load_mesh
 
     out = tmp_path / "world"
-    argv = ["prepare", "synthetic", "--out", str(out), "--category", "chair", "--shapes", "2", "--views", "1", "--query-views", "1",
-            "--resolution", "32", "--texture-size", "64", "--variety", "real", "--seed", "3"]
+    argv = [
+        "prepare",
+        "synthetic",
+        "--out",
+        str(out),
+        "--category",
+        "chair",
+        "--shapes",
+        "2",
+        "--views",
+        "1",
+        "--query-views",
+        "1",
+        "--resolution",
+        "32",
+        "--texture-size",
+        "64",
+        "--variety",
+        "real",
+        "--seed",
+        "3",
+    ]
     assert main(argv) == 0
     index = json.loads((out / "index.json").read_text())
     assert index["settings"]["variety"] == "real" and index["complete"]

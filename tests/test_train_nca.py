@@ -13,9 +13,24 @@ from mesh2tex.cli import main
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint
 from mesh2tex.synthetic.exemplars import exemplar_image
 
-TINY_NCA = {"iters": 4, "batch": 1, "views": 1, "resolution": 32, "steps_min": 2, "steps_max": 3, "pool": 4, "seed_every": 2,
-            "mesh": "sphere:3", "exemplar_size": 32, "vgg_depth": 1, "max_points": 64, "sample_every": 0, "checkpoint_every": 1, "log_every": 1,
-            "nca": {"channels": 6, "hidden": 16}}
+TINY_NCA = {
+    "iters": 4,
+    "batch": 1,
+    "views": 1,
+    "resolution": 32,
+    "steps_min": 2,
+    "steps_max": 3,
+    "pool": 4,
+    "seed_every": 2,
+    "mesh": "sphere:3",
+    "exemplar_size": 32,
+    "vgg_depth": 1,
+    "max_points": 64,
+    "sample_every": 0,
+    "checkpoint_every": 1,
+    "log_every": 1,
+    "nca": {"channels": 6, "hidden": 16},
+}
 
 
 @pytest.fixture(scope="module")
@@ -28,8 +43,21 @@ def nca_files(tmp_path_factory):
 
 
 def train(root, out, *extra):
-    return main(["train", "nca", "--exemplar", str(root / "stripes.png"), "--out", str(out), "--config", str(root / "tiny.yaml"),
-                 "--device", "cpu", *extra])
+    return main(
+        [
+            "train",
+            "nca",
+            "--exemplar",
+            str(root / "stripes.png"),
+            "--out",
+            str(out),
+            "--config",
+            str(root / "tiny.yaml"),
+            "--device",
+            "cpu",
+            *extra,
+        ]
+    )
 
 
 def test_an_interrupted_run_resumes_exactly(nca_files, monkeypatch):
@@ -66,16 +94,65 @@ def test_a_second_run_into_the_same_folder_is_refused(nca_files, capsys):
 
 def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, capsys):
     parent = nca_files / "straight" / "model.safetensors"
-    assert main(["train", "nca", "--exemplar", str(nca_files / "checker.png"), "--out", str(nca_files / "child"),
-                 "--config", str(nca_files / "tiny.yaml"), "--parent", str(parent), "--iters", "2", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "nca",
+                "--exemplar",
+                str(nca_files / "checker.png"),
+                "--out",
+                str(nca_files / "child"),
+                "--config",
+                str(nca_files / "tiny.yaml"),
+                "--parent",
+                str(parent),
+                "--iters",
+                "2",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     _, parent_meta = load_checkpoint(parent, kind="nca")
     _, child_meta = load_checkpoint(nca_files / "child" / "model.safetensors", kind="nca")
     assert child_meta["lineage"] == parent_meta["lineage"]
     assert child_meta["parent"]["digest"] == checkpoint_digest(parent)
     out = nca_files / "graft"
-    assert main(["infer", "nca", "--checkpoint", str(parent), "--graft", str(nca_files / "child" / "model.safetensors"),
-                 "--mesh", "sphere:4", "--out", str(out), "--steps", "6", "--views", "2", "--resolution", "32",
-                 "--texture-size", "64", "--texture-format", "webp", "--frames", "3", "--regrow", "y > 0.5", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "nca",
+                "--checkpoint",
+                str(parent),
+                "--graft",
+                str(nca_files / "child" / "model.safetensors"),
+                "--mesh",
+                "sphere:4",
+                "--out",
+                str(out),
+                "--steps",
+                "6",
+                "--views",
+                "2",
+                "--resolution",
+                "32",
+                "--texture-size",
+                "64",
+                "--texture-format",
+                "webp",
+                "--frames",
+                "3",
+                "--regrow",
+                "y > 0.5",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     report = json.loads((out / "report.json").read_text())
     assert report["lineage"] is None and report["cells"] == 6 * 16 + 2
     for name in ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "view_0.png", "view_1.png"):
@@ -92,8 +169,28 @@ def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, capsys):
 def test_infer_refuses_to_replace_outputs_and_names_bad_input(nca_files, capsys):
     model = str(nca_files / "straight" / "model.safetensors")
     out = nca_files / "once"
-    args = ["infer", "nca", "--checkpoint", model, "--mesh", "sphere:2", "--out", str(out), "--steps", "2", "--views", "1",
-            "--resolution", "32", "--texture-size", "32", "--frames", "0", "--device", "cpu"]
+    args = [
+        "infer",
+        "nca",
+        "--checkpoint",
+        model,
+        "--mesh",
+        "sphere:2",
+        "--out",
+        str(out),
+        "--steps",
+        "2",
+        "--views",
+        "1",
+        "--resolution",
+        "32",
+        "--texture-size",
+        "32",
+        "--frames",
+        "0",
+        "--device",
+        "cpu",
+    ]
     assert main(args) == 0
     assert main(args) != 0
     assert "--overwrite" in capsys.readouterr().err
@@ -103,12 +200,19 @@ def test_infer_refuses_to_replace_outputs_and_names_bad_input(nca_files, capsys)
     assert main(["infer", "nca", "--checkpoint", str(bad), "--out", str(nca_files / "x"), "--device", "cpu"]) != 0
     err = capsys.readouterr().err
     assert "bad.safetensors" in err and "Traceback" not in err
-    assert main(args[:-2] + ["--graft", model, "--graft-mask", "import os", "--out", str(nca_files / "y"), "--device", "cpu"]) != 0
+    assert (
+        main(
+            args[:-2]
+            + ["--graft", model, "--graft-mask", "import os", "--out", str(nca_files / "y"), "--device", "cpu"]
+        )
+        != 0
+    )
     assert "graft mask" in capsys.readouterr().err
 
 
 def test_a_run_starts_from_another_runs_checkpoint(nca_files, capsys):
-    """``--resume PATH`` into a new --out reaches the state of the source run continued in place; a snapshot-like inference model is refused."""
+    """``--resume PATH`` into a new --out reaches the state of the source run continued in place; a snapshot-like
+    inference model is refused."""
     source, other = nca_files / "from_source", nca_files / "from_other"
     assert train(nca_files, source, "--iters", "2") == 0
     capsys.readouterr()
@@ -138,9 +242,28 @@ def test_infer_matches_the_training_cell_spacing_and_old_models_run_as_is(nca_fi
     assert meta["cell_spacing"] > 0
     old = nca_files / "old_model.safetensors"
     save_checkpoint(old, groups, kind="nca", meta={k: v for k, v in meta.items() if k != "cell_spacing"})
-    common = ["--mesh", "sphere:1", "--steps", "2", "--views", "1", "--resolution", "32", "--texture-size", "32", "--frames", "0", "--device", "cpu"]
+    common = [
+        "--mesh",
+        "sphere:1",
+        "--steps",
+        "2",
+        "--views",
+        "1",
+        "--resolution",
+        "32",
+        "--texture-size",
+        "32",
+        "--frames",
+        "0",
+        "--device",
+        "cpu",
+    ]
     capsys.readouterr()
-    for checkpoint, extra, cells, splits in ((model, [], 6 * 4 + 2, 1), (model, ["--subdivide", "0"], 8, 0), (old, [], 8, 0)):
+    for checkpoint, extra, cells, splits in (
+        (model, [], 6 * 4 + 2, 1),
+        (model, ["--subdivide", "0"], 8, 0),
+        (old, [], 8, 0),
+    ):
         out = nca_files / f"density_{checkpoint.stem}_{len(extra)}"
         assert main(["infer", "nca", "--checkpoint", str(checkpoint), "--out", str(out), *common, *extra]) == 0
         report = json.loads((out / "report.json").read_text())
@@ -159,14 +282,44 @@ def test_infer_nca_hands_back_the_users_mesh(nca_files, tmp_path):
 
     stl = user_files(tmp_path / "meshes")["stl"]
     out = tmp_path / "grown"
-    assert main(["infer", "nca", "--checkpoint", str(nca_files / "straight" / "model.safetensors"), "--mesh", str(stl), "--out", str(out),
-                 "--steps", "2", "--views", "1", "--resolution", "32", "--texture-size", "64", "--frames", "0", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "nca",
+                "--checkpoint",
+                str(nca_files / "straight" / "model.safetensors"),
+                "--mesh",
+                str(stl),
+                "--out",
+                str(out),
+                "--steps",
+                "2",
+                "--views",
+                "1",
+                "--resolution",
+                "32",
+                "--texture-size",
+                "64",
+                "--frames",
+                "0",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     source = load_user_mesh(stl)
     vertices, faces, _, texture = load_glb(out / "textured.glb")
-    assert len(faces) == len(source.faces) and set(map(tuple, vertices)) <= set(map(tuple, source.vertices.astype(np.float32)))
+    assert len(faces) == len(source.faces) and set(map(tuple, vertices)) <= set(
+        map(tuple, source.vertices.astype(np.float32))
+    )
     assert texture.std() > 0
     ply = trimesh.load(out / "textured.ply", process=False)
     np.testing.assert_allclose(ply.vertices, source.vertices, rtol=1e-6)
     assert json.loads((out / "report.json").read_text())["output_mesh"]["up"] == "z"
     header = (out / "textured.glb").read_bytes()
-    assert json.loads(header[20:20 + int.from_bytes(header[12:16], "little")])["nodes"][0]["rotation"] == Z_UP_NODE_ROTATION
+    assert (
+        json.loads(header[20 : 20 + int.from_bytes(header[12:16], "little")])["nodes"][0]["rotation"]
+        == Z_UP_NODE_ROTATION
+    )

@@ -22,8 +22,31 @@ def setup(tiny_gan, tmp_path_factory):
     (root / "shapes").symlink_to(tiny_gan / "shapes")
     (root / "noc.yaml").write_text("width: 4\n")
     for kind in ("noc", "pose"):
-        assert main(["train", kind, "--shapes", str(root / "shapes"), "--out", str(root / kind), "--config", str(root / "noc.yaml"),
-                     "--iters", "2", "--samples", "8", "--resolution", "32", "--batch", "4", "--device", "cpu"]) == 0
+        assert (
+            main(
+                [
+                    "train",
+                    kind,
+                    "--shapes",
+                    str(root / "shapes"),
+                    "--out",
+                    str(root / kind),
+                    "--config",
+                    str(root / "noc.yaml"),
+                    "--iters",
+                    "2",
+                    "--samples",
+                    "8",
+                    "--resolution",
+                    "32",
+                    "--batch",
+                    "4",
+                    "--device",
+                    "cpu",
+                ]
+            )
+            == 0
+        )
     # The query: a striped object on a transparent background (the alpha channel is its mask).
     photo = np.zeros((48, 48, 4), np.uint8)
     photo[10:40, 14:34, :3] = 40
@@ -34,9 +57,24 @@ def setup(tiny_gan, tmp_path_factory):
 
 
 def transfer_args(root, out, *extra):
-    return ["infer", "transfer", "--checkpoint", str(root / "gan" / "checkpoint.safetensors"), "--mesh", str(root / "shapes" / "box0.npz"),
-            "--image", str(root / "query.png"), "--noc-checkpoint", str(root / "noc" / "checkpoint.safetensors"),
-            "--pose", "30,20", "--out", str(out), *FAST, *extra]
+    return [
+        "infer",
+        "transfer",
+        "--checkpoint",
+        str(root / "gan" / "checkpoint.safetensors"),
+        "--mesh",
+        str(root / "shapes" / "box0.npz"),
+        "--image",
+        str(root / "query.png"),
+        "--noc-checkpoint",
+        str(root / "noc" / "checkpoint.safetensors"),
+        "--pose",
+        "30,20",
+        "--out",
+        str(out),
+        *FAST,
+        *extra,
+    ]
 
 
 def transfer_report(root, out, settings, *extra):
@@ -51,8 +89,13 @@ def test_transfer_writes_a_textured_asset_and_a_report(setup, tmp_path):
     out = tmp_path / "out"
     assert main(transfer_args(setup, out, "--texture-format", "jpeg", "--texture-size", "48")) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["pose"] == {"azimuth": 30.0, "elevation": 20.0, "source": "given", "distance": report["pose"]["distance"],
-                              "fov": report["pose"]["fov"]}
+    assert report["pose"] == {
+        "azimuth": 30.0,
+        "elevation": 20.0,
+        "source": "given",
+        "distance": report["pose"]["distance"],
+        "fov": report["pose"]["fov"],
+    }
     assert report["mask_source"] == "alpha channel" and report["noc_guidance"] is True
     assert set(report["losses"]) == {"latent", "refine"}
     assert len(report["losses"]["latent"]["curve"]) == 6 and len(report["losses"]["refine"]["curve"]) == 3
@@ -89,7 +132,15 @@ def test_an_automaton_fitted_to_the_photo_writes_the_same_files(setup, tmp_path,
 
 
 def test_pose_auto_searches_silhouettes_unless_told_not_to(setup, tmp_path):
-    auto = ["--pose", "auto", "--pose-checkpoint", str(setup / "pose" / "checkpoint.safetensors"), "--no-refine", "--latent-iters", "1"]
+    auto = [
+        "--pose",
+        "auto",
+        "--pose-checkpoint",
+        str(setup / "pose" / "checkpoint.safetensors"),
+        "--no-refine",
+        "--latent-iters",
+        "1",
+    ]
     assert main(transfer_args(setup, tmp_path / "search", *auto)) == 0
     pose = json.loads((tmp_path / "search" / "report.json").read_text())["pose"]
     assert pose["source"] == "pose network + silhouette search" and len(pose["network"]) == 2
@@ -110,6 +161,7 @@ def test_latent_stage_lowers_the_style_loss(setup, tmp_path):
 def test_several_starts_begin_at_the_best_one(setup, tmp_path):
     """latent_starts: stage 1 begins at the start whose render scores lowest, so its first loss is at
     most the mean latent's (with latent_space w, one latent shared by every style input, as well)."""
+
     def first_loss(name, settings):
         report = transfer_report(setup, tmp_path / name, settings, "--no-refine", "--latent-iters", "2")
         return report["losses"]["latent"]["curve"][0], report["settings"]
@@ -177,7 +229,9 @@ def test_a_lit_generator_learns_the_photos_light_and_the_colour_loss_joins_both_
     # The tiny GAN was trained under the light prior (the default), so 'auto' learns a light.
     assert report["settings"]["light"] == "auto" and set(report["light"]) == {"azimuth_offset", "elevation", "ambient"}
     assert 0.0 < report["light"]["ambient"] < 1.0
-    assert report["light"] != {"azimuth_offset": 0.0, "elevation": 47.5, "ambient": 0.475}, "the light moved from the prior's middle"
+    assert report["light"] != {"azimuth_offset": 0.0, "elevation": 47.5, "ambient": 0.475}, (
+        "the light moved from the prior's middle"
+    )
     assert transfer_report(setup, tmp_path / "unlit", "w_colour: 2.0\nlight: 'off'\n")["light"] is None
 
 
@@ -236,7 +290,14 @@ def test_a_photo_without_a_mask_is_segmented_with_the_meshs_help_and_the_report_
     photo = np.array(Image.open(setup / "query.png"))
     rgb = np.where(photo[..., 3:] > 0, photo[..., :3], 150).astype(np.uint8)  # on grey, no alpha channel
     Image.fromarray(rgb).save(tmp_path / "query.jpg", quality=95)
-    args = ["--image", str(tmp_path / "query.jpg"), "--pose", "auto", "--pose-checkpoint", str(setup / "pose" / "checkpoint.safetensors")]
+    args = [
+        "--image",
+        str(tmp_path / "query.jpg"),
+        "--pose",
+        "auto",
+        "--pose-checkpoint",
+        str(setup / "pose" / "checkpoint.safetensors"),
+    ]
     assert main(transfer_args(setup, tmp_path / "out", *args)) == 0
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["mask_source"] == "estimated (GrabCut); refined by GrabCut on the mesh's outline at the pose"

@@ -1,4 +1,5 @@
-"""`train pose` / `train noc` / `train mask`: they learn from rendered views, checkpoint without pickle, resume, and load back."""
+"""`train pose` / `train noc` / `train mask`: they learn from rendered views, checkpoint without pickle, resume, and
+load back."""
 
 import json
 
@@ -45,7 +46,9 @@ def test_views_of_the_varied_world_take_its_materials(shapes_dir):
 
     shape = PreparedShape.load(shapes_dir / "box.npz")
     boxy = render_view_dataset([shape], ViewDataConfig(samples=4, views_per_material=2, resolution=32), seed=3)
-    real = render_view_dataset([shape], ViewDataConfig(samples=4, views_per_material=2, resolution=32, variety="real"), seed=3)
+    real = render_view_dataset(
+        [shape], ViewDataConfig(samples=4, views_per_material=2, resolution=32, variety="real"), seed=3
+    )
     assert np.array_equal(boxy["mask"], real["mask"]) and np.array_equal(boxy["azimuth"], real["azimuth"])
     assert not np.array_equal(boxy["rgb"], real["rgb"])
 
@@ -57,17 +60,28 @@ def test_views_are_framed_like_the_query_photo(shapes_dir):
 
     shape = PreparedShape.load(shapes_dir / "box.npz")
     margin, size = 0.1, 40
-    cfg = ViewDataConfig(samples=8, views_per_material=4, resolution=size, frame_margin=margin, distance_min=1.2, distance_max=3.0)
+    cfg = ViewDataConfig(
+        samples=8, views_per_material=4, resolution=size, frame_margin=margin, distance_min=1.2, distance_max=3.0
+    )
     views = render_view_dataset([shape], cfg, seed=2)
     for mask, noc in zip(views["mask"] > 127, views["noc"]):
         rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
         extent = max(rows[-1] + 1 - rows[0], cols[-1] + 1 - cols[0])
         assert abs(extent - size / (1 + 2 * margin)) <= 2
         assert abs((rows[0] + rows[-1] + 1) / 2 - size / 2) <= 2 and abs((cols[0] + cols[-1] + 1) / 2 - size / 2) <= 2
-        assert (noc[~mask] == 0).all() and (noc[mask] > 0).any(axis=-1).all(), "NOC on the object only, not darkened to 0"
-    whole = render_view_dataset([shape], ViewDataConfig(samples=4, views_per_material=4, resolution=size, frame_margin=-1.0,
-                                                        distance_min=3.0, distance_max=3.0), seed=2)
-    assert ((whole["mask"] > 127).sum(axis=(1, 2)) < (views["mask"][:4] > 127).sum(axis=(1, 2))).all(), "frame_margin < 0 keeps the far view small"
+        assert (noc[~mask] == 0).all() and (noc[mask] > 0).any(axis=-1).all(), (
+            "NOC on the object only, not darkened to 0"
+        )
+    whole = render_view_dataset(
+        [shape],
+        ViewDataConfig(
+            samples=4, views_per_material=4, resolution=size, frame_margin=-1.0, distance_min=3.0, distance_max=3.0
+        ),
+        seed=2,
+    )
+    assert ((whole["mask"] > 127).sum(axis=(1, 2)) < (views["mask"][:4] > 127).sum(axis=(1, 2))).all(), (
+        "frame_margin < 0 keeps the far view small"
+    )
 
 
 @pytest.mark.parametrize("kind", ["pose", "noc", "mask"])
@@ -75,8 +89,24 @@ def test_train_resume_and_load(kind, shapes_dir, tmp_path):
     run = tmp_path / kind
     config = tmp_path / "c.yaml"
     config.write_text("width: 8\nlog_every: 1\ndata:\n  views_per_material: 4\n")
-    base = ["train", kind, "--shapes", str(shapes_dir), "--out", str(run), "--config", str(config),
-            "--samples", "12", "--resolution", "32", "--batch", "4", "--device", "cpu"]
+    base = [
+        "train",
+        kind,
+        "--shapes",
+        str(shapes_dir),
+        "--out",
+        str(run),
+        "--config",
+        str(config),
+        "--samples",
+        "12",
+        "--resolution",
+        "32",
+        "--batch",
+        "4",
+        "--device",
+        "cpu",
+    ]
     assert main(base + ["--iters", "2"]) == 0
     assert main(base + ["--iters", "2"]) == 2, "a finished run is not overwritten without --resume"
     assert main(base + ["--iters", "4", "--resume"]) == 0
@@ -120,9 +150,33 @@ def test_train_with_gan_mixes_gan_and_procedural_views(tiny_gan, tmp_path, capsy
     run = tmp_path / "pose"
     config = tmp_path / "c.yaml"
     config.write_text("width: 4\ndata:\n  views_per_material: 2\n  gan_share: 0.5\n")
-    assert main(["train", "pose", "--shapes", str(tiny_gan / "shapes"), "--out", str(run), "--config", str(config),
-                 "--samples", "16", "--resolution", "16", "--batch", "4", "--iters", "1", "--device", "cpu",
-                 "--checkpoint", str(tiny_gan / "run" / "checkpoint.safetensors")]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "pose",
+                "--shapes",
+                str(tiny_gan / "shapes"),
+                "--out",
+                str(run),
+                "--config",
+                str(config),
+                "--samples",
+                "16",
+                "--resolution",
+                "16",
+                "--batch",
+                "4",
+                "--iters",
+                "1",
+                "--device",
+                "cpu",
+                "--checkpoint",
+                str(tiny_gan / "run" / "checkpoint.safetensors"),
+            ]
+        )
+        == 0
+    )
     assert (run / "checkpoint.safetensors").is_file()
     with np.load(run / "views.npz", allow_pickle=False) as views:
         gan_textured = views["gan_textured"]
@@ -130,14 +184,42 @@ def test_train_with_gan_mixes_gan_and_procedural_views(tiny_gan, tmp_path, capsy
         assert (views["mask"] > 127).any(axis=(1, 2)).all()
         # a group (2 views) shares its texture source
         assert (gan_textured[0::2] == gan_textured[1::2]).all()
-    assert main(["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--out", str(tmp_path / "noc"),
-                 "--checkpoint", str(run / "checkpoint.safetensors")]) == 2, "a pose checkpoint is no GAN"
-    assert f"{run / 'checkpoint.safetensors'}: this is a 'pose' checkpoint, --checkpoint needs a 'gan' checkpoint" in capsys.readouterr().err
+    assert (
+        main(
+            [
+                "train",
+                "noc",
+                "--shapes",
+                str(tiny_gan / "shapes"),
+                "--out",
+                str(tmp_path / "noc"),
+                "--checkpoint",
+                str(run / "checkpoint.safetensors"),
+            ]
+        )
+        == 2
+    ), "a pose checkpoint is no GAN"
+    assert (
+        f"{run / 'checkpoint.safetensors'}: this is a 'pose' checkpoint, --checkpoint needs a 'gan' checkpoint"
+        in capsys.readouterr().err
+    )
 
 
 def test_bad_gan_checkpoint_is_a_one_line_error(tiny_gan, shapes_dir, tmp_path, capsys):
-    base = ["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--samples", "4", "--resolution", "16", "--iters", "1",
-            "--device", "cpu"]
+    base = [
+        "train",
+        "noc",
+        "--shapes",
+        str(tiny_gan / "shapes"),
+        "--samples",
+        "4",
+        "--resolution",
+        "16",
+        "--iters",
+        "1",
+        "--device",
+        "cpu",
+    ]
     missing = tmp_path / "missing.safetensors"
     assert main(base + ["--out", str(tmp_path / "a"), "--checkpoint", str(missing)]) == 2
     err = capsys.readouterr().err.strip()
@@ -164,11 +246,20 @@ def test_cached_views_are_rendered_again_when_the_data_settings_change(tiny_gan,
     monkeypatch.setattr(view_nets, "render_view_dataset", lambda *a: calls.append(1) or render(*a))
     run = RunDirectory(tmp_path / "run")
     shapes = _tiny_shapes(tiny_gan)
-    cfg = view_nets.ViewTrainConfig(data=ViewDataConfig(samples=8, views_per_material=2, resolution=16, gan_share=0.5,
-                                                        gan_checkpoint=str(tiny_gan / "run" / "checkpoint.safetensors")))
+    cfg = view_nets.ViewTrainConfig(
+        data=ViewDataConfig(
+            samples=8,
+            views_per_material=2,
+            resolution=16,
+            gan_share=0.5,
+            gan_checkpoint=str(tiny_gan / "run" / "checkpoint.safetensors"),
+        )
+    )
     first = view_nets.load_or_render_views(run, shapes, cfg)
     again = view_nets.load_or_render_views(run, shapes, cfg)
-    assert len(calls) == 1 and all(np.array_equal(first[k], again[k]) for k in first), "the same settings reuse the cache"
+    assert len(calls) == 1 and all(np.array_equal(first[k], again[k]) for k in first), (
+        "the same settings reuse the cache"
+    )
     cfg.data.gan_share = 1.0
     assert view_nets.load_or_render_views(run, shapes, cfg)["gan_textured"].all() and len(calls) == 2
     cfg.data.gan_checkpoint = ""
@@ -179,15 +270,35 @@ def test_cached_views_are_rendered_again_when_the_data_settings_change(tiny_gan,
 
 @pytest.mark.parametrize("kind", ["pose", "noc"])
 def test_a_run_starts_from_another_runs_checkpoint(kind, shapes_dir, tmp_path, capsys):
-    """``--resume PATH`` into a new --out reaches the weights of the source run continued in place; another kind is refused."""
+    """``--resume PATH`` into a new --out reaches the weights of the source run continued in place; another kind is
+    refused."""
     from mesh2tex.io.checkpoint import load_checkpoint
 
     config = tmp_path / "c.yaml"
     config.write_text("width: 8\nlog_every: 1\ndata:\n  views_per_material: 4\n")
 
     def train(out, *extra):
-        return main(["train", kind, "--shapes", str(shapes_dir), "--out", str(out), "--config", str(config),
-                     "--samples", "12", "--resolution", "32", "--batch", "4", "--device", "cpu", *extra])
+        return main(
+            [
+                "train",
+                kind,
+                "--shapes",
+                str(shapes_dir),
+                "--out",
+                str(out),
+                "--config",
+                str(config),
+                "--samples",
+                "12",
+                "--resolution",
+                "32",
+                "--batch",
+                "4",
+                "--device",
+                "cpu",
+                *extra,
+            ]
+        )
 
     source, other = tmp_path / "source", tmp_path / "other"
     assert train(source, "--iters", "2") == 0
@@ -203,7 +314,10 @@ def test_a_run_starts_from_another_runs_checkpoint(kind, shapes_dir, tmp_path, c
         torch.testing.assert_close(tensor, b["net"][name], rtol=1e-5, atol=1e-6)
     wrong = "noc" if kind == "pose" else "pose"
     capsys.readouterr()
-    assert main(["train", wrong, "--shapes", str(shapes_dir), "--out", str(tmp_path / "wrong"), "--resume", str(source)]) == 2
+    assert (
+        main(["train", wrong, "--shapes", str(shapes_dir), "--out", str(tmp_path / "wrong"), "--resume", str(source)])
+        == 2
+    )
     assert f"this is a '{kind}' checkpoint, expected a '{wrong}' training checkpoint" in capsys.readouterr().err
     assert not (tmp_path / "wrong").exists()
 
@@ -226,11 +340,39 @@ def test_logged_numbers_go_to_tensorboard_as_well_when_it_is_there(tiny_gan, tmp
     writers = []
     monkeypatch.setattr(runs, "tensorboard_writer", lambda folder: writers.append(Recorder()) or writers[-1])
     run = tmp_path / "noc"
-    assert main(["train", "noc", "--shapes", str(tiny_gan / "shapes"), "--out", str(run), "--config", str(_tiny_config(tmp_path)),
-                 "--samples", "8", "--resolution", "16", "--batch", "4", "--iters", "2", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "noc",
+                "--shapes",
+                str(tiny_gan / "shapes"),
+                "--out",
+                str(run),
+                "--config",
+                str(_tiny_config(tmp_path)),
+                "--samples",
+                "8",
+                "--resolution",
+                "16",
+                "--batch",
+                "4",
+                "--iters",
+                "2",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     # "time" is metrics.jsonl's own stamp; TensorBoard keeps its own wall time.
-    expected = [(k, v, r["iteration"]) for r in records for k, v in r.items() if k not in ("iteration", "time") and isinstance(v, (int, float))]
+    expected = [
+        (k, v, r["iteration"])
+        for r in records
+        for k, v in r.items()
+        if k not in ("iteration", "time") and isinstance(v, (int, float))
+    ]
     assert len(writers) == 1 and sorted(writers[0].scalars) == sorted(expected)
     monkeypatch.undo()  # the real writer again, with the variable set: none is made
     monkeypatch.setenv("MESH2TEX_TENSORBOARD", "0")

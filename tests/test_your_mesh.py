@@ -35,7 +35,7 @@ def rows(array) -> set[tuple]:
 def glb_node_rotation(path) -> list | None:
     data = path.read_bytes()
     length = int.from_bytes(data[12:16], "little")
-    return json.loads(data[20:20 + length])["nodes"][0].get("rotation")
+    return json.loads(data[20 : 20 + length])["nodes"][0].get("rotation")
 
 
 @pytest.mark.parametrize("kind", ["obj", "ply", "off", "glb", "stl"])
@@ -49,8 +49,10 @@ def test_generate_hands_back_the_users_mesh(files, kind, tmp_path, capsys):
     vertices, faces, uv, texture = load_glb(out / "seed0.glb")
     assert rows(vertices) <= rows(source.vertices) and rows(source.vertices) <= rows(vertices)
     assert len(faces) == len(source.faces)
-    np.testing.assert_array_equal(np.sort(vertices[faces].reshape(len(faces), -1), axis=0),
-                                  np.sort(source.vertices[source.faces].astype(np.float32).reshape(len(faces), -1), axis=0))
+    np.testing.assert_array_equal(
+        np.sort(vertices[faces].reshape(len(faces), -1), axis=0),
+        np.sort(source.vertices[source.faces].astype(np.float32).reshape(len(faces), -1), axis=0),
+    )
     assert uv.shape == (len(vertices), 2) and texture.shape == (128, 128, 3) and texture.std() > 0
     ply = trimesh.load(out / "seed0.ply", process=False)
     np.testing.assert_array_equal(ply.faces, source.faces)
@@ -99,7 +101,24 @@ def test_usable_uvs_are_kept_and_overlapping_ones_replaced(tmp_path, capsys):
     _, faces, uv, _ = load_glb(out / "seed0.glb")
     assert uv_atlas_problem(uv, faces) == ""
     out = tmp_path / "forced"
-    assert main(["infer", "generate", "--checkpoint", "chair", "--mesh", str(bad), "--out", str(out), "--uv", "keep", *GENERATE]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                "chair",
+                "--mesh",
+                str(bad),
+                "--out",
+                str(out),
+                "--uv",
+                "keep",
+                *GENERATE,
+            ]
+        )
+        == 0
+    )
     np.testing.assert_allclose(load_glb(out / "seed0.glb")[2], load_user_mesh(bad).uv, atol=1e-6)
 
 
@@ -128,18 +147,50 @@ def test_ngons_unused_vertices_and_the_prepared_output(tmp_path):
 
     loose = tmp_path / "loose.ply"
     trimesh.Trimesh(np.concatenate([mesh.vertices, [[5, 5, 5], [6, 6, 6]]]), mesh.faces, process=False).export(loose)
-    assert main(["infer", "generate", "--checkpoint", "chair", "--mesh", str(loose), "--out", str(tmp_path / "loose"), *GENERATE]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                "chair",
+                "--mesh",
+                str(loose),
+                "--out",
+                str(tmp_path / "loose"),
+                *GENERATE,
+            ]
+        )
+        == 0
+    )
     assert rows([[5, 5, 5], [6, 6, 6]]) <= rows(load_glb(tmp_path / "loose" / "seed0.glb")[0])
 
     out = tmp_path / "prepared"
-    assert main(["infer", "generate", "--checkpoint", "chair", "--mesh", str(path), "--out", str(out), "--output-mesh", "prepared",
-                 *GENERATE]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                "chair",
+                "--mesh",
+                str(path),
+                "--out",
+                str(out),
+                "--output-mesh",
+                "prepared",
+                *GENERATE,
+            ]
+        )
+        == 0
+    )
     vertices = load_glb(out / "seed0.glb")[0]
     assert abs(np.linalg.norm(np.ptp(vertices, axis=0)) - 1) < 0.05  # the normalised frame: diagonal 1
 
 
 def test_a_raw_mesh_is_prepared_as_the_model_learnt(files, tmp_path, capsys):
-    """Without --faces the shipped chair's own hierarchy is used (no note); another --faces says the texture's scale changes."""
+    """Without --faces the shipped chair's own hierarchy is used (no note); another --faces says the texture's scale
+    changes."""
     common = ["infer", "generate", "--checkpoint", "chair", "--mesh", str(files["ply"]), *GENERATE]
     assert main([*common, "--out", str(tmp_path / "a")]) == 0
     assert "learnt on" not in capsys.readouterr().err
@@ -155,7 +206,9 @@ def test_the_bake_reads_the_surface_texture_at_each_texels_point():
     z_up = trimesh.Trimesh(mesh.vertices @ Y_UP_TO_Z_UP.T * 40.0, mesh.faces, process=False)
     user = UserMesh("stool.stl", np.asarray(z_up.vertices), np.asarray(z_up.faces), None, None, "z", "")
     working, transform = normalize(user.working_vertices())
-    surface = trimesh.Trimesh(working, mesh.faces, process=False).subdivide()  # the working surface: another triangulation
+    surface = trimesh.Trimesh(
+        working, mesh.faces, process=False
+    ).subdivide()  # the working surface: another triangulation
 
     def colour(points: torch.Tensor) -> torch.Tensor:
         return torch.sin(8 * points)
@@ -170,13 +223,18 @@ def test_the_bake_reads_the_surface_texture_at_each_texels_point():
     assert baked.atlas.source == "new" and baked.coverage.mean() > 0.3
     # the expected colour at each covered texel: the function at the texel's own point of the user's mesh
     raster = uv_rasterize(torch.from_numpy(baked.uv).float(), torch.from_numpy(baked.faces), (128, 128))
-    points = interpolate(torch.from_numpy(transform.apply(user.to_working_frame(baked.vertices))).float()[None], raster,
-                         torch.from_numpy(baked.faces))[0]
+    points = interpolate(
+        torch.from_numpy(transform.apply(user.to_working_frame(baked.vertices))).float()[None],
+        raster,
+        torch.from_numpy(baked.faces),
+    )[0]
     expected = ((colour(points) + 1) * 127.5).numpy()[baked.coverage]
     error = np.abs(baked.texture[baked.coverage].astype(float) - expected)
     assert np.median(error) < 2 and np.quantile(error, 0.99) < 12
     used = np.unique(user.faces)
-    assert baked.surface_distance[used].max() < 1e-6  # the two surfaces coincide: every vertex of a face lies on the working one
+    assert (
+        baked.surface_distance[used].max() < 1e-6
+    )  # the two surfaces coincide: every vertex of a face lies on the working one
 
 
 def test_empty_texels_take_the_nearest_covered_colour():
@@ -198,7 +256,7 @@ def test_a_scene_of_several_nodes_and_an_obj_of_several_materials(tmp_path):
     """A glTF scene's nodes are flattened with their transforms into one mesh in the scene's frame; an OBJ
     whose faces use two materials is read whole. The textured output keeps every triangle of both."""
     mesh = stool()
-    seat, rest = mesh.faces[:len(mesh.faces) // 3], mesh.faces[len(mesh.faces) // 3:]
+    seat, rest = mesh.faces[: len(mesh.faces) // 3], mesh.faces[len(mesh.faces) // 3 :]
     scene = trimesh.Scene()
     shift = trimesh.transformations.translation_matrix([0.0, 0.1, 0.0])
     scene.add_geometry(trimesh.Trimesh(mesh.vertices, seat, process=False), node_name="seat", transform=shift)
@@ -207,14 +265,36 @@ def test_a_scene_of_several_nodes_and_an_obj_of_several_materials(tmp_path):
     read = load_user_mesh(tmp_path / "scene.glb")
     assert len(read.faces) == len(mesh.faces)
     corners = np.sort(read.vertices[read.faces].reshape(len(read.faces), -1), axis=0)
-    np.testing.assert_allclose(corners, np.sort((mesh.vertices + [0.0, 0.1, 0.0])[mesh.faces].reshape(len(mesh.faces), -1), axis=0), atol=1e-6)
+    np.testing.assert_allclose(
+        corners, np.sort((mesh.vertices + [0.0, 0.1, 0.0])[mesh.faces].reshape(len(mesh.faces), -1), axis=0), atol=1e-6
+    )
     out = tmp_path / "gen"
-    assert main(["infer", "generate", "--checkpoint", "chair", "--mesh", str(tmp_path / "scene.glb"), "--out", str(out), *GENERATE]) == 0
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                "chair",
+                "--mesh",
+                str(tmp_path / "scene.glb"),
+                "--out",
+                str(out),
+                *GENERATE,
+            ]
+        )
+        == 0
+    )
     assert len(load_glb(out / "seed0.glb")[1]) == len(mesh.faces)
 
     (tmp_path / "two.mtl").write_text("newmtl wood\nKd 0.5 0.3 0.1\nnewmtl cloth\nKd 0.2 0.2 0.8\n")
     lines = ["mtllib two.mtl"] + [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in mesh.vertices]
-    lines += ["usemtl cloth"] + [f"f {a} {b} {c}" for a, b, c in seat + 1] + ["usemtl wood"] + [f"f {a} {b} {c}" for a, b, c in rest + 1]
+    lines += (
+        ["usemtl cloth"]
+        + [f"f {a} {b} {c}" for a, b, c in seat + 1]
+        + ["usemtl wood"]
+        + [f"f {a} {b} {c}" for a, b, c in rest + 1]
+    )
     (tmp_path / "two.obj").write_text("\n".join(lines) + "\n")
     read = load_user_mesh(tmp_path / "two.obj")
     assert len(read.faces) == len(mesh.faces)
@@ -223,6 +303,23 @@ def test_a_scene_of_several_nodes_and_an_obj_of_several_materials(tmp_path):
 
 def test_uv_keep_on_a_mesh_without_uvs_is_one_line(files, tmp_path, capsys):
     out = tmp_path / "keep"
-    assert main(["infer", "generate", "--checkpoint", "chair", "--mesh", str(files["ply"]), "--out", str(out), "--uv", "keep", *GENERATE]) == 2
+    assert (
+        main(
+            [
+                "infer",
+                "generate",
+                "--checkpoint",
+                "chair",
+                "--mesh",
+                str(files["ply"]),
+                "--out",
+                str(out),
+                "--uv",
+                "keep",
+                *GENERATE,
+            ]
+        )
+        == 2
+    )
     errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("mesh2tex: error:")]
     assert len(errors) == 1 and "has no UV coordinates" in errors[0] and not out.exists()

@@ -1,4 +1,5 @@
-"""`mesh2tex train mask --shapes DIR --out RUN [--config YAML] [--iters N] [--batch B] [--samples N] [--resume [CHECKPOINT]]`.
+"""`mesh2tex train mask --shapes DIR --out RUN [--config YAML] [--iters N] [--batch B] [--samples N] [--resume
+[CHECKPOINT]]`.
 
 Trains the mask U-Net (RGB in, the object's mask out) on rendered views of prepared shapes placed
 over busy backdrops; ``infer transfer`` uses it for photos without a mask. See :mod:`train.view_nets`

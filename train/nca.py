@@ -48,7 +48,8 @@ MODEL_NAME = "model.safetensors"  # the trained automaton alone, what infer nca 
 class TrainNCAConfig:
     seed: int = 0
     iters: int = 1500  # training iterations
-    batch: int = 1  # states per iteration (1 state and 1 view: 3x the Adam steps of 2 x 2 in the same time; docs/results/nca.md)
+    # states per iteration (1 state and 1 view: 3x the Adam steps of 2 x 2 in the same time; docs/results/nca.md)
+    batch: int = 1
     views: int = 1  # random views per state
     resolution: int = 128  # render resolution
     steps_min: int = 15  # rollout length per iteration: uniform in [steps_min, steps_max]
@@ -57,7 +58,9 @@ class TrainNCAConfig:
     seed_every: int = 4  # every this many iterations a fresh seed replaces the batch's first state
     mesh: str = "sphere"  # the training mesh (see load_surface; "sphere": 32 subdivisions, 6,146 cells)
     exemplar_size: int = 128  # the exemplar is centre-cropped to a square and resized to this
-    style_loss: str = "ot"  # "ot" (relaxed optimal transport + moments), "gram", "sw" (sliced Wasserstein) or "ps" (oriented-band statistics)
+    # "ot" (relaxed optimal transport + moments), "gram", "sw" (sliced Wasserstein) or "ps" (oriented-band
+    # statistics)
+    style_loss: str = "ot"
     vgg_depth: int = 4  # VGG19 style layers used (relu1_2 ... relu4_4; 0: RGB only)
     max_points: int = 1024  # feature positions per set in the OT loss
     overflow_weight: float = 10.0  # weight of the overflow penalty
@@ -72,12 +75,35 @@ class TrainNCAConfig:
     camera: NCACameraConfig = field(default_factory=NCACameraConfig)
 
     def __post_init__(self):
-        check_fields(self, at_least={"iters": 1, "batch": 1, "views": 1, "resolution": 32, "steps_min": 1, "steps_max": 1, "pool": 1,
-                                     "seed_every": 1, "exemplar_size": 32, "max_points": 1, "log_every": 1, "sample_every": 0,
-                                     "checkpoint_every": 0, "overflow_weight": 0},
-                     between={"vgg_depth": (0, 5), "lr_gamma": (0.0, 1.0), "lr_milestones": (0.0, 1.0), "resolution": (32, 4096),
-                              "exemplar_size": (32, 4096), "steps_max": (1, 10_000), "pool": (1, 100_000)},
-                     positive=("lr",))
+        check_fields(
+            self,
+            at_least={
+                "iters": 1,
+                "batch": 1,
+                "views": 1,
+                "resolution": 32,
+                "steps_min": 1,
+                "steps_max": 1,
+                "pool": 1,
+                "seed_every": 1,
+                "exemplar_size": 32,
+                "max_points": 1,
+                "log_every": 1,
+                "sample_every": 0,
+                "checkpoint_every": 0,
+                "overflow_weight": 0,
+            },
+            between={
+                "vgg_depth": (0, 5),
+                "lr_gamma": (0.0, 1.0),
+                "lr_milestones": (0.0, 1.0),
+                "resolution": (32, 4096),
+                "exemplar_size": (32, 4096),
+                "steps_max": (1, 10_000),
+                "pool": (1, 100_000),
+            },
+            positive=("lr",),
+        )
         if self.steps_max < self.steps_min:
             raise ValueError(f"steps_max {self.steps_max} is below steps_min {self.steps_min}")
         if self.batch > self.pool:
@@ -101,7 +127,9 @@ def parse_steps(text: str | None) -> tuple[int, int] | None:
 
 def build_config(args) -> TrainNCAConfig:
     steps = parse_steps(args.steps)
-    overrides = config_overrides(args, computed={"steps_min": steps[0] if steps else None, "steps_max": steps[1] if steps else None})
+    overrides = config_overrides(
+        args, computed={"steps_min": steps[0] if steps else None, "steps_max": steps[1] if steps else None}
+    )
     run_config = Path(args.out) / "config.yaml"
     if args.resume and not getattr(args, "overwrite", False) and run_config.is_file():
         if args.config:
@@ -121,32 +149,53 @@ def load_exemplar(path: str | Path, size: int) -> torch.Tensor:
         raise UserError(f"{path}: a {w}x{h} image is too small to be an exemplar")
     side = min(h, w)
     top, left = (h - side) // 2, (w - side) // 2
-    square = torch.from_numpy(np.array(rgb[top : top + side, left : left + side])).permute(2, 0, 1)[None].float() / 127.5 - 1
-    return F.interpolate(square, size=(size, size), mode="area") if side >= size else F.interpolate(square, size=(size, size), mode="bilinear", align_corners=False)
+    square = (
+        torch.from_numpy(np.array(rgb[top : top + side, left : left + side])).permute(2, 0, 1)[None].float() / 127.5 - 1
+    )
+    return (
+        F.interpolate(square, size=(size, size), mode="area")
+        if side >= size
+        else F.interpolate(square, size=(size, size), mode="bilinear", align_corners=False)
+    )
 
 
 def random_cameras(cfg: TrainNCAConfig, count: int, generator: torch.Generator) -> torch.Tensor:
     """(count, 4, 4) mvp of random orbit views of the unit ball."""
     azimuth = torch.rand(count, generator=generator) * 360.0
-    elevation = cfg.camera.elevation_min + torch.rand(count, generator=generator) * (cfg.camera.elevation_max - cfg.camera.elevation_min)
+    elevation = cfg.camera.elevation_min + torch.rand(count, generator=generator) * (
+        cfg.camera.elevation_max - cfg.camera.elevation_min
+    )
     return orbit_camera(azimuth, elevation, distance=cfg.camera.distance, fov=cfg.camera.fov).mvp
 
 
 def fixed_cameras(cfg: TrainNCAConfig, count: int = 4, elevation: float = 20.0) -> torch.Tensor:
     """(count, 4, 4) mvp of evenly spaced views around the mesh, for samples and reports."""
-    return orbit_camera(*turntable_angles(count, elevation, start=VIEW_START), distance=cfg.camera.distance, fov=cfg.camera.fov).mvp
+    return orbit_camera(
+        *turntable_angles(count, elevation, start=VIEW_START), distance=cfg.camera.distance, fov=cfg.camera.fov
+    ).mvp
 
 
 # --------------------------------------------------------------------------------------- trainer
 class NCATrainer:
     """The loop of ``train nca`` (see the module docstring)."""
 
-    def __init__(self, cfg: TrainNCAConfig, exemplar: torch.Tensor, graph: CellGraph, run: runs.RunDirectory,
-                 device: torch.device, vgg, parent: dict | None = None, cell_spacing: float = 0.0):
+    def __init__(
+        self,
+        cfg: TrainNCAConfig,
+        exemplar: torch.Tensor,
+        graph: CellGraph,
+        run: runs.RunDirectory,
+        device: torch.device,
+        vgg,
+        parent: dict | None = None,
+        cell_spacing: float = 0.0,
+    ):
         self.cfg, self.run, self.device, self.vgg = cfg, run, device, vgg
         self.graph = graph.to(device)
         self.exemplar = ExemplarFeatures.compute(vgg, exemplar.to(device), cfg.vgg_depth)
-        runs.seed_everything(cfg.seed)  # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
+        runs.seed_everything(
+            cfg.seed
+        )  # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
         self.model = MeshNCA(cfg.nca).to(device)
         self.parent_record = None if parent is None else {"path": parent["path"], "digest": parent["digest"]}
         # Models of one lineage (a parent and every model trained from it) can be grafted.
@@ -175,10 +224,14 @@ class NCATrainer:
         state = self.model.rollout(state, self.graph, steps)
         mvp = random_cameras(cfg, cfg.batch * cfg.views, self.generator).to(self.device)
         views = render_states(self.model, state, self.graph, mvp, cfg.resolution)
-        style = style_loss(self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator)
+        style = style_loss(
+            self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator
+        )
         overflow = overflow_penalty(state, self.model.vertex_colours(state))
         loss = style + cfg.overflow_weight * overflow
-        runs.check_finite({"loss": loss, "loss_style": style, "loss_overflow": overflow}, self.iteration)  # before any update
+        runs.check_finite(
+            {"loss": loss, "loss_style": style, "loss_overflow": overflow}, self.iteration
+        )  # before any update
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         with torch.no_grad():  # per-parameter gradient normalisation (as texture NCAs train)
@@ -188,32 +241,53 @@ class NCATrainer:
         self.optimizer.step()
         self.pool[index] = state.detach()
         self.iteration += 1
-        logs = {"loss": float(loss.detach()), "loss_style": float(style.detach()), "loss_overflow": float(overflow.detach()), "steps": steps,
-                "lr": self.learning_rate(self.iteration - 1)}
+        logs = {
+            "loss": float(loss.detach()),
+            "loss_style": float(style.detach()),
+            "loss_overflow": float(overflow.detach()),
+            "steps": steps,
+            "lr": self.learning_rate(self.iteration - 1),
+        }
         return {k: round(v, 6) for k, v in logs.items()}
 
     # -------------------------------------------------------------------------------- state I/O
     def meta(self) -> dict:
-        return {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "nca": runs.dumps_config(self.cfg.nca),
-                "cell_spacing": self.cell_spacing, "vgg": self.vgg.source,
-                "parent": self.parent_record, "lineage": self.lineage,
-                "generator_state": self.generator.get_state().tolist()}
+        return {
+            "iteration": self.iteration,
+            "config": runs.dumps_config(self.cfg),
+            "nca": runs.dumps_config(self.cfg.nca),
+            "cell_spacing": self.cell_spacing,
+            "vgg": self.vgg.source,
+            "parent": self.parent_record,
+            "lineage": self.lineage,
+            "generator_state": self.generator.get_state().tolist(),
+        }
 
     def exemplar_uint8(self) -> torch.Tensor:
         """(3, H, W) uint8: the exemplar as the model saw it, kept in every checkpoint."""
         return torch.from_numpy(colours_to_uint8(self.exemplar.image[0]))
 
     def save(self, path: Path) -> None:
-        runs.save_training_state(path, KIND, {"model": self.model}, {"adam": self.optimizer},
-                                 {"pool": {"states": self.pool.cpu()}, "exemplar": {"image": self.exemplar_uint8()}},
-                                 self.meta(), [runs.rng_to_state()])
+        runs.save_training_state(
+            path,
+            KIND,
+            {"model": self.model},
+            {"adam": self.optimizer},
+            {"pool": {"states": self.pool.cpu()}, "exemplar": {"image": self.exemplar_uint8()}},
+            self.meta(),
+            [runs.rng_to_state()],
+        )
 
     def resume(self, path: Path) -> None:
         """Load the training state of ``path``: the run's own checkpoint, or another run's to start from."""
-        groups, meta = runs.load_training_state(path, KIND, {"model": self.model}, {"adam": self.optimizer}, self.device)
+        groups, meta = runs.load_training_state(
+            path, KIND, {"model": self.model}, {"adam": self.optimizer}, self.device
+        )
         pool = groups["pool"]["states"]
         if pool.shape != self.pool.shape:
-            raise UserError(f"{path}: its pool is {tuple(pool.shape)}, this config and mesh need {tuple(self.pool.shape)}")
+            raise UserError(
+                f"{path}: its pool is {tuple(pool.shape)}, this config and mesh need {tuple(self.pool.shape)}"
+            )
         self.pool = pool.to(self.device)
         self.iteration = int(meta["iteration"])
         self.parent_record = meta.get("parent")
@@ -225,31 +299,54 @@ class NCATrainer:
 
     @torch.no_grad()
     def write_samples(self) -> None:
-        """samples/iter_NNNNNN.png: the exemplar beside 4 views of a state grown from the seed for steps_max * 2 steps."""
+        """samples/iter_NNNNNN.png: the exemplar beside 4 views of a state grown from the seed for steps_max * 2
+        steps."""
         generator = torch.Generator(device=self.device).manual_seed(self.cfg.seed + 1)
         state = self.model.seed_state(1, self.graph.num_cells, self.device)
         for _ in range(self.cfg.steps_max * 2):
             state = self.model.step(state, self.graph, generator=generator)
-        views = render_states(self.model, state, self.graph, fixed_cameras(self.cfg).to(self.device), self.cfg.resolution, background=1.0)
+        views = render_states(
+            self.model, state, self.graph, fixed_cameras(self.cfg).to(self.device), self.cfg.resolution, background=1.0
+        )
         size = self.cfg.resolution
-        exemplar = torch.nn.functional.interpolate(self.exemplar.image, size=(size, size), mode="bilinear", align_corners=False)
+        exemplar = torch.nn.functional.interpolate(
+            self.exemplar.image, size=(size, size), mode="bilinear", align_corners=False
+        )
         tiles = list(images_to_uint8(torch.cat([exemplar, views.images])))
         save_png(self.run.samples_dir / f"iter_{self.iteration:06d}.png", contact_sheet(tiles, len(tiles)))
 
     def train(self) -> None:
         cfg = self.cfg
-        advice = f"Lower lr in {self.run.config_path} and --resume (the rate is read from the run's config at every step)"
-        runs.training_loop(self, self.run, iters=cfg.iters, desc="train nca", device=self.device, log_every=cfg.log_every,
-                           checkpoint_every=cfg.checkpoint_every, advice=advice, postfix=lambda logs: {"style": f"{logs['loss_style']:.3f}"},
-                           periodic=[runs.Every(cfg.sample_every, self.write_samples, final="never")])
+        advice = (
+            f"Lower lr in {self.run.config_path} and --resume (the rate is read from the run's config at every step)"
+        )
+        runs.training_loop(
+            self,
+            self.run,
+            iters=cfg.iters,
+            desc="train nca",
+            device=self.device,
+            log_every=cfg.log_every,
+            checkpoint_every=cfg.checkpoint_every,
+            advice=advice,
+            postfix=lambda logs: {"style": f"{logs['loss_style']:.3f}"},
+            periodic=[runs.Every(cfg.sample_every, self.write_samples, final="never")],
+        )
         self.save_model(self.run.root / MODEL_NAME)
         self.write_samples()
 
     def save_model(self, path: Path) -> None:
         """The inference part: weights, exemplar and metadata (no pool, optimizer or RNG), about 100 kB."""
         meta = {k: v for k, v in self.meta().items() if k != "generator_state"}
-        save_checkpoint(path, {"model": {k: v.detach().cpu() for k, v in self.model.state_dict().items()}, "exemplar": {"image": self.exemplar_uint8()}},
-                        kind=KIND, meta=meta)
+        save_checkpoint(
+            path,
+            {
+                "model": {k: v.detach().cpu() for k, v in self.model.state_dict().items()},
+                "exemplar": {"image": self.exemplar_uint8()},
+            },
+            kind=KIND,
+            meta=meta,
+        )
 
 
 def load_parent(path: str) -> tuple[NCAConfig, dict]:
@@ -259,7 +356,12 @@ def load_parent(path: str) -> tuple[NCAConfig, dict]:
         raise UserError(f"{path}: the checkpoint holds no automaton weights")
     parent_cfg = config_from_dict(NCAConfig, meta.get("nca", {}), where=f"{path} nca")
     digest = checkpoint_digest(path, "parent checkpoint")
-    return parent_cfg, {"state": groups["model"], "path": str(path), "digest": digest, "lineage": meta.get("lineage") or digest}
+    return parent_cfg, {
+        "state": groups["model"],
+        "path": str(path),
+        "digest": digest,
+        "lineage": meta.get("lineage") or digest,
+    }
 
 
 def run(args) -> int:
@@ -275,7 +377,9 @@ def run(args) -> int:
     vertices, faces = load_surface(cfg.mesh)
     graph = build_cell_graph(vertices, faces, cfg.nca.neighbourhood)
     vgg = load_vgg19(args.vgg_weights, device=device)
-    trainer = NCATrainer(cfg, exemplar, graph, run_dir, device, vgg, parent=parent, cell_spacing=mean_edge_length(vertices, faces))
+    trainer = NCATrainer(
+        cfg, exemplar, graph, run_dir, device, vgg, parent=parent, cell_spacing=mean_edge_length(vertices, faces)
+    )
     if source is not None:
         trainer.resume(source)  # before config.yaml is written: a checkpoint that does not fit leaves --out as it was
     run_dir.start(cfg, resume=source == run_dir.checkpoint_path, overwrite=args.overwrite)

@@ -1,4 +1,5 @@
-"""`mesh2tex train noc --shapes DIR --out RUN [--config YAML] [--iters N] [--batch B] [--samples N] [--resume [CHECKPOINT]]`.
+"""`mesh2tex train noc --shapes DIR --out RUN [--config YAML] [--iters N] [--batch B] [--samples N] [--resume
+[CHECKPOINT]]`.
 
 Trains the NOC U-Net (RGB + mask in, normalised object coordinates out) on rendered views of
 prepared shapes; see :mod:`train.view_nets` for the data and the loop.

@@ -1,4 +1,5 @@
-"""`mesh2tex train pose --shapes DIR --out RUN [--config YAML] [--iters N] [--batch B] [--samples N] [--resume [CHECKPOINT]]`.
+"""`mesh2tex train pose --shapes DIR --out RUN [--config YAML] [--iters N] [--batch B] [--samples N] [--resume
+[CHECKPOINT]]`.
 
 Trains the pose classifier (azimuth in 12 bins, elevation in 5) on rendered views of
 prepared shapes; see :mod:`train.view_nets` for the data and the loop.

@@ -9,7 +9,8 @@ A run directory ``RUN/`` holds:
     tensorboard/                the same numbers as TensorBoard scalars, when the ``tensorboard``
                                 package is installed (``pip install tensorboard``; MESH2TEX_TENSORBOARD=0 turns it off)
     samples/                    images the trainer writes while it runs
-    snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators (keep_snapshots: the newest N)
+    snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators
+    (keep_snapshots: the newest N)
 
 A folder that holds a run is continued with ``--resume`` or replaced with ``--overwrite`` (the files
 the replaced run wrote, :data:`REPLACED_BY_OVERWRITE`, are moved aside to ``RUN/.mesh2tex-replaced/<date-time>/``
@@ -41,23 +42,67 @@ from mesh2tex.config import save_config
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import json_ready
 from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
-# The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
-from mesh2tex.io.checkpoint import check_training_checkpoint, load_training_state, read_checkpoint_meta, save_training_state  # noqa: F401
-from mesh2tex.progress import JsonLines, progress_bar
-from mesh2tex.runtime import (Distributed, ema_beta, ema_update, make_ema, peak_memory_gb, rng_from_state,  # noqa: F401
-                              rng_to_state, seed_everything, select_device)
 
-__all__ = ["CHECKPOINT_NAME", "NONFINITE_NAME", "Distributed", "Every", "NonFiniteLoss", "RunDirectory", "Trainer", "apply_learning_rates",
-           "check_finite", "dumps_config", "training_loop",
-           "ema_beta", "ema_update", "load_training_state", "make_ema", "peak_memory_gb", "rng_from_state", "rng_to_state",
-           "save_training_state", "scalars", "seed_everything", "select_device", "start_from"]
+# The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
+from mesh2tex.io.checkpoint import (
+    check_training_checkpoint,
+    load_training_state,
+    read_checkpoint_meta,
+    save_training_state,
+)  # noqa: F401
+from mesh2tex.progress import JsonLines, progress_bar
+from mesh2tex.runtime import (
+    Distributed,
+    ema_beta,
+    ema_update,
+    make_ema,
+    peak_memory_gb,
+    rng_from_state,  # noqa: F401
+    rng_to_state,
+    seed_everything,
+    select_device,
+)
+
+__all__ = [
+    "CHECKPOINT_NAME",
+    "NONFINITE_NAME",
+    "Distributed",
+    "Every",
+    "NonFiniteLoss",
+    "RunDirectory",
+    "Trainer",
+    "apply_learning_rates",
+    "check_finite",
+    "dumps_config",
+    "training_loop",
+    "ema_beta",
+    "ema_update",
+    "load_training_state",
+    "make_ema",
+    "peak_memory_gb",
+    "rng_from_state",
+    "rng_to_state",
+    "save_training_state",
+    "scalars",
+    "seed_everything",
+    "select_device",
+    "start_from",
+]
 
 CHECKPOINT_NAME = "checkpoint.safetensors"
 NONFINITE_NAME = "nonfinite.safetensors"
 # What a run writes into its folder (the module docstring; best.safetensors of train gan, model.safetensors
 # of train nca): a new run started with --overwrite moves these of the run it replaces aside, and nothing else.
-REPLACED_BY_OVERWRITE = (CHECKPOINT_NAME, NONFINITE_NAME, "metrics.jsonl", "best.safetensors", "model.safetensors",
-                         "snapshots/iter*.safetensors", "samples/iter*.png", "tensorboard/events.out.tfevents.*")
+REPLACED_BY_OVERWRITE = (
+    CHECKPOINT_NAME,
+    NONFINITE_NAME,
+    "metrics.jsonl",
+    "best.safetensors",
+    "model.safetensors",
+    "snapshots/iter*.safetensors",
+    "samples/iter*.png",
+    "tensorboard/events.out.tfevents.*",
+)
 # The files a new run writes at fixed names: one already there that no run of this command line wrote is kept
 # without --overwrite (mesh2tex.io.outputs.guard_outputs).
 RUN_FILES = ("config.yaml", CHECKPOINT_NAME, NONFINITE_NAME, "metrics.jsonl", "best.safetensors", "model.safetensors")
@@ -76,7 +121,8 @@ class RunDirectory:
         self.metrics = JsonLines(self.root / "metrics.jsonl")
         self.tensorboard_dir = self.root / "tensorboard"
         self._scalars = None  # the TensorBoard writer, made by the first log()
-        self.resume_asked = False  # --resume: the folder is a run's (one killed before its first checkpoint starts again there)
+        # --resume: the folder is a run's (one killed before its first checkpoint starts again there)
+        self.resume_asked = False
 
     def log(self, record: dict[str, Any]) -> None:
         """One logged iteration (``record["iteration"]`` and numbers): a line of metrics.jsonl, and the
@@ -100,23 +146,46 @@ class RunDirectory:
         if not resume and self.has_checkpoint() and not overwrite:
             try:  # the iteration tells a stopped run from a finished one
                 at = f", at iteration {int(read_checkpoint_meta(self.checkpoint_path)['meta']['iteration'])}"
-            except (InputError, KeyError, TypeError, ValueError):  # a damaged checkpoint is named when resumed; here the refusal matters
+            except (
+                InputError,
+                KeyError,
+                TypeError,
+                ValueError,
+            ):  # a damaged checkpoint is named when resumed; here the refusal matters
                 at = ""
-            raise UserError(f"{self.root}: already holds a run ({CHECKPOINT_NAME}{at}); pass --resume to continue it (with a "
-                            f"larger --iters to extend a finished one), --overwrite to replace it, or choose another --out")
+            raise UserError(
+                f"{self.root}: already holds a run ({CHECKPOINT_NAME}{at}); pass --resume to continue it (with a "
+                f"larger --iters to extend a finished one), --overwrite to replace it, or choose another --out"
+            )
         if resume:
-            read_checkpoint_meta(self.checkpoint_path)  # a damaged checkpoint is refused before config.yaml is rewritten
-        elif not self.resume_asked:  # a new run: files already at its names (a config.yaml of the user's) are kept without --overwrite
+            read_checkpoint_meta(
+                self.checkpoint_path
+            )  # a damaged checkpoint is refused before config.yaml is rewritten
+        elif (
+            not self.resume_asked
+        ):  # a new run: files already at its names (a config.yaml of the user's) are kept without --overwrite
             guard_outputs(self.root, RUN_FILES, overwrite)
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
-        if not resume and overwrite:  # nothing of the replaced run may be resumed or read as this one's: moved aside, not deleted
-            replaced = [path.relative_to(self.root).as_posix() for pattern in REPLACED_BY_OVERWRITE for path in sorted(self.root.glob(pattern))
-                        if path.is_file() or path.is_symlink()]
+        if (
+            not resume and overwrite
+        ):  # nothing of the replaced run may be resumed or read as this one's: moved aside, not deleted
+            replaced = [
+                path.relative_to(self.root).as_posix()
+                for pattern in REPLACED_BY_OVERWRITE
+                for path in sorted(self.root.glob(pattern))
+                if path.is_file() or path.is_symlink()
+            ]
             folder = move_aside(self.root, replaced)
             if folder is not None:
-                print(f"mesh2tex: note: {self.root}: the replaced run's files ({len(replaced)}) were moved aside to {folder}", file=sys.stderr)
-        if not resume and self.metrics.path.exists():  # left by a run killed before its first checkpoint: it starts again
+                print(
+                    f"mesh2tex: note: {self.root}: the replaced run's files ({len(replaced)}) were moved aside to "
+                    f"{folder}",
+                    file=sys.stderr,
+                )
+        if (
+            not resume and self.metrics.path.exists()
+        ):  # left by a run killed before its first checkpoint: it starts again
             self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)
 
@@ -134,7 +203,9 @@ def tensorboard_writer(folder: Path):
     return SummaryWriter(log_dir=str(folder))
 
 
-def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bool = True, overwrite: bool = False) -> Path | None:
+def start_from(
+    resume: bool | str | None, run: RunDirectory, kind: str, note: bool = True, overwrite: bool = False
+) -> Path | None:
     """The checkpoint a run starts from, checked before anything is written to ``run``.
 
     ``--resume`` alone (``True``): the run's own checkpoint, which it continues (None, with a note,
@@ -164,15 +235,23 @@ def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bo
             header = check_training_checkpoint(path, kind)
             if not run.has_checkpoint() and continues_own_run(run.root) and note:
                 # killed before its first checkpoint: nothing of this run to continue, so it starts from PATH again
-                print(f"mesh2tex: note: {run.root}: the interrupted run of this command saved no checkpoint yet; starting from {path} again",
-                      file=sys.stderr)
+                print(
+                    f"mesh2tex: note: {run.root}: the interrupted run of this command saved no checkpoint yet; "
+                    f"starting from {path} again",
+                    file=sys.stderr,
+                )
             if run.has_checkpoint() and not overwrite:
-                raise UserError(f"{run.root}: already holds a run ({CHECKPOINT_NAME}); --resume {path} starts a new run: choose another --out, "
-                                f"pass --overwrite to replace it, or pass --resume alone to continue this one")
+                raise UserError(
+                    f"{run.root}: already holds a run ({CHECKPOINT_NAME}); --resume {path} starts a new run: choose "
+                    f"another --out, pass --overwrite to replace it, or pass --resume alone to continue this one"
+                )
             if note:
-                print(f"mesh2tex: note: {run.root} starts from {path} (iteration {header['meta']['iteration']}) with this run's config "
-                      f"(its config.yaml, else --config and the flags), not the checkpoint's",
-                      file=sys.stderr)
+                print(
+                    f"mesh2tex: note: {run.root} starts from {path} (iteration {header['meta']['iteration']}) with "
+                    "this run's config "
+                    f"(its config.yaml, else --config and the flags), not the checkpoint's",
+                    file=sys.stderr,
+                )
             return path
     if run.has_checkpoint():
         return run.checkpoint_path
@@ -184,8 +263,10 @@ def start_from(resume: bool | str | None, run: RunDirectory, kind: str, note: bo
 def _no_checkpoint_yet(folder: Path) -> str:
     """Why ``--resume FOLDER`` has nothing to start from: a run not at its first checkpoint yet, or no run."""
     if (folder / "config.yaml").is_file() or (folder / "metrics.jsonl").is_file():
-        return (f"{folder}: this run has no {CHECKPOINT_NAME} yet (a run writes it every checkpoint_every iterations, when it "
-                f"ends and when it is interrupted); --resume it once it is there, or start without --resume")
+        return (
+            f"{folder}: this run has no {CHECKPOINT_NAME} yet (a run writes it every checkpoint_every iterations, "
+            f"when it ends and when it is interrupted); --resume it once it is there, or start without --resume"
+        )
     return f"{folder}: no {CHECKPOINT_NAME} in this folder; --resume takes a run folder or a training checkpoint file"
 
 
@@ -272,9 +353,22 @@ class Every:
         return iteration % self.every == 0
 
 
-def training_loop(trainer: Trainer, run: RunDirectory, *, iters: int, desc: str, device: torch.device, log_every: int,
-                  checkpoint_every: int, advice: str, postfix: Callable[[dict], dict] = lambda logs: {},
-                  measure: Every | None = None, periodic: Sequence[Every] = (), main: bool = True, extra: dict | None = None) -> None:
+def training_loop(
+    trainer: Trainer,
+    run: RunDirectory,
+    *,
+    iters: int,
+    desc: str,
+    device: torch.device,
+    log_every: int,
+    checkpoint_every: int,
+    advice: str,
+    postfix: Callable[[dict], dict] = lambda logs: {},
+    measure: Every | None = None,
+    periodic: Sequence[Every] = (),
+    main: bool = True,
+    extra: dict | None = None,
+) -> None:
     """Run ``trainer`` from its iteration to ``iters``, as every trainer does:
 
     * a progress bar on the main process (``postfix(logs)``: the step's figures it shows);
@@ -296,8 +390,12 @@ def training_loop(trainer: Trainer, run: RunDirectory, *, iters: int, desc: str,
             except NonFiniteLoss as error:
                 trainer.save(run.nonfinite_path)
                 kept = f"; the last good checkpoint is {run.checkpoint_path}" if run.has_checkpoint() else ""
-                raise UserError(f"{run.root}: training stopped, non-finite loss ({error}); state saved to {run.nonfinite_path}{kept}. "
-                                f"{advice}", exit_code=4) from None
+                raise UserError(
+                    f"{run.root}: training stopped, non-finite loss ({error}); state saved to "
+                    f"{run.nonfinite_path}{kept}. "
+                    f"{advice}",
+                    exit_code=4,
+                ) from None
             it = trainer.iteration
             if bar is not None:
                 bar.update(1)
@@ -306,7 +404,16 @@ def training_loop(trainer: Trainer, run: RunDirectory, *, iters: int, desc: str,
             if main and (it % log_every == 0 or it == iters or measured):
                 speed = throughput.fields(it)  # before measuring: the measure counts towards the next interval
                 figures = measure.action() if measured else {}
-                run.log({"iteration": it, **logs, **figures, **speed, "torch_threads": torch.get_num_threads(), **(extra or {})})
+                run.log(
+                    {
+                        "iteration": it,
+                        **logs,
+                        **figures,
+                        **speed,
+                        "torch_threads": torch.get_num_threads(),
+                        **(extra or {}),
+                    }
+                )
             if checkpoint_every and it % checkpoint_every == 0 and it < iters:
                 trainer.save(run.checkpoint_path)
             for work in periodic:

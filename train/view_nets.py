@@ -48,7 +48,11 @@ from mesh2tex.render import crop_square, object_box
 from mesh2tex.synthetic.backdrops import place_over_backdrops
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.world import WorldSpec, render_views, sample_material, sample_views, unit_to_uint8
-from mesh2tex.texturing import latent, shape_mismatch, vertex_colours as field_vertex_colours  # _GanTextures.vertex_colours shadows the name
+from mesh2tex.texturing import (
+    latent,
+    shape_mismatch,
+    vertex_colours as field_vertex_colours,
+)  # _GanTextures.vertex_colours shadows the name
 from mesh2tex.train import runs
 
 # --------------------------------------------------------------------------------------- data
@@ -64,11 +68,27 @@ def render_view_dataset(shapes: list[PreparedShape], cfg: ViewDataConfig, seed: 
     ``gan_textured`` (N,) 0/1 and float32 ``azimuth``, ``elevation`` (N,) in degrees. Deterministic
     for ``seed``.
     """
-    spec = WorldSpec(category=cfg.category, seed=seed, resolution=cfg.resolution, elevation_min=cfg.elevation_min,
-                     elevation_max=cfg.elevation_max, distance_min=cfg.distance_min, distance_max=cfg.distance_max,
-                     fov=cfg.fov, supersample=cfg.supersample, variety=cfg.variety)
-    meshes = [SyntheticShape(cfg.category, s.vertices[0].astype(np.float64), s.triangles(0),
-                             np.zeros(2 * s.face_counts[0], dtype=np.int64)) for s in shapes]
+    spec = WorldSpec(
+        category=cfg.category,
+        seed=seed,
+        resolution=cfg.resolution,
+        elevation_min=cfg.elevation_min,
+        elevation_max=cfg.elevation_max,
+        distance_min=cfg.distance_min,
+        distance_max=cfg.distance_max,
+        fov=cfg.fov,
+        supersample=cfg.supersample,
+        variety=cfg.variety,
+    )
+    meshes = [
+        SyntheticShape(
+            cfg.category,
+            s.vertices[0].astype(np.float64),
+            s.triangles(0),
+            np.zeros(2 * s.face_counts[0], dtype=np.int64),
+        )
+        for s in shapes
+    ]
     gan = _GanTextures(cfg.gan_checkpoint, shapes) if cfg.gan_checkpoint else None
     framed = cfg.frame_margin >= 0
     render = cfg.render_settings  # before framing
@@ -149,14 +169,17 @@ class _GanTextures:
 
 def data_fingerprint(cfg: ViewTrainConfig) -> str:
     """JSON of everything the rendered views depend on: the data config and the seed, with the GAN
-    checkpoint's path replaced by a digest of its bytes (a moved checkpoint keeps the cache, a retrained one does not)."""
+    checkpoint's path replaced by a digest of its bytes (a moved checkpoint keeps the cache, a retrained one does
+    not)."""
     data = dataclasses.asdict(cfg.data)
     if cfg.data.gan_checkpoint:
         data["gan_checkpoint"] = "sha256:" + checkpoint_digest(cfg.data.gan_checkpoint, "GAN checkpoint")
     return json.dumps({"data": data, "seed": cfg.seed}, sort_keys=True)
 
 
-def load_or_render_views(run: runs.RunDirectory, shapes: list[PreparedShape], cfg: ViewTrainConfig) -> dict[str, np.ndarray]:
+def load_or_render_views(
+    run: runs.RunDirectory, shapes: list[PreparedShape], cfg: ViewTrainConfig
+) -> dict[str, np.ndarray]:
     """The run's cached views if they were rendered with the same data settings (:func:`data_fingerprint`),
     or render them and cache them atomically."""
     path = run.root / VIEWS_NAME
@@ -173,14 +196,19 @@ def load_or_render_views(run: runs.RunDirectory, shapes: list[PreparedShape], cf
 
 
 def views_to_tensors(views: dict[str, np.ndarray], index: np.ndarray, device: torch.device) -> dict[str, torch.Tensor]:
-    """A mini-batch: ``image`` (B,3,R,R) in [-1,1], ``mask`` (B,1,R,R) {0,1}, ``noc`` (B,3,R,R) in [0,1], angles (B,)."""
+    """A mini-batch: ``image`` (B,3,R,R) in [-1,1], ``mask`` (B,1,R,R) {0,1}, ``noc`` (B,3,R,R) in [0,1], angles
+    (B,)."""
     # contiguous(): a channels-last input trips a heap corruption in the CPU conv backward of small nets.
     rgb = torch.from_numpy(views["rgb"][index]).to(device).permute(0, 3, 1, 2).contiguous().float() / 127.5 - 1.0
     mask = (torch.from_numpy(views["mask"][index]).to(device) > 127).float()[:, None]
     noc = torch.from_numpy(views["noc"][index]).to(device).permute(0, 3, 1, 2).contiguous().float() / 255.0
-    return {"image": rgb, "mask": mask, "noc": noc,
-            "azimuth": torch.from_numpy(views["azimuth"][index]).to(device),
-            "elevation": torch.from_numpy(views["elevation"][index]).to(device)}
+    return {
+        "image": rgb,
+        "mask": mask,
+        "noc": noc,
+        "azimuth": torch.from_numpy(views["azimuth"][index]).to(device),
+        "elevation": torch.from_numpy(views["elevation"][index]).to(device),
+    }
 
 
 # ------------------------------------------------------------------------------------ networks
@@ -189,15 +217,23 @@ def network_loss(kind: str, net: torch.nn.Module, batch: dict[str, torch.Tensor]
         azimuth_logits, elevation_logits = net(batch["image"])
         return pose_loss(azimuth_logits, elevation_logits, batch["azimuth"], batch["elevation"], cfg.bins)
     if kind == "mask":  # the backdrops come from torch's generator: a resumed run draws what it would have
-        images, masks = place_over_backdrops(batch["image"], batch["mask"], np.random.default_rng(int(torch.randint(1 << 62, (1,)))))
+        images, masks = place_over_backdrops(
+            batch["image"], batch["mask"], np.random.default_rng(int(torch.randint(1 << 62, (1,))))
+        )
         return mask_loss(net(images), masks)
     predicted = net(batch["image"], batch["mask"])
     return noc_loss(predicted, batch["noc"], batch["mask"])
 
 
 @torch.no_grad()
-def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], index: np.ndarray, cfg: ViewTrainConfig,
-             device: torch.device) -> dict[str, float]:
+def validate(
+    kind: str,
+    net: torch.nn.Module,
+    views: dict[str, np.ndarray],
+    index: np.ndarray,
+    cfg: ViewTrainConfig,
+    device: torch.device,
+) -> dict[str, float]:
     """Validation figures on the held-out views: bin accuracies and azimuth error, NOC error, or mask IoU
     (the held-out views over the same backdrops at every validation)."""
     net.eval()
@@ -227,7 +263,9 @@ def validate(kind: str, net: torch.nn.Module, views: dict[str, np.ndarray], inde
 def build_view_config(args) -> ViewTrainConfig:
     overrides = config_overrides(args)
     run_config = Path(args.out) / "config.yaml"
-    source = run_config if args.resume and not getattr(args, "overwrite", False) and run_config.is_file() else args.config
+    source = (
+        run_config if args.resume and not getattr(args, "overwrite", False) and run_config.is_file() else args.config
+    )
     cfg = load_config(ViewTrainConfig, source, overrides)
     if cfg.iters < 1 or cfg.batch < 1 or cfg.data.samples < 2:
         raise UserError("--iters and --batch must be at least 1 and --samples at least 2")
@@ -236,15 +274,20 @@ def build_view_config(args) -> ViewTrainConfig:
     if not 0.0 <= cfg.data.gan_share <= 1.0:
         raise UserError(f"data.gan_share {cfg.data.gan_share}: must be between 0 and 1")
     if cfg.data.gan_checkpoint:  # checked before the run directory is written
-        cfg.data.gan_checkpoint = str(resolve_checkpoint(cfg.data.gan_checkpoint, "gan"))  # a shipped model's name, or a path
+        cfg.data.gan_checkpoint = str(
+            resolve_checkpoint(cfg.data.gan_checkpoint, "gan")
+        )  # a shipped model's name, or a path
         kind = read_checkpoint_meta(cfg.data.gan_checkpoint).get("kind")
         if kind != "gan":
-            raise UserError(f"{cfg.data.gan_checkpoint}: this is a '{kind}' checkpoint, --checkpoint needs a 'gan' checkpoint")
+            raise UserError(
+                f"{cfg.data.gan_checkpoint}: this is a '{kind}' checkpoint, --checkpoint needs a 'gan' checkpoint"
+            )
     return cfg
 
 
 class ViewTrainer:
-    """One pose, NOC or mask network trained on the rendered views (:func:`mesh2tex.train.runs.training_loop` drives it)."""
+    """One pose, NOC or mask network trained on the rendered views (:func:`mesh2tex.train.runs.training_loop` drives
+    it)."""
 
     def __init__(self, kind: str, cfg, views: dict, train_index: np.ndarray, device: torch.device):
         self.kind, self.cfg, self.views, self.train_index, self.device = kind, cfg, views, train_index, device
@@ -269,8 +312,15 @@ class ViewTrainer:
         return {"loss": round(float(loss.detach()), 6)}
 
     def save(self, path: Path) -> None:
-        runs.save_training_state(path, self.kind, {VIEW_NET: self.net}, {"opt": self.opt}, {},
-                                 {"iteration": self.iteration, "config": runs.dumps_config(self.cfg)}, [runs.rng_to_state()])
+        runs.save_training_state(
+            path,
+            self.kind,
+            {VIEW_NET: self.net},
+            {"opt": self.opt},
+            {},
+            {"iteration": self.iteration, "config": runs.dumps_config(self.cfg)},
+            [runs.rng_to_state()],
+        )
 
 
 def run_view_training(args, kind: str) -> int:
@@ -279,9 +329,17 @@ def run_view_training(args, kind: str) -> int:
     run = runs.RunDirectory(args.out)
     source = runs.start_from(args.resume, run, kind, overwrite=args.overwrite)  # checked before anything is written
     shapes, _ = load_shapes(args.shapes)
-    if source is not None and source != run.checkpoint_path:  # another run's: loaded once before --out is written, so a misfit leaves it as it was
+    if (
+        source is not None and source != run.checkpoint_path
+    ):  # another run's: loaded once before --out is written, so a misfit leaves it as it was
         probe = build_network(kind, cfg)
-        runs.load_training_state(source, kind, {VIEW_NET: probe}, {"opt": torch.optim.Adam(probe.parameters(), lr=cfg.lr)}, torch.device("cpu"))
+        runs.load_training_state(
+            source,
+            kind,
+            {VIEW_NET: probe},
+            {"opt": torch.optim.Adam(probe.parameters(), lr=cfg.lr)},
+            torch.device("cpu"),
+        )
     run.start(cfg, resume=source == run.checkpoint_path, overwrite=args.overwrite)
     runs.seed_everything(cfg.seed)
     views = load_or_render_views(run, shapes, cfg)
@@ -294,12 +352,23 @@ def run_view_training(args, kind: str) -> int:
         trainer.resume(source)
         run.metrics.truncate_after("iteration", trainer.iteration)
     net = trainer.net
-    runs.training_loop(trainer, run, iters=cfg.iters, desc=f"train {kind}", device=device, log_every=cfg.log_every,
-                       checkpoint_every=cfg.checkpoint_every, advice="Lower --config lr and --resume",
-                       postfix=lambda logs: {"loss": f"{logs['loss']:.4f}"},
-                       measure=runs.Every(cfg.log_every, lambda: validate(kind, net, views, val_index, cfg, device), final="always"))
+    runs.training_loop(
+        trainer,
+        run,
+        iters=cfg.iters,
+        desc=f"train {kind}",
+        device=device,
+        log_every=cfg.log_every,
+        checkpoint_every=cfg.checkpoint_every,
+        advice="Lower --config lr and --resume",
+        postfix=lambda logs: {"loss": f"{logs['loss']:.4f}"},
+        measure=runs.Every(cfg.log_every, lambda: validate(kind, net, views, val_index, cfg, device), final="always"),
+    )
     iteration = trainer.iteration
     final = validate(kind, net, views, val_index, cfg, device)
-    print(f"trained {kind} network for {iteration} steps; held-out " + ", ".join(f"{k}={v}" for k, v in final.items())
-          + f"; checkpoint {run.checkpoint_path}")
+    print(
+        f"trained {kind} network for {iteration} steps; held-out "
+        + ", ".join(f"{k}={v}" for k, v in final.items())
+        + f"; checkpoint {run.checkpoint_path}"
+    )
     return 0

@@ -37,8 +37,10 @@ class TransferCache:
         settings = self.root / "settings.json"
         if settings.is_file() and _comparable(json.loads(settings.read_text())) != _comparable(fingerprint):
             if not overwrite:
-                raise InputError(f"{out}: holds transfers made with other settings or checkpoints ({settings}); "
-                                "use the same settings to reuse them, or pass --overwrite to discard them")
+                raise InputError(
+                    f"{out}: holds transfers made with other settings or checkpoints ({settings}); "
+                    "use the same settings to reuse them, or pass --overwrite to discard them"
+                )
             shutil.rmtree(self.root)
         if not settings.is_file():
             write_json(settings, fingerprint)
@@ -55,13 +57,19 @@ class TransferCache:
         with np.load(path, allow_pickle=False) as data:
             if "field_features" not in data or "face_rgb" not in data:
                 return None
-            texture = FaceTexture(field_features=torch.from_numpy(data["field_features"]), face_rgb=torch.from_numpy(data["face_rgb"]))
+            texture = FaceTexture(
+                field_features=torch.from_numpy(data["field_features"]), face_rgb=torch.from_numpy(data["face_rgb"])
+            )
             return texture, json.loads(str(data["row"]))
 
     def save(self, protocol: str, ablation: str, query: str, texture: FaceTexture, row: dict) -> None:
         with atomic_path(self._path(protocol, ablation, query)) as tmp:
-            np.savez(tmp, field_features=texture.field_features.detach().float().cpu().numpy(),
-                     face_rgb=texture.face_rgb.detach().float().cpu().numpy(), row=np.array(json.dumps(row)))
+            np.savez(
+                tmp,
+                field_features=texture.field_features.detach().float().cpu().numpy(),
+                face_rgb=texture.face_rgb.detach().float().cpu().numpy(),
+                row=np.array(json.dumps(row)),
+            )
 
 
 def _comparable(fingerprint: dict) -> dict:

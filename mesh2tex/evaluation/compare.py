@@ -28,12 +28,27 @@ import torch
 from mesh2tex.evaluation.surfaces import Surface, SurfacePoints
 from mesh2tex.metrics.appearance import lowpass_psnr, object_swd, part_colour_error
 from mesh2tex.metrics.image import masked_psnr, masked_ssim
-from mesh2tex.render import RenderSettings, composite, face_attribute, face_normals, interpolate, orbit_camera, rasterize, shade_lambert, transform_points
+from mesh2tex.render import (
+    RenderSettings,
+    composite,
+    face_attribute,
+    face_normals,
+    interpolate,
+    orbit_camera,
+    rasterize,
+    shade_lambert,
+    transform_points,
+)
 
 # name -> +1 (higher is better) or -1 (lower is better); the order of the tables' columns.
 METRICS = {"part_delta_e": -1, "lowpass_psnr": 1, "swd": -1, "psnr": 1, "ssim": 1}
-METRIC_TITLES = {"part_delta_e": "per-part ΔE", "lowpass_psnr": "low-pass PSNR", "swd": "object SWD",
-                 "psnr": "PSNR (mask)", "ssim": "SSIM (mask)"}
+METRIC_TITLES = {
+    "part_delta_e": "per-part ΔE",
+    "lowpass_psnr": "low-pass PSNR",
+    "swd": "object SWD",
+    "psnr": "PSNR (mask)",
+    "ssim": "SSIM (mask)",
+}
 ALIGNED_ONLY = ("lowpass_psnr", "psnr", "ssim")  # need pixel-aligned geometry
 
 
@@ -84,10 +99,12 @@ def render_for_comparison(surface: Surface, views: list, settings: RenderSetting
         raise ValueError("render_for_comparison needs at least one view")
     big, supersample = settings.raster_side, settings.supersample
     vertices, faces = surface.vertices, surface.faces
-    camera = orbit_camera(torch.tensor([v.azimuth for v in views], dtype=torch.float32),
-                          torch.tensor([v.elevation for v in views], dtype=torch.float32),
-                          distance=torch.tensor([v.distance for v in views], dtype=torch.float32),
-                          fov=torch.tensor([v.fov for v in views], dtype=torch.float32))
+    camera = orbit_camera(
+        torch.tensor([v.azimuth for v in views], dtype=torch.float32),
+        torch.tensor([v.elevation for v in views], dtype=torch.float32),
+        distance=torch.tensor([v.distance for v in views], dtype=torch.float32),
+        fov=torch.tensor([v.fov for v in views], dtype=torch.float32),
+    )
     raster = rasterize(transform_points(vertices, camera.mvp), faces, (big, big))
     covered = raster.face_id >= 0
     points = interpolate(vertices, raster, faces)
@@ -109,7 +126,9 @@ def render_for_comparison(surface: Surface, views: list, settings: RenderSetting
     keep = coverage[..., 0] >= 0.5
     # Each pixel's face: its centre sub-pixel's, or where that one misses the object another covered sub-pixel's.
     centre = supersample // 2
-    offsets = [(centre, centre)] + [(i, j) for i in range(supersample) for j in range(supersample) if (i, j) != (centre, centre)]
+    offsets = [(centre, centre)] + [
+        (i, j) for i in range(supersample) for j in range(supersample) if (i, j) != (centre, centre)
+    ]
     face = raster.face_id[:, centre::supersample, centre::supersample].clone()
     for i, j in offsets[1:]:
         face = torch.where(face >= 0, face, raster.face_id[:, i::supersample, j::supersample])
@@ -118,7 +137,9 @@ def render_for_comparison(surface: Surface, views: list, settings: RenderSetting
     else:
         parts = torch.full_like(face, -1)
     parts = torch.where(keep, parts, torch.full_like(parts, -1))
-    return ComparisonRender(rgb=rgb.permute(0, 3, 1, 2).clamp(0, 1).contiguous(), mask=keep[:, None].float(), parts=parts)
+    return ComparisonRender(
+        rgb=rgb.permute(0, 3, 1, 2).clamp(0, 1).contiguous(), mask=keep[:, None].float(), parts=parts
+    )
 
 
 @dataclass
@@ -129,8 +150,14 @@ class ScoreSettings:
     seed: int = 0  # seed of the SWD's patches and projections (the same for every candidate)
 
 
-def score_views(candidate: ComparisonRender, reference_rgb: torch.Tensor, reference_parts: torch.Tensor, mask: torch.Tensor,
-                settings: ScoreSettings | None = None, reference_mask: torch.Tensor | None = None) -> dict[str, list[float]]:
+def score_views(
+    candidate: ComparisonRender,
+    reference_rgb: torch.Tensor,
+    reference_parts: torch.Tensor,
+    mask: torch.Tensor,
+    settings: ScoreSettings | None = None,
+    reference_mask: torch.Tensor | None = None,
+) -> dict[str, list[float]]:
     """Scores of B candidate views against their references: {metric: [B] floats} (see :data:`METRICS`).
 
     Pixel-aligned geometry (``reference_mask`` None): every metric on the common object ``mask``
@@ -143,7 +170,9 @@ def score_views(candidate: ComparisonRender, reference_rgb: torch.Tensor, refere
     rgb = candidate.rgb
     if reference_mask is None:
         scores = {
-            "part_delta_e": part_colour_error(rgb, reference_rgb, reference_parts, mask, min_pixels=settings.min_part_pixels),
+            "part_delta_e": part_colour_error(
+                rgb, reference_rgb, reference_parts, mask, min_pixels=settings.min_part_pixels
+            ),
             "lowpass_psnr": lowpass_psnr(rgb, reference_rgb, mask, settings.lowpass_sigma),
             "swd": object_swd(rgb, reference_rgb, mask, patches=settings.swd_patches, seed=settings.seed),
             "psnr": masked_psnr(rgb, reference_rgb, mask),
@@ -151,9 +180,18 @@ def score_views(candidate: ComparisonRender, reference_rgb: torch.Tensor, refere
         }
     else:
         scores = {
-            "part_delta_e": part_colour_error(rgb, reference_rgb, candidate.parts, mask, reference_parts, reference_mask,
-                                              min_pixels=settings.min_part_pixels),
-            "swd": object_swd(rgb, reference_rgb, mask, reference_mask, patches=settings.swd_patches, seed=settings.seed),
+            "part_delta_e": part_colour_error(
+                rgb,
+                reference_rgb,
+                candidate.parts,
+                mask,
+                reference_parts,
+                reference_mask,
+                min_pixels=settings.min_part_pixels,
+            ),
+            "swd": object_swd(
+                rgb, reference_rgb, mask, reference_mask, patches=settings.swd_patches, seed=settings.seed
+            ),
         }
     return {name: [float(v) for v in values] for name, values in scores.items()}
 
@@ -174,7 +212,8 @@ def metric_direction(name: str) -> int:
     """+1 if higher is better, -1 if lower is better, 0 for values that are not scores (spreads, levels).
 
     Transfer columns are named '<seen|unseen> <metric>' or bare (see :data:`METRICS`); the set metrics
-    of ``mesh2tex evaluate`` by their own names (kid_*, fid_*, swd, color_hist_tv, psnr_masked, ssim_masked, object_swd*)."""
+    of ``mesh2tex evaluate`` by their own names (kid_*, fid_*, swd, color_hist_tv, psnr_masked, ssim_masked,
+    object_swd*)."""
     if name.endswith("_std") or (name.startswith("swd_") and name.endswith("px")):
         return 0
     last = name.split(" ")[-1]

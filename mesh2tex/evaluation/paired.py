@@ -20,7 +20,9 @@ def mean_scores(rows: list[dict]) -> dict[str, float]:
     columns = [k for k in (rows[0] if rows else {}) if k.startswith(("seen ", "unseen "))]
     means = {}
     for column in columns:
-        values = [r[column] for r in rows if column in r and isinstance(r[column], (int, float)) and not math.isnan(r[column])]
+        values = [
+            r[column] for r in rows if column in r and isinstance(r[column], (int, float)) and not math.isnan(r[column])
+        ]
         if values:
             means[column] = sum(values) / len(values)
     return means
@@ -28,8 +30,11 @@ def mean_scores(rows: list[dict]) -> dict[str, float]:
 
 def scored_metrics(entry: dict) -> dict[str, float]:
     """{column: mean value} of one method's scores that rank methods (finite values only)."""
-    return {name: float(value) for name, value in entry.get("query", {}).items()
-            if metric_direction(name) != 0 and isinstance(value, (int, float)) and math.isfinite(value)}
+    return {
+        name: float(value)
+        for name, value in entry.get("query", {}).items()
+        if metric_direction(name) != 0 and isinstance(value, (int, float)) and math.isfinite(value)
+    }
 
 
 def compare_to_full(methods: dict) -> dict:
@@ -47,9 +52,14 @@ def compare_to_full(methods: dict) -> dict:
         other = scored_metrics(entry)
         other_rows = entry.get("per_query", [])
         margin = {m: (full[m] - other[m]) * metric_direction(m) for m in full if m in other}
-        comparison[name] = {"full_better": {m: d > 0 for m, d in margin.items()}, "wins": sum(d > 0 for d in margin.values()),
-                            "ties": sum(d == 0 for d in margin.values()), "metrics": len(margin),
-                            "query_wins": paired_query_wins(full_rows, other_rows), "query_tests": paired_query_tests(full_rows, other_rows)}
+        comparison[name] = {
+            "full_better": {m: d > 0 for m, d in margin.items()},
+            "wins": sum(d > 0 for d in margin.values()),
+            "ties": sum(d == 0 for d in margin.values()),
+            "metrics": len(margin),
+            "query_wins": paired_query_wins(full_rows, other_rows),
+            "query_tests": paired_query_tests(full_rows, other_rows),
+        }
     return comparison
 
 
@@ -72,8 +82,10 @@ def paired_query_differences(full_rows: list[dict], other_rows: list[dict]) -> d
 def paired_query_wins(full_rows: list[dict], other_rows: list[dict]) -> dict[str, list[int]]:
     """Per metric, [queries where the full method is strictly better, queries compared]: the paired view
     of the same queries, less sensitive than a mean to one query's large margin."""
-    return {metric: [sum(d > 0 for d in values), len(values)]
-            for metric, values in paired_query_differences(full_rows, other_rows).items()}
+    return {
+        metric: [sum(d > 0 for d in values), len(values)]
+        for metric, values in paired_query_differences(full_rows, other_rows).items()
+    }
 
 
 def paired_query_tests(full_rows: list[dict], other_rows: list[dict]) -> dict[str, dict]:

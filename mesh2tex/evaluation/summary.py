@@ -31,17 +31,21 @@ def generation_summary(per_repeat: list[dict], diversity: dict, photo_spread: fl
         return gap_closed(table["untrained"][column], table[row][column], table["oracle"][column])
 
     return {
-        "rows": rows, "gap_closed": closed("trained"),
+        "rows": rows,
+        "gap_closed": closed("trained"),
         # The same figure from each draw alone: how much one draw of latents and materials moves it.
         "gap_closed_per_draw": [closed("trained", table=r) for r in per_repeat],
-        "gap_closed_histogram": closed("trained", "color_hist_tv"), "gap_closed_whole_image_swd": closed("trained", "swd"),
-        # What reproducing the training textures exactly would close: about the most a generator can learn from them alone.
+        "gap_closed_histogram": closed("trained", "color_hist_tv"),
+        "gap_closed_whole_image_swd": closed("trained", "swd"),
+        # What reproducing the training textures exactly would close: about the most a generator can learn
+        # from them alone.
         "gap_closed_training_materials": closed("training_materials"),
         "gap_closed_vs_photos": closed("trained", "object_swd_vs_photos"),
         # Columns some row beats the oracle on: such a column cannot rank textures.
         "oracle_loses": oracle_check({row: {"query": metrics} for row, metrics in rows.items()}),
         "diversity": {
-            **summary, "photo_set_spread": photo_spread,
+            **summary,
+            "photo_set_spread": photo_spread,
             "trained_spread_vs_photo_set": summary["trained"]["spread"] / max(photo_spread, 1e-9),
             "trained_spread_vs_materials": summary["trained"]["spread"] / max(ref["spread"], 1e-9),
             "trained_pairwise_vs_materials": summary["trained"]["pairwise"] / max(ref["pairwise"], 1e-9),

@@ -60,9 +60,12 @@ class Surface:
     face_parts: torch.Tensor | None = None
 
     def __post_init__(self):
-        self.vertices = torch.as_tensor(np.asarray(self.vertices) if not torch.is_tensor(self.vertices) else self.vertices,
-                                        dtype=torch.float32)
-        self.faces = torch.as_tensor(np.asarray(self.faces) if not torch.is_tensor(self.faces) else self.faces, dtype=torch.int64)
+        self.vertices = torch.as_tensor(
+            np.asarray(self.vertices) if not torch.is_tensor(self.vertices) else self.vertices, dtype=torch.float32
+        )
+        self.faces = torch.as_tensor(
+            np.asarray(self.faces) if not torch.is_tensor(self.faces) else self.faces, dtype=torch.int64
+        )
         if self.vertices.dim() != 2 or self.vertices.shape[1] != 3:
             raise ValueError(f"vertices must be [V, 3], got {tuple(self.vertices.shape)}")
         if self.faces.dim() != 2 or self.faces.shape[1] != 3:
@@ -130,7 +133,9 @@ def generator_surface(generator, texture, batch, face_parts=None) -> Surface:
         raise ValueError(f"generator_surface takes a batch of one shape, got {batch.num_shapes}")
     device = next(generator.parameters()).device
     faces = batch.shape_triangles(0).cpu()
-    face_texture = FaceTexture(texture.field_features.detach().to(device), texture.face_rgb.detach().to(device)).bound(generator, batch.to(device))
+    face_texture = FaceTexture(texture.field_features.detach().to(device), texture.face_rgb.detach().to(device)).bound(
+        generator, batch.to(device)
+    )
 
     @torch.no_grad()
     def colour(p: SurfacePoints) -> torch.Tensor:
@@ -152,8 +157,17 @@ def _to_pixels(points: torch.Tensor, mvp: torch.Tensor, size: int) -> tuple[torc
     return row, col
 
 
-def backprojected_surface(vertices, faces, image: torch.Tensor, mask: torch.Tensor, mvp: torch.Tensor, render_size: int,
-                          box: tuple[int, int, int], tolerance: float = 0.02, face_parts=None) -> Surface:
+def backprojected_surface(
+    vertices,
+    faces,
+    image: torch.Tensor,
+    mask: torch.Tensor,
+    mvp: torch.Tensor,
+    render_size: int,
+    box: tuple[int, int, int],
+    tolerance: float = 0.02,
+    face_parts=None,
+) -> Surface:
     """The photo painted onto the mesh from the photo's camera ("photo back-projection").
 
     image [3, R, R] in [0, 1] and mask [R, R] {0, 1}: the photo cropped around its object, as the
@@ -221,8 +235,19 @@ def backprojected_surface(vertices, faces, image: torch.Tensor, mask: torch.Tens
 
 
 @torch.no_grad()
-def backproject_photo(vertices, faces, photo: torch.Tensor, photo_mask: torch.Tensor, azimuth: float, elevation: float,
-                      distance: float, fov: float, align: str = "silhouette", margin: float = 0.1, face_parts=None) -> Surface:
+def backproject_photo(
+    vertices,
+    faces,
+    photo: torch.Tensor,
+    photo_mask: torch.Tensor,
+    azimuth: float,
+    elevation: float,
+    distance: float,
+    fov: float,
+    align: str = "silhouette",
+    margin: float = 0.1,
+    face_parts=None,
+) -> Surface:
     """:func:`backprojected_surface` from a whole photo and an orbit pose (degrees), framed like the transfer.
 
     photo [3, H, H] in [0, 1], photo_mask [H, H] {0, 1}. ``align="photo"``: the pose is the photo's
@@ -236,9 +261,13 @@ def backproject_photo(vertices, faces, photo: torch.Tensor, photo_mask: torch.Te
     photo = torch.as_tensor(photo, dtype=torch.float32)
     mask = torch.as_tensor(np.asarray(photo_mask), dtype=torch.float32).reshape(photo.shape[-2:])
     side = int(photo.shape[-1])
-    camera = orbit_camera(torch.tensor([float(azimuth)]), torch.tensor([float(elevation)]), distance=float(distance), fov=float(fov))
+    camera = orbit_camera(
+        torch.tensor([float(azimuth)]), torch.tensor([float(elevation)]), distance=float(distance), fov=float(fov)
+    )
     if align == "photo":
-        return backprojected_surface(vertices, faces, photo, mask, camera.mvp, side, (0, 0, side), face_parts=face_parts)
+        return backprojected_surface(
+            vertices, faces, photo, mask, camera.mvp, side, (0, 0, side), face_parts=face_parts
+        )
     if align != "silhouette":
         raise ValueError(f"align must be 'photo' or 'silhouette', got {align!r}")
     box = object_box(mask.numpy() > 0.5, margin)
@@ -250,7 +279,9 @@ def backproject_photo(vertices, faces, photo: torch.Tensor, photo_mask: torch.Te
     covered = (rasterize(transform_points(verts, camera.mvp), tri, (render_size, render_size)).face_id[0] >= 0).numpy()
     if covered.sum() < 4:
         raise ValueError(f"the mesh is not visible at azimuth {azimuth}, elevation {elevation} (distance {distance})")
-    return backprojected_surface(verts, tri, crop, crop_m, camera.mvp, render_size, object_box(covered, margin), face_parts=face_parts)
+    return backprojected_surface(
+        verts, tri, crop, crop_m, camera.mvp, render_size, object_box(covered, margin), face_parts=face_parts
+    )
 
 
 def photo_mean_colour(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:

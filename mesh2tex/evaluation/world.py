@@ -75,9 +75,19 @@ def load_world(root: str | Path, max_queries: int = 0) -> World:
         for path in (image, mask):
             if not path.is_file():
                 raise InputError(f"{path}: query file missing (listed in {index_path})")
-        queries.append(Query(name=image.stem, image=image, mask=mask, shape=truth["shape"],
-                             azimuth=float(truth["azimuth"]), elevation=float(truth["elevation"]),
-                             distance=float(truth["distance"]), fov=float(truth["fov"]), record=truth))
+        queries.append(
+            Query(
+                name=image.stem,
+                image=image,
+                mask=mask,
+                shape=truth["shape"],
+                azimuth=float(truth["azimuth"]),
+                elevation=float(truth["elevation"]),
+                distance=float(truth["distance"]),
+                fov=float(truth["fov"]),
+                record=truth,
+            )
+        )
     if max_queries > 0:
         queries = queries[:max_queries]
     query_shapes = list(dict.fromkeys(q.shape for q in queries))
@@ -103,17 +113,27 @@ def photo_frame_view(shape: PreparedShape, query: Query, resolution: int, margin
     photo_mask = np.asarray(load_mask(query.mask), dtype=bool)
     side = photo_mask.shape[0]
     if photo_mask.shape[1] != side:
-        raise InputError(f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}")
+        raise InputError(
+            f"{query.mask}: query photos must be square to be framed like renders, got {photo_mask.shape[1]}x{side}"
+        )
     if not photo_mask.any():
         raise InputError(f"{query.mask}: the query's object mask is empty")
     box = object_box(photo_mask, margin)
-    camera = orbit_camera(torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov)
+    camera = orbit_camera(
+        torch.tensor([query.azimuth]), torch.tensor([query.elevation]), distance=query.distance, fov=query.fov
+    )
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
     raster = rasterize(transform_points(vertices, camera.mvp), torch.as_tensor(shape.triangles(0)), (side, side))
     mask = crop_mask(raster.face_id[0] >= 0, box, resolution)
-    return FramedView(mvp=camera.mvp, render_size=side, box=box, noc=torch.zeros(resolution, resolution, 3), mask=mask,
-                        azimuth=float(query.azimuth), elevation=float(query.elevation))
-
+    return FramedView(
+        mvp=camera.mvp,
+        render_size=side,
+        box=box,
+        noc=torch.zeros(resolution, resolution, 3),
+        mask=mask,
+        azimuth=float(query.azimuth),
+        elevation=float(query.elevation),
+    )
 
 
 # ------------------------------------------------------------------------------------- ground truth
@@ -160,7 +180,8 @@ class QueryTruth:
         return int(self.photo.shape[-1])
 
     def render_settings(self, lighting: str = "photo") -> RenderSettings:
-        """The photo's render settings with ``lighting`` ("photo" or "albedo"): what every render compared with it uses."""
+        """The photo's render settings with ``lighting`` ("photo" or "albedo"): what every render compared with it
+        uses."""
         return replace(self.photo_render, lighting=lighting)
 
 
@@ -198,7 +219,9 @@ def _load_shape_truth(root: str, settings: str, name: str) -> ShapeTruth:
         raise ValueError(f"{obj}: differs from the shape the world's settings make (a world of another version?)")
     glb = Path(root) / "textured" / f"{name}.glb"
     glb_vertices, glb_faces, uv, image = load_glb(glb)
-    if glb_faces.shape != shape.faces.shape or not np.allclose(glb_vertices[glb_faces], shape.vertices[shape.faces], atol=1e-4):
+    if glb_faces.shape != shape.faces.shape or not np.allclose(
+        glb_vertices[glb_faces], shape.vertices[shape.faces], atol=1e-4
+    ):
         raise ValueError(f"{glb}: its faces do not follow the order of {obj}")
     oracle = textured_surface(glb_vertices, glb_faces, uv, image, shape.face_parts)
     return ShapeTruth(name=name, shape=shape, material=make_material(spec, index), oracle=oracle)
@@ -209,15 +232,23 @@ def load_query_truth(root: str | Path, index: dict, sidecar: dict) -> QueryTruth
     from mesh2tex.synthetic.world import PhotoSetup
 
     root = Path(root)
-    view = PhotoSetup(**{k: (tuple(sidecar[k]) if k == "light" else sidecar[k]) for k in PhotoSetup.__dataclass_fields__})
+    view = PhotoSetup(
+        **{k: (tuple(sidecar[k]) if k == "light" else sidecar[k]) for k in PhotoSetup.__dataclass_fields__}
+    )
     rgb, _ = load_image(root / sidecar["image"])
     mask = np.asarray(load_mask(root / sidecar["mask"]), dtype=bool)
     photo = images_to_unit(rgb)
     name = Path(sidecar["image"]).stem
     # rendered as the world renders its photos, at the photo's own size
     photo_render = RenderSettings(int(photo.shape[-1]), world_spec(index).supersample)
-    return QueryTruth(name=name, view=view, photo=photo, photo_mask=torch.from_numpy(mask)[None, None].float(),
-                      truth=load_shape_truth(root, index, sidecar["shape"]), photo_render=photo_render)
+    return QueryTruth(
+        name=name,
+        view=view,
+        photo=photo,
+        photo_mask=torch.from_numpy(mask)[None, None].float(),
+        truth=load_shape_truth(root, index, sidecar["shape"]),
+        photo_render=photo_render,
+    )
 
 
 def reference_renders(query: QueryTruth, views: list, lighting: str = "photo") -> ComparisonRender:
@@ -251,5 +282,10 @@ def read_world(root: str | Path) -> WorldData:
     held_out = list(world.index["split"]["query_shapes"])
     if not held_out:
         raise InputError(f"{world.root / 'index.json'}: the world holds no held-out shapes")
-    return WorldData(spec=spec, root=world.root, held_out=held_out, train=list(world.index["split"]["train_shapes"]),
-                     indices={spec.shape_name(i): i for i in range(spec.shapes)})
+    return WorldData(
+        spec=spec,
+        root=world.root,
+        held_out=held_out,
+        train=list(world.index["split"]["train_shapes"]),
+        indices={spec.shape_name(i): i for i in range(spec.shapes)},
+    )

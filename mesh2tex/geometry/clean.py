@@ -39,8 +39,12 @@ class Normalization:
         return m
 
     def to_json(self) -> dict:
-        return {"center": [float(c) for c in self.centre], "scale": float(self.scale), "matrix": self.matrix().tolist(),
-                "meaning": "normalized = (original - center) * scale"}
+        return {
+            "center": [float(c) for c in self.centre],
+            "scale": float(self.scale),
+            "matrix": self.matrix().tolist(),
+            "meaning": "normalized = (original - center) * scale",
+        }
 
     def then(self, other: "Normalization") -> "Normalization":
         """The normalisation that applies this one, then ``other``."""
@@ -86,11 +90,31 @@ def normalize(vertices: np.ndarray) -> tuple[np.ndarray, Normalization]:
 # plugin takes an unpassed parameter from the previous call in the process, and for the isotropic
 # remeshing's surface-distance check (on/off and distance) from memory it never initialises, so the
 # same mesh came out differently from one installation, one worker process or one call order to another.
-DECIMATION = {"targetperc": 0.0, "qualitythr": 0.3, "preserveboundary": True, "boundaryweight": 1.0, "preservenormal": False,
-              "preservetopology": True, "optimalplacement": True, "planarquadric": True, "planarweight": 0.001,
-              "qualityweight": False, "autoclean": True, "selected": False}
-ISOTROPIC_REMESHING = {"adaptive": False, "selectedonly": False, "featuredeg": 30.0, "checksurfdist": True, "splitflag": True,
-                       "collapseflag": True, "swapflag": True, "smoothflag": True, "reprojectflag": True}
+DECIMATION = {
+    "targetperc": 0.0,
+    "qualitythr": 0.3,
+    "preserveboundary": True,
+    "boundaryweight": 1.0,
+    "preservenormal": False,
+    "preservetopology": True,
+    "optimalplacement": True,
+    "planarquadric": True,
+    "planarweight": 0.001,
+    "qualityweight": False,
+    "autoclean": True,
+    "selected": False,
+}
+ISOTROPIC_REMESHING = {
+    "adaptive": False,
+    "selectedonly": False,
+    "featuredeg": 30.0,
+    "checksurfdist": True,
+    "splitflag": True,
+    "collapseflag": True,
+    "swapflag": True,
+    "smoothflag": True,
+    "reprojectflag": True,
+}
 ISOTROPIC_MAX_SURFACE_DISTANCE = 1.0  # per cent of the bounding-box diagonal a remeshing step may move the surface
 
 
@@ -101,7 +125,11 @@ def mesh_set(vertices: np.ndarray, faces: np.ndarray):
     import pymeshlab
 
     ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)))
+    ms.add_mesh(
+        pymeshlab.Mesh(
+            vertex_matrix=np.asarray(vertices, dtype=np.float64), face_matrix=np.asarray(faces, dtype=np.int32)
+        )
+    )
     return ms
 
 
@@ -186,7 +214,9 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, target_faces: int) -> tupl
     return np.asarray(mesh.vertex_matrix(), dtype=np.float64), np.asarray(mesh.face_matrix(), dtype=np.int64)
 
 
-def isotropic_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 3) -> tuple[np.ndarray, np.ndarray]:
+def isotropic_remesh(
+    vertices: np.ndarray, faces: np.ndarray, edge_length: float, iterations: int = 3
+) -> tuple[np.ndarray, np.ndarray]:
     """Triangles of about ``edge_length`` on the same surface (pymeshlab's isotropic explicit remeshing).
 
     QuadriFlow runs about twice as fast on such an even input as on the long, thin triangles of a CAD
@@ -199,9 +229,14 @@ def isotropic_remesh(vertices: np.ndarray, faces: np.ndarray, edge_length: float
 
     vertices, faces = decimate(vertices, faces, 30_000)
     ms = mesh_set(vertices, faces)
-    if not _apply_filter(ms, "meshing_isotropic_explicit_remeshing", targetlen=pymeshlab.PureValue(float(edge_length)),
-                         iterations=int(iterations), maxsurfdist=pymeshlab.PercentageValue(ISOTROPIC_MAX_SURFACE_DISTANCE),
-                         **ISOTROPIC_REMESHING):
+    if not _apply_filter(
+        ms,
+        "meshing_isotropic_explicit_remeshing",
+        targetlen=pymeshlab.PureValue(float(edge_length)),
+        iterations=int(iterations),
+        maxsurfdist=pymeshlab.PercentageValue(ISOTROPIC_MAX_SURFACE_DISTANCE),
+        **ISOTROPIC_REMESHING,
+    ):
         return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
     _apply_filter(ms, "meshing_remove_unreferenced_vertices")
     mesh = ms.current_mesh()

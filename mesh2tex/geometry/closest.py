@@ -156,10 +156,12 @@ class SurfaceIndex:
             k = min(k, len(self._owner))
             step = max(1, block // k)
             for start in range(0, len(todo), step):
-                part = todo[start:start + step]
+                part = todo[start : start + step]
                 sample_distance, nearest = self._tree.query(points[part], k=k)
                 sample_distance, nearest = sample_distance.reshape(len(part), k), nearest.reshape(len(part), k)
-                t, b, d = _closest_on_triangles(points[part], self._a, self._b, self._c, np.ascontiguousarray(self._owner[nearest]))
+                t, b, d = _closest_on_triangles(
+                    points[part], self._a, self._b, self._c, np.ascontiguousarray(self._owner[nearest])
+                )
                 d = np.sqrt(d)
                 triangle[part], bary[part], distance[part] = t, b, d
                 if k < len(self._owner):  # not yet certain: try more candidates

@@ -44,8 +44,18 @@ import numpy as np
 from mesh2tex.checks import check_array_shape
 from mesh2tex.geometry.hierarchy import orient_coherently
 
-FEATURE_NAMES = ["normal_x", "normal_y", "normal_z", "fff_stretch", "fff_shear", "sff_sum", "sff_diff", "sff_twist",
-                 "mean_curvature", "gaussian_curvature"]
+FEATURE_NAMES = [
+    "normal_x",
+    "normal_y",
+    "normal_z",
+    "fff_stretch",
+    "fff_shear",
+    "sff_sum",
+    "sff_diff",
+    "sff_twist",
+    "mean_curvature",
+    "gaussian_curvature",
+]
 
 
 def _normalize_rows(x: np.ndarray) -> np.ndarray:
@@ -98,9 +108,16 @@ def fundamental_forms(vertices: np.ndarray, quads: np.ndarray) -> dict[str, np.n
     det_first = e * g - f * f
     ok = det_first > 1e-14 * np.maximum(e * g, 1e-30)
     safe = np.where(ok, det_first, 1.0)
-    return {"E": e, "F": f, "G": g, "L": l_, "M": m, "N": n,
-            "H": np.where(ok, (e * n - 2.0 * f * m + g * l_) / (2.0 * safe), 0.0),
-            "K": np.where(ok, (l_ * n - m * m) / safe, 0.0)}
+    return {
+        "E": e,
+        "F": f,
+        "G": g,
+        "L": l_,
+        "M": m,
+        "N": n,
+        "H": np.where(ok, (e * n - 2.0 * f * m + g * l_) / (2.0 * safe), 0.0),
+        "K": np.where(ok, (l_ * n - m * m) / safe, 0.0),
+    }
 
 
 def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, list[str]]:
@@ -120,11 +137,19 @@ def face_features(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, 
     size_sq = np.maximum((forms["E"] + forms["G"]) / 2.0, 1e-30)
     size = np.sqrt(size_sq)
     trace_first = 2.0 * size_sq  # E + G
-    features = np.stack([*quad_normals(vertices, quads).T,
-                         np.abs(forms["E"] - forms["G"]) / trace_first, 2.0 * np.abs(forms["F"]) / trace_first,
-                         np.arcsinh((forms["L"] + forms["N"]) / (2.0 * size)), np.arcsinh(np.abs(forms["L"] - forms["N"]) / (2.0 * size)),
-                         np.arcsinh(np.abs(forms["M"]) / size),
-                         np.arcsinh(forms["H"] * size), np.arcsinh(forms["K"] * size_sq)], axis=1)
+    features = np.stack(
+        [
+            *quad_normals(vertices, quads).T,
+            np.abs(forms["E"] - forms["G"]) / trace_first,
+            2.0 * np.abs(forms["F"]) / trace_first,
+            np.arcsinh((forms["L"] + forms["N"]) / (2.0 * size)),
+            np.arcsinh(np.abs(forms["L"] - forms["N"]) / (2.0 * size)),
+            np.arcsinh(np.abs(forms["M"]) / size),
+            np.arcsinh(forms["H"] * size),
+            np.arcsinh(forms["K"] * size_sq),
+        ],
+        axis=1,
+    )
     features = np.nan_to_num(features, nan=0.0, posinf=0.0, neginf=0.0)
     return features.astype(np.float32), list(FEATURE_NAMES)
 

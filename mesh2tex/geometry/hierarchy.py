@@ -84,7 +84,9 @@ def face_neighborhoods(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     ring = np.stack([edge_nb, corner], axis=2).reshape(f, 8)  # E0 C0 E1 C1 E2 C2 E3 C3
     # start at the edge with the smallest midpoint (x, then y, then z); rounding makes ties exact
     midpoints = np.round((vertices[quads] + vertices[np.roll(quads, -1, axis=1)]) / 2.0, 6).reshape(-1, 3)
-    order = np.lexsort((midpoints[:, 2], midpoints[:, 1], midpoints[:, 0], np.repeat(faces, 4)))  # face is the primary key
+    order = np.lexsort(
+        (midpoints[:, 2], midpoints[:, 1], midpoints[:, 0], np.repeat(faces, 4))
+    )  # face is the primary key
     start = order[0::4] % 4
     columns = (2 * start[:, None] + np.arange(8)[None, :]) % 8
     ordered = np.take_along_axis(ring, columns, axis=1)
@@ -98,8 +100,13 @@ def face_centres(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     return np.asarray(vertices, dtype=np.float64)[np.asarray(quads)].mean(axis=1)
 
 
-def pooling_map(fine_vertices: np.ndarray, fine_quads: np.ndarray, coarse_vertices: np.ndarray, coarse_quads: np.ndarray,
-                candidates: int = 16) -> np.ndarray:
+def pooling_map(
+    fine_vertices: np.ndarray,
+    fine_quads: np.ndarray,
+    coarse_vertices: np.ndarray,
+    coarse_quads: np.ndarray,
+    candidates: int = 16,
+) -> np.ndarray:
     """Map every fine face to one coarse face so that every coarse face receives at least one.
 
     Each fine face first goes to the coarse face with the nearest centre. A coarse face left
@@ -201,7 +208,9 @@ def orient_coherently(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     centres = p.mean(axis=1)
     area = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1]) / 2.0
     weight = np.linalg.norm(area, axis=1)
-    part_centre = np.stack([np.bincount(part, weights=weight * centres[:, k], minlength=n_parts) for k in range(3)], axis=1)
+    part_centre = np.stack(
+        [np.bincount(part, weights=weight * centres[:, k], minlength=n_parts) for k in range(3)], axis=1
+    )
     part_centre /= np.maximum(np.bincount(part, weights=weight, minlength=n_parts), 1e-30)[:, None]
     volume = np.bincount(part, weights=np.einsum("ij,ij->i", centres - part_centre[part], area), minlength=n_parts)
     reverse = volume[part] < 0

@@ -152,7 +152,9 @@ def marching_cubes(field: SolidField) -> tuple[np.ndarray, np.ndarray]:
     """
     from skimage import measure
 
-    verts, tris, _, _ = measure.marching_cubes(field.phi, level=0.0, spacing=(field.spacing,) * 3, allow_degenerate=False)
+    verts, tris, _, _ = measure.marching_cubes(
+        field.phi, level=0.0, spacing=(field.spacing,) * 3, allow_degenerate=False
+    )
     verts = verts.astype(np.float64) + field.origin
     tris = np.asarray(tris, dtype=np.int64)
     p = verts[tris]
@@ -180,11 +182,13 @@ def make_well_composed(inside: np.ndarray, max_rounds: int = 64) -> np.ndarray:
     for _ in range(max_rounds):
         changed = False
         for axis_u, axis_v in ((0, 1), (1, 2), (0, 2)):
+
             def view(du, dv):
                 index = [slice(None)] * 3
                 index[axis_u] = slice(du, x.shape[axis_u] - 1 + du)
                 index[axis_v] = slice(dv, x.shape[axis_v] - 1 + dv)
                 return tuple(index)
+
             a, b, c, d = x[view(0, 0)], x[view(1, 0)], x[view(0, 1)], x[view(1, 1)]
             diagonal = a & d & ~b & ~c
             anti = b & c & ~a & ~d
@@ -192,8 +196,10 @@ def make_well_composed(inside: np.ndarray, max_rounds: int = 64) -> np.ndarray:
                 x[view(1, 0)] |= diagonal
                 x[view(0, 0)] |= anti
                 changed = True
+
         def cube(i, j, k):
             return tuple(slice(o, n - 1 + o) for o, n in zip((i, j, k), x.shape))
+
         values = {c: x[cube(*c)] for c in corners}
         count = sum(values[c].astype(np.int8) for c in corners)
         for c in corners[:4]:

@@ -71,7 +71,8 @@ class UserMesh:
         return points @ Z_UP_TO_Y_UP.T if self.up == "z" else points
 
     def working_vertices(self) -> np.ndarray:
-        """(V, 3) float64 vertices in the y-up working frame (what :func:`mesh2tex.geometry.prepare.prepare_shape` takes)."""
+        """(V, 3) float64 vertices in the y-up working frame (what :func:`mesh2tex.geometry.prepare.prepare_shape`
+        takes)."""
         return self.to_working_frame(self.vertices)
 
 
@@ -172,8 +173,10 @@ def load_user_mesh(path: str | os.PathLike, up: str = "auto") -> UserMesh:
     finite = np.isfinite(vertices).all(axis=1)
     if not finite.all():  # a damaged file: dropping its faces would change the shape without a word
         used = int((~finite[faces]).any(axis=1).sum())
-        raise InputError(f"{path}: {int((~finite).sum())} vertex(es) with non-finite (NaN or infinite) coordinates, "
-                        f"used by {used} of {len(faces)} faces")
+        raise InputError(
+            f"{path}: {int((~finite).sum())} vertex(es) with non-finite (NaN or infinite) coordinates, "
+            f"used by {used} of {len(faces)} faces"
+        )
     uv = np.concatenate(uv_blocks) if all(b is not None for b in uv_blocks) else None
     normals = np.concatenate(normal_blocks) if all(b is not None for b in normal_blocks) else None
     if uv is not None and not np.isfinite(uv).all():

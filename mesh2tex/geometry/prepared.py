@@ -107,14 +107,23 @@ class PreparedShape:
     def validate(self) -> None:
         """ValueError naming the first array whose shape, index range or values are not a prepared shape's."""
         levels = self.num_levels
-        if not 1 <= levels <= MAX_LEVELS or len(self.vertices) != levels or len(self.neighbors) != levels or len(self.pool) != levels - 1:
+        if (
+            not 1 <= levels <= MAX_LEVELS
+            or len(self.vertices) != levels
+            or len(self.neighbors) != levels
+            or len(self.pool) != levels - 1
+        ):
             raise ValueError(f"inconsistent level count ({levels} quad levels, {len(self.pool)} pooling maps)")
 
         def check(name, array, shape, low=None, high=None, finite=False):
             if array.ndim != len(shape) or any(s is not None and a != s for a, s in zip(array.shape, shape)):
-                raise ValueError(f"{name} has shape {array.shape}, expected {tuple('N' if s is None else s for s in shape)}")
+                raise ValueError(
+                    f"{name} has shape {array.shape}, expected {tuple('N' if s is None else s for s in shape)}"
+                )
             if not np.issubdtype(array.dtype, np.integer if low is not None else np.number):
-                raise ValueError(f"{name} holds {array.dtype} values, expected {'integers' if low is not None else 'numbers'}")
+                raise ValueError(
+                    f"{name} holds {array.dtype} values, expected {'integers' if low is not None else 'numbers'}"
+                )
             if finite and not np.isfinite(array).all():
                 raise ValueError(f"{name} holds NaN or infinite values")
             if array.size and low is not None and (array.min() < low or array.max() >= high):
@@ -141,12 +150,18 @@ class PreparedShape:
                     raise ValueError("not an .npz archive")
                 inflated = sum(info.file_size for info in data.zip.infolist())
                 if inflated > MAX_UNCOMPRESSED_BYTES:
-                    raise ValueError(f"its arrays would take {inflated / 2**30:.1f} GiB, more than the {MAX_UNCOMPRESSED_BYTES / 2**30:.0f} GiB a prepared shape may")
+                    raise ValueError(
+                        f"its arrays would take {inflated / 2**30:.1f} GiB, more than the "
+                        f"{MAX_UNCOMPRESSED_BYTES / 2**30:.0f} GiB a prepared shape may"
+                    )
                 metadata = json.loads(str(data["metadata"]))
                 if not isinstance(metadata, dict):
                     raise ValueError("its metadata is not a JSON mapping")
                 if metadata.get("schema_version") != SCHEMA_VERSION:
-                    raise InputError(f"{path}: prepared-shape schema {metadata.get('schema_version')} is not supported (expected {SCHEMA_VERSION}); re-run 'mesh2tex prepare shapes'")
+                    raise InputError(
+                        f"{path}: prepared-shape schema {metadata.get('schema_version')} is not supported (expected "
+                        f"{SCHEMA_VERSION}); re-run 'mesh2tex prepare shapes'"
+                    )
                 levels = metadata.get("num_levels")
                 if not isinstance(levels, int) or not 1 <= levels <= MAX_LEVELS:
                     raise ValueError(f"num_levels {levels!r} is not a level count")
@@ -176,7 +191,9 @@ def shape_paths(folder: str | os.PathLike) -> dict[str, Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
-    found = {p.stem: p for p in sorted(folder.glob("*.npz")) if not p.name.startswith(".")}  # hidden: half-written by an old version
+    found = {
+        p.stem: p for p in sorted(folder.glob("*.npz")) if not p.name.startswith(".")
+    }  # hidden: half-written by an old version
     if not found:
         raise InputError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
     return found
@@ -190,5 +207,8 @@ def load_shapes(folder: str | os.PathLike) -> tuple[list[PreparedShape], list[st
     first = shapes[0]
     for path, shape in zip(paths, shapes):
         if shape.num_levels != first.num_levels or list(shape.feature_names) != list(first.feature_names):
-            raise InputError(f"{path}: levels or face features differ from {paths[0].name}; prepare all shapes with the same settings")
+            raise InputError(
+                f"{path}: levels or face features differ from {paths[0].name}; prepare all shapes with the same "
+                "settings"
+            )
     return shapes, [p.stem for p in paths]

@@ -101,7 +101,9 @@ def read_surface(spec: str) -> tuple[np.ndarray, np.ndarray]:
             raise InputError(f"--mesh {spec}: expected sphere or sphere:N with N >= 1 subdivisions")
         from mesh2tex.limits import MAX_SPHERE_SUBDIVISIONS, check_size
 
-        check_size(f"--mesh {spec[:40]}: subdivisions", int(count), MAX_SPHERE_SUBDIVISIONS)  # before cube_sphere allocates
+        check_size(
+            f"--mesh {spec[:40]}: subdivisions", int(count), MAX_SPHERE_SUBDIVISIONS
+        )  # before cube_sphere allocates
         vertices, faces = cube_sphere(int(count))
     elif spec.endswith(".npz"):
         from mesh2tex.geometry.prepared import PreparedShape
@@ -119,7 +121,9 @@ def read_surface(spec: str) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
-def unit_surface(vertices: np.ndarray, faces: np.ndarray, subdivide: int = 0, name: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+def unit_surface(
+    vertices: np.ndarray, faces: np.ndarray, subdivide: int = 0, name: str = "mesh"
+) -> tuple[np.ndarray, np.ndarray]:
     """A mesh of :func:`read_surface` with every face split into four ``subdivide`` times, then normalised
     to the unit ball: vertices (V', 3) float32, faces int64 (the inputs are not changed). InputError
     naming ``name`` for a mesh without extent."""
@@ -137,7 +141,8 @@ def unit_surface(vertices: np.ndarray, faces: np.ndarray, subdivide: int = 0, na
 
 
 def _centre_radius(vertices: np.ndarray, name: str) -> tuple[np.ndarray, float]:
-    """The bounding box's centre (3,) and the farthest vertex's distance from it; InputError naming ``name`` without extent."""
+    """The bounding box's centre (3,) and the farthest vertex's distance from it; InputError naming ``name`` without
+    extent."""
     from mesh2tex.errors import InputError
 
     lo, hi = vertices.min(0), vertices.max(0)

@@ -35,8 +35,14 @@ def _library():
         from pyQuadriFlow.pyQuadriFlow import MESH_DATA, QuadriFlow_clib
 
         remesh = QuadriFlow_clib.remesh_quadriflow
-        remesh.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_int,
-                           ctypes.POINTER(ctypes.c_float * 3), ctypes.POINTER(ctypes.c_int * 3)] + [ctypes.c_bool] * 5
+        remesh.argtypes = [
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.POINTER(ctypes.c_float * 3),
+            ctypes.POINTER(ctypes.c_int * 3),
+        ] + [ctypes.c_bool] * 5
         remesh.restype = ctypes.POINTER(MESH_DATA)
         free = QuadriFlow_clib.free_mem
         free.argtypes = [ctypes.POINTER(MESH_DATA)]
@@ -44,12 +50,21 @@ def _library():
     return _LIBRARY
 
 
-def _quadriflow_in_process(vertices: np.ndarray, faces: np.ndarray, target_faces: int, seed: int, flags: tuple) -> tuple[np.ndarray, np.ndarray]:
+def _quadriflow_in_process(
+    vertices: np.ndarray, faces: np.ndarray, target_faces: int, seed: int, flags: tuple
+) -> tuple[np.ndarray, np.ndarray]:
     remesh, free = _library()
     v = np.ascontiguousarray(vertices, dtype=np.float32)
     f = np.ascontiguousarray(faces, dtype=np.int32)
-    result = remesh(int(target_faces), int(seed), len(v), len(f),
-                    v.ctypes.data_as(ctypes.POINTER(ctypes.c_float * 3)), f.ctypes.data_as(ctypes.POINTER(ctypes.c_int * 3)), *flags)
+    result = remesh(
+        int(target_faces),
+        int(seed),
+        len(v),
+        len(f),
+        v.ctypes.data_as(ctypes.POINTER(ctypes.c_float * 3)),
+        f.ctypes.data_as(ctypes.POINTER(ctypes.c_int * 3)),
+        *flags,
+    )
     data = result.contents
     try:
         if data.has_error:
@@ -57,8 +72,12 @@ def _quadriflow_in_process(vertices: np.ndarray, faces: np.ndarray, target_faces
         nv, nf = int(data.nn_verts), int(data.nn_faces)
         if nv == 0 or nf == 0:
             return np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)
-        out_v = np.ctypeslib.as_array(ctypes.cast(data.vertices, ctypes.POINTER(ctypes.c_float)), shape=(nv, 3)).astype(np.float64)
-        out_f = np.ctypeslib.as_array(ctypes.cast(data.faces, ctypes.POINTER(ctypes.c_int)), shape=(nf, 4)).astype(np.int64)
+        out_v = np.ctypeslib.as_array(ctypes.cast(data.vertices, ctypes.POINTER(ctypes.c_float)), shape=(nv, 3)).astype(
+            np.float64
+        )
+        out_f = np.ctypeslib.as_array(ctypes.cast(data.faces, ctypes.POINTER(ctypes.c_int)), shape=(nf, 4)).astype(
+            np.int64
+        )
         return out_v, out_f
     finally:
         free(result)
@@ -115,10 +134,21 @@ def _run_forked(function, args: tuple, timeout: float | None, memory_gb: float |
     return value
 
 
-def quadriflow(vertices: np.ndarray, faces: np.ndarray, target_faces: int, seed: int = 0, *, preserve_sharp: bool = False,
-               preserve_boundary: bool = False, adaptive_scale: bool = False, aggressive_sat: bool = False,
-               minimum_cost_flow: bool = False, timeout: float | None = 300.0, isolate: bool = True,
-               memory_gb: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def quadriflow(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    target_faces: int,
+    seed: int = 0,
+    *,
+    preserve_sharp: bool = False,
+    preserve_boundary: bool = False,
+    adaptive_scale: bool = False,
+    aggressive_sat: bool = False,
+    minimum_cost_flow: bool = False,
+    timeout: float | None = 300.0,
+    isolate: bool = True,
+    memory_gb: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Quad-remesh a triangle mesh with QuadriFlow.
 
     Args:
@@ -133,7 +163,13 @@ def quadriflow(vertices: np.ndarray, faces: np.ndarray, target_faces: int, seed:
     Raises:
         QuadRemeshError: QuadriFlow reported an error, crashed or ran past ``timeout``.
     """
-    flags = (bool(preserve_sharp), bool(preserve_boundary), bool(adaptive_scale), bool(aggressive_sat), bool(minimum_cost_flow))
+    flags = (
+        bool(preserve_sharp),
+        bool(preserve_boundary),
+        bool(adaptive_scale),
+        bool(aggressive_sat),
+        bool(minimum_cost_flow),
+    )
     args = (np.asarray(vertices), np.asarray(faces), int(target_faces), int(seed), flags)
     if isolate and hasattr(os, "fork"):
         out_v, out_q = _run_forked(_quadriflow_in_process, args, timeout, memory_gb)

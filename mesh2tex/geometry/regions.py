@@ -29,9 +29,25 @@ def _smoothstep(edge0, edge1, x):
     return t * t * (3 - 2 * t)
 
 
-FUNCTIONS = {"abs": np.abs, "sqrt": np.sqrt, "exp": np.exp, "sin": np.sin, "cos": np.cos, "minimum": np.minimum,
-             "maximum": np.maximum, "clip": np.clip, "sigmoid": _sigmoid, "smoothstep": _smoothstep}
-_BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv, ast.Pow: operator.pow}
+FUNCTIONS = {
+    "abs": np.abs,
+    "sqrt": np.sqrt,
+    "exp": np.exp,
+    "sin": np.sin,
+    "cos": np.cos,
+    "minimum": np.minimum,
+    "maximum": np.maximum,
+    "clip": np.clip,
+    "sigmoid": _sigmoid,
+    "smoothstep": _smoothstep,
+}
+_BINARY = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Pow: operator.pow,
+}
 _COMPARE = {ast.Gt: operator.gt, ast.GtE: operator.ge, ast.Lt: operator.lt, ast.LtE: operator.le}
 
 
@@ -52,7 +68,12 @@ def _evaluate(node, names: dict[str, np.ndarray]):
     if isinstance(node, ast.Compare) and len(node.ops) == 1 and type(node.ops[0]) in _COMPARE:
         result = _COMPARE[type(node.ops[0])](_evaluate(node.left, names), _evaluate(node.comparators[0], names))
         return np.asarray(result, dtype=np.float64)
-    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS and not node.keywords:
+    if (
+        isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Name)
+        and node.func.id in FUNCTIONS
+        and not node.keywords
+    ):
         return FUNCTIONS[node.func.id](*(_evaluate(a, names) for a in node.args))
     raise ValueError(f"'{ast.unparse(node)}' is not allowed")
 
@@ -69,30 +90,43 @@ def expression_weights(expression: str, positions: np.ndarray) -> np.ndarray:
     names = {"x": positions[:, 0], "y": positions[:, 1], "z": positions[:, 2]}
     shown = repr(expression if len(expression) <= 80 else expression[:77] + "...")
     if len(expression) > MAX_EXPRESSION_CHARS:
-        raise InputError(f"graft mask {shown}: {len(expression)} characters; an expression holds at most {MAX_EXPRESSION_CHARS} "
-                         f"(a per-vertex .npy or .txt file takes any mask)")
+        raise InputError(
+            f"graft mask {shown}: {len(expression)} characters; an expression holds at most {MAX_EXPRESSION_CHARS} "
+            f"(a per-vertex .npy or .txt file takes any mask)"
+        )
     try:
         tree = ast.parse(expression, mode="eval")
         with np.errstate(all="ignore"):
             value = np.broadcast_to(np.asarray(_evaluate(tree, names), dtype=np.float64), (positions.shape[0],))
     except (SyntaxError, ValueError, TypeError, ArithmeticError) as error:
-        raise InputError(f"graft mask {shown}: {error} (use x, y, z, numbers, + - * / **, comparisons and {', '.join(sorted(FUNCTIONS))})") from None
+        raise InputError(
+            f"graft mask {shown}: {error} (use x, y, z, numbers, + - * / **, comparisons and "
+            f"{', '.join(sorted(FUNCTIONS))})"
+        ) from None
     except (RecursionError, MemoryError):  # nested too deep for the parser
         raise InputError(f"graft mask {shown}: nested too deeply") from None
     if not np.all(np.isfinite(value)):
-        raise InputError(f"graft mask {shown}: not finite at some vertices (an overflow, a division by zero or a root of a negative number)")
+        raise InputError(
+            f"graft mask {shown}: not finite at some vertices (an overflow, a division by zero or a root of a "
+            "negative number)"
+        )
     return np.clip(value, 0.0, 1.0).astype(np.float32)
 
 
 def region_weights(spec: str, positions: np.ndarray) -> np.ndarray:
-    """(V,) weights from a file (.npy or text, one value per vertex) when ``spec`` names one, else from an expression."""
+    """(V,) weights from a file (.npy or text, one value per vertex) when ``spec`` names one, else from an
+    expression."""
     check_array_shape(positions, "region_weights: positions", ("V", 3))
     path = Path(spec)
     if path.suffix in (".npy", ".txt", ".csv") or path.is_file():
         if not path.is_file():
             raise InputError(f"{path}: graft mask file not found")
         try:
-            values = np.load(path, allow_pickle=False) if path.suffix == ".npy" else np.loadtxt(path, delimiter="," if path.suffix == ".csv" else None)
+            values = (
+                np.load(path, allow_pickle=False)
+                if path.suffix == ".npy"
+                else np.loadtxt(path, delimiter="," if path.suffix == ".csv" else None)
+            )
         except (OSError, ValueError) as error:
             raise InputError(f"{path}: not a readable per-vertex mask ({error})") from None
         values = np.asarray(values, dtype=np.float64).reshape(-1)

@@ -46,7 +46,9 @@ def unflatten_state(flat: dict[str, torch.Tensor]) -> dict[str, dict[str, torch.
     return groups
 
 
-def save_checkpoint(path: str | os.PathLike, groups: dict[str, dict[str, torch.Tensor]], kind: str, meta: dict[str, Any]) -> None:
+def save_checkpoint(
+    path: str | os.PathLike, groups: dict[str, dict[str, torch.Tensor]], kind: str, meta: dict[str, Any]
+) -> None:
     """Atomically write tensor ``groups`` and JSON-serialisable ``meta`` to ``path`` (.safetensors)."""
     header = {"format": CHECKPOINT_FORMAT, "kind": kind, "meta": meta}
     flat = flatten_state(groups)
@@ -104,8 +106,11 @@ def read_checkpoint_meta(path: str | os.PathLike) -> dict[str, Any]:
             raise ValueError("no mesh2tex metadata")
         return check_header(json.loads(meta[_META_KEY]))
     except (ValueError, UnicodeDecodeError, RecursionError, OSError) as error:
-        reason = "nested too deeply" if isinstance(error, RecursionError) else (
-            str(error) if type(error) is ValueError else error.__class__.__name__)
+        reason = (
+            "nested too deeply"
+            if isinstance(error, RecursionError)
+            else (str(error) if type(error) is ValueError else error.__class__.__name__)
+        )
         raise InputError(f"{path}: not a mesh2tex checkpoint ({reason})") from None
 
 
@@ -117,11 +122,15 @@ def meta_mapping(meta: dict[str, Any], key: str, path: str | os.PathLike) -> dic
     return value
 
 
-def load_checkpoint(path: str | os.PathLike, kind: str | None = None, map_location: str = "cpu") -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
+def load_checkpoint(
+    path: str | os.PathLike, kind: str | None = None, map_location: str = "cpu"
+) -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
     """Load a checkpoint; returns (tensor groups, meta). ``kind`` checks the checkpoint's kind."""
     header = read_checkpoint_meta(path)
     if header.get("format") != CHECKPOINT_FORMAT:
-        raise InputError(f"{path}: checkpoint format {header.get('format')} is not supported (expected {CHECKPOINT_FORMAT})")
+        raise InputError(
+            f"{path}: checkpoint format {header.get('format')} is not supported (expected {CHECKPOINT_FORMAT})"
+        )
     if kind is not None and header.get("kind") != kind:
         raise InputError(f"{path}: this is a '{header.get('kind')}' checkpoint, expected a '{kind}' checkpoint")
     try:
@@ -137,14 +146,18 @@ def check_training_checkpoint(path: str | os.PathLike, kind: str) -> dict[str, A
     checkpoint (a snapshot or shipped model: weights without optimizer state) or another format."""
     header = read_checkpoint_meta(path)
     if header["format"] != CHECKPOINT_FORMAT:
-        raise InputError(f"{path}: checkpoint format {header['format']} is not supported (expected {CHECKPOINT_FORMAT})")
+        raise InputError(
+            f"{path}: checkpoint format {header['format']} is not supported (expected {CHECKPOINT_FORMAT})"
+        )
     if header["kind"] != kind:
         raise InputError(f"{path}: this is a '{header['kind']}' checkpoint, expected a '{kind}' training checkpoint")
     meta = header["meta"]
     if not isinstance(meta.get("optimizers"), dict):
         weights = f"{meta['dtype']} " if isinstance(meta.get("dtype"), str) else ""
-        raise InputError(f"{path}: an inference checkpoint ({weights}weights without optimizer state, such as a snapshot or a shipped model), "
-                        f"not a training checkpoint; a run starts only from another run's checkpoint.safetensors")
+        raise InputError(
+            f"{path}: an inference checkpoint ({weights}weights without optimizer state, such as a snapshot or a "
+            f"shipped model), not a training checkpoint; a run starts only from another run's checkpoint.safetensors"
+        )
     if not isinstance(meta.get("iteration"), int) or not isinstance(meta.get("rng"), list):
         raise InputError(f"{path}: not a usable training state (no iteration or RNG states)")
     return header
@@ -180,8 +193,15 @@ def optimizer_from_state(opt: torch.optim.Optimizer, tensors: dict[str, torch.Te
 
 
 # ------------------------------------------------------------------------------ training states
-def save_training_state(path: Path, kind: str, modules: dict[str, nn.Module], optimizers: dict[str, torch.optim.Optimizer],
-                        extra_tensors: dict[str, dict[str, torch.Tensor]], meta: dict[str, Any], rng_states: list[dict[str, Any]]) -> None:
+def save_training_state(
+    path: Path,
+    kind: str,
+    modules: dict[str, nn.Module],
+    optimizers: dict[str, torch.optim.Optimizer],
+    extra_tensors: dict[str, dict[str, torch.Tensor]],
+    meta: dict[str, Any],
+    rng_states: list[dict[str, Any]],
+) -> None:
     """Write modules, optimizers, extra tensor groups, per-process RNG states and ``meta`` atomically."""
     groups: dict[str, dict[str, torch.Tensor]] = {name: m.state_dict() for name, m in modules.items()}
     optim_meta = {}
@@ -195,13 +215,24 @@ def save_training_state(path: Path, kind: str, modules: dict[str, nn.Module], op
 
 def _rng_state_like(state: Any) -> bool:
     """Whether ``state`` has the form of :func:`mesh2tex.runtime.rng_to_state`'s (its values are not checked)."""
-    return (isinstance(state, dict) and isinstance(state.get("torch"), list) and isinstance(state.get("cuda"), list)
-            and isinstance(state.get("numpy"), list) and len(state["numpy"]) == 5
-            and isinstance(state.get("python"), list) and len(state["python"]) == 3)
+    return (
+        isinstance(state, dict)
+        and isinstance(state.get("torch"), list)
+        and isinstance(state.get("cuda"), list)
+        and isinstance(state.get("numpy"), list)
+        and len(state["numpy"]) == 5
+        and isinstance(state.get("python"), list)
+        and len(state["python"]) == 3
+    )
 
 
-def load_training_state(path: Path, kind: str, modules: dict[str, nn.Module], optimizers: dict[str, torch.optim.Optimizer],
-                        device: torch.device) -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
+def load_training_state(
+    path: Path,
+    kind: str,
+    modules: dict[str, nn.Module],
+    optimizers: dict[str, torch.optim.Optimizer],
+    device: torch.device,
+) -> tuple[dict[str, dict[str, torch.Tensor]], dict[str, Any]]:
     """Load what :func:`save_training_state` wrote into ``modules`` and ``optimizers``; returns
     (all tensor groups, meta) for the caller's extra state. RNG states are not applied here."""
     groups, meta = load_checkpoint(path, kind=kind)
@@ -211,10 +242,16 @@ def load_training_state(path: Path, kind: str, modules: dict[str, nn.Module], op
         try:
             module.load_state_dict(groups[name])
         except RuntimeError as error:
-            raise InputError(f"{path}: '{name}' weights do not fit this config ({str(error).splitlines()[0]})") from None
+            raise InputError(
+                f"{path}: '{name}' weights do not fit this config ({str(error).splitlines()[0]})"
+            ) from None
         module.to(device)
     saved = meta_mapping(meta, "optimizers", path)
-    if not isinstance(meta.get("rng"), list) or not isinstance(meta.get("iteration"), int) or not all(map(_rng_state_like, meta["rng"])):
+    if (
+        not isinstance(meta.get("rng"), list)
+        or not isinstance(meta.get("iteration"), int)
+        or not all(map(_rng_state_like, meta["rng"]))
+    ):
         raise InputError(f"{path}: not a usable training state (no iteration, or RNG states of another form)")
     for name, opt in optimizers.items():
         state = meta_mapping(saved, name, path)  # outside the try: its InputError is a ValueError with its own message

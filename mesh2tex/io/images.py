@@ -52,10 +52,14 @@ def read_image(path: str | os.PathLike, convert: Callable):
     except UnidentifiedImageError:
         raise InputError(f"{path}: not a readable image (not an image, or an unsupported format)") from None
     except Image.DecompressionBombError:
-        raise InputError(f"{path}: image too large (over {Image.MAX_IMAGE_PIXELS * 2} pixels: a decompression bomb?)") from None
+        raise InputError(
+            f"{path}: image too large (over {Image.MAX_IMAGE_PIXELS * 2} pixels: a decompression bomb?)"
+        ) from None
     except (OSError, ValueError, SyntaxError) as error:
         raise InputError(f"{path}: corrupt image ({error})") from None
-    except Exception as error:  # a damaged file can make a PIL decoder fail in many ways (struct.error, IndexError, ...)
+    except (
+        Exception
+    ) as error:  # a damaged file can make a PIL decoder fail in many ways (struct.error, IndexError, ...)
         raise InputError(f"{path}: corrupt image ({error.__class__.__name__}: {error})") from None
 
 

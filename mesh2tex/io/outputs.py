@@ -13,8 +13,8 @@ Three rules, all here:
   will write before its work starts; one that exists and was not written by an unfinished earlier
   run of the *same command line* in this folder is refused, unless ``--overwrite``: then it is
   moved aside, never deleted, to ``<out>/.mesh2tex-replaced/<date-time>/<its path in out>`` (one such
-  folder per run, :func:`move_aside`), and a warning names the files and that folder. What each run claimed is recorded in
-  ``<out>/.mesh2tex-manifest.json`` (file -> run, run -> command line and whether it finished), so
+  folder per run, :func:`move_aside`), and a warning names the files and that folder. What each run claimed is recorded
+  in ``<out>/.mesh2tex-manifest.json`` (file -> run, run -> command line and whether it finished), so
   that the same command, re-run after an interruption, continues and replaces its own half-finished
   outputs, while a finished run's results are kept.
 * **Nothing added on failure**: a run that ends with an error drops its claims of files it never
@@ -135,8 +135,10 @@ def _lock(out: Path, run: _Run, wait: bool) -> int | None:
         except BlockingIOError:
             if not wait:
                 os.close(fd)
-                raise InputError(f"{out}: in use by another mesh2tex run, {_holder(path)}; wait for it to end or choose "
-                                 f"another --out") from None
+                raise InputError(
+                    f"{out}: in use by another mesh2tex run, {_holder(path)}; wait for it to end or choose "
+                    f"another --out"
+                ) from None
             if not waited:
                 print(f"mesh2tex: note: {out}: waiting for the run that holds it, {_holder(path)}", file=sys.stderr)
                 waited = True
@@ -153,14 +155,21 @@ def _lock(out: Path, run: _Run, wait: bool) -> int | None:
         if not same:  # the holder removed the file as it ended: lock the new one
             os.close(fd)
             continue
-        info = {"pid": os.getpid(), "host": _host(), "started": time.strftime("%Y-%m-%d %H:%M:%S"), "command": run.command}
+        info = {
+            "pid": os.getpid(),
+            "host": _host(),
+            "started": time.strftime("%Y-%m-%d %H:%M:%S"),
+            "command": run.command,
+        }
         os.ftruncate(fd, 0)
         os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
         return fd
 
 
 @contextlib.contextmanager
-def output_run(out: str | os.PathLike, argv: list[str], command: str, *, wait: bool = False, lock: bool = True) -> Iterator[_Run]:
+def output_run(
+    out: str | os.PathLike, argv: list[str], command: str, *, wait: bool = False, lock: bool = True
+) -> Iterator[_Run]:
     """Hold ``out`` for one run of ``command`` (``argv``: its arguments) for the block; see the module
     docstring. ``wait``: wait for a run holding it instead of refusing. ``lock`` False: only the
     manifest (the other processes of a distributed run, whose first process holds the lock). A run
@@ -170,7 +179,10 @@ def output_run(out: str | os.PathLike, argv: list[str], command: str, *, wait: b
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: --out is a file, not a folder")
     if out.is_symlink() and not out.exists():
-        raise InputError(f"{out}: a symbolic link to {os.readlink(out)}, which does not exist; create that folder or choose another --out")
+        raise InputError(
+            f"{out}: a symbolic link to {os.readlink(out)}, which does not exist; create that folder or choose "
+            "another --out"
+        )
     held = _current(out)
     if held is not None:
         yield held
@@ -238,7 +250,10 @@ def _claim(run: _Run, out: Path, names: list[str]) -> None:
     from mesh2tex.io.atomic import write_json
 
     out.mkdir(parents=True, exist_ok=True)
-    write_json(out / MANIFEST_NAME, {"files": data["files"], "runs": {k: v for k, v in data["runs"].items() if k in data["files"].values()}})
+    write_json(
+        out / MANIFEST_NAME,
+        {"files": data["files"], "runs": {k: v for k, v in data["runs"].items() if k in data["files"].values()}},
+    )
 
 
 def _end(run: _Run, finished: bool) -> None:
@@ -281,8 +296,9 @@ def _shown(names: list[str]) -> str:
     return ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
 
 
-def guard_outputs(out: str | os.PathLike, names: Iterable[str], overwrite: bool,
-                  accept: Callable[[Path], bool] | None = None) -> Path:
+def guard_outputs(
+    out: str | os.PathLike, names: Iterable[str], overwrite: bool, accept: Callable[[Path], bool] | None = None
+) -> Path:
     """Check, before any work, the files ``out/<name>`` a command will write: one that exists and is
     not the run's own (see the module docstring) is refused (InputError), unless ``overwrite``, when
     a warning names what is replaced. ``accept(path)``: an existing file the command may take over
@@ -293,12 +309,18 @@ def guard_outputs(out: str | os.PathLike, names: Iterable[str], overwrite: bool,
     names = list(names)
     run = _current(out)
     own = _own_files(out, run)
-    foreign = [name for name in names if name not in own and ((out / name).exists() or (out / name).is_symlink())
-               and not (accept is not None and accept(out / name))]
+    foreign = [
+        name
+        for name in names
+        if name not in own
+        and ((out / name).exists() or (out / name).is_symlink())
+        and not (accept is not None and accept(out / name))
+    ]
     if foreign and not overwrite:
-        raise InputError(f"{out}: already holds {_shown(foreign)}; pass --overwrite to replace them, or choose another --out")
+        raise InputError(
+            f"{out}: already holds {_shown(foreign)}; pass --overwrite to replace them, or choose another --out"
+        )
     if foreign:
-
         folder = move_aside(out, foreign)
         warning(f"{out}: --overwrite moved {_shown(foreign)} (not written by this command) aside to {folder}")
     if run is not None:

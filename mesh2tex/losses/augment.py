@@ -44,8 +44,17 @@ class AugmentConfig:
     cutout_ratio: float = 0.5  # side of the cut-out square, as a fraction of the image side
 
     def __post_init__(self):
-        check_fields(self, between={"p": (0.0, 1.0), "ada_target": (0.0, 1.0), "translation_ratio": (0.0, 1.0), "cutout_ratio": (0.0, 1.0)},
-                     at_least={"ada_interval": 1}, positive=("ada_images",))
+        check_fields(
+            self,
+            between={
+                "p": (0.0, 1.0),
+                "ada_target": (0.0, 1.0),
+                "translation_ratio": (0.0, 1.0),
+                "cutout_ratio": (0.0, 1.0),
+            },
+            at_least={"ada_interval": 1},
+            positive=("ada_images",),
+        )
 
 
 def parse_policy(policy: str) -> list[str]:
@@ -53,7 +62,9 @@ def parse_policy(policy: str) -> list[str]:
     names = [name.strip() for name in policy.split(",") if name.strip()]
     for name in names:
         if name not in TRANSFORMS:
-            raise ValueError(f"unknown augmentation {name!r}; expected a comma-separated list of {', '.join(TRANSFORMS)}")
+            raise ValueError(
+                f"unknown augmentation {name!r}; expected a comma-separated list of {', '.join(TRANSFORMS)}"
+            )
     return names
 
 
@@ -178,9 +189,11 @@ class AdaptiveAugment:
         self.sign_sum, self.count = 0.0, 0
 
     def state_dict(self) -> dict[str, torch.Tensor]:
-        return {"augment_p": torch.tensor(self.augment.p, dtype=torch.float64),
-                "augment_sign_sum": torch.tensor(self.sign_sum, dtype=torch.float64),
-                "augment_count": torch.tensor(self.count, dtype=torch.int64)}
+        return {
+            "augment_p": torch.tensor(self.augment.p, dtype=torch.float64),
+            "augment_sign_sum": torch.tensor(self.sign_sum, dtype=torch.float64),
+            "augment_count": torch.tensor(self.count, dtype=torch.int64),
+        }
 
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         """Missing keys (a checkpoint written before the controller) keep the config's p."""

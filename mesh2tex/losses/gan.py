@@ -69,18 +69,32 @@ class GanLossConfig:
     pl_batch_shrink: int = 2  # the path-length phase renders batch // this many shapes (at least 1), as StyleGAN2 does
     proxy_weight: float = 1.0  # weight of the proxy (per-face colour) adversarial loss
     diversity_weight: float = 1.0  # mode-seeking term on the proxy renders of two latents (0 disables)
-    diversity_target: float = 0.3  # the term stops pushing once d (mean abs proxy difference / mean abs latent difference) reaches it
+    # the term stops pushing once d (mean abs proxy difference / mean abs latent difference) reaches it
+    diversity_target: float = 0.3
     diversity_start: int = 0  # the first iteration (0-based) with the term
     diversity_interval: int = 1  # lazy mode seeking: every this many iterations from diversity_start, scaled by it
-    colour_weight: float = 0.0  # colour-moment term: the object colours' CIELAB mean and std against the photos' (0 disables)
+    # colour-moment term: the object colours' CIELAB mean and std against the photos' (0 disables)
+    colour_weight: float = 0.0
     colour_decay: float = 0.05  # the weight of each step's batch in the running moments
 
     def __post_init__(self):
-        check_fields(self, at_least={"r1_gamma": 0, "pl_weight": 0, "proxy_weight": 0, "r1_interval": 1, "pl_interval": 1,
-                                     "pl_batch_shrink": 1,
-                                     "diversity_weight": 0, "diversity_target": 0, "diversity_start": 0,
-                                     "diversity_interval": 1, "colour_weight": 0},
-                     between={"pl_decay": (0.0, 1.0), "colour_decay": (0.0, 1.0)})
+        check_fields(
+            self,
+            at_least={
+                "r1_gamma": 0,
+                "pl_weight": 0,
+                "proxy_weight": 0,
+                "r1_interval": 1,
+                "pl_interval": 1,
+                "pl_batch_shrink": 1,
+                "diversity_weight": 0,
+                "diversity_target": 0,
+                "diversity_start": 0,
+                "diversity_interval": 1,
+                "colour_weight": 0,
+            },
+            between={"pl_decay": (0.0, 1.0), "colour_decay": (0.0, 1.0)},
+        )
 
 
 @dataclass
@@ -120,14 +134,26 @@ class GanScene:
         """The scene of the first ``count`` shapes and their views (the path-length phase's smaller batch)."""
         if count == len(self.shapes):
             return self
-        m = count * (self.mvp.shape[0] // len(self.shapes))  # their views come first, and their triangle ids are the same
+        m = count * (
+            self.mvp.shape[0] // len(self.shapes)
+        )  # their views come first, and their triangle ids are the same
         lights = None if self.lights is None else Lights(self.lights.direction[:m], self.lights.ambient[:m])
-        return GanScene(self.shapes[:count], collate_shapes(self.shapes[:count]).to(self.mvp.device), self.mvp[:m],
-                        SurfaceSamples(self.samples.triangle_id[:m], self.samples.bary[:m]), self.background[:m], lights, self.render)
+        return GanScene(
+            self.shapes[:count],
+            collate_shapes(self.shapes[:count]).to(self.mvp.device),
+            self.mvp[:m],
+            SurfaceSamples(self.samples.triangle_id[:m], self.samples.bary[:m]),
+            self.background[:m],
+            lights,
+            self.render,
+        )
 
 
-def mode_seeking_ratio(proxy_a: torch.Tensor, proxy_b: torch.Tensor, mask: torch.Tensor, z_a: torch.Tensor, z_b: torch.Tensor) -> torch.Tensor:
-    """d = mean |proxy_a - proxy_b| over object pixels and channels / mean |z_a - z_b|: a scalar, 0 for a collapsed generator.
+def mode_seeking_ratio(
+    proxy_a: torch.Tensor, proxy_b: torch.Tensor, mask: torch.Tensor, z_a: torch.Tensor, z_b: torch.Tensor
+) -> torch.Tensor:
+    """d = mean |proxy_a - proxy_b| over object pixels and channels / mean |z_a - z_b|: a scalar, 0 for a collapsed
+    generator.
 
     proxy_a, proxy_b: (N, 3, H, W) renders of latents z_a, z_b (B, z_dim) of the same views; mask (N, 1, H, W).
     """
@@ -167,13 +193,21 @@ class GanLoss:
     regularisation phases always run in float32.
     """
 
-    def __init__(self, cfg: GanLossConfig, generator: nn.Module | None = None, d_field: nn.Module | None = None, d_proxy: nn.Module | None = None,
-                 autocast: Callable = contextlib.nullcontext, augment: Callable[[torch.Tensor], torch.Tensor] | None = None):
+    def __init__(
+        self,
+        cfg: GanLossConfig,
+        generator: nn.Module | None = None,
+        d_field: nn.Module | None = None,
+        d_proxy: nn.Module | None = None,
+        autocast: Callable = contextlib.nullcontext,
+        augment: Callable[[torch.Tensor], torch.Tensor] | None = None,
+    ):
         self.cfg, self.generator, self.d_field, self.d_proxy, self.autocast = cfg, generator, d_field, d_proxy, autocast
         self.augment = augment or (lambda x: x)
         self.pl_mean = torch.zeros([])
         self.colour_target: tuple[torch.Tensor, torch.Tensor] | None = None  # the photos' CIELAB (mean (3,), std (3,))
-        self.colour_running: torch.Tensor | None = None  # (2, 3) running mean and mean square of the fakes' object colours
+        # (2, 3) running mean and mean square of the fakes' object colours
+        self.colour_running: torch.Tensor | None = None
 
     def set_colour_target(self, photos: torch.Tensor, masks: torch.Tensor) -> None:
         """The colour term's target: the CIELAB moments of the photos' object pixels.
@@ -215,18 +249,34 @@ class GanLoss:
     def diversity_gain(self, iteration: int) -> float:
         """The diversity term's gain in G main at ``iteration`` (0-based): 0 when it does not run."""
         cfg = self.cfg
-        if cfg.diversity_weight == 0 or iteration < cfg.diversity_start or (iteration - cfg.diversity_start) % cfg.diversity_interval:
+        if (
+            cfg.diversity_weight == 0
+            or iteration < cfg.diversity_start
+            or (iteration - cfg.diversity_start) % cfg.diversity_interval
+        ):
             return 0.0
         return float(cfg.diversity_interval)
 
-    def fakes(self, z: torch.Tensor, scene: GanScene, update_w_avg: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, list]:
+    def fakes(
+        self, z: torch.Tensor, scene: GanScene, update_w_avg: bool = False
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, list]:
         """The generator's renders of latents z (B, z_dim), one per shape of ``scene``: (psi images (N, 3, R, R),
         proxy images (N, 3, R, R), ws (B, num_ws, w_dim), the encoder's output, which :meth:`proxy_fakes` reuses)."""
         g = self.generator
         ws = g.mapping(z, update_w_avg=update_w_avg)
         encoded = g.encoder(scene.batch)
-        out = render_field_views(g, scene.batch, ws, scene.mvp, (scene.side, scene.side), scene.background, proxy=True,
-                                 samples=scene.samples, lights=scene.lights, encoded=encoded)
+        out = render_field_views(
+            g,
+            scene.batch,
+            ws,
+            scene.mvp,
+            (scene.side, scene.side),
+            scene.background,
+            proxy=True,
+            samples=scene.samples,
+            lights=scene.lights,
+            encoded=encoded,
+        )
         return scene.down(out.images), scene.down(out.proxy), ws, encoded
 
     def proxy_fakes(self, z: torch.Tensor, scene: GanScene, encoded: list) -> torch.Tensor:
@@ -234,8 +284,15 @@ class GanLoss:
         texture = self.generator.synthesize(scene.batch, self.generator.mapping(z), encoded=encoded)
         return scene.down(render_proxy_views(texture, scene.batch, scene.samples, scene.background, scene.lights))
 
-    def accumulate_gradients(self, phase: str, scene: GanScene, z: torch.Tensor, real: torch.Tensor, gain: float = 1.0,
-                             diversity_gain: float = 1.0) -> dict[str, torch.Tensor]:
+    def accumulate_gradients(
+        self,
+        phase: str,
+        scene: GanScene,
+        z: torch.Tensor,
+        real: torch.Tensor,
+        gain: float = 1.0,
+        diversity_gain: float = 1.0,
+    ) -> dict[str, torch.Tensor]:
         """Back-propagate the loss of ``phase`` on ``scene`` (scaled by ``gain``); returns detached scalars to log.
 
         z: (B, z_dim) latents, one per shape of the scene (the path-length phase takes the first
@@ -256,7 +313,9 @@ class GanLoss:
                     loss = loss + self.cfg.proxy_weight * loss_proxy
                 if self.cfg.diversity_weight > 0 and diversity_gain > 0:
                     z_other = torch.randn_like(z)
-                    ratio = mode_seeking_ratio(proxy, self.proxy_fakes(z_other, scene, encoded), scene.object_mask, z, z_other)
+                    ratio = mode_seeking_ratio(
+                        proxy, self.proxy_fakes(z_other, scene, encoded), scene.object_mask, z, z_other
+                    )
                     logs["mode_seeking"] = ratio.detach()
                     loss = loss + diversity_gain * self.cfg.diversity_weight * F.relu(self.cfg.diversity_target - ratio)
             if self.cfg.colour_weight > 0:
@@ -305,7 +364,9 @@ class GanLoss:
             raise ValueError(f"unknown phase {phase!r}; expected one of {PHASES}")
         return logs
 
-    def _d_main(self, d: nn.Module, fake: torch.Tensor, real: torch.Tensor, logs: dict | None = None, name: str = "") -> torch.Tensor:
+    def _d_main(
+        self, d: nn.Module, fake: torch.Tensor, real: torch.Tensor, logs: dict | None = None, name: str = ""
+    ) -> torch.Tensor:
         """softplus(D(fake)) + softplus(-D(real)), fakes and reals in separate calls (see the module docstring).
 
         Logs the mean logits ``score_fake_<name>``, ``score_real_<name>`` and ``sign_real_<name>``
@@ -326,4 +387,6 @@ class GanLoss:
 
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         self.pl_mean = state["pl_mean"].clone().reshape([])
-        self.colour_running = state["colour_running"].clone() if "colour_running" in state else None  # absent before the term
+        self.colour_running = (
+            state["colour_running"].clone() if "colour_running" in state else None
+        )  # absent before the term

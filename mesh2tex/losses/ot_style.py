@@ -42,8 +42,9 @@ def image_layers(vgg, images: torch.Tensor, depth: int) -> list[torch.Tensor]:
     return [images] + (list(vgg(images, depth=depth)) if depth > 0 else [])
 
 
-def _positions(mask: torch.Tensor | None, size: tuple[int, int], max_points: int, generator: torch.Generator | None,
-               device) -> torch.Tensor:
+def _positions(
+    mask: torch.Tensor | None, size: tuple[int, int], max_points: int, generator: torch.Generator | None, device
+) -> torch.Tensor:
     """Flat indices (P,) of at most ``max_points`` random positions of an (h, w) map inside ``mask`` (1, H, W)."""
     h, w = size
     if mask is None:
@@ -57,8 +58,9 @@ def _positions(mask: torch.Tensor | None, size: tuple[int, int], max_points: int
     return index
 
 
-def feature_sets(layers: list[torch.Tensor], mask: torch.Tensor | None, max_points: int,
-                 generator: torch.Generator | None = None) -> list[torch.Tensor]:
+def feature_sets(
+    layers: list[torch.Tensor], mask: torch.Tensor | None, max_points: int, generator: torch.Generator | None = None
+) -> list[torch.Tensor]:
     """Per layer, the (P_l, C_l) features of image 0 of ``layers`` ((N, C_l, H_l, W_l) each) at the positions
     inside ``mask`` (1, H, W), area-resampled to each layer (all positions with mask None)."""
     check_shape(mask, "feature_sets: mask", (1, None, None), optional=True)
@@ -114,7 +116,9 @@ class ExemplarFeatures:
 
     image: torch.Tensor
     layers: list[torch.Tensor]
-    band_stats: dict[str, torch.Tensor] = field(default_factory=dict, repr=False)  # the "ps" statistics, made on first use
+    band_stats: dict[str, torch.Tensor] = field(
+        default_factory=dict, repr=False
+    )  # the "ps" statistics, made on first use
 
     def band_statistics(self) -> dict[str, torch.Tensor]:
         if not self.band_stats:
@@ -129,8 +133,15 @@ class ExemplarFeatures:
             return cls(image=image, layers=[t.detach() for t in image_layers(vgg, image, depth)])
 
 
-def style_loss(vgg, images: torch.Tensor, masks: torch.Tensor, exemplar: ExemplarFeatures, kind: str = "ot",
-               max_points: int = 1024, generator: torch.Generator | None = None) -> torch.Tensor:
+def style_loss(
+    vgg,
+    images: torch.Tensor,
+    masks: torch.Tensor,
+    exemplar: ExemplarFeatures,
+    kind: str = "ot",
+    max_points: int = 1024,
+    generator: torch.Generator | None = None,
+) -> torch.Tensor:
     """Mean over the N images of their style distance to the exemplar (see the module docstring).
 
     images (N, 3, H, W) in [-1, 1], masks (N, 1, H, W); ``kind`` "ot" (relaxed optimal transport and

@@ -86,7 +86,9 @@ def style_grams(vgg, images: torch.Tensor, masks: torch.Tensor | None = None, sc
     sizes = check_shape(images, "style_grams: images", ("B", 3, "H", "W"), dtype="float")
     check_shape(masks, "style_grams: masks", ("B", 1, "H", "W"), sizes=sizes, optional=True)
     if min(images.shape[-2:]) // 2 ** (scales - 1) < 16:
-        raise ValueError(f"images of {tuple(images.shape[-2:])} are too small for {scales} style scales (coarsest < 16 px)")
+        raise ValueError(
+            f"images of {tuple(images.shape[-2:])} are too small for {scales} style scales (coarsest < 16 px)"
+        )
     grams: Grams = []
     # Composite once at full resolution: averaging then mixes object pixels with the constant grey only.
     images = composite_background(images, masks)
@@ -111,8 +113,15 @@ def gram_distance(grams: Grams, target_grams: Grams, layer_weights: list[float] 
     return total
 
 
-def global_style_loss(vgg, images: torch.Tensor, masks: torch.Tensor | None, target_images: torch.Tensor | None = None,
-                      target_masks: torch.Tensor | None = None, target_grams: Grams | None = None, scales: int = 3) -> torch.Tensor:
+def global_style_loss(
+    vgg,
+    images: torch.Tensor,
+    masks: torch.Tensor | None,
+    target_images: torch.Tensor | None = None,
+    target_masks: torch.Tensor | None = None,
+    target_grams: Grams | None = None,
+    scales: int = 3,
+) -> torch.Tensor:
     """L_glob: masked Gram distance between rendered ``images`` [B, 3, H, W] and the photo, at ``scales`` levels.
 
     Give the photo either as ``target_images``/``target_masks`` or, to save recomputing it every
@@ -122,8 +131,9 @@ def global_style_loss(vgg, images: torch.Tensor, masks: torch.Tensor | None, tar
     """
     sizes = check_shape(images, "global_style_loss: images", ("B", 3, "H", "W"), dtype="float")
     check_shape(masks, "global_style_loss: masks", ("B", 1, "H", "W"), sizes=sizes, optional=True)
-    target = check_shape(target_images, "global_style_loss: target_images", ("T", 3, "H'", "W'"), dtype="float",
-                         optional=True)
+    target = check_shape(
+        target_images, "global_style_loss: target_images", ("T", 3, "H'", "W'"), dtype="float", optional=True
+    )
     check_shape(target_masks, "global_style_loss: target_masks", ("T", 1, "H'", "W'"), sizes=target, optional=True)
     if target_grams is None:
         if target_images is None:
@@ -153,7 +163,9 @@ def _object_pixels(mask: torch.Tensor, what: str) -> torch.Tensor:
     return pixels
 
 
-def random_object_pixels(mask: torch.Tensor, count: int, generator: torch.Generator | None = None, what: str = "object") -> torch.Tensor:
+def random_object_pixels(
+    mask: torch.Tensor, count: int, generator: torch.Generator | None = None, what: str = "object"
+) -> torch.Tensor:
     """``count`` pixels drawn uniformly (with replacement) from mask [H, W] (or [1, H, W], [1, 1, H, W]) > 0.5:
     [count, 2] int64 (row, column)."""
     check_shape(mask, "random_object_pixels: mask", *_MASK_SHAPES)
@@ -177,8 +189,15 @@ def nearest_noc_pixels(query_noc: torch.Tensor, render_noc: torch.Tensor, render
     return pixels[nearest]
 
 
-def sample_patch_pairs(photo_mask: torch.Tensor, render_mask: torch.Tensor, num_patches: int, photo_noc: torch.Tensor | None = None,
-                       render_noc: torch.Tensor | None = None, guided: bool = True, generator: torch.Generator | None = None) -> PatchPairs:
+def sample_patch_pairs(
+    photo_mask: torch.Tensor,
+    render_mask: torch.Tensor,
+    num_patches: int,
+    photo_noc: torch.Tensor | None = None,
+    render_noc: torch.Tensor | None = None,
+    guided: bool = True,
+    generator: torch.Generator | None = None,
+) -> PatchPairs:
     """Pick ``num_patches`` pairs of patch centres (Mesh2Tex section 3.3).
 
     photo_mask, render_mask: [H, W] and [H', W'] float/bool (or [1, H, W], [1, 1, H, W]), object > 0.5 (the two
@@ -219,12 +238,20 @@ def crop_patches(images: torch.Tensor, centres: torch.Tensor, size: int) -> torc
     for row, column in centres.tolist():
         top = min(max(row - size // 2, 0), height - size)
         left = min(max(column - size // 2, 0), width - size)
-        patches.append(images[:, top:top + size, left:left + size])
+        patches.append(images[:, top : top + size, left : left + size])
     return torch.stack(patches)
 
 
-def patch_style_loss(vgg, rendered: torch.Tensor, rendered_mask: torch.Tensor, photo: torch.Tensor, photo_mask: torch.Tensor,
-                     pairs: PatchPairs, patch_size: int = 64, scales: int = 3) -> torch.Tensor:
+def patch_style_loss(
+    vgg,
+    rendered: torch.Tensor,
+    rendered_mask: torch.Tensor,
+    photo: torch.Tensor,
+    photo_mask: torch.Tensor,
+    pairs: PatchPairs,
+    patch_size: int = 64,
+    scales: int = 3,
+) -> torch.Tensor:
     """L_patch: sum over the patch pairs of the masked Gram distance at ``scales`` levels x 5 layers; scalar.
 
     rendered [1, 3, H, W] / [3, H, W] in [-1, 1] with rendered_mask [1, 1, H, W] / [1, H, W]; photo and
@@ -247,8 +274,9 @@ def patch_style_loss(vgg, rendered: torch.Tensor, rendered_mask: torch.Tensor, p
     return gram_distance(grams, target) * pairs.photo_centres.shape[0]
 
 
-def lowpass_colour_loss(rendered: torch.Tensor, rendered_mask: torch.Tensor, photo: torch.Tensor, photo_mask: torch.Tensor,
-                        sigma: float) -> torch.Tensor:
+def lowpass_colour_loss(
+    rendered: torch.Tensor, rendered_mask: torch.Tensor, photo: torch.Tensor, photo_mask: torch.Tensor, sigma: float
+) -> torch.Tensor:
     """Mean absolute difference of the two images' colours after a Gaussian blur of ``sigma`` pixels
     of each one's own object pixels (:func:`mesh2tex.metrics.appearance.masked_blur`), over the pixels
     both masks cover; scalar (0 when the masks do not overlap).
@@ -260,11 +288,14 @@ def lowpass_colour_loss(rendered: torch.Tensor, rendered_mask: torch.Tensor, pho
     """
     sizes = check_shape(rendered, "lowpass_colour_loss: rendered", ("B", 3, "H", "W"), dtype="float")
     check_shape(rendered_mask, "lowpass_colour_loss: rendered_mask", ("B", 1, "H", "W"), sizes=sizes)
-    photo_sizes = check_shape(photo, "lowpass_colour_loss: photo", ("B", 3, "H", "W"), sizes={"B": sizes["B"]},
-                              dtype="float")
+    photo_sizes = check_shape(
+        photo, "lowpass_colour_loss: photo", ("B", 3, "H", "W"), sizes={"B": sizes["B"]}, dtype="float"
+    )
     check_shape(photo_mask, "lowpass_colour_loss: photo_mask", ("B", 1, "H", "W"), sizes=photo_sizes)
     if rendered.shape[-2:] != photo.shape[-2:]:
-        raise ValueError(f"lowpass_colour_loss: the render is {tuple(rendered.shape[-2:])}, the photo {tuple(photo.shape[-2:])}")
+        raise ValueError(
+            f"lowpass_colour_loss: the render is {tuple(rendered.shape[-2:])}, the photo {tuple(photo.shape[-2:])}"
+        )
     both = (rendered_mask * photo_mask).to(rendered.dtype)
     a = masked_blur(rendered, rendered_mask, sigma).to(rendered.dtype)
     with torch.no_grad():

@@ -16,7 +16,19 @@ from mesh2tex.metrics.inception import InceptionV3Features, find_inception_weigh
 from mesh2tex.metrics.swd import swd, swd_per_level
 
 __all__ = [
-    "EXTRACTOR_NAMES", "FeatureExtractor", "InceptionV3Features", "colour_histogram_distance", "colour_histograms",
-    "fid", "find_inception_weights", "get_feature_extractor", "kid", "load_inception", "masked_psnr", "masked_ssim",
-    "swd", "swd_per_level", "to_unit",
+    "EXTRACTOR_NAMES",
+    "FeatureExtractor",
+    "InceptionV3Features",
+    "colour_histogram_distance",
+    "colour_histograms",
+    "fid",
+    "find_inception_weights",
+    "get_feature_extractor",
+    "kid",
+    "load_inception",
+    "masked_psnr",
+    "masked_ssim",
+    "swd",
+    "swd_per_level",
+    "to_unit",
 ]

@@ -28,16 +28,23 @@ from mesh2tex.metrics.swd import laplacian_pyramid, sliced_wasserstein
 from mesh2tex.render.shading import composite_images
 
 
-def _check_pair(function: str, images: torch.Tensor, masks: torch.Tensor | None, references: torch.Tensor | None = None,
-                reference_masks: torch.Tensor | None = None, mask_needed: bool = True) -> dict:
+def _check_pair(
+    function: str,
+    images: torch.Tensor,
+    masks: torch.Tensor | None,
+    references: torch.Tensor | None = None,
+    reference_masks: torch.Tensor | None = None,
+    mask_needed: bool = True,
+) -> dict:
     """images [B, 3, H, W] float with masks [B, 1, H, W]; references [B, 3, H', W'] with reference_masks
     [B, 1, H', W'] (the images' H, W when reference_masks is None). Returns the sizes, for further checks."""
     sizes = check_shape(images, f"{function}: images", ("B", 3, "H", "W"), dtype="float")
     check_shape(masks, f"{function}: masks", ("B", 1, "H", "W"), sizes=sizes, optional=not mask_needed)
     if references is not None:
         own = "H" if reference_masks is None else "H'"
-        check_shape(references, f"{function}: references", ("B", 3, own, own.replace("H", "W")), sizes=sizes,
-                    dtype="float")
+        check_shape(
+            references, f"{function}: references", ("B", 3, own, own.replace("H", "W")), sizes=sizes, dtype="float"
+        )
         check_shape(reference_masks, f"{function}: reference_masks", ("B", 1, "H'", "W'"), sizes=sizes, optional=True)
     return sizes
 
@@ -48,8 +55,9 @@ def rgb_to_lab(images: torch.Tensor) -> torch.Tensor:
     return kornia.color.rgb_to_lab(images.float().clamp(0, 1)).double()
 
 
-def part_colours(images: torch.Tensor, parts: torch.Tensor, masks: torch.Tensor | None = None,
-                 min_pixels: int = 4) -> list[dict[int, tuple[torch.Tensor, int]]]:
+def part_colours(
+    images: torch.Tensor, parts: torch.Tensor, masks: torch.Tensor | None = None, min_pixels: int = 4
+) -> list[dict[int, tuple[torch.Tensor, int]]]:
     """Per image, {part label: (mean CIELAB colour [3] float64, pixel count)} of the parts with at
     least ``min_pixels`` pixels inside ``masks`` (None: every pixel with a label >= 0). images [B, 3, H, W]
     in [0, 1]; parts [B, H, W] integer labels; masks [B, 1, H, W] or None."""
@@ -71,9 +79,15 @@ def part_colours(images: torch.Tensor, parts: torch.Tensor, masks: torch.Tensor 
     return result
 
 
-def part_colour_error(images: torch.Tensor, references: torch.Tensor, parts: torch.Tensor, masks: torch.Tensor | None = None,
-                      reference_parts: torch.Tensor | None = None, reference_masks: torch.Tensor | None = None,
-                      min_pixels: int = 4) -> torch.Tensor:
+def part_colour_error(
+    images: torch.Tensor,
+    references: torch.Tensor,
+    parts: torch.Tensor,
+    masks: torch.Tensor | None = None,
+    reference_parts: torch.Tensor | None = None,
+    reference_masks: torch.Tensor | None = None,
+    min_pixels: int = 4,
+) -> torch.Tensor:
     """Per-part colour error ΔE (CIE76, CIELAB units; about 2.3 is a just-noticeable difference): [B] float64.
 
     For each part label seen (``min_pixels`` or more) in both the image and the reference, the
@@ -86,12 +100,24 @@ def part_colour_error(images: torch.Tensor, references: torch.Tensor, parts: tor
     sizes = _check_pair("part_colour_error", images, masks, mask_needed=False)
     check_shape(parts, "part_colour_error: parts", ("B", "H", "W"), sizes=sizes, dtype="int")
     own = "H'" if reference_parts is not None and (reference_masks is not None or masks is None) else "H"  # own size
-    check_shape(references, "part_colour_error: references", ("B", 3, own, own.replace("H", "W")), sizes=sizes,
-                dtype="float")
-    check_shape(reference_parts, "part_colour_error: reference_parts", ("B", own, own.replace("H", "W")), sizes=sizes,
-                dtype="int", optional=True)
-    check_shape(reference_masks, "part_colour_error: reference_masks", ("B", 1, own, own.replace("H", "W")),
-                sizes=sizes, optional=True)
+    check_shape(
+        references, "part_colour_error: references", ("B", 3, own, own.replace("H", "W")), sizes=sizes, dtype="float"
+    )
+    check_shape(
+        reference_parts,
+        "part_colour_error: reference_parts",
+        ("B", own, own.replace("H", "W")),
+        sizes=sizes,
+        dtype="int",
+        optional=True,
+    )
+    check_shape(
+        reference_masks,
+        "part_colour_error: reference_masks",
+        ("B", 1, own, own.replace("H", "W")),
+        sizes=sizes,
+        optional=True,
+    )
     reference_parts = parts if reference_parts is None else reference_parts
     reference_masks = masks if reference_masks is None else reference_masks
     mine = part_colours(images, parts, masks, min_pixels)
@@ -125,13 +151,19 @@ def masked_blur(images: torch.Tensor, masks: torch.Tensor, sigma: float) -> torc
     r = kernel.numel() // 2
     channels = images.shape[1] + 1
     stacked = torch.cat([images.double() * masks, masks.double()], dim=1)
-    stacked = F.conv2d(F.pad(stacked, (r, r, 0, 0)), kernel.reshape(1, 1, 1, -1).expand(channels, 1, 1, -1), groups=channels)
-    stacked = F.conv2d(F.pad(stacked, (0, 0, r, r)), kernel.reshape(1, 1, -1, 1).expand(channels, 1, -1, 1), groups=channels)
+    stacked = F.conv2d(
+        F.pad(stacked, (r, r, 0, 0)), kernel.reshape(1, 1, 1, -1).expand(channels, 1, 1, -1), groups=channels
+    )
+    stacked = F.conv2d(
+        F.pad(stacked, (0, 0, r, r)), kernel.reshape(1, 1, -1, 1).expand(channels, 1, -1, 1), groups=channels
+    )
     weight = stacked[:, -1:]
     return torch.where(weight > 1e-6, stacked[:, :-1] / weight.clamp_min(1e-6), torch.zeros_like(stacked[:, :-1]))
 
 
-def lowpass_psnr(images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor, sigma: float = 3.0) -> torch.Tensor:
+def lowpass_psnr(
+    images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor, sigma: float = 3.0
+) -> torch.Tensor:
     """PSNR in dB (peak 1) over ``masks`` after a Gaussian blur of ``sigma`` pixels of each image's
     masked pixels (:func:`masked_blur`, with the same mask for both): [B] float64; +inf if equal.
     images and references [B, 3, H, W] in [0, 1], masks [B, 1, H, W]."""
@@ -142,7 +174,9 @@ def lowpass_psnr(images: torch.Tensor, references: torch.Tensor, masks: torch.Te
     return 10.0 * torch.log10(1.0 / mse)
 
 
-def _object_patches(level: torch.Tensor, mask: torch.Tensor, count: int, patch: int, generator: torch.Generator) -> torch.Tensor:
+def _object_patches(
+    level: torch.Tensor, mask: torch.Tensor, count: int, patch: int, generator: torch.Generator
+) -> torch.Tensor:
     """Up to ``count`` random patch x patch neighbourhoods centred on mask pixels of one image: [n, C*patch^2]."""
     _, channels, height, width = level.shape
     r = patch // 2
@@ -166,8 +200,17 @@ def _fill_background(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     return composite_images(image, mask, mean)
 
 
-def object_swd(images: torch.Tensor, references: torch.Tensor, masks: torch.Tensor, reference_masks: torch.Tensor | None = None,
-               patches: int = 256, patch_size: int = 7, projections: int = 256, min_size: int = 16, seed: int = 0) -> torch.Tensor:
+def object_swd(
+    images: torch.Tensor,
+    references: torch.Tensor,
+    masks: torch.Tensor,
+    reference_masks: torch.Tensor | None = None,
+    patches: int = 256,
+    patch_size: int = 7,
+    projections: int = 256,
+    min_size: int = 16,
+    seed: int = 0,
+) -> torch.Tensor:
     """Sliced Wasserstein distance x 1000 between the object patches of each image and its reference: [B] float64.
 
     Off each image's mask, pixels take its mean object colour (the background never enters); both

@@ -14,8 +14,9 @@ import torch
 from mesh2tex.checks import check_array_shape, check_shape
 
 
-def kid(features_a: torch.Tensor, features_b: torch.Tensor, num_subsets: int = 100, subset_size: int = 1000,
-        seed: int = 0) -> tuple[float, float]:
+def kid(
+    features_a: torch.Tensor, features_b: torch.Tensor, num_subsets: int = 100, subset_size: int = 1000, seed: int = 0
+) -> tuple[float, float]:
     """Kernel Inception Distance: the unbiased squared MMD with the cubic polynomial kernel
     k(x, y) = (x . y / D + 1)^3, averaged over ``num_subsets`` random subsets of
     min(subset_size, N_a, N_b) vectors from each set.
@@ -41,8 +42,11 @@ def kid(features_a: torch.Tensor, features_b: torch.Tensor, num_subsets: int = 1
         k_yy = (y @ y.T / dim + 1) ** 3
         k_xy = (x @ y.T / dim + 1) ** 3
         off_diagonal = size * (size - 1)
-        mmd = ((k_xx.sum() - k_xx.diagonal().sum()) / off_diagonal + (k_yy.sum() - k_yy.diagonal().sum()) / off_diagonal
-               - 2 * k_xy.mean())
+        mmd = (
+            (k_xx.sum() - k_xx.diagonal().sum()) / off_diagonal
+            + (k_yy.sum() - k_yy.diagonal().sum()) / off_diagonal
+            - 2 * k_xy.mean()
+        )
         values.append(float(mmd))
     return float(np.mean(values)), float(np.std(values))
 
@@ -64,8 +68,8 @@ def fid(features_a: torch.Tensor, features_b: torch.Tensor) -> float:
         raise ValueError("FID needs at least 2 feature vectors in each set")
     mu_a, mu_b = a.mean(0), b.mean(0)
     centred_a, centred_b = a - mu_a, b - mu_b
-    trace_a = (centred_a ** 2).sum() / (a.shape[0] - 1)
-    trace_b = (centred_b ** 2).sum() / (b.shape[0] - 1)
+    trace_a = (centred_a**2).sum() / (a.shape[0] - 1)
+    trace_b = (centred_b**2).sum() / (b.shape[0] - 1)
     return float(((mu_a - mu_b) ** 2).sum() + trace_a + trace_b - 2 * trace_sqrt_product(centred_a, centred_b))
 
 

@@ -35,9 +35,16 @@ class EvaluateConfig:
     seed: int = 0  # seed of KID subsets and SWD sampling
 
 
-def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: FeatureExtractor | None = None,
-                  config: EvaluateConfig | None = None, render_masks: torch.Tensor | None = None,
-                  image_masks: torch.Tensor | None = None, kid_fid: bool = True, image_features: torch.Tensor | None = None) -> dict:
+def evaluate_sets(
+    renders: torch.Tensor,
+    images: torch.Tensor,
+    extractor: FeatureExtractor | None = None,
+    config: EvaluateConfig | None = None,
+    render_masks: torch.Tensor | None = None,
+    image_masks: torch.Tensor | None = None,
+    kid_fid: bool = True,
+    image_features: torch.Tensor | None = None,
+) -> dict:
     """Unpaired metrics between renders [N, 3, H, W] and images [M, 3, H, W], both float in [0, 1], same H, W.
 
     ``extractor``: KID/FID features (default: ``get_feature_extractor(config.features)``; metric
@@ -56,25 +63,45 @@ def evaluate_sets(renders: torch.Tensor, images: torch.Tensor, extractor: Featur
     check_shape(image_features, "evaluate_sets: image_features", ("M", None), sizes=sizes, dtype="float", optional=True)
     config = config or EvaluateConfig()
     if renders.shape[0] < 2 or images.shape[0] < 2:
-        raise InputError(f"set metrics need at least 2 renders and 2 images (got {renders.shape[0]} and {images.shape[0]})")
+        raise InputError(
+            f"set metrics need at least 2 renders and 2 images (got {renders.shape[0]} and {images.shape[0]})"
+        )
     metrics: dict[str, float] = {}
     if kid_fid:
         extractor = extractor or get_feature_extractor(config.features)
         features_renders = extractor(renders * 2 - 1)
         features_images = extractor(images * 2 - 1) if image_features is None else image_features
-        kid_mean, kid_std = kid(features_images, features_renders, config.kid_subsets, config.kid_subset_size, config.seed)
+        kid_mean, kid_std = kid(
+            features_images, features_renders, config.kid_subsets, config.kid_subset_size, config.seed
+        )
         metrics[extractor.metric_name("kid")] = kid_mean
         metrics[extractor.metric_name("kid") + "_std"] = kid_std
         metrics[extractor.metric_name("fid")] = fid(features_images, features_renders)
-    metrics.update(swd_per_level(images, renders, config.swd_patches_per_image, num_projections=config.swd_projections,
-                                 repeats=config.swd_repeats, seed=config.seed))
+    metrics.update(
+        swd_per_level(
+            images,
+            renders,
+            config.swd_patches_per_image,
+            num_projections=config.swd_projections,
+            repeats=config.swd_repeats,
+            seed=config.seed,
+        )
+    )
     metrics.update(pooled_histogram_distance(renders, images, render_masks, image_masks, config.histogram_bins))
-    return {"metrics": metrics, "features": extractor.description if kid_fid else None,
-            "counts": {"renders": int(renders.shape[0]), "images": int(images.shape[0])}}
+    return {
+        "metrics": metrics,
+        "features": extractor.description if kid_fid else None,
+        "counts": {"renders": int(renders.shape[0]), "images": int(images.shape[0])},
+    }
 
 
-def _check_sets(function: str, renders: torch.Tensor, images: torch.Tensor, render_masks: torch.Tensor | None,
-                image_masks: torch.Tensor | None) -> dict:
+def _check_sets(
+    function: str,
+    renders: torch.Tensor,
+    images: torch.Tensor,
+    render_masks: torch.Tensor | None,
+    image_masks: torch.Tensor | None,
+) -> dict:
     """renders [N, 3, H, W] and images [M, 3, H, W] float; render_masks [N, 1, H, W], image_masks [M, 1, H, W] or None.
     Returns the sizes."""
     sizes = check_shape(renders, f"{function}: renders", ("N", 3, "H", "W"), dtype="float")
@@ -83,8 +110,13 @@ def _check_sets(function: str, renders: torch.Tensor, images: torch.Tensor, rend
     return check_shape(image_masks, f"{function}: image_masks", ("M", 1, "H", "W"), sizes=sizes, optional=True)
 
 
-def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, render_masks: torch.Tensor | None,
-                              image_masks: torch.Tensor | None, bins: int) -> dict[str, float]:
+def pooled_histogram_distance(
+    renders: torch.Tensor,
+    images: torch.Tensor,
+    render_masks: torch.Tensor | None,
+    image_masks: torch.Tensor | None,
+    bins: int,
+) -> dict[str, float]:
     """TV distance between the colour histograms of two sets, each pooled as one distribution of pixels:
     {"color_hist_tv": d} over object pixels when both sets have masks, else {"color_hist_tv_whole_image": d}.
 
@@ -108,8 +140,13 @@ def pooled_histogram_distance(renders: torch.Tensor, images: torch.Tensor, rende
     return {name: float(0.5 * (pooled(renders, render_masks) - pooled(images, image_masks)).abs().sum())}
 
 
-def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Tensor | None = None,
-                   names: list[str] | None = None, config: EvaluateConfig | None = None) -> dict:
+def evaluate_pairs(
+    renders: torch.Tensor,
+    images: torch.Tensor,
+    masks: torch.Tensor | None = None,
+    names: list[str] | None = None,
+    config: EvaluateConfig | None = None,
+) -> dict:
     """Paired metrics: renders and images [N, 3, H, W] float in [0, 1], masks [N, 1, H, W] in {0, 1} or None.
 
     Returns {"metrics": {"psnr_masked", "ssim_masked", "color_hist_tv"} (means over pairs; PSNR is
@@ -122,7 +159,9 @@ def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Ten
     check_shape(masks, "evaluate_pairs: masks", ("N", 1, "H", "W"), sizes=sizes, optional=True)
     config = config or EvaluateConfig()
     if renders.shape != images.shape:
-        raise InputError(f"paired metrics need renders and images of one shape, got {tuple(renders.shape)} and {tuple(images.shape)}")
+        raise InputError(
+            f"paired metrics need renders and images of one shape, got {tuple(renders.shape)} and {tuple(images.shape)}"
+        )
     if masks is not None and bool((masks.flatten(1).sum(1) == 0).any()):
         empty = int((masks.flatten(1).sum(1) == 0).nonzero()[0])
         raise InputError(f"the mask of pair '{names[empty] if names else empty}' is empty")
@@ -130,9 +169,15 @@ def evaluate_pairs(renders: torch.Tensor, images: torch.Tensor, masks: torch.Ten
     ssim = masked_ssim(renders, images, masks)
     histogram = colour_histogram_distance(renders, images, masks, bins=config.histogram_bins)
     names = names or [str(i) for i in range(renders.shape[0])]
-    per_pair = [{"name": name, "psnr_masked": float(p), "ssim_masked": float(s), "color_hist_tv": float(h)}
-                for name, p, s, h in zip(names, psnr, ssim, histogram)]
-    metrics = {"psnr_masked": float(psnr.mean()), "ssim_masked": float(ssim.mean()), "color_hist_tv": float(histogram.mean())}
+    per_pair = [
+        {"name": name, "psnr_masked": float(p), "ssim_masked": float(s), "color_hist_tv": float(h)}
+        for name, p, s, h in zip(names, psnr, ssim, histogram)
+    ]
+    metrics = {
+        "psnr_masked": float(psnr.mean()),
+        "ssim_masked": float(ssim.mean()),
+        "color_hist_tv": float(histogram.mean()),
+    }
     return {"metrics": metrics, "per_pair": per_pair, "counts": {"pairs": int(renders.shape[0])}}
 
 
@@ -140,7 +185,8 @@ METRIC_MEANINGS = {
     "kid": "Kernel Inception Distance (FID Inception-v3 features), lower is better",
     "fid": "Frechet Inception Distance (FID Inception-v3 features), lower is better",
     "swd": "sliced Wasserstein distance x1e3 on Laplacian-pyramid 7x7 patches, mean over levels, lower is better",
-    "color_hist_tv": "total-variation distance of joint RGB histograms of object pixels, 0 (same colours) to 1, lower is better",
+    "color_hist_tv": "total-variation distance of joint RGB histograms of object pixels, 0 (same colours) to 1, lower "
+    "is better",
     "color_hist_tv_whole_image": "the same over every pixel, background included (no masks given), lower is better",
     "psnr_masked": "PSNR in dB over the mask, higher is better",
     "ssim_masked": "SSIM over the mask, 1 is identical",
@@ -157,9 +203,11 @@ def describe_metric(name: str) -> str:
     if base in ("kid", "fid"):
         if suffix.endswith("_std"):
             return "standard deviation of KID over subsets"
-        what = {"randvgg": "random-weight VGG19 statistics (no pretrained weights; NOT standard " + base.upper() + ")",
-                "vgg": "ImageNet VGG19 statistics (not standard " + base.upper() + ")",
-                "tvinception": "torchvision Inception-v3 features (close to, not equal to, standard " + base.upper() + ")"}
+        what = {
+            "randvgg": "random-weight VGG19 statistics (no pretrained weights; NOT standard " + base.upper() + ")",
+            "vgg": "ImageNet VGG19 statistics (not standard " + base.upper() + ")",
+            "tvinception": "torchvision Inception-v3 features (close to, not equal to, standard " + base.upper() + ")",
+        }
         return f"{base.upper()} on {what.get(suffix, suffix + ' features')}, lower is better"
     if name == "kid_std":
         return "standard deviation of KID over subsets"
@@ -180,13 +228,18 @@ def markdown_table(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str, Path] | None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, list[str]]:
+def load_pairs(
+    renders_dir: str | Path, images_dir: str | Path, masks: dict[str, Path] | None
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, list[str]]:
     """Renders and images matched by file stem, with masks; InputError for unmatched names or size mismatches."""
     renders = list_images(renders_dir, "render")
     images = list_images(images_dir, "image")
     missing = sorted(set(renders) - set(images))
     if missing:
-        raise InputError(f"{images_dir}: no image for render(s) {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} (pairs match by file name)")
+        raise InputError(
+            f"{images_dir}: no image for render(s) {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} "
+            "(pairs match by file name)"
+        )
     names = sorted(renders)
     render_list, image_list, mask_list = [], [], []
     any_mask = False
@@ -194,7 +247,9 @@ def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str,
         render, render_alpha = image_tensor(renders[name])
         image, image_alpha = image_tensor(images[name])
         if render.shape != image.shape:
-            raise InputError(f"{images[name]}: size {tuple(image.shape[-2:])} differs from its render's {tuple(render.shape[-2:])}")
+            raise InputError(
+                f"{images[name]}: size {tuple(image.shape[-2:])} differs from its render's {tuple(render.shape[-2:])}"
+            )
         if masks is not None and name in masks:
             mask = mask_tensor(masks[name])
         elif render_alpha is not None or image_alpha is not None:
@@ -203,8 +258,10 @@ def load_pairs(renders_dir: str | Path, images_dir: str | Path, masks: dict[str,
         else:
             mask = None
         if mask is not None and mask.shape[-2:] != render.shape[-2:]:
-            raise InputError(f"{masks[name] if masks is not None and name in masks else images[name]}: mask size {tuple(mask.shape[-2:])} "
-                            f"differs from the render's {tuple(render.shape[-2:])}")
+            raise InputError(
+                f"{masks[name] if masks is not None and name in masks else images[name]}: mask size "
+                f"{tuple(mask.shape[-2:])} differs from the render's {tuple(render.shape[-2:])}"
+            )
         any_mask = any_mask or mask is not None
         render_list.append(render)
         image_list.append(image)

@@ -52,7 +52,9 @@ class FeatureExtractor:
     def __call__(self, images: torch.Tensor, batch_size: int = 32) -> torch.Tensor:
         """Features of all images [N, 3, H, W] in [-1, 1], in batches: [N, D] float64 on the CPU."""
         check_shape(images, "FeatureExtractor: images", ("N", 3, "H", "W"), dtype="float")
-        chunks = [self.extract(images[i:i + batch_size]).double().cpu() for i in range(0, images.shape[0], batch_size)]
+        chunks = [
+            self.extract(images[i : i + batch_size]).double().cpu() for i in range(0, images.shape[0], batch_size)
+        ]
         return torch.cat(chunks)
 
 
@@ -62,7 +64,13 @@ def vgg_statistics(vgg: VGG19Features) -> Callable[[torch.Tensor], torch.Tensor]
     parameter = next(vgg.parameters())
 
     def extract(images: torch.Tensor) -> torch.Tensor:
-        images = F.interpolate(images.to(parameter), size=(VGG_FEATURE_RESOLUTION,) * 2, mode="bilinear", align_corners=False, antialias=True)
+        images = F.interpolate(
+            images.to(parameter),
+            size=(VGG_FEATURE_RESOLUTION,) * 2,
+            mode="bilinear",
+            align_corners=False,
+            antialias=True,
+        )
         statistics = []
         for features in vgg(images):
             flat = features.flatten(2)
@@ -72,8 +80,12 @@ def vgg_statistics(vgg: VGG19Features) -> Callable[[torch.Tensor], torch.Tensor]
     return extract
 
 
-def get_feature_extractor(name: str = "auto", inception_weights: str | os.PathLike | None = None,
-                          vgg_weights: str | os.PathLike | None = None, device: str | torch.device = "cpu") -> FeatureExtractor:
+def get_feature_extractor(
+    name: str = "auto",
+    inception_weights: str | os.PathLike | None = None,
+    vgg_weights: str | os.PathLike | None = None,
+    device: str | torch.device = "cpu",
+) -> FeatureExtractor:
     """The extractor ``name`` (see the module table).
 
     ``auto``: the Inception-v3 of ``inception_weights`` / $MESH2TEX_INCEPTION_WEIGHTS / torchvision's
@@ -86,28 +98,47 @@ def get_feature_extractor(name: str = "auto", inception_weights: str | os.PathLi
     if name in ("auto", "inception", "tvinception"):
         found = find_inception_weights(inception_weights)
         if found is None and name != "auto":
-            raise InputError(f"no Inception-v3 weights found for '{name}': pass --inception-weights PATH or put one of "
-                            f"{', '.join(INCEPTION_FILE_NAMES)} in {torch_hub_checkpoint_dir()}")
+            raise InputError(
+                f"no Inception-v3 weights found for '{name}': pass --inception-weights PATH or put one of "
+                f"{', '.join(INCEPTION_FILE_NAMES)} in {torch_hub_checkpoint_dir()}"
+            )
         if found is not None:
             model = load_inception(found, device)
             variant = "inception" if model.fid_variant else "tvinception"
             if name != "auto" and name != variant:
                 raise InputError(f"{found}: holds {variant} weights, not {name} weights")
             parameter = next(model.parameters())
-            description = ("FID Inception-v3 pool3 features" if model.fid_variant else "torchvision Inception-v3 pool features") + f" ({found})"
-            return FeatureExtractor("" if model.fid_variant else "tvinception", description, lambda x: model(x.to(parameter)))
-        warnings.warn(f"no Inception-v3 weights found (looked for $MESH2TEX_INCEPTION_WEIGHTS and {', '.join(INCEPTION_FILE_NAMES)} in "
-                      f"{torch_hub_checkpoint_dir()}); KID/FID are computed on random-weight VGG19 statistics and reported as "
-                      f"kid_randvgg/fid_randvgg, which rank runs but are not comparable with published numbers. For standard "
-                      f"KID/FID download {FID_INCEPTION_URL} there or pass --inception-weights PATH.", UserWarning, stacklevel=2)
+            description = (
+                "FID Inception-v3 pool3 features" if model.fid_variant else "torchvision Inception-v3 pool features"
+            ) + f" ({found})"
+            return FeatureExtractor(
+                "" if model.fid_variant else "tvinception", description, lambda x: model(x.to(parameter))
+            )
+        warnings.warn(
+            "no Inception-v3 weights found (looked for $MESH2TEX_INCEPTION_WEIGHTS and "
+            f"{', '.join(INCEPTION_FILE_NAMES)} in "
+            f"{torch_hub_checkpoint_dir()}); KID/FID are computed on random-weight VGG19 statistics and reported as "
+            f"kid_randvgg/fid_randvgg, which rank runs but are not comparable with published numbers. For standard "
+            f"KID/FID download {FID_INCEPTION_URL} there or pass --inception-weights PATH.",
+            UserWarning,
+            stacklevel=2,
+        )
         name = "randvgg"
     if name == "vgg":
         if find_vgg19_weights(vgg_weights) is None:
-            raise InputError("the 'vgg' feature extractor needs ImageNet VGG19 weights: pass --vgg-weights PATH "
-                            f"or put vgg19-dcbb9e9d.pth in {torch_hub_checkpoint_dir()}")
+            raise InputError(
+                "the 'vgg' feature extractor needs ImageNet VGG19 weights: pass --vgg-weights PATH "
+                f"or put vgg19-dcbb9e9d.pth in {torch_hub_checkpoint_dir()}"
+            )
         vgg = load_vgg19(vgg_weights, device)
-        return FeatureExtractor("vgg", f"ImageNet VGG19 style-layer channel means and stds ({vgg.source})", vgg_statistics(vgg))
+        return FeatureExtractor(
+            "vgg", f"ImageNet VGG19 style-layer channel means and stds ({vgg.source})", vgg_statistics(vgg)
+        )
     vgg = VGG19Features()
     vgg.init_random()
     vgg = vgg.to(device).eval().requires_grad_(False)
-    return FeatureExtractor("randvgg", "random-weight VGG19 (seed 0) style-layer channel means and stds; no pretrained weights", vgg_statistics(vgg))
+    return FeatureExtractor(
+        "randvgg",
+        "random-weight VGG19 (seed 0) style-layer channel means and stds; no pretrained weights",
+        vgg_statistics(vgg),
+    )

@@ -93,9 +93,17 @@ def gap_closed(untrained: float, trained: float, oracle: float) -> float:
     return (math.log(untrained) - math.log(trained)) / (math.log(untrained) - math.log(oracle))
 
 
-def object_set_swd(images: torch.Tensor, masks: torch.Tensor, references: torch.Tensor, reference_masks: torch.Tensor,
-                   patches_per_image: int = 64, patch_size: int = 7, projections: int = 256, min_size: int = 16,
-                   seed: int = 0) -> float:
+def object_set_swd(
+    images: torch.Tensor,
+    masks: torch.Tensor,
+    references: torch.Tensor,
+    reference_masks: torch.Tensor,
+    patches_per_image: int = 64,
+    patch_size: int = 7,
+    projections: int = 256,
+    min_size: int = 16,
+    seed: int = 0,
+) -> float:
     """SWD x 1000 between the object patches of a set and of a reference set, pooled over each set.
 
     images (N, 3, H, W) and references (M, 3, H, W) in [0, 1], same H, W; masks (N, 1, H, W) and
@@ -118,7 +126,11 @@ def object_set_swd(images: torch.Tensor, masks: torch.Tensor, references: torch.
             mask = batch_masks[b : b + 1].double()
             levels = laplacian_pyramid(_fill_background(batch[b : b + 1].double(), mask), min_size)
             for i, level in enumerate(levels):
-                m = F.interpolate(mask, size=level.shape[-2:], mode="area") if mask.shape[-2:] != level.shape[-2:] else mask
+                m = (
+                    F.interpolate(mask, size=level.shape[-2:], mode="area")
+                    if mask.shape[-2:] != level.shape[-2:]
+                    else mask
+                )
                 k = min(patch_size, *level.shape[-2:]) | 1
                 if len(per_level) <= i:
                     per_level.append([])

@@ -27,8 +27,14 @@ from mesh2tex.checks import check_shape
 from mesh2tex.errors import InputError
 from mesh2tex.nn.vgg import find_weight_file, read_state_dict
 
-INCEPTION_FILE_NAMES = ("pt_inception-2015-12-05-6726825d.pth", "inception_v3_google-0cc3c7bd.pth", "inception_v3_google-1a9a5a14.pth")
-FID_INCEPTION_URL = "https://github.com/mseitzer/pytorch-fid/releases/download/fid_weights/pt_inception-2015-12-05-6726825d.pth"
+INCEPTION_FILE_NAMES = (
+    "pt_inception-2015-12-05-6726825d.pth",
+    "inception_v3_google-0cc3c7bd.pth",
+    "inception_v3_google-1a9a5a14.pth",
+)
+FID_INCEPTION_URL = (
+    "https://github.com/mseitzer/pytorch-fid/releases/download/fid_weights/pt_inception-2015-12-05-6726825d.pth"
+)
 
 
 class ConvBN(nn.Module):
@@ -61,12 +67,15 @@ class InceptionA(nn.Module):
         self.branch_pool = ConvBN(in_channels, pool_features, 1)
 
     def forward(self, x):
-        return torch.cat([
-            self.branch1x1(x),
-            self.branch5x5_2(self.branch5x5_1(x)),
-            self.branch3x3dbl_3(self.branch3x3dbl_2(self.branch3x3dbl_1(x))),
-            self.branch_pool(_avg_pool(x, self.fid)),
-        ], 1)
+        return torch.cat(
+            [
+                self.branch1x1(x),
+                self.branch5x5_2(self.branch5x5_1(x)),
+                self.branch3x3dbl_3(self.branch3x3dbl_2(self.branch3x3dbl_1(x))),
+                self.branch_pool(_avg_pool(x, self.fid)),
+            ],
+            1,
+        )
 
 
 class InceptionB(nn.Module):
@@ -78,11 +87,14 @@ class InceptionB(nn.Module):
         self.branch3x3dbl_3 = ConvBN(96, 96, 3, stride=2)
 
     def forward(self, x):
-        return torch.cat([
-            self.branch3x3(x),
-            self.branch3x3dbl_3(self.branch3x3dbl_2(self.branch3x3dbl_1(x))),
-            F.max_pool2d(x, 3, stride=2),
-        ], 1)
+        return torch.cat(
+            [
+                self.branch3x3(x),
+                self.branch3x3dbl_3(self.branch3x3dbl_2(self.branch3x3dbl_1(x))),
+                F.max_pool2d(x, 3, stride=2),
+            ],
+            1,
+        )
 
 
 class InceptionC(nn.Module):
@@ -103,14 +115,23 @@ class InceptionC(nn.Module):
 
     def forward(self, x):
         double = x
-        for layer in (self.branch7x7dbl_1, self.branch7x7dbl_2, self.branch7x7dbl_3, self.branch7x7dbl_4, self.branch7x7dbl_5):
+        for layer in (
+            self.branch7x7dbl_1,
+            self.branch7x7dbl_2,
+            self.branch7x7dbl_3,
+            self.branch7x7dbl_4,
+            self.branch7x7dbl_5,
+        ):
             double = layer(double)
-        return torch.cat([
-            self.branch1x1(x),
-            self.branch7x7_3(self.branch7x7_2(self.branch7x7_1(x))),
-            double,
-            self.branch_pool(_avg_pool(x, self.fid)),
-        ], 1)
+        return torch.cat(
+            [
+                self.branch1x1(x),
+                self.branch7x7_3(self.branch7x7_2(self.branch7x7_1(x))),
+                double,
+                self.branch_pool(_avg_pool(x, self.fid)),
+            ],
+            1,
+        )
 
 
 class InceptionD(nn.Module):
@@ -124,11 +145,14 @@ class InceptionD(nn.Module):
         self.branch7x7x3_4 = ConvBN(192, 192, 3, stride=2)
 
     def forward(self, x):
-        return torch.cat([
-            self.branch3x3_2(self.branch3x3_1(x)),
-            self.branch7x7x3_4(self.branch7x7x3_3(self.branch7x7x3_2(self.branch7x7x3_1(x)))),
-            F.max_pool2d(x, 3, stride=2),
-        ], 1)
+        return torch.cat(
+            [
+                self.branch3x3_2(self.branch3x3_1(x)),
+                self.branch7x7x3_4(self.branch7x7x3_3(self.branch7x7x3_2(self.branch7x7x3_1(x)))),
+                F.max_pool2d(x, 3, stride=2),
+            ],
+            1,
+        )
 
 
 class InceptionE(nn.Module):
@@ -154,12 +178,15 @@ class InceptionE(nn.Module):
             pooled = F.max_pool2d(x, 3, stride=1, padding=1)
         else:
             pooled = _avg_pool(x, self.pool == "avg_fid")
-        return torch.cat([
-            self.branch1x1(x),
-            torch.cat([self.branch3x3_2a(single), self.branch3x3_2b(single)], 1),
-            torch.cat([self.branch3x3dbl_3a(double), self.branch3x3dbl_3b(double)], 1),
-            self.branch_pool(pooled),
-        ], 1)
+        return torch.cat(
+            [
+                self.branch1x1(x),
+                torch.cat([self.branch3x3_2a(single), self.branch3x3_2b(single)], 1),
+                torch.cat([self.branch3x3dbl_3a(double), self.branch3x3dbl_3b(double)], 1),
+                self.branch_pool(pooled),
+            ],
+            1,
+        )
 
 
 class InceptionV3Features(nn.Module):
@@ -198,8 +225,19 @@ class InceptionV3Features(nn.Module):
         x = F.max_pool2d(x, 3, stride=2)
         x = self.Conv2d_4a_3x3(self.Conv2d_3b_1x1(x))
         x = F.max_pool2d(x, 3, stride=2)
-        for block in (self.Mixed_5b, self.Mixed_5c, self.Mixed_5d, self.Mixed_6a, self.Mixed_6b, self.Mixed_6c,
-                      self.Mixed_6d, self.Mixed_6e, self.Mixed_7a, self.Mixed_7b, self.Mixed_7c):
+        for block in (
+            self.Mixed_5b,
+            self.Mixed_5c,
+            self.Mixed_5d,
+            self.Mixed_6a,
+            self.Mixed_6b,
+            self.Mixed_6c,
+            self.Mixed_6d,
+            self.Mixed_6e,
+            self.Mixed_7a,
+            self.Mixed_7b,
+            self.Mixed_7c,
+        ):
             x = block(x)
         return torch.flatten(F.adaptive_avg_pool2d(x, 1), 1)
 
@@ -227,7 +265,10 @@ def load_inception(path: str | os.PathLike, device: str | torch.device = "cpu") 
         raise InputError(f"{path}: not Inception-v3 weights: missing {len(missing)} key(s), e.g. '{missing[0]}'")
     for key, tensor in own.items():
         if key in state and tuple(state[key].shape) != tuple(tensor.shape):
-            raise InputError(f"{path}: not Inception-v3 weights: '{key}' has shape {tuple(state[key].shape)}, expected {tuple(tensor.shape)}")
+            raise InputError(
+                f"{path}: not Inception-v3 weights: '{key}' has shape {tuple(state[key].shape)}, expected "
+                f"{tuple(tensor.shape)}"
+            )
     model.load_state_dict({k: state[k] for k in own if k in state}, strict=False)
     model.source = str(path)
     model = model.to(device).eval()

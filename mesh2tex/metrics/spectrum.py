@@ -69,7 +69,9 @@ def _check_images(function: str, images: torch.Tensor, masks: torch.Tensor, chan
     check_shape(masks, f"{function}: masks", ("B", 1, "H", "W"), sizes=sizes)
 
 
-def object_patches(images: torch.Tensor, masks: torch.Tensor, patch: int = DEFAULT_PATCH, stride: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+def object_patches(
+    images: torch.Tensor, masks: torch.Tensor, patch: int = DEFAULT_PATCH, stride: int = 0
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Patches wholly on the object.
 
     Args:
@@ -128,8 +130,15 @@ def _cutoffs(cutoff: float, owner: torch.Tensor, batch: int, pixels_per_unit) ->
     return cutoff / ppu[owner]
 
 
-def high_frequency_share(images: torch.Tensor, masks: torch.Tensor, cutoff: float = DEFAULT_CUTOFF, *, pixels_per_unit=None,
-                         patch: int = DEFAULT_PATCH, space: str = "L") -> SpeckleResult:
+def high_frequency_share(
+    images: torch.Tensor,
+    masks: torch.Tensor,
+    cutoff: float = DEFAULT_CUTOFF,
+    *,
+    pixels_per_unit=None,
+    patch: int = DEFAULT_PATCH,
+    space: str = "L",
+) -> SpeckleResult:
     """The share of the object's texture power at or above ``cutoff``, pooled over a set of renders.
 
     Args:
@@ -152,11 +161,23 @@ def high_frequency_share(images: torch.Tensor, masks: torch.Tensor, cutoff: floa
     total = float(power.sum())
     high_power = float((power * high).sum())
     n = len(patches)
-    return SpeckleResult(share=high_power / total if total > _NO_POWER * n else 0.0, high_power=high_power / n, total_power=total / n, patches=n)
+    return SpeckleResult(
+        share=high_power / total if total > _NO_POWER * n else 0.0,
+        high_power=high_power / n,
+        total_power=total / n,
+        patches=n,
+    )
 
 
-def radial_power(images: torch.Tensor, masks: torch.Tensor, edges, *, pixels_per_unit=None, patch: int = DEFAULT_PATCH,
-                 space: str = "L") -> torch.Tensor:
+def radial_power(
+    images: torch.Tensor,
+    masks: torch.Tensor,
+    edges,
+    *,
+    pixels_per_unit=None,
+    patch: int = DEFAULT_PATCH,
+    space: str = "L",
+) -> torch.Tensor:
     """The share of the power in each radial frequency band, pooled over the object patches of a set.
 
     ``edges`` (K + 1,) increasing band edges, in cycles per pixel, or in cycles per unit with
@@ -180,5 +201,13 @@ def radial_power(images: torch.Tensor, masks: torch.Tensor, edges, *, pixels_per
     return out / total if total > 0 else out
 
 
-__all__ = ["DEFAULT_CUTOFF", "DEFAULT_PATCH", "SPACES", "SpeckleResult", "high_frequency_share", "object_patches", "radial_power",
-           "view_pixels_per_unit"]
+__all__ = [
+    "DEFAULT_CUTOFF",
+    "DEFAULT_PATCH",
+    "SPACES",
+    "SpeckleResult",
+    "high_frequency_share",
+    "object_patches",
+    "radial_power",
+    "view_pixels_per_unit",
+]

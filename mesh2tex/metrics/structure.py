@@ -88,7 +88,9 @@ def _check(function: str, images: torch.Tensor, masks: torch.Tensor | None) -> t
     return torch.ones_like(images[:, :1]) if masks is None else masks
 
 
-def orientation_windows(images: torch.Tensor, masks: torch.Tensor | None = None, window: int = 24) -> tuple[torch.Tensor, torch.Tensor]:
+def orientation_windows(
+    images: torch.Tensor, masks: torch.Tensor | None = None, window: int = 24
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Per textured window, the energy-weighted orientation histogram and the doubled-angle sum.
 
     images (N, 3, H, W) in [0, 1]; masks (N, 1, H, W) or None. Returns histograms (M, BINS) of
@@ -138,7 +140,9 @@ def orientation_scores(histograms: torch.Tensor, doubled: torch.Tensor) -> tuple
     return float(coherence), float(ratio), direction
 
 
-def spectrum_period(images: torch.Tensor, masks: torch.Tensor | None = None, patch: int = 32, max_period: float = 28.0) -> float:
+def spectrum_period(
+    images: torch.Tensor, masks: torch.Tensor | None = None, patch: int = 32, max_period: float = 28.0
+) -> float:
     """The dominant period in pixels of the luminance of the object's ``patch``-px windows (module
     docstring); NaN with no window or no power. images (N, 3, H, W) in [0, 1]; masks (N, 1, H, W) or None."""
     masks = _check("spectrum_period", images, masks)
@@ -157,8 +161,12 @@ def spectrum_period(images: torch.Tensor, masks: torch.Tensor | None = None, pat
     radius = torch.sqrt(f[:, None] ** 2 + f[None, :] ** 2) * size  # in bins of 1 / size cycles per pixel
     ring = radius.round().long()
     count = size // 2
-    radial = torch.zeros(count + 1, dtype=torch.float64).scatter_add_(0, ring.clamp(max=count).flatten(), power.flatten())
-    rings = torch.zeros(count + 1, dtype=torch.float64).scatter_add_(0, ring.clamp(max=count).flatten(), torch.ones_like(power).flatten())
+    radial = torch.zeros(count + 1, dtype=torch.float64).scatter_add_(
+        0, ring.clamp(max=count).flatten(), power.flatten()
+    )
+    rings = torch.zeros(count + 1, dtype=torch.float64).scatter_add_(
+        0, ring.clamp(max=count).flatten(), torch.ones_like(power).flatten()
+    )
     # Mean power per ring times its radius: the power per unit of radial frequency (a peak's own
     # radius, where the plain ring mean would favour the smaller rings).
     radial = radial / rings.clamp_min(1) * torch.arange(count + 1, dtype=torch.float64)
@@ -174,8 +182,17 @@ def spectrum_period(images: torch.Tensor, masks: torch.Tensor | None = None, pat
     return size / (k + max(-0.5, min(0.5, offset)))
 
 
-def patch_swd(images: torch.Tensor, masks: torch.Tensor | None, exemplar: torch.Tensor, levels: int = 3, patch: int = 7,
-              projections: int = 256, seed: int = 0, most: int = 4096, turns: bool = True) -> float:
+def patch_swd(
+    images: torch.Tensor,
+    masks: torch.Tensor | None,
+    exemplar: torch.Tensor,
+    levels: int = 3,
+    patch: int = 7,
+    projections: int = 256,
+    seed: int = 0,
+    most: int = 4096,
+    turns: bool = True,
+) -> float:
     """The patch distance x 1000 (module docstring), averaged over the levels where both sides have at
     least 32 patches; NaN where none has. images (N, 3, H, W) and exemplar (1, 3, h, w) in [0, 1];
     masks (N, 1, H, W) or None. ``most``: patches per side and level at most (random); ``turns``:
@@ -193,7 +210,11 @@ def patch_swd(images: torch.Tensor, masks: torch.Tensor | None, exemplar: torch.
         if min(images.shape[-2:] + reference.shape[-2:]) < patch:
             break
         mine, _ = object_patches(images, masks, patch, stride=1)
-        turned = torch.cat([torch.rot90(r, k, (-2, -1)) for r in (reference, reference.flip(-1)) for k in range(4)]) if turns else reference
+        turned = (
+            torch.cat([torch.rot90(r, k, (-2, -1)) for r in (reference, reference.flip(-1)) for k in range(4)])
+            if turns
+            else reference
+        )
         theirs, _ = object_patches(turned, torch.ones_like(turned[:, :1]), patch, stride=1)
         n = min(len(mine), len(theirs), most)
         if n < 32:
@@ -205,8 +226,14 @@ def patch_swd(images: torch.Tensor, masks: torch.Tensor | None, exemplar: torch.
     return sum(values) / len(values) if values else math.nan
 
 
-def structure_scores(images: torch.Tensor, masks: torch.Tensor | None = None, exemplar: torch.Tensor | None = None,
-                     window: int = 24, patch: int = 32, seed: int = 0) -> StructureScores:
+def structure_scores(
+    images: torch.Tensor,
+    masks: torch.Tensor | None = None,
+    exemplar: torch.Tensor | None = None,
+    window: int = 24,
+    patch: int = 32,
+    seed: int = 0,
+) -> StructureScores:
     """All of the judge's figures for a set of renders (module docstring).
 
     images (N, 3, H, W) in [0, 1]; masks (N, 1, H, W) or None (whole images); exemplar (1, 3, h, w)
@@ -219,8 +246,23 @@ def structure_scores(images: torch.Tensor, masks: torch.Tensor | None = None, ex
     distance = math.nan
     if exemplar is not None:
         distance = patch_swd(images, masks, exemplar, seed=seed)
-    return StructureScores(swd=float(distance), coherence=coherence, ratio=ratio, direction=direction,
-                           period=spectrum_period(images, masks, patch), windows=len(histograms))
+    return StructureScores(
+        swd=float(distance),
+        coherence=coherence,
+        ratio=ratio,
+        direction=direction,
+        period=spectrum_period(images, masks, patch),
+        windows=len(histograms),
+    )
 
 
-__all__ = ["BINS", "StructureScores", "luminance", "orientation_scores", "patch_swd", "orientation_windows", "spectrum_period", "structure_scores"]
+__all__ = [
+    "BINS",
+    "StructureScores",
+    "luminance",
+    "orientation_scores",
+    "patch_swd",
+    "orientation_windows",
+    "spectrum_period",
+    "structure_scores",
+]

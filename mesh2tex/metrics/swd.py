@@ -54,7 +54,9 @@ def laplacian_pyramid(images: torch.Tensor, min_size: int = 16) -> list[torch.Te
     return levels
 
 
-def _descriptors(level: torch.Tensor, patches_per_image: int, patch_size: int, generator: torch.Generator) -> torch.Tensor:
+def _descriptors(
+    level: torch.Tensor, patches_per_image: int, patch_size: int, generator: torch.Generator
+) -> torch.Tensor:
     """Random patch_size^2 * C neighbourhoods: [N * patches_per_image, C * patch_size^2]."""
     count, channels, height, width = level.shape
     rows = torch.randint(height - patch_size + 1, (count, patches_per_image), generator=generator)
@@ -67,7 +69,9 @@ def _descriptors(level: torch.Tensor, patches_per_image: int, patch_size: int, g
     return patches.reshape(count * patches_per_image, -1)
 
 
-def sliced_wasserstein(descriptors_a: torch.Tensor, descriptors_b: torch.Tensor, num_projections: int, generator: torch.Generator) -> float:
+def sliced_wasserstein(
+    descriptors_a: torch.Tensor, descriptors_b: torch.Tensor, num_projections: int, generator: torch.Generator
+) -> float:
     """Sliced Wasserstein-1 distance between two point sets [M, D] (equal M): mean over random directions."""
     sizes = check_shape(descriptors_a, "sliced_wasserstein: descriptors_a", ("M", "D"), dtype="float")
     check_shape(descriptors_b, "sliced_wasserstein: descriptors_b", ("M", "D"), sizes=sizes, dtype="float")
@@ -96,8 +100,15 @@ def _check_sets(function: str, images_a: torch.Tensor, images_b: torch.Tensor) -
     check_shape(images_b, f"{function}: images_b", ("M", 3, "H", "W"), sizes=sizes, dtype="float")
 
 
-def swd_per_level(images_a: torch.Tensor, images_b: torch.Tensor, patches_per_image: int = 128, patch_size: int = 7,
-                  num_projections: int = 512, repeats: int = 4, seed: int = 0) -> dict[str, float]:
+def swd_per_level(
+    images_a: torch.Tensor,
+    images_b: torch.Tensor,
+    patches_per_image: int = 128,
+    patch_size: int = 7,
+    num_projections: int = 512,
+    repeats: int = 4,
+    seed: int = 0,
+) -> dict[str, float]:
     """SWD x 1000 per pyramid level and their average.
 
     images_a (reference), images_b: [N, 3, H, W] and [M, 3, H, W] in [0, 1] or [-1, 1] (see

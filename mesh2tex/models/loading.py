@@ -59,11 +59,15 @@ class TrainedGenerator:
         if requested < 0:
             raise InputError(f"--faces {requested}: must be positive (or 0: the hierarchy the model was trained on)")
         if requested and self.hierarchy_recorded and requested != trained:
-            note(f"--faces {requested}: the model learnt on {trained}-quad hierarchies; the texture's features will come out "
-                 f"at about {(trained / requested) ** 0.5:.2g}x their learnt size")
+            note(
+                f"--faces {requested}: the model learnt on {trained}-quad hierarchies; the texture's features will "
+                f"come out at about {(trained / requested) ** 0.5:.2g}x their learnt size"
+            )
         if not requested and not self.hierarchy_recorded:
-            note(f"the checkpoint does not record the hierarchy its shapes were prepared with; preparing with {trained} quads "
-                 "(--faces to change)")
+            note(
+                "the checkpoint does not record the hierarchy its shapes were prepared with; preparing with "
+                f"{trained} quads (--faces to change)"
+            )
         return requested or trained
 
 
@@ -82,9 +86,17 @@ def load_generator(path: str | os.PathLike, device: torch.device | str = "cpu") 
     faces, recorded = _hierarchy(meta)
     iteration = meta.get("iteration")
     resolution = meta.get("config", {}).get("resolution") if isinstance(meta.get("config"), dict) else None
-    return TrainedGenerator(network=generator.to(device).eval().requires_grad_(False), camera=_camera(meta, path),
-                            lit=_trained_lit(meta), hierarchy_faces=faces, hierarchy_recorded=recorded, source=Path(path),
-                            resolution=resolution if isinstance(resolution, int) else None, iteration=iteration if isinstance(iteration, int) else None, meta=meta)
+    return TrainedGenerator(
+        network=generator.to(device).eval().requires_grad_(False),
+        camera=_camera(meta, path),
+        lit=_trained_lit(meta),
+        hierarchy_faces=faces,
+        hierarchy_recorded=recorded,
+        source=Path(path),
+        resolution=resolution if isinstance(resolution, int) else None,
+        iteration=iteration if isinstance(iteration, int) else None,
+        meta=meta,
+    )
 
 
 def shape_hierarchy(shapes) -> dict:
@@ -114,12 +126,16 @@ def _camera(meta: dict, path: Path) -> CameraConfig:
     camera = camera if isinstance(camera, dict) else {}
     default = CameraConfig()
     try:
-        return CameraConfig(distance=float(camera.get("distance", default.distance)), fov=float(camera.get("fov", default.fov)))
+        return CameraConfig(
+            distance=float(camera.get("distance", default.distance)), fov=float(camera.get("fov", default.fov))
+        )
     except (TypeError, ValueError) as error:
         raise InputError(f"{path}: the checkpoint's config.camera is not usable ({error})") from None
 
 
-def load_view_network(path: str | os.PathLike, kind: str, device: torch.device | str = "cpu") -> tuple[torch.nn.Module, ViewTrainConfig]:
+def load_view_network(
+    path: str | os.PathLike, kind: str, device: torch.device | str = "cpu"
+) -> tuple[torch.nn.Module, ViewTrainConfig]:
     """A trained pose, NOC or mask network (eval mode) and its config, from a ``train pose|noc|mask`` checkpoint
     (a path, or a shipped model's name such as ``chair``)."""
     path = resolve_checkpoint(path, kind)
@@ -149,7 +165,9 @@ class TrainedAutomaton(NamedTuple):
     def camera(self) -> NCACameraConfig:
         """The cameras it was trained with (``config.camera``; the defaults where the checkpoint has none)."""
         camera = self.meta.get("config", {}).get("camera", {}) if isinstance(self.meta.get("config"), dict) else {}
-        return config_from_dict(NCACameraConfig, camera if isinstance(camera, dict) else {}, where="the checkpoint's config.camera")
+        return config_from_dict(
+            NCACameraConfig, camera if isinstance(camera, dict) else {}, where="the checkpoint's config.camera"
+        )
 
     @property
     def vgg_depth(self) -> int:
@@ -180,7 +198,9 @@ def load_nca(path: str | os.PathLike, device="cpu") -> TrainedAutomaton:
     try:
         model.load_state_dict({k: v.float() for k, v in groups["model"].items()})
     except RuntimeError as error:
-        raise InputError(f"{path}: the automaton weights do not fit its config ({str(error).splitlines()[0]})") from None
+        raise InputError(
+            f"{path}: the automaton weights do not fit its config ({str(error).splitlines()[0]})"
+        ) from None
     exemplar = groups.get("exemplar", {}).get("image")
     exemplar = None if exemplar is None else exemplar.permute(1, 2, 0).numpy()
     return TrainedAutomaton(model.to(device).eval(), meta, exemplar)

@@ -21,8 +21,8 @@ A model is a folder ``<models>/<name>/`` with one inference checkpoint per kind 
     card.md, card.json     how it was made (world, commands, iterations, hardware, wall time) and its figures
 
 ``<models>`` is ``$MESH2TEX_MODELS`` when set, else this package's own folder ``mesh2tex/models/`` (package
-data: the shipped models travel in the wheel, so they are there after any install). Loading a float16 state into a model's float32 parameters
-(``load_state_dict``) casts it back.
+data: the shipped models travel in the wheel, so they are there after any install). Loading a float16 state into a
+model's float32 parameters (``load_state_dict``) casts it back.
 """
 
 from __future__ import annotations
@@ -43,7 +43,12 @@ HIERARCHY = "hierarchy"
 DEFAULT_HIERARCHY_FACES = 6144
 # Tensor group of the 'pose' and 'noc' kinds.
 VIEW_NET = "net"
-MODEL_FILES = {"gan": "generator.safetensors", "pose": "pose.safetensors", "noc": "noc.safetensors", "mask": "mask.safetensors"}
+MODEL_FILES = {
+    "gan": "generator.safetensors",
+    "pose": "pose.safetensors",
+    "noc": "noc.safetensors",
+    "mask": "mask.safetensors",
+}
 INFERENCE_GROUPS = {"gan": GENERATOR_EMA, "pose": VIEW_NET, "noc": VIEW_NET, "mask": VIEW_NET}
 
 
@@ -95,7 +100,9 @@ def resolve_checkpoint(value: str | os.PathLike, kind: str) -> Path:
 TRAINING_ONLY_META = ("rng", "optimizers")
 
 
-def export_inference_checkpoint(source: str | os.PathLike, kind: str, target: str | os.PathLike, half: bool = True) -> dict:
+def export_inference_checkpoint(
+    source: str | os.PathLike, kind: str, target: str | os.PathLike, half: bool = True
+) -> dict:
     """Write the inference part of a training checkpoint: the ``INFERENCE_GROUPS[kind]`` weights
     (float16 when ``half``) and the metadata without the training state (RNG states, optimizer
     settings), so that the file is read as an inference checkpoint. Returns the metadata written."""

@@ -9,12 +9,32 @@ construction), ``vgg`` (style features).
 
 from mesh2tex.nn.batch import MeshBatch, collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
-from mesh2tex.nn.faceconv import FaceConv, FaceResNetBlock, ModulatedFaceConv, face_pool, face_unpool, gather_neighborhood
+from mesh2tex.nn.faceconv import (
+    FaceConv,
+    FaceResNetBlock,
+    ModulatedFaceConv,
+    face_pool,
+    face_unpool,
+    gather_neighborhood,
+)
 from mesh2tex.nn.field import NeuralField, sorted_cdf_coordinates, vertex_features
 from mesh2tex.nn.generator import FaceTexture, GeneratorConfig, TextureGenerator
 
 __all__ = [
-    "MeshBatch", "collate_shapes", "Discriminator", "DiscriminatorConfig", "FaceConv", "FaceResNetBlock",
-    "ModulatedFaceConv", "face_pool", "face_unpool", "gather_neighborhood", "NeuralField",
-    "sorted_cdf_coordinates", "vertex_features", "FaceTexture", "GeneratorConfig", "TextureGenerator",
+    "MeshBatch",
+    "collate_shapes",
+    "Discriminator",
+    "DiscriminatorConfig",
+    "FaceConv",
+    "FaceResNetBlock",
+    "ModulatedFaceConv",
+    "face_pool",
+    "face_unpool",
+    "gather_neighborhood",
+    "NeuralField",
+    "sorted_cdf_coordinates",
+    "vertex_features",
+    "FaceTexture",
+    "GeneratorConfig",
+    "TextureGenerator",
 ]

@@ -144,7 +144,8 @@ def collate_shapes(shapes: list[PreparedShape]) -> MeshBatch:
     neighbors = [shifted([s.neighbors[l] for s in shapes], face_offsets[l][:-1]) for l in range(levels)]
     pool = [shifted([s.pool[l] for s in shapes], face_offsets[l + 1][:-1]) for l in range(levels - 1)]
     shape_index = [
-        torch.repeat_interleave(torch.arange(len(shapes)), face_offsets[l][1:] - face_offsets[l][:-1]) for l in range(levels)
+        torch.repeat_interleave(torch.arange(len(shapes)), face_offsets[l][1:] - face_offsets[l][:-1])
+        for l in range(levels)
     ]
     return MeshBatch(
         num_shapes=len(shapes),

@@ -24,20 +24,35 @@ class DiscriminatorConfig:
     conv_clamp: float = 256.0  # clamp of activations (keeps mixed precision finite)
 
     def __post_init__(self):
-        check_fields(self, between={"channel_base": (1, 64 * MAX_CHANNELS), "channel_max": (1, MAX_CHANNELS)},
-                     at_least={"mbstd_group": 1}, positive=("conv_clamp",))
+        check_fields(
+            self,
+            between={"channel_base": (1, 64 * MAX_CHANNELS), "channel_max": (1, MAX_CHANNELS)},
+            at_least={"mbstd_group": 1},
+            positive=("conv_clamp",),
+        )
 
     def check_resolution(self, resolution: int) -> None:
         """ValueError when a layer at ``resolution`` would have no channel (``channel_base // resolution`` is 0)."""
         if self.channel_base // resolution < 1:
-            raise ValueError(f"channel_base {self.channel_base} is too small for resolution {resolution}: "
-                             f"every layer needs a channel (channel_base >= {resolution})")
+            raise ValueError(
+                f"channel_base {self.channel_base} is too small for resolution {resolution}: "
+                f"every layer needs a channel (channel_base >= {resolution})"
+            )
 
 
 class Conv2dLayer(nn.Module):
     """Conv with equalised learning rate; ``down`` 2 blurs with [1,3,3,1] then strides by 2."""
 
-    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, activation: str = "lrelu", down: bool = False, bias: bool = True, clamp: float | None = None):
+    def __init__(
+        self,
+        in_channels: int,
+        out_channels: int,
+        kernel_size: int,
+        activation: str = "lrelu",
+        down: bool = False,
+        bias: bool = True,
+        clamp: float | None = None,
+    ):
         super().__init__()
         self.activation, self.down, self.clamp = activation, down, clamp
         self.weight = nn.Parameter(torch.randn(out_channels, in_channels, kernel_size, kernel_size))
@@ -93,7 +108,9 @@ class Discriminator(nn.Module):
             return min(cfg.channel_base // res, cfg.channel_max)
 
         self.fromrgb = Conv2dLayer(in_channels, ch(resolution), 1, clamp=cfg.conv_clamp)
-        self.blocks = nn.ModuleList(DiscriminatorBlock(ch(2**r), ch(2 ** (r - 1)), cfg.conv_clamp) for r in range(log2, 2, -1))
+        self.blocks = nn.ModuleList(
+            DiscriminatorBlock(ch(2**r), ch(2 ** (r - 1)), cfg.conv_clamp) for r in range(log2, 2, -1)
+        )
         c4 = ch(4)
         self.conv = Conv2dLayer(c4 + 1, c4, 3, clamp=cfg.conv_clamp)
         self.fc = FullyConnected(c4 * 16, c4, activation="lrelu")
@@ -112,7 +129,12 @@ class Discriminator(nn.Module):
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
         """images (N, in_channels, R, R) float -> logits (N,)."""
-        check_shape(images, "Discriminator: images", (None, self.fromrgb.weight.shape[1], self.resolution, self.resolution), dtype="float")
+        check_shape(
+            images,
+            "Discriminator: images",
+            (None, self.fromrgb.weight.shape[1], self.resolution, self.resolution),
+            dtype="float",
+        )
         if images.device.type == "cpu":
             # oneDNN's CPU convolutions, forward and backward, run about a fifth faster on channels-last
             # activations (docs/results/gan.md, "Seconds per iteration"). Safe here because no convolution of

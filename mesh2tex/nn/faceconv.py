@@ -70,7 +70,8 @@ class _BiasLeakyReLU(torch.autograd.Function):
         y.mul_(gain)
         inside = None
         if clamp is not None:
-            # Rarely needed on a CPU (NaN counts as needed); an accelerator would wait for the answer, so it always keeps the mask.
+            # Rarely needed on a CPU (NaN counts as needed); an accelerator would wait for the answer, so
+            # it always keeps the mask.
             low, high = torch.aminmax(_elements(y)) if y.device.type == "cpu" else (None, None)
             if low is None or not (low.item() >= -clamp and high.item() <= clamp):
                 inside = (y >= -clamp) & (y <= clamp)  # clamp's own mask: its ends pass the gradient
@@ -110,13 +111,19 @@ def neighborhood_matmul(x: torch.Tensor, neighbors: torch.Tensor, weight: torch.
     faces, c_out, c_in = x.shape[0], weight.shape[0], weight.shape[2]
     if c_out >= c_in:
         return gather_neighborhood(x, neighbors).flatten(1) @ weight.flatten(1).t()
-    per_k = x @ weight.transpose(0, 1).reshape(NEIGHBORHOOD * c_out, c_in).t()  # (F, 9*out): face g under kernel position k
+    per_k = (
+        x @ weight.transpose(0, 1).reshape(NEIGHBORHOOD * c_out, c_in).t()
+    )  # (F, 9*out): face g under kernel position k
     per_k = torch.cat([per_k, per_k.new_zeros(1, NEIGHBORHOOD * c_out)]).view(-1, c_out)  # row 9g+k; row 9F+k: zeros
-    rows = torch.where(neighbors >= 0, neighbors, faces) * NEIGHBORHOOD + torch.arange(NEIGHBORHOOD, device=neighbors.device)
+    rows = torch.where(neighbors >= 0, neighbors, faces) * NEIGHBORHOOD + torch.arange(
+        NEIGHBORHOOD, device=neighbors.device
+    )
     return row_sums(per_k, rows)
 
 
-def bias_act(x: torch.Tensor, bias: torch.Tensor | None, activation: str = "lrelu", gain: float = 1.0, clamp: float | None = None) -> torch.Tensor:
+def bias_act(
+    x: torch.Tensor, bias: torch.Tensor | None, activation: str = "lrelu", gain: float = 1.0, clamp: float | None = None
+) -> torch.Tensor:
     """Add ``bias`` (C,) along dim 1 of x (N, C, ...), apply LeakyReLU(0.2) scaled by sqrt(2) (or
     nothing), then ``gain`` and an optional clamp."""
     if activation == "lrelu" and LRELU_GAIN * gain > 0:
@@ -135,7 +142,14 @@ def bias_act(x: torch.Tensor, bias: torch.Tensor | None, activation: str = "lrel
 class FullyConnected(nn.Module):
     """Linear layer with equalised learning rate; ``lr_multiplier`` scales its effective learning rate."""
 
-    def __init__(self, in_features: int, out_features: int, activation: str = "linear", bias_init: float = 0.0, lr_multiplier: float = 1.0):
+    def __init__(
+        self,
+        in_features: int,
+        out_features: int,
+        activation: str = "linear",
+        bias_init: float = 0.0,
+        lr_multiplier: float = 1.0,
+    ):
         super().__init__()
         self.activation = activation
         self.weight = nn.Parameter(torch.randn(out_features, in_features) / lr_multiplier)
@@ -187,8 +201,17 @@ class ModulatedFaceConv(nn.Module):
     ``kernel_size`` 1 is the per-face (1x1) layer used by toRGB.
     """
 
-    def __init__(self, in_channels: int, out_channels: int, w_dim: int, kernel_size: int = 9, demodulate: bool = True,
-                 activation: str = "lrelu", use_noise: bool = True, clamp: float | None = 256.0):
+    def __init__(
+        self,
+        in_channels: int,
+        out_channels: int,
+        w_dim: int,
+        kernel_size: int = 9,
+        demodulate: bool = True,
+        activation: str = "lrelu",
+        use_noise: bool = True,
+        clamp: float | None = 256.0,
+    ):
         super().__init__()
         if kernel_size not in (1, NEIGHBORHOOD):
             raise ValueError("kernel_size must be 1 or 9")
@@ -202,8 +225,15 @@ class ModulatedFaceConv(nn.Module):
         if use_noise:
             self.noise_strength = nn.Parameter(torch.zeros([]))
 
-    def forward(self, x: torch.Tensor, neighbors: torch.Tensor, w: torch.Tensor, sample_index: torch.Tensor,
-                noise_mode: str = "random", gain: float = 1.0) -> torch.Tensor:
+    def forward(
+        self,
+        x: torch.Tensor,
+        neighbors: torch.Tensor,
+        w: torch.Tensor,
+        sample_index: torch.Tensor,
+        noise_mode: str = "random",
+        gain: float = 1.0,
+    ) -> torch.Tensor:
         """x: (F, in), neighbors: (F, 9) int64, w: (B, w_dim), sample_index: (F,) int64 in [0, B) -> (F, out).
 
         ``noise_mode``: "random" adds fresh per-face Gaussian noise scaled by a learnt strength,
@@ -226,7 +256,9 @@ class ModulatedFaceConv(nn.Module):
             dcoefs = (weight.square().sum(1).unsqueeze(0) * styles.square().unsqueeze(1)).sum(2).add(1e-8).rsqrt()
             out = out * take_rows(dcoefs, sample_index).to(out.dtype)
         if self.use_noise and noise_mode == "random":
-            out = out + torch.randn(out.shape[0], 1, device=out.device, dtype=out.dtype) * self.noise_strength.to(out.dtype)
+            out = out + torch.randn(out.shape[0], 1, device=out.device, dtype=out.dtype) * self.noise_strength.to(
+                out.dtype
+            )
         return bias_act(out, self.bias, self.activation, gain=gain, clamp=self.clamp)
 
 
@@ -281,7 +313,9 @@ class _RowSums(torch.autograd.Function):
     its gradient is the same operator transposed (entries sorted by column, bags over x's rows)."""
 
     @staticmethod
-    def forward(ctx, x: torch.Tensor, column: torch.Tensor, offsets: torch.Tensor, weight: torch.Tensor | None) -> torch.Tensor:
+    def forward(
+        ctx, x: torch.Tensor, column: torch.Tensor, offsets: torch.Tensor, weight: torch.Tensor | None
+    ) -> torch.Tensor:
         ctx.save_for_backward(column, offsets, weight)
         ctx.rows = x.shape[0]
         return F.embedding_bag(column, x, offsets, mode="sum", per_sample_weights=weight)

@@ -60,16 +60,27 @@ def vertex_features(face_features: torch.Tensor, quads: torch.Tensor, num_vertic
 
     face_features: (F, C) float, quads: (F, 4) int64 -> (V, C); a vertex used by no face gets zeros.
     """
-    check_shape(quads, "vertex_features: quads", ("F", 4), sizes=check_shape(face_features, "vertex_features: face_features", ("F", "C"), dtype="float"), dtype="int")
+    check_shape(
+        quads,
+        "vertex_features: quads",
+        ("F", 4),
+        sizes=check_shape(face_features, "vertex_features: face_features", ("F", "C"), dtype="float"),
+        dtype="int",
+    )
     index = quads.reshape(-1)
     summed = face_features.new_zeros(num_vertices, face_features.shape[1])
     summed = summed.index_add(0, index, face_features.repeat_interleave(4, dim=0))
-    counts = torch.zeros(num_vertices, device=index.device, dtype=face_features.dtype).index_add_(0, index, torch.ones_like(index, dtype=face_features.dtype))
+    counts = torch.zeros(num_vertices, device=index.device, dtype=face_features.dtype).index_add_(
+        0, index, torch.ones_like(index, dtype=face_features.dtype)
+    )
     return summed / counts.clamp(min=1.0).unsqueeze(1)
 
 
-def blend_vertex_features(vertex_feats: torch.Tensor, triangles: torch.Tensor, triangle_id: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
-    """b1 F_v1 + b2 F_v2 + b3 F_v3 at points. vertex_feats (V, C), triangles (T, 3), triangle_id (P,), bary (P, 3) -> (P, C)."""
+def blend_vertex_features(
+    vertex_feats: torch.Tensor, triangles: torch.Tensor, triangle_id: torch.Tensor, bary: torch.Tensor
+) -> torch.Tensor:
+    """b1 F_v1 + b2 F_v2 + b3 F_v3 at points. vertex_feats (V, C), triangles (T, 3), triangle_id (P,), bary (P, 3) ->
+    (P, C)."""
     corners = take_rows(vertex_feats, triangles[triangle_id])  # (P, 3, C)
     return (corners * bary.unsqueeze(2).to(corners.dtype)).sum(1)
 
@@ -84,16 +95,21 @@ class NeuralField(nn.Module):
     starts from grey.
     """
 
-    def __init__(self, feature_dim: int, hidden: int = 128, aux_dim: int = 512, coords: str = "raw", output_init: float = 1.0):
+    def __init__(
+        self, feature_dim: int, hidden: int = 128, aux_dim: int = 512, coords: str = "raw", output_init: float = 1.0
+    ):
         super().__init__()
         if coords not in COORDINATE_MODES:
             raise ValueError(f"unknown coordinate mode {coords!r}; expected one of {COORDINATE_MODES}")
         self.coords = coords
         self.aux_latent = nn.Parameter(torch.randn(aux_dim))
         self.feature_branch = nn.Sequential(
-            FullyConnected(feature_dim + 3, hidden, activation="lrelu"), FullyConnected(hidden, hidden, activation="lrelu"))
+            FullyConnected(feature_dim + 3, hidden, activation="lrelu"),
+            FullyConnected(hidden, hidden, activation="lrelu"),
+        )
         self.aux_branch = nn.Sequential(
-            FullyConnected(aux_dim, hidden, activation="lrelu"), FullyConnected(hidden, hidden, activation="lrelu"))
+            FullyConnected(aux_dim, hidden, activation="lrelu"), FullyConnected(hidden, hidden, activation="lrelu")
+        )
         self.head = nn.Sequential(
             FullyConnected(2 * hidden, hidden, activation="lrelu"),
             FullyConnected(hidden, hidden, activation="lrelu"),
@@ -105,7 +121,9 @@ class NeuralField(nn.Module):
 
     def forward(self, features: torch.Tensor, bary: torch.Tensor) -> torch.Tensor:
         """features: (P, C) blended vertex features, bary: (P, 3) float -> (P, 3) RGB."""
-        points = check_shape(features, "NeuralField: features", ("P", self.feature_branch[0].weight.shape[1] - 3), dtype="float")
+        points = check_shape(
+            features, "NeuralField: features", ("P", self.feature_branch[0].weight.shape[1] - 3), dtype="float"
+        )
         check_shape(bary, "NeuralField: bary", ("P", 3), sizes=points, dtype="float")
         coords = local_coordinates(bary, self.coords).to(features.dtype)
         local = self.feature_branch(torch.cat([features, coords], dim=1))

@@ -59,22 +59,41 @@ class GeneratorConfig:
     rgb_output_init: float = 0.1  # initial weight scale of the toRGB layers (1: StyleGAN2's, fresh colours near +-2)
     field_output_init: float = 0.1  # initial weight scale of psi's output layer (1 starts from saturated colours)
     conv_clamp: float = 256.0  # clamp of synthesis activations (keeps mixed precision finite)
-    kind: str = "faceconv"  # the feature generator (mesh2tex.nn.synthesis): "faceconv" (the synthesis U-Net) or "nca" (a mesh cellular automaton)
+    # the feature generator (mesh2tex.nn.synthesis): "faceconv" (the synthesis U-Net) or "nca" (a mesh cellular
+    # automaton)
+    kind: str = "faceconv"
     nca_channels: int = 16  # kind nca: state size per cell (the F_c channels psi blends)
     nca_hidden: int = 64  # kind nca: width of the update MLP
     nca_steps: int = 12  # kind nca: steps grown from the seed (a linear map of each cell's condition)
     nca_condition: int = 16  # kind nca: width of each of the latent and the geometry conditions per cell
 
     def __post_init__(self):
-        check_fields(self, at_least={"mapping_layers": 1, "input_features": 0, "field_geometry_channels": 0, "nca_steps": 1},
-                     positive=("mapping_lr_multiplier", "conv_clamp"),
-                     between={name: (1, MAX_CHANNELS) for name in ("z_dim", "w_dim", "encoder_channels", "synthesis_channels", "field_hidden",
-                                                                  "aux_latent_dim", "nca_channels", "nca_hidden", "nca_condition")})
+        check_fields(
+            self,
+            at_least={"mapping_layers": 1, "input_features": 0, "field_geometry_channels": 0, "nca_steps": 1},
+            positive=("mapping_lr_multiplier", "conv_clamp"),
+            between={
+                name: (1, MAX_CHANNELS)
+                for name in (
+                    "z_dim",
+                    "w_dim",
+                    "encoder_channels",
+                    "synthesis_channels",
+                    "field_hidden",
+                    "aux_latent_dim",
+                    "nca_channels",
+                    "nca_hidden",
+                    "nca_condition",
+                )
+            },
+        )
         if self.kind not in SYNTHESIS_KINDS:
             raise ValueError(f"kind must be one of {tuple(SYNTHESIS_KINDS)}, got {self.kind!r}")
         if not self.synthesis_channels or len(self.encoder_channels) != len(self.synthesis_channels):
-            raise ValueError(f"encoder_channels and synthesis_channels need one entry per level each "
-                             f"(got {len(self.encoder_channels)} and {len(self.synthesis_channels)})")
+            raise ValueError(
+                f"encoder_channels and synthesis_channels need one entry per level each "
+                f"(got {len(self.encoder_channels)} and {len(self.synthesis_channels)})"
+            )
 
     @property
     def num_levels(self) -> int:
@@ -84,11 +103,24 @@ class GeneratorConfig:
 class MappingNetwork(nn.Module):
     """z (B, z_dim) -> ws (B, num_ws, w_dim), tracking the mean w for the truncation trick."""
 
-    def __init__(self, z_dim: int, w_dim: int, num_ws: int, layers: int = 8, lr_multiplier: float = 0.01, w_avg_beta: float = 0.995):
+    def __init__(
+        self,
+        z_dim: int,
+        w_dim: int,
+        num_ws: int,
+        layers: int = 8,
+        lr_multiplier: float = 0.01,
+        w_avg_beta: float = 0.995,
+    ):
         super().__init__()
         self.num_ws, self.w_avg_beta = num_ws, w_avg_beta
         dims = [z_dim] + [w_dim] * layers
-        self.net = nn.Sequential(*[FullyConnected(a, b, activation="lrelu", lr_multiplier=lr_multiplier) for a, b in zip(dims[:-1], dims[1:])])
+        self.net = nn.Sequential(
+            *[
+                FullyConnected(a, b, activation="lrelu", lr_multiplier=lr_multiplier)
+                for a, b in zip(dims[:-1], dims[1:])
+            ]
+        )
         self.register_buffer("w_avg", torch.zeros(w_dim))
 
     def forward(self, z: torch.Tensor, truncation_psi: float = 1.0, update_w_avg: bool = False) -> torch.Tensor:
@@ -155,7 +187,9 @@ class FaceTexture:
         sizes = check_shape(triangle_id, "FaceTexture.colours: triangle_id", ("P",), dtype="int")
         check_shape(bary, "FaceTexture.colours: bary", ("P", 3), sizes=sizes, dtype="float")
         if self.generator is None or self.batch is None:
-            raise ValueError("FaceTexture.colours: the texture is not bound to a generator and a batch (FaceTexture.bound)")
+            raise ValueError(
+                "FaceTexture.colours: the texture is not bound to a generator and a batch (FaceTexture.bound)"
+            )
         features, residual = self.field_features, self.generator.cfg.field_residual
         if residual:
             features = torch.cat([features, self.face_rgb.to(features.dtype)], dim=1)
@@ -180,13 +214,20 @@ class TextureGenerator(nn.Module):
         self.encoder = GeometryEncoder(cfg.input_features, cfg.encoder_channels[:encoder_levels], cfg.pool_mode)
         self.mapping = MappingNetwork(cfg.z_dim, cfg.w_dim, self.num_ws, cfg.mapping_layers, cfg.mapping_lr_multiplier)
         self.synthesis = kind(cfg)
-        self.field_geometry = (FullyConnected(cfg.encoder_channels[0], cfg.field_geometry_channels)
-                               if cfg.field_geometry_channels > 0 else None)
+        self.field_geometry = (
+            FullyConnected(cfg.encoder_channels[0], cfg.field_geometry_channels)
+            if cfg.field_geometry_channels > 0
+            else None
+        )
         self.field_dim = self.synthesis.channels + cfg.field_geometry_channels
-        self.field = NeuralField(self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords, cfg.field_output_init)
+        self.field = NeuralField(
+            self.field_dim, cfg.field_hidden, cfg.aux_latent_dim, cfg.field_coords, cfg.field_output_init
+        )
         self.register_load_state_dict_pre_hook(_rename_former_keys)
 
-    def synthesize(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random") -> FaceTexture:
+    def synthesize(
+        self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor] | None = None, noise_mode: str = "random"
+    ) -> FaceTexture:
         """Per-face texture for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim) float, one row per shape
         (B = ``batch.num_shapes``).
 
@@ -194,11 +235,20 @@ class TextureGenerator(nn.Module):
         """
         check_type(batch, "TextureGenerator.synthesize: batch", MeshBatch)
         shapes = {"B": (batch.num_shapes, "batch")}
-        check_shape(ws, "TextureGenerator.synthesize: ws", ("B", self.num_ws, self.cfg.w_dim), ("B", self.cfg.w_dim), sizes=shapes, dtype="float")
+        check_shape(
+            ws,
+            "TextureGenerator.synthesize: ws",
+            ("B", self.num_ws, self.cfg.w_dim),
+            ("B", self.cfg.w_dim),
+            sizes=shapes,
+            dtype="float",
+        )
         if ws.dim() == 2:
             ws = ws.unsqueeze(1).expand(-1, self.num_ws, -1)
         if encoded is None:
-            check_shape(batch.face_features, "TextureGenerator.synthesize: batch.face_features", (None, self.cfg.input_features))
+            check_shape(
+                batch.face_features, "TextureGenerator.synthesize: batch.face_features", (None, self.cfg.input_features)
+            )
             encoded = self.encoder(batch)
         x, rgb = self.synthesis(batch, ws, encoded, noise_mode)
         features = x
@@ -206,10 +256,19 @@ class TextureGenerator(nn.Module):
             features = torch.cat([x, self.field_geometry(encoded[0].to(x.dtype))], dim=1)
         return FaceTexture(field_features=features, face_rgb=rgb, generator=self, batch=batch)
 
-    def forward(self, batch: MeshBatch, z: torch.Tensor, truncation_psi: float = 1.0, noise_mode: str = "random", update_w_avg: bool = False):
+    def forward(
+        self,
+        batch: MeshBatch,
+        z: torch.Tensor,
+        truncation_psi: float = 1.0,
+        noise_mode: str = "random",
+        update_w_avg: bool = False,
+    ):
         """z: (B, z_dim), one per shape -> (FaceTexture, ws (B, num_ws, w_dim))."""
         check_type(batch, "TextureGenerator: batch", MeshBatch)
-        check_shape(z, "TextureGenerator: z", ("B", self.cfg.z_dim), sizes={"B": (batch.num_shapes, "batch")}, dtype="float")
+        check_shape(
+            z, "TextureGenerator: z", ("B", self.cfg.z_dim), sizes={"B": (batch.num_shapes, "batch")}, dtype="float"
+        )
         ws = self.mapping(z, truncation_psi, update_w_avg)
         return self.synthesize(batch, ws, noise_mode=noise_mode), ws
 
@@ -224,7 +283,8 @@ class TextureGenerator(nn.Module):
         return {
             "encoder": list(self.encoder.parameters()),
             "generator": list(self.mapping.parameters()) + list(self.synthesis.parameters()),
-            "field": list(self.field.parameters()) + (list(self.field_geometry.parameters()) if self.field_geometry is not None else []),
+            "field": list(self.field.parameters())
+            + (list(self.field_geometry.parameters()) if self.field_geometry is not None else []),
         }
 
 
@@ -233,4 +293,4 @@ def _rename_former_keys(module, state_dict, prefix, *args) -> None:
     today's names (:data:`AutomatonSynthesis.FORMER_PREFIXES`)."""
     for old, new in AutomatonSynthesis.FORMER_PREFIXES.items():
         for key in [k for k in state_dict if k.startswith(prefix + old)]:
-            state_dict[prefix + new + key[len(prefix + old):]] = state_dict.pop(key)
+            state_dict[prefix + new + key[len(prefix + old) :]] = state_dict.pop(key)

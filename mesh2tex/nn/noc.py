@@ -22,8 +22,13 @@ from mesh2tex.checks import check_shape
 
 def _double_conv(in_channels: int, out_channels: int) -> nn.Sequential:
     return nn.Sequential(
-        nn.Conv2d(in_channels, out_channels, 3, padding=1, bias=False), nn.BatchNorm2d(out_channels), nn.ReLU(inplace=True),
-        nn.Conv2d(out_channels, out_channels, 3, padding=1, bias=False), nn.BatchNorm2d(out_channels), nn.ReLU(inplace=True))
+        nn.Conv2d(in_channels, out_channels, 3, padding=1, bias=False),
+        nn.BatchNorm2d(out_channels),
+        nn.ReLU(inplace=True),
+        nn.Conv2d(out_channels, out_channels, 3, padding=1, bias=False),
+        nn.BatchNorm2d(out_channels),
+        nn.ReLU(inplace=True),
+    )
 
 
 class NocUNet(nn.Module):
@@ -40,20 +45,26 @@ class NocUNet(nn.Module):
     def __init__(self, width: int = 32, depth: int = 4, in_channels: int = 4, out_channels: int = 3):
         super().__init__()
         self.depth = depth
-        widths = [width * 2 ** level for level in range(depth + 1)]
-        self.encoders = nn.ModuleList([_double_conv(in_channels, widths[0])] + [_double_conv(widths[i], widths[i + 1]) for i in range(depth)])
-        self.decoders = nn.ModuleList([_double_conv(widths[i + 1] + widths[i], widths[i]) for i in reversed(range(depth))])
+        widths = [width * 2**level for level in range(depth + 1)]
+        self.encoders = nn.ModuleList(
+            [_double_conv(in_channels, widths[0])] + [_double_conv(widths[i], widths[i + 1]) for i in range(depth)]
+        )
+        self.decoders = nn.ModuleList(
+            [_double_conv(widths[i + 1] + widths[i], widths[i]) for i in reversed(range(depth))]
+        )
         self.head = nn.Conv2d(widths[0], out_channels, 1)
 
     def forward(self, images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:
-        sizes = check_shape(images, "NocUNet: images", ("B", self.encoders[0][0].in_channels - 1, "H", "W"), dtype="float")
+        sizes = check_shape(
+            images, "NocUNet: images", ("B", self.encoders[0][0].in_channels - 1, "H", "W"), dtype="float"
+        )
         check_shape(masks, "NocUNet: masks", ("B", 1, "H", "W"), sizes=sizes)
         return torch.sigmoid(self.logits(torch.cat([images, masks.to(images.dtype)], dim=1)))
 
     def logits(self, x: torch.Tensor) -> torch.Tensor:
         """The head's raw output [B, out_channels, H, W] for the network's input x [B, in_channels, H, W]."""
         height, width = x.shape[-2:]
-        multiple = 2 ** self.depth
+        multiple = 2**self.depth
         pad_h, pad_w = (-height) % multiple, (-width) % multiple
         if pad_h or pad_w:
             x = F.pad(x, (0, pad_w, 0, pad_h))

@@ -87,7 +87,9 @@ class BasicBlock(nn.Module):
         self.bn2 = nn.BatchNorm2d(out_channels)
         self.shortcut = nn.Identity()
         if stride != 1 or in_channels != out_channels:
-            self.shortcut = nn.Sequential(nn.Conv2d(in_channels, out_channels, 1, stride, bias=False), nn.BatchNorm2d(out_channels))
+            self.shortcut = nn.Sequential(
+                nn.Conv2d(in_channels, out_channels, 1, stride, bias=False), nn.BatchNorm2d(out_channels)
+            )
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         out = F.relu(self.bn1(self.conv1(x)))
@@ -105,13 +107,19 @@ class ResNet18Backbone(nn.Module):
     def __init__(self, in_channels: int = 3, width: int = 64):
         super().__init__()
         self.stem = nn.Sequential(
-            nn.Conv2d(in_channels, width, 7, 2, 3, bias=False), nn.BatchNorm2d(width), nn.ReLU(inplace=True), nn.MaxPool2d(3, 2, 1))
+            nn.Conv2d(in_channels, width, 7, 2, 3, bias=False),
+            nn.BatchNorm2d(width),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(3, 2, 1),
+        )
         stages = []
         channels = width
         for stage, multiplier in enumerate((1, 2, 4, 8)):
             out_channels = width * multiplier
             stride = 1 if stage == 0 else 2
-            stages.append(nn.Sequential(BasicBlock(channels, out_channels, stride), BasicBlock(out_channels, out_channels, 1)))
+            stages.append(
+                nn.Sequential(BasicBlock(channels, out_channels, stride), BasicBlock(out_channels, out_channels, 1))
+            )
             channels = out_channels
         self.stages = nn.Sequential(*stages)
         self.out_features = channels
@@ -131,17 +139,31 @@ class PoseNet(nn.Module):
     ``(azimuth_logits [B, azimuth_bins], elevation_logits [B, elevation_bins])``.
     """
 
-    def __init__(self, bins: PoseBins | None = None, in_channels: int = 3, width: int = 64, feature_dim: int = 256, hidden: int = 128):
+    def __init__(
+        self,
+        bins: PoseBins | None = None,
+        in_channels: int = 3,
+        width: int = 64,
+        feature_dim: int = 256,
+        hidden: int = 128,
+    ):
         super().__init__()
         self.bins = bins or PoseBins()
         self.backbone = ResNet18Backbone(in_channels, width)
         # "two linear layers with output dimension 256"
         self.refine = nn.Sequential(
-            nn.Linear(self.backbone.out_features, feature_dim), nn.ReLU(inplace=True),
-            nn.Linear(feature_dim, feature_dim), nn.ReLU(inplace=True))
+            nn.Linear(self.backbone.out_features, feature_dim),
+            nn.ReLU(inplace=True),
+            nn.Linear(feature_dim, feature_dim),
+            nn.ReLU(inplace=True),
+        )
         # "a two-layer MLP with hidden size 128" per angle
-        self.azimuth_head = nn.Sequential(nn.Linear(feature_dim, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, self.bins.azimuth_bins))
-        self.elevation_head = nn.Sequential(nn.Linear(feature_dim, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, self.bins.elevation_bins))
+        self.azimuth_head = nn.Sequential(
+            nn.Linear(feature_dim, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, self.bins.azimuth_bins)
+        )
+        self.elevation_head = nn.Sequential(
+            nn.Linear(feature_dim, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, self.bins.elevation_bins)
+        )
 
     def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         check_shape(images, "PoseNet: images", (None, self.backbone.stem[0].in_channels, None, None), dtype="float")
@@ -156,25 +178,40 @@ class PoseNet(nn.Module):
         azimuth_prob, azimuth_bin = F.softmax(azimuth_logits, dim=1).max(dim=1)
         elevation_prob, elevation_bin = F.softmax(elevation_logits, dim=1).max(dim=1)
         azimuth, elevation = bin_to_angle(azimuth_bin, elevation_bin, self.bins)
-        return {"azimuth": azimuth, "elevation": elevation, "azimuth_bin": azimuth_bin, "elevation_bin": elevation_bin,
-                "azimuth_prob": azimuth_prob, "elevation_prob": elevation_prob}
+        return {
+            "azimuth": azimuth,
+            "elevation": elevation,
+            "azimuth_bin": azimuth_bin,
+            "elevation_bin": elevation_bin,
+            "azimuth_prob": azimuth_prob,
+            "elevation_prob": elevation_prob,
+        }
 
 
-def pose_loss(azimuth_logits: torch.Tensor, elevation_logits: torch.Tensor, azimuth, elevation, bins: PoseBins) -> torch.Tensor:
+def pose_loss(
+    azimuth_logits: torch.Tensor, elevation_logits: torch.Tensor, azimuth, elevation, bins: PoseBins
+) -> torch.Tensor:
     """Cross-entropy of both heads against the bins of the true angles (degrees, [B]); scalar."""
     azimuth_bin, elevation_bin = angle_to_bin(azimuth, elevation, bins)
     device = azimuth_logits.device
-    return F.cross_entropy(azimuth_logits, azimuth_bin.to(device)) + F.cross_entropy(elevation_logits, elevation_bin.to(device))
+    return F.cross_entropy(azimuth_logits, azimuth_bin.to(device)) + F.cross_entropy(
+        elevation_logits, elevation_bin.to(device)
+    )
 
 
 def azimuth_error(predicted, target) -> torch.Tensor:
     """Absolute circular difference of azimuths in degrees, in [0, 180]."""
-    difference = torch.remainder(torch.as_tensor(predicted, dtype=torch.float64) - torch.as_tensor(target, dtype=torch.float64), 360.0)
+    difference = torch.remainder(
+        torch.as_tensor(predicted, dtype=torch.float64) - torch.as_tensor(target, dtype=torch.float64), 360.0
+    )
     return torch.minimum(difference, 360.0 - difference)
 
 
-def pose_accuracy(azimuth_logits: torch.Tensor, elevation_logits: torch.Tensor, azimuth, elevation, bins: PoseBins) -> dict[str, float]:
-    """Bin accuracies (fraction in [0, 1]) and the mean absolute azimuth error (degrees) of the predicted bin centres."""
+def pose_accuracy(
+    azimuth_logits: torch.Tensor, elevation_logits: torch.Tensor, azimuth, elevation, bins: PoseBins
+) -> dict[str, float]:
+    """Bin accuracies (fraction in [0, 1]) and the mean absolute azimuth error (degrees) of the predicted bin
+    centres."""
     azimuth_bin, elevation_bin = angle_to_bin(azimuth, elevation, bins)
     predicted_azimuth_bin = azimuth_logits.argmax(1).cpu()
     predicted_elevation_bin = elevation_logits.argmax(1).cpu()

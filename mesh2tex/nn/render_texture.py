@@ -65,13 +65,17 @@ def rasterize_batch(batch: MeshBatch, mvp: torch.Tensor, resolution: tuple[int, 
     return SurfaceSamples(torch.cat(ids), torch.cat(barys))
 
 
-def _views_per_item(function: str, batch: MeshBatch, mvp: torch.Tensor, items: int | None = None, what: str = "shapes") -> int:
+def _views_per_item(
+    function: str, batch: MeshBatch, mvp: torch.Tensor, items: int | None = None, what: str = "shapes"
+) -> int:
     """K = N / B for ``mvp`` (N, 4, 4) float over B = ``items`` (default: the batch's shapes), checked."""
     if items is None:
         items = check_type(batch, f"{function}: batch", MeshBatch).num_shapes
     check_shape(mvp, f"{function}: mvp", (None, 4, 4), dtype="float")
     if mvp.shape[0] % items:
-        raise ValueError(f"{function}: mvp holds {mvp.shape[0]} cameras, which cannot be split evenly over {items} {what}")
+        raise ValueError(
+            f"{function}: mvp holds {mvp.shape[0]} cameras, which cannot be split evenly over {items} {what}"
+        )
     return mvp.shape[0] // items
 
 
@@ -84,10 +88,20 @@ def paint_pixels(background: torch.Tensor, flat_index: torch.Tensor, colours: to
     return flat.reshape(n, h, w, 3).permute(0, 3, 1, 2).contiguous()
 
 
-def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.Tensor, mvp: torch.Tensor,
-                       resolution: tuple[int, int], background: torch.Tensor, proxy: bool = False,
-                       texture: FaceTexture | None = None, encoded: list[torch.Tensor] | None = None,
-                       noise_mode: str = "random", samples: SurfaceSamples | None = None, lights: Lights | None = None) -> RenderedViews:
+def render_field_views(
+    generator: TextureGenerator,
+    batch: MeshBatch,
+    ws: torch.Tensor,
+    mvp: torch.Tensor,
+    resolution: tuple[int, int],
+    background: torch.Tensor,
+    proxy: bool = False,
+    texture: FaceTexture | None = None,
+    encoded: list[torch.Tensor] | None = None,
+    noise_mode: str = "random",
+    samples: SurfaceSamples | None = None,
+    lights: Lights | None = None,
+) -> RenderedViews:
     """Render the texture that ``generator`` makes for ``batch`` from ``ws`` (B, num_ws, w_dim) or (B, w_dim).
 
     ``ws`` may be None when ``texture`` is given.
@@ -108,7 +122,11 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     if lights is not None:
         check_shape(lights.direction, "render_field_views: lights.direction", ("N", 3), sizes=views)
         check_shape(lights.ambient, "render_field_views: lights.ambient", ("N",), sizes=views)
-    texture = generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode) if texture is None else texture.bound(generator, batch)
+    texture = (
+        generator.synthesize(batch, ws, encoded=encoded, noise_mode=noise_mode)
+        if texture is None
+        else texture.bound(generator, batch)
+    )
     if samples is None:
         samples = rasterize_batch(batch, mvp, (h, w))
     background, flat_index, triangle_id, bary = _covered_pixels(samples.triangle_id, samples.bary, background)
@@ -118,8 +136,13 @@ def render_field_views(generator: TextureGenerator, batch: MeshBatch, ws: torch.
     return RenderedViews(images=images, proxy=proxy_images, mask=samples.mask.unsqueeze(1).to(images.dtype))
 
 
-def render_proxy_views(texture: FaceTexture, batch: MeshBatch, samples: SurfaceSamples, background: torch.Tensor,
-                       lights: Lights | None = None) -> torch.Tensor:
+def render_proxy_views(
+    texture: FaceTexture,
+    batch: MeshBatch,
+    samples: SurfaceSamples,
+    background: torch.Tensor,
+    lights: Lights | None = None,
+) -> torch.Tensor:
     """The proxy path alone: each covered pixel of ``samples`` (N views) takes its quad's per-face colour
     ``texture.face_rgb``, shaded by ``lights`` like :func:`render_field_views`; no psi evaluated.
 
@@ -151,8 +174,9 @@ def _covered_pixels(triangle_id: torch.Tensor, bary: torch.Tensor, background: t
     return background, flat_index, triangle_id.reshape(-1)[flat_index], bary.reshape(-1, 3)[flat_index]
 
 
-def _pixel_lighting(batch: MeshBatch, triangle_id: torch.Tensor, flat_index: torch.Tensor, lights: Lights | None,
-                    pixels_per_view: int) -> Callable[[torch.Tensor], torch.Tensor]:
+def _pixel_lighting(
+    batch: MeshBatch, triangle_id: torch.Tensor, flat_index: torch.Tensor, lights: Lights | None, pixels_per_view: int
+) -> Callable[[torch.Tensor], torch.Tensor]:
     """shade(colours (P, 3)) for the covered pixels: Lambert under each pixel's view's light with flat quad
     normals, gathered once and shared by every colour shaded at these pixels; unlit: the identity."""
     if lights is None:
@@ -160,7 +184,9 @@ def _pixel_lighting(batch: MeshBatch, triangle_id: torch.Tensor, flat_index: tor
     view = flat_index // pixels_per_view
     normals = quad_normals(batch.vertices, batch.quads)[triangle_id // 2]
     direction, ambient = lights.direction[view], lights.ambient[view]
-    return lambda colours: shade_colours(colours, normals.to(colours.dtype), direction.to(colours.dtype), ambient.to(colours.dtype))
+    return lambda colours: shade_colours(
+        colours, normals.to(colours.dtype), direction.to(colours.dtype), ambient.to(colours.dtype)
+    )
 
 
 @dataclass
@@ -172,14 +198,21 @@ class StateViews:
     mask: torch.Tensor
 
 
-def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: torch.Tensor, resolution: int,
-                  background: float | torch.Tensor = 0.0, graft: tuple[MeshNCA, torch.Tensor] | None = None) -> StateViews:
+def render_states(
+    model: MeshNCA,
+    state: torch.Tensor,
+    graph: CellGraph,
+    mvp: torch.Tensor,
+    resolution: int,
+    background: float | torch.Tensor = 0.0,
+    graft: tuple[MeshNCA, torch.Tensor] | None = None,
+) -> StateViews:
     """Render B states of one mesh with K = N / B cameras each (views s*K .. s*K+K-1 show state s).
 
     state (B, V, C) float, V = ``graph.num_cells``; mvp (N, 4, 4); background a float, (N, 3) colours
     or (N, 3, H, W) images in [-1, 1]; graft: a grafted growth's (other model, alpha (V,)), whose
-    readouts are blended as :meth:`MeshNCA.colours` does. The readout is evaluated only at covered pixels. Differentiable with respect to the
-    states and the readout's parameters.
+    readouts are blended as :meth:`MeshNCA.colours` does. The readout is evaluated only at covered pixels.
+    Differentiable with respect to the states and the readout's parameters.
     """
     check_type(graph, "render_states: graph", CellGraph)
     check_shape(state, "render_states: state", (None, graph.num_cells, None), dtype="float")
@@ -188,7 +221,9 @@ def render_states(model: MeshNCA, state: torch.Tensor, graph: CellGraph, mvp: to
     h = w = int(resolution)
     raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (h, w))
     # A float stays exact until paint_pixels gives the background the readout's dtype.
-    background = torch.as_tensor(background, dtype=None if torch.is_tensor(background) else torch.float64, device=state.device)
+    background = torch.as_tensor(
+        background, dtype=None if torch.is_tensor(background) else torch.float64, device=state.device
+    )
     background, flat_index, triangle_id, bary = _covered_pixels(raster.face_id, raster.bary, background)
     sample = flat_index // (h * w) // (n // b)
     colours = model.colours(state, graph.triangles, triangle_id, bary, sample, graft=graft)

@@ -146,18 +146,24 @@ class VGG19Features(nn.Module):
         wanted = {f"features.{k}": v for k, v in own.items()}
         missing = [k for k in wanted if k not in state]
         if missing:
-            raise InputError(f"{path}: not VGG19 weights: missing {len(missing)} key(s), e.g. '{missing[0]}' "
-                            f"(expected torchvision's vgg19 state dict, file {VGG19_FILE_NAME})")
+            raise InputError(
+                f"{path}: not VGG19 weights: missing {len(missing)} key(s), e.g. '{missing[0]}' "
+                f"(expected torchvision's vgg19 state dict, file {VGG19_FILE_NAME})"
+            )
         for key, tensor in wanted.items():
             if tuple(state[key].shape) != tuple(tensor.shape):
-                raise InputError(f"{path}: not VGG19 weights: '{key}' has shape {tuple(state[key].shape)}, "
-                                f"expected {tuple(tensor.shape)}")
+                raise InputError(
+                    f"{path}: not VGG19 weights: '{key}' has shape {tuple(state[key].shape)}, "
+                    f"expected {tuple(tensor.shape)}"
+                )
         self.features.load_state_dict({k: state[f"features.{k}"].float() for k in own})
         self.pretrained = True
         self.source = str(path)
 
 
-def find_weight_file(path: str | os.PathLike | None, env_var: str, file_names: tuple[str, ...], what: str) -> Path | None:
+def find_weight_file(
+    path: str | os.PathLike | None, env_var: str, file_names: tuple[str, ...], what: str
+) -> Path | None:
     """A local weight file: ``path``, else ``$env_var``, else the first of ``file_names`` present in
     torchvision's cache ``$TORCH_HOME/hub/checkpoints``; None if there is none.
 
@@ -177,22 +183,29 @@ def find_weight_file(path: str | os.PathLike | None, env_var: str, file_names: t
 
 
 def find_vgg19_weights(path: str | os.PathLike | None = None) -> Path | None:
-    """The VGG19 weight file to use: ``path``, else $MESH2TEX_VGG_WEIGHTS, else torchvision's cache file; None if none exists."""
+    """The VGG19 weight file to use: ``path``, else $MESH2TEX_VGG_WEIGHTS, else torchvision's cache file; None if none
+    exists."""
     return find_weight_file(path, "MESH2TEX_VGG_WEIGHTS", (VGG19_FILE_NAME,), "VGG19")
 
 
 def fallback_warning_text() -> str:
     """What the random-weight fallback means for quality, and how to get the real weights."""
-    return (f"no ImageNet VGG19 weights found (looked for $MESH2TEX_VGG_WEIGHTS and {torch_hub_checkpoint_dir() / VGG19_FILE_NAME}); "
-            f"using a random-weight VGG19 (seed {RANDOM_VGG_SEED}). Style losses still match colour and texture statistics, "
-            f"but less perceptually: expect blurrier, less faithful detail in transferred textures. To use the real weights, "
-            f"download {VGG19_URL} into {torch_hub_checkpoint_dir()} or pass --vgg-weights PATH.")
+    return (
+        "no ImageNet VGG19 weights found (looked for $MESH2TEX_VGG_WEIGHTS and "
+        f"{torch_hub_checkpoint_dir() / VGG19_FILE_NAME}); "
+        f"using a random-weight VGG19 (seed {RANDOM_VGG_SEED}). Style losses still match colour and texture "
+        "statistics, "
+        "but less perceptually: expect blurrier, less faithful detail in transferred textures. To use the real "
+        f"weights, download {VGG19_URL} into {torch_hub_checkpoint_dir()} or pass --vgg-weights PATH."
+    )
 
 
 _CACHE: dict[tuple[str, str], VGG19Features] = {}
 
 
-def load_vgg19(weights: str | os.PathLike | None = None, device: str | torch.device = "cpu", warn: bool = True) -> VGG19Features:
+def load_vgg19(
+    weights: str | os.PathLike | None = None, device: str | torch.device = "cpu", warn: bool = True
+) -> VGG19Features:
     """A frozen, eval-mode :class:`VGG19Features` on ``device``.
 
     ``weights``: a weight file path, or None to search ($MESH2TEX_VGG_WEIGHTS, then torchvision's
@@ -215,4 +228,3 @@ def load_vgg19(weights: str | os.PathLike | None = None, device: str | torch.dev
         parameter.requires_grad_(False)
     _CACHE[key] = model
     return model
-

@@ -24,7 +24,8 @@ VIEWS_NAME = "views.npz"  # where a 'train pose|noc|mask' run directory caches i
 @dataclass
 class ViewDataConfig:
     category: str = "chair"  # material library of the renders: 'chair' or 'car'
-    variety: str = "boxy"  # which world's materials: 'boxy' (the original procedural library) or 'real' (materials a photo would show)
+    # which world's materials: 'boxy' (the original procedural library) or 'real' (materials a photo would show)
+    variety: str = "boxy"
     samples: int = 512  # rendered views in all (training plus held-out)
     views_per_material: int = 4  # views that share one random material and shape
     holdout: float = 0.1  # share of the views kept for validation
@@ -35,19 +36,32 @@ class ViewDataConfig:
     distance_min: float = 1.5  # camera distance range (shapes have bbox diagonal 1)
     distance_max: float = 1.9
     fov: float = 40.0  # vertical field of view, degrees
-    frame_margin: float = 0.1  # crop each view to the square around its object with this margin, as 'infer transfer' crops the photo (< 0: keep the whole frame)
+    # crop each view to the square around its object with this margin, as 'infer transfer' crops the photo (< 0:
+    # keep the whole frame)
+    frame_margin: float = 0.1
     frame_oversample: int = 2  # render framed views at this multiple of ``resolution`` before cropping
-    gan_checkpoint: str = ""  # a 'train gan' checkpoint that textures a share of the groups; '' = procedural materials only
+    # a 'train gan' checkpoint that textures a share of the groups; '' = procedural materials only
+    gan_checkpoint: str = ""
     gan_share: float = 0.5  # share of the view groups textured by the GAN when gan_checkpoint is given
 
     def __post_init__(self):
-        check_fields(self, at_least={"views_per_material": 1, "frame_oversample": 1},
-                     positive=("distance_min",), between={"holdout": (0.0, 0.9), "fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0),
-                                                         "elevation_max": (-90.0, 90.0)})
+        check_fields(
+            self,
+            at_least={"views_per_material": 1, "frame_oversample": 1},
+            positive=("distance_min",),
+            between={
+                "holdout": (0.0, 0.9),
+                "fov": (1.0, 179.0),
+                "elevation_min": (-90.0, 90.0),
+                "elevation_max": (-90.0, 90.0),
+            },
+        )
         _ = self.render_settings  # checks resolution and supersample
         if self.distance_min > self.distance_max or self.elevation_min > self.elevation_max:
-            raise ValueError(f"distance {self.distance_min}..{self.distance_max}, elevation {self.elevation_min}..{self.elevation_max}: "
-                             "a range's minimum is above its maximum")
+            raise ValueError(
+                f"distance {self.distance_min}..{self.distance_max}, elevation "
+                f"{self.elevation_min}..{self.elevation_max}: a range's minimum is above its maximum"
+            )
 
     @property
     def render_settings(self) -> RenderSettings:
@@ -71,7 +85,12 @@ class ViewTrainConfig:
     bins: PoseBins = field(default_factory=PoseBins)  # pose classes (used by 'pose' only)
 
     def __post_init__(self):
-        check_fields(self, positive=("lr",), at_least={"log_every": 1, "checkpoint_every": 0}, between={"width": (1, MAX_CHANNELS)})
+        check_fields(
+            self,
+            positive=("lr",),
+            at_least={"log_every": 1, "checkpoint_every": 0},
+            between={"width": (1, MAX_CHANNELS)},
+        )
 
 
 def build_network(kind: str, cfg: ViewTrainConfig) -> torch.nn.Module:

@@ -11,7 +11,15 @@ Four primitives in the spirit of nvdiffrast, composed by the caller::
 Conventions (OpenGL clip space, pixel centres, camera, uv orientation) are in docs/rendering.md.
 """
 
-from .cameras import Camera, CameraConfig, orbit_camera, orbit_direction, perspective, transform_points, turntable_angles
+from .cameras import (
+    Camera,
+    CameraConfig,
+    orbit_camera,
+    orbit_direction,
+    perspective,
+    transform_points,
+    turntable_angles,
+)
 from .crop import crop_mask, crop_square, object_box
 from .interpolate import face_attribute, interpolate, sample_texture
 from .rasterize import Raster, pixel_centres, rasterize

@@ -112,8 +112,11 @@ def new_atlas(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.n
     uv = chart_uv[unique[:, 1]].astype(np.float64)
     # vertices no face uses are the user's too: kept, at uv (0, 0)
     unused = np.setdiff1d(np.arange(len(vertices)), unique[:, 0])
-    return (np.concatenate([unique[:, 0], unused]), corner.reshape(faces.shape),
-            np.concatenate([uv, np.zeros((len(unused), 2))]))
+    return (
+        np.concatenate([unique[:, 0], unused]),
+        corner.reshape(faces.shape),
+        np.concatenate([uv, np.zeros((len(unused), 2))]),
+    )
 
 
 def mesh_atlas(mesh: UserMesh, mode: str = "auto") -> Atlas:
@@ -170,7 +173,9 @@ class MeshBaker:
         faces = torch.from_numpy(self.atlas.faces)
         raster = uv_rasterize(torch.from_numpy(self.atlas.uv).float(), faces, (self.size, self.size))
         self.coverage = (raster.face_id[0] >= 0).numpy()
-        texel_points = interpolate(working[torch.from_numpy(self.atlas.vertex_index)][None], raster, faces)[0]  # (S, S, 3)
+        texel_points = interpolate(working[torch.from_numpy(self.atlas.vertex_index)][None], raster, faces)[
+            0
+        ]  # (S, S, 3)
         self._texels = index.query(texel_points.numpy()[self.coverage])
         self._vertices = index.query(working.numpy())
 
@@ -183,7 +188,14 @@ class MeshBaker:
         colours[self.coverage] = _colours(texture, self._texels, device).numpy()
         image = colours_to_uint8(torch.from_numpy(fill_empty_texels(colours, self.coverage)))
         normals = None if mesh.normals is None else mesh.normals[atlas.vertex_index]
-        return BakedUserMesh(vertices=mesh.vertices[atlas.vertex_index], faces=atlas.faces, uv=atlas.uv, normals=normals,
-                             texture=image, coverage=self.coverage,
-                             vertex_colours=colours_to_uint8(_colours(texture, self._vertices, device)),
-                             atlas=atlas, surface_distance=self._vertices.distance)
+        return BakedUserMesh(
+            vertices=mesh.vertices[atlas.vertex_index],
+            faces=atlas.faces,
+            uv=atlas.uv,
+            normals=normals,
+            texture=image,
+            coverage=self.coverage,
+            vertex_colours=colours_to_uint8(_colours(texture, self._vertices, device)),
+            atlas=atlas,
+            surface_distance=self._vertices.distance,
+        )

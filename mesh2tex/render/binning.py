@@ -103,8 +103,13 @@ def split(rows: torch.Tensor, cols: torch.Tensor, side: int):
     width = per_row.index_select(0, owner)
     off_r = torch.div(k, width, rounding_mode="floor") * side
     off_c = (k % width) * side
-    return (owner, off_r, off_c, (rows.index_select(0, owner) - off_r).clamp(max=side),
-            (cols.index_select(0, owner) - off_c).clamp(max=side))
+    return (
+        owner,
+        off_r,
+        off_c,
+        (rows.index_select(0, owner) - off_r).clamp(max=side),
+        (cols.index_select(0, owner) - off_c).clamp(max=side),
+    )
 
 
 def row_spans(p: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor):
@@ -190,8 +195,7 @@ class DepthBuffer:
         self.id_bits = max(1, int(triangles).bit_length())
         self.depth_scale = 0.5 * float((1 << min(62 - self.id_bits, 40)) - 1)
         self.empty = torch.iinfo(torch.long).max
-        self.keys = torch.full((views * self.shape[1] * self.shape[2],), self.empty, dtype=torch.long,
-                               device=device)
+        self.keys = torch.full((views * self.shape[1] * self.shape[2],), self.empty, dtype=torch.long, device=device)
         self.undecided = []  # (pixel, key, setup) of the pixels left to settle()
 
     def test(self, entries: Entries, entry, dr, dc, band=None):
@@ -201,16 +205,24 @@ class DepthBuffer:
         are set aside for :meth:`settle` instead.
         """
         q = entries.params
-        z = torch.addcmul(torch.addcmul(q[3].index_select(0, entry), q[11].index_select(0, entry), dr.float()),
-                          q[7].index_select(0, entry), dc.float())
+        z = torch.addcmul(
+            torch.addcmul(q[3].index_select(0, entry), q[11].index_select(0, entry), dr.float()),
+            q[7].index_select(0, entry),
+            dc.float(),
+        )
         pixel = entries.base.index_select(0, entry) + dr * self.row_stride + dc
         key = (((z.double() + 1) * self.depth_scale).long() << self.id_bits) | entries.face.index_select(0, entry)
         drawn = z.abs() <= 1  # near and far planes
         if band is not None:
             undecided = torch.nonzero(band & drawn).squeeze(1)
             if undecided.numel():
-                self.undecided.append((pixel.index_select(0, undecided), key.index_select(0, undecided),
-                                       entries.setup.index_select(0, entry.index_select(0, undecided))))
+                self.undecided.append(
+                    (
+                        pixel.index_select(0, undecided),
+                        key.index_select(0, undecided),
+                        entries.setup.index_select(0, entry.index_select(0, undecided)),
+                    )
+                )
                 drawn &= ~band
         key = torch.where(drawn, key, self.empty)
         self.keys.scatter_reduce_(0, pixel, key, reduce="amin", include_self=True)
@@ -225,8 +237,9 @@ class DepthBuffer:
         in_view = pixel % (self.shape[1] * self.row_stride)
         row = torch.div(in_view, self.row_stride, rounding_mode="floor")
         covered = torch.nonzero(edges.inside(setup, row, in_view % self.row_stride)).squeeze(1)
-        self.keys.scatter_reduce_(0, pixel.index_select(0, covered), key.index_select(0, covered), reduce="amin",
-                                  include_self=True)
+        self.keys.scatter_reduce_(
+            0, pixel.index_select(0, covered), key.index_select(0, covered), reduce="amin", include_self=True
+        )
 
     def image(self, resolution) -> torch.Tensor:
         """(B*H*W,) int64 keys without the padding."""
@@ -311,16 +324,21 @@ def draw_spans(buffer: DepthBuffer, regions: Entries, rows: torch.Tensor, cols: 
         if a >= b:
             continue
         which = torch.repeat_interleave(torch.arange(a, b, device=device), counts[a:b])
-        col = starts.index_select(0, which) + torch.arange(which.numel(), device=device) - (
-            before.index_select(0, which) - before[a])
+        col = (
+            starts.index_select(0, which)
+            + torch.arange(which.numel(), device=device)
+            - (before.index_select(0, which) - before[a])
+        )
         row = which % R
         n_tested = int(ends[min(b, 2 * R) - 1] - before[a]) if a < 2 * R else 0
         tested_row, tested_col = row[:n_tested], col[:n_tested]
-        lam = torch.addcmul(columns(at, tested_row), columns(step_c, region.index_select(0, tested_row)),
-                            tested_col.float()).amin(0)
+        lam = torch.addcmul(
+            columns(at, tested_row), columns(step_c, region.index_select(0, tested_row)), tested_col.float()
+        ).amin(0)
         passed = torch.nonzero(lam >= -1).squeeze(1)
-        band = torch.cat([lam.index_select(0, passed) <= 1, torch.zeros(row.numel() - n_tested, dtype=torch.bool,
-                                                                       device=device)])
+        band = torch.cat(
+            [lam.index_select(0, passed) <= 1, torch.zeros(row.numel() - n_tested, dtype=torch.bool, device=device)]
+        )
         row = torch.cat([tested_row.index_select(0, passed), row[n_tested:]])
         col = torch.cat([tested_col.index_select(0, passed), col[n_tested:]])
         buffer.test(regions, region.index_select(0, row), r.index_select(0, row), col, band)

@@ -22,7 +22,8 @@ import torch
 from mesh2tex.checks import check_shape
 from mesh2tex.config import check_fields
 
-DEFAULT_DISTANCE = 2.5  # world units; a unit-sized object fills most of the frame at the default fov (the GAN's own camera: CameraConfig)
+# world units; a unit-sized object fills most of the frame at the default fov (the GAN's own camera: CameraConfig)
+DEFAULT_DISTANCE = 2.5
 DEFAULT_FOV = 40.0  # vertical field of view in degrees
 DEFAULT_NEAR = 0.1
 DEFAULT_FAR = 100.0
@@ -41,8 +42,17 @@ class CameraConfig:
     distance_jitter: float = 0.06  # relative std of the Gaussian noise on the distance
 
     def __post_init__(self):
-        check_fields(self, positive=("distance",), between={"fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0),
-                                                            "jitter_degrees": (0.0, 90.0), "distance_jitter": (0.0, 0.5)})
+        check_fields(
+            self,
+            positive=("distance",),
+            between={
+                "fov": (1.0, 179.0),
+                "elevation_min": (-90.0, 90.0),
+                "elevation_max": (-90.0, 90.0),
+                "jitter_degrees": (0.0, 90.0),
+                "distance_jitter": (0.0, 0.5),
+            },
+        )
         if self.elevation_min > self.elevation_max:
             raise ValueError(f"elevation_min {self.elevation_min} is above elevation_max {self.elevation_max}")
 
@@ -58,7 +68,11 @@ class NCACameraConfig:
     elevation_max: float = 60.0
 
     def __post_init__(self):
-        check_fields(self, positive=("distance",), between={"fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0)})
+        check_fields(
+            self,
+            positive=("distance",),
+            between={"fov": (1.0, 179.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0)},
+        )
         if self.elevation_max < self.elevation_min:
             raise ValueError(f"elevation_max {self.elevation_max} is below elevation_min {self.elevation_min}")
 
@@ -129,8 +143,13 @@ def _check_batch_args(function: str, **values) -> None:
 def orbit_direction(azimuth: torch.Tensor, elevation: torch.Tensor) -> torch.Tensor:
     """Unit vectors (B, 3) from the origin towards ``azimuth``/``elevation`` (B,) degrees: an orbit
     camera's eye direction, and the direction of a light placed the same way."""
-    check_shape(elevation, "orbit_direction: elevation", ("B",), sizes=check_shape(azimuth, "orbit_direction: azimuth", ("B",), dtype="float"),
-                dtype="float")
+    check_shape(
+        elevation,
+        "orbit_direction: elevation",
+        ("B",),
+        sizes=check_shape(azimuth, "orbit_direction: azimuth", ("B",), dtype="float"),
+        dtype="float",
+    )
     az, el = torch.deg2rad(azimuth), torch.deg2rad(elevation)
     return torch.stack([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()], dim=-1)
 
@@ -158,7 +177,9 @@ def orbit_camera(
         Camera with (B,4,4) ``view``, ``proj``, ``mvp`` and (B,3) ``position``, float32, on the device
         of ``azimuth`` when it is a tensor (else CPU). Scalars broadcast against (B,) tensors.
     """
-    _check_batch_args("orbit_camera", azimuth=azimuth, elevation=elevation, distance=distance, fov=fov, near=near, far=far)
+    _check_batch_args(
+        "orbit_camera", azimuth=azimuth, elevation=elevation, distance=distance, fov=fov, near=near, far=far
+    )
     device = next((t.device for t in (azimuth, elevation, distance, fov) if torch.is_tensor(t)), None)
     az_deg, el_deg = _as_batch(azimuth, device), _as_batch(elevation, device)
     dist = _as_batch(distance, device)
@@ -207,4 +228,3 @@ def transform_points(vertices: torch.Tensor, mvp: torch.Tensor) -> torch.Tensor:
     if homogeneous.dim() == 2:
         return torch.einsum("bij,vj->bvi", mvp.to(homogeneous.dtype), homogeneous)
     return torch.einsum("bij,bvj->bvi", mvp.to(homogeneous.dtype), homogeneous)
-

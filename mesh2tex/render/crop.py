@@ -50,7 +50,8 @@ def crop_square(images: torch.Tensor, box: tuple[int, int, int], size: int, fill
 
 
 def crop_mask(mask: np.ndarray | torch.Tensor, box: tuple[int, int, int], size: int) -> torch.Tensor:
-    """An object mask (H,W) (or (1,H,W), (1,1,H,W)) bool/{0,1}, array or tensor, cut like an image with :func:`crop_square`: (1,1,size,size) float {0,1}.
+    """An object mask (H,W) (or (1,H,W), (1,1,H,W)) bool/{0,1}, array or tensor, cut like an image with
+    :func:`crop_square`: (1,1,size,size) float {0,1}.
 
     Resampling blends the mask's edge; a pixel is object where at least half of it was.
     """

@@ -32,20 +32,21 @@ from mesh2tex.render.binning import columns
 # The band's half-width relative to the plane's largest magnitude over the pixels it is evaluated at:
 # float32 evaluation (two roundings of each coefficient, to float32 and by the scale, and two of the
 # fma steps) errs by under 2^-22 of it.
-_BAND = 2.0 ** -18
+_BAND = 2.0**-18
 # float64 round-off of the set-up (products and their differences, the division by det, the
 # rebasing; ~50 roundings of the products at most), relative to the products' largest magnitude.
-_SETUP_ROUNDING = 2.0 ** -40
+_SETUP_ROUNDING = 2.0**-40
 # A band half-width below this (0, NaN, or a plane out of float32's range) gets band scale 0.
-_SCALE_FLOOR = 2.0 ** -100
+_SCALE_FLOOR = 2.0**-100
 # E in float64 errs by at most ~5 roundings (2^-50.7) of the sum of its terms' magnitudes.
-_EXACT_ENOUGH = 2.0 ** -48
+_EXACT_ENOUGH = 2.0**-48
 # Below this, float64 products may have underflowed and the error bound does not hold.
-_TINY = 2.0 ** -900
+_TINY = 2.0**-900
 
 
-def band_scale(params64: torch.Tensor, size: torch.Tensor, det: torch.Tensor, rows: torch.Tensor,
-               cols: torch.Tensor) -> torch.Tensor:
+def band_scale(
+    params64: torch.Tensor, size: torch.Tensor, det: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor
+) -> torch.Tensor:
     """Per edge, the factor that puts the band of uncertain float32 values at ``[-1, 1]``.
 
     A float32 edge value ``lambda * scale`` with ``|value| > 1`` has the sign of the exact edge
@@ -78,7 +79,7 @@ def band_scale(params64: torch.Tensor, size: torch.Tensor, det: torch.Tensor, ro
 _SPLITTER = 134217729.0  # 2^27 + 1: splits a float64 into two halves of 26 bits (Dekker)
 # Coordinates within these magnitudes (or zero) keep every product of the expansions below clear of
 # underflow and overflow, so that they are exact.
-_SAFE_LOW, _SAFE_HIGH = 2.0 ** -300, 2.0 ** 300
+_SAFE_LOW, _SAFE_HIGH = 2.0**-300, 2.0**300
 
 
 def _two_product(a: torch.Tensor, b: torch.Tensor):
@@ -105,7 +106,7 @@ def _distil(terms: torch.Tensor) -> torch.Tensor:
     round-off of a pairwise sum, the last row the rounded sum itself (error-free sums, in a tree)."""
     errors = []
     while terms.shape[0] > 1:
-        odd = terms[terms.shape[0] - terms.shape[0] % 2:]
+        odd = terms[terms.shape[0] - terms.shape[0] % 2 :]
         total, error = _two_sum(terms[0:-1:2], terms[1::2])
         errors.append(error)
         terms = torch.cat([total, odd])
@@ -127,7 +128,7 @@ def sign_of_sum(terms: torch.Tensor, passes: int = 64) -> torch.Tensor:
         terms = _distil(terms)
         last, rest = terms[-1], terms[:-1].abs().sum(0)
         # The rounded sum of the others errs by far less than the margin.
-        done = (last.abs() > rest * (1 + 2.0 ** -40)) | ((last == 0) & (rest == 0))
+        done = (last.abs() > rest * (1 + 2.0**-40)) | ((last == 0) & (rest == 0))
         sign[todo[done]] = torch.sign(last[done]).long()
         keep = torch.nonzero(~done).squeeze(1)
         if keep.numel() == 0:
@@ -168,8 +169,10 @@ def exact_edge_signs(coordinates: torch.Tensor, u: torch.Tensor, v: torch.Tensor
     fallback = torch.nonzero(unsafe).squeeze(1)
     if fallback.numel():
         values = coordinates[:, fallback].T.tolist()
-        exact = [_fraction_signs(c, int(uu), int(vv), int(z))
-                 for c, uu, vv in zip(values, u[fallback].tolist(), v[fallback].tolist())]
+        exact = [
+            _fraction_signs(c, int(uu), int(vv), int(z))
+            for c, uu, vv in zip(values, u[fallback].tolist(), v[fallback].tolist())
+        ]
         exact = torch.tensor(exact, dtype=torch.long, device=u.device).view(-1, 3)
         sign_e[fallback], sign_a[fallback], sign_b[fallback] = exact.T
     return sign_e, sign_a, sign_b
@@ -226,8 +229,9 @@ class EdgeTest:
         s = torch.where(self.front.index_select(0, setup), 1, -1)
         a1, a2, b1, b2, c1, c2 = yj * wk, wj * yk, wj * xk, xj * wk, xj * yk, yj * xk
         e = (a1 - a2) * u + (b1 - b2) * v + (c1 - c2) * z
-        bound = ((a1.abs() + a2.abs()) * u.abs() + (b1.abs() + b2.abs()) * v.abs()
-                 + (c1.abs() + c2.abs()) * z) * _EXACT_ENOUGH
+        bound = (
+            (a1.abs() + a2.abs()) * u.abs() + (b1.abs() + b2.abs()) * v.abs() + (c1.abs() + c2.abs()) * z
+        ) * _EXACT_ENOUGH
         decided = (e.abs() > bound) & (bound > _TINY) & (bound < torch.inf)
         inside = (~decided | (e * s > 0)).all(0)
         # Exactly, for the pixels still in: few, on an edge or within ~1e-14 of one.

@@ -90,7 +90,15 @@ def sample_texture(image: torch.Tensor, uv: torch.Tensor, mode: str = "bilinear"
         (B,H,W,C), differentiable with respect to ``image`` and ``uv``.
     """
     sizes = check_shape(uv, "sample_texture: uv", ("B", "H", "W", 2), dtype="float")
-    check_shape(image, "sample_texture: image", ("C", "Ht", "Wt"), (1, "C", "Ht", "Wt"), ("B", "C", "Ht", "Wt"), sizes=sizes, dtype="float")
+    check_shape(
+        image,
+        "sample_texture: image",
+        ("C", "Ht", "Wt"),
+        (1, "C", "Ht", "Wt"),
+        ("B", "C", "Ht", "Wt"),
+        sizes=sizes,
+        dtype="float",
+    )
     if image.dim() == 3:
         image = image[None]
     B = uv.shape[0]

@@ -23,6 +23,7 @@ camera inside a mesh) takes the vectorised path. numba compiles the loop on firs
 cached on disk after that; ``make install`` does it, :func:`warm_up`). Where numba is not installed,
 or ``MESH2TEX_RASTER_KERNEL=torch`` is set, the vectorised path runs.
 """
+
 from __future__ import annotations
 
 import math
@@ -44,9 +45,9 @@ except ImportError:  # pragma: no cover - exercised only where numba is missing
 _BOX_MARGIN = np.float32(1e-3)  # rasterize._BOX_MARGIN
 _WHOLE = 16  # binning.WHOLE
 _REGION = 64  # binning.REGION
-_BAND = np.float32(2.0 ** -18)  # edges._BAND
-_SETUP_ROUNDING = 2.0 ** -40  # edges._SETUP_ROUNDING
-_SCALE_FLOOR = np.float32(2.0 ** -100)  # edges._SCALE_FLOOR
+_BAND = np.float32(2.0**-18)  # edges._BAND
+_SETUP_ROUNDING = 2.0**-40  # edges._SETUP_ROUNDING
+_SCALE_FLOOR = np.float32(2.0**-100)  # edges._SCALE_FLOOR
 # Band pixels a call expects at first; a call with more runs once more with room for all.
 BAND_CAPACITY = 4096
 
@@ -56,11 +57,13 @@ BAND_CAPACITY = 4096
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy") if numba is not None else (lambda function: function)
 
 if numba is not None:
+
     @numba.extending.intrinsic
     def _fma(typingctx, a, b, c):
         """a * b + c rounded once, as torch.addcmul computes it on the CPU."""
         return a(a, b, c), lambda context, builder, signature, args: builder.fma(*args)
 else:  # pragma: no cover
+
     def _fma(a, b, c):
         return a * b + c
 
@@ -192,8 +195,9 @@ def _draw(q, rows, cols, base, face, setup, keys, row_stride, id_bits, depth_sca
 
 
 @_jit
-def _rasterize_views(pos, tri, H, W, cull, keys, view_stride, row_stride, id_bits, depth_scale,
-                     live, box, params, front, corners, band):
+def _rasterize_views(
+    pos, tri, H, W, cull, keys, view_stride, row_stride, id_bits, depth_scale, live, box, params, front, corners, band
+):
     """Boxes, set-up and pixel passes of every (view, triangle) pair: pos (B,V,4), tri (T,3).
 
     Writes the live set-ups (those that draw) to ``live`` (L,) (view * T + triangle), ``box`` (L,2)
@@ -227,7 +231,12 @@ def _rasterize_views(pos, tri, H, W, cull, keys, view_stride, row_stride, id_bit
             size = 0.0
             for k in range(3):
                 vertex = tri[face, k]
-                x[k], y[k], z[k], w[k] = pos[view, vertex, 0], pos[view, vertex, 1], pos[view, vertex, 2], pos[view, vertex, 3]
+                x[k], y[k], z[k], w[k] = (
+                    pos[view, vertex, 0],
+                    pos[view, vertex, 1],
+                    pos[view, vertex, 2],
+                    pos[view, vertex, 3],
+                )
                 size = max(size, abs(x[k]), abs(y[k]), abs(z[k]), abs(w[k]))
             det = _setup(x, y, z, w, row0, col0, H, W, p)
             if not math.isfinite(1.0 / det) or (cull and not det > 0):
@@ -243,15 +252,25 @@ def _rasterize_views(pos, tri, H, W, cull, keys, view_stride, row_stride, id_bit
                     params[r * 4 + c, n_live] = p[r, c]
             if rows <= _WHOLE and cols <= _WHOLE:
                 _scaled(p, scale, False, 0, 0, q)
-                n_band = _draw(q, rows, cols, base, face, n_live, keys, row_stride, id_bits, depth_scale, band,
-                               n_band)
+                n_band = _draw(q, rows, cols, base, face, n_live, keys, row_stride, id_bits, depth_scale, band, n_band)
             else:  # regions of at most _REGION pixels a side, their planes rebased in float64
                 for off_r in range(0, rows, _REGION):
                     for off_c in range(0, cols, _REGION):
                         _scaled(p, scale, True, off_r, off_c, q)
-                        n_band = _draw(q, min(rows - off_r, _REGION), min(cols - off_c, _REGION),
-                                       base + off_r * row_stride + off_c, face, n_live, keys, row_stride, id_bits,
-                                       depth_scale, band, n_band)
+                        n_band = _draw(
+                            q,
+                            min(rows - off_r, _REGION),
+                            min(cols - off_c, _REGION),
+                            base + off_r * row_stride + off_c,
+                            face,
+                            n_live,
+                            keys,
+                            row_stride,
+                            id_bits,
+                            depth_scale,
+                            band,
+                            n_band,
+                        )
             n_live += 1
     return n_live, n_band
 
@@ -288,7 +307,9 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
     faces = tri.contiguous().numpy()
     # The loop reads vertices without bounds checks: a bad index must stop here.
     if faces.size and (faces.min() < 0 or faces.max() >= positions.shape[1]):
-        raise ValueError(f"rasterize: tri holds vertex indices {faces.min()}..{faces.max()}, pos has {positions.shape[1]} vertices")
+        raise ValueError(
+            f"rasterize: tri holds vertex indices {faces.min()}..{faces.max()}, pos has {positions.shape[1]} vertices"
+        )
     N = positions.shape[0] * faces.shape[0]
     live = np.empty(N, dtype=np.int64)
     box = np.empty((N, 2), dtype=np.int64)
@@ -301,9 +322,24 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
     while True:
         band = np.empty((3, capacity), dtype=np.int64)
         # Re-running after an overflow is harmless: depth-testing the same keys again changes nothing.
-        n_live, n_band = _rasterize_views(positions, faces, H, W, cull_backfaces, keys, view_stride,
-                                          buffer.row_stride, buffer.id_bits, buffer.depth_scale, live, box, params,
-                                          front, corners, band)
+        n_live, n_band = _rasterize_views(
+            positions,
+            faces,
+            H,
+            W,
+            cull_backfaces,
+            keys,
+            view_stride,
+            buffer.row_stride,
+            buffer.id_bits,
+            buffer.depth_scale,
+            live,
+            box,
+            params,
+            front,
+            corners,
+            band,
+        )
         if n_live < 0:
             return None
         if n_band <= capacity:
@@ -312,8 +348,14 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
     if n_band:
         buffer.undecided.append(tuple(torch.from_numpy(band[i, :n_band].copy()) for i in range(3)))
     box = torch.from_numpy(box[:n_live])
-    return (torch.from_numpy(live[:n_live]), box[:, 0], box[:, 1], torch.from_numpy(params[:, :n_live]),
-            torch.from_numpy(front[:n_live]), torch.from_numpy(corners[:, :, :n_live]))
+    return (
+        torch.from_numpy(live[:n_live]),
+        box[:, 0],
+        box[:, 1],
+        torch.from_numpy(params[:, :n_live]),
+        torch.from_numpy(front[:n_live]),
+        torch.from_numpy(corners[:, :, :n_live]),
+    )
 
 
 def warm_up() -> None:

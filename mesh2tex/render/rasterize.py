@@ -139,8 +139,10 @@ def _pixel_boxes(corners: torch.Tensor, resolution):
         px, py = points[..., 0] / safe_w, points[..., 1] / safe_w
         inf = torch.full_like(px, float("inf"))
         for bound, value in (
-            (x_min, torch.where(valid, px, inf).amin(1)), (x_max, torch.where(valid, px, -inf).amax(1)),
-            (y_min, torch.where(valid, py, inf).amin(1)), (y_max, torch.where(valid, py, -inf).amax(1)),
+            (x_min, torch.where(valid, px, inf).amin(1)),
+            (x_max, torch.where(valid, px, -inf).amax(1)),
+            (y_min, torch.where(valid, py, inf).amin(1)),
+            (y_max, torch.where(valid, py, -inf).amax(1)),
         ):
             bound.view(-1)[crossing_tri] = value.float()
         usable.view(-1)[crossing_tri] = valid.any(1)
@@ -193,7 +195,6 @@ def _edge_setup(clip: torch.Tensor, resolution, row0, col0):
     params[1] *= 2.0 / W
     params[2] *= -2.0 / H
     return params.view(12, -1), det
-
 
 
 def _regions(params64, scale, rows, cols):
@@ -270,8 +271,8 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool) -> Setu
     bins = torch.where(small, size_bins(rows.clamp(1, WHOLE), cols.clamp(1, WHOLE)), N_BINS)
     bins = torch.where(rows * cols > 0, bins, N_BINS + 1)
     live = torch.argsort(bins, stable=True)
-    counts = torch.bincount(bins, minlength=N_BINS + 2).tolist()[:N_BINS + 1]
-    live = live[:sum(counts)]
+    counts = torch.bincount(bins, minlength=N_BINS + 2).tolist()[: N_BINS + 1]
+    live = live[: sum(counts)]
     row0, col0, rows, cols = (t.index_select(0, live) for t in (row0, col0, rows, cols))
     clip = columns(corners, live)
     size = clip.abs().amax((0, 1))
@@ -283,8 +284,9 @@ def _live_setup(corners: torch.Tensor, resolution, cull_backfaces: bool) -> Setu
     if not bool(keep.all()):
         keep = torch.nonzero(keep).squeeze(1)
         counts = torch.bincount(bins.index_select(0, live.index_select(0, keep)), minlength=N_BINS + 1).tolist()
-        live, row0, col0, rows, cols, det, size = (t.index_select(0, keep)
-                                                   for t in (live, row0, col0, rows, cols, det, size))
+        live, row0, col0, rows, cols, det, size = (
+            t.index_select(0, keep) for t in (live, row0, col0, rows, cols, det, size)
+        )
         params64 = columns(params64, keep)
     scale = band_scale(params64, size, det, rows, cols)
     return Setups(live, row0, col0, rows, cols, params64, scale, det > 0, counts)
@@ -299,7 +301,8 @@ def _draw_large(buffer: DepthBuffer, setups: Setups, first: int, base, face, max
         face: (N,) int64 triangle index.
     """
     owner, off_r, off_c, r_rows, r_cols, r_params = _regions(
-        setups.params64[:, first:], setups.scale[:, first:], setups.rows[first:], setups.cols[first:])
+        setups.params64[:, first:], setups.scale[:, first:], setups.rows[first:], setups.cols[first:]
+    )
     r_base = base.index_select(0, owner) + off_r * buffer.row_stride + off_c
     r_face = face.index_select(0, owner)
     r_setup = owner + first
@@ -314,8 +317,9 @@ def _draw_large(buffer: DepthBuffer, setups: Setups, first: int, base, face, max
         lo = hi
 
 
-def _draw_vectorised(buffer: DepthBuffer, corners: torch.Tensor, triangles: int, resolution,
-                     cull_backfaces: bool, max_pairs: int):
+def _draw_vectorised(
+    buffer: DepthBuffer, corners: torch.Tensor, triangles: int, resolution, cull_backfaces: bool, max_pairs: int
+):
     """Draw every (view, triangle) pair of ``corners`` (4,3,N) into ``buffer`` with the vectorised
     passes (CUDA, or the CPU without the compiled loop of :mod:`mesh2tex.render.kernels`).
 
@@ -332,8 +336,12 @@ def _draw_vectorised(buffer: DepthBuffer, corners: torch.Tensor, triangles: int,
         # last) go through the coarse pass.
         n = sum(counts[:N_BINS])
         if n:
-            entries = Entries(_scaled(setups.params64[:, :n], setups.scale[:, :n]), base[:n], face[:n],
-                              torch.arange(n, device=live.device))
+            entries = Entries(
+                _scaled(setups.params64[:, :n], setups.scale[:, :n]),
+                base[:n],
+                face[:n],
+                torch.arange(n, device=live.device),
+            )
             draw(buffer, entries, bin_slices(counts[:N_BINS], max_pairs), max_pairs)
         if counts[N_BINS]:
             _draw_large(buffer, setups, n, base[n:], face[n:], max_pairs)
@@ -424,8 +432,7 @@ def rasterize(
         if drawn is None:  # no loop, or it stopped at a triangle across the near plane: the keys it wrote are
             # ones the vectorised passes write again (a depth test keeps the minimum), so the result is the same
             corners = gather_corners(pos, tri)
-            live, row0, col0, params64, front = _draw_vectorised(buffer, corners, T, (H, W), cull_backfaces,
-                                                                 max_pairs)
+            live, row0, col0, params64, front = _draw_vectorised(buffer, corners, T, (H, W), cull_backfaces, max_pairs)
             edges = EdgeTest(corners, live, front, (H, W))
         else:
             live, row0, col0, params64, front, corners = drawn

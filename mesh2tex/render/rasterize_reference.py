@@ -36,9 +36,11 @@ def rasterize_reference(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_b
     with torch.no_grad():
         pos = pos[None] if pos.dim() == 2 else pos
         B, T, device = pos.shape[0], tri.shape[0], pos.device
-        raster = Raster(torch.full((B, H, W), -1, dtype=torch.long, device=device),
-                        torch.zeros((B, H, W, 3), dtype=torch.float32, device=device),
-                        torch.ones((B, H, W), dtype=torch.float32, device=device))
+        raster = Raster(
+            torch.full((B, H, W), -1, dtype=torch.long, device=device),
+            torch.zeros((B, H, W, 3), dtype=torch.float32, device=device),
+            torch.ones((B, H, W), dtype=torch.float32, device=device),
+        )
         if T == 0 or B == 0:
             return raster
         corners = gather_corners(pos, tri.to(device=device, dtype=torch.long))
@@ -47,8 +49,9 @@ def rasterize_reference(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_b
         edges = EdgeTest(corners, live, setups.front, (H, W))
         buffer = DepthBuffer(B, (H, W), (0, 0), T, device)
         keys = buffer.keys.view(B, H, W)
-        owner, off_r, off_c, r_rows, r_cols, r_params = _regions(setups.params64, setups.scale, setups.rows,
-                                                                 setups.cols)
+        owner, off_r, off_c, r_rows, r_cols, r_params = _regions(
+            setups.params64, setups.scale, setups.rows, setups.cols
+        )
         for k in range(owner.numel()):
             i = int(owner[k])
             view, face = divmod(int(live[i]), T)
@@ -64,7 +67,7 @@ def rasterize_reference(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_b
             z = torch.addcmul(torch.addcmul(p[3], p[11], dr), p[7], dc)
             key = (((z.double() + 1) * buffer.depth_scale).long() << buffer.id_bits) | face
             key = torch.where(covered & (z.abs() <= 1), key, buffer.empty)
-            window = keys[view, top:top + n_rows, left:left + n_cols]
+            window = keys[view, top : top + n_rows, left : left + n_cols]
             torch.minimum(window, key, out=window)
         resolve_winners(raster, buffer.keys, buffer.id_bits, T, live, row0, col0, setups.params64)
         return raster

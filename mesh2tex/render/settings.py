@@ -40,12 +40,17 @@ class RenderSettings:
     lighting: str = "photo"
 
     def __post_init__(self):
-        for name, value, top in (("resolution", self.resolution, MAX_RESOLUTION), ("supersample", self.supersample, MAX_SUPERSAMPLE)):
+        for name, value, top in (
+            ("resolution", self.resolution, MAX_RESOLUTION),
+            ("supersample", self.supersample, MAX_SUPERSAMPLE),
+        ):
             if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
                 raise ValueError(f"render settings: {name} must be a whole number from 1 to {top}, got {value!r}")
         if self.raster_side > MAX_RESOLUTION * 2:
-            raise ValueError(f"render settings: resolution {self.resolution} x supersample {self.supersample} rasterizes "
-                             f"{self.raster_side} px a side, more than {MAX_RESOLUTION * 2}")
+            raise ValueError(
+                f"render settings: resolution {self.resolution} x supersample {self.supersample} rasterizes "
+                f"{self.raster_side} px a side, more than {MAX_RESOLUTION * 2}"
+            )
         if self.lighting not in LIGHTING:
             raise ValueError(f"render settings: lighting must be one of {', '.join(LIGHTING)}, got {self.lighting!r}")
 

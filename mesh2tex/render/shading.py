@@ -38,8 +38,7 @@ def face_normals(vertices: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
     """
     _check_mesh("face_normals", vertices, tri)
     corners = vertices[..., tri, :]  # (...,T,3,3)
-    normal = torch.linalg.cross(corners[..., 1, :] - corners[..., 0, :],
-                                corners[..., 2, :] - corners[..., 0, :])
+    normal = torch.linalg.cross(corners[..., 1, :] - corners[..., 0, :], corners[..., 2, :] - corners[..., 0, :])
     return torch.nn.functional.normalize(normal, dim=-1)
 
 
@@ -58,8 +57,9 @@ def vertex_normals(vertices: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
     triangles tri (T,3) int64; zero for unreferenced vertices."""
     _check_mesh("vertex_normals", vertices, tri)
     corners = vertices[..., tri, :]
-    weighted = torch.linalg.cross(corners[..., 1, :] - corners[..., 0, :],
-                                  corners[..., 2, :] - corners[..., 0, :])  # length = 2 * area
+    weighted = torch.linalg.cross(
+        corners[..., 1, :] - corners[..., 0, :], corners[..., 2, :] - corners[..., 0, :]
+    )  # length = 2 * area
     normals = torch.zeros_like(vertices)
     index = tri.reshape(-1).to(vertices.device)
     per_corner = weighted.unsqueeze(-2).expand(*weighted.shape[:-1], 3, 3)
@@ -68,8 +68,7 @@ def vertex_normals(vertices: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
     return torch.nn.functional.normalize(normals, dim=-1)
 
 
-def render_normals(vertices: torch.Tensor, tri: torch.Tensor, raster: Raster,
-                   smooth: bool = True) -> torch.Tensor:
+def render_normals(vertices: torch.Tensor, tri: torch.Tensor, raster: Raster, smooth: bool = True) -> torch.Tensor:
     """World-space unit normals per pixel.
 
     Args:
@@ -102,8 +101,9 @@ def render_noc(noc: torch.Tensor, raster: Raster, tri: torch.Tensor) -> torch.Te
     return interpolate(noc, raster, tri)
 
 
-def shade_lambert(albedo: torch.Tensor, normals: torch.Tensor, light_dir, ambient: float = 0.3,
-                  two_sided: bool = True) -> torch.Tensor:
+def shade_lambert(
+    albedo: torch.Tensor, normals: torch.Tensor, light_dir, ambient: float = 0.3, two_sided: bool = True
+) -> torch.Tensor:
     """Lambert shading ``albedo * (ambient + (1 - ambient) * max(0, n . l))``.
 
     Args:
@@ -145,8 +145,16 @@ class LightConfig:
     ambient_max: float = 0.6
 
     def __post_init__(self):
-        check_fields(self, between={"azimuth_spread": (0.0, 180.0), "elevation_min": (-90.0, 90.0), "elevation_max": (-90.0, 90.0),
-                                    "ambient_min": (0.0, 1.0), "ambient_max": (0.0, 1.0)})
+        check_fields(
+            self,
+            between={
+                "azimuth_spread": (0.0, 180.0),
+                "elevation_min": (-90.0, 90.0),
+                "elevation_max": (-90.0, 90.0),
+                "ambient_min": (0.0, 1.0),
+                "ambient_max": (0.0, 1.0),
+            },
+        )
         if self.elevation_min > self.elevation_max or self.ambient_min > self.ambient_max:
             raise ValueError("elevation_min/ambient_min must not exceed elevation_max/ambient_max")
 
@@ -174,7 +182,9 @@ def random_lights(camera_azimuth: torch.Tensor, cfg: LightConfig, generator: tor
     return Lights(orbit_direction(azimuth, elevation), ambient)
 
 
-def shade_colours(colours: torch.Tensor, normals: torch.Tensor, direction: torch.Tensor, ambient: torch.Tensor) -> torch.Tensor:
+def shade_colours(
+    colours: torch.Tensor, normals: torch.Tensor, direction: torch.Tensor, ambient: torch.Tensor
+) -> torch.Tensor:
     """Lambert shading of network colours at P points: colours (P, 3) in [-1, 1] (albedo 0..1 mapped),
     unit normals (P, 3), light direction (P, 3), ambient (P,) -> shaded colours (P, 3) in [-1, 1].
     Two-sided, as :func:`shade_lambert` (which it applies to the albedo)."""
@@ -183,7 +193,9 @@ def shade_colours(colours: torch.Tensor, normals: torch.Tensor, direction: torch
         check_shape(value, f"shade_colours: {name}", ("P", 3), sizes=sizes, dtype="float")
     check_shape(ambient, "shade_colours: ambient", ("P",), sizes=sizes, dtype="float")
     albedo = (colours + 1) * 0.5
-    shaded = shade_lambert(albedo[:, None, None], normals[:, None, None], direction, ambient.reshape(-1, 1, 1, 1).to(colours.dtype))
+    shaded = shade_lambert(
+        albedo[:, None, None], normals[:, None, None], direction, ambient.reshape(-1, 1, 1, 1).to(colours.dtype)
+    )
     return shaded[:, 0, 0] * 2 - 1
 
 
@@ -201,7 +213,9 @@ def composite(rgb: torch.Tensor, mask: torch.Tensor, background) -> torch.Tensor
     sizes = check_shape(rgb, "composite: rgb", ("B", "H", "W", "C"), dtype="float")
     check_shape(mask, "composite: mask", ("B", "H", "W", 1), (1, "H", "W", 1), sizes=sizes)
     background = torch.as_tensor(background, dtype=rgb.dtype, device=rgb.device)
-    check_shape(background, "composite: background", (), (1,), ("C",), ("H", "W", "C"), ("B", "H", "W", "C"), sizes=sizes)
+    check_shape(
+        background, "composite: background", (), (1,), ("C",), ("H", "W", "C"), ("B", "H", "W", "C"), sizes=sizes
+    )
     if background.dim() <= 1:
         background = background.reshape(1, 1, 1, -1)
     elif background.dim() == 3:
@@ -240,6 +254,8 @@ def composite_images(images: torch.Tensor, masks: torch.Tensor, background=1.0) 
         check_shape(background, "composite_images: background", ("N", "C"), sizes=sizes)
         background = background[:, :, None, None]
     elif isinstance(background, torch.Tensor) and not _broadcasts_to(background.shape, images.shape):
-        raise ValueError(f"composite_images: background must be a float, (N, C) colours or images broadcastable to "
-                         f"{list(images.shape)}, got {list(background.shape)}")
+        raise ValueError(
+            f"composite_images: background must be a float, (N, C) colours or images broadcastable to "
+            f"{list(images.shape)}, got {list(background.shape)}"
+        )
     return _blend(images, masks, background)

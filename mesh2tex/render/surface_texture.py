@@ -33,16 +33,21 @@ class SurfaceTexture(Protocol):
 COLOUR_CHUNK = 262_144  # surface points read at once by a baker: bounds a field's activations (about 1 GB at this size)
 
 
-def read_colours(texture: SurfaceTexture, triangle_id: torch.Tensor, bary: torch.Tensor, device=None,
-                 chunk: int = COLOUR_CHUNK) -> torch.Tensor:
+def read_colours(
+    texture: SurfaceTexture, triangle_id: torch.Tensor, bary: torch.Tensor, device=None, chunk: int = COLOUR_CHUNK
+) -> torch.Tensor:
     """``texture.colours`` at P surface points, ``chunk`` at a time on ``device`` (default: the points'):
     triangle_id (P,) int, bary (P, 3) float -> (P, 3) float32 on the CPU, RGB in [-1, 1]. A 2048^2 bake
     asks for millions of points; a network's field holds activations for all it is given at once."""
     sizes = check_shape(triangle_id, "read_colours: triangle_id", ("P",), dtype="int")
     check_shape(bary, "read_colours: bary", ("P", 3), sizes=sizes, dtype="float")
     device = triangle_id.device if device is None else device
-    out = [texture.colours(triangle_id[start:start + chunk].to(device), bary[start:start + chunk].to(device)).float().cpu()
-           for start in range(0, len(triangle_id), chunk)]
+    out = [
+        texture.colours(triangle_id[start : start + chunk].to(device), bary[start : start + chunk].to(device))
+        .float()
+        .cpu()
+        for start in range(0, len(triangle_id), chunk)
+    ]
     return torch.cat(out) if out else torch.zeros(0, 3)
 
 

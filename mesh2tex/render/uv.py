@@ -125,14 +125,20 @@ def unwrap_uv(vertices, faces):
     v = vertices.detach().cpu().numpy() if as_torch else np.asarray(vertices)
     f = faces.detach().cpu().numpy() if torch.is_tensor(faces) else np.asarray(faces)
     vertex_map, new_faces, uv = xatlas.parametrize(v.astype(np.float32), f.astype(np.uint32))
-    result = (v[vertex_map].astype(np.float32), new_faces.astype(np.int64), uv.astype(np.float32),
-              vertex_map.astype(np.int64))
+    result = (
+        v[vertex_map].astype(np.float32),
+        new_faces.astype(np.int64),
+        uv.astype(np.float32),
+        vertex_map.astype(np.int64),
+    )
     if as_torch:
         return tuple(torch.from_numpy(a).to(vertices.device) for a in result)
     return result
 
 
-def bake_surface_colours(vertices: torch.Tensor, triangles: torch.Tensor, texture, size: int, dilate: int = 8, device=None):
+def bake_surface_colours(
+    vertices: torch.Tensor, triangles: torch.Tensor, texture, size: int, dilate: int = 8, device=None
+):
     """Bake a texture bound to a mesh into a UV image over a fresh atlas.
 
     Args:

@@ -33,13 +33,17 @@ def _photo(name: str) -> np.ndarray:
 
 
 def _colour(rng: np.random.Generator, saturation: float = 0.7) -> np.ndarray:
-    return np.array(colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.0, saturation), rng.uniform(0.1, 1.0)), dtype=np.float32)
+    return np.array(
+        colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.0, saturation), rng.uniform(0.1, 1.0)), dtype=np.float32
+    )
 
 
 def _clutter(rng: np.random.Generator, size: int) -> np.ndarray:
     import cv2
 
-    image = np.ascontiguousarray(random_background(str(rng.choice(["solid", "gradient"])), int(rng.integers(1 << 31)), size))
+    image = np.ascontiguousarray(
+        random_background(str(rng.choice(["solid", "gradient"])), int(rng.integers(1 << 31)), size)
+    )
     for _ in range(int(rng.integers(4, 30))):
         colour = tuple(float(c) for c in _colour(rng))
         kind = int(rng.integers(4))
@@ -73,7 +77,9 @@ def backdrop(rng: np.random.Generator, size: int) -> np.ndarray:
     h, w = source.shape[:2]
     side = max(8, int(rng.uniform(0.25, 1.0) * min(h, w)))
     top, left = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))
-    crop = cv2.resize(np.ascontiguousarray(source[top:top + side, left:left + side]), (size, size), interpolation=cv2.INTER_AREA)
+    crop = cv2.resize(
+        np.ascontiguousarray(source[top : top + side, left : left + side]), (size, size), interpolation=cv2.INTER_AREA
+    )
     crop = crop.astype(np.float32) / 255.0
     if rng.random() < 0.5:
         crop = crop[:, ::-1]
@@ -81,7 +87,9 @@ def backdrop(rng: np.random.Generator, size: int) -> np.ndarray:
     return np.ascontiguousarray(np.clip(crop * gain, 0.0, 1.0))
 
 
-def place_over_backdrops(images: torch.Tensor, masks: torch.Tensor, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+def place_over_backdrops(
+    images: torch.Tensor, masks: torch.Tensor, rng: np.random.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Framed views of objects, each shrunk to a random share of the frame (:data:`SCALE_RANGE`), put at
     a random place over a fresh :func:`backdrop`, with a random exposure and a little sensor noise.
 
@@ -93,16 +101,18 @@ def place_over_backdrops(images: torch.Tensor, masks: torch.Tensor, rng: np.rand
     for b in range(batch):
         side = max(8, int(round(size * rng.uniform(*SCALE_RANGE))))
         top, left = int(rng.integers(0, size - side + 1)), int(rng.integers(0, size - side + 1))
-        rgb = F.interpolate((images[b:b + 1] + 1) / 2, size=(side, side), mode="area")
-        cover = F.interpolate(masks[b:b + 1].float(), size=(side, side), mode="area")
+        rgb = F.interpolate((images[b : b + 1] + 1) / 2, size=(side, side), mode="area")
+        cover = F.interpolate(masks[b : b + 1].float(), size=(side, side), mode="area")
         canvas = torch.from_numpy(backdrop(rng, size)).permute(2, 0, 1)[None].to(images)
         alpha = torch.zeros_like(canvas[:, :1])
-        alpha[..., top:top + side, left:left + side] = cover
+        alpha[..., top : top + side, left : left + side] = cover
         placed = torch.zeros_like(canvas)
-        placed[..., top:top + side, left:left + side] = rgb
+        placed[..., top : top + side, left : left + side] = rgb
         photo = placed * alpha + canvas * (1 - alpha)
         photo = photo * float(rng.uniform(0.8, 1.2)) + float(rng.uniform(-0.05, 0.05))
-        photo = photo + float(rng.uniform(0.0, 0.03)) * torch.from_numpy(rng.standard_normal(photo.shape).astype(np.float32))
+        photo = photo + float(rng.uniform(0.0, 0.03)) * torch.from_numpy(
+            rng.standard_normal(photo.shape).astype(np.float32)
+        )
         out_images[b] = photo.clamp(0, 1)[0] * 2 - 1
         out_masks[b] = (alpha[0] >= 0.5).to(masks.dtype)
     return out_images, out_masks

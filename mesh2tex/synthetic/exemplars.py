@@ -14,8 +14,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mesh2tex.synthetic.materials import (Checker, Colour, Noise, Pattern, PhotoPattern, Stripes, Weave, WoodGrain, _mix,
-                                          triplanar)
+from mesh2tex.synthetic.materials import (
+    Checker,
+    Colour,
+    Noise,
+    Pattern,
+    PhotoPattern,
+    Stripes,
+    Weave,
+    WoodGrain,
+    _mix,
+    triplanar,
+)
 
 
 @dataclass
@@ -35,7 +45,9 @@ class Bricks(Pattern):
             along = np.mod(u / self.width + 0.5 * np.mod(row, 2), 1.0) * self.width
             across = np.mod(v, self.height)
             half = self.mortar / 2
-            return ((along < half) | (along > self.width - half) | (across < half) | (across > self.height - half)).astype(np.float64)
+            return (
+                (along < half) | (along > self.width - half) | (across < half) | (across > self.height - half)
+            ).astype(np.float64)
 
         return _mix(self.brick, self.joint, triplanar(joint, points, normals))
 
@@ -72,7 +84,9 @@ EXEMPLARS: dict[str, Pattern] = {
     "brick": PhotoPattern("brick", (0.35, 0.12, 0.08), (0.92, 0.62, 0.45), tile=1.0),
     "bricks": Bricks((0.66, 0.24, 0.16), (0.86, 0.83, 0.76), width=0.25, height=0.125, mortar=0.025),
     "dots": Dots((0.15, 0.22, 0.50), (0.95, 0.92, 0.80), spacing=0.1428, radius=0.04),
-    "grass": PhotoPattern("grass", (0.10, 0.22, 0.05), (0.62, 0.78, 0.35), tile=2.0),  # extent 1: a 2x crop of the photo
+    "grass": PhotoPattern(
+        "grass", (0.10, 0.22, 0.05), (0.62, 0.78, 0.35), tile=2.0
+    ),  # extent 1: a 2x crop of the photo
     "gravel": PhotoPattern("gravel", (0.25, 0.23, 0.21), (0.85, 0.82, 0.76), tile=2.0),
 }
 

@@ -24,15 +24,39 @@ from mesh2tex.synthetic.shapes import PART_ID, PART_NAMES
 Colour = tuple[float, float, float]
 
 # Palettes (sRGB in [0, 1]) by role.
-FABRIC = ((0.62, 0.12, 0.12), (0.14, 0.24, 0.48), (0.22, 0.40, 0.25), (0.78, 0.62, 0.30), (0.45, 0.45, 0.48),
-          (0.85, 0.80, 0.70), (0.30, 0.18, 0.38), (0.12, 0.12, 0.14), (0.85, 0.45, 0.20), (0.20, 0.50, 0.55))
+FABRIC = (
+    (0.62, 0.12, 0.12),
+    (0.14, 0.24, 0.48),
+    (0.22, 0.40, 0.25),
+    (0.78, 0.62, 0.30),
+    (0.45, 0.45, 0.48),
+    (0.85, 0.80, 0.70),
+    (0.30, 0.18, 0.38),
+    (0.12, 0.12, 0.14),
+    (0.85, 0.45, 0.20),
+    (0.20, 0.50, 0.55),
+)
 LEATHER = ((0.35, 0.18, 0.08), (0.10, 0.08, 0.07), (0.55, 0.35, 0.18), (0.75, 0.70, 0.62), (0.45, 0.10, 0.08))
-WOOD = (((0.78, 0.58, 0.36), (0.55, 0.35, 0.18)), ((0.60, 0.38, 0.20), (0.36, 0.20, 0.09)),
-        ((0.88, 0.76, 0.56), (0.68, 0.52, 0.32)), ((0.36, 0.22, 0.13), (0.20, 0.11, 0.06)))
+WOOD = (
+    ((0.78, 0.58, 0.36), (0.55, 0.35, 0.18)),
+    ((0.60, 0.38, 0.20), (0.36, 0.20, 0.09)),
+    ((0.88, 0.76, 0.56), (0.68, 0.52, 0.32)),
+    ((0.36, 0.22, 0.13), (0.20, 0.11, 0.06)),
+)
 METAL = ((0.70, 0.71, 0.73), (0.45, 0.46, 0.48), (0.12, 0.12, 0.13), (0.85, 0.85, 0.82))
 PLASTIC = ((0.92, 0.92, 0.90), (0.10, 0.10, 0.10), (0.80, 0.20, 0.15), (0.95, 0.75, 0.10), (0.20, 0.45, 0.80))
-PAINT = ((0.75, 0.08, 0.08), (0.08, 0.18, 0.55), (0.92, 0.92, 0.92), (0.08, 0.08, 0.09), (0.60, 0.62, 0.65),
-         (0.95, 0.75, 0.05), (0.10, 0.40, 0.20), (0.95, 0.45, 0.05), (0.35, 0.65, 0.85), (0.45, 0.05, 0.25))
+PAINT = (
+    (0.75, 0.08, 0.08),
+    (0.08, 0.18, 0.55),
+    (0.92, 0.92, 0.92),
+    (0.08, 0.08, 0.09),
+    (0.60, 0.62, 0.65),
+    (0.95, 0.75, 0.05),
+    (0.10, 0.40, 0.20),
+    (0.95, 0.45, 0.05),
+    (0.35, 0.65, 0.85),
+    (0.45, 0.05, 0.25),
+)
 GLASS = ((0.10, 0.13, 0.17), (0.16, 0.22, 0.28), (0.06, 0.07, 0.08))
 PHOTO_IMAGES = ("brick", "grass", "gravel")
 
@@ -187,7 +211,8 @@ class PhotoPattern(Pattern):
 
 @dataclass
 class UpFacing(Pattern):
-    """``top`` where the surface faces up (normal y above ``threshold``), else ``sides`` (a car's roof over its windows)."""
+    """``top`` where the surface faces up (normal y above ``threshold``), else ``sides`` (a car's roof over its
+    windows)."""
 
     top: Pattern
     sides: Pattern
@@ -201,7 +226,12 @@ class UpFacing(Pattern):
         return out
 
     def describe(self):
-        return {"kind": "upfacing", "top": self.top.describe(), "sides": self.sides.describe(), "threshold": self.threshold}
+        return {
+            "kind": "upfacing",
+            "top": self.top.describe(),
+            "sides": self.sides.describe(),
+            "threshold": self.threshold,
+        }
 
 
 @dataclass
@@ -212,7 +242,8 @@ class Material:
     default: Pattern = field(default_factory=lambda: Solid((0.5, 0.5, 0.5)))
 
     def __call__(self, points: np.ndarray, normals: np.ndarray, part_ids: np.ndarray) -> np.ndarray:
-        """points (N,3) float, normals (N,3) float, part_ids (N,) int (PART_NAMES index) -> rgb (N,3) float64 in [0,1]."""
+        """points (N,3) float, normals (N,3) float, part_ids (N,) int (PART_NAMES index) -> rgb (N,3) float64 in
+        [0,1]."""
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         part_ids = np.asarray(part_ids).reshape(-1)
@@ -266,7 +297,11 @@ def _value_noise(points: np.ndarray, table: np.ndarray) -> np.ndarray:
                 h = table[(corner[:, 0] + dx) & 255]
                 h = table[(h + corner[:, 1] + dy) & 255]
                 h = table[(h + corner[:, 2] + dz) & 255]
-                w = (frac[:, 0] if dx else 1 - frac[:, 0]) * (frac[:, 1] if dy else 1 - frac[:, 1]) * (frac[:, 2] if dz else 1 - frac[:, 2])
+                w = (
+                    (frac[:, 0] if dx else 1 - frac[:, 0])
+                    * (frac[:, 1] if dy else 1 - frac[:, 1])
+                    * (frac[:, 2] if dz else 1 - frac[:, 2])
+                )
                 out += w * (h / 255.0)
     return out
 
@@ -346,7 +381,13 @@ def random_upholstery(rng: np.random.Generator) -> Pattern:
         leather = _jitter(rng, _pick(rng, LEATHER), 0.04)
         return Noise(_shade(leather, 0.75), leather, float(rng.uniform(15, 30)), 3, int(rng.integers(1 << 16)))
     if kind == "stripes":
-        return Stripes(base, _jitter(rng, _pick(rng, FABRIC)), _random_axis(rng), float(rng.uniform(6, 18)), float(rng.uniform(0.3, 0.7)))
+        return Stripes(
+            base,
+            _jitter(rng, _pick(rng, FABRIC)),
+            _random_axis(rng),
+            float(rng.uniform(6, 18)),
+            float(rng.uniform(0.3, 0.7)),
+        )
     if kind == "checker":
         return Checker(base, _jitter(rng, _pick(rng, FABRIC)), float(rng.uniform(0.04, 0.12)))
     if kind == "photo":
@@ -365,7 +406,13 @@ def random_photo(rng: np.random.Generator, tint: Colour) -> PhotoPattern:
 
 def random_wood(rng: np.random.Generator) -> WoodGrain:
     light, dark = _pick(rng, WOOD)
-    return WoodGrain(_jitter(rng, light, 0.04), _jitter(rng, dark, 0.03), _random_axis(rng), float(rng.uniform(25, 60)), int(rng.integers(1 << 16)))
+    return WoodGrain(
+        _jitter(rng, light, 0.04),
+        _jitter(rng, dark, 0.03),
+        _random_axis(rng),
+        float(rng.uniform(25, 60)),
+        int(rng.integers(1 << 16)),
+    )
 
 
 def random_frame(rng: np.random.Generator) -> Pattern:
@@ -411,14 +458,17 @@ def random_car_material(rng: np.random.Generator) -> Material:
     glass = Solid(_jitter(rng, _pick(rng, GLASS), 0.02))
     tyre = Noise((0.05, 0.05, 0.05), (0.14, 0.14, 0.15), 40.0, 2, int(rng.integers(1 << 16)))
     hub = Solid(_jitter(rng, _pick(rng, METAL), 0.03))
-    return Material({
-        "body": paint,
-        "cabin": UpFacing(paint, glass),
-        "wheel": tyre,
-        "hub": hub,
-        "headlight": Solid(_jitter(rng, (0.95, 0.93, 0.80), 0.03)),
-        "taillight": Solid(_jitter(rng, (0.80, 0.08, 0.06), 0.03)),
-    }, default=paint)
+    return Material(
+        {
+            "body": paint,
+            "cabin": UpFacing(paint, glass),
+            "wheel": tyre,
+            "hub": hub,
+            "headlight": Solid(_jitter(rng, (0.95, 0.93, 0.80), 0.03)),
+            "taillight": Solid(_jitter(rng, (0.80, 0.08, 0.06), 0.03)),
+        },
+        default=paint,
+    )
 
 
 def random_material(category: str, rng: np.random.Generator) -> Material:
@@ -431,6 +481,19 @@ def random_material(category: str, rng: np.random.Generator) -> Material:
 
 
 __all__ = [
-    "Pattern", "Solid", "Stripes", "Checker", "Noise", "WoodGrain", "Weave", "PhotoPattern", "UpFacing", "Material",
-    "fractal_noise", "triplanar", "photo_image", "random_material", "PART_NAMES",
+    "Pattern",
+    "Solid",
+    "Stripes",
+    "Checker",
+    "Noise",
+    "WoodGrain",
+    "Weave",
+    "PhotoPattern",
+    "UpFacing",
+    "Material",
+    "fractal_noise",
+    "triplanar",
+    "photo_image",
+    "random_material",
+    "PART_NAMES",
 ]

@@ -34,7 +34,9 @@ def bezier(control, count: int) -> np.ndarray:
     return sum(w * c for w, c in zip(weights, control))
 
 
-def arc_points(centre, radius: float, start_degrees: float, end_degrees: float, count: int, plane: str = "zy") -> np.ndarray:
+def arc_points(
+    centre, radius: float, start_degrees: float, end_degrees: float, count: int, plane: str = "zy"
+) -> np.ndarray:
     """(count, 3) points on a circular arc in the plane named by two axes (first axis at 0 degrees)."""
     axes = {"x": 0, "y": 1, "z": 2}
     a, b = axes[plane[0]], axes[plane[1]]
@@ -88,8 +90,9 @@ def tube_rings(points, radius, segments: int = 12, closed: bool = False) -> np.n
     # Half a step off the frame's axes: no ring point lies in the plane of a symmetric design's other parts
     # (two meshes with vertices on one plane meet in near-coincident edges, which leave slivers).
     angles = np.linspace(0.0, 2 * math.pi, segments, endpoint=False) + math.pi / segments
-    return points[:, None] + radius[:, None, None] * (np.cos(angles)[None, :, None] * normals[:, None]
-                                                     + np.sin(angles)[None, :, None] * binormals[:, None])
+    return points[:, None] + radius[:, None, None] * (
+        np.cos(angles)[None, :, None] * normals[:, None] + np.sin(angles)[None, :, None] * binormals[:, None]
+    )
 
 
 def loft(rings, closed: bool = False) -> mf.Manifold:
@@ -114,7 +117,11 @@ def loft(rings, closed: bool = False) -> mf.Manifold:
     vertices = rings.reshape(-1, 3)
     if _signed_volume(vertices, faces) < 0:
         faces = faces[:, ::-1]
-    solid = mf.Manifold(mf.Mesh64(vert_properties=np.ascontiguousarray(vertices), tri_verts=np.ascontiguousarray(faces, dtype=np.uint64)))
+    solid = mf.Manifold(
+        mf.Mesh64(
+            vert_properties=np.ascontiguousarray(vertices), tri_verts=np.ascontiguousarray(faces, dtype=np.uint64)
+        )
+    )
     if solid.status() != mf.Error.NoError or solid.volume() <= 0:
         raise ValueError(f"the lofted rings do not bound a valid solid ({solid.status()})")
     return solid
@@ -140,10 +147,15 @@ def superellipse(half_width: float, half_height: float, exponent: float, count: 
     rounded rectangle."""
     t = np.linspace(0.0, 2 * math.pi, count, endpoint=False)
     c, s = np.cos(t), np.sin(t)
-    return np.stack([half_width * np.sign(c) * np.abs(c) ** (2 / exponent), half_height * np.sign(s) * np.abs(s) ** (2 / exponent)], axis=1)
+    return np.stack(
+        [half_width * np.sign(c) * np.abs(c) ** (2 / exponent), half_height * np.sign(s) * np.abs(s) ** (2 / exponent)],
+        axis=1,
+    )
 
 
-def cushion(size, centre, exponent: float = 5.0, vertical_exponent: float = 3.0, segments: int = 28, layers: int = 10) -> mf.Manifold:
+def cushion(
+    size, centre, exponent: float = 5.0, vertical_exponent: float = 3.0, segments: int = 28, layers: int = 10
+) -> mf.Manifold:
     """A superellipsoid filling the box ``size`` (x, y, z) at ``centre``: a stuffed pad with rounded edges.
 
     ``exponent`` shapes the plan (large: square corners), ``vertical_exponent`` the bulge of the sides.
@@ -154,7 +166,9 @@ def cushion(size, centre, exponent: float = 5.0, vertical_exponent: float = 3.0,
     c, s = np.cos(theta), np.sin(theta)
     scale = np.abs(c) ** (2 / vertical_exponent)
     heights = sy * np.sign(s) * np.abs(s) ** (2 / vertical_exponent)
-    rings = np.stack([np.stack([plan[:, 0] * k, np.full(len(plan), h), plan[:, 1] * k], axis=1) for k, h in zip(scale, heights)])
+    rings = np.stack(
+        [np.stack([plan[:, 0] * k, np.full(len(plan), h), plan[:, 1] * k], axis=1) for k, h in zip(scale, heights)]
+    )
     return loft(rings + np.asarray(centre, dtype=np.float64))
 
 
@@ -178,8 +192,17 @@ def place_rings(profile: np.ndarray, points: np.ndarray, across: np.ndarray, up:
     return points[:, None] + profile[..., :1] * across[:, None] + profile[..., 1:2] * up[:, None]
 
 
-def curved_panel(width: float, height: float, thickness: float, bend: float, bottom, recline: float = 0.0,
-                 lumbar: float = 0.0, top_round: float = 6.0, layers: int = 12):
+def curved_panel(
+    width: float,
+    height: float,
+    thickness: float,
+    bend: float,
+    bottom,
+    recline: float = 0.0,
+    lumbar: float = 0.0,
+    top_round: float = 6.0,
+    layers: int = 12,
+):
     """A back bent around the sitter: arc-shaped bands stacked upwards from ``bottom`` (x, y, z), leaning
     back by ``recline`` degrees, bulging forward by ``lumbar`` at mid-height, its top corners rounded
     (``top_round``: the exponent of the outline, large: square). The sides sit at the line through
@@ -188,8 +211,14 @@ def curved_panel(width: float, height: float, thickness: float, bend: float, bot
     widths = width * np.maximum((1 - (0.985 * h) ** top_round) ** (1 / top_round), 0.3)
     profiles = np.stack([band(w, thickness, bend * (w / width) ** 2) - [0.0, bend * (w / width) ** 2] for w in widths])
     x0, y0, z0 = bottom
-    centres = np.stack([np.full(layers, x0), y0 + h * height,
-                        z0 - math.tan(math.radians(recline)) * h * height + lumbar * np.sin(math.pi * h)], axis=1)
+    centres = np.stack(
+        [
+            np.full(layers, x0),
+            y0 + h * height,
+            z0 - math.tan(math.radians(recline)) * h * height + lumbar * np.sin(math.pi * h),
+        ],
+        axis=1,
+    )
     return loft(place_rings(profiles, centres, [1.0, 0, 0], [0, 0, 1.0]))
 
 

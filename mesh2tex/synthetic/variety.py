@@ -23,7 +23,9 @@ def family_shares(category: str) -> dict[str, float]:
     return {name: share for name, (_, share, _) in FAMILIES[category].items()}
 
 
-def generate_varied_shape(category: str, rng: np.random.Generator, variety: str = "boxy", family: str | None = None) -> SyntheticShape:
+def generate_varied_shape(
+    category: str, rng: np.random.Generator, variety: str = "boxy", family: str | None = None
+) -> SyntheticShape:
     """One random shape of ``category`` from the ``variety`` world, drawn from ``rng`` only.
 
     ``family`` (varied world only) fixes the family instead of drawing it; the design is still drawn
@@ -75,7 +77,9 @@ def collapse_short_edges(vertices: np.ndarray, faces: np.ndarray, face_parts: np
     keep = (merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 2] != merged[:, 0])
     faces, face_parts = merged[keep], face_parts[keep]
     directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    if len(np.unique(directed, axis=0)) != len(directed) or len(np.unique(np.sort(directed, axis=1), axis=0)) * 2 != len(directed):
+    if len(np.unique(directed, axis=0)) != len(directed) or len(
+        np.unique(np.sort(directed, axis=1), axis=0)
+    ) * 2 != len(directed):
         return None
     used = np.unique(faces)
     remap = np.full(len(vertices), -1, dtype=np.int64)

@@ -48,7 +48,14 @@ BACKGROUND_KINDS = ("solid", "gradient", "noise", "photo")
 # The photos' lights; the GAN's light prior (LightConfig's defaults) is the same distribution.
 PHOTO_LIGHTS = LightConfig()
 BACKGROUND_PHOTOS = (  # scikit-image photographs the world's "photo" backgrounds and the mask network's backdrops crop
-    "coffee", "rocket", "hubble_deep_field", "immunohistochemistry", "brick", "grass", "gravel")
+    "coffee",
+    "rocket",
+    "hubble_deep_field",
+    "immunohistochemistry",
+    "brick",
+    "grass",
+    "gravel",
+)
 
 
 @dataclass(frozen=True)
@@ -69,7 +76,8 @@ class WorldSpec:
     fov: float = 40.0  # vertical field of view, degrees
     supersample: int = 2  # render at this multiple of the resolution and average (anti-aliasing)
     texture_size: int = 512  # side of the baked UV texture of textured/*.glb
-    variety: str = "boxy"  # 'boxy' (the original shapes) or 'real' (families of real chairs and cars, mesh2tex.synthetic.variety)
+    # 'boxy' (the original shapes) or 'real' (families of real chairs and cars, mesh2tex.synthetic.variety)
+    variety: str = "boxy"
 
     def __post_init__(self):
         if self.category not in CATEGORIES:
@@ -80,7 +88,8 @@ class WorldSpec:
 
     @property
     def photo_render(self) -> RenderSettings:
-        """How the world's photos and queries are rendered (lit, supersampled): every render compared with them uses it."""
+        """How the world's photos and queries are rendered (lit, supersampled): every render compared with them uses
+        it."""
         return RenderSettings(self.resolution, self.supersample)
 
     @property
@@ -99,7 +108,8 @@ class WorldSpec:
         return np.random.default_rng([self.seed, CATEGORIES.index(self.category), index, stream])
 
     def to_dict(self) -> dict:
-        """The settings as JSON; a boxy world leaves ``variety`` out, so its index is what it was before varieties existed."""
+        """The settings as JSON; a boxy world leaves ``variety`` out, so its index is what it was before varieties
+        existed."""
         settings = asdict(self)
         if self.variety == "boxy":
             del settings["variety"]
@@ -125,7 +135,8 @@ def make_shape(spec: WorldSpec, index: int) -> SyntheticShape:
 
 
 def make_material(spec: WorldSpec, index: int, shape: SyntheticShape | None = None) -> Material:
-    """Shape ``index``'s ground-truth material; the varied world sizes it to the shape (``shape``, made again when None)."""
+    """Shape ``index``'s ground-truth material; the varied world sizes it to the shape (``shape``, made again when
+    None)."""
     if spec.variety == "real" and shape is None:
         shape = make_shape(spec, index)
     return sample_material(spec, spec.rng(index, _MATERIAL), shape)
@@ -152,12 +163,18 @@ def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -
         az = math.radians(azimuth + rng.uniform(-PHOTO_LIGHTS.azimuth_spread, PHOTO_LIGHTS.azimuth_spread))
         el = math.radians(rng.uniform(PHOTO_LIGHTS.elevation_min, PHOTO_LIGHTS.elevation_max))
         light = (math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az))
-        views.append(PhotoSetup(
-            azimuth=round(azimuth, 4), elevation=round(elevation, 4), distance=round(distance, 4), fov=spec.fov,
-            light=tuple(round(v, 5) for v in light), ambient=round(float(rng.uniform(PHOTO_LIGHTS.ambient_min, PHOTO_LIGHTS.ambient_max)), 4),
-            background=BACKGROUND_KINDS[int(rng.integers(len(BACKGROUND_KINDS)))],
-            background_seed=int(rng.integers(1 << 31)),
-        ))
+        views.append(
+            PhotoSetup(
+                azimuth=round(azimuth, 4),
+                elevation=round(elevation, 4),
+                distance=round(distance, 4),
+                fov=spec.fov,
+                light=tuple(round(v, 5) for v in light),
+                ambient=round(float(rng.uniform(PHOTO_LIGHTS.ambient_min, PHOTO_LIGHTS.ambient_max)), 4),
+                background=BACKGROUND_KINDS[int(rng.integers(len(BACKGROUND_KINDS)))],
+                background_seed=int(rng.integers(1 << 31)),
+            )
+        )
     return views
 
 
@@ -165,8 +182,14 @@ def sample_views(spec: WorldSpec, index: int, count: int, query: bool = False) -
 # Rendering
 
 
-def render_views(shape: SyntheticShape, material: Material | None, views: list[PhotoSetup], settings: RenderSettings,
-                 *, vertex_colours: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def render_views(
+    shape: SyntheticShape,
+    material: Material | None,
+    views: list[PhotoSetup],
+    settings: RenderSettings,
+    *,
+    vertex_colours: np.ndarray | None = None,
+) -> dict[str, np.ndarray]:
     """Render ``views`` of the textured shape over their backgrounds, as ``settings`` say (the world's
     photos: :attr:`WorldSpec.photo_render`); ``lighting="albedo"`` renders every view with ambient 1.
 
@@ -182,7 +205,9 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[P
     if material is None and vertex_colours is None:
         raise ValueError("render_views needs a material or vertex_colours")
     if vertex_colours is not None and np.shape(vertex_colours) != (len(shape.vertices), 3):
-        raise ValueError(f"vertex_colours must be ({len(shape.vertices)}, 3), one per vertex, got {np.shape(vertex_colours)}")
+        raise ValueError(
+            f"vertex_colours must be ({len(shape.vertices)}, 3), one per vertex, got {np.shape(vertex_colours)}"
+        )
     if not settings.lit:
         views = [replace(v, ambient=1.0) for v in views]
     big = settings.raster_side
@@ -191,8 +216,10 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[P
     normals_per_face = face_normals(vertices, faces)
     parts = torch.as_tensor(shape.face_parts)
     camera = orbit_camera(
-        torch.tensor([v.azimuth for v in views]), torch.tensor([v.elevation for v in views]),
-        distance=torch.tensor([v.distance for v in views]), fov=torch.tensor([v.fov for v in views]),
+        torch.tensor([v.azimuth for v in views]),
+        torch.tensor([v.elevation for v in views]),
+        distance=torch.tensor([v.distance for v in views]),
+        fov=torch.tensor([v.fov for v in views]),
     )
     raster = rasterize(transform_points(vertices, camera.mvp), faces, (big, big))
     covered = raster.face_id >= 0  # (B, H, W)
@@ -203,7 +230,9 @@ def render_views(shape: SyntheticShape, material: Material | None, views: list[P
     if vertex_colours is not None:
         albedo = interpolate(torch.as_tensor(vertex_colours, dtype=torch.float32), raster, faces)  # 0 on background
     elif covered.any():
-        colours = material(points[covered].double().numpy(), normals[covered].double().numpy(), parts[raster.face_id[covered]].numpy())
+        colours = material(
+            points[covered].double().numpy(), normals[covered].double().numpy(), parts[raster.face_id[covered]].numpy()
+        )
         albedo[covered] = torch.as_tensor(colours, dtype=torch.float32)
     light = torch.tensor([v.light for v in views], dtype=torch.float32)
     ambient = torch.tensor([v.ambient for v in views], dtype=torch.float32)
@@ -310,7 +339,9 @@ def bake_material(shape: SyntheticShape, material: Material, size: int = 512, pa
     image = torch.zeros(size, size, 3)
     if covered.any():
         ids = raster.face_id[0][covered]
-        colours = material(points[covered].double().numpy(), normals_per_face[ids].double().numpy(), shape.face_parts[ids.numpy()])
+        colours = material(
+            points[covered].double().numpy(), normals_per_face[ids].double().numpy(), shape.face_parts[ids.numpy()]
+        )
         image[covered] = torch.as_tensor(colours, dtype=torch.float32)
     image = dilate_texture(image.permute(2, 0, 1), covered, padding).permute(1, 2, 0)
     return BakedMesh(vertices_t.numpy(), faces_t.numpy(), uv_t.numpy(), unit_to_uint8(image))

@@ -44,8 +44,17 @@ class AutomatonFit:
     seconds: float
 
 
-def fit_automaton(shape: PreparedShape, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig,
-                  fit: AutomatonFitConfig, device: torch.device, show_progress: bool = True) -> AutomatonFit:
+def fit_automaton(
+    shape: PreparedShape,
+    photo: Photo,
+    view: FramedView,
+    photo_noc: torch.Tensor | None,
+    vgg,
+    cfg: TransferConfig,
+    fit: AutomatonFitConfig,
+    device: torch.device,
+    show_progress: bool = True,
+) -> AutomatonFit:
     """Fit an automaton on ``shape``'s finest level to ``photo`` seen at ``view`` (see the module docstring).
 
     ``photo_noc`` (R,R,3) is needed when ``cfg.use_noc`` and ``cfg.use_patches``; the patch loss
@@ -57,14 +66,18 @@ def fit_automaton(shape: PreparedShape, photo: Photo, view: FramedView, photo_no
     start = time.perf_counter()
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     graph = build_cell_graph(shape.vertices[0], shape.quads[0], fit.nca.neighbourhood).to(device)
-    with torch.random.fork_rng(devices=[]):  # the update rule's initial weights, seeded, leaving the caller's generator alone
+    with torch.random.fork_rng(
+        devices=[]
+    ):  # the update rule's initial weights, seeded, leaving the caller's generator alone
         torch.manual_seed(cfg.seed)
         model = MeshNCA(fit.nca).to(device)
     growth = torch.Generator(device=device).manual_seed(cfg.seed)
     mvp = view.mvp.to(device)
 
     def grown(steps: int) -> torch.Tensor:
-        return model.rollout(model.seed_state(1, graph.num_cells, device, generator=growth), graph, steps, generator=growth)
+        return model.rollout(
+            model.seed_state(1, graph.num_cells, device, generator=growth), graph, steps, generator=growth
+        )
 
     def render(state: torch.Tensor) -> torch.Tensor:
         full = render_states(model, state, graph, mvp, view.render_size, background=0.0).images

@@ -27,9 +27,9 @@ class FitCheck:
 
     silhouette_iou: the mesh's outline (cropped like the photo) against the photo's object mask;
     outline_agreement: the same with :data:`OUTLINE_TOLERANCE_PX` of tolerance (the F-score of the
-    mask pixels within that distance of the other mask); lowpass_psnr, flat_lowpass_psnr: dB over the pixels both cover (Gaussian sigma 3 px) for the
-    result's render and for the photo's mean colour; ``problems``: why the fit is poor (empty: good).
-    """
+    mask pixels within that distance of the other mask); lowpass_psnr, flat_lowpass_psnr: dB over the pixels both cover
+    (Gaussian sigma 3 px) for the result's render and for the photo's mean colour; ``problems``: why the fit is poor
+    (empty: good)."""
 
     silhouette_iou: float
     outline_agreement: float
@@ -46,7 +46,9 @@ class FitCheck:
 
 
 @torch.no_grad()
-def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch.Tensor, render_mask: torch.Tensor) -> FitCheck:
+def check_fit(
+    photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch.Tensor, render_mask: torch.Tensor
+) -> FitCheck:
     """Judge a transfer's render at its pose against the photo.
 
     photo_image, render: (1,3,R,R) in [-1,1]; photo_mask, render_mask: (1,1,R,R) {0,1}, the same crop.
@@ -63,8 +65,13 @@ def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch
     both = (photo_in & render_in).float()
     problems = []
     if both.sum() < 16:
-        return FitCheck(round(iou, 4), round(agreement, 4), float("nan"), float("nan"),
-                        ["the mesh and the photo's object barely overlap at the pose used"])
+        return FitCheck(
+            round(iou, 4),
+            round(agreement, 4),
+            float("nan"),
+            float("nan"),
+            ["the mesh and the photo's object barely overlap at the pose used"],
+        )
     photo01 = (photo_image.float().cpu() + 1) / 2
     render01 = (render.float().cpu() + 1) / 2
     mean = (photo01 * both).sum(dim=(2, 3), keepdim=True) / both.sum()
@@ -72,11 +79,15 @@ def check_fit(photo_image: torch.Tensor, photo_mask: torch.Tensor, render: torch
     result_db = float(lowpass_psnr(render01, photo01, both)[0])
     flat_db = float(lowpass_psnr(flat, photo01, both)[0])
     if agreement < MIN_OUTLINE_AGREEMENT:
-        problems.append(f"the mesh's outline at the pose used agrees with the photo's object by {agreement:.2f} "
-                        f"(IoU {iou:.2f}): the pose or the mask may be wrong (give --pose AZ,EL or --mask FILE)")
+        problems.append(
+            f"the mesh's outline at the pose used agrees with the photo's object by {agreement:.2f} "
+            f"(IoU {iou:.2f}): the pose or the mask may be wrong (give --pose AZ,EL or --mask FILE)"
+        )
     if result_db - flat_db < MIN_GAIN_OVER_FLAT_DB:
-        problems.append(f"the result matches the photo less than a flat colour of its mean ({result_db:.1f} dB against "
-                        f"{flat_db:.1f} dB low-pass PSNR at the pose used)")
+        problems.append(
+            f"the result matches the photo less than a flat colour of its mean ({result_db:.1f} dB against "
+            f"{flat_db:.1f} dB low-pass PSNR at the pose used)"
+        )
     return FitCheck(round(iou, 4), round(agreement, 4), round(result_db, 3), round(flat_db, 3), problems)
 
 

@@ -32,12 +32,16 @@ def network_probability(checkpoint: str | Path, rgb: np.ndarray, device: torch.d
     h, w = rgb.shape[:2]
     side = max(h, w)
     top, left = (side - h) // 2, (side - w) // 2
-    image = torch.from_numpy(np.array(rgb, dtype=np.uint8)).permute(2, 0, 1)[None].float() / 127.5 - 1.0  # a copy: the photo may be read-only
+    image = (
+        torch.from_numpy(np.array(rgb, dtype=np.uint8)).permute(2, 0, 1)[None].float() / 127.5 - 1.0
+    )  # a copy: the photo may be read-only
     image = F.pad(image, (left, side - w - left, top, side - h - top), mode="replicate")
     size = cfg.data.resolution
     logits = net(F.interpolate(image, size=(size, size), mode="area").to(device))
-    probability = torch.sigmoid(F.interpolate(logits.float().cpu(), size=(side, side), mode="bilinear", align_corners=False))
-    return probability[0, 0, top:top + h, left:left + w].numpy()
+    probability = torch.sigmoid(
+        F.interpolate(logits.float().cpu(), size=(side, side), mode="bilinear", align_corners=False)
+    )
+    return probability[0, 0, top : top + h, left : left + w].numpy()
 
 
 def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: int = 3) -> np.ndarray:
@@ -61,8 +65,15 @@ def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray, iterations: in
         return largest_region(threshold)
     background, foreground = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
     cv2.setRNGSeed(0)
-    cv2.grabCut(cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2BGR), seeds, None, background, foreground, iterations,
-                cv2.GC_INIT_WITH_MASK)
+    cv2.grabCut(
+        cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_RGB2BGR),
+        seeds,
+        None,
+        background,
+        foreground,
+        iterations,
+        cv2.GC_INIT_WITH_MASK,
+    )
     estimate = ((seeds == cv2.GC_FGD) | (seeds == cv2.GC_PR_FGD)).astype(np.uint8)
     if scale < 1:
         estimate = cv2.resize(estimate, (w, h), interpolation=cv2.INTER_NEAREST)

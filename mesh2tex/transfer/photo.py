@@ -74,8 +74,9 @@ def check_query(photo: Photo, view: FramedView, photo_noc: torch.Tensor | None, 
 MIN_PHOTO_SIDE = 16  # the smallest query photo: fewer pixels hold no texture to transfer
 
 
-def load_photo(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig,
-               mask_checkpoint: str | Path | None = None) -> tuple[Photo, str]:
+def load_photo(
+    image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig, mask_checkpoint: str | Path | None = None
+) -> tuple[Photo, str]:
     """The query photo cropped around its object (``cfg.margin``) and resized to R = ``cfg.resolution``:
     a :class:`Photo` (image (1,3,R,R) in [-1,1], white outside the photo; mask (1,1,R,R)), and where
     the mask came from (the ``mask_path`` file, the alpha channel, or an estimate: the mask network of
@@ -99,28 +100,36 @@ class MaskedPhoto:
     given: bool
 
 
-def photo_masks(image_path: str | Path, mask_path: str | Path | None, mask_checkpoint: str | Path | None = None) -> MaskedPhoto:
+def photo_masks(
+    image_path: str | Path, mask_path: str | Path | None, mask_checkpoint: str | Path | None = None
+) -> MaskedPhoto:
     """The photo and its masks: the ``mask_path`` file or the alpha channel when there is one; else the
     estimates, the mask network's with GrabCut edges, the network's alone and GrabCut's alone (GrabCut's
     alone without a network). The mesh picks among them (:func:`mesh2tex.transfer.pose.locate_object`):
     no estimate is right on every photo."""
     rgb, alpha = load_image(image_path)
     if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
-        raise InputError(f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
-                        f"{MIN_PHOTO_SIDE}x{MIN_PHOTO_SIDE}")
+        raise InputError(
+            f"{image_path}: the photo is {rgb.shape[1]}x{rgb.shape[0]} pixels; a query photo needs at least "
+            f"{MIN_PHOTO_SIDE}x{MIN_PHOTO_SIDE}"
+        )
     probability, given = None, True  # the mask came with the photo: nothing to estimate or mend
     if mask_path is not None:
         mask = load_mask(mask_path)
         if mask.shape != rgb.shape[:2]:
-            raise InputError(f"{mask_path}: mask is {mask.shape[1]}x{mask.shape[0]}, the photo {rgb.shape[1]}x{rgb.shape[0]}")
+            raise InputError(
+                f"{mask_path}: mask is {mask.shape[1]}x{mask.shape[0]}, the photo {rgb.shape[1]}x{rgb.shape[0]}"
+            )
         masks = [(mask, str(mask_path))]
     elif alpha is not None and (alpha < 128).any():
         masks = [(alpha >= 128, "alpha channel")]
     elif mask_checkpoint is not None:
         probability, given = network_probability(mask_checkpoint, rgb), False
-        masks = [(refine_with_grabcut(rgb, probability), "estimated (mask network, GrabCut edges)"),
-                 (largest_region(probability >= 0.5), "estimated (mask network)"),
-                 (estimate_mask(rgb), "estimated (GrabCut)")]
+        masks = [
+            (refine_with_grabcut(rgb, probability), "estimated (mask network, GrabCut edges)"),
+            (largest_region(probability >= 0.5), "estimated (mask network)"),
+            (estimate_mask(rgb), "estimated (GrabCut)"),
+        ]
     else:
         masks, given = [(estimate_mask(rgb), "estimated (GrabCut)")], False
     masks = [(np.asarray(mask, dtype=bool), source) for mask, source in masks if np.asarray(mask).sum() >= 16]
@@ -132,41 +141,60 @@ def photo_masks(image_path: str | Path, mask_path: str | Path | None, mask_check
 def frame_photo(rgb: np.ndarray, mask: np.ndarray, cfg: TransferConfig) -> Photo:
     """rgb (H, W, 3) uint8 and its object mask (H, W) bool -> the :class:`Photo` cropped around the object
     (``cfg.margin``) and resized to R = ``cfg.resolution``, white outside the photo."""
-    check_array_shape(mask, "frame_photo: mask", ("H", "W"), sizes=check_array_shape(rgb, "frame_photo: rgb", ("H", "W", 3)))
+    check_array_shape(
+        mask, "frame_photo: mask", ("H", "W"), sizes=check_array_shape(rgb, "frame_photo: rgb", ("H", "W", 3))
+    )
     image = torch.from_numpy(np.array(rgb)).permute(2, 0, 1)[None].contiguous().float() / 127.5 - 1.0
     box = object_box(mask, cfg.margin)
     return Photo(image=crop_square(image, box, cfg.resolution, fill=1.0), mask=crop_mask(mask, box, cfg.resolution))
 
 
-def photo_candidates(image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig,
-                     mask_checkpoint: str | Path | None = None) -> list[tuple[Photo, str]]:
+def photo_candidates(
+    image_path: str | Path, mask_path: str | Path | None, cfg: TransferConfig, mask_checkpoint: str | Path | None = None
+) -> list[tuple[Photo, str]]:
     """The photo framed by each of :func:`photo_masks`' masks, best guess first: [(Photo, where its mask came from)]."""
     masked = photo_masks(image_path, mask_path, mask_checkpoint)
     return [(frame_photo(masked.rgb, mask, cfg), source) for mask, source in masked.masks]
 
 
-def silhouette_in_photo(shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float,
-                        box: tuple[int, int, int], size: tuple[int, int], cfg: TransferConfig) -> np.ndarray:
+def silhouette_in_photo(
+    shape: PreparedShape,
+    azimuth: float,
+    elevation: float,
+    distance: float,
+    fov: float,
+    box: tuple[int, int, int],
+    size: tuple[int, int],
+    cfg: TransferConfig,
+) -> np.ndarray:
     """(H, W) bool: where the mesh would cover the photo at the pose, framed as the photo is: the mesh's
     outline in its own square crop (:func:`view_at_pose`) laid onto the photo's crop ``box`` (top, left,
     side), the square around the photo's object mask. ``size``: the photo's (H, W)."""
     top, left, side = box
     h, w = size
-    sharp = dataclasses.replace(cfg, resolution=int(min(max(side, 16), 1024)))  # the outline at about the photo's own scale
+    sharp = dataclasses.replace(
+        cfg, resolution=int(min(max(side, 16), 1024))
+    )  # the outline at about the photo's own scale
     outline = view_at_pose(shape, azimuth, elevation, distance, fov, sharp).mask
-    outline = torch.nn.functional.interpolate(outline, size=(side, side), mode="bilinear", align_corners=False)[0, 0].numpy() >= 0.5
+    outline = (
+        torch.nn.functional.interpolate(outline, size=(side, side), mode="bilinear", align_corners=False)[0, 0].numpy()
+        >= 0.5
+    )
     full = np.zeros((h, w), dtype=bool)
     r0, c0, r1, c1 = max(0, top), max(0, left), min(h, top + side), min(w, left + side)
     if r1 > r0 and c1 > c0:
-        full[r0:r1, c0:c1] = outline[r0 - top:r1 - top, c0 - left:c1 - left]
+        full[r0:r1, c0:c1] = outline[r0 - top : r1 - top, c0 - left : c1 - left]
     return full
 
 
 @torch.no_grad()
-def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig) -> FramedView:
+def view_at_pose(
+    shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig
+) -> FramedView:
     """Rasterize the finest level of ``shape`` at the pose (degrees; ``distance``, ``fov`` of the orbit
     camera) at ``cfg.render_oversample`` times R = ``cfg.resolution``, find the object's square crop
-    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`FramedView` (noc (R,R,3), mask (1,1,R,R))."""
+    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`FramedView` (noc (R,R,3), mask
+    (1,1,R,R))."""
     size = int(round(cfg.resolution * cfg.render_oversample))
     camera = orbit_camera(torch.tensor([azimuth]), torch.tensor([elevation]), distance=distance, fov=fov)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
@@ -178,5 +206,14 @@ def view_at_pose(shape: PreparedShape, azimuth: float, elevation: float, distanc
     box = object_box(covered, cfg.margin)
     noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
     noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)
-    return FramedView(mvp=camera.mvp, render_size=size, box=box, noc=noc, mask=crop_mask(covered, box, cfg.resolution),
-                azimuth=float(azimuth), elevation=float(elevation), distance=float(distance), fov=float(fov))
+    return FramedView(
+        mvp=camera.mvp,
+        render_size=size,
+        box=box,
+        noc=noc,
+        mask=crop_mask(covered, box, cfg.resolution),
+        azimuth=float(azimuth),
+        elevation=float(elevation),
+        distance=float(distance),
+        fov=float(fov),
+    )

@@ -38,8 +38,10 @@ class PoseBeliefs:
 
     def most_likely(self) -> tuple[float, float]:
         """Centres (degrees) of the most likely azimuth and elevation bins."""
-        return (float(self.bins.bin_to_azimuth(int(self.azimuth.argmax()))),
-                float(self.bins.bin_to_elevation(int(self.elevation.argmax()))))
+        return (
+            float(self.bins.bin_to_azimuth(int(self.azimuth.argmax()))),
+            float(self.bins.bin_to_elevation(int(self.elevation.argmax()))),
+        )
 
 
 @torch.no_grad()
@@ -48,12 +50,23 @@ def pose_network_beliefs(checkpoint: str | Path, photo: Photo, device: torch.dev
     check_photo(photo, "pose_network_beliefs")
     net, cfg = load_view_network(checkpoint, "pose", device)
     azimuth_logits, elevation_logits = net(_network_input(photo, cfg.data.resolution, device))
-    return PoseBeliefs(net.bins, F.softmax(azimuth_logits, 1)[0].float().cpu(), F.softmax(elevation_logits, 1)[0].float().cpu())
+    return PoseBeliefs(
+        net.bins, F.softmax(azimuth_logits, 1)[0].float().cpu(), F.softmax(elevation_logits, 1)[0].float().cpu()
+    )
 
 
 @torch.no_grad()
-def silhouette_iou(shape: PreparedShape, photo_mask: torch.Tensor, azimuths: torch.Tensor, elevations: torch.Tensor,
-                   distance: float, fov: float, margin: float, size: int = 64, batch: int = 24) -> torch.Tensor:
+def silhouette_iou(
+    shape: PreparedShape,
+    photo_mask: torch.Tensor,
+    azimuths: torch.Tensor,
+    elevations: torch.Tensor,
+    distance: float,
+    fov: float,
+    margin: float,
+    size: int = 64,
+    batch: int = 24,
+) -> torch.Tensor:
     """IoU of the photo's object mask with the mesh's silhouette at each pose, both cropped alike.
 
     photo_mask (1,1,R,R) {0,1}, already cropped around the object with ``margin``; azimuths,
@@ -63,13 +76,18 @@ def silhouette_iou(shape: PreparedShape, photo_mask: torch.Tensor, azimuths: tor
     check_shape(photo_mask, "silhouette_iou: photo_mask", (1, 1, "R", "R"))
     sizes = check_shape(azimuths, "silhouette_iou: azimuths", ("N",))
     check_shape(elevations, "silhouette_iou: elevations", ("N",), sizes=sizes)
-    target = (F.interpolate(photo_mask.float().cpu(), size=(size, size), mode="area")[0, 0] > 0.5)
+    target = F.interpolate(photo_mask.float().cpu(), size=(size, size), mode="area")[0, 0] > 0.5
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
     triangles = torch.as_tensor(shape.triangles(0))
     render = int(round(size * 1.5))
     scores = []
     for start in range(0, azimuths.shape[0], batch):
-        camera = orbit_camera(azimuths[start:start + batch].float(), elevations[start:start + batch].float(), distance=distance, fov=fov)
+        camera = orbit_camera(
+            azimuths[start : start + batch].float(),
+            elevations[start : start + batch].float(),
+            distance=distance,
+            fov=fov,
+        )
         covered = (rasterize(transform_points(vertices, camera.mvp), triangles, (render, render)).face_id >= 0).numpy()
         for view in covered:
             if view.sum() < 4:
@@ -92,8 +110,9 @@ class PoseEstimate:
     network_silhouette_iou: float | None = None  # of the network's own pose
 
 
-def search_pose(shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distance: float, fov: float,
-                cfg: TransferConfig) -> PoseEstimate:
+def search_pose(
+    shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distance: float, fov: float, cfg: TransferConfig
+) -> PoseEstimate:
     """The pose whose silhouette best matches the photo's mask (render and compare).
 
     The pose network proposes the elevations (the centres of its ``pose_search_elevations`` most
@@ -114,20 +133,34 @@ def search_pose(shape: PreparedShape, photo: Photo, beliefs: PoseBeliefs, distan
         best = int(torch.argmax(iou + 1e-6 * prior))  # the prior only breaks ties
         return float(azimuths[best]), float(elevations[best]), float(iou[best])
 
-    order = beliefs.elevation.argsort(descending=True)[:max(1, cfg.pose_search_elevations)]
+    order = beliefs.elevation.argsort(descending=True)[: max(1, cfg.pose_search_elevations)]
     elevations = bins.bin_to_elevation(order).float()
     azimuths = torch.arange(0.0, 360.0, step)
     best_az, best_el, _ = best_of(azimuths.repeat(len(elevations)), elevations.repeat_interleave(len(azimuths)))
     offsets = torch.tensor([-0.5, 0.0, 0.5]) * step
-    best_az, best_el, best_iou = best_of((best_az + offsets).repeat(3) % 360.0, (best_el + offsets).repeat_interleave(3))
+    best_az, best_el, best_iou = best_of(
+        (best_az + offsets).repeat(3) % 360.0, (best_el + offsets).repeat_interleave(3)
+    )
     network = beliefs.most_likely()
-    network_iou = float(silhouette_iou(shape, photo.mask, torch.tensor([network[0]]), torch.tensor([network[1]]),
-                                       distance, fov, cfg.margin)[0])
-    return PoseEstimate(best_az, best_el, "pose network + silhouette search", network, round(best_iou, 4), round(network_iou, 4))
+    network_iou = float(
+        silhouette_iou(
+            shape, photo.mask, torch.tensor([network[0]]), torch.tensor([network[1]]), distance, fov, cfg.margin
+        )[0]
+    )
+    return PoseEstimate(
+        best_az, best_el, "pose network + silhouette search", network, round(best_iou, 4), round(network_iou, 4)
+    )
 
 
-def estimate_pose(checkpoint: str | Path, shape: PreparedShape, photo: Photo, distance: float, fov: float,
-                  cfg: TransferConfig, device: torch.device) -> PoseEstimate:
+def estimate_pose(
+    checkpoint: str | Path,
+    shape: PreparedShape,
+    photo: Photo,
+    distance: float,
+    fov: float,
+    cfg: TransferConfig,
+    device: torch.device,
+) -> PoseEstimate:
     """``--pose auto``: the pose network's bins, refined by :func:`search_pose` unless ``cfg.pose_search`` is off.
     photo: image (1, 3, R, R), mask (1, 1, R, R)."""
     check_photo(photo, "estimate_pose")
@@ -159,8 +192,16 @@ class Located:
     estimate: PoseEstimate
 
 
-def locate_object(masked: MaskedPhoto, shape: PreparedShape, pose_checkpoint: str | Path | None, pose: tuple[float, float] | None,
-                  distance: float, fov: float, cfg: TransferConfig, device: torch.device) -> Located:
+def locate_object(
+    masked: MaskedPhoto,
+    shape: PreparedShape,
+    pose_checkpoint: str | Path | None,
+    pose: tuple[float, float] | None,
+    distance: float,
+    fov: float,
+    cfg: TransferConfig,
+    device: torch.device,
+) -> Located:
     """The object's mask and the pose of the mesh ``shape`` in a photo, each helping the other.
 
     ``pose`` (azimuth, elevation) given: used as it is. Else ``--pose auto`` (:func:`estimate_pose`);
@@ -175,7 +216,9 @@ def locate_object(masked: MaskedPhoto, shape: PreparedShape, pose_checkpoint: st
     if pose is not None:
         estimate = PoseEstimate(pose[0], pose[1], "given")
     elif cfg.pose_search and len(photos) > 1:
-        index, estimate = pick_by_outline(photos, lambda photo: estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device))
+        index, estimate = pick_by_outline(
+            photos, lambda photo: estimate_pose(pose_checkpoint, shape, photo, distance, fov, cfg, device)
+        )
     else:
         estimate = estimate_pose(pose_checkpoint, shape, photos[0], distance, fov, cfg, device)
     mask, source = masked.masks[index]

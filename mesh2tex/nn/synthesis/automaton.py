@@ -21,8 +21,14 @@ class AutomatonSynthesis(FeatureSynthesis):
         super().__init__()
         self.num_ws, self.encoder_levels = self.sizes(cfg)
         self.channels = cfg.nca_channels
-        self.nca = ConditionedNCA(channels=cfg.nca_channels, hidden=cfg.nca_hidden, steps=cfg.nca_steps, condition=cfg.nca_condition,
-                                  w_dim=cfg.w_dim, geometry_dim=cfg.encoder_channels[0])
+        self.nca = ConditionedNCA(
+            channels=cfg.nca_channels,
+            hidden=cfg.nca_hidden,
+            steps=cfg.nca_steps,
+            condition=cfg.nca_condition,
+            w_dim=cfg.w_dim,
+            geometry_dim=cfg.encoder_channels[0],
+        )
         self.torgb = nn.Linear(cfg.nca_channels, 3)
         with torch.no_grad():
             self.torgb.weight.mul_(cfg.rgb_output_init)
@@ -31,7 +37,9 @@ class AutomatonSynthesis(FeatureSynthesis):
     def sizes(cls, cfg) -> tuple[int, int]:
         return 1, 1
 
-    def forward(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor], noise_mode: str) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(
+        self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor], noise_mode: str
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         states = self.nca(batch, ws[:, 0], encoded[0], noise_mode)  # (V, C)
         x = states[batch.quads].mean(1)  # (F_0, C): each face the mean of its corner cells
         return x, self.torgb(x)

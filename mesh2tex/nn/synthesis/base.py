@@ -34,7 +34,9 @@ class FeatureSynthesis(nn.Module):
         built: the generator builds its encoder and mapping first (the order its weights are drawn in)."""
         raise NotImplementedError
 
-    def forward(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor], noise_mode: str) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(
+        self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor], noise_mode: str
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """ws (B, num_ws, w_dim), one row per shape; encoded: E_0 (F_0, c_0), ... for ``encoder_levels``
         levels -> (features F_c (F_0, channels), colours (F_0, 3) nominally in [-1, 1])."""
         raise NotImplementedError

@@ -19,8 +19,16 @@ class SynthesisBlock(nn.Module):
         super().__init__()
         self.conv0 = ModulatedFaceConv(in_channels + skip_channels, out_channels, w_dim, clamp=conv_clamp)
         self.conv1 = ModulatedFaceConv(out_channels, out_channels, w_dim, clamp=conv_clamp)
-        self.torgb = ModulatedFaceConv(out_channels, 3, w_dim, kernel_size=1, demodulate=False, activation="linear", use_noise=False,
-                                       clamp=conv_clamp)
+        self.torgb = ModulatedFaceConv(
+            out_channels,
+            3,
+            w_dim,
+            kernel_size=1,
+            demodulate=False,
+            activation="linear",
+            use_noise=False,
+            clamp=conv_clamp,
+        )
 
     def forward(self, x, skip, neighbors, ws, sample_index, noise_mode):
         """x: (F, in) or None, skip: (F, skip), ws: (B, 3, w_dim) -> (features (F, out), rgb (F, 3))."""
@@ -41,7 +49,11 @@ class FaceConvSynthesis(nn.ModuleList, FeatureSynthesis):
         blocks = []
         for level in reversed(range(levels)):
             in_ch = 0 if level == levels - 1 else cfg.synthesis_channels[level + 1]
-            blocks.append(SynthesisBlock(in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp))
+            blocks.append(
+                SynthesisBlock(
+                    in_ch, cfg.encoder_channels[level], cfg.synthesis_channels[level], cfg.w_dim, cfg.conv_clamp
+                )
+            )
         super().__init__(blocks)
         self.num_ws, self.encoder_levels = self.sizes(cfg)
         self.channels = cfg.synthesis_channels[0]
@@ -58,7 +70,9 @@ class FaceConvSynthesis(nn.ModuleList, FeatureSynthesis):
             return nn.ModuleList(list(self._modules.values())[index])
         return super().__getitem__(index)
 
-    def forward(self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor], noise_mode: str) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(
+        self, batch: MeshBatch, ws: torch.Tensor, encoded: list[torch.Tensor], noise_mode: str
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         levels = len(self)
         x = rgb = None
         for i, block in enumerate(self):

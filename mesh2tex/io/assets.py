@@ -57,7 +57,8 @@ def png_bytes(image_rgb_uint8) -> bytes:
 
 
 def check_texture_format(texture_format: str) -> None:
-    """ValueError unless ``texture_format`` is one of :data:`TEXTURE_FORMATS` (every command's ``texture_format`` setting)."""
+    """ValueError unless ``texture_format`` is one of :data:`TEXTURE_FORMATS` (every command's ``texture_format``
+    setting)."""
     if texture_format not in TEXTURE_FORMATS:
         raise ValueError(f"texture_format {texture_format!r}: choose one of {', '.join(TEXTURE_FORMATS)}")
 
@@ -80,11 +81,19 @@ def image_bytes(image_rgb_uint8, texture_format: str = "png") -> bytes:
 
 # The node rotation (x, y, z, w) that stands a z-up mesh up in glTF's y-up frame: -90 degrees about x,
 # (x, y, z) -> (x, z, -y). Blender's glTF importer turns it back, so the asset lands as it was.
-Z_UP_NODE_ROTATION = [-(0.5 ** 0.5), 0.0, 0.0, 0.5 ** 0.5]
+Z_UP_NODE_ROTATION = [-(0.5**0.5), 0.0, 0.0, 0.5**0.5]
 
 
-def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh", texture_format: str = "png",
-              up_axis: str = "y") -> bytes:
+def glb_bytes(
+    vertices,
+    faces,
+    uv,
+    texture_rgb_uint8,
+    vertex_normals=None,
+    name: str = "mesh",
+    texture_format: str = "png",
+    up_axis: str = "y",
+) -> bytes:
     """A binary glTF 2.0 file holding one textured triangle mesh; see :func:`save_glb`."""
     if up_axis not in ("y", "z"):
         raise ValueError(f"up_axis must be 'y' or 'z', got {up_axis!r}")
@@ -100,9 +109,14 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
     blobs = [positions.tobytes(), texcoords.tobytes(), triangles.astype(np.uint32).tobytes()]
     attributes = {"POSITION": 0, "TEXCOORD_0": 1}
     accessors = [
-        {"bufferView": 0, "componentType": _FLOAT, "count": len(positions), "type": "VEC3",
-         "min": positions.min(axis=0).tolist() if len(positions) else [0, 0, 0],
-         "max": positions.max(axis=0).tolist() if len(positions) else [0, 0, 0]},
+        {
+            "bufferView": 0,
+            "componentType": _FLOAT,
+            "count": len(positions),
+            "type": "VEC3",
+            "min": positions.min(axis=0).tolist() if len(positions) else [0, 0, 0],
+            "max": positions.max(axis=0).tolist() if len(positions) else [0, 0, 0],
+        },
         {"bufferView": 1, "componentType": _FLOAT, "count": len(texcoords), "type": "VEC2"},
         {"bufferView": 2, "componentType": _UINT32, "count": triangles.size, "type": "SCALAR"},
     ]
@@ -119,6 +133,14 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
     blobs.append(image)
     targets.append(None)
 
+    buffer_views, binary = _pack_buffers(blobs, targets)
+    document = _gltf_document(name, attributes, accessors, buffer_views, len(binary), texture_format, up_axis)
+    return _glb_container(document, binary)
+
+
+def _pack_buffers(blobs: list[bytes], targets: list[int | None]) -> tuple[list[dict], bytearray]:
+    """The glTF buffer views of ``blobs`` (one each, with its ``target`` when not None) and the binary chunk
+    that holds them, every view starting 4-byte aligned."""
     buffer_views, binary = [], bytearray()
     for blob, target in zip(blobs, targets):
         view = {"buffer": 0, "byteOffset": len(binary), "byteLength": len(blob)}
@@ -126,40 +148,80 @@ def glb_bytes(vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name:
             view["target"] = target
         buffer_views.append(view)
         binary += blob
-        binary += b"\x00" * (-len(binary) % 4)  # every view starts 4-byte aligned
+        binary += b"\x00" * (-len(binary) % 4)
+    return buffer_views, binary
 
+
+def _gltf_document(
+    name: str,
+    attributes: dict,
+    accessors: list[dict],
+    buffer_views: list[dict],
+    binary_length: int,
+    texture_format: str,
+    up_axis: str,
+) -> dict:
+    """The glTF JSON of one textured mesh whose image is the last buffer view."""
     texture = {"sampler": 0, "source": 0}
     if texture_format == "webp":  # the image is named by the extension only (no core-format fallback)
         texture = {"sampler": 0, "extensions": {WEBP_EXTENSION: {"source": 0}}}
+    material = {
+        "name": f"{name}_material",
+        "doubleSided": True,
+        "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0},
+    }
+    sampler = {
+        "magFilter": _LINEAR,
+        "minFilter": _LINEAR_MIPMAP_LINEAR,
+        "wrapS": _CLAMP_TO_EDGE,
+        "wrapT": _CLAMP_TO_EDGE,
+    }
     document = {
         "asset": {"version": "2.0", "generator": "mesh2tex"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "name": name, **({"rotation": Z_UP_NODE_ROTATION} if up_axis == "z" else {})}],
         "meshes": [{"name": name, "primitives": [{"attributes": attributes, "indices": 2, "material": 0, "mode": 4}]}],
-        "materials": [{"name": f"{name}_material", "doubleSided": True,
-                       "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0}}],
+        "materials": [material],
         "textures": [texture],
-        "samplers": [{"magFilter": _LINEAR, "minFilter": _LINEAR_MIPMAP_LINEAR, "wrapS": _CLAMP_TO_EDGE, "wrapT": _CLAMP_TO_EDGE}],
+        "samplers": [sampler],
         "images": [{"bufferView": len(buffer_views) - 1, "mimeType": MIME_TYPES[texture_format]}],
         "accessors": accessors,
         "bufferViews": buffer_views,
-        "buffers": [{"byteLength": len(binary)}],
+        "buffers": [{"byteLength": binary_length}],
     }
     if texture_format == "webp":
         document["extensionsUsed"] = document["extensionsRequired"] = [WEBP_EXTENSION]
+    return document
+
+
+def _glb_container(document: dict, binary: bytearray) -> bytes:
+    """The GLB file: header, the JSON chunk (space-padded) and the binary chunk."""
     text = json.dumps(document, separators=(",", ":")).encode("utf-8")
     text += b" " * (-len(text) % 4)
     total = 12 + 8 + len(text) + 8 + len(binary)
-    return b"".join([
-        struct.pack("<4sII", b"glTF", 2, total),
-        struct.pack("<I4s", len(text), b"JSON"), text,
-        struct.pack("<I4s", len(binary), b"BIN\x00"), bytes(binary),
-    ])
+    return b"".join(
+        [
+            struct.pack("<4sII", b"glTF", 2, total),
+            struct.pack("<I4s", len(text), b"JSON"),
+            text,
+            struct.pack("<I4s", len(binary), b"BIN\x00"),
+            bytes(binary),
+        ]
+    )
 
 
-def save_glb(path: str | os.PathLike, vertices, faces, uv, texture_rgb_uint8, vertex_normals=None, name: str = "mesh",
-             texture_format: str = "png", up_axis: str = "y") -> None:
+def save_glb(
+    path: str | os.PathLike,
+    vertices,
+    faces,
+    uv,
+    texture_rgb_uint8,
+    vertex_normals=None,
+    name: str = "mesh",
+    texture_format: str = "png",
+    up_axis: str = "y",
+) -> None:
     """Write a textured triangle mesh as GLB (glTF 2.0 binary) with the texture embedded as
     ``texture_format``: "png" (lossless), "jpeg" or "webp" (lossy, quality :data:`LOSSY_QUALITY`; WebP
     through the EXT_texture_webp extension, declared required).
@@ -201,7 +263,10 @@ def load_glb(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarra
     try:
         scene = trimesh.load(str(path), force="scene", process=False)
     except Exception as error:  # trimesh raises many types for malformed files
-        raise ValueError(f"{path}: cannot be read as a GLB ({str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__})") from None
+        raise ValueError(
+            f"{path}: cannot be read as a GLB "
+            f"({str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__})"
+        ) from None
     meshes = list(scene.geometry.values())
     if len(meshes) != 1 or not isinstance(meshes[0], trimesh.Trimesh):
         raise ValueError(f"{path}: expected one textured mesh, found {len(meshes)} geometries")
@@ -210,8 +275,12 @@ def load_glb(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarra
     image = getattr(getattr(visual, "material", None), "baseColorTexture", None)
     if getattr(visual, "uv", None) is None or image is None:
         raise ValueError(f"{path}: the mesh has no UV coordinates or no base-colour texture")
-    return (np.asarray(mesh.vertices, dtype=np.float32), np.asarray(mesh.faces, dtype=np.int64),
-            np.asarray(visual.uv, dtype=np.float32), np.asarray(image.convert("RGB"), dtype=np.uint8))
+    return (
+        np.asarray(mesh.vertices, dtype=np.float32),
+        np.asarray(mesh.faces, dtype=np.int64),
+        np.asarray(visual.uv, dtype=np.float32),
+        np.asarray(image.convert("RGB"), dtype=np.uint8),
+    )
 
 
 def ply_bytes(vertices, faces, vertex_colours_uint8) -> bytes:

@@ -73,7 +73,9 @@ def quantile_resample(sorted_values: torch.Tensor, count: int) -> torch.Tensor:
     q = sorted_values.shape[0]
     if q == count:
         return sorted_values
-    position = ((torch.arange(count, dtype=sorted_values.dtype, device=sorted_values.device) + 0.5) * (q / count) - 0.5).clamp(0, q - 1)
+    position = (
+        (torch.arange(count, dtype=sorted_values.dtype, device=sorted_values.device) + 0.5) * (q / count) - 0.5
+    ).clamp(0, q - 1)
     low = position.floor().long()
     high = (low + 1).clamp(max=q - 1)
     t = (position - low.to(position.dtype))[:, None]
@@ -104,16 +106,23 @@ def check_point_sets(render_sets: list[torch.Tensor], exemplar_sets: list[torch.
     check_type(render_sets, f"{function}: render_sets", list)
     check_type(exemplar_sets, f"{function}: exemplar_sets", list)
     if len(render_sets) != len(exemplar_sets) or not render_sets:
-        raise ValueError(f"{function}: render_sets and exemplar_sets must hold one set per layer alike, "
-                         f"got {len(render_sets)} and {len(exemplar_sets)}")
+        raise ValueError(
+            f"{function}: render_sets and exemplar_sets must hold one set per layer alike, "
+            f"got {len(render_sets)} and {len(exemplar_sets)}"
+        )
     for layer, (a, b) in enumerate(zip(render_sets, exemplar_sets)):
         sizes = check_shape(a, f"{function}: render_sets[{layer}]", ("P", "C"), dtype="float")
         check_shape(b, f"{function}: exemplar_sets[{layer}]", ("Q", "C"), sizes=sizes, dtype="float")
 
 
-def sw_distance(render_sets: list[torch.Tensor], exemplar_sets: list[torch.Tensor], generator: torch.Generator | None = None,
-                min_projections: int = 32) -> torch.Tensor:
-    """sum over layers of SW_l (module docstring); sets (P_l, C_l) and (Q_l, C_l); render sets under 2 points count 0."""
+def sw_distance(
+    render_sets: list[torch.Tensor],
+    exemplar_sets: list[torch.Tensor],
+    generator: torch.Generator | None = None,
+    min_projections: int = 32,
+) -> torch.Tensor:
+    """sum over layers of SW_l (module docstring); sets (P_l, C_l) and (Q_l, C_l); render sets under 2 points count
+    0."""
     check_point_sets(render_sets, exemplar_sets, "sw_distance")
     total = render_sets[0].new_zeros(())
     for a, b in zip(render_sets, exemplar_sets):
@@ -198,8 +207,9 @@ def _relative_covariance(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
     return (x - mx) @ (y - my).t() / x.shape[1] / (mx * my.t() + 1e-8)
 
 
-def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scales: int = 4, orientations: int = 4,
-                    lag: int = 3) -> dict[str, torch.Tensor]:
+def band_statistics(
+    image: torch.Tensor, mask: torch.Tensor | None = None, scales: int = 4, orientations: int = 4, lag: int = 3
+) -> dict[str, torch.Tensor]:
     """The statistics of the ``ps`` loss (module docstring) of one image.
 
     image (1, 3, H, W) in [-1, 1]; mask (1, 1, H, W) in [0, 1] or None (every pixel). Returns a dict
@@ -210,19 +220,10 @@ def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scale
     check_shape(mask, "band_statistics: mask", (1, 1, "H", "W"), sizes=sizes, optional=True)
     rgb = (image[0] + 1) / 2  # (3, H, W) in [0, 1]
     full = torch.ones_like(rgb[:1]) if mask is None else (mask[0] > 0.5).to(rgb.dtype)
-    stats: dict[str, torch.Tensor] = {}
-    inside = full[0] > 0.5
-    pixels = rgb[:, inside]  # (3, P)
+    pixels = rgb[:, full[0] > 0.5]  # (3, P)
     if pixels.shape[1] < _MIN_POSITIONS:
-        return stats
-    w = torch.full((pixels.shape[1],), 1.0 / pixels.shape[1], dtype=rgb.dtype, device=rgb.device)
-    mean, centred = _masked_moments(pixels, w)
-    stats["colour_mean"] = mean
-    stats["colour_cov"] = (centred @ centred.t() / pixels.shape[1]).reshape(-1)
-    # The colour marginals themselves (a two-colour exemplar has two modes that a mean and a
-    # covariance cannot tell from a blend): QUANTILES evenly spaced quantiles of each channel.
-    ranks = ((torch.arange(QUANTILES, device=rgb.device) + 0.5) / QUANTILES * (pixels.shape[1] - 1)).round().long()
-    stats["colour_quantiles"] = torch.sort(pixels, dim=1).values[:, ranks].reshape(-1)
+        return {}
+    stats = _colour_statistics(pixels)
 
     bank = oriented_filters(orientations).to(rgb)
     k = bank.shape[-1]
@@ -242,32 +243,20 @@ def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scale
         if count >= _MIN_POSITIONS:
             mag = magnitude[:, valid]  # (K, P)
             stats[f"energy_{s}"] = mag.mean(1)
-            stats[f"cross_orientation_{s}"] = _relative_covariance(mag, mag)[torch.triu_indices(orientations, orientations).unbind()]
+            stats[f"cross_orientation_{s}"] = _relative_covariance(mag, mag)[
+                torch.triu_indices(orientations, orientations).unbind()
+            ]
             stats[f"autocorr_band_{s}"] = _autocorrelation(real, valid, lag).reshape(-1)
             stats[f"autocorr_magnitude_{s}"] = _autocorrelation(magnitude, valid, lag, relative=True).reshape(-1)
             stats[f"autocorr_lowpass_{s}"] = _autocorrelation(luminance[0], valid, min(lag, 2)).reshape(-1)
             lum = luminance[0, 0][lum_valid]
             centred_lum = lum - lum.mean()
             var = centred_lum.square().mean() + 1e-8
-            stats[f"marginal_{s}"] = torch.stack([centred_lum.pow(3).mean() / var**1.5, centred_lum.pow(4).mean() / var**2])
+            stats[f"marginal_{s}"] = torch.stack(
+                [centred_lum.pow(3).mean() / var**1.5, centred_lum.pow(4).mean() / var**2]
+            )
             if previous is not None:
-                fine_mag, fine_real, fine_valid = previous
-                size = fine_mag.shape[-2:]
-                up = lambda t: F.interpolate(t[None], size=size, mode="bilinear", align_corners=False)[0]  # noqa: E731
-                # Bilinear upsampling mixes a coarse pixel's neighbours: they must be valid too.
-                coarse_valid = F.avg_pool2d(valid[None, None].to(rgb.dtype), 3, stride=1, padding=1, count_include_pad=True) > _INSIDE
-                both = fine_valid & (F.interpolate(coarse_valid.to(rgb.dtype), size=size, mode="nearest")[0, 0] > 0.5)
-                if int(both.sum()) >= _MIN_POSITIONS:
-                    coarse_mag = up(magnitude)[:, both]
-                    f_mag = fine_mag[:, both]
-                    stats[f"cross_scale_magnitude_{s}"] = _relative_covariance(f_mag, coarse_mag).reshape(-1)
-                    # Phase doubling: the coarse band b^2 / |b| oscillates at the finer octave's frequency,
-                    # so it correlates with the fine band where edges line up across scales.
-                    doubled_real = up((real.square() - imag.square()) / magnitude)[:, both]
-                    doubled_imag = up(2 * real * imag / magnitude)[:, both]
-                    f_real = fine_real[:, both]
-                    coarse = torch.cat([doubled_real, doubled_imag])
-                    stats[f"cross_scale_phase_{s}"] = _correlation(f_real, coarse).reshape(-1)
+                stats.update(_cross_scale_statistics(previous, real, imag, magnitude, valid, s))
             previous = (magnitude, real, valid)
         else:
             previous = None
@@ -277,7 +266,54 @@ def band_statistics(image: torch.Tensor, mask: torch.Tensor | None = None, scale
     return stats
 
 
-def statistics_distance(mine: dict[str, torch.Tensor], theirs: dict[str, torch.Tensor], eps: float = 1e-2) -> torch.Tensor:
+def _colour_statistics(pixels: torch.Tensor) -> dict[str, torch.Tensor]:
+    """The colour groups of :func:`band_statistics` from the object's pixels (3, P) in [0, 1]."""
+    count = pixels.shape[1]
+    w = torch.full((count,), 1.0 / count, dtype=pixels.dtype, device=pixels.device)
+    mean, centred = _masked_moments(pixels, w)
+    # The colour marginals themselves (a two-colour exemplar has two modes that a mean and a
+    # covariance cannot tell from a blend): QUANTILES evenly spaced quantiles of each channel.
+    ranks = ((torch.arange(QUANTILES, device=pixels.device) + 0.5) / QUANTILES * (count - 1)).round().long()
+    return {
+        "colour_mean": mean,
+        "colour_cov": (centred @ centred.t() / count).reshape(-1),
+        "colour_quantiles": torch.sort(pixels, dim=1).values[:, ranks].reshape(-1),
+    }
+
+
+def _cross_scale_statistics(
+    finer: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+    real: torch.Tensor,
+    imag: torch.Tensor,
+    magnitude: torch.Tensor,
+    valid: torch.Tensor,
+    s: int,
+) -> dict[str, torch.Tensor]:
+    """The cross-scale groups of octave ``s`` against the finer octave ``finer`` = (magnitude (K, 2h, 2w), real
+    part (K, 2h, 2w), valid (2h, 2w)); this octave's real, imag, magnitude (K, h, w) and valid (h, w)."""
+    fine_mag, fine_real, fine_valid = finer
+    size = fine_mag.shape[-2:]
+    up = lambda t: F.interpolate(t[None], size=size, mode="bilinear", align_corners=False)[0]  # noqa: E731
+    # Bilinear upsampling mixes a coarse pixel's neighbours: they must be valid too.
+    coarse_valid = (
+        F.avg_pool2d(valid[None, None].to(real.dtype), 3, stride=1, padding=1, count_include_pad=True) > _INSIDE
+    )
+    both = fine_valid & (F.interpolate(coarse_valid.to(real.dtype), size=size, mode="nearest")[0, 0] > 0.5)
+    if int(both.sum()) < _MIN_POSITIONS:
+        return {}
+    stats = {f"cross_scale_magnitude_{s}": _relative_covariance(fine_mag[:, both], up(magnitude)[:, both]).reshape(-1)}
+    # Phase doubling: the coarse band b^2 / |b| oscillates at the finer octave's frequency,
+    # so it correlates with the fine band where edges line up across scales.
+    doubled_real = up((real.square() - imag.square()) / magnitude)[:, both]
+    doubled_imag = up(2 * real * imag / magnitude)[:, both]
+    coarse = torch.cat([doubled_real, doubled_imag])
+    stats[f"cross_scale_phase_{s}"] = _correlation(fine_real[:, both], coarse).reshape(-1)
+    return stats
+
+
+def statistics_distance(
+    mine: dict[str, torch.Tensor], theirs: dict[str, torch.Tensor], eps: float = 1e-2
+) -> torch.Tensor:
     """sum over the shared groups of w_g |a_g - b_g|^2 / (|b_g|^2 + eps * size_g), w_g from :data:`GROUP_WEIGHTS`."""
     total = next(iter(theirs.values())).new_zeros(())
     for key, b in theirs.items():
@@ -299,10 +335,24 @@ def ps_loss(images: torch.Tensor, masks: torch.Tensor, exemplar_stats: dict[str,
     ``exemplar_stats`` (:func:`exemplar_band_statistics`). Differentiable with respect to ``images``."""
     sizes = check_shape(images, "ps_loss: images", ("N", 3, "H", "W"), dtype="float")
     check_shape(masks, "ps_loss: masks", ("N", 1, "H", "W"), sizes=sizes)
-    return torch.stack([statistics_distance(band_statistics(images[n : n + 1], masks[n : n + 1]), exemplar_stats)
-                        for n in range(images.shape[0])]).mean()
+    return torch.stack(
+        [
+            statistics_distance(band_statistics(images[n : n + 1], masks[n : n + 1]), exemplar_stats)
+            for n in range(images.shape[0])
+        ]
+    ).mean()
 
 
-__all__ = ["GROUP_WEIGHTS", "STRUCTURE_LOSSES", "band_statistics", "check_point_sets", "exemplar_band_statistics",
-           "oriented_filters", "ps_loss", "quantile_resample", "sliced_wasserstein2", "statistics_distance",
-           "sw_distance"]
+__all__ = [
+    "GROUP_WEIGHTS",
+    "STRUCTURE_LOSSES",
+    "band_statistics",
+    "check_point_sets",
+    "exemplar_band_statistics",
+    "oriented_filters",
+    "ps_loss",
+    "quantile_resample",
+    "sliced_wasserstein2",
+    "statistics_distance",
+    "sw_distance",
+]

@@ -86,14 +86,14 @@ def triangles_to_quads(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.
     edge_index = edge_index.reshape(t, 3) + len(vertices)  # midpoint vertex of edges (01, 12, 20)
     centroid_index = np.arange(t) + len(vertices) + len(unique_edges)
     new_vertices = np.concatenate([vertices, vertices[unique_edges].mean(axis=1), vertices[triangles].mean(axis=1)])
-    quads = np.concatenate([
-        np.stack([triangles[:, 0], edge_index[:, 0], centroid_index, edge_index[:, 2]], axis=1),
-        np.stack([triangles[:, 1], edge_index[:, 1], centroid_index, edge_index[:, 0]], axis=1),
-        np.stack([triangles[:, 2], edge_index[:, 2], centroid_index, edge_index[:, 1]], axis=1),
-    ])
+    quads = np.concatenate(
+        [
+            np.stack([triangles[:, 0], edge_index[:, 0], centroid_index, edge_index[:, 2]], axis=1),
+            np.stack([triangles[:, 1], edge_index[:, 1], centroid_index, edge_index[:, 0]], axis=1),
+            np.stack([triangles[:, 2], edge_index[:, 2], centroid_index, edge_index[:, 1]], axis=1),
+        ]
+    )
     return new_vertices, quads
-
-
 
 
 # level 0 within these factors of its target; a coarser level between 1/8 and 1/2 of the finer level's faces
@@ -127,8 +127,14 @@ def is_closed_single_part(faces: np.ndarray) -> bool:
     return connected_components(graph, directed=False)[0] == 1
 
 
-def quad_mesh_problem(vertices: np.ndarray, quads: np.ndarray, min_faces: float, max_faces: float,
-                      coverage_points: np.ndarray | None = None, coverage_margin: float = 0.0) -> str | None:
+def quad_mesh_problem(
+    vertices: np.ndarray,
+    quads: np.ndarray,
+    min_faces: float,
+    max_faces: float,
+    coverage_points: np.ndarray | None = None,
+    coverage_margin: float = 0.0,
+) -> str | None:
     """Why a quad mesh is unusable as a level, or None when it is fine.
 
     Checks: not empty; ``min_faces <= F <= max_faces``; no quad with a repeated vertex; every edge
@@ -158,11 +164,16 @@ def quad_mesh_problem(vertices: np.ndarray, quads: np.ndarray, min_faces: float,
         return f"{int((counts < 2).sum())} boundary edges: holes in the remesh of a closed surface"
     if coverage_points is not None and len(coverage_points):
         edge = float(np.sqrt(triangle_areas(v, quads_to_triangles(q)).sum() / n))
-        probes = np.concatenate([v[np.unique(q)], v[q].mean(axis=1), (v[q] + v[np.roll(q, -1, axis=1)]).reshape(-1, 3) / 2.0])
+        probes = np.concatenate(
+            [v[np.unique(q)], v[q].mean(axis=1), (v[q] + v[np.roll(q, -1, axis=1)]).reshape(-1, 3) / 2.0]
+        )
         distance, _ = cKDTree(probes).query(coverage_points, k=1)
         reach = float(np.quantile(distance, COVERAGE_QUANTILE))
         if reach > coverage_margin + edge:
-            return f"parts of the shape left out ({100 * COVERAGE_QUANTILE:.0f} % of the surface within {reach:.3g}, more than {coverage_margin + edge:.3g})"
+            return (
+                f"parts of the shape left out ({100 * COVERAGE_QUANTILE:.0f} % of the surface within {reach:.3g}, "
+                f"more than {coverage_margin + edge:.3g})"
+            )
     return None
 
 
@@ -227,8 +238,14 @@ def _coverage_points(vertices: np.ndarray, faces: np.ndarray, edge: float, count
     return points
 
 
-def _attempt(attempts: list[dict], method: str, make, bounds: tuple[float, float], coverage: np.ndarray | None,
-             budget: Budget | None = None):
+def _attempt(
+    attempts: list[dict],
+    method: str,
+    make,
+    bounds: tuple[float, float],
+    coverage: np.ndarray | None,
+    budget: Budget | None = None,
+):
     """Run one way of making a level; record it; return (vertices, quads) when it passes, else None.
     BudgetExceeded, before it starts, when ``budget``'s time is spent."""
     if budget is not None:
@@ -239,8 +256,14 @@ def _attempt(attempts: list[dict], method: str, make, bounds: tuple[float, float
         problem = quad_mesh_problem(out_v, out_q, bounds[0], bounds[1], coverage)
     except QuadRemeshError as error:
         out_v, out_q, problem = None, None, str(error)
-    attempts.append({"method": method, "faces": 0 if out_q is None else int(len(out_q)), "problem": problem,
-                     "seconds": round(time.perf_counter() - start, 3)})
+    attempts.append(
+        {
+            "method": method,
+            "faces": 0 if out_q is None else int(len(out_q)),
+            "problem": problem,
+            "seconds": round(time.perf_counter() - start, 3),
+        }
+    )
     return None if problem is not None else (out_v, out_q)
 
 
@@ -250,9 +273,16 @@ def _corrected(request: int, obtained: int, bounds: tuple[float, float]) -> int:
     return int(round(np.clip(request * aim / max(obtained, 1), request / 4.0, request * 4.0)))
 
 
-def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[int], seed: int = 0,
-                     extra_seeds: int = 1, timeout: float | None = 300.0, isolate: bool = True,
-                     budget: Budget | None = None) -> list[LevelResult]:
+def remesh_hierarchy(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    face_counts: list[int],
+    seed: int = 0,
+    extra_seeds: int = 1,
+    timeout: float | None = 300.0,
+    isolate: bool = True,
+    budget: Budget | None = None,
+) -> list[LevelResult]:
     """Quad meshes of decreasing face counts for one triangle mesh (level 0 the finest); see the module docstring.
 
     Args:
@@ -280,27 +310,21 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
         level_start = time.perf_counter()
         attempts: list[dict] = []
         warnings: list[str] = []
-        if level == 0:
-            bounds = (LEVEL0_BOUNDS[0] * target, LEVEL0_BOUNDS[1] * target)
-            request = int(target)
-        else:
-            finer = len(levels[-1].quads)
-            bounds = (finer / COARSER_RATIO[1], finer / COARSER_RATIO[0])
-            request = int(round(np.clip(target, bounds[0] * 1.4, bounds[1] / 1.4)))
+        bounds, request = _level_request(target, len(levels[-1].quads) if levels else None)
         edge = float(np.sqrt(area / max(request, 1)))
         spacing = REMAKE_SPACING * edge
-        offset = spacing if level == 0 else REMAKE_OFFSET * edge
-        sources = []
-        if level == 0:
-            if is_closed_single_part(faces):
-                sources.append(("input", lambda: surfaces.quadriflow_input(edge)))
-        sources.append((f"closed re-make, spacing={spacing:.3g}, offset={offset:.3g}", lambda: surfaces.remake(spacing, offset, edge)))
+        sources = _level_sources(surfaces, faces, level, edge, spacing)
 
-        chosen, method = _quadriflow_level(sources, seeds, request, bounds, attempts, level > 0, budget, timeout, isolate, edge)
+        chosen, method = _quadriflow_level(
+            sources, seeds, request, bounds, attempts, level > 0, budget, timeout, isolate, edge
+        )
         if chosen is None:
             chosen, method = _surface_net_level(surfaces, request, bounds, attempts, budget)
             if chosen is not None:
-                warnings.append(f"QuadriFlow gave no usable level at {request} faces; surface-net quads of the closed re-make instead")
+                warnings.append(
+                    f"QuadriFlow gave no usable level at {request} faces; surface-net quads of the closed re-make "
+                    "instead"
+                )
         if chosen is None:
             reasons = "; ".join(f"{a['method']}: {a['problem']}" for a in attempts)
             raise QuadRemeshError(f"no quad mesh for level {level} ({target} faces): {reasons}")
@@ -312,15 +336,56 @@ def remesh_hierarchy(vertices: np.ndarray, faces: np.ndarray, face_counts: list[
         count = len(out_q)
         if level == 0 and not (0.85 * target <= count <= 1.18 * target):
             warnings.append(f"{count} faces, {count / target:.2f} of the requested {target}")
-        levels.append(LevelResult(out_v, orient_coherently(out_v, out_q), int(target), method, attempts, warnings,
-                                  round(time.perf_counter() - level_start, 3)))
+        levels.append(
+            LevelResult(
+                out_v,
+                orient_coherently(out_v, out_q),
+                int(target),
+                method,
+                attempts,
+                warnings,
+                round(time.perf_counter() - level_start, 3),
+            )
+        )
         if level == 0:
             area = float(triangle_areas(out_v, quads_to_triangles(out_q)).sum())
     return levels
 
 
-def _quadriflow_level(sources: list, seeds: list[int], request: int, bounds: tuple[float, float], attempts: list[dict], coarse: bool,
-                      budget: Budget, timeout: float | None, isolate: bool, edge: float) -> tuple:
+def _level_request(target: int, finer: int | None) -> tuple[tuple[float, float], int]:
+    """The face-count bounds a level must fall in and the count asked of QuadriFlow: level 0 (``finer`` None)
+    near its target; a coarser level within :data:`COARSER_RATIO` of the ``finer`` level's count."""
+    if finer is None:
+        return (LEVEL0_BOUNDS[0] * target, LEVEL0_BOUNDS[1] * target), int(target)
+    bounds = (finer / COARSER_RATIO[1], finer / COARSER_RATIO[0])
+    return bounds, int(round(np.clip(target, bounds[0] * 1.4, bounds[1] / 1.4)))
+
+
+def _level_sources(surfaces: _Surfaces, faces: np.ndarray, level: int, edge: float, spacing: float) -> list:
+    """[(label, make the surface QuadriFlow remeshes)]: the input itself (level 0 of a closed single part),
+    then the closed re-make at ``spacing``."""
+    offset = spacing if level == 0 else REMAKE_OFFSET * edge
+    sources = []
+    if level == 0 and is_closed_single_part(faces):
+        sources.append(("input", lambda: surfaces.quadriflow_input(edge)))
+    sources.append(
+        (f"closed re-make, spacing={spacing:.3g}, offset={offset:.3g}", lambda: surfaces.remake(spacing, offset, edge))
+    )
+    return sources
+
+
+def _quadriflow_level(
+    sources: list,
+    seeds: list[int],
+    request: int,
+    bounds: tuple[float, float],
+    attempts: list[dict],
+    coarse: bool,
+    budget: Budget,
+    timeout: float | None,
+    isolate: bool,
+    edge: float,
+) -> tuple:
     """QuadriFlow on each source surface in turn (the last one with every seed) until a result passes the
     checks: (vertices, quads) and the attempt's label, or (None, ""). A count out of bounds is asked once
     more, scaled; a coarse level far from its aim too, the nearer result kept."""
@@ -332,15 +397,29 @@ def _quadriflow_level(sources: list, seeds: list[int], request: int, bounds: tup
         try:
             mesh = make_source()
         except (ValueError, RuntimeError) as error:
-            attempts.append({"method": f"make {name}", "faces": 0, "problem": f"{error.__class__.__name__}: {error}",
-                             "seconds": round(time.perf_counter() - start, 3)})
+            attempts.append(
+                {
+                    "method": f"make {name}",
+                    "faces": 0,
+                    "problem": f"{error.__class__.__name__}: {error}",
+                    "seconds": round(time.perf_counter() - start, 3),
+                }
+            )
             continue
         coverage = _coverage_points(*mesh, edge)
-        for s in (seeds if last else seeds[:1]):
+        for s in seeds if last else seeds[:1]:
             tries = [(request, f"quadriflow({name}, seed={s})")]
             for ask, label in tries:
-                result = _attempt(attempts, label, lambda: quadriflow(*mesh, ask, s, timeout=budget.timeout(timeout), isolate=isolate,
-                                                                     memory_gb=budget.memory_gb), bounds, coverage, budget)
+                result = _attempt(
+                    attempts,
+                    label,
+                    lambda: quadriflow(
+                        *mesh, ask, s, timeout=budget.timeout(timeout), isolate=isolate, memory_gb=budget.memory_gb
+                    ),
+                    bounds,
+                    coverage,
+                    budget,
+                )
                 if result is not None:
                     got = len(result[1])
                     if chosen is None or abs(np.log(got / request)) < abs(np.log(len(chosen[1]) / request)):
@@ -362,7 +441,9 @@ def _quadriflow_level(sources: list, seeds: list[int], request: int, bounds: tup
     return chosen, method
 
 
-def _surface_net_level(surfaces: _Surfaces, request: int, bounds: tuple[float, float], attempts: list[dict], budget: Budget | None = None):
+def _surface_net_level(
+    surfaces: _Surfaces, request: int, bounds: tuple[float, float], attempts: list[dict], budget: Budget | None = None
+):
     """Surface-net quads of the closed re-make, the grid spacing steered towards ``request`` faces.
 
     The count falls roughly with the square of the spacing; up to six spacings are tried, stopping
@@ -375,7 +456,9 @@ def _surface_net_level(surfaces: _Surfaces, request: int, bounds: tuple[float, f
         offset = 0.9 * spacing
         label = f"surface nets(closed re-make, spacing={spacing:.3g}, offset={offset:.3g})"
         # the surface nets are the solid's boundary by construction: nothing of it can be left out
-        result = _attempt(attempts, label, lambda: surface_net_quads(surfaces.field(spacing, offset)), bounds, None, budget)
+        result = _attempt(
+            attempts, label, lambda: surface_net_quads(surfaces.field(spacing, offset)), bounds, None, budget
+        )
         got = attempts[-1]["faces"]
         if result is not None:
             miss = abs(np.log(got / request))

@@ -12,7 +12,13 @@ import torch
 from mesh2tex.checks import check_shape
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.losses.style import global_style_loss, lowpass_colour_loss, patch_style_loss, sample_patch_pairs, style_grams
+from mesh2tex.losses.style import (
+    global_style_loss,
+    lowpass_colour_loss,
+    patch_style_loss,
+    sample_patch_pairs,
+    style_grams,
+)
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
@@ -39,7 +45,9 @@ class PhotoLight(torch.nn.Module):
         # Angles in radians (reported in degrees): with the texture's learning rates (0.01-0.05 per
         # step) a few hundred steps can turn the light anywhere, which degrees would not allow.
         self.azimuth_offset = torch.nn.Parameter(torch.zeros(()))
-        self.elevation = torch.nn.Parameter(torch.tensor(math.radians(0.5 * (prior.elevation_min + prior.elevation_max))))
+        self.elevation = torch.nn.Parameter(
+            torch.tensor(math.radians(0.5 * (prior.elevation_min + prior.elevation_max)))
+        )
         ambient = 0.5 * (prior.ambient_min + prior.ambient_max)
         self.ambient_logit = torch.nn.Parameter(torch.logit(torch.tensor(ambient)))
 
@@ -53,8 +61,11 @@ class PhotoLight(torch.nn.Module):
     def describe(self) -> dict[str, float]:
         """The light found, for reports: degrees relative to the camera, the ambient share."""
         with torch.no_grad():
-            return {"azimuth_offset": round(math.degrees(self.azimuth_offset.item()), 2), "elevation": round(math.degrees(self.elevation.item()), 2),
-                    "ambient": round(torch.sigmoid(self.ambient_logit).item(), 4)}
+            return {
+                "azimuth_offset": round(math.degrees(self.azimuth_offset.item()), 2),
+                "elevation": round(math.degrees(self.elevation.item()), 2),
+                "ambient": round(torch.sigmoid(self.ambient_logit).item(), 4),
+            }
 
 
 class PhotoLoss:
@@ -69,7 +80,15 @@ class PhotoLoss:
     mask (1, 1, R, R); view: noc (R, R, 3), mask (1, 1, R, R); photo_noc (R, R, 3) or None.
     """
 
-    def __init__(self, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig, device: torch.device):
+    def __init__(
+        self,
+        photo: Photo,
+        view: FramedView,
+        photo_noc: torch.Tensor | None,
+        vgg,
+        cfg: TransferConfig,
+        device: torch.device,
+    ):
         self.sizes = check_query(photo, view, photo_noc, "PhotoLoss")
         self.guided = cfg.use_noc and cfg.use_patches
         if self.guided and photo_noc is None:
@@ -84,19 +103,33 @@ class PhotoLoss:
         self.pick = torch.Generator().manual_seed(cfg.seed)
         self.colour_sigma = cfg.colour_sigma * cfg.resolution
 
-    def __call__(self, image: torch.Tensor, use_global: bool, pick: torch.Generator | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+    def __call__(
+        self, image: torch.Tensor, use_global: bool, pick: torch.Generator | None = None
+    ) -> tuple[torch.Tensor, dict[str, float]]:
         check_shape(image, "PhotoLoss: image", (1, 3, "R", "R"), sizes=dict(self.sizes), dtype="float")
         cfg, vgg = self.cfg, self.vgg
         parts: dict[str, torch.Tensor] = {}
         if use_global:
-            parts["global"] = cfg.w_glob * global_style_loss(vgg, image, self.render_mask, target_grams=self.photo_grams, scales=cfg.scales)
+            parts["global"] = cfg.w_glob * global_style_loss(
+                vgg, image, self.render_mask, target_grams=self.photo_grams, scales=cfg.scales
+            )
         if cfg.use_patches:
-            pairs = sample_patch_pairs(self.photo_mask[0, 0], self.render_mask[0, 0], cfg.patches, self.photo_noc, self.render_noc,
-                                       guided=self.guided, generator=self.pick if pick is None else pick)
-            parts["patch"] = cfg.w_patch * patch_style_loss(vgg, image, self.render_mask, self.photo_image, self.photo_mask, pairs,
-                                                            cfg.patch_size, cfg.patch_levels)
+            pairs = sample_patch_pairs(
+                self.photo_mask[0, 0],
+                self.render_mask[0, 0],
+                cfg.patches,
+                self.photo_noc,
+                self.render_noc,
+                guided=self.guided,
+                generator=self.pick if pick is None else pick,
+            )
+            parts["patch"] = cfg.w_patch * patch_style_loss(
+                vgg, image, self.render_mask, self.photo_image, self.photo_mask, pairs, cfg.patch_size, cfg.patch_levels
+            )
         if cfg.w_colour > 0:
-            parts["colour"] = cfg.w_colour * lowpass_colour_loss(image, self.render_mask, self.photo_image, self.photo_mask, self.colour_sigma)
+            parts["colour"] = cfg.w_colour * lowpass_colour_loss(
+                image, self.render_mask, self.photo_image, self.photo_mask, self.colour_sigma
+            )
         total = sum(parts.values())
         return total, {k: float(v.detach()) for k, v in parts.items()}
 
@@ -104,7 +137,9 @@ class PhotoLoss:
 @dataclass
 class TransferResult:
     ws: torch.Tensor  # (1, num_ws, w_dim) the optimised latent
-    render: torch.Tensor  # (1, 3, R, R) the final render at the pose, cropped, in [-1, 1] (lit by ``light`` when one was learnt)
+    render: (
+        torch.Tensor
+    )  # (1, 3, R, R) the final render at the pose, cropped, in [-1, 1] (lit by ``light`` when one was learnt)
     losses: dict[str, list[float]] = field(default_factory=dict)  # per stage, one value per iteration
     seconds: dict[str, float] = field(default_factory=dict)  # per stage
     light: dict[str, float] | None = None  # the learnt light (PhotoLight.describe), None when the renders were unlit
@@ -116,9 +151,18 @@ def learns_light(cfg: TransferConfig, generator_lit: bool) -> bool:
     return cfg.light == "learn" or (cfg.light == "auto" and generator_lit)
 
 
-def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: Photo, view: FramedView,
-                     photo_noc: torch.Tensor | None, vgg, cfg: TransferConfig, device: torch.device,
-                     show_progress: bool = True, generator_lit: bool = False) -> TransferResult:
+def transfer_texture(
+    generator: TextureGenerator,
+    shape: PreparedShape,
+    photo: Photo,
+    view: FramedView,
+    photo_noc: torch.Tensor | None,
+    vgg,
+    cfg: TransferConfig,
+    device: torch.device,
+    show_progress: bool = True,
+    generator_lit: bool = False,
+) -> TransferResult:
     """Optimise the texture of ``shape`` to look like ``photo`` (Equation 2, then refinement).
 
     ``generator`` is modified in place by stage 2 (its last ``refine_blocks`` synthesis blocks):
@@ -131,43 +175,20 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     batch = collate_shapes([shape]).to(device)
     generator = generator.to(device).requires_grad_(False)
-    encoded = [e.detach() for e in generator.encoder(batch)]
     samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
-    grey, colour_sigma = torch.zeros(1, 3, device=device), loss_of.colour_sigma
     light = PhotoLight(view.azimuth).to(device) if learns_light(cfg, generator_lit) else None
-
-    def render(ws: torch.Tensor) -> torch.Tensor:
-        full = render_field_views(generator, batch, ws, view.mvp.to(device), (view.render_size,) * 2, grey,
-                                  encoded=encoded, noise_mode="none", samples=samples,
-                                  lights=light.lights() if light is not None else None).images
-        return crop_square(full, view.box, cfg.resolution)
-
-    def render_unlit(ws: torch.Tensor, at: FramedView, at_samples) -> torch.Tensor:
-        """(1, 3, R, R) albedo of the texture at another view, cropped as that view's object."""
-        full = render_field_views(generator, batch, ws, at.mvp.to(device), (at.render_size,) * 2, grey,
-                                  encoded=encoded, noise_mode="none", samples=at_samples).images
-        return crop_square(full, at.box, cfg.resolution)
-
-    num_ws = generator.num_ws
-    ws = starting_latent(generator, render, loss_of, cfg, device).requires_grad_(True)
+    renders = _FieldRenders(generator, batch, view, samples, light, cfg.resolution, device)
+    ws = starting_latent(generator, renders.at_photo, loss_of, cfg, device).requires_grad_(True)
 
     def styles() -> torch.Tensor:
-        return ws.expand(1, num_ws, -1)
+        return ws.expand(1, generator.num_ws, -1)
 
     result = TransferResult(ws=ws, render=torch.empty(0))
     light_params = list(light.parameters()) if light is not None else []
 
-    def loss_at(stage: str, use_global: bool, anchors=()):
-        def loss(i: int) -> torch.Tensor:
-            total, _ = loss_of(render(styles()), use_global)
-            if anchors:
-                at, at_samples, mask, target = anchors[i % len(anchors)]
-                total = total + cfg.w_anchor * lowpass_colour_loss(render_unlit(styles(), at, at_samples), mask, target, mask, colour_sigma)
-            return total
-        return loss
-
     def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float, anchors=()) -> None:
-        run_stage(stage, params, iters, lr, loss_at(stage, use_global, anchors), result, show_progress)
+        loss = _stage_loss(loss_of, renders, styles, use_global, anchors, cfg.w_anchor)
+        run_stage(stage, params, iters, lr, loss, result, show_progress)
 
     # The light is optimised in both stages: stage 2 changes the colours it has to explain.
     optimise("latent", [ws] + light_params, cfg.latent_iters, use_global=True, lr=cfg.lr)
@@ -176,18 +197,95 @@ def transfer_texture(generator: TextureGenerator, shape: PreparedShape, photo: P
         params = generator.last_synthesis_parameters(cfg.refine_blocks)
         for p in params:
             p.requires_grad_(True)
-        anchors = unseen_anchors(shape, view, batch, samples, cfg, device, render_unlit, styles) if cfg.w_anchor > 0 else []
+        anchors = (
+            unseen_anchors(shape, view, batch, samples, cfg, device, renders.unlit, styles) if cfg.w_anchor > 0 else []
+        )
         # Stage 2 uses the patch loss without the global one (paper), plus the colour loss when it is on;
         # without patches it keeps the global loss.
-        optimise("refine", params + light_params, cfg.refine_iters, use_global=not cfg.use_patches, lr=cfg.refine_lr or cfg.lr,
-                 anchors=anchors)
+        optimise(
+            "refine",
+            params + light_params,
+            cfg.refine_iters,
+            use_global=not cfg.use_patches,
+            lr=cfg.refine_lr or cfg.lr,
+            anchors=anchors,
+        )
         for p in params:
             p.requires_grad_(False)
     with torch.no_grad():
-        result.render = render(styles()).cpu()
+        result.render = renders.at_photo(styles()).cpu()
     result.ws = styles().detach().clone()
     result.light = light.describe() if light is not None else None
     return result
+
+
+class _FieldRenders:
+    """The generator's field on one prepared shape (a batch of one), rendered on grey and cropped as the
+    transfer's views are; its encoder's features computed once."""
+
+    def __init__(
+        self,
+        generator: TextureGenerator,
+        batch,
+        view: FramedView,
+        samples,
+        light: PhotoLight | None,
+        resolution: int,
+        device: torch.device,
+    ):
+        self.generator, self.batch, self.view, self.samples, self.light = generator, batch, view, samples, light
+        self.resolution = resolution
+        self.device = device
+        self.encoded = [e.detach() for e in generator.encoder(batch)]
+        self.grey = torch.zeros(1, 3, device=self.device)
+
+    def at_photo(self, ws: torch.Tensor) -> torch.Tensor:
+        """(1, 3, R, R) the texture of styles ``ws`` at the photo's view, lit by the learnt light when there is one."""
+        view = self.view
+        lights = self.light.lights() if self.light is not None else None
+        full = render_field_views(
+            self.generator,
+            self.batch,
+            ws,
+            view.mvp.to(self.device),
+            (view.render_size,) * 2,
+            self.grey,
+            encoded=self.encoded,
+            noise_mode="none",
+            samples=self.samples,
+            lights=lights,
+        ).images
+        return crop_square(full, view.box, self.resolution)
+
+    def unlit(self, ws: torch.Tensor, at: FramedView, at_samples) -> torch.Tensor:
+        """(1, 3, R, R) albedo of the texture at another view, cropped as that view's object."""
+        full = render_field_views(
+            self.generator,
+            self.batch,
+            ws,
+            at.mvp.to(self.device),
+            (at.render_size,) * 2,
+            self.grey,
+            encoded=self.encoded,
+            noise_mode="none",
+            samples=at_samples,
+        ).images
+        return crop_square(full, at.box, self.resolution)
+
+
+def _stage_loss(loss_of: PhotoLoss, renders: _FieldRenders, styles, use_global: bool, anchors, w_anchor: float):
+    """loss(step): the photo loss of the render at the photo's view; with ``anchors`` [(view, samples, mask,
+    target colours)], plus ``w_anchor`` times the low-pass colour loss at anchor ``step % len(anchors)``."""
+
+    def loss(i: int) -> torch.Tensor:
+        total, _ = loss_of(renders.at_photo(styles()), use_global)
+        if anchors:
+            at, at_samples, mask, target = anchors[i % len(anchors)]
+            unlit = renders.unlit(styles(), at, at_samples)
+            total = total + w_anchor * lowpass_colour_loss(unlit, mask, target, mask, loss_of.colour_sigma)
+        return total
+
+    return loss
 
 
 @torch.no_grad()
@@ -198,17 +296,27 @@ def starting_latent(generator: TextureGenerator, render, loss_of, cfg: TransferC
     num_ws = generator.num_ws
     starts = [mean_latent(generator)]
     if cfg.latent_starts > 1:
-        z = torch.randn(cfg.latent_starts - 1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed)).to(device)
+        z = torch.randn(
+            cfg.latent_starts - 1, generator.cfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed)
+        ).to(device)
         starts += list(generator.mapping(z, truncation_psi=0.7).split(1))  # each (1, num_ws, w_dim)
         # Score each start as stage 1 will see it; the patch pairs are drawn from their own generator
         # so that the run's later pairs do not depend on how many starts were tried.
-        scores = [float(loss_of(render(w.expand(1, num_ws, -1)), use_global=True, pick=torch.Generator().manual_seed(cfg.seed))[0])
-                  for w in starts]
+        scores = [
+            float(
+                loss_of(render(w.expand(1, num_ws, -1)), use_global=True, pick=torch.Generator().manual_seed(cfg.seed))[
+                    0
+                ]
+            )
+            for w in starts
+        ]
         starts = [starts[min(range(len(scores)), key=scores.__getitem__)]]
     return (starts[0][:, :1] if cfg.latent_space == "w" else starts[0].expand(1, num_ws, -1)).clone()
 
 
-def run_stage(stage: str, params: list[torch.Tensor], iters: int, lr: float, loss, result: TransferResult, show_progress: bool) -> None:
+def run_stage(
+    stage: str, params: list[torch.Tensor], iters: int, lr: float, loss, result: TransferResult, show_progress: bool
+) -> None:
     """Adam on ``params`` for ``iters`` steps of ``loss(step)``; the loss curve and seconds go into ``result``
     under ``stage``. InputError when the loss becomes non-finite."""
     opt = torch.optim.Adam(params, lr=lr)
@@ -231,7 +339,16 @@ def run_stage(stage: str, params: list[torch.Tensor], iters: int, lr: float, los
 
 
 @torch.no_grad()
-def unseen_anchors(shape: PreparedShape, view: FramedView, batch, samples, cfg: TransferConfig, device: torch.device, render_unlit, styles) -> list:
+def unseen_anchors(
+    shape: PreparedShape,
+    view: FramedView,
+    batch,
+    samples,
+    cfg: TransferConfig,
+    device: torch.device,
+    render_unlit,
+    styles,
+) -> list:
     """The surfaces the photo does not show, as stage 1 painted them: for each of ``cfg.anchor_views``
     views around the object (the photo's elevation, azimuths from 30 degrees after the photo's), a tuple
     (view, its surface samples, mask (1,1,R,R) of the pixels whose triangle the photo's view does not

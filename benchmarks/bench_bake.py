@@ -129,9 +129,8 @@ def plain_renders(vertices, faces, mvp: torch.Tensor, size: int) -> torch.Tensor
         raster,
         smooth=False,
     )
-    light = torch.nn.functional.normalize(torch.linalg.inv(mvp)[:, :3, 2], dim=-1)[
-        :, None, None, :
-    ]  # towards the camera
+    # towards the camera
+    light = torch.nn.functional.normalize(torch.linalg.inv(mvp)[:, :3, 2], dim=-1)[:, None, None, :]
     grey = 0.35 + 0.55 * (normals * light).sum(-1).abs()
     return torch.where(mask, grey * 2 - 1, torch.ones_like(grey))[:, None].expand(-1, 3, -1, -1)
 

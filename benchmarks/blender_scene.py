@@ -24,9 +24,8 @@ def main() -> None:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     import numpy
 
-    if (
-        "bool" not in numpy.__dict__
-    ):  # Blender 3.4's glTF importer uses numpy.bool, gone since numpy 1.24 (Debian 12 pairs them)
+    # Blender 3.4's glTF importer uses numpy.bool, gone since numpy 1.24 (Debian 12 pairs them)
+    if "bool" not in numpy.__dict__:
         numpy.bool = bool
     bpy.ops.import_scene.gltf(filepath=glb)
     meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]

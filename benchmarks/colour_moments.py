@@ -27,6 +27,7 @@ from kornia.color import lab_to_rgb
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+# noqa: E402
 from mesh2tex.evaluation.generation import (
     _ORACLE_STREAM,
     draw_key,
@@ -35,7 +36,7 @@ from mesh2tex.evaluation.generation import (
     material_draws,
     read_world,
     sample_views,
-)  # noqa: E402
+)
 from mesh2tex.render import composite_images  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.photos import list_images, load_set  # noqa: E402
@@ -132,12 +133,13 @@ def main() -> None:
     oracle_images, oracle_masks = torch.cat([o[0] for o in oracle]), torch.cat([o[1] for o in oracle])
     report("oracle (the world's materials)", oracle_images, oracle_masks)
     photo_mean = lab_to_rgb(object_lab(photos, photo_masks).mean(1).reshape(1, 3, 1, 1)).clamp(0, 1)
+    # one colour: no spread to move
     report(
         "flat colour (the photo set's mean, baseline)",
         composite_images(photo_mean.expand_as(oracle_images), oracle_masks, 1.0),
         oracle_masks,
         move=False,
-    )  # one colour: no spread to move
+    )
     for spec in args.checkpoints:
         generator, label = load(spec, args.live_out)
         latents = torch.Generator().manual_seed(args.seed)

@@ -27,13 +27,14 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+# noqa: E402
 from mesh2tex.evaluation.generation import (
     GENERATOR_RENDERS,
     LIGHTING_MODES,
     SPLITS,
     GenerationConfig,
     run_generation_protocol,
-)  # noqa: E402
+)
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 
 

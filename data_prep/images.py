@@ -123,9 +123,8 @@ def run(args) -> int:
             name += "_"
         used.add(name)
         names.append(name)
-    earlier = (
-        earlier_outputs(output, set(names)) if args.overwrite else []
-    )  # read before guard_outputs moves index.json aside
+    # read before guard_outputs moves index.json aside
+    earlier = earlier_outputs(output, set(names)) if args.overwrite else []
     guard_outputs(
         output,
         ["index.json"] + [f"{folder}/{name}.png" for name in names for folder in ("images", "masks")],

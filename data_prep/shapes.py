@@ -94,9 +94,18 @@ def assign_names(paths: list[Path], earlier: dict[str, str] | None = None) -> di
     return names
 
 
-def prepare_one(path: str, output: str, faces: int, levels: int, seed: int, max_seconds: float | None = None,
-                max_memory_gb: float | None = None, up: str = "auto") -> dict:
-    """Load, prepare and save one shape (within the budgets given); returns its index record (never raises for a bad input)."""
+def prepare_one(
+    path: str,
+    output: str,
+    faces: int,
+    levels: int,
+    seed: int,
+    max_seconds: float | None = None,
+    max_memory_gb: float | None = None,
+    up: str = "auto",
+) -> dict:
+    """Load, prepare and save one shape (within the budgets given); returns its index record (never raises for a bad
+    input)."""
     from mesh2tex.geometry.mesh_io import load_user_mesh
     from mesh2tex.geometry.prepare import prepare_user_mesh
 
@@ -105,15 +114,25 @@ def prepare_one(path: str, output: str, faces: int, levels: int, seed: int, max_
     try:
         mesh = load_user_mesh(path, up)
         record["up"] = mesh.up
-        shape = prepare_user_mesh(mesh, face_count=faces, levels=levels, seed=seed, max_seconds=max_seconds, max_memory_gb=max_memory_gb)
+        shape = prepare_user_mesh(
+            mesh, face_count=faces, levels=levels, seed=seed, max_seconds=max_seconds, max_memory_gb=max_memory_gb
+        )
         shape.save(output)
         levels = shape.metadata["levels"]
-        record.update(status="ok", reason="", face_counts=shape.face_counts, methods=[level["method"] for level in levels],
-                      levels=[{"faces": level["faces"], "ratio": level["ratio"], "method": level["method"]} for level in levels],
-                      warnings=list(shape.metadata["warnings"]), coarseness=shape.metadata["coarseness"])
+        record.update(
+            status="ok",
+            reason="",
+            face_counts=shape.face_counts,
+            methods=[level["method"] for level in levels],
+            levels=[{"faces": level["faces"], "ratio": level["ratio"], "method": level["method"]} for level in levels],
+            warnings=list(shape.metadata["warnings"]),
+            coarseness=shape.metadata["coarseness"],
+        )
     except InputError as error:
         message = str(error)
-        record.update(status="failed", reason=message if message.startswith(path) else f"{path}: {message}", face_counts=[])
+        record.update(
+            status="failed", reason=message if message.startswith(path) else f"{path}: {message}", face_counts=[]
+        )
     except Exception as error:  # a bug or an unforeseen input: reported, the batch goes on
         record.update(status="failed", reason=f"{path}: unexpected {error.__class__.__name__}: {error}", face_counts=[])
     record["seconds"] = round(time.perf_counter() - start, 3)
@@ -152,15 +171,60 @@ def _settings(args) -> dict:
     return settings
 
 
-def run(args) -> int:
+def _check_options(args) -> None:
+    """UserError for options that cannot work, before any work."""
     from mesh2tex.geometry.prepare import level_face_counts
 
-    level_face_counts(args.faces, args.levels)  # validates the options before any work
+    level_face_counts(args.faces, args.levels)
     if args.workers < 1:
         raise UserError(f"--workers must be at least 1 (got {args.workers})")
     for flag, value in (("--max-seconds", args.max_seconds), ("--max-memory-gb", args.max_memory_gb)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise UserError(f"{flag} {value}: must be a positive number")
+
+
+def _index_document(settings: dict, shapes: list[dict]) -> dict:
+    """index.json: the settings, every shape's record and the counts a reader checks first."""
+    return {
+        "settings": settings,
+        "shapes": shapes,
+        "ok": sum(r["status"] == "ok" for r in shapes),
+        "failed": sum(r["status"] == "failed" for r in shapes),
+        "with_warnings": sum(bool(r.get("warnings")) for r in shapes),
+        "too_coarse": sum(bool((r.get("coarseness") or {}).get("too_coarse")) for r in shapes),
+    }
+
+
+def _prepare_all(jobs: list[tuple], workers: int, finish, bar) -> None:
+    """:func:`prepare_one` on every job, in this process or ``workers`` spawned ones; ``finish(record, bar)``
+    as each ends."""
+    if workers == 1 or len(jobs) <= 1:
+        for job in jobs:
+            finish(prepare_one(*job), bar)
+        return
+    # spawn, not fork: a forked child of a process that already ran pymeshlab's OpenMP code hangs in libgomp
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(prepare_one, *job) for job in jobs]
+        for future in as_completed(futures):
+            finish(future.result(), bar)
+
+
+def _done_and_todo(paths: list[Path], previous: dict, names: dict, output: Path) -> tuple[dict[str, dict], list[Path]]:
+    """({source: record} of the shapes an earlier run finished (listed ok, their .npz present), the paths
+    still to prepare)."""
+    records: dict[str, dict] = {}
+    todo: list[Path] = []
+    for path in paths:
+        entry = previous.get(str(path))
+        if entry is not None and entry.get("status") == "ok" and (output / f"{names[path]}.npz").exists():
+            records[str(path)] = entry
+        else:
+            todo.append(path)
+    return records, todo
+
+
+def run(args) -> int:
+    _check_options(args)
     output = Path(args.out)
     output.mkdir(parents=True, exist_ok=True)
     paths = find_meshes(args.input)
@@ -173,40 +237,40 @@ def run(args) -> int:
         previous, other_settings = read_index(index_path, settings)
     if args.overwrite:  # every shape again; the index keeps their old names, so the new files replace the old
         previous = {source: {k: v for k, v in entry.items() if k != "status"} for source, entry in previous.items()}
-    names = assign_names(paths, {source: Path(entry["file"]).stem for source, entry in previous.items() if isinstance(entry.get("file"), str)})
+    names = assign_names(
+        paths,
+        {source: Path(entry["file"]).stem for source, entry in previous.items() if isinstance(entry.get("file"), str)},
+    )
     if other_settings:
-        print(f"mesh2tex: note: {index_path} lists shapes prepared with other settings ({other_settings}); "
-              f"they are dropped from it, their .npz files stay", file=sys.stderr)
+        print(
+            f"mesh2tex: note: {index_path} lists shapes prepared with other settings ({other_settings}); "
+            f"they are dropped from it, their .npz files stay",
+            file=sys.stderr,
+        )
 
-    records: dict[str, dict] = {}
-    todo: list[Path] = []
-    for path in paths:
-        entry = previous.get(str(path))
-        npz = output / f"{names[path]}.npz"
-        if entry is not None and entry.get("status") == "ok" and npz.exists():
-            records[str(path)] = entry  # finished in an earlier run
-        else:
-            todo.append(path)
+    records, todo = _done_and_todo(paths, previous, names, output)
 
-    listed = {Path(str(entry.get("file"))).name for entry in previous.values()}  # an earlier run's files: replaced when prepared again
+    # an earlier run's files: replaced when prepared again
+    listed = {Path(str(entry.get("file"))).name for entry in previous.values()}
     guard_outputs(output, [f"{names[p]}.npz" for p in todo], args.overwrite, accept=lambda path: path.name in listed)
     log = JsonLines(output / "progress.jsonl")
 
     def write_index() -> None:
         ours = [records[str(p)] for p in paths if str(p) in records]
-        with locked(output / INDEX_LOCK):  # merged with what other invocations wrote meanwhile, never rewritten from our view
+        # merged with what other invocations wrote meanwhile, never rewritten from our view
+        with locked(output / INDEX_LOCK):
             others = [entry for source, entry in read_index(index_path, settings)[0].items() if source not in records]
-            ordered = others + ours
-            write_json(index_path, {"settings": settings, "shapes": ordered,
-                                    "ok": sum(r["status"] == "ok" for r in ordered),
-                                    "failed": sum(r["status"] == "failed" for r in ordered),
-                                    "with_warnings": sum(bool(r.get("warnings")) for r in ordered),
-                                    "too_coarse": sum(bool((r.get("coarseness") or {}).get("too_coarse")) for r in ordered)})
+            write_json(index_path, _index_document(settings, others + ours))
 
     def finish(record: dict, bar) -> None:
         records[record["source"]] = record
-        log.write({"event": "shape", **{k: record[k] for k in ("source", "status", "reason", "face_counts", "seconds")},
-                   "warnings": record.get("warnings", [])})
+        log.write(
+            {
+                "event": "shape",
+                **{k: record[k] for k in ("source", "status", "reason", "face_counts", "seconds")},
+                "warnings": record.get("warnings", []),
+            }
+        )
         write_index()  # after every shape, so an interruption loses at most the shapes in flight
         if record["status"] == "failed":
             bar.write(f"mesh2tex: failed: {record['reason']}", file=sys.stderr)
@@ -214,19 +278,16 @@ def run(args) -> int:
             bar.write(f"mesh2tex: warning: {record['source']}: {warning}", file=sys.stderr)
         bar.update(1)
 
-    jobs = [(str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed, args.max_seconds, args.max_memory_gb, args.up) for p in todo]
+    budgets = (args.max_seconds, args.max_memory_gb)
+    jobs = [
+        (str(p), str(output / f"{names[p]}.npz"), args.faces, args.levels, args.seed, *budgets, args.up) for p in todo
+    ]
     with progress_bar(total=len(paths), initial=len(paths) - len(todo), desc="prepare shapes", unit="shape") as bar:
-        if args.workers == 1 or len(jobs) <= 1:
-            for job in jobs:
-                finish(prepare_one(*job), bar)
-        else:
-            # spawn, not fork: a forked child of a process that already ran pymeshlab's OpenMP code hangs in libgomp
-            with ProcessPoolExecutor(max_workers=args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-                futures = [pool.submit(prepare_one, *job) for job in jobs]
-                for future in as_completed(futures):
-                    finish(future.result(), bar)
+        _prepare_all(jobs, args.workers, finish, bar)
     write_index()
     failed = [r for r in records.values() if r["status"] == "failed"]
-    print(f"prepared {len(records) - len(failed)} of {len(records)} shapes into {output} "
-          f"({len(paths) - len(todo)} already done){'; failed: ' + str(len(failed)) if failed else ''}")
+    print(
+        f"prepared {len(records) - len(failed)} of {len(records)} shapes into {output} "
+        f"({len(paths) - len(todo)} already done){'; failed: ' + str(len(failed)) if failed else ''}"
+    )
     return 2 if failed else 0

@@ -118,9 +118,8 @@ def run_protocols_command(args: argparse.Namespace) -> int:
         if not getattr(args, flag):
             raise UserError(f"--protocols needs --{flag}")
     cfg = protocol_config(args)
-    out = guard_outputs(
-        args.out, ["protocols.json", "protocols.md"], args.overwrite
-    )  # finished transfers are a cache (TransferCache)
+    # finished transfers are a cache (TransferCache)
+    out = guard_outputs(args.out, ["protocols.json", "protocols.md"], args.overwrite)
     pose, noc = args.pose_checkpoint, args.noc_checkpoint
     if is_model_name(args.checkpoint):  # a shipped model brings its own pose and NOC networks, as in 'infer transfer'
         pose, noc = pose or args.checkpoint, noc or args.checkpoint

@@ -87,9 +87,8 @@ def run(args) -> int:
     )
     batch = collate_shapes([shape]).to(device)
     encoded = generator.encoder(batch)
-    out = guard_outputs(
-        args.out, output_names(cfg), args.overwrite
-    )  # after the inputs are checked, before anything is written
+    # after the inputs are checked, before anything is written
+    out = guard_outputs(args.out, output_names(cfg), args.overwrite)
     writer = TexturedMeshWriter(generator, batch, target, cfg.texture_size, cfg.texture_format)
     if writer.uv_note:
         note(f"{args.mesh}: a new UV atlas, as {writer.uv_note}")

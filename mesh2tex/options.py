@@ -426,9 +426,8 @@ def _value(module: str, node: ast.AST):
             return _value(module, factory)
         if node.func.id in ("list", "tuple") and len(node.args) == 1 and not node.keywords:
             return (list if node.func.id == "list" else tuple)(_value(module, node.args[0]))
-        if (
-            not node.args and None not in keywords
-        ):  # Config(field=value, ...): the class's defaults, those fields changed
+        # Config(field=value, ...): the class's defaults, those fields changed
+        if not node.args and None not in keywords:
             found = _lookup(module, node.func.id)
             if isinstance(found[1], ast.ClassDef):
                 return {**_value(*found), **{name: _value(module, value) for name, value in keywords.items()}}

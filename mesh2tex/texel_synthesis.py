@@ -75,9 +75,8 @@ class SynthesisConfig:
     colour_weight: float = 100.0  # weight of the sliced Wasserstein distance of the RGB pixels (the joint palette)
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
     direction_field: str = "up"  # up: views upright (stripes keep the mesh's up); none: views rolled at random
-    camera: NCACameraConfig = field(
-        default_factory=NCACameraConfig
-    )  # the random views around the mesh in the unit ball, as train nca's
+    # the random views around the mesh in the unit ball, as train nca's
+    camera: NCACameraConfig = field(default_factory=NCACameraConfig)
     seed: int = 0  # seed of the views, the loss's random projections and the initial noise
 
     # Keys of configs written before the cameras became a section (named by the unknown-key error).

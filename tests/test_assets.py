@@ -83,9 +83,8 @@ def test_glb_embeds_its_texture_in_the_format_asked(tmp_path, texture_format, mi
     save_glb(path, vertices, faces, uv, texture, texture_format=texture_format)
     document = _glb_document(path.read_bytes())
     assert document["images"] == [{"bufferView": 3, "mimeType": mime_type}]
-    if (
-        texture_format == "webp"
-    ):  # glTF core knows PNG and JPEG only: WebP comes through its extension, declared required
+    # glTF core knows PNG and JPEG only: WebP comes through its extension, declared required
+    if texture_format == "webp":
         assert document["extensionsUsed"] == document["extensionsRequired"] == ["EXT_texture_webp"]
         assert document["textures"][0]["extensions"] == {"EXT_texture_webp": {"source": 0}}
     else:

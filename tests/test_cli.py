@@ -152,12 +152,13 @@ def test_every_command_takes_out_and_device_alike(argv):
         assert "--device" not in actions
 
 
+# every command that writes a textured GLB
 GLB_COMMANDS = [
     ["infer", "generate"],
     ["infer", "transfer"],
     ["infer", "nca"],
     ["demo"],
-]  # every command that writes a textured GLB
+]
 
 
 @pytest.mark.parametrize("argv", GLB_COMMANDS, ids=" ".join)

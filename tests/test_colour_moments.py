@@ -40,9 +40,8 @@ def test_a_dark_generator_is_pushed_brighter_and_one_at_the_photos_moments_is_le
     assert value.item() > 0.05
     value.backward()
     stepped = dark.detach() - 0.5 * dark.grad / dark.grad.abs().max()
-    assert (
-        object_lab_moments(stepped, masks)[0][0] > object_lab_moments(dark.detach(), masks)[0][0] + 1.0
-    )  # lighter (CIELAB L)
+    # lighter (CIELAB L)
+    assert object_lab_moments(stepped, masks)[0][0] > object_lab_moments(dark.detach(), masks)[0][0] + 1.0
 
 
 def test_running_moments_correct_the_bias_without_shrinking_a_batch_towards_the_mean():

@@ -169,9 +169,8 @@ def test_pooling_covers_every_coarse_face_even_when_nearest_centres_miss_some():
     fine_vertices = rng.normal(size=(200, 3))
     fine_quads = rng.integers(0, 200, size=(40, 4))
     coarse_vertices = np.concatenate([fine_vertices[:40], np.full((4, 3), 50.0)])
-    coarse_quads = np.array(
-        [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11], [40, 41, 42, 43]]
-    )  # the last one is far from all
+    # the last one is far from all
+    coarse_quads = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11], [40, 41, 42, 43]])
     pool = pooling_map(fine_vertices, fine_quads, coarse_vertices, coarse_quads)
     assert pool.shape == (40,)
     assert set(pool.tolist()) == {0, 1, 2, 3}

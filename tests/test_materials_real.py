@@ -95,9 +95,8 @@ def test_a_fabrics_weave_is_periodic_at_its_thread_spacing():
     frequency = np.fft.fftfreq(64, d=spacing)  # cycles per metre
     radius = np.hypot(frequency[:, None], frequency[None, :])
     peak = radius.ravel()[power.argmax()]
-    assert peak == pytest.approx(250.0, rel=0.05) or peak == pytest.approx(
-        500.0, rel=0.05
-    )  # half or one thread frequency
+    # half or one thread frequency
+    assert peak == pytest.approx(250.0, rel=0.05) or peak == pytest.approx(500.0, rel=0.05)
 
 
 def test_detail_finer_than_the_band_limit_fades_to_its_mean():
@@ -110,9 +109,8 @@ def test_detail_finer_than_the_band_limit_fades_to_its_mean():
     assert b.std() < 0.1 * a.std()
     assert b.mean() == pytest.approx(a.mean(), rel=0.05)
     seam = Seams(Painted((0.6, 0.6, 0.6), peel_contrast=0.0, finish_contrast=0.0), panel=0.2, width=0.005, limit=53.0)
-    line = _plane(
-        seam, 0.001, 200, normal=(0.0, 0.0, 1.0)
-    )  # rows along y; seams at x only: the plane x = 0.01 crosses none
+    # rows along y; seams at x only: the plane x = 0.01 crosses none
+    line = _plane(seam, 0.001, 200, normal=(0.0, 0.0, 1.0))
     assert line.std() < 1e-6
     points = np.stack([np.linspace(-0.1, 0.1, 2001), np.zeros(2001), np.zeros(2001)], axis=1)
     profile = seam(points, np.tile([0.0, 0.0, 1.0], (2001, 1)))[:, 0]

@@ -79,9 +79,8 @@ def test_swd_sorts_projections_exactly_as_torch_does():
     values = torch.randn(64, 300, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
     values[:, ::7] = values[:, :1]  # repeated values in every row
     assert torch.equal(sorted_rows(values), torch.sort(values, dim=1).values)
-    assert torch.equal(
-        sorted_rows(values[:, 1:]), torch.sort(values[:, 1:], dim=1).values
-    )  # a view that is not contiguous
+    # a view that is not contiguous
+    assert torch.equal(sorted_rows(values[:, 1:]), torch.sort(values[:, 1:], dim=1).values)
 
 
 def test_paired_metrics():

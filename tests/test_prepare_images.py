@@ -63,9 +63,8 @@ def test_prepare_images_masks_from_alpha_file_and_estimate(tmp_path, capsys):
     save_png(masks / "with_file.png", mask)
     Image.fromarray(rgb).save(src / "estimated.png")
     (src / "corrupt.jpg").write_bytes(b"\xff\xd8\xff not really a jpeg")
-    Image.fromarray(np.dstack([rgb, np.zeros_like(mask, dtype=np.uint8)])).save(
-        src / "invisible.png"
-    )  # fully transparent
+    # fully transparent
+    Image.fromarray(np.dstack([rgb, np.zeros_like(mask, dtype=np.uint8)])).save(src / "invisible.png")
 
     code = main(["prepare", "images", "--input", str(src), "--out", str(out), "--size", "64", "--masks", str(masks)])
     assert code == 2, "corrupt and empty-mask inputs make the run fail, the rest still done"

@@ -232,9 +232,8 @@ def test_the_bake_reads_the_surface_texture_at_each_texels_point():
     error = np.abs(baked.texture[baked.coverage].astype(float) - expected)
     assert np.median(error) < 2 and np.quantile(error, 0.99) < 12
     used = np.unique(user.faces)
-    assert (
-        baked.surface_distance[used].max() < 1e-6
-    )  # the two surfaces coincide: every vertex of a face lies on the working one
+    # the two surfaces coincide: every vertex of a face lies on the working one
+    assert baked.surface_distance[used].max() < 1e-6
 
 
 def test_empty_texels_take_the_nearest_covered_colour():

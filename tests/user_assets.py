@@ -66,9 +66,8 @@ def user_files(folder: Path) -> dict[str, Path]:
     for suffix in ("obj", "ply", "off", "glb"):
         files[suffix] = folder / f"stool.{suffix}"
         mesh.export(files[suffix])
-    z_up = trimesh.Trimesh(
-        mesh.vertices @ Y_UP_TO_Z_UP.T * 40.0, mesh.faces, process=False
-    )  # centimetres... of a giant
+    # centimetres... of a giant
+    z_up = trimesh.Trimesh(mesh.vertices @ Y_UP_TO_Z_UP.T * 40.0, mesh.faces, process=False)
     files["stl"] = folder / "stool_z_up.stl"
     z_up.export(files["stl"])
     return files

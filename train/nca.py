@@ -193,9 +193,8 @@ class NCATrainer:
         self.cfg, self.run, self.device, self.vgg = cfg, run, device, vgg
         self.graph = graph.to(device)
         self.exemplar = ExemplarFeatures.compute(vgg, exemplar.to(device), cfg.vgg_depth)
-        runs.seed_everything(
-            cfg.seed
-        )  # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
+        # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
+        runs.seed_everything(cfg.seed)
         self.model = MeshNCA(cfg.nca).to(device)
         self.parent_record = None if parent is None else {"path": parent["path"], "digest": parent["digest"]}
         # Models of one lineage (a parent and every model trained from it) can be grafted.
@@ -229,9 +228,8 @@ class NCATrainer:
         )
         overflow = overflow_penalty(state, self.model.vertex_colours(state))
         loss = style + cfg.overflow_weight * overflow
-        runs.check_finite(
-            {"loss": loss, "loss_style": style, "loss_overflow": overflow}, self.iteration
-        )  # before any update
+        # before any update
+        runs.check_finite({"loss": loss, "loss_style": style, "loss_overflow": overflow}, self.iteration)
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         with torch.no_grad():  # per-parameter gradient normalisation (as texture NCAs train)

@@ -44,12 +44,13 @@ from mesh2tex.io.atomic import json_ready
 from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
 
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
+# noqa: F401
 from mesh2tex.io.checkpoint import (
     check_training_checkpoint,
     load_training_state,
     read_checkpoint_meta,
     save_training_state,
-)  # noqa: F401
+)
 from mesh2tex.progress import JsonLines, progress_bar
 from mesh2tex.runtime import (
     Distributed,
@@ -146,30 +147,28 @@ class RunDirectory:
         if not resume and self.has_checkpoint() and not overwrite:
             try:  # the iteration tells a stopped run from a finished one
                 at = f", at iteration {int(read_checkpoint_meta(self.checkpoint_path)['meta']['iteration'])}"
+            # a damaged checkpoint is named when resumed; here the refusal matters
             except (
                 InputError,
                 KeyError,
                 TypeError,
                 ValueError,
-            ):  # a damaged checkpoint is named when resumed; here the refusal matters
+            ):
                 at = ""
             raise UserError(
                 f"{self.root}: already holds a run ({CHECKPOINT_NAME}{at}); pass --resume to continue it (with a "
                 f"larger --iters to extend a finished one), --overwrite to replace it, or choose another --out"
             )
         if resume:
-            read_checkpoint_meta(
-                self.checkpoint_path
-            )  # a damaged checkpoint is refused before config.yaml is rewritten
-        elif (
-            not self.resume_asked
-        ):  # a new run: files already at its names (a config.yaml of the user's) are kept without --overwrite
+            # a damaged checkpoint is refused before config.yaml is rewritten
+            read_checkpoint_meta(self.checkpoint_path)
+        # a new run: files already at its names (a config.yaml of the user's) are kept without --overwrite
+        elif not self.resume_asked:
             guard_outputs(self.root, RUN_FILES, overwrite)
         self.root.mkdir(parents=True, exist_ok=True)
         self.samples_dir.mkdir(exist_ok=True)
-        if (
-            not resume and overwrite
-        ):  # nothing of the replaced run may be resumed or read as this one's: moved aside, not deleted
+        # nothing of the replaced run may be resumed or read as this one's: moved aside, not deleted
+        if not resume and overwrite:
             replaced = [
                 path.relative_to(self.root).as_posix()
                 for pattern in REPLACED_BY_OVERWRITE
@@ -183,9 +182,8 @@ class RunDirectory:
                     f"{folder}",
                     file=sys.stderr,
                 )
-        if (
-            not resume and self.metrics.path.exists()
-        ):  # left by a run killed before its first checkpoint: it starts again
+        # left by a run killed before its first checkpoint: it starts again
+        if not resume and self.metrics.path.exists():
             self.metrics.truncate_after("iteration", 0)
         save_config(cfg, self.config_path)
 

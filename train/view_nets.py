@@ -48,11 +48,13 @@ from mesh2tex.render import crop_square, object_box
 from mesh2tex.synthetic.backdrops import place_over_backdrops
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.world import WorldSpec, render_views, sample_material, sample_views, unit_to_uint8
+
+# _GanTextures.vertex_colours shadows the name
 from mesh2tex.texturing import (
     latent,
     shape_mismatch,
     vertex_colours as field_vertex_colours,
-)  # _GanTextures.vertex_colours shadows the name
+)
 from mesh2tex.train import runs
 
 # --------------------------------------------------------------------------------------- data
@@ -274,9 +276,8 @@ def build_view_config(args) -> ViewTrainConfig:
     if not 0.0 <= cfg.data.gan_share <= 1.0:
         raise UserError(f"data.gan_share {cfg.data.gan_share}: must be between 0 and 1")
     if cfg.data.gan_checkpoint:  # checked before the run directory is written
-        cfg.data.gan_checkpoint = str(
-            resolve_checkpoint(cfg.data.gan_checkpoint, "gan")
-        )  # a shipped model's name, or a path
+        # a shipped model's name, or a path
+        cfg.data.gan_checkpoint = str(resolve_checkpoint(cfg.data.gan_checkpoint, "gan"))
         kind = read_checkpoint_meta(cfg.data.gan_checkpoint).get("kind")
         if kind != "gan":
             raise UserError(
@@ -329,9 +330,8 @@ def run_view_training(args, kind: str) -> int:
     run = runs.RunDirectory(args.out)
     source = runs.start_from(args.resume, run, kind, overwrite=args.overwrite)  # checked before anything is written
     shapes, _ = load_shapes(args.shapes)
-    if (
-        source is not None and source != run.checkpoint_path
-    ):  # another run's: loaded once before --out is written, so a misfit leaves it as it was
+    # another run's: loaded once before --out is written, so a misfit leaves it as it was
+    if source is not None and source != run.checkpoint_path:
         probe = build_network(kind, cfg)
         runs.load_training_state(
             source,

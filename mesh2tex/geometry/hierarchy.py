@@ -84,9 +84,8 @@ def face_neighborhoods(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     ring = np.stack([edge_nb, corner], axis=2).reshape(f, 8)  # E0 C0 E1 C1 E2 C2 E3 C3
     # start at the edge with the smallest midpoint (x, then y, then z); rounding makes ties exact
     midpoints = np.round((vertices[quads] + vertices[np.roll(quads, -1, axis=1)]) / 2.0, 6).reshape(-1, 3)
-    order = np.lexsort(
-        (midpoints[:, 2], midpoints[:, 1], midpoints[:, 0], np.repeat(faces, 4))
-    )  # face is the primary key
+    # face is the primary key
+    order = np.lexsort((midpoints[:, 2], midpoints[:, 1], midpoints[:, 0], np.repeat(faces, 4)))
     start = order[0::4] % 4
     columns = (2 * start[:, None] + np.arange(8)[None, :]) % 8
     ordered = np.take_along_axis(ring, columns, axis=1)

@@ -191,9 +191,8 @@ def shape_paths(folder: str | os.PathLike) -> dict[str, Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: prepared-shape folder not found (make it with 'mesh2tex prepare shapes')")
-    found = {
-        p.stem: p for p in sorted(folder.glob("*.npz")) if not p.name.startswith(".")
-    }  # hidden: half-written by an old version
+    # hidden: half-written by an old version
+    found = {p.stem: p for p in sorted(folder.glob("*.npz")) if not p.name.startswith(".")}
     if not found:
         raise InputError(f"{folder}: no prepared shapes (*.npz); run 'mesh2tex prepare shapes' first")
     return found

@@ -101,9 +101,8 @@ def read_surface(spec: str) -> tuple[np.ndarray, np.ndarray]:
             raise InputError(f"--mesh {spec}: expected sphere or sphere:N with N >= 1 subdivisions")
         from mesh2tex.limits import MAX_SPHERE_SUBDIVISIONS, check_size
 
-        check_size(
-            f"--mesh {spec[:40]}: subdivisions", int(count), MAX_SPHERE_SUBDIVISIONS
-        )  # before cube_sphere allocates
+        # before cube_sphere allocates
+        check_size(f"--mesh {spec[:40]}: subdivisions", int(count), MAX_SPHERE_SUBDIVISIONS)
         vertices, faces = cube_sphere(int(count))
     elif spec.endswith(".npz"):
         from mesh2tex.geometry.prepared import PreparedShape

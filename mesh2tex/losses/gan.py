@@ -134,9 +134,8 @@ class GanScene:
         """The scene of the first ``count`` shapes and their views (the path-length phase's smaller batch)."""
         if count == len(self.shapes):
             return self
-        m = count * (
-            self.mvp.shape[0] // len(self.shapes)
-        )  # their views come first, and their triangle ids are the same
+        # their views come first, and their triangle ids are the same
+        m = count * (self.mvp.shape[0] // len(self.shapes))
         lights = None if self.lights is None else Lights(self.lights.direction[:m], self.lights.ambient[:m])
         return GanScene(
             self.shapes[:count],
@@ -387,6 +386,5 @@ class GanLoss:
 
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         self.pl_mean = state["pl_mean"].clone().reshape([])
-        self.colour_running = (
-            state["colour_running"].clone() if "colour_running" in state else None
-        )  # absent before the term
+        # absent before the term
+        self.colour_running = state["colour_running"].clone() if "colour_running" in state else None

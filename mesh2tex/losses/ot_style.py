@@ -116,9 +116,8 @@ class ExemplarFeatures:
 
     image: torch.Tensor
     layers: list[torch.Tensor]
-    band_stats: dict[str, torch.Tensor] = field(
-        default_factory=dict, repr=False
-    )  # the "ps" statistics, made on first use
+    # the "ps" statistics, made on first use
+    band_stats: dict[str, torch.Tensor] = field(default_factory=dict, repr=False)
 
     def band_statistics(self) -> dict[str, torch.Tensor]:
         if not self.band_stats:

@@ -111,9 +111,8 @@ def neighborhood_matmul(x: torch.Tensor, neighbors: torch.Tensor, weight: torch.
     faces, c_out, c_in = x.shape[0], weight.shape[0], weight.shape[2]
     if c_out >= c_in:
         return gather_neighborhood(x, neighbors).flatten(1) @ weight.flatten(1).t()
-    per_k = (
-        x @ weight.transpose(0, 1).reshape(NEIGHBORHOOD * c_out, c_in).t()
-    )  # (F, 9*out): face g under kernel position k
+    # (F, 9*out): face g under kernel position k
+    per_k = x @ weight.transpose(0, 1).reshape(NEIGHBORHOOD * c_out, c_in).t()
     per_k = torch.cat([per_k, per_k.new_zeros(1, NEIGHBORHOOD * c_out)]).view(-1, c_out)  # row 9g+k; row 9F+k: zeros
     rows = torch.where(neighbors >= 0, neighbors, faces) * NEIGHBORHOOD + torch.arange(
         NEIGHBORHOOD, device=neighbors.device

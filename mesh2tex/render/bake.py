@@ -173,9 +173,8 @@ class MeshBaker:
         faces = torch.from_numpy(self.atlas.faces)
         raster = uv_rasterize(torch.from_numpy(self.atlas.uv).float(), faces, (self.size, self.size))
         self.coverage = (raster.face_id[0] >= 0).numpy()
-        texel_points = interpolate(working[torch.from_numpy(self.atlas.vertex_index)][None], raster, faces)[
-            0
-        ]  # (S, S, 3)
+        # (S, S, 3)
+        texel_points = interpolate(working[torch.from_numpy(self.atlas.vertex_index)][None], raster, faces)[0]
         self._texels = index.query(texel_points.numpy()[self.coverage])
         self._vertices = index.query(working.numpy())
 

@@ -57,9 +57,8 @@ def vertex_normals(vertices: torch.Tensor, tri: torch.Tensor) -> torch.Tensor:
     triangles tri (T,3) int64; zero for unreferenced vertices."""
     _check_mesh("vertex_normals", vertices, tri)
     corners = vertices[..., tri, :]
-    weighted = torch.linalg.cross(
-        corners[..., 1, :] - corners[..., 0, :], corners[..., 2, :] - corners[..., 0, :]
-    )  # length = 2 * area
+    # length = 2 * area
+    weighted = torch.linalg.cross(corners[..., 1, :] - corners[..., 0, :], corners[..., 2, :] - corners[..., 0, :])
     normals = torch.zeros_like(vertices)
     index = tri.reshape(-1).to(vertices.device)
     per_corner = weighted.unsqueeze(-2).expand(*weighted.shape[:-1], 3, 3)

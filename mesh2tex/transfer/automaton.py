@@ -66,9 +66,8 @@ def fit_automaton(
     start = time.perf_counter()
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     graph = build_cell_graph(shape.vertices[0], shape.quads[0], fit.nca.neighbourhood).to(device)
-    with torch.random.fork_rng(
-        devices=[]
-    ):  # the update rule's initial weights, seeded, leaving the caller's generator alone
+    # the update rule's initial weights, seeded, leaving the caller's generator alone
+    with torch.random.fork_rng(devices=[]):
         torch.manual_seed(cfg.seed)
         model = MeshNCA(fit.nca).to(device)
     growth = torch.Generator(device=device).manual_seed(cfg.seed)

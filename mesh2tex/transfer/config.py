@@ -101,9 +101,8 @@ class TransferConfig:
     seed: int = 0  # seed of the initial latent and the patch sampling
     device: str = "auto"  # auto, cpu or cuda
     vgg_weights: str = ""  # VGG19 ImageNet weights file ('' looks in $TORCH_HOME, else a random-weight fallback)
-    automaton: AutomatonFitConfig = field(
-        default_factory=AutomatonFitConfig
-    )  # infer transfer --automaton: the automaton fitted instead of the GAN's texture
+    # infer transfer --automaton: the automaton fitted instead of the GAN's texture
+    automaton: AutomatonFitConfig = field(default_factory=AutomatonFitConfig)
 
     def __post_init__(self):
         check_texture_format(self.texture_format)

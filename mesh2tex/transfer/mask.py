@@ -32,9 +32,8 @@ def network_probability(checkpoint: str | Path, rgb: np.ndarray, device: torch.d
     h, w = rgb.shape[:2]
     side = max(h, w)
     top, left = (side - h) // 2, (side - w) // 2
-    image = (
-        torch.from_numpy(np.array(rgb, dtype=np.uint8)).permute(2, 0, 1)[None].float() / 127.5 - 1.0
-    )  # a copy: the photo may be read-only
+    # a copy: the photo may be read-only
+    image = torch.from_numpy(np.array(rgb, dtype=np.uint8)).permute(2, 0, 1)[None].float() / 127.5 - 1.0
     image = F.pad(image, (left, side - w - left, top, side - h - top), mode="replicate")
     size = cfg.data.resolution
     logits = net(F.interpolate(image, size=(size, size), mode="area").to(device))

@@ -137,9 +137,8 @@ class PhotoLoss:
 @dataclass
 class TransferResult:
     ws: torch.Tensor  # (1, num_ws, w_dim) the optimised latent
-    render: (
-        torch.Tensor
-    )  # (1, 3, R, R) the final render at the pose, cropped, in [-1, 1] (lit by ``light`` when one was learnt)
+    # (1, 3, R, R) the final render at the pose, cropped, in [-1, 1] (lit by ``light`` when one was learnt)
+    render: torch.Tensor
     losses: dict[str, list[float]] = field(default_factory=dict)  # per stage, one value per iteration
     seconds: dict[str, float] = field(default_factory=dict)  # per stage
     light: dict[str, float] | None = None  # the learnt light (PhotoLight.describe), None when the renders were unlit

@@ -172,9 +172,8 @@ def silhouette_in_photo(
     side), the square around the photo's object mask. ``size``: the photo's (H, W)."""
     top, left, side = box
     h, w = size
-    sharp = dataclasses.replace(
-        cfg, resolution=int(min(max(side, 16), 1024))
-    )  # the outline at about the photo's own scale
+    # the outline at about the photo's own scale
+    sharp = dataclasses.replace(cfg, resolution=int(min(max(side, 16), 1024)))
     outline = view_at_pose(shape, azimuth, elevation, distance, fov, sharp).mask
     outline = (
         torch.nn.functional.interpolate(outline, size=(side, side), mode="bilinear", align_corners=False)[0, 0].numpy()

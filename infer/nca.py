@@ -27,7 +27,13 @@ import torch
 
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError, note
-from mesh2tex.geometry.primitives import density_subdivisions, mean_edge_length, read_surface, unit_surface, unit_transform
+from mesh2tex.geometry.primitives import (
+    density_subdivisions,
+    mean_edge_length,
+    read_surface,
+    unit_surface,
+    unit_transform,
+)
 from mesh2tex.geometry.regions import region_weights
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.assets import check_texture_format
@@ -55,14 +61,17 @@ OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "r
 class InferNCAConfig:
     steps: int = 96  # automaton steps from the seed
     angle: float = 0.0  # texture orientation: degrees about each vertex normal
-    subdivide: str = "auto"  # split faces into four N times (0: the mesh as it is); auto: the count whose edges come nearest the training mesh's
+    # split faces into four N times (0: the mesh as it is); auto: the count whose edges come nearest the training
+    # mesh's
+    subdivide: str = "auto"
     views: int = 4  # renders around the mesh
     resolution: int = 256  # render resolution
     texture_size: int = 1024  # side of the baked UV texture
     texture_format: str = "png"  # how the GLB embeds it: png (lossless), jpeg or webp (lossy, smaller)
     frames: int = 24  # frames of growth.gif (0: no GIF)
     seed: int = 0  # seed of the asynchronous updates
-    vgg_weights: str = ""  # VGG19 weights for the report's style loss ('' looks in $TORCH_HOME, else a random-weight fallback)
+    # VGG19 weights for the report's style loss ('' looks in $TORCH_HOME, else a random-weight fallback)
+    vgg_weights: str = ""
     device: str = "auto"  # auto, cpu or cuda
 
     def __post_init__(self):
@@ -90,7 +99,9 @@ def choose_subdivisions(value: str, vertices: np.ndarray, faces: np.ndarray, cel
     return density_subdivisions(mean_edge_length(vertices, faces), cell_spacing)
 
 
-def read_cells_surface(spec: str, up: str, uv: str, output_mesh: str) -> tuple[tuple[np.ndarray, np.ndarray], BakeTarget | None]:
+def read_cells_surface(
+    spec: str, up: str, uv: str, output_mesh: str
+) -> tuple[tuple[np.ndarray, np.ndarray], BakeTarget | None]:
     """The surface the cells grow on (vertices (V, 3) float64 y-up, faces) for ``--mesh spec``, and
     the user's mesh the texture is baked onto (None for the sphere, or ``--output-mesh prepared``):
     a mesh file itself, or the source mesh of a prepared shape (.npz) when it is found."""
@@ -127,7 +138,9 @@ def grow(model, graph, cfg: InferNCAConfig, graft, damage, distance: float, fov:
     def frame(state, index, total):
         azimuth = 30.0 + 90.0 * index / max(total - 1, 1)
         mvp = orbit_camera(azimuth, 20.0, distance=distance, fov=fov).mvp.to(device)
-        frames.append(images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0, graft=graft).images)[0])
+        frames.append(
+            images_to_uint8(render_states(model, state, graph, mvp, gif_size, background=1.0, graft=graft).images)[0]
+        )
 
     state = model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed))
     total_frames = len(frames_at) * (2 if damage is not None else 1)
@@ -136,8 +149,17 @@ def grow(model, graph, cfg: InferNCAConfig, graft, damage, distance: float, fov:
         phases = [("grow", cfg.steps)] + ([("regrow", cfg.steps)] if damage is not None else [])
         for phase, steps in phases:
             if phase == "regrow":
-                state = state.masked_fill(damage[None, :, None], 0.0) if model.cfg.seed == "zero" else torch.where(
-                    damage[None, :, None], model.seed_state(1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed + 1)), state)
+                state = (
+                    state.masked_fill(damage[None, :, None], 0.0)
+                    if model.cfg.seed == "zero"
+                    else torch.where(
+                        damage[None, :, None],
+                        model.seed_state(
+                            1, graph.num_cells, device, generator=torch.Generator().manual_seed(cfg.seed + 1)
+                        ),
+                        state,
+                    )
+                )
             for step in progress_bar(range(steps + 1), desc=f"infer nca ({phase})"):
                 if step in frames_at:
                     frame(state, len(frames), total_frames)
@@ -150,11 +172,19 @@ def grow(model, graph, cfg: InferNCAConfig, graft, damage, distance: float, fov:
 
 
 def exemplar_style(views, exemplar: np.ndarray, depth: int, cfg: InferNCAConfig, device) -> float:
-    """The style loss of the final renders against the model's exemplar (H, W, 3) uint8, with the training's VGG depth."""
+    """The style loss of the final renders against the model's exemplar (H, W, 3) uint8, with the training's VGG
+    depth."""
     vgg = load_vgg19(cfg.vgg_weights or None, device=device, warn=False)
     target = torch.from_numpy(exemplar).permute(2, 0, 1)[None].float().to(device) / 127.5 - 1
-    return float(style_loss(vgg, views.images, views.mask, ExemplarFeatures.compute(vgg, target, depth),
-                            generator=torch.Generator().manual_seed(0)))
+    return float(
+        style_loss(
+            vgg,
+            views.images,
+            views.mask,
+            ExemplarFeatures.compute(vgg, target, depth),
+            generator=torch.Generator().manual_seed(0),
+        )
+    )
 
 
 def write_gif(path: Path, frames: list[np.ndarray]) -> None:
@@ -173,37 +203,20 @@ def run(args) -> int:
     trained = load_nca(args.checkpoint, device)
     model, exemplar = trained.network, trained.exemplar
     distance, fov = trained.camera.distance, trained.camera.fov  # frame the unit ball as training did
-    other = None
-    lineage_note = None
-    if args.graft:
-        grafted = load_nca(args.graft, device)
-        other = grafted.network
-        if other.cfg != model.cfg:
-            raise UserError(f"{args.graft}: its automaton config differs from {args.checkpoint}'s; only models of one lineage can be grafted")
-        lineage_note = lineage(trained, grafted)
-
-    surface, bake_target = read_cells_surface(args.mesh, args.up, args.uv, args.output_mesh)  # read once, subdivided from these arrays
-    vertices, faces = unit_surface(*surface, name=args.mesh)
-    cell_spacing = trained.cell_spacing
-    subdivisions = choose_subdivisions(cfg.subdivide, vertices, faces, cell_spacing)
-    if subdivisions:
-        vertices, faces = unit_surface(*surface, subdivide=subdivisions, name=args.mesh)
-    edge_ratio = mean_edge_length(vertices, faces) / cell_spacing if cell_spacing > 0 else None
-    graph = build_cell_graph(vertices, faces, model.cfg.neighbourhood).to(device)
-    positions = graph.positions.cpu().numpy()
-    graft = None if other is None else (other, torch.from_numpy(region_weights(args.graft_mask, positions)).to(device))
-    damage = None
-    if args.regrow:
-        damage = torch.from_numpy(region_weights(args.regrow, positions) > 0.5).to(device)
-        if not bool(damage.any()):
-            raise UserError(f"--regrow {args.regrow}: the region holds no vertex of this mesh")
+    other, lineage_note = _graft_model(args, trained, device)
+    # read once, subdivided from these arrays
+    surface, bake_target = read_cells_surface(args.mesh, args.up, args.uv, args.output_mesh)
+    graph, subdivisions, edge_ratio = _cells(surface, args.mesh, cfg.subdivide, trained, device)
+    graft, damage = _regions(args, graph, other, device)
     out.mkdir(parents=True, exist_ok=True)
 
     started = time.perf_counter()
     with torch.no_grad():
         state, frames, step_seconds, phases = grow(model, graph, cfg, graft, damage, distance, fov, device)
         if not torch.isfinite(state).all():
-            raise UserError(f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps")
+            raise UserError(
+                f"{args.checkpoint}: the automaton's states became non-finite on {args.mesh}; try fewer --steps"
+            )
 
         mvp = orbit_camera(*turntable_angles(cfg.views, 20.0, start=30.0), distance=distance, fov=fov).mvp.to(device)
         views = render_states(model, state, graph, mvp, cfg.resolution, background=1.0, graft=graft)
@@ -211,33 +224,109 @@ def run(args) -> int:
             save_png(out / f"view_{k}.png", image)
         style = None if exemplar is None else exemplar_style(views, exemplar, trained.vgg_depth, cfg, device)
 
-        written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", model, state, graph, cfg.texture_size,
-                                       cfg.texture_format, graft=graft, target=bake_target)
+        written = write_automaton_mesh(
+            out / "textured.glb",
+            out / "textured.ply",
+            model,
+            state,
+            graph,
+            cfg.texture_size,
+            cfg.texture_format,
+            graft=graft,
+            target=bake_target,
+        )
     if written.get("uv_note"):
         note(f"{args.mesh}: a new UV atlas, as {written['uv_note']}")
-    save_checkpoint(out / "state.safetensors", {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}}, kind="nca_state",
-                    meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": cfg.steps})
+    save_checkpoint(
+        out / "state.safetensors",
+        {"cells": {"state": state[0].cpu(), "positions": graph.positions.cpu()}},
+        kind="nca_state",
+        meta={"checkpoint": str(args.checkpoint), "mesh": args.mesh, "steps": cfg.steps},
+    )
     if frames:
         write_gif(out / "growth.gif", frames)
-    report = {"checkpoint": str(args.checkpoint), "mesh": args.mesh, "cells": graph.num_cells, "subdivisions": subdivisions,
-              "edge_ratio": None if edge_ratio is None else round(edge_ratio, 3),
-              "steps": cfg.steps, "regrow": args.regrow, "graft": args.graft, "graft_mask": args.graft_mask if args.graft else None,
-              "lineage": lineage_note, "angle_degrees": cfg.angle, "seconds": round(time.perf_counter() - started, 2),
-              "ms_per_step": round(1000 * step_seconds / (cfg.steps * phases), 3), "style_loss": style, "output_mesh": written,
-              "files": [f"view_{k}.png" for k in range(cfg.views)] + [n for n in OUTPUTS if (out / n).exists()]}
+    report = {
+        "checkpoint": str(args.checkpoint),
+        "mesh": args.mesh,
+        "cells": graph.num_cells,
+        "subdivisions": subdivisions,
+        "edge_ratio": None if edge_ratio is None else round(edge_ratio, 3),
+        "steps": cfg.steps,
+        "regrow": args.regrow,
+        "graft": args.graft,
+        "graft_mask": args.graft_mask if args.graft else None,
+        "lineage": lineage_note,
+        "angle_degrees": cfg.angle,
+        "seconds": round(time.perf_counter() - started, 2),
+        "ms_per_step": round(1000 * step_seconds / (cfg.steps * phases), 3),
+        "style_loss": style,
+        "output_mesh": written,
+        "files": [f"view_{k}.png" for k in range(cfg.views)] + [n for n in OUTPUTS if (out / n).exists()],
+    }
     write_json(out / "report.json", report)
-    density = f"faces split into four {subdivisions}x" if subdivisions else "the mesh as it is"
-    density += "; the model records no training cell spacing" if edge_ratio is None else f", edges {edge_ratio:.2f}x the training mesh's"
-    print(f"{graph.num_cells} cells ({density}), {cfg.steps} steps ({report['ms_per_step']} ms each): {out / 'textured.glb'}"
-          + (f"; style loss {style:.3f}" if style is not None else ""))
+    print(_summary(report, out, cfg.steps, edge_ratio))
     if lineage_note:
         print(f"mesh2tex: note: {lineage_note}")
     return 0
 
 
+def _summary(report: dict, out: Path, steps: int, edge_ratio: float | None) -> str:
+    """The line that closes a run: cells, density (``edge_ratio`` unrounded), steps and their cost, the asset
+    and the style loss."""
+    subdivisions, style = report["subdivisions"], report["style_loss"]
+    density = f"faces split into four {subdivisions}x" if subdivisions else "the mesh as it is"
+    if edge_ratio is None:
+        density += "; the model records no training cell spacing"
+    else:
+        density += f", edges {edge_ratio:.2f}x the training mesh's"
+    line = (
+        f"{report['cells']} cells ({density}), {steps} steps ({report['ms_per_step']} ms each): {out / 'textured.glb'}"
+    )
+    return line + (f"; style loss {style:.3f}" if style is not None else "")
+
+
+def _graft_model(args, trained: TrainedAutomaton, device: torch.device) -> tuple[object | None, str | None]:
+    """The automaton of ``--graft`` (None without it) and the note when it is not of the checkpoint's lineage."""
+    if not args.graft:
+        return None, None
+    grafted = load_nca(args.graft, device)
+    if grafted.network.cfg != trained.network.cfg:
+        raise UserError(
+            f"{args.graft}: its automaton config differs from {args.checkpoint}'s; only models of one lineage can be "
+            "grafted"
+        )
+    return grafted.network, lineage(trained, grafted)
+
+
+def _cells(surface, mesh: str, subdivide, trained: TrainedAutomaton, device: torch.device):
+    """The cell graph of the user's surface in the unit ball, its faces split into four as often as
+    ``subdivide`` asks (or as the training cell spacing needs): (graph, subdivisions, edge length over the
+    training mesh's, None when the model records no spacing)."""
+    vertices, faces = unit_surface(*surface, name=mesh)
+    cell_spacing = trained.cell_spacing
+    subdivisions = choose_subdivisions(subdivide, vertices, faces, cell_spacing)
+    if subdivisions:
+        vertices, faces = unit_surface(*surface, subdivide=subdivisions, name=mesh)
+    edge_ratio = mean_edge_length(vertices, faces) / cell_spacing if cell_spacing > 0 else None
+    return build_cell_graph(vertices, faces, trained.network.cfg.neighbourhood).to(device), subdivisions, edge_ratio
+
+
+def _regions(args, graph, other, device: torch.device) -> tuple[tuple | None, torch.Tensor | None]:
+    """(the graft: (other automaton, per-cell weights (N,)) or None, the cells ``--regrow`` damages (N,) bool or
+    None)."""
+    positions = graph.positions.cpu().numpy()
+    graft = None if other is None else (other, torch.from_numpy(region_weights(args.graft_mask, positions)).to(device))
+    damage = None
+    if args.regrow:
+        damage = torch.from_numpy(region_weights(args.regrow, positions) > 0.5).to(device)
+        if not bool(damage.any()):
+            raise UserError(f"--regrow {args.regrow}: the region holds no vertex of this mesh")
+    return graft, damage
+
+
 def lineage(first: TrainedAutomaton, second: TrainedAutomaton) -> str | None:
-    """None when two models are of one lineage (one trained from the other, or both from one ancestor), else a warning."""
+    """None when two models are of one lineage (one trained from the other, or both from one ancestor), else a
+    warning."""
     if first.lineage and first.lineage == second.lineage:
         return None
     return "the two models are not of one lineage (train the second with --parent FIRST); the graft may not blend"
-

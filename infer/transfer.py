@@ -2,7 +2,8 @@
 
     mesh2tex infer transfer --checkpoint GAN --mesh MESH --image IMG [--mask M] [--pose auto|AZ,EL]
                             [--pose-checkpoint P] [--noc-checkpoint N] --out DIR [--texture-size 1024]
-                            [--no-noc] [--no-patches] [--no-refine] [--no-pose-search] [--automaton [--automaton-iters 300]]
+                            [--no-noc] [--no-patches] [--no-refine] [--no-pose-search] [--automaton [--automaton-iters
+                            300]]
                             [--config YAML] [--overwrite]
 
 Steps:
@@ -67,9 +68,21 @@ from mesh2tex.render import Lights, composite, composite_images, orbit_camera, o
 from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
 from mesh2tex.texturing import load_shape, write_automaton_mesh, write_textured_mesh
-from mesh2tex.transfer import (AutomatonFit, FramedView, Photo, PoseEstimate, TransferConfig, TransferResult,
-                               check_style_sizes, fit_automaton, locate_object, photo_masks, predict_noc, transfer_texture,
-                               view_at_pose)
+from mesh2tex.transfer import (
+    AutomatonFit,
+    FramedView,
+    Photo,
+    PoseEstimate,
+    TransferConfig,
+    TransferResult,
+    check_style_sizes,
+    fit_automaton,
+    locate_object,
+    photo_masks,
+    predict_noc,
+    transfer_texture,
+    view_at_pose,
+)
 from mesh2tex.transfer.fit import check_fit
 
 
@@ -99,7 +112,9 @@ def noc_to_uint8(noc: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
     return colours_to_uint8(composite(noc.cpu().clamp(0, 1)[None], m[None], 1.0)[0], signed=False)
 
 
-def save_comparison(out: Path, photo: Photo, render: torch.Tensor, view: FramedView, photo_noc: torch.Tensor | None) -> None:
+def save_comparison(
+    out: Path, photo: Photo, render: torch.Tensor, view: FramedView, photo_noc: torch.Tensor | None
+) -> None:
     """comparison.png: photo | render at the pose (1,3,R,R) | photo NOC (when predicted) | rendered NOC, on white."""
     white_photo = composite_images(photo.image, photo.mask, 1.0)
     white_render = composite_images(render, view.mask, 1.0)
@@ -122,42 +137,96 @@ def save_turntable(out: Path, images: torch.Tensor) -> None:
 
 
 @torch.no_grad()
-def write_outputs(out: Path, generator: TextureGenerator, shape: PreparedShape, result: TransferResult, photo: Photo,
-                  view: FramedView, photo_noc: torch.Tensor | None, distance: float, fov: float, elevation: float,
-                  cfg: TransferConfig, device: torch.device, target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
+def write_outputs(
+    out: Path,
+    generator: TextureGenerator,
+    shape: PreparedShape,
+    result: TransferResult,
+    photo: Photo,
+    view: FramedView,
+    photo_noc: torch.Tensor | None,
+    distance: float,
+    fov: float,
+    elevation: float,
+    cfg: TransferConfig,
+    device: torch.device,
+    target: BakeTarget | None = None,
+) -> tuple[dict[str, str], dict]:
     """textured.glb/.ply (the user's mesh ``target``, or the prepared shape when None), comparison.png,
     turntable frames and GIF; returns ({what: file name}, what the report says of the mesh written)."""
     batch = collate_shapes([shape]).to(device)
     texture = generator.synthesize(batch, result.ws.to(device), noise_mode="none")
-    written = write_textured_mesh(out / "textured.glb", out / "textured.ply", generator, texture, batch, cfg.texture_size, cfg.texture_format,
-                                  target)
+    written = write_textured_mesh(
+        out / "textured.glb",
+        out / "textured.ply",
+        generator,
+        texture,
+        batch,
+        cfg.texture_size,
+        cfg.texture_format,
+        target,
+    )
     save_comparison(out, photo, result.render, view, photo_noc)
 
     k = cfg.turntable_frames
     azimuths, elevations = turntable_angles(k, elevation)
     mvp = orbit_camera(azimuths, elevations, distance=distance, fov=fov).mvp.to(device)
     lights = None
-    if result.light is not None:  # an albedo texture: the turntable keeps the photo's light where it was relative to the camera
+    if (
+        result.light is not None
+    ):  # an albedo texture: the turntable keeps the photo's light where it was relative to the camera
         found = result.light
         direction = orbit_direction(azimuths + found["azimuth_offset"], torch.full((k,), found["elevation"]))
         lights = Lights(direction, torch.full((k,), found["ambient"])).to(device)
     size = cfg.resolution * 2
-    views = render_field_views(generator, batch, result.ws.to(device), mvp, (size, size), torch.ones(k, 3, device=device),
-                               texture=texture, noise_mode="none", lights=lights)
+    views = render_field_views(
+        generator,
+        batch,
+        result.ws.to(device),
+        mvp,
+        (size, size),
+        torch.ones(k, 3, device=device),
+        texture=texture,
+        noise_mode="none",
+        lights=lights,
+    )
     save_turntable(out, views.images)
     return OUTPUT_FILES, written
 
 
-OUTPUT_FILES = {"glb": "textured.glb", "ply": "textured.ply", "comparison": "comparison.png", "turntable": "turntable.gif"}
+OUTPUT_FILES = {
+    "glb": "textured.glb",
+    "ply": "textured.ply",
+    "comparison": "comparison.png",
+    "turntable": "turntable.gif",
+}
 
 
 @torch.no_grad()
-def write_automaton_outputs(out: Path, fit: AutomatonFit, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None,
-                            distance: float, fov: float, elevation: float, cfg: TransferConfig, device: torch.device,
-                            target: BakeTarget | None = None) -> tuple[dict[str, str], dict]:
+def write_automaton_outputs(
+    out: Path,
+    fit: AutomatonFit,
+    photo: Photo,
+    view: FramedView,
+    photo_noc: torch.Tensor | None,
+    distance: float,
+    fov: float,
+    elevation: float,
+    cfg: TransferConfig,
+    device: torch.device,
+    target: BakeTarget | None = None,
+) -> tuple[dict[str, str], dict]:
     """The same files for an automaton fitted to the photo (``--automaton``); its turntable is unlit."""
-    written = write_automaton_mesh(out / "textured.glb", out / "textured.ply", fit.model, fit.state, fit.graph, cfg.texture_size,
-                                   cfg.texture_format, target=target)
+    written = write_automaton_mesh(
+        out / "textured.glb",
+        out / "textured.ply",
+        fit.model,
+        fit.state,
+        fit.graph,
+        cfg.texture_size,
+        cfg.texture_format,
+        target=target,
+    )
     save_comparison(out, photo, fit.render, view, photo_noc)
     azimuths, elevations = turntable_angles(cfg.turntable_frames, elevation)
     mvp = orbit_camera(azimuths, elevations, distance=distance, fov=fov).mvp.to(device)
@@ -167,15 +236,28 @@ def write_automaton_outputs(out: Path, fit: AutomatonFit, photo: Photo, view: Fr
 
 def output_names(cfg: TransferConfig) -> list[str]:
     """The files the command writes into --out."""
-    return (["textured.glb", "textured.ply", "comparison.png", "turntable.gif", "photo_crop.png", "render_at_pose.png", "report.json"]
-            + [f"turntable_{i:02d}.png" for i in range(cfg.turntable_frames)])
+    return [
+        "textured.glb",
+        "textured.ply",
+        "comparison.png",
+        "turntable.gif",
+        "photo_crop.png",
+        "render_at_pose.png",
+        "report.json",
+    ] + [f"turntable_{i:02d}.png" for i in range(cfg.turntable_frames)]
 
 
 # -------------------------------------------------------------------------------------------- stage
 def build_config(args) -> TransferConfig:
-    overrides = config_overrides(args, computed={  # the ablation switches turn a field off
-        "use_noc": False if args.no_noc else None, "use_patches": False if args.no_patches else None,
-        "refine": False if args.no_refine else None, "pose_search": False if args.no_pose_search else None})
+    overrides = config_overrides(
+        args,
+        computed={  # the ablation switches turn a field off
+            "use_noc": False if args.no_noc else None,
+            "use_patches": False if args.no_patches else None,
+            "refine": False if args.no_refine else None,
+            "pose_search": False if args.no_pose_search else None,
+        },
+    )
     cfg = load_config(TransferConfig, args.config, overrides)
     check_style_sizes(cfg)
     return cfg
@@ -191,7 +273,9 @@ def checked_networks(args, cfg: TransferConfig) -> tuple[float, float] | None:
         if not args.mask_checkpoint and model_has(args.checkpoint, "mask"):
             args.mask_checkpoint = args.checkpoint
     if pose is None and not args.pose_checkpoint:
-        raise UserError("--pose auto needs --pose-checkpoint (from 'mesh2tex train pose'), or give --pose AZIMUTH,ELEVATION")
+        raise UserError(
+            "--pose auto needs --pose-checkpoint (from 'mesh2tex train pose'), or give --pose AZIMUTH,ELEVATION"
+        )
     if cfg.use_noc and cfg.use_patches and not args.noc_checkpoint:
         raise UserError("NOC-guided patches need --noc-checkpoint (from 'mesh2tex train noc'); or pass --no-noc")
     return pose
@@ -200,9 +284,51 @@ def checked_networks(args, cfg: TransferConfig) -> tuple[float, float] | None:
 def pose_record(estimate: PoseEstimate, source: str, distance: float, fov: float) -> dict:
     """report.json's ``pose``: the pose used, where it came from, and the network's and the search's figures."""
     searched = estimate.silhouette_iou is not None
-    return {"azimuth": estimate.azimuth, "elevation": estimate.elevation, "source": source, "distance": distance, "fov": fov,
-            **({"network": list(estimate.network), "silhouette_iou": estimate.silhouette_iou,
-                "network_silhouette_iou": estimate.network_silhouette_iou} if searched else {})}
+    return {
+        "azimuth": estimate.azimuth,
+        "elevation": estimate.elevation,
+        "source": source,
+        "distance": distance,
+        "fov": fov,
+        **(
+            {
+                "network": list(estimate.network),
+                "silhouette_iou": estimate.silhouette_iou,
+                "network_silhouette_iou": estimate.network_silhouette_iou,
+            }
+            if searched
+            else {}
+        ),
+    }
+
+
+def _fit_texture(
+    automaton: bool,
+    model,
+    shape,
+    photo,
+    view,
+    photo_noc,
+    vgg,
+    cfg: TransferConfig,
+    device: torch.device,
+    seconds: dict[str, float],
+) -> tuple:
+    """The photo's texture on ``shape``: an automaton fitted to it (``automaton``) or the generator's
+    transfer; its stages' seconds added to ``seconds``. (the fit or transfer result, {stage: loss curve},
+    the learnt light or None, the render at the photo's pose (1, 3, R, R))."""
+    if automaton:
+        fit = fit_automaton(shape, photo, view, photo_noc, vgg, cfg, cfg.automaton, device)
+        seconds["automaton"] = fit.seconds
+        return fit, {"automaton": fit.losses}, None, fit.render
+    result = transfer_texture(model.network, shape, photo, view, photo_noc, vgg, cfg, device, generator_lit=model.lit)
+    seconds.update({f"stage_{k}": v for k, v in result.seconds.items()})
+    return result, result.losses, result.light, result.render
+
+
+def _loss_record(curve: list[float]) -> dict:
+    """A stage's loss in the report: its first and last values (None when it ran no step) and the curve."""
+    return {"first": curve[0] if curve else None, "last": curve[-1] if curve else None, "curve": curve}
 
 
 def run(args) -> int:
@@ -216,8 +342,10 @@ def run(args) -> int:
 
     model = load_generator(args.checkpoint, device)
     generator, distance, fov = model.network, model.camera.distance, model.camera.fov
-    shape, target = load_shape(args.mesh, generator, model.face_count(cfg.faces), cfg.seed, up=args.up, uv=args.uv,
-                               output_mesh=args.output_mesh)
+    faces = model.face_count(cfg.faces)
+    shape, target = load_shape(
+        args.mesh, generator, faces, cfg.seed, up=args.up, uv=args.uv, output_mesh=args.output_mesh
+    )
     masked = photo_masks(args.image, args.mask, mask_checkpoint=args.mask_checkpoint)
     seconds["load"] = round(time.perf_counter() - started, 2)
 
@@ -230,14 +358,9 @@ def run(args) -> int:
     seconds["pose_and_noc"] = round(time.perf_counter() - t, 2)
 
     vgg = load_vgg19(cfg.vgg_weights or None, device=device)
-    if args.automaton:
-        fit = fit_automaton(shape, photo, view, photo_noc, vgg, cfg, cfg.automaton, device)
-        seconds["automaton"] = fit.seconds
-        losses, light, render = {"automaton": fit.losses}, None, fit.render
-    else:
-        result = transfer_texture(generator, shape, photo, view, photo_noc, vgg, cfg, device, generator_lit=model.lit)
-        seconds.update({f"stage_{k}": v for k, v in result.seconds.items()})
-        losses, light, render = result.losses, result.light, result.render
+    fitted, losses, light, render = _fit_texture(
+        args.automaton, model, shape, photo, view, photo_noc, vgg, cfg, device, seconds
+    )
 
     # Judged at the found pose before anything is written: a poor fit is said, and recorded.
     fit_check = check_fit(photo.image, photo.mask, render, view.mask)
@@ -247,11 +370,13 @@ def run(args) -> int:
     t = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     if args.automaton:
-        files, written = write_automaton_outputs(out, fit, photo, view, photo_noc, distance, fov, elevation, cfg, device,
-                                                 target)
+        files, written = write_automaton_outputs(
+            out, fitted, photo, view, photo_noc, distance, fov, elevation, cfg, device, target
+        )
     else:
-        files, written = write_outputs(out, generator, shape, result, photo, view, photo_noc, distance, fov, elevation, cfg, device,
-                                       target)
+        files, written = write_outputs(
+            out, generator, shape, fitted, photo, view, photo_noc, distance, fov, elevation, cfg, device, target
+        )
     if written.get("uv_note"):
         note(f"{args.mesh}: a new UV atlas, as {written['uv_note']}")
     save_png(out / "photo_crop.png", to_uint8_image(photo.image))
@@ -259,17 +384,25 @@ def run(args) -> int:
     seconds["outputs"] = round(time.perf_counter() - t, 2)
     seconds["total"] = round(time.perf_counter() - started, 2)
     report = {
-        "image": str(args.image), "mesh": str(args.mesh), "checkpoint": str(args.checkpoint), "mask_source": mask_source,
-        "pose": pose_record(estimate, pose_source, distance, fov), "fit": fit_check.as_dict(),
+        "image": str(args.image),
+        "mesh": str(args.mesh),
+        "checkpoint": str(args.checkpoint),
+        "mask_source": mask_source,
+        "pose": pose_record(estimate, pose_source, distance, fov),
+        "fit": fit_check.as_dict(),
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
         "method": f"automaton fitted to the photo ({cfg.automaton.iters} iterations)" if args.automaton else "transfer",
         "light": light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders
-        "losses": {stage: {"first": h[0] if h else None, "last": h[-1] if h else None, "curve": h} for stage, h in losses.items()},
-        "seconds": seconds, "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
+        "losses": {stage: _loss_record(curve) for stage, curve in losses.items()},
+        "seconds": seconds,
+        "vgg": {"source": vgg.source, "pretrained": vgg.pretrained},
         "settings": asdict(cfg),
-        "files": {**files, "photo_crop": "photo_crop.png", "render_at_pose": "render_at_pose.png"}, "output_mesh": written,
+        "files": {**files, "photo_crop": "photo_crop.png", "render_at_pose": "render_at_pose.png"},
+        "output_mesh": written,
     }
     write_json(out / "report.json", report)
-    print(f"textured {args.mesh} after {args.image}: pose az {azimuth:.0f} el {elevation:.0f} ({pose_source}); "
-          f"{seconds['total']:.0f} s; {out / 'textured.glb'}, {out / 'report.json'}")
+    print(
+        f"textured {args.mesh} after {args.image}: pose az {azimuth:.0f} el {elevation:.0f} ({pose_source}); "
+        f"{seconds['total']:.0f} s; {out / 'textured.glb'}, {out / 'report.json'}"
+    )
     return 0

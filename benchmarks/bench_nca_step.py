@@ -4,8 +4,8 @@
 
 On a cube-sphere (32 subdivisions: 6,146 cells) with the default automaton (16 channels, order-1
 harmonics, hidden 128) whose update is made non-zero: ms per step (inference, the whole update),
-and ms per perception call for :func:`mesh2tex.nn.nca.perceive` (the cached CSR operator) and
-:func:`mesh2tex.nn.nca.perceive_edges` (gather and scatter-add over the edge list), measured in the
+and ms per perception call for :func:`mesh2tex.nn.cell_graph.perceive` (the cached CSR operator) and
+:func:`mesh2tex.nn.cell_graph.perceive_edges` (gather and scatter-add over the edge list), measured in the
 same process; the ratio is edges / sparse.
 """
 
@@ -21,7 +21,8 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mesh2tex.geometry.primitives import cube_sphere  # noqa: E402
-from mesh2tex.nn.nca import MeshNCA, build_cell_graph, perceive, perceive_edges  # noqa: E402
+from mesh2tex.nn.cell_graph import build_cell_graph, perceive, perceive_edges  # noqa: E402
+from mesh2tex.nn.nca import MeshNCA  # noqa: E402
 
 
 def per_call_ms(fn, repeats: int) -> float:

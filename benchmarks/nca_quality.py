@@ -52,7 +52,8 @@ from mesh2tex.geometry.primitives import density_subdivisions, load_surface, mea
 from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd  # noqa: E402
-from mesh2tex.nn.nca import MeshNCA, NCAConfig, build_cell_graph  # noqa: E402
+from mesh2tex.nn.cell_graph import build_cell_graph  # noqa: E402
+from mesh2tex.nn.nca import MeshNCA, NCAConfig  # noqa: E402
 from mesh2tex.nn.render_texture import render_states  # noqa: E402
 from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
 from mesh2tex.render import orbit_camera  # noqa: E402

@@ -46,7 +46,7 @@ from benchmarks.nca_quality import RESOLUTION, STEPS, Judge, colour_model, grow,
 from mesh2tex.geometry.primitives import load_surface  # noqa: E402
 from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.metrics.structure import structure_scores  # noqa: E402
-from mesh2tex.nn.nca import build_cell_graph  # noqa: E402
+from mesh2tex.nn.cell_graph import build_cell_graph  # noqa: E402
 from mesh2tex.nn.render_texture import render_states  # noqa: E402
 from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
 from mesh2tex.render import interpolate, rasterize, transform_points  # noqa: E402

@@ -43,7 +43,7 @@ from mesh2tex.models import TrainedAutomaton, load_nca
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.limits import check_range
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
-from mesh2tex.nn.nca import build_cell_graph
+from mesh2tex.nn.cell_graph import build_cell_graph
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides

@@ -264,7 +264,7 @@ def write_automaton_mesh(
     with a PLY of the colour at each cell. ``texture_format`` as :func:`write_textured_mesh`.
 
     model: :class:`mesh2tex.nn.nca.MeshNCA`; state (1, V, C) on the model's device; graph: its
-    :class:`~mesh2tex.nn.nca.CellGraph`; graft: (other automaton, alpha (V,)) as in ``MeshNCA.colours``.
+    :class:`~mesh2tex.nn.cell_graph.CellGraph`; graft: (other automaton, alpha (V,)) as in ``MeshNCA.colours``.
     Returns what a report says of the mesh written.
     """
     grown = AutomatonTexture(model, state, graph.triangles, graft)

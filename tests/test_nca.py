@@ -15,15 +15,8 @@ from mesh2tex.geometry.primitives import (
     unit_surface,
 )
 from mesh2tex.geometry.regions import region_weights
-from mesh2tex.nn.nca import (
-    AutomatonTexture,
-    MeshNCA,
-    NCAConfig,
-    build_cell_graph,
-    perceive,
-    perceive_edges,
-    spherical_harmonics,
-)
+from mesh2tex.nn.cell_graph import build_cell_graph, perceive, perceive_edges, spherical_harmonics
+from mesh2tex.nn.nca import AutomatonTexture, MeshNCA, NCAConfig
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.uv import bake_surface_colours

@@ -18,7 +18,8 @@ from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.faceconv import FaceResNetBlock, gather_neighborhood
 from mesh2tex.nn.field import NeuralField, vertex_features
 from mesh2tex.nn.generator import GeneratorConfig, MappingNetwork, TextureGenerator
-from mesh2tex.nn.nca import ConditionedNCA, MeshNCA, NCAConfig, build_cell_graph
+from mesh2tex.nn.cell_graph import build_cell_graph
+from mesh2tex.nn.nca import ConditionedNCA, MeshNCA, NCAConfig
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseNet
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views, render_states

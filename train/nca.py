@@ -30,7 +30,8 @@ from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, load_image, save_png
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
-from mesh2tex.nn.nca import CellGraph, MeshNCA, NCAConfig, build_cell_graph, overflow_penalty
+from mesh2tex.nn.cell_graph import CellGraph, build_cell_graph
+from mesh2tex.nn.nca import MeshNCA, NCAConfig, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides

@@ -24,7 +24,8 @@ import torch
 
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.nn.nca import CellGraph, MeshNCA, build_cell_graph, overflow_penalty
+from mesh2tex.nn.cell_graph import CellGraph, build_cell_graph
+from mesh2tex.nn.nca import MeshNCA, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import crop_square

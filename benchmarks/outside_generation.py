@@ -62,7 +62,7 @@ def outside_meshes(category: str, folder: Path) -> list[tuple[str, Path]]:
 
 def height_parts(vertices: np.ndarray, faces: np.ndarray, category: str) -> np.ndarray:
     """(T,) part ids by height: the upper 40 % of the mesh seat (chair) or body (car), the rest leg or wheel."""
-    from mesh2tex.synthetic.shapes import PART_ID
+    from mesh2tex.synthetic.solids import PART_ID
 
     centres = vertices[faces].mean(axis=1)
     low, high = vertices[:, 1].min(), vertices[:, 1].max()

@@ -177,7 +177,7 @@ def plan(spec) -> dict:
 def build_shape(spec, index: int, output: Path, records: list[dict], query: bool) -> dict:
     """Write the mesh, the textured GLB and the photos (or queries) of shape ``index`` that are missing."""
     from mesh2tex.io.assets import save_glb, save_obj
-    from mesh2tex.synthetic.shapes import PART_NAMES
+    from mesh2tex.synthetic.solids import PART_NAMES
     from mesh2tex.synthetic.world import PhotoSetup, bake_material, make_material, make_shape, render_views
 
     name = spec.shape_name(index)

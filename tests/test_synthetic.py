@@ -12,7 +12,8 @@ from PIL import Image
 from mesh2tex.cli import main
 from mesh2tex.render import face_normals
 from mesh2tex.synthetic.materials import PART_NAMES, PhotoPattern, random_material
-from mesh2tex.synthetic.shapes import PART_ID, generate_shape
+from mesh2tex.synthetic.shapes import generate_shape
+from mesh2tex.synthetic.solids import PART_ID
 
 SEEDS = range(8)
 

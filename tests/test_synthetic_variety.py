@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from mesh2tex.cli import main
-from mesh2tex.synthetic.shapes import PART_ID
+from mesh2tex.synthetic.solids import PART_ID
 from mesh2tex.synthetic.sweeps import arc_points, cushion, tube
 from mesh2tex.synthetic.variety import FAMILIES, collapse_short_edges, family_shares, generate_varied_shape
 from mesh2tex.synthetic.world import WorldSpec, make_shape

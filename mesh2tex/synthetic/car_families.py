@@ -19,7 +19,8 @@ from typing import Any
 import manifold3d as mf
 import numpy as np
 
-from mesh2tex.synthetic.shapes import _car, box, rod
+from mesh2tex.synthetic.shapes import _car
+from mesh2tex.synthetic.solids import box, rod
 from mesh2tex.synthetic.sweeps import loft, superellipse
 
 # Ranges per family: overall length, width and height (m); wheelbase as a share of the length; wheel

@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from mesh2tex.synthetic.shapes import _chair, box, rod, slab
+from mesh2tex.synthetic.shapes import _chair
+from mesh2tex.synthetic.solids import box, rod, slab
 from mesh2tex.synthetic.sweeps import (
     arc_points, band, bezier, curved_panel, cushion, loft, place_rings, resample, rounded_path, superellipse, transport_frames, tube,
 )

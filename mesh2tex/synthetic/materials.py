@@ -6,7 +6,7 @@ points (N, 3) float64 in the shape's normalised frame, normals (N, 3) unit, rgb 
 the per-pixel interpolated positions) and bakes a UV texture (evaluated at the texel positions) with
 no seams and no UV distortion. 2D patterns (weave, photographic images) are projected triplanarly.
 
-A :class:`Material` maps part labels (``mesh2tex.synthetic.shapes.PART_NAMES``) to patterns;
+A :class:`Material` maps part labels (``mesh2tex.synthetic.solids.PART_NAMES``) to patterns;
 :func:`random_material` draws a plausible one for a chair or a car. Every pattern describes itself
 as JSON (:meth:`describe`) so a world records the ground-truth material of each shape.
 """
@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from mesh2tex.synthetic.shapes import PART_ID, PART_NAMES
+from mesh2tex.synthetic.solids import PART_ID, PART_NAMES
 
 Colour = tuple[float, float, float]
 

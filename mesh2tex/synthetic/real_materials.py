@@ -31,7 +31,8 @@ from mesh2tex.synthetic.materials import (
     GLASS, LEATHER, METAL, PAINT, Colour, Material, Pattern, Solid, UpFacing, _c, _jitter, _mix, _permutation, _pick,
     _value_noise, triplanar,
 )
-from mesh2tex.synthetic.shapes import PART_ID, SyntheticShape
+from mesh2tex.synthetic.shapes import SyntheticShape
+from mesh2tex.synthetic.solids import PART_ID
 
 LIMIT_PER_UNIT = 64.0  # cycles per object diagonal the world's renders resolve (256 px renders span ~200 px per diagonal)
 TYPICAL_METRES = {"chair": 1.2, "car": 5.0}  # a bounding-box diagonal when the shape is not known

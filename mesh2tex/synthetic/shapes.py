@@ -23,13 +23,19 @@ import manifold3d as mf
 import numpy as np
 
 from mesh2tex.geometry.features import noc_coordinates
-
-# One integer id per part name for every category, so face labels mean the same everywhere.
-PART_NAMES: tuple[str, ...] = (
-    "seat", "back", "leg", "arm", "base",  # chairs
-    "body", "cabin", "wheel", "hub", "headlight", "taillight",  # cars
+from mesh2tex.synthetic.solids import (
+    PART_NAMES,
+    PartBuilder,
+    box,
+    hull,
+    panel,
+    place,
+    prism_hull,
+    rod,
+    rotation_x,
+    slab,
 )
-PART_ID: dict[str, int] = {name: index for index, name in enumerate(PART_NAMES)}
+
 CATEGORIES: tuple[str, ...] = ("chair", "car")
 
 
@@ -67,15 +73,19 @@ def generate_shape(category: str, rng: np.random.Generator) -> SyntheticShape:
     return shape_from_design(category, _GENERATORS[category], rng)
 
 
-def shape_from_design(category: str, design: Callable[[_PartBuilder, np.random.Generator], dict[str, Any]],
-                rng: np.random.Generator, repair: Callable | None = None) -> SyntheticShape:
+def shape_from_design(
+    category: str,
+    design: Callable[[PartBuilder, np.random.Generator], dict[str, Any]],
+    rng: np.random.Generator,
+    repair: Callable | None = None,
+) -> SyntheticShape:
     """The shape that ``design`` (which adds labelled solids to a builder and returns its design choices)
     draws from ``rng``: the union of its parts, normalised, redrawn while unusable. ``repair``, when
     given, maps the union's (vertices, faces, face_parts) to cleaned ones, or None to redraw."""
     # A random design can rarely leave a sliver edge (two parts nearly touching) or a part that
     # floats free; such a draw is replaced by the next one, so the result stays deterministic.
     for _ in range(_MAX_DRAWS):
-        builder = _PartBuilder()
+        builder = PartBuilder()
         params = design(builder, rng)
         vertices, faces, face_parts = builder.union()
         if repair is not None:
@@ -112,145 +122,10 @@ def normalise(vertices: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------
-# Solids
-
-
-class _PartBuilder:
-    """Collects labelled solids and unions them, keeping each output triangle's part label."""
-
-    def __init__(self):
-        self.solids: list[tuple[mf.Manifold, int]] = []
-        self.cuts: list[mf.Manifold] = []
-
-    def add(self, part: str, solid: mf.Manifold) -> None:
-        self.solids.append((solid, PART_ID[part]))
-
-    def cut(self, solid: mf.Manifold) -> None:
-        """Subtract ``solid`` from everything added so far (and from what is added later)."""
-        self.cuts.append(solid)
-
-    def union(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        originals = [solid.as_original() for solid, _ in self.solids]
-        label_of = {m.original_id(): part for m, (_, part) in zip(originals, self.solids)}
-        result = mf.Manifold.batch_boolean(originals, mf.OpType.Add)
-        if self.cuts:
-            result = result - mf.Manifold.batch_boolean(self.cuts, mf.OpType.Add)
-        # Nearly coincident faces of two parts leave slivers; collapsing edges under 0.5 mm removes
-        # them (a mesh file rounding its coordinates would otherwise pinch them shut).
-        result = result.simplify(5e-4)
-        mesh = result.to_mesh()
-        vertices = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
-        faces = np.asarray(mesh.tri_verts, dtype=np.int64)
-        run_index = np.asarray(mesh.run_index) // 3  # triangle ranges of each input solid
-        face_parts = np.empty(len(faces), dtype=np.int64)
-        for k, original in enumerate(mesh.run_original_id):
-            # A cutter's faces become the walls of the hole: they take the label of the nearest part
-            # below, which the caller arranges by cutting only the body.
-            face_parts[run_index[k] : run_index[k + 1]] = label_of.get(original, PART_ID["body"])
-        # Only positions are stored, so manifold3d shares every vertex: the mesh is closed as is.
-        used = np.unique(faces)
-        remap = np.full(len(vertices), -1, dtype=np.int64)
-        remap[used] = np.arange(len(used))
-        vertices, faces = vertices[used], remap[faces]
-        order = np.argsort(face_parts, kind="stable")
-        return vertices, faces[order], face_parts[order]
-
-
-def _place(solid: mf.Manifold, rotation: np.ndarray, offset) -> mf.Manifold:
-    """Apply x -> rotation @ x + offset (rotation a proper 3x3 rotation)."""
-    matrix = np.hstack([np.asarray(rotation, dtype=np.float64), np.asarray(offset, dtype=np.float64)[:, None]])
-    return solid.transform(matrix)
-
-
-# Extrusions run along +z; these rotations send the extrusion axis elsewhere.
-_Z_TO_Y = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # cross-section (x, y) -> world (x, -z); extrude along +y
-_Z_TO_X = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # cross-section (x, y) -> world (-z, y); extrude along +x
-
-
-def _rounded_rect(width: float, height: float, radius: float, segments: int = 24) -> mf.CrossSection:
-    radius = min(radius, 0.49 * min(width, height))
-    if radius <= 1e-4:
-        return mf.CrossSection.square((width, height), True)
-    inner = mf.CrossSection.square((width - 2 * radius, height - 2 * radius), True)
-    return inner.offset(radius, mf.JoinType.Round, circular_segments=segments)
-
-
-def box(size, centre) -> mf.Manifold:
-    """Axis-aligned box of ``size`` (x, y, z) centred at ``centre``."""
-    return mf.Manifold.cube(tuple(float(s) for s in size), True).translate(tuple(float(c) for c in centre))
-
-
-def slab(width: float, depth: float, thickness: float, radius: float, centre) -> mf.Manifold:
-    """A horizontal plate (x width, z depth, y thickness) with rounded vertical edges."""
-    solid = mf.Manifold.extrude(_rounded_rect(width, depth, radius), thickness)
-    return _place(solid, _Z_TO_Y, np.asarray(centre, dtype=np.float64) - [0, thickness / 2, 0])
-
-
-def panel(width: float, height: float, thickness: float, radius: float) -> mf.Manifold:
-    """An upright plate in the x-y plane, bottom edge centred at the origin, thickness along z."""
-    solid = mf.Manifold.extrude(_rounded_rect(width, height, radius), thickness)
-    return solid.translate((0.0, height / 2, -thickness / 2))
-
-
-def rod(start, end, radius_start: float, radius_end: float | None = None, segments: int = 16, square: bool = False) -> mf.Manifold:
-    """A (tapered) cylinder, or a square bar when ``square``, from ``start`` to ``end``."""
-    start, end = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
-    axis = end - start
-    length = float(np.linalg.norm(axis))
-    radius_end = radius_start if radius_end is None else radius_end
-    if square:
-        solid = mf.Manifold.extrude(mf.CrossSection.square((2 * radius_start, 2 * radius_start), True), length,
-                                    scale_top=(radius_end / radius_start, radius_end / radius_start))
-    else:
-        solid = mf.Manifold.cylinder(length, radius_start, radius_end, segments)
-    return _place(solid, _rotation_from_z(axis / length), start)
-
-
-def _rotation_from_z(direction: np.ndarray) -> np.ndarray:
-    """A rotation matrix that maps +z onto the unit vector ``direction``."""
-    z = np.array([0.0, 0.0, 1.0])
-    v = np.cross(z, direction)
-    c = float(np.dot(z, direction))
-    if np.linalg.norm(v) < 1e-9:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1 + c)
-
-
-def _rotation_x(degrees: float) -> np.ndarray:
-    a = math.radians(degrees)
-    return np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
-
-
-def _rotation_y(degrees: float) -> np.ndarray:
-    a = math.radians(degrees)
-    return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
-
-
-def _hull(points) -> mf.Manifold:
-    return mf.Manifold.hull_points(np.asarray(points, dtype=np.float64))
-
-
-def _prism_hull(profile_zy: np.ndarray, half_width: float, bevel: float) -> mf.Manifold:
-    """Convex solid from a side profile (K, 2) of (z, y) points, across x in [-half_width, half_width].
-
-    The edges are chamfered by ``bevel``: the full profile spans the narrower width and a profile
-    shrunk towards its centroid by ``bevel`` spans the full width.
-    """
-    centre = profile_zy.mean(axis=0)
-    shrink = centre + (profile_zy - centre) * (1 - bevel / np.maximum(np.abs(profile_zy - centre).max(), 1e-9))
-    points = []
-    for zy, half in ((profile_zy, half_width - bevel), (shrink, half_width)):
-        for sign in (-1.0, 1.0):
-            points.extend((sign * half, y, z) for z, y in zy)
-    return _hull(points)
-
-
-# ----------------------------------------------------------------------------------------------
 # Chairs (units: metres before normalisation)
 
 
-def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
+def _chair(builder: PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     u = rng.uniform
     legs = str(rng.choice(["four", "four", "pedestal", "sled"], p=[0.35, 0.2, 0.3, 0.15]))
     back = str(rng.choice(["solid", "slats_vertical", "slats_horizontal", "frame"]))
@@ -265,8 +140,14 @@ def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     builder.add("seat", slab(width, depth, seat_thick, seat_radius, (0, seat_height - seat_thick / 2, 0)))
 
     params_extra = _chair_legs(builder, rng, legs, width, depth, seat_bottom, seat_radius)
-    params = {"legs": legs, "back": back, "arms": arms, "width": round(width, 3), "depth": round(depth, 3),
-              "seat_height": round(seat_height, 3)}
+    params = {
+        "legs": legs,
+        "back": back,
+        "arms": arms,
+        "width": round(width, 3),
+        "depth": round(depth, 3),
+        "seat_height": round(seat_height, 3),
+    }
     params.update(params_extra)
 
     # The back, built upright at the origin, then tilted and moved to the seat's rear edge.
@@ -276,7 +157,7 @@ def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     pieces = _chair_back_pieces(rng, back, back_width, back_height, back_thick, params)
     back_solid = mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
     back_z = -depth / 2 + back_thick / 2
-    builder.add("back", _place(back_solid, _rotation_x(-tilt), (0, seat_top - 0.015, back_z)))
+    builder.add("back", place(back_solid, rotation_x(-tilt), (0, seat_top - 0.015, back_z)))
     params["back_tilt_degrees"] = round(tilt, 1)
 
     if arms != "none":
@@ -284,8 +165,15 @@ def _chair(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     return params
 
 
-def _chair_legs(builder: _PartBuilder, rng: np.random.Generator, legs: str, width: float, depth: float, seat_bottom: float,
-                seat_radius: float) -> dict[str, Any]:
+def _chair_legs(
+    builder: PartBuilder,
+    rng: np.random.Generator,
+    legs: str,
+    width: float,
+    depth: float,
+    seat_bottom: float,
+    seat_radius: float,
+) -> dict[str, Any]:
     """The chair's legs under the seat (four legs with an optional H of stretchers, a pedestal on a star
     or a disc, or sled runners); returns the parameters to record (the pedestal's base)."""
     u = rng.uniform
@@ -324,9 +212,11 @@ def _chair_legs(builder: _PartBuilder, rng: np.random.Generator, legs: str, widt
                 builder.add("base", rod((tip[0], 0.0, tip[2]), (tip[0], 0.05, tip[2]), 0.022, segments=12))
         else:
             radius = u(0.2, 0.28)
-            profile = mf.CrossSection([np.array([[0, 0], [radius, 0], [radius * 0.9, 0.03], [column * 1.6, 0.09], [0, 0.09]])])
+            profile = mf.CrossSection(
+                [np.array([[0, 0], [radius, 0], [radius * 0.9, 0.03], [column * 1.6, 0.09], [0, 0.09]])]
+            )
             disc = mf.Manifold.revolve(profile, 32)  # revolved around y, then y became z
-            builder.add("base", _place(disc, np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]), (0, 0, 0)))
+            builder.add("base", place(disc, np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]), (0, 0, 0)))
         builder.add("leg", slab(width * 0.5, depth * 0.5, 0.03, 0.02, (0, seat_bottom - 0.01, 0)))
         params_extra = {"base": base_style}
     else:  # sled: two floor runners joined to the seat by uprights
@@ -341,8 +231,9 @@ def _chair_legs(builder: _PartBuilder, rng: np.random.Generator, legs: str, widt
     return params_extra
 
 
-def _chair_back_pieces(rng: np.random.Generator, back: str, back_width: float, back_height: float, back_thick: float,
-                       params: dict) -> list:
+def _chair_back_pieces(
+    rng: np.random.Generator, back: str, back_width: float, back_height: float, back_thick: float, params: dict
+) -> list:
     """The back's pieces, built upright at the origin: a panel, or posts and a top rail with vertical or
     horizontal slats or an upholstered pad (``params["back_pieces"]`` counts them)."""
     u = rng.uniform
@@ -361,7 +252,9 @@ def _chair_back_pieces(rng: np.random.Generator, back: str, back_width: float, b
             slat = min(u(0.02, 0.06), inner_width / (count + 1) * 0.9)
             for k in range(count):
                 x = -inner_width / 2 + inner_width * (k + 1) / (count + 1)
-                pieces.append(box((slat, back_height - rail + 0.02, back_thick * 0.6), (x, (back_height - rail) / 2, 0)))
+                pieces.append(
+                    box((slat, back_height - rail + 0.02, back_thick * 0.6), (x, (back_height - rail) / 2, 0))
+                )
         elif back == "slats_horizontal":
             count = int(rng.integers(1, 4))
             for k in range(count):
@@ -369,13 +262,24 @@ def _chair_back_pieces(rng: np.random.Generator, back: str, back_width: float, b
                 pieces.append(box((inner_width + 0.01, u(0.03, 0.07), back_thick * 0.6), (0, y, 0)))
         else:  # frame holding an upholstered pad
             pad_height = (back_height - rail) * u(0.5, 0.85)
-            pieces.append(box((inner_width + 0.01, pad_height, back_thick * 1.3), (0, (back_height - rail) / 2 + 0.02, 0)))
+            pieces.append(
+                box((inner_width + 0.01, pad_height, back_thick * 1.3), (0, (back_height - rail) / 2 + 0.02, 0))
+            )
         params["back_pieces"] = len(pieces) - 3  # slats, or the pad of a frame back
     return pieces
 
 
-def _chair_arms(builder: _PartBuilder, rng: np.random.Generator, arms: str, width: float, depth: float, seat_top: float,
-                seat_bottom: float, back_z: float, tilt: float) -> None:
+def _chair_arms(
+    builder: PartBuilder,
+    rng: np.random.Generator,
+    arms: str,
+    width: float,
+    depth: float,
+    seat_top: float,
+    seat_bottom: float,
+    back_z: float,
+    tilt: float,
+) -> None:
     """Arm rests on posts, or arm panels on the seat's sides, from the front of the seat to the tilted back."""
     u = rng.uniform
     arm_height = seat_top + u(0.17, 0.26)
@@ -387,11 +291,20 @@ def _chair_arms(builder: _PartBuilder, rng: np.random.Generator, arms: str, widt
         x = sx * (width / 2 - arm_width / 2)
         if arms == "posts":
             builder.add("arm", box((arm_width, arm_thick, length), (x, arm_height, back_at_arm + length / 2)))
-            builder.add("arm", rod((x, seat_top - 0.01, front - 0.05), (x, arm_height, front - 0.04), arm_width * 0.35, segments=12))
+            builder.add(
+                "arm",
+                rod((x, seat_top - 0.01, front - 0.05), (x, arm_height, front - 0.04), arm_width * 0.35, segments=12),
+            )
         else:
             panel_height = arm_height - seat_bottom + 0.02
             # Slightly wider than the seat: flush faces would leave slivers in the union.
-            builder.add("arm", box((0.1, panel_height, length), (sx * (width / 2 - 0.045), seat_bottom - 0.02 + panel_height / 2, back_at_arm + length / 2)))
+            builder.add(
+                "arm",
+                box(
+                    (0.1, panel_height, length),
+                    (sx * (width / 2 - 0.045), seat_bottom - 0.02 + panel_height / 2, back_at_arm + length / 2),
+                ),
+            )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -400,13 +313,15 @@ def _chair_arms(builder: _PartBuilder, rng: np.random.Generator, arms: str, widt
 _CAR_STYLES = ("sedan", "hatchback", "suv", "pickup", "sports", "van")
 
 
-def _car(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
+def _car(builder: PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     u = rng.uniform
     style = str(rng.choice(_CAR_STYLES))
     length = u(3.6, 4.9)
     width = u(1.6, 1.95)
     clearance = {"suv": u(0.28, 0.38), "pickup": u(0.3, 0.4), "sports": u(0.1, 0.15)}.get(style, u(0.15, 0.24))
-    body_height = {"suv": u(0.65, 0.85), "pickup": u(0.65, 0.8), "sports": u(0.38, 0.48), "van": u(0.6, 0.8)}.get(style, u(0.5, 0.65))
+    body_height = {"suv": u(0.65, 0.85), "pickup": u(0.65, 0.8), "sports": u(0.38, 0.48), "van": u(0.6, 0.8)}.get(
+        style, u(0.5, 0.65)
+    )
     cabin_height = {"sports": u(0.3, 0.4), "van": u(0.75, 1.0), "suv": u(0.5, 0.65)}.get(style, u(0.4, 0.55))
     hood = {"sports": u(0.34, 0.42), "van": u(0.08, 0.15), "pickup": u(0.26, 0.32)}.get(style, u(0.24, 0.32))
     trunk = {"sedan": u(0.16, 0.24), "sports": u(0.12, 0.2), "pickup": u(0.3, 0.38)}.get(style, u(0.0, 0.04))
@@ -419,14 +334,59 @@ def _car(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     z0, z1 = -length / 2, length / 2
     y0, y1 = clearance, clearance + body_height
     nose, tail = u(0.1, 0.35) * body_height, u(0.05, 0.2) * body_height
-    body_profile = np.array([
-        (z0 + 0.12, y0), (z1 - 0.18, y0),  # bottom, the ends lifted a little
-        (z1, y0 + body_height * u(0.25, 0.45)), (z1 - nose * 2.2, y1),  # front bumper and nose
-        (z0 + tail, y1), (z0, y1 - body_height * u(0.1, 0.3)), (z0, y0 + body_height * 0.2),
-    ])
+    body_profile = np.array(
+        [
+            (z0 + 0.12, y0),
+            (z1 - 0.18, y0),  # bottom, the ends lifted a little
+            (z1, y0 + body_height * u(0.25, 0.45)),
+            (z1 - nose * 2.2, y1),  # front bumper and nose
+            (z0 + tail, y1),
+            (z0, y1 - body_height * u(0.1, 0.3)),
+            (z0, y0 + body_height * 0.2),
+        ]
+    )
     bevel = u(0.04, 0.1)
-    body = _prism_hull(body_profile, width / 2, bevel)
+    body = prism_hull(body_profile, width / 2, bevel)
 
+    cabin_rear, top = _car_cabin(
+        builder, u, width, y1, z0, z1, length, trunk, hood, cabin_height, windshield, rear_window
+    )
+
+    if style == "pickup":  # an open cargo bed behind the cabin
+        wall = 0.06
+        bed = box(
+            (width - 2 * wall - 2 * bevel, body_height * 0.7, cabin_rear - z0 - 2 * wall),
+            (0, y1 - body_height * 0.35 + 0.01, (z0 + cabin_rear) / 2),
+        )
+        body = body - bed
+
+    _car_body_and_wheels(builder, u, body, length, width, wheel_radius, wheel_width)
+
+    _car_lights(builder, u, body_profile, y0, body_height, width, bevel)
+    return {
+        "style": style,
+        "length": round(length, 3),
+        "width": round(width, 3),
+        "height": round(top, 3),
+        "wheel_radius": round(wheel_radius, 3),
+    }
+
+
+def _car_cabin(
+    builder: PartBuilder,
+    u,
+    width: float,
+    y1: float,
+    z0: float,
+    z1: float,
+    length: float,
+    trunk: float,
+    hood: float,
+    cabin_height: float,
+    windshield: float,
+    rear_window: float,
+) -> tuple[float, float]:
+    """The cabin (a hull on the body's top, y1) between the trunk and the hood; (its rear z, its top y)."""
     cabin_rear = z0 + trunk * length
     cabin_front = z1 - hood * length
     top = y1 + cabin_height
@@ -435,22 +395,27 @@ def _car(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     if cabin_front - run_front - (cabin_rear + run_rear) < 0.4:  # keep a roof at least 0.4 m long
         scale = max(cabin_front - cabin_rear - 0.4, 0.1) / max(run_front + run_rear, 1e-6)
         run_front, run_rear = run_front * scale, run_rear * scale
-    cabin_profile = np.array([
-        (cabin_rear, y1 - 0.05), (cabin_front, y1 - 0.05), (cabin_front - run_front, top), (cabin_rear + run_rear, top),
-    ])
+    cabin_profile = np.array(
+        [
+            (cabin_rear, y1 - 0.05),
+            (cabin_front, y1 - 0.05),
+            (cabin_front - run_front, top),
+            (cabin_rear + run_rear, top),
+        ]
+    )
     inset_bottom, inset_top = u(0.02, 0.08), u(0.1, 0.2)
     cabin_points = []
     for (z, y), inset in zip(cabin_profile, (inset_bottom, inset_bottom, inset_top, inset_top)):
         for sign in (-1.0, 1.0):
             cabin_points.append((sign * (width / 2 - inset), y, z))
-    builder.add("cabin", _hull(cabin_points))
+    builder.add("cabin", hull(cabin_points))
+    return cabin_rear, top
 
-    if style == "pickup":  # an open cargo bed behind the cabin
-        wall = 0.06
-        bed = box((width - 2 * wall - 2 * bevel, body_height * 0.7, cabin_rear - z0 - 2 * wall),
-                  (0, y1 - body_height * 0.35 + 0.01, (z0 + cabin_rear) / 2))
-        body = body - bed
 
+def _car_body_and_wheels(
+    builder: PartBuilder, u, body: mf.Manifold, length: float, width: float, wheel_radius: float, wheel_width: float
+) -> None:
+    """The body with its wheel wells cut, then the wheels and hubs on axles (one piece)."""
     # Wheel wells cut from the body, then the wheels, joined by axles so the shape stays one piece.
     wheelbase = length * u(0.56, 0.66)
     overhang = u(-0.04, 0.04) * length
@@ -460,14 +425,23 @@ def _car(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
         body = body - (well - box((2 * (wheel_x - wheel_width / 2 - 0.04), 4, 4), (0, 0, z)))
     builder.add("body", body)
     for z in (-wheelbase / 2 + overhang, wheelbase / 2 + overhang):
-        builder.add("wheel", rod((-wheel_x, wheel_radius, z), (wheel_x, wheel_radius, z), wheel_radius * 0.25, segments=12))
+        builder.add(
+            "wheel", rod((-wheel_x, wheel_radius, z), (wheel_x, wheel_radius, z), wheel_radius * 0.25, segments=12)
+        )
         for sx in (-1, 1):
             outer = sx * (wheel_x + wheel_width / 2)
             inner = sx * (wheel_x - wheel_width / 2)
             builder.add("wheel", rod((inner, wheel_radius, z), (outer, wheel_radius, z), wheel_radius, segments=28))
             hub_radius = wheel_radius * u(0.5, 0.7)
-            builder.add("hub", rod((inner, wheel_radius, z), (outer + sx * 0.012, wheel_radius, z), hub_radius, segments=20))
+            builder.add(
+                "hub", rod((inner, wheel_radius, z), (outer + sx * 0.012, wheel_radius, z), hub_radius, segments=20)
+            )
 
+
+def _car_lights(
+    builder: PartBuilder, u, body_profile: np.ndarray, y0: float, body_height: float, width: float, bevel: float
+) -> None:
+    """Head and tail lights on the body's front and rear faces."""
     # Head and tail lights: flattened spheres half sunk into the front and rear faces.
     light_y = y0 + body_height * u(0.45, 0.7)
     light_size = (u(0.16, 0.3), u(0.05, 0.1), 0.08)
@@ -476,9 +450,10 @@ def _car(builder: _PartBuilder, rng: np.random.Generator) -> dict[str, Any]:
     for sx in (-1, 1):
         x = sx * (width / 2 - bevel - light_size[0] * 0.7)
         builder.add("headlight", mf.Manifold.sphere(1.0, 16).scale(light_size).translate((x, light_y, front_z - 0.01)))
-        builder.add("taillight", mf.Manifold.sphere(1.0, 16).scale(light_size).translate((x, y0 + body_height * 0.65, rear_z + 0.01)))
-    return {"style": style, "length": round(length, 3), "width": round(width, 3),
-            "height": round(top, 3), "wheel_radius": round(wheel_radius, 3)}
+        builder.add(
+            "taillight",
+            mf.Manifold.sphere(1.0, 16).scale(light_size).translate((x, y0 + body_height * 0.65, rear_z + 0.01)),
+        )
 
 
 def _profile_z_at(profile_zy: np.ndarray, y: float, front: bool) -> float:
@@ -493,4 +468,4 @@ def _profile_z_at(profile_zy: np.ndarray, y: float, front: bool) -> float:
     return float(best if best is not None else (profile_zy[:, 0].max() if front else profile_zy[:, 0].min()))
 
 
-_GENERATORS: dict[str, Callable[[_PartBuilder, np.random.Generator], dict[str, Any]]] = {"chair": _chair, "car": _car}
+_GENERATORS: dict[str, Callable[[PartBuilder, np.random.Generator], dict[str, Any]]] = {"chair": _chair, "car": _car}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mesh2tex.synthetic.materials import UpFacing
-from mesh2tex.synthetic.real_materials import (
+from mesh2tex.synthetic.physical_patterns import (
     AtScale,
     BrushedMetal,
     DarkGlass,
@@ -20,9 +20,8 @@ from mesh2tex.synthetic.real_materials import (
     Painted,
     Rubber,
     Seams,
-    metres_per_unit,
-    real_material,
 )
+from mesh2tex.synthetic.real_materials import metres_per_unit, real_material
 from mesh2tex.synthetic.variety import generate_varied_shape
 from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape
 

@@ -28,14 +28,13 @@ from kornia.color import lab_to_rgb
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 # noqa: E402
-from mesh2tex.evaluation.generation import (
-    _ORACLE_STREAM,
+from mesh2tex.evaluation.generation import read_world, sample_views
+from mesh2tex.evaluation.generation_renders import (
+    ORACLE_STREAM,
     draw_key,
     fresh_photo_set,
     generator_renders,
     material_draws,
-    read_world,
-    sample_views,
 )
 from mesh2tex.render import composite_images  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
@@ -127,7 +126,7 @@ def main() -> None:
     # The oracle (the world's own materials, a fresh draw per view) and the flat-colour baseline, as the protocol
     # renders them.
     oracle = [
-        material_draws(world, name, views[name], args.resolution, draw_key(args.seed, 0), _ORACLE_STREAM, lit=True)
+        material_draws(world, name, views[name], args.resolution, draw_key(args.seed, 0), ORACLE_STREAM, lit=True)
         for name in shapes
     ]
     oracle_images, oracle_masks = torch.cat([o[0] for o in oracle]), torch.cat([o[1] for o in oracle])

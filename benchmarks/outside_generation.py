@@ -78,13 +78,13 @@ def main() -> None:
     from mesh2tex.evaluation.compare import render_for_comparison
     from mesh2tex.evaluation.surfaces import material_surface
     from mesh2tex.geometry.prepared import quads_to_triangles
-    from mesh2tex.evaluation.generation import (
+    from mesh2tex.evaluation.generation import read_world
+    from mesh2tex.evaluation.generation_renders import (
         draw_key,
         fresh_photo_set,
         generator_renders,
         photo_set_spread,
         read_as_photos,
-        read_world,
         seeded_generator,
     )
     from mesh2tex.photos import list_images, load_set

@@ -11,7 +11,8 @@ import torch
 import yaml
 
 from conftest import TINY_GAN, make_tiny_world
-from mesh2tex.evaluation.generation import GenerationConfig, fresh_photo_set, ground_truth_renders, read_world, run_generation_protocol
+from mesh2tex.evaluation.generation import GenerationConfig, read_world, run_generation_protocol
+from mesh2tex.evaluation.generation_renders import fresh_photo_set, ground_truth_renders
 from mesh2tex.evaluation.report import generation_markdown
 from mesh2tex.photos import list_images, load_set
 from mesh2tex.cli import main
@@ -81,7 +82,7 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     the world's resolution, supersampled, on white, resized as the photo set is read): a generator that
     paints one colour gives exactly the world pipeline's render of that colour on its mesh, antialiased
     edges included, which the GAN's own renderer straight at the metric's resolution does not."""
-    from mesh2tex.evaluation import generation
+    from mesh2tex.evaluation import generation_renders as renders
     from mesh2tex.evaluation.compare import render_for_comparison
     from mesh2tex.evaluation.surfaces import flat_surface
     from mesh2tex.geometry.prepared import PreparedShape
@@ -97,13 +98,13 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     monkeypatch.setattr(FaceTexture, "colours", lambda texture, triangle_id, bary: torch.full((len(triangle_id), 3), 0.2))
     views = sample_views(world.spec, world.indices[name], 2)
     z = torch.randn(2, generator.cfg.z_dim)
-    images, masks = generation.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True,
+    images, masks = renders.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True,
                                                  photo_render=world.spec.photo_render)
     batch = collate_shapes([shape])
     out = render_for_comparison(flat_surface(batch.shape_vertices(0), batch.shape_triangles(0), [0.6, 0.6, 0.6]), views, world.spec.photo_render)
-    expected, expected_masks = generation.read_as_photos(composite_images(out.rgb, out.mask, 1.0), out.mask, 16)
+    expected, expected_masks = renders.read_as_photos(composite_images(out.rgb, out.mask, 1.0), out.mask, 16)
     assert torch.equal(masks, expected_masks) and (images - expected).abs().max() < 1e-5
-    direct, _ = generation.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True)
+    direct, _ = renders.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True)
     assert (direct - expected).abs().max() > 0.05
 
 
@@ -207,6 +208,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     shape (as the oracle is), together with its material reference; one trained unlit is rendered unlit."""
     root = world_and_gan
     from mesh2tex.evaluation import generation
+    from mesh2tex.evaluation import generation_renders as renders
 
     original_load, original_render, original_draws = generation.load_generator, generation.generator_renders, generation.material_draws
     seen, sides, oracle, diversity_reference, fresh_photos = [], [], [], [], []
@@ -221,10 +223,10 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
 
     def material(*args, **kwargs):
         lit = kwargs.get("lit", args[6] if len(args) > 6 else False)
-        stream = kwargs.get("stream", args[5] if len(args) > 5 else generation._REFERENCE_STREAM)
-        if stream == generation._FRESH_PHOTOS_STREAM:
+        stream = kwargs.get("stream", args[5] if len(args) > 5 else renders.REFERENCE_STREAM)
+        if stream == renders.FRESH_PHOTOS_STREAM:
             fresh_photos.append(lit)  # the reference: photos, lit whatever the generator
-        elif stream == generation._ORACLE_STREAM:
+        elif stream == renders.ORACLE_STREAM:
             oracle.append(lit)
         else:
             diversity_reference.append(lit)
@@ -233,6 +235,7 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     monkeypatch.setattr(generation, "load_generator", load)
     monkeypatch.setattr(generation, "generator_renders", render)
     monkeypatch.setattr(generation, "material_draws", material)
+    monkeypatch.setattr(renders, "material_draws", material)  # the fresh photo set's draws
     result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
                                      GenerationConfig(views=2, latents=2, kid_fid=False), log=lambda line: None)
     assert result["generator_lit"] is enabled
@@ -279,7 +282,7 @@ def test_pose_view_turns_the_light_with_the_camera():
     """The diversity pose keeps a photo's light where the photo had it relative to the camera."""
     import math
 
-    from mesh2tex.evaluation.generation import pose_view
+    from mesh2tex.evaluation.generation_renders import pose_view
     from mesh2tex.render import orbit_direction as light_direction
     from mesh2tex.synthetic.world import PhotoSetup
 
@@ -309,7 +312,7 @@ def test_the_commands_offer_the_protocols_lightings_and_splits():
 def test_a_world_of_one_training_shape_reports_its_photo_spread_as_undefined(tmp_path):
     """The photo set's spread across shapes needs two shapes: with one, the protocol still finishes and
     its report says the figure is undefined, instead of ending in a traceback."""
-    from mesh2tex.evaluation.generation import photo_set_spread
+    from mesh2tex.evaluation.generation_renders import photo_set_spread
 
     photos, masks = torch.rand(3, 3, 8, 8), torch.ones(3, 1, 8, 8)
     assert np.isnan(photo_set_spread(None, photos, masks, ["chair_0001_00", "chair_0001_01", "chair_0001_02"]))

@@ -42,7 +42,8 @@ from dataclasses import asdict
 
 from mesh2tex.evaluate.options import GENERATION_CONFIG, PROTOCOL_CONFIG, SETS_CONFIG
 from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
-from mesh2tex.evaluation.protocols import ProtocolConfig, run_protocols
+from mesh2tex.evaluation.protocols import run_protocols
+from mesh2tex.evaluation.protocol_config import ProtocolConfig
 from mesh2tex.evaluation.report import generation_markdown, protocols_markdown
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError

@@ -20,7 +20,7 @@ from mesh2tex.options import (
 )
 
 SETS_CONFIG = "mesh2tex.metrics.evaluate:EvaluateConfig"
-PROTOCOL_CONFIG = "mesh2tex.evaluation.protocols:ProtocolConfig"
+PROTOCOL_CONFIG = "mesh2tex.evaluation.protocol_config:ProtocolConfig"
 GENERATION_CONFIG = "mesh2tex.evaluation.generation:GenerationConfig"
 BACKGROUNDS = ("black", "grey", "white")  # mesh2tex.evaluate.evaluate.BACKGROUNDS maps them to grey levels
 

@@ -30,7 +30,7 @@ CONFIG_COMMANDS = {  # argv -> the config class --print-config prints
     ("infer", "generate"): "mesh2tex.infer.generate:GenerateConfig",
     ("infer", "transfer"): "mesh2tex.transfer.config:TransferConfig",
     ("evaluate",): "mesh2tex.metrics.evaluate:EvaluateConfig",
-    ("evaluate", "--protocols"): "mesh2tex.evaluation.protocols:ProtocolConfig",
+    ("evaluate", "--protocols"): "mesh2tex.evaluation.protocol_config:ProtocolConfig",
     ("evaluate", "--generation"): "mesh2tex.evaluation.generation:GenerationConfig",
     ("demo",): "mesh2tex.infer.demo:DemoConfig",
 }
@@ -245,7 +245,8 @@ def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
 # --------------------------------------------------------------------------- config flags
 def flag_value(action: argparse.Action, default):
     """(text for the command line, the field's value it must give) of a config flag: anything but the default."""
-    from mesh2tex.evaluation.protocols import ABLATIONS, BASELINES, PROTOCOLS
+    from mesh2tex.evaluation.report import BASELINES, PROTOCOLS
+    from mesh2tex.transfer import ABLATIONS
     from mesh2tex.models import resolve_checkpoint
 
     lists = {"--only": PROTOCOLS, "--ablations": ABLATIONS, "--baselines": BASELINES}  # comma-separated names

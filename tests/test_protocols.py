@@ -97,7 +97,7 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
 def test_an_automaton_fitted_to_the_photo_is_judged_beside_the_baselines_when_asked_for(setup, tmp_path, monkeypatch):
     """``--baselines ...,automaton`` adds a mesh automaton fitted to the photo (no GAN) as one more row, scored
     alike; its fit is set under ``transfer: automaton:`` and is left out of the transfer cache's fingerprint."""
-    from mesh2tex.evaluation.protocols import ProtocolConfig, cache_settings
+    from mesh2tex.evaluation.protocol_config import ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
 
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "no_weights"))
@@ -264,7 +264,7 @@ def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, ca
     not TransferConfig's; an unknown key, a field the protocol owns and an ablation's switch are one-line errors."""
     from mesh2tex.config import load_config
     from mesh2tex.metrics.evaluate import EvaluateConfig
-    from mesh2tex.evaluation.protocols import ProtocolConfig
+    from mesh2tex.evaluation.protocol_config import ProtocolConfig
 
     from dataclasses import replace
 
@@ -299,7 +299,7 @@ def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):
     from dataclasses import asdict
 
     from mesh2tex.evaluation.cache import TransferCache
-    from mesh2tex.evaluation.protocols import NOT_TRANSFER, ProtocolConfig, cache_settings
+    from mesh2tex.evaluation.protocol_config import NOT_TRANSFER, ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
     from mesh2tex.errors import InputError
 

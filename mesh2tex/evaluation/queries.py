@@ -1,7 +1,7 @@
 """One query of a transfer protocol: what the transfer is given (:class:`QuerySetup`: the photo, the
 shape, the pose, the view) and how every method on it is judged (:class:`QueryJudge`: the ground truth,
 one render function, one score). ``cfg`` is the protocol's config
-(:class:`mesh2tex.evaluation.protocols.ProtocolConfig`; ``unseen_views``, ``lighting``, ``lowpass_sigma``,
+(:class:`mesh2tex.evaluation.protocol_config.ProtocolConfig`; ``unseen_views``, ``lighting``, ``lowpass_sigma``,
 ``seed``, ``transfer.pose_search``) and ``base`` the transfer config it makes."""
 
 from __future__ import annotations

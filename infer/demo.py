@@ -29,8 +29,6 @@ import typing
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import numpy as np
-import torch
 import yaml
 
 from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
@@ -38,23 +36,15 @@ from mesh2tex.cli import main as cli_main
 from mesh2tex.config import check_fields, load_config, save_config
 from mesh2tex.errors import UserError
 from mesh2tex.io.atomic import atomic_path, write_json, write_text
-from mesh2tex.evaluation import (ScoreSettings, backproject_photo, common_mask, flat_surface, generator_surface,
-                                 other_views, photo_mean_colour, render_for_comparison, score_views, seen_and_unseen,
-                                 textured_surface)
-from mesh2tex.evaluation.world import load_query_truth, reference_renders
-from mesh2tex.io.assets import check_texture_format, load_glb
-from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.models import load_generator
+from mesh2tex.io.assets import check_texture_format
 from mesh2tex.io.outputs import guard_outputs, remove_outputs
-from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import JsonLines
-from mesh2tex.render import RenderSettings
 from mesh2tex.runtime import select_device
 
-from .demo_report import TRANSFER_METHODS, write_report
-from mesh2tex.texturing import load_shape, mean_latent
+from .demo_metrics import pick_query, transfer_metrics
+from .demo_report import write_report
 
 
 @dataclass
@@ -62,26 +52,36 @@ class DemoGanConfig:
     iters: int = 1200  # GAN iterations (the demo world's learning curves in docs/results/gan.md)
     resolution: int = 64  # GAN render resolution
     views: int = 4  # views per shape and GAN iteration
-    channels: list[int] = field(default_factory=lambda: [32, 48, 64, 64])  # encoder and synthesis widths, finest first: one per level
+    channels: list[int] = field(
+        default_factory=lambda: [32, 48, 64, 64]
+    )  # encoder and synthesis widths, finest first: one per level
     discriminator_base: int = 1024  # discriminator width: min(base / resolution, 128) channels (library default 2048)
     lr_field: float = 0.0012  # psi's learning rate (library default and paper 1e-4, over 50k iterations)
     tiny_networks: bool = False  # networks a few channels wide (the --quick smoke test)
 
     def __post_init__(self):
-        check_fields(self, at_least={"iters": 0, "resolution": 8, "views": 1, "channels": 1, "discriminator_base": 1}, positive=("lr_field",))
+        check_fields(
+            self,
+            at_least={"iters": 0, "resolution": 8, "views": 1, "channels": 1, "discriminator_base": 1},
+            positive=("lr_field",),
+        )
 
 
 @dataclass
 class DemoViewNetsConfig:
     samples: int = 1536  # rendered views for the pose and NOC networks (rendered once, shared by both)
     resolution: int = 64  # their input size
-    width: int = 12  # the pose network's channel width (as good as 16 on held-out queries, 8 worse; docs/results/demo.md)
-    noc_width: int = 8  # the NOC network's (12 or 16: a sixth lower NOC error on queries, no better transfer, 2-3.5x the time)
+    # the pose network's channel width (as good as 16 on held-out queries, 8 worse; docs/results/demo.md)
+    width: int = 12
+    # the NOC network's (12 or 16: a sixth lower NOC error on queries, no better transfer, 2-3.5x the time)
+    noc_width: int = 8
     pose_iters: int = 1500  # pose network steps (1000 read the held-out queries worse; docs/results/demo.md)
     noc_iters: int = 400  # NOC network steps
 
     def __post_init__(self):
-        check_fields(self, at_least={"samples": 1, "resolution": 8, "width": 1, "noc_width": 1, "pose_iters": 0, "noc_iters": 0})
+        check_fields(
+            self, at_least={"samples": 1, "resolution": 8, "width": 1, "noc_width": 1, "pose_iters": 0, "noc_iters": 0}
+        )
 
 
 @dataclass
@@ -107,15 +107,29 @@ class DemoGenerationConfig:
         check_fields(self, at_least={"views": 1, "latents": 2})
 
 
-# The flat names of the settings a demo folder recorded (demo_config.yaml) before they were nested: such a folder still resumes.
+# The flat names of the settings a demo folder recorded (demo_config.yaml) before they were nested: such a folder
+# still resumes.
 FORMER_NAMES = {
-    "gan_iters": "gan.iters", "gan_resolution": "gan.resolution", "gan_views": "gan.views", "gan_channels": "gan.channels",
-    "gan_discriminator_base": "gan.discriminator_base", "gan_lr_field": "gan.lr_field", "tiny_networks": "gan.tiny_networks",
-    "view_samples": "view_nets.samples", "view_resolution": "view_nets.resolution", "view_width": "view_nets.width",
-    "pose_iters": "view_nets.pose_iters", "noc_iters": "view_nets.noc_iters", "query": "transfer.query",
-    "transfer_resolution": "transfer.resolution", "latent_iters": "transfer.latent_iters", "refine_iters": "transfer.refine_iters",
-    "texture_size": "transfer.texture_size", "texture_format": "transfer.texture_format",
-    "eval_views": "generation.views", "eval_latents": "generation.latents",
+    "gan_iters": "gan.iters",
+    "gan_resolution": "gan.resolution",
+    "gan_views": "gan.views",
+    "gan_channels": "gan.channels",
+    "gan_discriminator_base": "gan.discriminator_base",
+    "gan_lr_field": "gan.lr_field",
+    "tiny_networks": "gan.tiny_networks",
+    "view_samples": "view_nets.samples",
+    "view_resolution": "view_nets.resolution",
+    "view_width": "view_nets.width",
+    "pose_iters": "view_nets.pose_iters",
+    "noc_iters": "view_nets.noc_iters",
+    "query": "transfer.query",
+    "transfer_resolution": "transfer.resolution",
+    "latent_iters": "transfer.latent_iters",
+    "refine_iters": "transfer.refine_iters",
+    "texture_size": "transfer.texture_size",
+    "texture_format": "transfer.texture_format",
+    "eval_views": "generation.views",
+    "eval_latents": "generation.latents",
 }
 
 
@@ -131,20 +145,42 @@ class DemoConfig:
     gan: DemoGanConfig = field(default_factory=DemoGanConfig)  # 'train gan'
     view_nets: DemoViewNetsConfig = field(default_factory=DemoViewNetsConfig)  # 'train pose' and 'train noc'
     transfer: DemoTransferConfig = field(default_factory=DemoTransferConfig)  # 'infer transfer'
-    generation: DemoGenerationConfig = field(default_factory=DemoGenerationConfig)  # the generation protocol of the report
+    generation: DemoGenerationConfig = field(
+        default_factory=DemoGenerationConfig
+    )  # the generation protocol of the report
 
-    MOVED_KEYS: typing.ClassVar[dict[str, str]] = FORMER_NAMES  # a --config of the flat layout is told where each key went
+    # a --config of the flat layout is told where each key went
+    MOVED_KEYS: typing.ClassVar[dict[str, str]] = FORMER_NAMES
 
     def __post_init__(self):
         if len(self.gan.channels) != self.levels:
-            raise ValueError(f"gan.channels has {len(self.gan.channels)} entries, the demo's hierarchy has {self.levels} levels")
+            raise ValueError(
+                f"gan.channels has {len(self.gan.channels)} entries, the demo's hierarchy has {self.levels} levels"
+            )
 
 
 QUICK = {  # a smoke-test budget: every stage runs, nothing learns much
-    "shapes": 4, "views": 2, "photo_resolution": 64, "faces": 96, "levels": 3, "workers": 1,
-    "gan.iters": 2, "gan.resolution": 32, "gan.views": 1, "gan.channels": [8, 8, 8], "gan.tiny_networks": True,
-    "view_nets.samples": 16, "view_nets.resolution": 32, "view_nets.width": 4, "view_nets.pose_iters": 2, "view_nets.noc_iters": 2,
-    "transfer.latent_iters": 3, "transfer.refine_iters": 2, "transfer.texture_size": 64, "generation.views": 2, "generation.latents": 2,
+    "shapes": 4,
+    "views": 2,
+    "photo_resolution": 64,
+    "faces": 96,
+    "levels": 3,
+    "workers": 1,
+    "gan.iters": 2,
+    "gan.resolution": 32,
+    "gan.views": 1,
+    "gan.channels": [8, 8, 8],
+    "gan.tiny_networks": True,
+    "view_nets.samples": 16,
+    "view_nets.resolution": 32,
+    "view_nets.width": 4,
+    "view_nets.pose_iters": 2,
+    "view_nets.noc_iters": 2,
+    "transfer.latent_iters": 3,
+    "transfer.refine_iters": 2,
+    "transfer.texture_size": 64,
+    "generation.views": 2,
+    "generation.latents": 2,
 }
 
 
@@ -162,11 +198,18 @@ def _stage(name: str, argv: list[str], log: JsonLines) -> float:
 
 def _gan_config(cfg: DemoConfig) -> dict:
     channels = list(cfg.gan.channels)
-    gan = {"sample_every": 0, "checkpoint_every": 50, "log_every": 10,
-           "generator": {"encoder_channels": channels, "synthesis_channels": channels},
-           "discriminator": {"channel_base": cfg.gan.discriminator_base}, "optim": {"lr_field": cfg.gan.lr_field}}
+    gan = {
+        "sample_every": 0,
+        "checkpoint_every": 50,
+        "log_every": 10,
+        "generator": {"encoder_channels": channels, "synthesis_channels": channels},
+        "discriminator": {"channel_base": cfg.gan.discriminator_base},
+        "optim": {"lr_field": cfg.gan.lr_field},
+    }
     if cfg.gan.tiny_networks:
-        gan["generator"].update({"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "field_hidden": 16, "aux_latent_dim": 8})
+        gan["generator"].update(
+            {"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "field_hidden": 16, "aux_latent_dim": 8}
+        )
         gan["discriminator"] = {"channel_base": 64, "channel_max": 16}
     return gan
 
@@ -177,44 +220,176 @@ def run_pipeline(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
     out.mkdir(parents=True, exist_ok=True)
     log = JsonLines(out / "demo_log.jsonl")
     seconds: dict[str, float] = {}
+    world = _prepare_stages(out, cfg, log, seconds)
+    _training_stages(out, world, cfg, device, log, seconds)
+    _transfer_stage(out, world, cfg, device, log, seconds)
+    return seconds
+
+
+def _prepare_stages(out: Path, cfg: DemoConfig, log: JsonLines, seconds: dict[str, float]) -> Path:
+    """The world, then its training and query shapes prepared; the world's folder."""
     world = out / "world"
-    seconds["prepare synthetic"] = _stage("prepare synthetic", [
-        "prepare", "synthetic", "--out", str(world), "--category", "chair", "--shapes", str(cfg.shapes),
-        "--views", str(cfg.views), "--resolution", str(cfg.photo_resolution), "--seed", str(cfg.seed)], log)
+    seconds["prepare synthetic"] = _stage(
+        "prepare synthetic",
+        [
+            "prepare",
+            "synthetic",
+            "--out",
+            str(world),
+            "--category",
+            "chair",
+            "--shapes",
+            str(cfg.shapes),
+            "--views",
+            str(cfg.views),
+            "--resolution",
+            str(cfg.photo_resolution),
+            "--seed",
+            str(cfg.seed),
+        ],
+        log,
+    )
     split = json.loads((world / "index.json").read_text())["split"]
     for part, names in (("train", split["train_shapes"]), ("query", split["query_shapes"])):
         meshes = [str(world / "meshes" / f"{n}.obj") for n in names]
-        seconds[f"prepare shapes ({part})"] = _stage(f"prepare shapes ({part})", [
-            "prepare", "shapes", "--input", *meshes, "--out", str(out / "shapes" / part), "--faces", str(cfg.faces),
-            "--levels", str(cfg.levels), "--workers", str(cfg.workers), "--seed", str(cfg.seed)], log)
+        seconds[f"prepare shapes ({part})"] = _stage(
+            f"prepare shapes ({part})",
+            [
+                "prepare",
+                "shapes",
+                "--input",
+                *meshes,
+                "--out",
+                str(out / "shapes" / part),
+                "--faces",
+                str(cfg.faces),
+                "--levels",
+                str(cfg.levels),
+                "--workers",
+                str(cfg.workers),
+                "--seed",
+                str(cfg.seed),
+            ],
+            log,
+        )
+    return world
+
+
+def _training_stages(
+    out: Path, world: Path, cfg: DemoConfig, device: str, log: JsonLines, seconds: dict[str, float]
+) -> None:
+    """The GAN, then the pose and NOC networks (sharing one set of rendered views)."""
     gan_yaml = out / "gan_config.yaml"
     write_text(gan_yaml, yaml.safe_dump(_gan_config(cfg), sort_keys=False))
-    seconds["train gan"] = _stage("train gan", [
-        "train", "gan", "--shapes", str(out / "shapes" / "train"), "--images", str(world), "--out", str(out / "gan"),
-        "--config", str(gan_yaml), "--iters", str(cfg.gan.iters), "--resolution", str(cfg.gan.resolution),
-        "--views", str(cfg.gan.views), "--seed", str(cfg.seed), "--device", device, "--resume"], log)
+    seconds["train gan"] = _stage(
+        "train gan",
+        [
+            "train",
+            "gan",
+            "--shapes",
+            str(out / "shapes" / "train"),
+            "--images",
+            str(world),
+            "--out",
+            str(out / "gan"),
+            "--config",
+            str(gan_yaml),
+            "--iters",
+            str(cfg.gan.iters),
+            "--resolution",
+            str(cfg.gan.resolution),
+            "--views",
+            str(cfg.gan.views),
+            "--seed",
+            str(cfg.seed),
+            "--device",
+            device,
+            "--resume",
+        ],
+        log,
+    )
     nets = cfg.view_nets
     for kind, iters, width in (("pose", nets.pose_iters, nets.width), ("noc", nets.noc_iters, nets.noc_width)):
         views_yaml = out / f"{kind}_config.yaml"
         write_text(views_yaml, yaml.safe_dump({"width": width, "log_every": 25, "checkpoint_every": 100}))
         share_views(out / "pose" / VIEWS_NAME, out / kind / VIEWS_NAME)
-        seconds[f"train {kind}"] = _stage(f"train {kind}", [
-            "train", kind, "--shapes", str(out / "shapes" / "train"), "--out", str(out / kind), "--config", str(views_yaml),
-            "--iters", str(iters), "--samples", str(nets.samples), "--resolution", str(nets.resolution),
-            "--batch", "32", "--seed", str(cfg.seed), "--device", device, "--checkpoint", str(out / "gan" / "checkpoint.safetensors"), "--resume"], log)
+        seconds[f"train {kind}"] = _stage(
+            f"train {kind}",
+            [
+                "train",
+                kind,
+                "--shapes",
+                str(out / "shapes" / "train"),
+                "--out",
+                str(out / kind),
+                "--config",
+                str(views_yaml),
+                "--iters",
+                str(iters),
+                "--samples",
+                str(nets.samples),
+                "--resolution",
+                str(nets.resolution),
+                "--batch",
+                "32",
+                "--seed",
+                str(cfg.seed),
+                "--device",
+                device,
+                "--checkpoint",
+                str(out / "gan" / "checkpoint.safetensors"),
+                "--resume",
+            ],
+            log,
+        )
+
+
+def _transfer_stage(
+    out: Path, world: Path, cfg: DemoConfig, device: str, log: JsonLines, seconds: dict[str, float]
+) -> None:
+    """The transfer from the demo's query photo, unless a finished one is in ``out/transfer``."""
     query = pick_query(world, cfg.transfer.query)
     transfer = out / "transfer"
     if not (transfer / "report.json").is_file():
-        seconds["infer transfer"] = _stage("infer transfer", [
-            "infer", "transfer", "--checkpoint", str(out / "gan" / "checkpoint.safetensors"),
-            "--mesh", str(out / "shapes" / "query" / f"{query['shape']}.npz"), "--image", str(world / query["image"]),
-            "--mask", str(world / query["mask"]), "--pose", "auto", "--pose-checkpoint", str(out / "pose" / "checkpoint.safetensors"),
-            "--noc-checkpoint", str(out / "noc" / "checkpoint.safetensors"), "--out", str(transfer),
-            "--resolution", str(cfg.transfer.resolution), "--latent-iters", str(cfg.transfer.latent_iters),
-            "--refine-iters", str(cfg.transfer.refine_iters), "--texture-size", str(cfg.transfer.texture_size),
-            "--texture-format", cfg.transfer.texture_format, "--seed", str(cfg.seed),
-            "--device", device, "--overwrite"], log)
-    return seconds
+        seconds["infer transfer"] = _stage(
+            "infer transfer",
+            [
+                "infer",
+                "transfer",
+                "--checkpoint",
+                str(out / "gan" / "checkpoint.safetensors"),
+                "--mesh",
+                str(out / "shapes" / "query" / f"{query['shape']}.npz"),
+                "--image",
+                str(world / query["image"]),
+                "--mask",
+                str(world / query["mask"]),
+                "--pose",
+                "auto",
+                "--pose-checkpoint",
+                str(out / "pose" / "checkpoint.safetensors"),
+                "--noc-checkpoint",
+                str(out / "noc" / "checkpoint.safetensors"),
+                "--out",
+                str(transfer),
+                "--resolution",
+                str(cfg.transfer.resolution),
+                "--latent-iters",
+                str(cfg.transfer.latent_iters),
+                "--refine-iters",
+                str(cfg.transfer.refine_iters),
+                "--texture-size",
+                str(cfg.transfer.texture_size),
+                "--texture-format",
+                cfg.transfer.texture_format,
+                "--seed",
+                str(cfg.seed),
+                "--device",
+                device,
+                "--overwrite",
+            ],
+            log,
+        )
 
 
 def share_views(source: Path, target: Path) -> None:
@@ -225,91 +400,21 @@ def share_views(source: Path, target: Path) -> None:
             shutil.copyfile(source, tmp)
 
 
-def pick_query(world: Path, index: int) -> dict:
-    """The sidecar of the ``index``-th query photo of the world (sorted by name)."""
-    sidecars = sorted((world / "queries").glob("*.json"))
-    if not sidecars:
-        raise UserError(f"{world / 'queries'}: no query photos")
-    return json.loads(sidecars[index % len(sidecars)].read_text())
-
-
-# ------------------------------------------------------------------------------------------- metrics
-def render_glb_at_pose(glb: Path, views: list, settings: RenderSettings):
-    """A textured GLB (as the pipeline writes it) rendered by ``mesh2tex.evaluation.render_for_comparison``
-    at ``views`` (``mesh2tex.synthetic.world.PhotoSetup``) with ``settings``: a ``ComparisonRender`` (rgb [B,3,S,S] in [0,1], mask, parts)."""
-    try:
-        vertices, faces, uv, image = load_glb(glb)
-    except ValueError as error:
-        raise UserError(str(error)) from None
-    return render_for_comparison(textured_surface(vertices, faces, uv, image), views, settings)
-
-
-@torch.no_grad()
-def transfer_metrics(world: Path, transfer: Path, query: dict, resolution: int, lighting: str = "photo",
-                     unseen_views: int = 4, lowpass_sigma: float = 3.0) -> dict:
-    """The transferred GLB beside the ground truth and the simple baselines, all judged alike.
-
-    Every method is a textured surface rendered by one function (``mesh2tex.evaluation``) with the
-    query photo's camera, light and background, at the photo's view ("seen") and ``unseen_views``
-    views it does not show, against what the world photographs there (the photo, then the world's own
-    renders), on the pixels both the world's shape and the transferred mesh cover: the ground truth
-    (``textured/`` GLB, the oracle), the transfer's GLB, the photo's mean colour, the generator's mean
-    texture and the photo back-projected from the pose the transfer used. ``resolution`` is the side
-    of the transfer's crops; the comparison runs at the photo's own resolution. Writes
-    ``transfer/comparison_views.png`` (a row per method, reference first).
-
-    Returns {method: {"seen <metric>": value, "unseen <metric>": mean}, "settings": {...}}.
-    """
-    index = json.loads((world / "index.json").read_text())
-    report = json.loads((transfer / "report.json").read_text())
-    try:
-        truth = load_query_truth(world, index, query)
-        vertices, faces, _, _ = load_glb(transfer / "textured.glb")
-    except ValueError as error:
-        raise UserError(str(error)) from None
-    views = [truth.view] + other_views(truth.view, [360.0 * k / (unseen_views + 1) for k in range(1, unseen_views + 1)])
-    settings = truth.render_settings(lighting)
-
-    def render(surface):
-        return render_for_comparison(surface, views, settings)
-
-    reference = reference_renders(truth, views, lighting)
-    renders = {"oracle": render(truth.truth.oracle), "transfer": render_glb_at_pose(transfer / "textured.glb", views, settings),
-               "flat_colour": render(flat_surface(vertices, faces, photo_mean_colour(truth.photo[0], truth.photo_mask[0])))}
-    model = load_generator(report["checkpoint"], torch.device("cpu"))
-    generator = model.network
-    shape, _ = load_shape(report["mesh"], generator, model.face_count(report["settings"].get("faces", 0)), report["settings"].get("seed", 0),
-                          output_mesh="prepared")
-    batch = collate_shapes([shape])
-    ws = mean_latent(generator)
-    renders["mean_texture"] = render(generator_surface(generator, generator.synthesize(batch, ws, noise_mode="none"), batch))
-    pose = report["pose"]
-    try:
-        renders["backprojection"] = render(backproject_photo(vertices, faces, truth.photo[0], truth.photo_mask[0, 0], pose["azimuth"],
-                                                             pose["elevation"], pose["distance"], pose["fov"], margin=report["settings"]["margin"]))
-    except ValueError as error:
-        raise UserError(f"{transfer / 'report.json'}: {error}") from None
-    mask = common_mask(reference.mask, renders["transfer"].mask)
-    scoring = ScoreSettings(lowpass_sigma=lowpass_sigma)
-    result = {name: {k: round(v, 5) for k, v in seen_and_unseen(score_views(rendered, reference.rgb, reference.parts, mask, scoring)).items()}
-              for name, rendered in renders.items()}
-    rows = [reference.rgb] + [renders[name].rgb for name in TRANSFER_METHODS]
-    tiles = [np.concatenate(list(images_to_uint8(row, signed=False)), axis=1) for row in rows]
-    save_png(transfer / "comparison_views.png", np.concatenate(tiles, axis=0))
-    save_png(transfer / "render_at_true_pose.png", tiles[2][:, :settings.resolution])
-    result["settings"] = {"lighting": lighting, "views": [[round(v.azimuth, 2), round(v.elevation, 2)] for v in views],
-                          "lowpass_sigma_px": lowpass_sigma, "resolution": settings.resolution, "pose_used": [pose["azimuth"], pose["elevation"]]}
-    return result
-
-
 def generation_metrics(out: Path, cfg: DemoConfig, device: str = "auto") -> dict:
     """The generation protocol (:mod:`mesh2tex.evaluation.generation`) on the world's held-out shapes: trained,
     untrained and oracle rows against a fresh photo set, the gap closed and the diversity across latents;
     writes the samples grid ``gan/generation_samples.png`` (rows latents, columns views, last row the
     ground truth)."""
     gen_cfg = GenerationConfig(views=cfg.generation.views, latents=cfg.generation.latents, kid_fid=False, seed=cfg.seed)
-    return run_generation_protocol(out / "world", out / "shapes" / "query", out / "gan" / "checkpoint.safetensors", gen_cfg,
-                                   select_device(device), samples_path=out / "gan" / "generation_samples.png", log=lambda line: None)
+    return run_generation_protocol(
+        out / "world",
+        out / "shapes" / "query",
+        out / "gan" / "checkpoint.safetensors",
+        gen_cfg,
+        select_device(device),
+        samples_path=out / "gan" / "generation_samples.png",
+        log=lambda line: None,
+    )
 
 
 def build_config(args) -> DemoConfig:
@@ -326,8 +431,21 @@ def saved_config(path: Path) -> DemoConfig:
 
 
 # What a demo writes into --out: --overwrite removes these (and nothing else) before it starts again.
-DEMO_OUTPUTS = ("world", "shapes", "gan", "pose", "noc", "transfer", "report.html", "metrics.json", "demo_log.jsonl",
-                "demo_config.yaml", "gan_config.yaml", "pose_config.yaml", "noc_config.yaml")
+DEMO_OUTPUTS = (
+    "world",
+    "shapes",
+    "gan",
+    "pose",
+    "noc",
+    "transfer",
+    "report.html",
+    "metrics.json",
+    "demo_log.jsonl",
+    "demo_config.yaml",
+    "gan_config.yaml",
+    "pose_config.yaml",
+    "noc_config.yaml",
+)
 
 
 def run(args) -> int:
@@ -340,8 +458,10 @@ def run(args) -> int:
     if args.overwrite:
         remove_outputs(out, DEMO_OUTPUTS)
     if saved.is_file() and saved_config(saved) != cfg:
-        raise UserError(f"{out}: holds a demo run with other settings ({saved}); resume it with the same options, "
-                        "start again with --overwrite, or choose another --out")
+        raise UserError(
+            f"{out}: holds a demo run with other settings ({saved}); resume it with the same options, "
+            "start again with --overwrite, or choose another --out"
+        )
     out.mkdir(parents=True, exist_ok=True)
     save_config(cfg, saved)
     start = time.perf_counter()
@@ -352,8 +472,10 @@ def run(args) -> int:
         seconds[record["stage"]] = round(seconds.get(record["stage"], 0.0) + record["seconds"], 1)
     query = pick_query(out / "world", cfg.transfer.query)
     t = time.perf_counter()
-    metrics = {"transfer": transfer_metrics(out / "world", out / "transfer", query, cfg.transfer.resolution),
-               "generation": generation_metrics(out, cfg, args.device)}
+    metrics = {
+        "transfer": transfer_metrics(out / "world", out / "transfer", query, cfg.transfer.resolution),
+        "generation": generation_metrics(out, cfg, args.device),
+    }
     seconds["metrics"] = round(time.perf_counter() - t, 1)
     seconds["demo total (this run)"] = round(time.perf_counter() - start, 1)
     write_json(out / "metrics.json", {"query": query, **metrics, "seconds": seconds, "config": asdict(cfg)})

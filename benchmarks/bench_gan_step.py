@@ -235,6 +235,7 @@ class Version:
         with self.active():
             from mesh2tex.config import load_config
             from mesh2tex.train import runs
+            # TrainGanConfig through train.gan, its home in older revisions and an import there today
             from mesh2tex.train.gan import GanTrainer, TrainGanConfig
         self.load_config, self.runs, self.GanTrainer, self.TrainGanConfig = (
             load_config,

@@ -28,7 +28,8 @@ from mesh2tex.nn.discriminator import Discriminator  # noqa: E402
 from mesh2tex.nn.render_texture import render_field_views  # noqa: E402
 from mesh2tex.train import runs  # noqa: E402
 from mesh2tex.photos import load_photo_collection  # noqa: E402
-from mesh2tex.train.gan import GanTrainer, TrainGanConfig, random_cameras  # noqa: E402
+from mesh2tex.train.gan import GanTrainer, random_cameras  # noqa: E402
+from mesh2tex.train.gan_config import TrainGanConfig  # noqa: E402
 
 
 def main() -> int:

@@ -23,7 +23,7 @@ from mesh2tex.options import HelpFormatter, show_default, static_defaults
 ROOT = Path(__file__).resolve().parents[1]
 ARGVS = [[command] + ([sub] if sub else []) for command, sub in COMMANDS]
 CONFIG_COMMANDS = {  # argv -> the config class --print-config prints
-    ("train", "gan"): "mesh2tex.train.gan:TrainGanConfig",
+    ("train", "gan"): "mesh2tex.train.gan_config:TrainGanConfig",
     ("train", "pose"): "mesh2tex.nn.view_nets:ViewTrainConfig",
     ("train", "noc"): "mesh2tex.nn.view_nets:ViewTrainConfig",
     ("train", "nca"): "mesh2tex.train.nca:TrainNCAConfig",

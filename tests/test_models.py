@@ -121,7 +121,7 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
     import yaml
 
     from mesh2tex.config import load_config
-    from mesh2tex.train.gan import TrainGanConfig
+    from mesh2tex.train.gan_config import TrainGanConfig
 
     root = Path(__file__).resolve().parents[1]
     spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")

@@ -160,7 +160,7 @@ def test_annealed_learning_rates_fall_linearly_and_survive_a_resume(tiny_data, t
     """``optim.lr_decay_*``: every rate is the config's up to lr_decay_start, then falls linearly to
     lr_decay_to times it over lr_decay_iters steps and stays there; a run interrupted during the fall
     and resumed is the uninterrupted run, and the resume does not report the annealed rates as changed."""
-    from mesh2tex.train.gan import OptimConfig
+    from mesh2tex.train.gan_config import OptimConfig
     optim = OptimConfig(lr_decay_start=10, lr_decay_iters=4, lr_decay_to=0.5)
     assert [optim.lr_scale(i) for i in (0, 10, 11, 12, 14, 100)] == [1.0, 1.0, 0.875, 0.75, 0.5, 0.5]
     assert OptimConfig().lr_scale(10 ** 6) == 1.0  # off by default

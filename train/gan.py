@@ -14,111 +14,33 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from mesh2tex.config import check_fields, load_config
+from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.models import save_inference_checkpoint, shape_hierarchy
 from mesh2tex.models.store import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY
-from mesh2tex.losses.augment import AdaptiveAugment, AugmentConfig, DiffAugment
-from mesh2tex.losses.gan import GanLoss, GanLossConfig, GanScene
+from mesh2tex.losses.augment import AdaptiveAugment, DiffAugment
+from mesh2tex.losses.gan import GanLoss, GanScene
 from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
-from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
+from mesh2tex.nn.discriminator import Discriminator
+from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.options import config_overrides
 from mesh2tex.photos import load_photo_collection
-from mesh2tex.render import CameraConfig, LightConfig, RenderSettings, composite_images, orbit_camera, random_lights, turntable_angles
+from mesh2tex.render import CameraConfig, composite_images, orbit_camera, random_lights, turntable_angles
 from mesh2tex.train import runs
+from mesh2tex.train.gan_config import TrainGanConfig
 
 KIND = "gan"
 
 
-@dataclass
-class OptimConfig:
-    lr_encoder: float = 1e-4  # Adam learning rate of the geometry encoder (paper: 1e-4)
-    lr_generator: float = 12e-4  # mapping network and synthesis (paper: 12e-4)
-    lr_field: float = 1e-4  # neural field psi (paper: 1e-4)
-    lr_discriminator: float = 14e-4  # both discriminators (paper: 14e-4)
-    beta1: float = 0.0  # Adam beta1 (paper: 0)
-    beta2: float = 0.99  # Adam beta2 (paper: 0.99)
-    # Annealing: from iteration lr_decay_start (0: never) every rate falls linearly, over lr_decay_iters
-    # iterations, to lr_decay_to times its value, and stays there. At constant rates a long run's
-    # generator keeps swinging its whole palette from one few hundred iterations to the next, and its
-    # EMA averages those palettes into duller colours (docs/results/gan.md, "The palette swings").
-    lr_decay_start: int = 0
-    lr_decay_iters: int = 2000
-    lr_decay_to: float = 0.25
-
-    def __post_init__(self):
-        check_fields(self, positive=("lr_encoder", "lr_generator", "lr_field", "lr_discriminator", "lr_decay_iters"),
-                     at_least={"lr_decay_start": 0}, between={"beta1": (0.0, 0.9999), "beta2": (0.0, 0.9999), "lr_decay_to": (0.0, 1.0)})
-
-    def lr_scale(self, iteration: int) -> float:
-        """The annealing factor of every learning rate in the step from ``iteration`` to the next (1 up
-        to ``lr_decay_start``)."""
-        if not self.lr_decay_start or iteration <= self.lr_decay_start:
-            return 1.0
-        done = min(1.0, (iteration - self.lr_decay_start) / self.lr_decay_iters)
-        return 1.0 - (1.0 - self.lr_decay_to) * done
-
-    def learning_rates(self, iteration: int = 0) -> dict[str, list[float]]:
-        """{optimizer: learning rate of each of its parameter groups at ``iteration``}, in the order the trainer builds them."""
-        k = self.lr_scale(iteration)
-        return {"g": [k * self.lr_encoder, k * self.lr_generator, k * self.lr_field], "d": [k * self.lr_discriminator]}
-
-
-@dataclass
-class TrainGanConfig:
-    seed: int = 0  # seed of every random choice of the run
-    iters: int = 20000  # training iterations
-    batch: int = 2  # shapes per iteration and process (paper: 2)
-    views: int = 4  # random views per shape (paper: 8)
-    resolution: int = 128  # render and image resolution (a power of two)
-    supersample: int = 1  # fakes rendered at resolution x this and box-filtered down, as the photos are antialiased (1: one sample per pixel)
-    device: str = "auto"  # auto, cpu or cuda
-    mixed_precision: bool = True  # bfloat16 autocast for the main phases on CUDA (ignored on a CPU)
-    ema_halflife_images: float = 5000.0  # EMA of the generator: half-life in rendered images
-    ema_rampup: float = 0.05  # the half-life is at most this fraction of the images seen so far (0: no ramp-up)
-    log_every: int = 10  # iterations between metrics.jsonl records
-    sample_every: int = 500  # iterations between sample grids under RUN/samples (0: only at the end)
-    checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
-    snapshot_every: int = 0  # iterations between kept float16 EMA generators under RUN/snapshots (0: none)
-    keep_snapshots: int = 0  # snapshots kept under RUN/snapshots, the newest (0: all)
-    metric_every: int = 0  # iterations between the held-out metric (SWD, diversity) that picks RUN/best.safetensors (0: none)
-    metric_photos: int = 16  # photos held out of training for the metric, the last by name (only when metric_every > 0)
-    sample_shapes: int = 4  # shapes in a sample grid
-    generator: GeneratorConfig = field(default_factory=GeneratorConfig)
-    discriminator: DiscriminatorConfig = field(default_factory=DiscriminatorConfig)
-    loss: GanLossConfig = field(default_factory=GanLossConfig)
-    augment: AugmentConfig = field(default_factory=AugmentConfig)  # of every discriminator input, real and fake
-    optim: OptimConfig = field(default_factory=OptimConfig)
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    lighting: LightConfig = field(default_factory=LightConfig)  # fakes are shaded like photos, so the generator learns albedo
-
-    def __post_init__(self):
-        check_fields(self, at_least={"log_every": 1, "sample_every": 0, "checkpoint_every": 0, "snapshot_every": 0, "keep_snapshots": 0,
-                                     "metric_every": 0, "metric_photos": 1, "sample_shapes": 1, "ema_rampup": 0, "iters": 1, "batch": 1, "views": 1},
-                     positive=("ema_halflife_images",))
-        r = self.render_settings.resolution  # checks resolution and supersample
-        if r < 8 or r & (r - 1):  # the discriminators halve it down to 4 x 4
-            raise ValueError(f"resolution must be a power of two >= 8, got {r}")
-        self.discriminator.check_resolution(r)
-
-    @property
-    def render_settings(self) -> RenderSettings:
-        """How the fakes are rendered: ``resolution`` and ``supersample``, lit by the light prior when it is on."""
-        return RenderSettings(self.resolution, self.supersample, "photo" if self.lighting.enabled else "albedo")
-
-
-# ------------------------------------------------------------------------------------------ data
 def composite_real(images: torch.Tensor, background: torch.Tensor) -> torch.Tensor:
     """uint8 (N, 4, R, R) photos over solid (N, 3) backgrounds in [-1, 1] -> float (N, 3, R, R) in [-1, 1]."""
     rgb = images[:, :3].float() / 127.5 - 1.0
@@ -130,7 +52,11 @@ def random_cameras(n: int, cfg: CameraConfig, device: torch.device) -> tuple[tor
     """Random orbit views (azimuth uniform, elevation in range, jitter): (n, 4, 4) MVP matrices on
     ``device`` and the (n,) azimuths in degrees (CPU)."""
     azimuth = torch.rand(n) * 360.0 + torch.randn(n) * cfg.jitter_degrees
-    elevation = cfg.elevation_min + torch.rand(n) * (cfg.elevation_max - cfg.elevation_min) + torch.randn(n) * cfg.jitter_degrees
+    elevation = (
+        cfg.elevation_min
+        + torch.rand(n) * (cfg.elevation_max - cfg.elevation_min)
+        + torch.randn(n) * cfg.jitter_degrees
+    )
     distance = cfg.distance * (1.0 + torch.randn(n) * cfg.distance_jitter)
     return orbit_camera(azimuth, elevation.clamp(-89.0, 89.0), distance=distance, fov=cfg.fov).mvp.to(device), azimuth
 
@@ -139,14 +65,31 @@ def random_cameras(n: int, cfg: CameraConfig, device: torch.device) -> tuple[tor
 class GanTrainer:
     """Everything one process of a run holds; :meth:`train` is the loop."""
 
-    def __init__(self, cfg: TrainGanConfig, shapes: list[PreparedShape], images: torch.Tensor, run: runs.RunDirectory,
-                 device: torch.device, distributed: runs.Distributed):
-        self.cfg, self.shapes, self.images, self.run, self.device, self.dist = cfg, shapes, images, run, device, distributed
+    def __init__(
+        self,
+        cfg: TrainGanConfig,
+        shapes: list[PreparedShape],
+        images: torch.Tensor,
+        run: runs.RunDirectory,
+        device: torch.device,
+        distributed: runs.Distributed,
+    ):
+        self.cfg, self.shapes, self.images, self.run, self.device, self.dist = (
+            cfg,
+            shapes,
+            images,
+            run,
+            device,
+            distributed,
+        )
         self.latest: dict[str, float] = {}  # the last value of every logged scalar, lazy terms included
         levels = shapes[0].num_levels
         gcfg = cfg.generator
         if len(gcfg.synthesis_channels) != levels or len(gcfg.encoder_channels) != levels:
-            raise UserError(f"generator.synthesis_channels and generator.encoder_channels need one entry per level: the shapes have {levels} levels")
+            raise UserError(
+                "generator.synthesis_channels and generator.encoder_channels need one entry per level: the shapes "
+                f"have {levels} levels"
+            )
         runs.seed_everything(cfg.seed)  # identical initial weights on every process
         self.generator = TextureGenerator(gcfg).to(device)
         self.d_field = Discriminator(cfg.resolution, cfg.discriminator).to(device)
@@ -157,10 +100,20 @@ class GanTrainer:
         o = cfg.optim
         groups = self.generator.parameter_groups()
         self.opt_g = torch.optim.Adam(
-            [{"params": groups["encoder"], "lr": o.lr_encoder}, {"params": groups["generator"], "lr": o.lr_generator},
-             {"params": groups["field"], "lr": o.lr_field}], betas=(o.beta1, o.beta2), eps=1e-8)
-        self.opt_d = torch.optim.Adam(list(self.d_field.parameters()) + list(self.d_proxy.parameters()), lr=o.lr_discriminator,
-                                      betas=(o.beta1, o.beta2), eps=1e-8)
+            [
+                {"params": groups["encoder"], "lr": o.lr_encoder},
+                {"params": groups["generator"], "lr": o.lr_generator},
+                {"params": groups["field"], "lr": o.lr_field},
+            ],
+            betas=(o.beta1, o.beta2),
+            eps=1e-8,
+        )
+        self.opt_d = torch.optim.Adam(
+            list(self.d_field.parameters()) + list(self.d_proxy.parameters()),
+            lr=o.lr_discriminator,
+            betas=(o.beta1, o.beta2),
+            eps=1e-8,
+        )
         use_amp = cfg.mixed_precision and device.type == "cuda"
         autocast = (lambda: torch.autocast("cuda", dtype=torch.bfloat16)) if use_amp else contextlib.nullcontext
         try:
@@ -173,12 +126,17 @@ class GanTrainer:
             photos = images[: -cfg.metric_photos] if cfg.metric_every else images
             self.loss.set_colour_target(photos[:, :3].float() / 127.5 - 1.0, photos[:, 3:].float() / 255.0)
         self.images_per_step = cfg.batch * cfg.views * distributed.world_size
-        self.held_out, self.best = None, None  # the metric's photos; {"iteration", "swd", "diversity"} of RUN/best.safetensors
+        self.held_out, self.best = (
+            None,
+            None,
+        )  # the metric's photos; {"iteration", "swd", "diversity"} of RUN/best.safetensors
         if cfg.metric_every:  # run() checks that some photos are left to train on
-            self.images, self.held_out = images[: -cfg.metric_photos], images[-cfg.metric_photos:]
+            self.images, self.held_out = images[: -cfg.metric_photos], images[-cfg.metric_photos :]
         self.iteration = 0
         self.sample_batch = collate_shapes(shapes[: cfg.sample_shapes]).to(device)
-        self.sample_z = torch.randn(self.sample_batch.num_shapes, gcfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed + 12345)).to(device)
+        self.sample_z = torch.randn(
+            self.sample_batch.num_shapes, gcfg.z_dim, generator=torch.Generator().manual_seed(cfg.seed + 12345)
+        ).to(device)
         runs.seed_everything(cfg.seed + 1000003 * distributed.rank)  # each process draws its own data
 
     # ----------------------------------------------------------------------------- checkpoints
@@ -188,16 +146,28 @@ class GanTrainer:
     def model_meta(self) -> dict:
         """What every checkpoint of the run says of the model: iteration, configs, processes, and the
         hierarchy its shapes were prepared with (a raw mesh is prepared the same way at inference)."""
-        return {"iteration": self.iteration, "config": runs.dumps_config(self.cfg), "world_size": self.dist.world_size,
-                GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator), HIERARCHY: shape_hierarchy(self.shapes)}
+        return {
+            "iteration": self.iteration,
+            "config": runs.dumps_config(self.cfg),
+            "world_size": self.dist.world_size,
+            GENERATOR_CONFIG: runs.dumps_config(self.cfg.generator),
+            HIERARCHY: shape_hierarchy(self.shapes),
+        }
 
     def save(self, path: Path) -> None:
         """Collective: every process contributes its RNG state; the main process writes."""
         rng_states = self.dist.gather_objects(runs.rng_to_state())
         if self.dist.is_main:
             meta = {**self.model_meta(), "best": self.best}
-            runs.save_training_state(path, KIND, self.modules(), {"g": self.opt_g, "d": self.opt_d},
-                                     {GAN_LOSS: {**self.loss.state_dict(), **self.ada.state_dict()}}, meta, rng_states)
+            runs.save_training_state(
+                path,
+                KIND,
+                self.modules(),
+                {"g": self.opt_g, "d": self.opt_d},
+                {GAN_LOSS: {**self.loss.state_dict(), **self.ada.state_dict()}},
+                meta,
+                rng_states,
+            )
         self.dist.barrier()
 
     def resume(self, path: Path) -> None:
@@ -206,20 +176,31 @@ class GanTrainer:
         optimizers = {"g": self.opt_g, "d": self.opt_d}
         groups, meta = runs.load_training_state(path, KIND, self.modules(), optimizers, self.device)
         # The run's config.yaml rules, not the checkpoint; annealed as at the checkpoint's last step.
-        changed = runs.apply_learning_rates(optimizers, self.cfg.optim.learning_rates(max(int(meta["iteration"]) - 1, 0)))
+        changed = runs.apply_learning_rates(
+            optimizers, self.cfg.optim.learning_rates(max(int(meta["iteration"]) - 1, 0))
+        )
         if changed and self.dist.is_main:
-            print(f"mesh2tex: note: resuming with the learning rates of {self.run.config_path}: {', '.join(changed)}", file=sys.stderr)
+            print(
+                f"mesh2tex: note: resuming with the learning rates of {self.run.config_path}: {', '.join(changed)}",
+                file=sys.stderr,
+            )
         if GAN_LOSS not in groups:
             raise UserError(f"{path}: checkpoint has no '{GAN_LOSS}' state")
         self.loss.load_state_dict(groups[GAN_LOSS])
         self.ada.load_state_dict(groups[GAN_LOSS])
         self.iteration = int(meta["iteration"])
-        self.best = meta.get("best") if path == self.run.checkpoint_path else None  # another run's best is not in this one's folder
+        self.best = (
+            meta.get("best") if path == self.run.checkpoint_path else None
+        )  # another run's best is not in this one's folder
         states = meta["rng"]
         if len(states) == self.dist.world_size:
             runs.rng_from_state(states[self.dist.rank])
         else:  # another number of processes: fresh, distinct streams per process
-            print(f"mesh2tex: note: the checkpoint was written by {len(states)} process(es), this run has {self.dist.world_size}; random streams restart", file=sys.stderr)
+            print(
+                f"mesh2tex: note: the checkpoint was written by {len(states)} process(es), this run has "
+                f"{self.dist.world_size}; random streams restart",
+                file=sys.stderr,
+            )
             runs.seed_everything(self.cfg.seed + 7919 * self.iteration + 1000003 * self.dist.rank)
         if self.dist.is_main and path == self.run.checkpoint_path:
             self.run.metrics.truncate_after("iteration", self.iteration)
@@ -268,7 +249,11 @@ class GanTrainer:
             self.d_proxy.requires_grad_(group == "D")
             for phase, gain in phases:
                 if phase.startswith(group):
-                    logs.update(self.loss.accumulate_gradients(phase, scene, z_g if group == "G" else z_d, real, gain, diversity_gain))
+                    logs.update(
+                        self.loss.accumulate_gradients(
+                            phase, scene, z_g if group == "G" else z_d, real, gain, diversity_gain
+                        )
+                    )
             bad = None
             try:
                 runs.check_finite(logs, self.iteration)
@@ -282,7 +267,9 @@ class GanTrainer:
                     torch.nan_to_num_(p.grad, nan=0.0, posinf=1e5, neginf=-1e5)
             opt.step()
             if group == "G":
-                beta = runs.ema_beta(self.iteration * self.images_per_step, self.images_per_step, cfg.ema_halflife_images, cfg.ema_rampup)
+                beta = runs.ema_beta(
+                    self.iteration * self.images_per_step, self.images_per_step, cfg.ema_halflife_images, cfg.ema_rampup
+                )
                 runs.ema_update(self.ema, self.generator, beta)
         for module in (self.generator, self.d_field, self.d_proxy):
             module.requires_grad_(True)
@@ -292,7 +279,9 @@ class GanTrainer:
         self.ada.step(self.iteration, self.images_per_step)
         logs["augment_p"] = self.ada.augment.p
         self.iteration += 1
-        self.latest.update(runs.scalars(logs))  # the lazy terms (path length, R1, mode seeking) keep their last value between runs
+        self.latest.update(
+            runs.scalars(logs)
+        )  # the lazy terms (path length, R1, mode seeking) keep their last value between runs
         return dict(self.latest)
 
     def write_snapshot(self) -> Path:
@@ -312,7 +301,9 @@ class GanTrainer:
         azimuth, elevation = turntable_angles(k)
         n = self.sample_batch.num_shapes
         azimuth, elevation = azimuth.repeat(n), elevation.repeat(n)
-        mvp = orbit_camera(azimuth, elevation, distance=self.cfg.camera.distance, fov=self.cfg.camera.fov).mvp.to(self.device)
+        mvp = orbit_camera(azimuth, elevation, distance=self.cfg.camera.distance, fov=self.cfg.camera.fov).mvp.to(
+            self.device
+        )
         return mvp, azimuth
 
     @torch.no_grad()
@@ -324,23 +315,44 @@ class GanTrainer:
         latents' renders of each shape and view."""
         b, k, res = self.sample_batch, 4, self.cfg.resolution
         mvp, azimuth = self.turntable(k)
-        z = torch.randn(2, b.num_shapes, self.cfg.generator.z_dim, generator=torch.Generator().manual_seed(self.cfg.seed + 54321))
+        z = torch.randn(
+            2, b.num_shapes, self.cfg.generator.z_dim, generator=torch.Generator().manual_seed(self.cfg.seed + 54321)
+        )
         lights = None
         if self.cfg.lighting.enabled:  # lit like the photos, with lights fixed for the whole run
-            lights = random_lights(azimuth, self.cfg.lighting, torch.Generator().manual_seed(self.cfg.seed + 54322)).to(self.device)
+            lights = random_lights(azimuth, self.cfg.lighting, torch.Generator().manual_seed(self.cfg.seed + 54322)).to(
+                self.device
+            )
         renders = []
         for latent in z.to(self.device):
-            out = render_field_views(self.ema, b, self.ema.mapping(latent), mvp, (res, res), torch.zeros(len(mvp), 3, device=self.device),
-                                     noise_mode="none", lights=lights)
+            out = render_field_views(
+                self.ema,
+                b,
+                self.ema.mapping(latent),
+                mvp,
+                (res, res),
+                torch.zeros(len(mvp), 3, device=self.device),
+                noise_mode="none",
+                lights=lights,
+            )
             renders.append(((out.images.float() + 1) / 2).clamp(0, 1).cpu())
         mask = out.mask.float().cpu()
         photos = self.held_out.float()
-        swd = object_set_swd(torch.cat(renders), mask.repeat(2, 1, 1, 1), photos[:, :3] / 255, (photos[:, 3:] > 127).float(), seed=self.cfg.seed)
+        swd = object_set_swd(
+            torch.cat(renders),
+            mask.repeat(2, 1, 1, 1),
+            photos[:, :3] / 255,
+            (photos[:, 3:] > 127).float(),
+            seed=self.cfg.seed,
+        )
         pairs = []
         for view in range(len(mvp)):
             with contextlib.suppress(ValueError):  # a view without object pixels
                 pairs.append(mean_pairwise_delta_e(torch.stack([r[view] for r in renders]), mask[view]))
-        return {"metric_swd": round(swd, 4), "metric_diversity": round(sum(pairs) / len(pairs), 4) if pairs else float("nan")}
+        return {
+            "metric_swd": round(swd, 4),
+            "metric_diversity": round(sum(pairs) / len(pairs), 4) if pairs else float("nan"),
+        }
 
     def keep_if_best(self, metric: dict[str, float]) -> bool:
         """RUN/best.safetensors: the EMA generator (float16, like a snapshot) at the lowest SWD so far."""
@@ -360,7 +372,9 @@ class GanTrainer:
         mvp, _ = self.turntable(k)
         ws = self.ema.mapping(self.sample_z)
         res = self.cfg.resolution
-        out = render_field_views(self.ema, b, ws, mvp, (res, res), torch.ones(b.num_shapes * k, 3, device=self.device), noise_mode="none")
+        out = render_field_views(
+            self.ema, b, ws, mvp, (res, res), torch.ones(b.num_shapes * k, 3, device=self.device), noise_mode="none"
+        )
         tiles = images_to_uint8(out.images).reshape(b.num_shapes, k, res, res, 3)
         grid = tiles.transpose(0, 2, 1, 3, 4).reshape(b.num_shapes * res, k * res, 3)
         path = self.run.samples_dir / f"iter{self.iteration:07d}.png"
@@ -369,14 +383,30 @@ class GanTrainer:
 
     def train(self) -> None:
         cfg, main = self.cfg, self.dist.is_main
-        advice = (f"Lower the optim.lr_* learning rates (or raise loss.r1_gamma) in {self.run.config_path} and re-run with --resume")
-        runs.training_loop(self, self.run, iters=cfg.iters, desc="train gan", device=self.device, log_every=cfg.log_every,
-                           checkpoint_every=cfg.checkpoint_every, advice=advice, main=main,
-                           postfix=lambda logs: {k: f"{v:.3f}" for k, v in logs.items() if k.startswith(("loss_g_field", "loss_d_field"))},
-                           measure=runs.Every(cfg.metric_every, self.measure_and_keep, final="always"),
-                           periodic=[runs.Every(cfg.snapshot_every, self.write_snapshot),
-                                     runs.Every(cfg.sample_every, self.write_samples, final="never")],
-                           extra={"world_size": self.dist.world_size})
+        advice = (
+            f"Lower the optim.lr_* learning rates (or raise loss.r1_gamma) in {self.run.config_path} and re-run "
+            "with --resume"
+        )
+        runs.training_loop(
+            self,
+            self.run,
+            iters=cfg.iters,
+            desc="train gan",
+            device=self.device,
+            log_every=cfg.log_every,
+            checkpoint_every=cfg.checkpoint_every,
+            advice=advice,
+            main=main,
+            postfix=lambda logs: {
+                k: f"{v:.3f}" for k, v in logs.items() if k.startswith(("loss_g_field", "loss_d_field"))
+            },
+            measure=runs.Every(cfg.metric_every, self.measure_and_keep, final="always"),
+            periodic=[
+                runs.Every(cfg.snapshot_every, self.write_snapshot),
+                runs.Every(cfg.sample_every, self.write_samples, final="never"),
+            ],
+            extra={"world_size": self.dist.world_size},
+        )
         if main:
             self.write_samples()
 
@@ -404,22 +434,31 @@ def run(args) -> int:
     try:
         device = runs.select_device(cfg.device)
         run_dir = runs.RunDirectory(args.out)
-        source = runs.start_from(args.resume, run_dir, KIND, note=distributed.is_main, overwrite=args.overwrite)  # checked before the data is read
+        source = runs.start_from(
+            args.resume, run_dir, KIND, note=distributed.is_main, overwrite=args.overwrite
+        )  # checked before the data is read
         shapes, _ = load_shapes(args.shapes)
         images = load_photo_collection(args.images, cfg.resolution)
         if cfg.metric_every and len(images) <= cfg.metric_photos:
-            raise UserError(f"metric_photos {cfg.metric_photos}: the photo collection has {len(images)} photos, the metric holds out fewer "
-                            f"than that (or set metric_every: 0)")
+            raise UserError(
+                f"metric_photos {cfg.metric_photos}: the photo collection has {len(images)} photos, the metric holds "
+                f"out fewer than that (or set metric_every: 0)"
+            )
         features = shapes[0].face_features.shape[1]
         if cfg.generator.input_features not in (0, features):
-            raise UserError(f"generator.input_features is {cfg.generator.input_features} but the shapes in {args.shapes} have {features} face features")
+            raise UserError(
+                f"generator.input_features is {cfg.generator.input_features} but the shapes in {args.shapes} have "
+                f"{features} face features"
+            )
         cfg.generator.input_features = features
         if distributed.is_main and source is None:
             run_dir.start(cfg, resume=False, overwrite=args.overwrite)
         distributed.barrier()
         trainer = GanTrainer(cfg, shapes, images, run_dir, device, distributed)
         if source is not None:
-            trainer.resume(source)  # before config.yaml is written: a checkpoint that cannot be loaded leaves --out as it was
+            trainer.resume(
+                source
+            )  # before config.yaml is written: a checkpoint that cannot be loaded leaves --out as it was
             if distributed.is_main:
                 run_dir.start(cfg, resume=source == run_dir.checkpoint_path, overwrite=args.overwrite)
             distributed.barrier()

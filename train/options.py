@@ -17,7 +17,7 @@ def gan(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--images", required=True, help="photo folder: images/*.png with masks/*.png, or RGBA *.png")
     add_out(parser, "run directory (config, checkpoint, metrics, samples)")
-    config = ConfigOptions(parser, "mesh2tex.train.gan:TrainGanConfig", what="the training config")
+    config = ConfigOptions(parser, "mesh2tex.train.gan_config:TrainGanConfig", what="the training config")
     config.add(
         "--iters",
         type=int,

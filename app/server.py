@@ -13,6 +13,7 @@ import socket
 from pathlib import Path
 
 from mesh2tex.app.settings import LOCAL_HOSTS, AppConfig
+
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError, warning
 from mesh2tex.options import config_overrides
@@ -59,7 +60,6 @@ def run(args) -> int:
     cfg = build_config(args)
     try:
         import uvicorn
-
         from mesh2tex.app.web import make_app
     except ModuleNotFoundError as error:
         raise UserError(f"mesh2tex app needs {error.name}: pip install 'mesh2tex[app]' (or make app)") from None

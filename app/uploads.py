@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mesh2tex.app.jobs import Refused
+
 from mesh2tex.errors import InputError
 
 # Self-contained mesh files (a .gltf names other files, which an upload does not bring).

@@ -16,11 +16,11 @@ from fastapi import FastAPI, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
-
-from mesh2tex import __version__
 from mesh2tex.app.jobs import Job, Refused, Visitor, Workshop
 from mesh2tex.app.settings import LOCAL_HOSTS, flags
 from mesh2tex.app.uploads import ROLES, Upload, check, check_name, receive, safe_name
+
+from mesh2tex import __version__
 
 STATIC = Path(__file__).resolve().parent / "static"
 EXAMPLES = STATIC / "examples"

@@ -109,7 +109,8 @@ def render_baked(
 ):
     """The baked mesh (vertices in the working frame) rendered with its texture: images (N, 3, H, W) in
     [-1, 1], mask (N, H, W), the surface point at each pixel (N, H, W, 3)."""
-    from mesh2tex.render import interpolate, sample_texture as sample
+    from mesh2tex.render import interpolate
+    from mesh2tex.render import sample_texture as sample
 
     positions, mask, raster = surface_positions(vertices, faces, mvp, size)
     texel_uv = interpolate(torch.from_numpy(uv).float(), raster, torch.from_numpy(np.asarray(faces, dtype=np.int64)))

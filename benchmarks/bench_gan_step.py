@@ -47,9 +47,10 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from previous import Revision  # noqa: E402  (this folder)
+
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.synthetic.shapes import generate_shape  # noqa: E402
-from previous import Revision  # noqa: E402  (this folder)
 
 TARGET_SECONDS = 2.0
 
@@ -233,10 +234,12 @@ class Version:
     def __init__(self, name: str, revision: Revision | None = None):
         self.name, self.revision = name, revision
         with self.active():
-            from mesh2tex.config import load_config
             from mesh2tex.train import runs
+
             # TrainGanConfig through train.gan, its home in older revisions and an import there today
             from mesh2tex.train.gan import GanTrainer, TrainGanConfig
+
+            from mesh2tex.config import load_config
         self.load_config, self.runs, self.GanTrainer, self.TrainGanConfig = (
             load_config,
             runs,

@@ -43,11 +43,10 @@ from mesh2tex.render import orbit_camera, rasterize, transform_points
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
-from test_rasterize_reference import bevelled_table, normalised, scan_sphere  # noqa: E402  the same meshes
-from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402
-
 from previous import Revision  # noqa: E402  (this folder)
 from resident_memory import reset_peak_rss, status_mib  # noqa: E402  (this folder)
+from test_rasterize_reference import bevelled_table, normalised, scan_sphere  # noqa: E402  the same meshes
+from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402
 
 CASES = {"1x256": (1, 256), "1x512": (1, 512), "8x128": (8, 128)}
 CAMERAS = {  # (azimuths, elevations) of up to eight views, degrees

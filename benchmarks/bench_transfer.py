@@ -27,14 +27,15 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.render import CameraConfig, RenderSettings  # noqa: E402
-from mesh2tex.transfer import Photo, TransferConfig, transfer_texture, view_at_pose  # noqa: E402
+from previous import Revision  # noqa: E402  (this folder)
+
 from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator  # noqa: E402
 from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
-from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views  # noqa: E402
+from mesh2tex.render import CameraConfig, RenderSettings  # noqa: E402
 from mesh2tex.runtime import select_device  # noqa: E402
-from previous import Revision  # noqa: E402  (this folder)
+from mesh2tex.synthetic.world import WorldSpec, make_material, make_shape, render_views, sample_views  # noqa: E402
+from mesh2tex.transfer import Photo, TransferConfig, transfer_texture, view_at_pose  # noqa: E402
 
 TARGET_SECONDS = 300.0
 

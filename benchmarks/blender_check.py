@@ -32,8 +32,8 @@ sys.path.insert(0, str(ROOT))
 from mesh2tex.evaluation.compare import render_for_comparison  # noqa: E402
 from mesh2tex.evaluation.surfaces import textured_surface  # noqa: E402
 from mesh2tex.io.assets import load_glb  # noqa: E402
-from mesh2tex.synthetic.world import PhotoSetup  # noqa: E402
 from mesh2tex.render import RenderSettings  # noqa: E402
+from mesh2tex.synthetic.world import PhotoSetup  # noqa: E402
 
 SCENE = Path(__file__).resolve().parent / "blender_scene.py"
 

@@ -36,13 +36,13 @@ from mesh2tex.evaluation.generation_renders import (
     generator_renders,
     material_draws,
 )
-from mesh2tex.render import composite_images  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
-from mesh2tex.photos import list_images, load_set  # noqa: E402
 from mesh2tex.io.checkpoint import load_checkpoint  # noqa: E402
+from mesh2tex.metrics.generation import object_set_swd, srgb_to_lab  # noqa: E402
 from mesh2tex.models import load_generator, save_inference_checkpoint  # noqa: E402
 from mesh2tex.models.store import GENERATOR  # noqa: E402
-from mesh2tex.metrics.generation import object_set_swd, srgb_to_lab  # noqa: E402
+from mesh2tex.photos import list_images, load_set  # noqa: E402
+from mesh2tex.render import composite_images  # noqa: E402
 
 
 def object_lab(images: torch.Tensor, masks: torch.Tensor) -> torch.Tensor:

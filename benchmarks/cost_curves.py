@@ -182,6 +182,7 @@ def run_quietly(main, argv: list[str]) -> str:
 def child_prepare(p: dict, threads: int) -> dict:
     """Seconds of ``prepare shapes`` on one mesh file (load, prepare at 6144 quads and 5 levels, save the .npz)."""
     from bench_bake import chair_mesh
+
     from data_prep.shapes import prepare_one
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -200,6 +201,7 @@ def child_prepare(p: dict, threads: int) -> dict:
 def child_gan_step(p: dict, threads: int, iters: int = 3) -> dict:
     """Mean seconds of ``iters`` main-phase ``train gan`` iterations after one warm-up (bench_gan_step's trainer, 2 chairs)."""
     import bench_gan_step as gan
+
     from mesh2tex.geometry.prepare import prepare_shape
     from mesh2tex.synthetic.shapes import generate_shape
 
@@ -278,6 +280,7 @@ def child_rasterize(p: dict, threads: int, repeats: int = 5) -> dict:
     ``triangles`` at ``size`` px."""
     import torch
     from bench_bake import blob_mesh
+
     from mesh2tex.render import orbit_camera, rasterize, transform_points
 
     mesh = blob_mesh(p["triangles"])

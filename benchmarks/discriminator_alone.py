@@ -21,15 +21,16 @@ import torch.nn.functional as F
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from mesh2tex.train import runs  # noqa: E402
+from mesh2tex.train.gan import GanTrainer, random_cameras  # noqa: E402
+from mesh2tex.train.gan_config import TrainGanConfig  # noqa: E402
+
 from mesh2tex.config import load_config  # noqa: E402
 from mesh2tex.geometry.prepared import load_shapes  # noqa: E402
 from mesh2tex.nn.batch import collate_shapes  # noqa: E402
 from mesh2tex.nn.discriminator import Discriminator  # noqa: E402
 from mesh2tex.nn.render_texture import render_field_views  # noqa: E402
-from mesh2tex.train import runs  # noqa: E402
 from mesh2tex.photos import load_photo_collection  # noqa: E402
-from mesh2tex.train.gan import GanTrainer, random_cameras  # noqa: E402
-from mesh2tex.train.gan_config import TrainGanConfig  # noqa: E402
 
 
 def main() -> int:

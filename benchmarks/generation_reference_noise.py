@@ -31,10 +31,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mesh2tex.evaluation.generation import read_world  # noqa: E402
 from mesh2tex.evaluation.generation_renders import fresh_photo_set, ground_truth_renders, on_white  # noqa: E402
-from mesh2tex.photos import list_images, load_set  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd  # noqa: E402
-from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_views  # noqa: E402
+from mesh2tex.photos import list_images, load_set  # noqa: E402
 from mesh2tex.render import RenderSettings  # noqa: E402
+from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_views  # noqa: E402
 
 
 def main() -> None:

@@ -49,9 +49,9 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mesh2tex.geometry.primitives import density_subdivisions, load_surface, mean_edge_length  # noqa: E402
-from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss  # noqa: E402
 from mesh2tex.metrics.generation import object_set_swd  # noqa: E402
+from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.nn.cell_graph import build_cell_graph  # noqa: E402
 from mesh2tex.nn.nca import MeshNCA, NCAConfig  # noqa: E402
 from mesh2tex.nn.render_texture import render_states  # noqa: E402

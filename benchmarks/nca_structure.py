@@ -42,10 +42,12 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from mesh2tex.train import runs  # noqa: E402
+
 from benchmarks.nca_quality import RESOLUTION, STEPS, Judge, colour_model, grow, views_mvp  # noqa: E402
 from mesh2tex.geometry.primitives import load_surface  # noqa: E402
-from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.metrics.structure import structure_scores  # noqa: E402
+from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.nn.cell_graph import build_cell_graph  # noqa: E402
 from mesh2tex.nn.render_texture import render_states  # noqa: E402
 from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
@@ -53,7 +55,6 @@ from mesh2tex.render import interpolate, rasterize, transform_points  # noqa: E4
 from mesh2tex.render.bake import new_atlas  # noqa: E402
 from mesh2tex.synthetic.exemplars import EXEMPLARS, exemplar_image  # noqa: E402
 from mesh2tex.texel_synthesis import SynthesisConfig, TexelSurface, TexelSynthesis, render_texture  # noqa: E402
-from mesh2tex.train import runs  # noqa: E402
 from train.nca import NCATrainer, TrainNCAConfig  # noqa: E402
 
 SIZE = 128  # exemplar pixels over the unit square of its pattern

@@ -76,8 +76,6 @@ def height_parts(vertices: np.ndarray, faces: np.ndarray, category: str) -> np.n
 @torch.no_grad()
 def main() -> None:
     from mesh2tex.evaluation.compare import render_for_comparison
-    from mesh2tex.evaluation.surfaces import material_surface
-    from mesh2tex.geometry.prepared import quads_to_triangles
     from mesh2tex.evaluation.generation import read_world
     from mesh2tex.evaluation.generation_renders import (
         draw_key,
@@ -87,10 +85,12 @@ def main() -> None:
         read_as_photos,
         seeded_generator,
     )
-    from mesh2tex.photos import list_images, load_set
-    from mesh2tex.models import load_generator
+    from mesh2tex.evaluation.surfaces import material_surface
+    from mesh2tex.geometry.prepared import quads_to_triangles
     from mesh2tex.metrics.generation import colour_spread, mean_object_lab, object_set_swd
+    from mesh2tex.models import load_generator
     from mesh2tex.nn.generator import TextureGenerator
+    from mesh2tex.photos import list_images, load_set
     from mesh2tex.render import RenderSettings, composite_images
     from mesh2tex.synthetic.world import sample_material, sample_views
     from mesh2tex.texturing import load_shape

@@ -161,15 +161,17 @@ def main() -> None:
     import cv2
 
     from mesh2tex.evaluation.compare import ScoreSettings, common_mask, render_for_comparison, score_views
-    from mesh2tex.render import RenderSettings
     from mesh2tex.evaluation.surfaces import flat_surface, generator_surface, material_surface, photo_mean_colour
     from mesh2tex.io.images import save_png
-    from mesh2tex.nn.pose import azimuth_error
     from mesh2tex.models import MODEL_FILES, is_model_name, load_generator, models_root
+    from mesh2tex.nn.pose import azimuth_error
+    from mesh2tex.render import RenderSettings
 
     def shipped_file(name: str, kind: str) -> str | None:
         path = models_root() / name / MODEL_FILES[kind]
         return str(path) if path.is_file() else None
+
+    from outside_generation import height_parts, outside_meshes
 
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.vgg import load_vgg19
@@ -186,7 +188,6 @@ def main() -> None:
     )
     from mesh2tex.transfer.fit import check_fit
     from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
-    from outside_generation import height_parts, outside_meshes
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--checkpoint", default="chair")

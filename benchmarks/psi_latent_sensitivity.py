@@ -20,8 +20,8 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
+from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.nn.batch import collate_shapes  # noqa: E402
 from mesh2tex.nn.generator import FaceTexture  # noqa: E402
 from mesh2tex.nn.render_texture import rasterize_batch  # noqa: E402

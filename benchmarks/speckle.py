@@ -39,12 +39,12 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
-from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.evaluation.generation import WorldData  # noqa: E402
 from mesh2tex.evaluation.generation_renders import generator_renders, ground_truth_renders, material_renders  # noqa: E402
-from mesh2tex.models import load_generator  # noqa: E402
+from mesh2tex.geometry.prepare import prepare_shape  # noqa: E402
+from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.metrics.spectrum import DEFAULT_CUTOFF, high_frequency_share, view_pixels_per_unit  # noqa: E402
+from mesh2tex.models import load_generator  # noqa: E402
 from mesh2tex.nn.generator import TextureGenerator  # noqa: E402
 from mesh2tex.render import RenderSettings, composite_images  # noqa: E402
 from mesh2tex.synthetic.world import WorldSpec, make_shape, sample_material, sample_views  # noqa: E402

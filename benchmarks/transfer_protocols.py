@@ -20,8 +20,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.evaluation.protocols import run_protocols  # noqa: E402
 from mesh2tex.evaluation.protocol_config import ProtocolConfig  # noqa: E402
+from mesh2tex.evaluation.protocols import run_protocols  # noqa: E402
 from mesh2tex.evaluation.report import PROTOCOLS  # noqa: E402
 from mesh2tex.transfer import ABLATIONS  # noqa: E402
 

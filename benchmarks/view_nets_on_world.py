@@ -31,12 +31,15 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from mesh2tex.render import CameraConfig  # noqa: E402
-from mesh2tex.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, predict_pose  # noqa: E402
 from mesh2tex.geometry.prepared import PreparedShape  # noqa: E402
 from mesh2tex.io.images import load_image, load_mask  # noqa: E402
 from mesh2tex.nn.pose import PoseBins  # noqa: E402
-from mesh2tex.render import crop_square, object_box  # noqa: E402
+from mesh2tex.render import (  # noqa: E402
+    CameraConfig,  # noqa: E402
+    crop_square,
+    object_box,
+)
+from mesh2tex.transfer import TransferConfig, estimate_pose, load_photo, predict_noc, predict_pose  # noqa: E402
 
 
 def azimuth_error(predicted: float, true: float) -> float:

@@ -41,19 +41,20 @@ import time
 from dataclasses import asdict
 
 from mesh2tex.evaluate.options import GENERATION_CONFIG, PROTOCOL_CONFIG, SETS_CONFIG
-from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
-from mesh2tex.evaluation.protocols import run_protocols
-from mesh2tex.evaluation.protocol_config import ProtocolConfig
-from mesh2tex.evaluation.report import generation_markdown, protocols_markdown
+
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
+from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
+from mesh2tex.evaluation.protocol_config import ProtocolConfig
+from mesh2tex.evaluation.protocols import run_protocols
+from mesh2tex.evaluation.report import generation_markdown, protocols_markdown
 from mesh2tex.io.atomic import json_ready, write_json, write_text
-from mesh2tex.photos import list_images, load_set
-from mesh2tex.models import is_model_name, resolve_checkpoint
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_pairs, evaluate_sets, load_pairs, markdown_table
+from mesh2tex.models import is_model_name, resolve_checkpoint
 from mesh2tex.options import config_overrides
+from mesh2tex.photos import list_images, load_set
 from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.runtime import select_device
 

@@ -31,12 +31,12 @@ from pathlib import Path
 
 import yaml
 
-from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.cli import main as cli_main
 from mesh2tex.config import check_fields, load_config, save_config
 from mesh2tex.errors import UserError
-from mesh2tex.io.atomic import atomic_path, write_json, write_text
+from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol
 from mesh2tex.io.assets import check_texture_format
+from mesh2tex.io.atomic import atomic_path, write_json, write_text
 from mesh2tex.io.outputs import guard_outputs, remove_outputs
 from mesh2tex.nn.view_nets import VIEWS_NAME
 from mesh2tex.options import config_overrides

@@ -28,9 +28,9 @@ from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.models import load_generator
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.render import RenderSettings
+from mesh2tex.texturing import load_shape, mean_latent
 
 from .demo_report import TRANSFER_METHODS
-from mesh2tex.texturing import load_shape, mean_latent
 
 
 def pick_query(world: Path, index: int) -> dict:

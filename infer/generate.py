@@ -23,18 +23,17 @@ from dataclasses import dataclass, field
 import torch
 
 from mesh2tex.config import load_config
-from mesh2tex.errors import UserError
+from mesh2tex.errors import UserError, note
 from mesh2tex.io.assets import check_texture_format
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.models import load_generator
 from mesh2tex.io.outputs import guard_outputs
+from mesh2tex.models import load_generator
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import render_field_views
 from mesh2tex.options import config_overrides, parse_seeds  # --seeds: lists and ranges (0-7, 0,2,5-9)
 from mesh2tex.progress import progress_bar, write_line
 from mesh2tex.render import orbit_camera, turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.errors import note
 from mesh2tex.texturing import TexturedMeshWriter, latent, load_shape
 
 

@@ -35,23 +35,23 @@ from mesh2tex.geometry.primitives import (
     unit_transform,
 )
 from mesh2tex.geometry.regions import region_weights
-from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.assets import check_texture_format
+from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.checkpoint import save_checkpoint
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.models import TrainedAutomaton, load_nca
 from mesh2tex.io.outputs import guard_outputs
 from mesh2tex.limits import check_range
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
+from mesh2tex.models import TrainedAutomaton, load_nca
 from mesh2tex.nn.cell_graph import build_cell_graph
 from mesh2tex.nn.render_texture import render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import orbit_camera
+from mesh2tex.render.bake import BakeTarget
 from mesh2tex.render.cameras import turntable_angles
 from mesh2tex.runtime import select_device
-from mesh2tex.render.bake import BakeTarget
 from mesh2tex.texturing import read_user_mesh, source_mesh, write_automaton_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "growth.gif", "state.safetensors", "report.json")

@@ -57,16 +57,16 @@ from mesh2tex.errors import UserError, note, warning
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.io.atomic import atomic_path, write_json
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, save_png
-from mesh2tex.models import is_model_name, load_generator, model_has
 from mesh2tex.io.outputs import guard_outputs
+from mesh2tex.models import is_model_name, load_generator, model_has
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views, render_states
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.options import config_overrides
 from mesh2tex.render import Lights, composite, composite_images, orbit_camera, orbit_direction, turntable_angles
-from mesh2tex.runtime import select_device
 from mesh2tex.render.bake import BakeTarget
+from mesh2tex.runtime import select_device
 from mesh2tex.texturing import load_shape, write_automaton_mesh, write_textured_mesh
 from mesh2tex.transfer import (
     AutomatonFit,

@@ -22,7 +22,6 @@ from torch import nn
 
 from mesh2tex.errors import InputError
 
-
 # ----------------------------------------------------------------------------------------- threads
 THREAD_VARIABLES = ("MESH2TEX_THREADS", "OMP_NUM_THREADS")
 

@@ -52,8 +52,8 @@ import torch.nn.functional as F
 from mesh2tex.config import check_fields
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
 from mesh2tex.photos import square_resize
-from mesh2tex.render.cameras import NCACameraConfig
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
+from mesh2tex.render.cameras import NCACameraConfig
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
 SYNTHESIS_LOSSES = ("ps", "sw", "ot")  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern

@@ -36,9 +36,9 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from mesh2tex.cli import main as cli  # noqa: E402
 from mesh2tex.evaluation.generation import GenerationConfig, run_generation_protocol  # noqa: E402
 from mesh2tex.evaluation.report import generation_markdown  # noqa: E402
-from mesh2tex.cli import main as cli  # noqa: E402
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 from mesh2tex.models import MODEL_FILES, export_inference_checkpoint  # noqa: E402
 

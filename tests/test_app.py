@@ -177,8 +177,9 @@ def test_bad_uploads_get_the_commands_message_and_leave_nothing(server, tmp_path
 def test_a_photo_without_an_object_fails_with_the_commands_line_and_leaves_no_job(server):
     token = session(server)
     assert request(f"{server['url']}/api/s/{token}/example/mesh/chair.obj", "POST")[0] == 200
-    from PIL import Image
     import io
+
+    from PIL import Image
 
     blank = io.BytesIO()
     Image.new("RGB", (64, 64), (255, 255, 255)).save(blank, format="PNG")

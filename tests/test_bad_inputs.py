@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 import trimesh
 import yaml
+from conftest import TINY_GAN
 from PIL import Image
 
-from conftest import TINY_GAN
 from mesh2tex.cli import main
 
 
@@ -333,8 +333,9 @@ def test_files_already_in_out_are_kept_without_overwrite(command, existing, ctx,
 
 
 def test_infer_nca_keeps_files_already_in_out(tmp_path, capsys):
-    from mesh2tex.synthetic.exemplars import exemplar_image
     from test_train_nca import TINY_NCA
+
+    from mesh2tex.synthetic.exemplars import exemplar_image
 
     Image.fromarray(exemplar_image("stripes", 48)).save(tmp_path / "stripes.png")
     write(tmp_path / "tiny.yaml", yaml.safe_dump({**TINY_NCA, "iters": 1}))

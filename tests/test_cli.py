@@ -246,8 +246,8 @@ def test_demo_refuses_a_missing_gpu_before_any_stage(tmp_path, capsys):
 def flag_value(action: argparse.Action, default):
     """(text for the command line, the field's value it must give) of a config flag: anything but the default."""
     from mesh2tex.evaluation.report import BASELINES, PROTOCOLS
-    from mesh2tex.transfer import ABLATIONS
     from mesh2tex.models import resolve_checkpoint
+    from mesh2tex.transfer import ABLATIONS
 
     lists = {"--only": PROTOCOLS, "--ablations": ABLATIONS, "--baselines": BASELINES}  # comma-separated names
     flag = action.option_strings[0]

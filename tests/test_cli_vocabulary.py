@@ -258,6 +258,7 @@ def test_a_library_warning_is_one_line_without_its_source(capsys):
 
 def test_warnings_raised_while_a_command_runs_are_one_line(monkeypatch, capsys):
     import mesh2tex.infer.generate
+
     import mesh2tex.nn.vgg as vgg
 
     def run(args):  # a warning raised in the library, as the VGG fallback is

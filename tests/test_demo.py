@@ -6,8 +6,8 @@ import re
 import numpy as np
 import pytest
 import yaml
-
 from mesh2tex.infer.demo import QUICK, DemoConfig
+
 from mesh2tex.cli import main
 from mesh2tex.config import load_config
 from mesh2tex.errors import InputError
@@ -99,6 +99,7 @@ def test_settings_recorded_before_they_were_nested_still_resume(tmp_path):
 
 def test_demo_overwrite_removes_only_what_a_demo_wrote(tmp_path):
     from mesh2tex.infer.demo import DEMO_OUTPUTS
+
     from mesh2tex.io.outputs import remove_outputs
 
     for name in DEMO_OUTPUTS:

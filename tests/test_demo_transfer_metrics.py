@@ -9,9 +9,9 @@ import shutil
 
 import numpy as np
 import pytest
-
 from mesh2tex.infer.demo import transfer_metrics
 from mesh2tex.infer.demo_report import TRANSFER_METHODS, transfer_section
+
 from mesh2tex.cli import main
 from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape

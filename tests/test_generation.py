@@ -9,14 +9,20 @@ import numpy as np
 import pytest
 import torch
 import yaml
-
 from conftest import TINY_GAN, make_tiny_world
+
+from mesh2tex.cli import main
 from mesh2tex.evaluation.generation import GenerationConfig, read_world, run_generation_protocol
 from mesh2tex.evaluation.generation_renders import fresh_photo_set, ground_truth_renders
 from mesh2tex.evaluation.report import generation_markdown
+from mesh2tex.metrics.generation import (
+    colour_spread,
+    gap_closed,
+    mean_object_lab,
+    mean_pairwise_delta_e,
+    object_set_swd,
+)
 from mesh2tex.photos import list_images, load_set
-from mesh2tex.cli import main
-from mesh2tex.metrics.generation import colour_spread, gap_closed, mean_object_lab, mean_pairwise_delta_e, object_set_swd
 from mesh2tex.synthetic.world import sample_views
 
 
@@ -87,8 +93,8 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     from mesh2tex.evaluation.surfaces import flat_surface
     from mesh2tex.geometry.prepared import PreparedShape
     from mesh2tex.models import load_generator
-    from mesh2tex.nn.generator import FaceTexture
     from mesh2tex.nn.batch import collate_shapes
+    from mesh2tex.nn.generator import FaceTexture
     from mesh2tex.render import composite_images
 
     world = read_world(world_and_gan / "world")
@@ -299,8 +305,9 @@ def test_the_commands_offer_the_protocols_lightings_and_splits():
     """evaluate/options.py spells the choices out (it must not import torch); they stay the protocol's."""
     import argparse
 
-    from mesh2tex.evaluation.generation import LIGHTING_MODES, SPLITS
     from mesh2tex.evaluate.options import evaluate
+
+    from mesh2tex.evaluation.generation import LIGHTING_MODES, SPLITS
 
     parser = argparse.ArgumentParser()
     evaluate(parser)

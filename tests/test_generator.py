@@ -6,15 +6,21 @@ import itertools
 
 import pytest
 import torch
+from test_faceconv import cube_shape
 
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.faceconv import ModulatedFaceConv
-from mesh2tex.nn.field import NeuralField, blend_vertex_features, local_coordinates, sorted_cdf_coordinates, vertex_features
+from mesh2tex.nn.field import (
+    NeuralField,
+    blend_vertex_features,
+    local_coordinates,
+    sorted_cdf_coordinates,
+    vertex_features,
+)
 from mesh2tex.nn.generator import GeneratorConfig, TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.render import RenderSettings, orbit_camera
-from test_faceconv import cube_shape
 
 
 def tiny_generator(coords: str = "raw", levels: int = 3, kind: str = "faceconv") -> TextureGenerator:
@@ -207,8 +213,9 @@ def test_discriminator_has_no_strided_1x1_convolution(monkeypatch):
 def test_discriminator_judges_fakes_apart_from_reals():
     """The minibatch standard deviation is the discriminator's one view of diversity: the fakes'
     logits in the D loss must not depend on which reals share the step."""
-    from mesh2tex.losses.gan import GanLoss, GanLossConfig
     import torch.nn.functional as F
+
+    from mesh2tex.losses.gan import GanLoss, GanLossConfig
 
     torch.manual_seed(0)
     d = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16, mbstd_group=4))

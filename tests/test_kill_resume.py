@@ -23,9 +23,9 @@ import time
 
 import pytest
 import yaml
+from conftest import TINY_GAN
 from PIL import Image
 
-from conftest import TINY_GAN
 from mesh2tex.cli import main
 from mesh2tex.io.atomic import PARTIAL_DIR
 from mesh2tex.io.checkpoint import load_checkpoint

@@ -5,11 +5,10 @@ from __future__ import annotations
 import pytest
 import torch
 
-from mesh2tex.models import load_generator
 from mesh2tex.cli import main
 from mesh2tex.errors import InputError
 from mesh2tex.io.checkpoint import check_training_checkpoint, load_checkpoint
-from mesh2tex.models import MODEL_FILES, export_inference_checkpoint, list_models, resolve_checkpoint
+from mesh2tex.models import MODEL_FILES, export_inference_checkpoint, list_models, load_generator, resolve_checkpoint
 
 
 def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny_gan, tmp_path, monkeypatch, capsys):
@@ -119,9 +118,9 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
     from pathlib import Path
 
     import yaml
+    from mesh2tex.train.gan_config import TrainGanConfig
 
     from mesh2tex.config import load_config
-    from mesh2tex.train.gan_config import TrainGanConfig
 
     root = Path(__file__).resolve().parents[1]
     spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")

@@ -21,8 +21,8 @@ import textwrap
 
 import pytest
 import yaml
-
 from conftest import TINY_GAN
+
 from mesh2tex.cli import main
 from mesh2tex.io.outputs import LOCK_NAME, MANIFEST_NAME, REPLACED_NAME, guard_outputs, move_aside, output_run
 
@@ -301,8 +301,9 @@ def test_the_systems_refusals_are_one_line_naming_the_path(code, cause, tmp_path
 
 
 def test_a_trainer_rerun_with_the_same_command_continues_its_checkpoint(tiny_gan, tmp_path, capsys, monkeypatch):
-    from mesh2tex.io.checkpoint import load_checkpoint
     from mesh2tex.train import runs
+
+    from mesh2tex.io.checkpoint import load_checkpoint
 
     config = tmp_path / "tiny.yaml"
     config.write_text(yaml.safe_dump({**TINY_GAN, "log_every": 1}))

@@ -9,15 +9,16 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from conftest import TINY_GAN as TINY
+from conftest import make_tiny_world
 
 from mesh2tex.cli import main
-from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.evaluation.paired import compare_to_full, oracle_check, paired_query_tests, paired_query_wins
 from mesh2tex.evaluation.report import BASELINES, PROTOCOLS, protocols_markdown
 from mesh2tex.evaluation.world import load_world, other_shape_name, photo_frame_view
-from mesh2tex.transfer import ABLATIONS
+from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.io.images import load_mask
-from conftest import TINY_GAN as TINY, make_tiny_world
+from mesh2tex.transfer import ABLATIONS
 
 
 @pytest.fixture(scope="module")
@@ -97,8 +98,8 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
 def test_an_automaton_fitted_to_the_photo_is_judged_beside_the_baselines_when_asked_for(setup, tmp_path, monkeypatch):
     """``--baselines ...,automaton`` adds a mesh automaton fitted to the photo (no GAN) as one more row, scored
     alike; its fit is set under ``transfer: automaton:`` and is left out of the transfer cache's fingerprint."""
-    from mesh2tex.evaluation.protocol_config import ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
+    from mesh2tex.evaluation.protocol_config import ProtocolConfig, cache_settings
 
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "no_weights"))
     root, _ = setup
@@ -262,11 +263,11 @@ def _yaml(path, transfer=None, **fields):
 def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, capsys):
     """``transfer:`` holds every TransferConfig field; keys it leaves out keep the protocol's defaults (2 scales),
     not TransferConfig's; an unknown key, a field the protocol owns and an ablation's switch are one-line errors."""
-    from mesh2tex.config import load_config
-    from mesh2tex.metrics.evaluate import EvaluateConfig
-    from mesh2tex.evaluation.protocol_config import ProtocolConfig
-
     from dataclasses import replace
+
+    from mesh2tex.config import load_config
+    from mesh2tex.evaluation.protocol_config import ProtocolConfig
+    from mesh2tex.metrics.evaluate import EvaluateConfig
 
     cfg = load_config(ProtocolConfig, _yaml(tmp_path / "p.yaml", transfer={"w_anchor": 10, "latent_iters": 7}))
     assert (cfg.transfer.w_anchor, cfg.transfer.latent_iters, cfg.transfer.scales, cfg.transfer.patch_scales) == (10.0, 7, 1, 0)
@@ -298,10 +299,10 @@ def test_the_cache_fingerprint_keeps_the_layout_of_earlier_runs(tmp_path):
     before the transfer's settings were nested wrote for the same settings, so their folders still resume."""
     from dataclasses import asdict
 
-    from mesh2tex.evaluation.cache import TransferCache
-    from mesh2tex.evaluation.protocol_config import NOT_TRANSFER, ProtocolConfig, cache_settings
     from mesh2tex.config import config_from_dict
     from mesh2tex.errors import InputError
+    from mesh2tex.evaluation.cache import TransferCache
+    from mesh2tex.evaluation.protocol_config import NOT_TRANSFER, ProtocolConfig, cache_settings
 
     cfg = config_from_dict(ProtocolConfig, {"device": "cpu", "transfer": {"latent_iters": 50, "refine_iters": 150, "w_anchor": 10.0}})
     settings = cache_settings(cfg, True)

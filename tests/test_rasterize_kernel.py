@@ -7,12 +7,13 @@ import torch
 
 pytest.importorskip("numba")
 
+from test_rasterize_reference import assert_bitwise, bevelled_table, scan_sphere  # noqa: E402
+from test_render_raycast import bumpy_torus  # noqa: E402
+
 import mesh2tex.render.binning as binning  # noqa: E402
 import mesh2tex.render.edges as edges  # noqa: E402
 import mesh2tex.render.kernels as kernels  # noqa: E402
 from mesh2tex.render import orbit_camera, rasterize, transform_points  # noqa: E402
-from test_rasterize_reference import assert_bitwise, bevelled_table, scan_sphere  # noqa: E402
-from test_render_raycast import bumpy_torus  # noqa: E402
 
 rasterize_module = __import__("mesh2tex.render.rasterize", fromlist=["_BOX_MARGIN"])
 

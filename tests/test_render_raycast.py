@@ -103,8 +103,9 @@ def test_edge_aligned_views_agree_with_embree(name):
     shared edges and vertices: the covered pixels are exactly Embree's, and where the face ids differ
     (a centre on an edge, which either triangle may claim) the two triangles share a vertex and the
     surface points agree."""
-    from mesh2tex.render import interpolate
     from test_render import closed_meshes
+
+    from mesh2tex.render import interpolate
 
     vertices, faces = closed_meshes()[name]
     mesh = trimesh.Trimesh(vertices.double().numpy(), faces.numpy(), process=False)

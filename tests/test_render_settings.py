@@ -54,8 +54,9 @@ def test_unlit_world_renders_are_the_albedo_the_world_would_photograph_under_ful
 
 
 def test_a_world_and_a_training_config_make_their_settings_from_their_own_fields():
-    from mesh2tex.synthetic.world import WorldSpec
     from mesh2tex.train.gan_config import TrainGanConfig
+
+    from mesh2tex.synthetic.world import WorldSpec
 
     assert WorldSpec(resolution=96, supersample=3).photo_render == RenderSettings(96, 3, "photo")
     with pytest.raises(ValueError, match="supersample"):

@@ -11,22 +11,22 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import torch
+from test_faceconv import cube_shape
+from test_nca import grid_mesh
+from test_render import cube
 
 from mesh2tex import render
 from mesh2tex.nn.batch import collate_shapes
+from mesh2tex.nn.cell_graph import build_cell_graph
 from mesh2tex.nn.discriminator import Discriminator, DiscriminatorConfig
 from mesh2tex.nn.faceconv import FaceResNetBlock, gather_neighborhood
 from mesh2tex.nn.field import NeuralField, vertex_features
 from mesh2tex.nn.generator import GeneratorConfig, MappingNetwork, TextureGenerator
-from mesh2tex.nn.cell_graph import build_cell_graph
 from mesh2tex.nn.nca import ConditionedNCA, MeshNCA, NCAConfig
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseNet
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views, render_states
 from mesh2tex.render.uv import bake_surface_colours
-from test_faceconv import cube_shape
-from test_nca import grid_mesh
-from test_render import cube
 
 
 @pytest.fixture(scope="module")

@@ -14,13 +14,15 @@ import pytest
 import torch
 
 from mesh2tex.geometry import clean, features, hierarchy, levelset, prepare, prepared, primitives, regions
-from mesh2tex.losses import augment, ot_style, structure as structure_loss, style
+from mesh2tex.losses import augment, ot_style, style
+from mesh2tex.losses import structure as structure_loss
 from mesh2tex.losses.gan import GanLoss, GanLossConfig, mode_seeking_ratio, object_lab_moments
 from mesh2tex.metrics import appearance, distribution, evaluate, generation, spectrum, structure
 from mesh2tex.metrics.features import FeatureExtractor
 from mesh2tex.metrics.inception import InceptionV3Features
 from mesh2tex.nn.pose import PoseBins
-from mesh2tex.transfer import automaton, fit, mask as transfer_mask, optimise, pose
+from mesh2tex.transfer import automaton, fit, optimise, pose
+from mesh2tex.transfer import mask as transfer_mask
 from mesh2tex.transfer.config import TransferConfig
 from mesh2tex.transfer.photo import FramedView, Photo
 

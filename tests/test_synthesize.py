@@ -10,13 +10,13 @@ import pytest
 import torch
 import trimesh
 from PIL import Image
+from user_assets import stool, write_obj
 
 from mesh2tex.cli import main
 from mesh2tex.io.assets import load_glb
 from mesh2tex.render.bake import new_atlas
 from mesh2tex.synthetic.exemplars import exemplar_image
 from mesh2tex.texel_synthesis import SynthesisConfig, TexelSurface, TexelSynthesis, exemplar_tensor, view_cameras
-from user_assets import stool, write_obj
 
 TINY = ["--iters", "4", "--texture-size", "64", "--resolution", "48", "--views", "1", "--device", "cpu"]
 

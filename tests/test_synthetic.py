@@ -207,8 +207,8 @@ def test_world_is_deterministic_for_a_seed(world, tmp_path):
 
 
 def test_vertex_colours_render_like_a_solid_material_and_change_only_the_object():
-    from mesh2tex.synthetic.materials import Material, Solid
     from mesh2tex.render import RenderSettings
+    from mesh2tex.synthetic.materials import Material, Solid
     from mesh2tex.synthetic.world import WorldSpec, render_views, sample_views
 
     shape = generate_shape("chair", np.random.default_rng([7, 0]))

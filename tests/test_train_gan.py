@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from conftest import TINY_GAN
 from PIL import Image
+from test_faceconv import cube_shape
 
 from mesh2tex.cli import main
 from mesh2tex.io.checkpoint import load_checkpoint, read_checkpoint_meta
-from conftest import TINY_GAN
-from test_faceconv import cube_shape
 
 TINY = {
     **TINY_GAN,
@@ -466,10 +466,10 @@ def test_the_path_length_phase_renders_the_first_half_of_the_batch(tiny_data, tm
 def test_supersampled_fakes_are_rendered_larger_and_box_filtered_to_the_photos_resolution(tiny_data, tmp_path, monkeypatch):
     """``supersample: 2`` renders every training fake at twice the resolution and averages 2 x 2 blocks,
     as the photos were antialiased, so that the discriminators see fakes and photos of one size."""
+    import mesh2tex.train.gan as trainer
     import torch.nn.functional as F
 
     import mesh2tex.losses.gan as gan
-    import mesh2tex.train.gan as trainer
     from mesh2tex.losses.gan import GanLoss
 
     rendered, judged = [], []

@@ -276,9 +276,10 @@ def test_infer_matches_the_training_cell_spacing_and_old_models_run_as_is(nca_fi
 def test_infer_nca_hands_back_the_users_mesh(nca_files, tmp_path):
     """Grown on a z-up STL stool (scaled by 40), the automaton's texture comes back on the stool itself:
     its vertices and triangles, the GLB's node standing it up, the PLY in the file's own frame."""
+    from user_assets import user_files
+
     from mesh2tex.geometry.mesh_io import load_user_mesh
     from mesh2tex.io.assets import Z_UP_NODE_ROTATION, load_glb
-    from user_assets import user_files
 
     stl = user_files(tmp_path / "meshes")["stl"]
     out = tmp_path / "grown"

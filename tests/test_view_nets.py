@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import torch
 import trimesh
+from mesh2tex.train.view_nets import render_view_dataset
 
 from mesh2tex.cli import main
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepare import prepare_shape
 from mesh2tex.models import load_view_network
 from mesh2tex.nn.view_nets import ViewDataConfig
-from mesh2tex.train.view_nets import render_view_dataset
 
 
 @pytest.fixture(scope="module")
@@ -131,8 +131,9 @@ def _tiny_shapes(tiny_gan):
 
 
 def test_gan_colours_follow_the_rendered_vertex_order(tiny_gan):
-    from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.train.view_nets import _GanTextures
+
+    from mesh2tex.nn.batch import collate_shapes
 
     shapes = _tiny_shapes(tiny_gan)
     gan = _GanTextures(str(tiny_gan / "run" / "checkpoint.safetensors"), shapes)

@@ -106,7 +106,6 @@ def test_the_installed_wheel_textures_a_mesh_with_a_shipped_model(wheel, tmp_pat
     dependencies (seen through a path file, so this checkout's editable install is not); from a folder
     outside the checkout, ``mesh2tex infer generate --checkpoint chair`` writes the textured mesh."""
     import trimesh
-
     from user_assets import stool
 
     env = tmp_path / "env"

@@ -10,6 +10,7 @@ import pytest
 import torch
 import trimesh
 from scipy.spatial import cKDTree
+from user_assets import Y_UP_TO_Z_UP, stool, user_files, with_planar_uvs, write_obj
 
 from mesh2tex.cli import main
 from mesh2tex.geometry.clean import normalize
@@ -18,7 +19,6 @@ from mesh2tex.io.assets import Z_UP_NODE_ROTATION, load_glb
 from mesh2tex.render import interpolate
 from mesh2tex.render.bake import BakeTarget, MeshBaker, fill_empty_texels, mesh_atlas
 from mesh2tex.render.uv import uv_atlas_problem, uv_rasterize
-from user_assets import Y_UP_TO_Z_UP, stool, user_files, with_planar_uvs, write_obj
 
 GENERATE = ["--seeds", "0", "--views", "1", "--resolution", "32", "--texture-size", "128", "--device", "cpu"]
 

@@ -18,16 +18,18 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from mesh2tex.train import runs
+from mesh2tex.train.gan_config import TrainGanConfig
 
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
 from mesh2tex.geometry.prepared import PreparedShape, load_shapes
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.models import save_inference_checkpoint, shape_hierarchy
-from mesh2tex.models.store import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY
 from mesh2tex.losses.augment import AdaptiveAugment, DiffAugment
 from mesh2tex.losses.gan import GanLoss, GanScene
 from mesh2tex.metrics.generation import mean_pairwise_delta_e, object_set_swd
+from mesh2tex.models import save_inference_checkpoint, shape_hierarchy
+from mesh2tex.models.store import D_FIELD, D_PROXY, GAN_LOSS, GENERATOR, GENERATOR_CONFIG, GENERATOR_EMA, HIERARCHY
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.discriminator import Discriminator
 from mesh2tex.nn.generator import TextureGenerator
@@ -35,8 +37,6 @@ from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.options import config_overrides
 from mesh2tex.photos import load_photo_collection
 from mesh2tex.render import CameraConfig, composite_images, orbit_camera, random_lights, turntable_angles
-from mesh2tex.train import runs
-from mesh2tex.train.gan_config import TrainGanConfig
 
 KIND = "gan"
 

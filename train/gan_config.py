@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-
 from mesh2tex.config import check_fields
 from mesh2tex.losses.augment import AugmentConfig
 from mesh2tex.losses.gan import GanLossConfig

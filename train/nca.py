@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from mesh2tex.train import runs
 
 from mesh2tex.config import check_fields, config_from_dict, load_config
 from mesh2tex.errors import UserError
@@ -38,7 +39,6 @@ from mesh2tex.options import config_overrides
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import NCACameraConfig, turntable_angles
 from mesh2tex.synthetic.world import contact_sheet
-from mesh2tex.train import runs
 
 KIND = "nca"
 VIEW_START = 30.0  # azimuth of the first sample view: off the cube-sphere's face centres

@@ -41,7 +41,6 @@ import torch
 from mesh2tex.config import save_config
 from mesh2tex.errors import InputError, UserError
 from mesh2tex.io.atomic import json_ready
-from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
 
 # The library pieces every trainer uses, in the one namespace the trainers read (``runs.X``).
 # noqa: F401
@@ -51,6 +50,7 @@ from mesh2tex.io.checkpoint import (
     read_checkpoint_meta,
     save_training_state,
 )
+from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
 from mesh2tex.progress import JsonLines, progress_bar
 from mesh2tex.runtime import (
     Distributed,

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from mesh2tex.train import runs
 
 from mesh2tex.config import load_config
 from mesh2tex.errors import UserError
@@ -53,9 +54,10 @@ from mesh2tex.synthetic.world import WorldSpec, render_views, sample_material, s
 from mesh2tex.texturing import (
     latent,
     shape_mismatch,
+)
+from mesh2tex.texturing import (
     vertex_colours as field_vertex_colours,
 )
-from mesh2tex.train import runs
 
 # --------------------------------------------------------------------------------------- data
 _GAN_STREAM = 4  # random stream of a group (WorldSpec.rng) that picks GAN or material, and the latent seed

@@ -80,30 +80,30 @@ import torch
 from mesh2tex.config import check_fields
 from mesh2tex.errors import InputError
 from mesh2tex.evaluation.generation_renders import (
-    ORACLE_STREAM,
-    LATENT_STREAM,
     DIVERSITY_STREAM,
+    LATENT_STREAM,
+    ORACLE_STREAM,
     draw_key,
-    seeded_generator,
+    fresh_photo_set,
+    generator_renders,
     ground_truth_renders,
     material_draws,
-    training_material_renders,
-    fresh_photo_set,
-    pose_view,
-    generator_renders,
     photo_set_spread,
+    pose_view,
+    seeded_generator,
+    training_material_renders,
 )
 from mesh2tex.evaluation.report import GENERATION_ROWS, SPLITS
 from mesh2tex.evaluation.summary import generation_summary
 from mesh2tex.evaluation.world import WorldData, read_world
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.photos import list_images, load_set
 from mesh2tex.io.images import colours_to_uint8, save_png
-from mesh2tex.models import load_generator
 from mesh2tex.metrics import get_feature_extractor
 from mesh2tex.metrics.evaluate import EvaluateConfig, evaluate_sets
 from mesh2tex.metrics.generation import colour_spread, mean_object_lab, mean_pairwise_delta_e, object_set_swd
+from mesh2tex.models import load_generator
 from mesh2tex.nn.generator import TextureGenerator
+from mesh2tex.photos import list_images, load_set
 from mesh2tex.progress import progress_bar
 from mesh2tex.render import RenderSettings, composite_images
 from mesh2tex.synthetic.world import sample_views

@@ -18,14 +18,13 @@ from mesh2tex.evaluation.compare import render_for_comparison
 from mesh2tex.evaluation.surfaces import generator_surface
 from mesh2tex.evaluation.world import WorldData
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.photos import square_resize
 from mesh2tex.metrics.generation import colour_spread, mean_object_lab
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import render_field_views
+from mesh2tex.photos import square_resize
 from mesh2tex.render import Lights, RenderSettings, composite_images, orbit_camera
 from mesh2tex.synthetic.world import make_material, make_shape, render_views, sample_material, sample_views
-
 
 REFERENCE_STREAM = 7919  # seeds the material draws of the diversity reference apart from the world's own
 ORACLE_STREAM = 7927  # seeds the oracle's material draws

@@ -13,13 +13,12 @@ import torch
 
 from mesh2tex.errors import InputError
 from mesh2tex.evaluation.cache import TransferCache
+from mesh2tex.evaluation.report import BASELINES, EXTRA_METHODS, PROTOCOLS
 from mesh2tex.evaluation.world import World
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.render.settings import LIGHTING
-from mesh2tex.evaluation.report import BASELINES, EXTRA_METHODS, PROTOCOLS
 from mesh2tex.metrics.evaluate import EvaluateConfig
+from mesh2tex.render.settings import LIGHTING
 from mesh2tex.transfer import ABLATIONS, TransferConfig
-
 
 # TransferConfig fields every transfer takes from the protocol's own fields of the same name, and those the ablations
 # set.

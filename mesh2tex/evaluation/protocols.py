@@ -68,18 +68,18 @@ from mesh2tex import transfer
 from mesh2tex.errors import InputError
 from mesh2tex.evaluation import backproject_photo, generator_surface, vertex_colour_surface
 from mesh2tex.evaluation.cache import TransferCache
-from mesh2tex.evaluation.queries import QueryJudge, QuerySetup
-from mesh2tex.evaluation.protocol_config import ProtocolConfig, ProtocolInputs, cache_settings
-from mesh2tex.evaluation.unconditional import run_unconditional
 from mesh2tex.evaluation.paired import compare_to_full, flat_colour_targets, mean_scores, oracle_check
+from mesh2tex.evaluation.protocol_config import ProtocolConfig, ProtocolInputs, cache_settings
+from mesh2tex.evaluation.queries import QueryJudge, QuerySetup
 from mesh2tex.evaluation.report import TRANSFER_PROTOCOLS, protocols_markdown
+from mesh2tex.evaluation.unconditional import run_unconditional
 from mesh2tex.evaluation.world import World, load_world, other_shape_name
 from mesh2tex.geometry.prepared import PreparedShape, shape_paths
 from mesh2tex.io.atomic import json_ready, write_json, write_text
 from mesh2tex.io.checkpoint import checkpoint_digest
 from mesh2tex.io.images import images_to_uint8, save_png
-from mesh2tex.models import load_generator, resolve_checkpoint
 from mesh2tex.metrics import get_feature_extractor
+from mesh2tex.models import load_generator, resolve_checkpoint
 from mesh2tex.nn.vgg import load_vgg19
 from mesh2tex.progress import progress_bar
 from mesh2tex.runtime import select_device

@@ -14,8 +14,10 @@ from mesh2tex.evaluation import (
     flat_surface,
     other_views,
     photo_mean_colour,
+    render_for_comparison,
+    score_views,
+    seen_and_unseen,
 )
-from mesh2tex.evaluation import render_for_comparison, score_views, seen_and_unseen
 from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth, reference_renders
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.nn.batch import collate_shapes

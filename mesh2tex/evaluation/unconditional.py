@@ -7,18 +7,16 @@ import time
 
 import torch
 
+from mesh2tex.evaluation.protocol_config import ProtocolInputs
 from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.photos import list_images, load_set
 from mesh2tex.io.images import images_to_uint8, save_png
 from mesh2tex.metrics import to_unit
 from mesh2tex.metrics.evaluate import evaluate_sets
 from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.render_texture import render_field_views
+from mesh2tex.photos import list_images, load_set
 from mesh2tex.render import orbit_camera
 from mesh2tex.texturing import latent
-
-
-from mesh2tex.evaluation.protocol_config import ProtocolInputs
 
 
 @torch.no_grad()

@@ -13,8 +13,7 @@ from mesh2tex.geometry.clean import Normalization, clean_mesh, decimate, normali
 from mesh2tex.geometry.features import face_features, noc_coordinates
 from mesh2tex.geometry.hierarchy import face_neighborhoods, pooling_map
 from mesh2tex.geometry.levelset import surface_samples
-from mesh2tex.geometry.prepared import PreparedShape
-from mesh2tex.geometry.prepared import quads_to_triangles
+from mesh2tex.geometry.prepared import PreparedShape, quads_to_triangles
 from mesh2tex.geometry.quadremesh import Budget, QuadRemeshError, remesh_hierarchy
 
 # QuadriFlow's run time grows with the input; more triangles than this add nothing at 6144 quads

@@ -32,7 +32,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from scipy.spatial import cKDTree
 
 from mesh2tex.geometry.clean import isotropic_remesh, triangle_areas

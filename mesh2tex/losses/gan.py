@@ -46,9 +46,8 @@ from typing import Callable
 
 import torch
 import torch.nn.functional as F
-from torch import nn
-
 from kornia.color import rgb_to_lab
+from torch import nn
 
 from mesh2tex.checks import check_shape
 from mesh2tex.config import check_fields

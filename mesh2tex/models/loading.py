@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-
 import torch
 
 from mesh2tex.config import config_from_dict

@@ -16,9 +16,9 @@ import torch
 
 from mesh2tex.checks import check_shape, check_type
 from mesh2tex.nn.batch import MeshBatch
+from mesh2tex.nn.cell_graph import CellGraph
 from mesh2tex.nn.faceconv import take_rows
 from mesh2tex.nn.generator import FaceTexture, TextureGenerator
-from mesh2tex.nn.cell_graph import CellGraph
 from mesh2tex.nn.nca import MeshNCA
 from mesh2tex.render import Lights, quad_normals, rasterize, shade_colours, transform_points
 

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 import torch
 
 from mesh2tex.config import MAX_CHANNELS, check_fields
-
 from mesh2tex.nn.mask import MaskUNet
 from mesh2tex.nn.noc import NocUNet
 from mesh2tex.nn.pose import PoseBins, PoseNet

@@ -19,6 +19,7 @@ The same closest-point map gives the colour at each of the user's vertices (the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 import torch
 from scipy import ndimage

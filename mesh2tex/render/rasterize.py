@@ -45,7 +45,6 @@ import torch
 
 from mesh2tex.checks import check_shape
 from mesh2tex.render import kernels
-from mesh2tex.render.edges import EdgeTest, band_scale
 from mesh2tex.render.binning import (
     N_BINS,
     REGION,
@@ -59,6 +58,7 @@ from mesh2tex.render.binning import (
     size_bins,
     split,
 )
+from mesh2tex.render.edges import EdgeTest, band_scale
 
 # Candidate (triangle, pixel) pairs handled at once; about 130 bytes of temporaries each.
 DEFAULT_MAX_PAIRS = 1 << 21

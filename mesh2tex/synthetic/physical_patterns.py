@@ -25,7 +25,6 @@ from mesh2tex.synthetic.materials import (
     triplanar,
 )
 
-
 RUBBER = (0.16, 0.16, 0.17)  # tyre rubber, sRGB
 WEAVE_MEAN = 0.7043  # the mean of |sin(pi x)|^0.7, the weave's brightness
 

@@ -22,7 +22,6 @@ The albedo statistics and spatial frequencies of each material are in ``docs/syn
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from mesh2tex.synthetic.materials import (
@@ -40,17 +39,17 @@ from mesh2tex.synthetic.materials import (
 )
 from mesh2tex.synthetic.physical_patterns import (
     RUBBER,
-    fade,
-    banded_noise,
-    Grain,
-    Fabric,
-    Leather,
-    Seams,
+    AtScale,
     BrushedMetal,
+    DarkGlass,
+    Fabric,
+    Grain,
+    Leather,
     Painted,
     Rubber,
-    DarkGlass,
-    AtScale,
+    Seams,
+    banded_noise,
+    fade,
 )
 from mesh2tex.synthetic.shapes import SyntheticShape
 from mesh2tex.synthetic.solids import PART_ID

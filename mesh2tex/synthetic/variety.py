@@ -11,7 +11,7 @@ import numpy as np
 
 from mesh2tex.synthetic.car_families import CAR_FAMILIES
 from mesh2tex.synthetic.chair_families import CHAIR_FAMILIES
-from mesh2tex.synthetic.shapes import SyntheticShape, shape_from_design, generate_shape
+from mesh2tex.synthetic.shapes import SyntheticShape, generate_shape, shape_from_design
 
 VARIETIES: tuple[str, ...] = ("boxy", "real")
 # category -> family name -> (design function, share, parts every shape of the family has)

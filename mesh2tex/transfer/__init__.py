@@ -10,9 +10,9 @@ against the photo (:class:`PhotoLoss`); ``automaton``: a mesh automaton fitted t
 (``infer/transfer.py``) reads the files and writes the results.
 """
 
+from mesh2tex.transfer.automaton import AutomatonFit, AutomatonFitConfig, fit_automaton
 from mesh2tex.transfer.config import ABLATIONS, TransferConfig, check_style_sizes
 from mesh2tex.transfer.optimise import PhotoLoss, TransferResult, transfer_texture
-from mesh2tex.transfer.automaton import AutomatonFit, AutomatonFitConfig, fit_automaton
 from mesh2tex.transfer.photo import (
     FramedView,
     MaskedPhoto,

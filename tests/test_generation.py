@@ -15,54 +15,15 @@ from mesh2tex.cli import main
 from mesh2tex.evaluation.generation import GenerationConfig, read_world, run_generation_protocol
 from mesh2tex.evaluation.generation_renders import fresh_photo_set, ground_truth_renders
 from mesh2tex.evaluation.report import generation_markdown
-from mesh2tex.metrics.generation import (
-    colour_spread,
-    gap_closed,
-    mean_object_lab,
-    mean_pairwise_delta_e,
-    object_set_swd,
-)
 from mesh2tex.photos import list_images, load_set
 from mesh2tex.synthetic.world import sample_views
 
 
-def test_colour_measures_on_known_images():
-    white, black = torch.ones(1, 3, 4, 4), torch.zeros(1, 3, 4, 4)
-    mask = torch.ones(1, 1, 4, 4)
-    lab = mean_object_lab(torch.cat([white, black]), mask.repeat(2, 1, 1, 1))
-    assert lab[0, 0] == pytest.approx(100, abs=0.1) and lab[1, 0] == pytest.approx(0, abs=0.1)
-    assert colour_spread(lab) == pytest.approx(50, abs=0.1), "two colours 100 apart: spread 50"
-    assert colour_spread(lab[[0, 0]]) == 0
-    assert mean_pairwise_delta_e(torch.cat([white, black, white]), mask[0]) == pytest.approx(200 / 3, abs=0.1)
-    with pytest.raises(ValueError, match="no object pixel"):
-        mean_object_lab(white, torch.zeros(1, 1, 4, 4))
-
-
-def test_object_set_swd_sees_object_colours_not_backgrounds():
-    torch.manual_seed(0)
-    masks = torch.zeros(6, 1, 32, 32)
-    masks[:, :, 8:24, 8:24] = 1
-    red = torch.zeros(6, 3, 32, 32)
-    red[:, 0] = 0.8
-    noisy_red = (red + 0.05 * torch.randn_like(red)).clamp(0, 1)
-    blue = noisy_red[:, [2, 1, 0]]
-    other_background = noisy_red * masks + torch.rand(6, 3, 32, 32) * (1 - masks)
-    same = object_set_swd(noisy_red, masks, noisy_red.flip(0), masks)
-    assert object_set_swd(other_background, masks, noisy_red, masks) == pytest.approx(same, rel=0.3, abs=5)
-    assert object_set_swd(blue, masks, noisy_red, masks) > 5 * max(same, 1.0)
-
-
-def test_gap_closed():
-    assert gap_closed(200.0, 200.0, 50.0) == 0
-    assert gap_closed(200.0, 50.0, 50.0) == pytest.approx(1)
-    assert gap_closed(200.0, 100.0, 50.0) == pytest.approx(0.5)
-    assert gap_closed(200.0, 300.0, 50.0) < 0
-    assert np.isnan(gap_closed(50.0, 40.0, 60.0)), "an oracle that loses makes the figure meaningless"
-
-
 def _world_photos(world, resolution: int, shape: str | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """The world's photo set as the protocol reads it (only ``shape``'s photos when given)."""
-    photos, masks = load_set(world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask"))
+    photos, masks = load_set(
+        world.root / "images", "image", resolution, 1.0, masks=list_images(world.root / "masks", "mask")
+    )
     if shape is None:
         return photos, masks
     keep = torch.tensor([stem.rsplit("_", 1)[0] == shape for stem in list_images(world.root / "images", "image")])
@@ -101,13 +62,18 @@ def test_generator_rows_are_rendered_through_the_oracles_pipeline(world_and_gan,
     name = world.held_out[0]
     shape = PreparedShape.load(world_and_gan / "shapes" / f"{name}.npz")
     generator = load_generator(world_and_gan / "gan" / "checkpoint.safetensors", torch.device("cpu")).network
-    monkeypatch.setattr(FaceTexture, "colours", lambda texture, triangle_id, bary: torch.full((len(triangle_id), 3), 0.2))
+    monkeypatch.setattr(
+        FaceTexture, "colours", lambda texture, triangle_id, bary: torch.full((len(triangle_id), 3), 0.2)
+    )
     views = sample_views(world.spec, world.indices[name], 2)
     z = torch.randn(2, generator.cfg.z_dim)
-    images, masks = renders.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True,
-                                                 photo_render=world.spec.photo_render)
+    images, masks = renders.generator_renders(
+        generator, shape, views, 16, z, torch.device("cpu"), lit=True, photo_render=world.spec.photo_render
+    )
     batch = collate_shapes([shape])
-    out = render_for_comparison(flat_surface(batch.shape_vertices(0), batch.shape_triangles(0), [0.6, 0.6, 0.6]), views, world.spec.photo_render)
+    out = render_for_comparison(
+        flat_surface(batch.shape_vertices(0), batch.shape_triangles(0), [0.6, 0.6, 0.6]), views, world.spec.photo_render
+    )
     expected, expected_masks = renders.read_as_photos(composite_images(out.rgb, out.mask, 1.0), out.mask, 16)
     assert torch.equal(masks, expected_masks) and (images - expected).abs().max() < 1e-5
     direct, _ = renders.generator_renders(generator, shape, views, 16, z, torch.device("cpu"), lit=True)
@@ -121,7 +87,9 @@ def test_distances_are_to_a_fresh_photo_set_not_the_training_photos(world_and_ga
     reference, reference_masks = fresh_photo_set(world, 32, seed=0)
     photos, photo_masks = _world_photos(world, 32)
     assert torch.equal(reference_masks, photo_masks), "same shapes, same cameras"
-    assert ((reference - photos).abs() * photo_masks).amax(dim=(1, 2, 3)).min() > 0.1, "every photo gets another material"
+    assert ((reference - photos).abs() * photo_masks).amax(dim=(1, 2, 3)).min() > 0.1, (
+        "every photo gets another material"
+    )
     again, _ = fresh_photo_set(world, 32, seed=0)
     assert torch.equal(again, reference)
 
@@ -132,18 +100,60 @@ def world_and_gan(tmp_path_factory):
     make_tiny_world(root, views=3, resolution=32, query_views=1)
     world, shapes = root / "world", root / "shapes"
     (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
-    assert main(["train", "gan", "--shapes", str(shapes), "--images", str(world), "--out", str(root / "gan"), "--config",
-                 str(root / "tiny.yaml"), "--iters", "1", "--batch", "1", "--views", "1", "--resolution", "32", "--device", "cpu"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "gan",
+                "--shapes",
+                str(shapes),
+                "--images",
+                str(world),
+                "--out",
+                str(root / "gan"),
+                "--config",
+                str(root / "tiny.yaml"),
+                "--iters",
+                "1",
+                "--batch",
+                "1",
+                "--views",
+                "1",
+                "--resolution",
+                "32",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
     return root
 
 
 def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     root = world_and_gan
-    cfg = GenerationConfig(views=6, latents=3, kid_fid=False, repeats=2)  # 3 draws against 6 fresh photos are too few to rank
-    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors", cfg,
-                                     samples_path=tmp_path / "grid.png", log=lambda line: None)
+    cfg = GenerationConfig(
+        views=6, latents=3, kid_fid=False, repeats=2
+    )  # 3 draws against 6 fresh photos are too few to rank
+    result = run_generation_protocol(
+        root / "world",
+        root / "shapes",
+        root / "gan" / "checkpoint.safetensors",
+        cfg,
+        samples_path=tmp_path / "grid.png",
+        log=lambda line: None,
+    )
     rows = result["rows"]
-    assert set(rows) == {"trained", "untrained", "oracle", "oracle_unlit", "ground_truth", "training_materials", "flat_colour", "mean_texture"}
+    assert set(rows) == {
+        "trained",
+        "untrained",
+        "oracle",
+        "oracle_unlit",
+        "ground_truth",
+        "training_materials",
+        "flat_colour",
+        "mean_texture",
+    }
     # The oracle's textures also beat the simple baseline, one flat colour (the photo set's mean).
     assert rows["oracle"]["object_swd"] < rows["flat_colour"]["object_swd"]
     # The oracle is fresh photos of the held-out shapes with textures from the world's sampler: it must
@@ -155,15 +165,28 @@ def test_protocol_rows_oracle_and_diversity(world_and_gan, tmp_path):
     assert isinstance(result["oracle_loses"], list)
     # Every distance is the mean of the draws; the first draw is the one-draw protocol's.
     per_draw = rows["trained"]["object_swd_per_draw"]
-    assert len(per_draw) == 2 == len(result["gap_closed_per_draw"]) and rows["trained"]["object_swd"] == pytest.approx(np.mean(per_draw))
-    one = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                  dataclasses.replace(cfg, repeats=1), log=lambda line: None)
+    assert len(per_draw) == 2 == len(result["gap_closed_per_draw"]) and rows["trained"]["object_swd"] == pytest.approx(
+        np.mean(per_draw)
+    )
+    one = run_generation_protocol(
+        root / "world",
+        root / "shapes",
+        root / "gan" / "checkpoint.safetensors",
+        dataclasses.replace(cfg, repeats=1),
+        log=lambda line: None,
+    )
     assert one["rows"]["oracle"]["object_swd"] == pytest.approx(rows["oracle"]["object_swd_per_draw"][0])
     assert one["rows"]["trained"]["object_swd"] == pytest.approx(per_draw[0])
     assert all(np.isfinite(rows[row]["object_swd_vs_photos"]) for row in rows)
     d = result["diversity"]
-    assert d["reference_materials"]["spread"] > 1 and d["reference_materials"]["pairwise"] > 1 and d["photo_set_spread"] > 1
-    assert d["trained"]["spread"] >= 0 and d["trained_spread_vs_photo_set"] == pytest.approx(d["trained"]["spread"] / d["photo_set_spread"])
+    assert (
+        d["reference_materials"]["spread"] > 1
+        and d["reference_materials"]["pairwise"] > 1
+        and d["photo_set_spread"] > 1
+    )
+    assert d["trained"]["spread"] >= 0 and d["trained_spread_vs_photo_set"] == pytest.approx(
+        d["trained"]["spread"] / d["photo_set_spread"]
+    )
     assert (tmp_path / "grid.png").is_file()
 
 
@@ -180,8 +203,13 @@ def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp
         return model
 
     monkeypatch.setattr(generation, "load_generator", collapsed)
-    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                     GenerationConfig(views=2, latents=3, kid_fid=False, repeats=1), log=lambda line: None)
+    result = run_generation_protocol(
+        root / "world",
+        root / "shapes",
+        root / "gan" / "checkpoint.safetensors",
+        GenerationConfig(views=2, latents=3, kid_fid=False, repeats=1),
+        log=lambda line: None,
+    )
     assert result["diversity"]["trained"]["spread"] == pytest.approx(0, abs=1e-3)
     assert result["diversity"]["trained"]["pairwise"] == pytest.approx(0, abs=1e-3)
 
@@ -189,19 +217,61 @@ def test_a_generator_that_ignores_its_latent_has_no_diversity(world_and_gan, tmp
 def test_full_truncation_paints_the_mean_texture_for_every_latent(world_and_gan, capsys):
     # Truncation 0 pulls every latent onto w_avg: the trained row is the mean texture, with no diversity.
     root = world_and_gan
-    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                     GenerationConfig(views=2, latents=3, kid_fid=False, repeats=1, truncation=0.0), log=lambda line: None)
+    result = run_generation_protocol(
+        root / "world",
+        root / "shapes",
+        root / "gan" / "checkpoint.safetensors",
+        GenerationConfig(views=2, latents=3, kid_fid=False, repeats=1, truncation=0.0),
+        log=lambda line: None,
+    )
     rows, diversity = result["rows"], result["diversity"]
     assert rows["trained"]["object_swd"] == pytest.approx(rows["mean_texture"]["object_swd"], rel=1e-4)
     assert diversity["trained"]["spread"] == pytest.approx(0, abs=1e-3) and diversity["untrained"]["spread"] > 0.1
     with pytest.raises(ValueError, match=r"truncation must be in \[0, 1\]"):
         GenerationConfig(truncation=1.5)
     # The command takes it as 'infer generate' does.
-    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--checkpoint", "g", "--out", "o", "--truncation", "0.7", "--print-config"]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--generation",
+                "--world",
+                "w",
+                "--shapes",
+                "s",
+                "--checkpoint",
+                "g",
+                "--out",
+                "o",
+                "--truncation",
+                "0.7",
+                "--print-config",
+            ]
+        )
+        == 0
+    )
     assert "truncation: 0.7" in capsys.readouterr().out
     # The generator's renders: as the oracle's by default, the GAN's own renderer on request (earlier figures).
-    assert main(["evaluate", "--generation", "--world", "w", "--shapes", "s", "--checkpoint", "g", "--out", "o", "--generator-render", "direct",
-                 "--print-config"]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--generation",
+                "--world",
+                "w",
+                "--shapes",
+                "s",
+                "--checkpoint",
+                "g",
+                "--out",
+                "o",
+                "--generator-render",
+                "direct",
+                "--print-config",
+            ]
+        )
+        == 0
+    )
     assert "generator_render: direct" in capsys.readouterr().out
     assert GenerationConfig().generator_render == "photo"
     with pytest.raises(ValueError, match="generator_render must be one of photo, direct"):
@@ -216,7 +286,11 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     from mesh2tex.evaluation import generation
     from mesh2tex.evaluation import generation_renders as renders
 
-    original_load, original_render, original_draws = generation.load_generator, generation.generator_renders, generation.material_draws
+    original_load, original_render, original_draws = (
+        generation.load_generator,
+        generation.generator_renders,
+        generation.material_draws,
+    )
     seen, sides, oracle, diversity_reference, fresh_photos = [], [], [], [], []
 
     def load(path, device):
@@ -242,8 +316,13 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
     monkeypatch.setattr(generation, "generator_renders", render)
     monkeypatch.setattr(generation, "material_draws", material)
     monkeypatch.setattr(renders, "material_draws", material)  # the fresh photo set's draws
-    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                     GenerationConfig(views=2, latents=2, kid_fid=False), log=lambda line: None)
+    result = run_generation_protocol(
+        root / "world",
+        root / "shapes",
+        root / "gan" / "checkpoint.safetensors",
+        GenerationConfig(views=2, latents=2, kid_fid=False),
+        log=lambda line: None,
+    )
     assert result["generator_lit"] is enabled
     assert len(seen) >= 4 * len(result["shapes"]) and all(lit is enabled for lit in seen)
     # Every generator render goes through the pipeline of the oracle and the photos, with the world's photos' settings.
@@ -256,11 +335,32 @@ def test_generator_rows_are_lit_as_the_generator_was_trained(world_and_gan, tmp_
 
 def test_command_writes_results_and_refuses_to_overwrite(world_and_gan, tmp_path, capsys):
     root = world_and_gan
-    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--checkpoint",
-            str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--repeats", "1", "--kid-subsets", "2",
-            "--device", "cpu", "--features", "randvgg"]
+    args = [
+        "evaluate",
+        "--generation",
+        "--world",
+        str(root / "world"),
+        "--shapes",
+        str(root / "shapes"),
+        "--checkpoint",
+        str(root / "gan" / "checkpoint.safetensors"),
+        "--out",
+        str(tmp_path / "out"),
+        "--latents",
+        "2",
+        "--repeats",
+        "1",
+        "--kid-subsets",
+        "2",
+        "--device",
+        "cpu",
+        "--features",
+        "randvgg",
+    ]
     assert main(args) == 0
-    assert {"generation.json", "generation.md", "generation_samples.png"} <= {p.name for p in (tmp_path / "out").iterdir()}
+    assert {"generation.json", "generation.md", "generation_samples.png"} <= {
+        p.name for p in (tmp_path / "out").iterdir()
+    }
     assert "Gap closed" in (tmp_path / "out" / "generation.md").read_text()
     assert main(args) == 2 and "--overwrite" in capsys.readouterr().err
     assert main(args[:5] + args[7:]) == 2 and "--generation needs --checkpoint" in capsys.readouterr().err
@@ -270,82 +370,37 @@ def test_the_training_split_measures_the_shapes_the_gan_trained_on(world_and_gan
     """``split: train`` puts the world's training shapes, not its held-out ones, through the same rows."""
     root = world_and_gan
     index = json.loads((root / "world" / "index.json").read_text())
-    result = run_generation_protocol(root / "world", root / "shapes", root / "gan" / "checkpoint.safetensors",
-                                     GenerationConfig(views=6, latents=2, kid_fid=False, max_shapes=1, split="train", repeats=1), log=lambda line: None)
+    result = run_generation_protocol(
+        root / "world",
+        root / "shapes",
+        root / "gan" / "checkpoint.safetensors",
+        GenerationConfig(views=6, latents=2, kid_fid=False, max_shapes=1, split="train", repeats=1),
+        log=lambda line: None,
+    )
     assert result["split"] == "train" and result["shapes"] == index["split"]["train_shapes"][:1]
     assert result["shapes"][0] not in index["split"]["query_shapes"]
     assert result["rows"]["oracle"]["object_swd"] < result["rows"]["untrained"]["object_swd"]
     assert "1 training shapes" in generation_markdown(result)
     # Through the command: only the first training shape is prepared, so the second one is named.
-    args = ["evaluate", "--generation", "--world", str(root / "world"), "--shapes", str(root / "shapes"), "--checkpoint",
-            str(root / "gan" / "checkpoint.safetensors"), "--out", str(tmp_path / "out"), "--latents", "2", "--split", "train",
-            "--device", "cpu", "--features", "randvgg"]
+    args = [
+        "evaluate",
+        "--generation",
+        "--world",
+        str(root / "world"),
+        "--shapes",
+        str(root / "shapes"),
+        "--checkpoint",
+        str(root / "gan" / "checkpoint.safetensors"),
+        "--out",
+        str(tmp_path / "out"),
+        "--latents",
+        "2",
+        "--split",
+        "train",
+        "--device",
+        "cpu",
+        "--features",
+        "randvgg",
+    ]
     assert main(args) == 2
     assert f"the training shape {index['split']['train_shapes'][1]} is not prepared" in capsys.readouterr().err
-
-
-def test_pose_view_turns_the_light_with_the_camera():
-    """The diversity pose keeps a photo's light where the photo had it relative to the camera."""
-    import math
-
-    from mesh2tex.evaluation.generation_renders import pose_view
-    from mesh2tex.render import orbit_direction as light_direction
-    from mesh2tex.synthetic.world import PhotoSetup
-
-    light = light_direction(torch.tensor([100.0 + 40.0]), torch.tensor([50.0]))[0].tolist()
-    view = PhotoSetup(azimuth=100.0, elevation=10.0, distance=1.7, fov=40.0, light=tuple(light), ambient=0.4, background="solid", background_seed=0)
-    moved = pose_view(view, 35.0, 20.0, 1.8)
-    expected = light_direction(torch.tensor([35.0 + 40.0]), torch.tensor([50.0]))[0]
-    assert torch.allclose(torch.tensor(moved.light), expected, atol=1e-5)
-    assert (moved.azimuth, moved.elevation, moved.distance, moved.ambient) == (35.0, 20.0, 1.8, 0.4)
-    assert math.isclose(sum(v * v for v in moved.light), 1.0, abs_tol=1e-5)
-
-
-def test_the_commands_offer_the_protocols_lightings_and_splits():
-    """evaluate/options.py spells the choices out (it must not import torch); they stay the protocol's."""
-    import argparse
-
-    from mesh2tex.evaluate.options import evaluate
-
-    from mesh2tex.evaluation.generation import LIGHTING_MODES, SPLITS
-
-    parser = argparse.ArgumentParser()
-    evaluate(parser)
-    choices = {action.dest: list(action.choices) for action in parser._actions if action.choices}
-    assert choices["gan_lighting"] == list(LIGHTING_MODES)
-    assert choices["split"] == list(SPLITS)
-
-
-def test_a_world_of_one_training_shape_reports_its_photo_spread_as_undefined(tmp_path):
-    """The photo set's spread across shapes needs two shapes: with one, the protocol still finishes and
-    its report says the figure is undefined, instead of ending in a traceback."""
-    from mesh2tex.evaluation.generation_renders import photo_set_spread
-
-    photos, masks = torch.rand(3, 3, 8, 8), torch.ones(3, 1, 8, 8)
-    assert np.isnan(photo_set_spread(None, photos, masks, ["chair_0001_00", "chair_0001_01", "chair_0001_02"]))
-    assert np.isfinite(photo_set_spread(None, photos, masks, ["chair_0001_00", "chair_0002_00", "chair_0002_01"]))
-
-
-@pytest.mark.slow
-def test_the_protocol_runs_on_a_world_of_one_training_shape(tmp_path, capsys):
-    from mesh2tex.geometry.mesh_io import load_mesh
-    from mesh2tex.geometry.prepare import prepare_shape
-
-    world, shapes = tmp_path / "world", tmp_path / "shapes"
-    assert main(["prepare", "synthetic", "--out", str(world), "--shapes", "2", "--query-shapes", "1", "--views", "3", "--resolution", "32",
-                 "--texture-size", "64", "--seed", "3", "--query-views", "1"]) == 0
-    shapes.mkdir()
-    split = json.loads((world / "index.json").read_text())["split"]
-    assert len(split["train_shapes"]) == 1
-    for name in split["train_shapes"] + split["query_shapes"]:
-        vertices, faces = load_mesh(world / "meshes" / f"{name}.obj")
-        prepare_shape(vertices, faces, face_count=96, levels=3, seed=0).save(shapes / f"{name}.npz")
-    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
-    assert main(["train", "gan", "--shapes", str(shapes), "--images", str(world), "--out", str(tmp_path / "gan"), "--config",
-                 str(tmp_path / "tiny.yaml"), "--iters", "1", "--batch", "1", "--views", "1", "--resolution", "32", "--device", "cpu"]) == 0
-    capsys.readouterr()
-    assert main(["evaluate", "--generation", "--world", str(world), "--shapes", str(shapes), "--checkpoint", str(tmp_path / "gan" / "checkpoint.safetensors"),
-                 "--out", str(tmp_path / "ev"), "--latents", "2", "--repeats", "1"]) == 0
-    out = capsys.readouterr().out
-    assert "| photo set, across shapes (reference) | undefined (one training shape) |" in out
-    assert json.loads((tmp_path / "ev" / "generation.json").read_text())["diversity"]["photo_set_spread"] is None

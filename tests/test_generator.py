@@ -24,9 +24,22 @@ from mesh2tex.render import RenderSettings, orbit_camera
 
 
 def tiny_generator(coords: str = "raw", levels: int = 3, kind: str = "faceconv") -> TextureGenerator:
-    cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * levels,
-                          synthesis_channels=[8] * levels, field_hidden=16, aux_latent_dim=8, field_coords=coords,
-                          kind=kind, nca_channels=6, nca_hidden=16, nca_steps=4, nca_condition=4)
+    cfg = GeneratorConfig(
+        z_dim=16,
+        w_dim=16,
+        mapping_layers=2,
+        input_features=4,
+        encoder_channels=[8] * levels,
+        synthesis_channels=[8] * levels,
+        field_hidden=16,
+        aux_latent_dim=8,
+        field_coords=coords,
+        kind=kind,
+        nca_channels=6,
+        nca_hidden=16,
+        nca_steps=4,
+        nca_condition=4,
+    )
     return TextureGenerator(cfg)
 
 
@@ -99,7 +112,9 @@ def test_a_fresh_generator_starts_from_unsaturated_colours():
     batch = tiny_batch()
     for seed in range(6):
         torch.manual_seed(seed)
-        gen = TextureGenerator(GeneratorConfig(input_features=4, encoder_channels=[16] * 3, synthesis_channels=[16] * 3))
+        gen = TextureGenerator(
+            GeneratorConfig(input_features=4, encoder_channels=[16] * 3, synthesis_channels=[16] * 3)
+        )
         _, ws = gen(batch, torch.randn(2, gen.cfg.z_dim))
         out = render_field_views(gen, batch, ws, views(), (16, 16), torch.zeros(4, 3), noise_mode="none")
         colours = out.images.permute(0, 2, 3, 1)[out.mask[:, 0] > 0]
@@ -125,8 +140,9 @@ def test_render_and_gradients_reach_every_parameter(coords):
     assert torch.equal(out.images.permute(0, 2, 3, 1)[~cover], bg.permute(0, 2, 3, 1)[~cover])
     loss = d_field(out.images).sum() + d_proxy(out.proxy).sum()
     loss.backward()
-    for name, p in itertools.chain(gen.named_parameters(), d_field.named_parameters(prefix="d_field"),
-                                   d_proxy.named_parameters(prefix="d_proxy")):
+    for name, p in itertools.chain(
+        gen.named_parameters(), d_field.named_parameters(prefix="d_field"), d_proxy.named_parameters(prefix="d_proxy")
+    ):
         assert p.grad is not None and torch.isfinite(p.grad).all() and p.grad.abs().sum() > 0, name
 
 
@@ -145,89 +161,6 @@ def test_field_is_evaluated_only_at_covered_pixels(monkeypatch):
     assert samples.triangle_id[2:][samples.mask[2:]].min() >= 192
 
 
-def test_discriminator_resolutions():
-    d = Discriminator(32, DiscriminatorConfig(channel_base=128, channel_max=16))
-    assert d(torch.randn(3, 3, 32, 32)).shape == (3,)
-    with pytest.raises(ValueError):
-        Discriminator(48)
-
-
-def test_discriminator_downsampling_blurs_then_strides():
-    """A down layer blurs with [1,3,3,1] (zero padded) and then strides; the 1x1 skip blurs only the
-    pixels it reads, which is the same as blurring everything and striding."""
-    from mesh2tex.nn.discriminator import Conv2dLayer
-
-    torch.manual_seed(7)
-    x = torch.randn(2, 3, 16, 16)
-    for kernel in (1, 3):
-        layer = Conv2dLayer(3, 5, kernel, activation="linear", down=True, bias=False)
-        pad = (kernel - 1) // 2 + 1
-        blurred = torch.nn.functional.conv2d(torch.nn.functional.pad(x, [pad] * 4), layer.blur.expand(3, 1, 4, 4), groups=3)
-        expected = torch.nn.functional.conv2d(blurred, layer.weight * layer.weight_gain, stride=2)
-        torch.testing.assert_close(layer(x), expected)
-        assert layer(x).shape == (2, 5, 8, 8)
-
-
-def test_discriminator_logits_and_gradients_do_not_depend_on_the_memory_layout():
-    """On a CPU the discriminator runs channels-last: its logits, input gradients (with R1's double
-    backward) and weight gradients are those of the same layers run on contiguous tensors."""
-    torch.manual_seed(3)
-    d = Discriminator(32, DiscriminatorConfig(channel_base=256, channel_max=32)).double()
-    x = torch.randn(4, 3, 32, 32, dtype=torch.float64, requires_grad=True)
-
-    def contiguous_forward(images):
-        y = d.fromrgb(images)
-        for block in d.blocks:
-            y = block(y.contiguous())
-        return d.out(d.fc(d.conv(d.minibatch_std(y.contiguous())).flatten(1))).squeeze(1)
-
-    results = []
-    for forward in (d, contiguous_forward):
-        d.zero_grad()
-        logits = forward(x)
-        (grad,) = torch.autograd.grad(logits.sum(), x, create_graph=True)
-        (logits.sum() + grad.square().sum()).backward()
-        results.append([logits.detach(), grad.detach()] + [p.grad.clone() for p in d.parameters() if p.grad is not None])
-    assert len(results[0]) == len(results[1])
-    for a, b in zip(*results):
-        torch.testing.assert_close(a, b, rtol=1e-10, atol=1e-12)
-
-
-def test_discriminator_has_no_strided_1x1_convolution(monkeypatch):
-    """oneDNN's backward of a strided 1x1 convolution on channels-last inputs with few channels writes
-    out of bounds (oneDNN issue 6035): the channels-last discriminator must never run one."""
-    calls = []
-    conv2d = torch.nn.functional.conv2d
-
-    def recording_conv2d(x, weight, *args, stride=1, **kwargs):
-        calls.append((tuple(weight.shape[-2:]), stride))
-        return conv2d(x, weight, *args, stride=stride, **kwargs)
-
-    monkeypatch.setattr(torch.nn.functional, "conv2d", recording_conv2d)
-    d = Discriminator(32, DiscriminatorConfig(channel_base=256, channel_max=32))
-    d(torch.randn(4, 3, 32, 32)).sum().backward()
-    assert any(kernel == (1, 1) for kernel, _ in calls) and any(stride == 2 for _, stride in calls)
-    assert not [c for c in calls if c[0] == (1, 1) and c[1] not in (1, (1, 1))]
-
-
-def test_discriminator_judges_fakes_apart_from_reals():
-    """The minibatch standard deviation is the discriminator's one view of diversity: the fakes'
-    logits in the D loss must not depend on which reals share the step."""
-    import torch.nn.functional as F
-
-    from mesh2tex.losses.gan import GanLoss, GanLossConfig
-
-    torch.manual_seed(0)
-    d = Discriminator(16, DiscriminatorConfig(channel_base=64, channel_max=16, mbstd_group=4))
-    loss = GanLoss(GanLossConfig(), None, d, d)
-    fake = torch.randn(1, 3, 16, 16).repeat(4, 1, 1, 1)  # a collapsed generator: four identical fakes
-    real = torch.randn(4, 3, 16, 16)
-    with torch.no_grad():
-        combined = loss._d_main(d, fake, real)
-        apart = F.softplus(d(fake)).mean() + F.softplus(-d(real)).mean()
-    torch.testing.assert_close(combined, apart)
-
-
 def test_psi_colours_start_from_the_blended_proxy_colours():
     """With field_residual (the default), psi adds to the blend of the per-face (proxy) colours: a
     latent swap moves psi's colours about as much as the proxy's, which the proxy discriminator trains."""
@@ -243,6 +176,7 @@ def test_psi_colours_start_from_the_blended_proxy_colours():
         corner = batch.triangles()[triangle_id]
         # the base at a triangle's centre is the mean of its three vertices' mean face colours
         from mesh2tex.nn.field import vertex_features
+
         vertex_rgb = vertex_features(texture.face_rgb, batch.quads, batch.num_vertices)
         torch.testing.assert_close(base, vertex_rgb[corner].mean(1))
 
@@ -254,16 +188,31 @@ def test_psi_reads_the_latent_not_only_the_geometry():
     gen, batch = tiny_generator(), tiny_batch()
     assert gen.field_dim == gen.cfg.synthesis_channels[0]
     mvp = views()
-    out = [render_field_views(gen, batch, gen.mapping(torch.randn(2, 16)), mvp, (16, 16), torch.zeros(4, 3), noise_mode="none")
-           for _ in range(2)]
+    out = [
+        render_field_views(
+            gen, batch, gen.mapping(torch.randn(2, 16)), mvp, (16, 16), torch.zeros(4, 3), noise_mode="none"
+        )
+        for _ in range(2)
+    ]
     cover = out[0].mask > 0
     assert (out[0].images - out[1].images).abs()[cover.expand_as(out[0].images)].mean() > 1e-3
-    cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * 3,
-                          synthesis_channels=[8] * 3, field_hidden=16, aux_latent_dim=8, field_geometry_channels=2)
+    cfg = GeneratorConfig(
+        z_dim=16,
+        w_dim=16,
+        mapping_layers=2,
+        input_features=4,
+        encoder_channels=[8] * 3,
+        synthesis_channels=[8] * 3,
+        field_hidden=16,
+        aux_latent_dim=8,
+        field_geometry_channels=2,
+    )
     with_geometry = TextureGenerator(cfg)
     texture, _ = with_geometry(batch, torch.randn(2, 16))
     assert texture.field_features.shape == (192, 10)
-    assert any(p is q for p in with_geometry.parameter_groups()["field"] for q in with_geometry.field_geometry.parameters())
+    assert any(
+        p is q for p in with_geometry.parameter_groups()["field"] for q in with_geometry.field_geometry.parameters()
+    )
 
 
 def test_nca_generator_follows_the_latent_and_trains_end_to_end():
@@ -287,17 +236,35 @@ def test_nca_generator_follows_the_latent_and_trains_end_to_end():
             continue  # reached through ws, which this test feeds directly
         assert p.grad is not None and p.grad.abs().sum() > 0, name
     automaton = gen.synthesis
-    assert set(map(id, gen.last_synthesis_parameters())) == set(map(id, list(automaton.nca.update.parameters()) + list(automaton.torgb.parameters())))
+    assert set(map(id, gen.last_synthesis_parameters())) == set(
+        map(id, list(automaton.nca.update.parameters()) + list(automaton.torgb.parameters()))
+    )
 
 
 def test_an_automaton_checkpoint_from_before_the_kinds_had_one_interface_still_loads():
     """Its keys were ``nca.*`` and ``nca_torgb.*`` of the generator; they load into today's
     ``synthesis.nca.*`` and ``synthesis.torgb.*`` with every weight in place."""
-    cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * 2, synthesis_channels=[8] * 2,
-                          field_hidden=16, aux_latent_dim=8, kind="nca", nca_channels=4, nca_hidden=8, nca_steps=2, nca_condition=4)
+    cfg = GeneratorConfig(
+        z_dim=16,
+        w_dim=16,
+        mapping_layers=2,
+        input_features=4,
+        encoder_channels=[8] * 2,
+        synthesis_channels=[8] * 2,
+        field_hidden=16,
+        aux_latent_dim=8,
+        kind="nca",
+        nca_channels=4,
+        nca_hidden=8,
+        nca_steps=2,
+        nca_condition=4,
+    )
     torch.manual_seed(0)
     trained = TextureGenerator(cfg)
-    former = {k.replace("synthesis.torgb.", "nca_torgb.").replace("synthesis.nca.", "nca."): v for k, v in trained.state_dict().items()}
+    former = {
+        k.replace("synthesis.torgb.", "nca_torgb.").replace("synthesis.nca.", "nca."): v
+        for k, v in trained.state_dict().items()
+    }
     assert any(k.startswith("nca_torgb.") for k in former) and not any(k.startswith("synthesis.") for k in former)
     torch.manual_seed(1)
     loaded = TextureGenerator(cfg)
@@ -312,11 +279,27 @@ def test_every_generator_kind_keeps_the_feature_synthesis_interface():
     from mesh2tex.nn.synthesis import SYNTHESIS_KINDS, FeatureSynthesis
 
     for kind, cls in SYNTHESIS_KINDS.items():
-        cfg = GeneratorConfig(z_dim=16, w_dim=16, mapping_layers=2, input_features=4, encoder_channels=[8] * 3, synthesis_channels=[8] * 3,
-                              field_hidden=16, aux_latent_dim=8, kind=kind, nca_channels=4, nca_hidden=8, nca_steps=2, nca_condition=4)
+        cfg = GeneratorConfig(
+            z_dim=16,
+            w_dim=16,
+            mapping_layers=2,
+            input_features=4,
+            encoder_channels=[8] * 3,
+            synthesis_channels=[8] * 3,
+            field_hidden=16,
+            aux_latent_dim=8,
+            kind=kind,
+            nca_channels=4,
+            nca_hidden=8,
+            nca_steps=2,
+            nca_condition=4,
+        )
         gen = TextureGenerator(cfg)
         assert isinstance(gen.synthesis, FeatureSynthesis) and type(gen.synthesis) is cls
-        assert cls.sizes(cfg) == (gen.synthesis.num_ws, gen.synthesis.encoder_levels) and gen.num_ws == gen.synthesis.num_ws
+        assert (
+            cls.sizes(cfg) == (gen.synthesis.num_ws, gen.synthesis.encoder_levels)
+            and gen.num_ws == gen.synthesis.num_ws
+        )
         assert len(gen.encoder.blocks) == gen.synthesis.encoder_levels
         assert gen.field_dim == gen.synthesis.channels and gen.last_synthesis_parameters()
 
@@ -335,7 +318,9 @@ def test_lit_renders_are_the_albedo_scaled_by_lambert_shading():
     texture = gen.synthesize(batch, ws, noise_mode="none")
 
     def render(lights):
-        return render_field_views(gen, batch, ws, mvp, (16, 16), background, proxy=True, texture=texture, samples=samples, lights=lights)
+        return render_field_views(
+            gen, batch, ws, mvp, (16, 16), background, proxy=True, texture=texture, samples=samples, lights=lights
+        )
 
     unlit = render(None)
     direction = torch.nn.functional.normalize(torch.randn(4, 3), dim=1)
@@ -350,7 +335,9 @@ def test_lit_renders_are_the_albedo_scaled_by_lambert_shading():
         got = (getattr(lit, name).permute(0, 2, 3, 1)[cover] + 1) / 2
         albedo = (getattr(unlit, name).permute(0, 2, 3, 1)[cover] + 1) / 2
         assert torch.allclose(got, albedo * factor[:, None], atol=1e-5), name
-        assert torch.equal(getattr(lit, name).permute(0, 2, 3, 1)[~cover], getattr(unlit, name).permute(0, 2, 3, 1)[~cover])
+        assert torch.equal(
+            getattr(lit, name).permute(0, 2, 3, 1)[~cover], getattr(unlit, name).permute(0, 2, 3, 1)[~cover]
+        )
     assert (factor < 0.99).any(), "some pixels must be shaded"
     # The prior: directions are unit vectors within the configured elevations; ambient in range.
     cfg = LightConfig()
@@ -359,8 +346,16 @@ def test_lit_renders_are_the_albedo_scaled_by_lambert_shading():
     assert torch.allclose(drawn.direction.norm(dim=1), torch.ones(256), atol=1e-6)
     assert elevation.min() >= cfg.elevation_min - 1e-3 and elevation.max() <= cfg.elevation_max + 1e-3
     assert drawn.ambient.min() >= cfg.ambient_min and drawn.ambient.max() <= cfg.ambient_max
-    out = render_field_views(gen, batch, gen.mapping(torch.randn(2, 16)), mvp, (16, 16), background, proxy=True,
-                              lights=Lights(direction, ambient))
+    out = render_field_views(
+        gen,
+        batch,
+        gen.mapping(torch.randn(2, 16)),
+        mvp,
+        (16, 16),
+        background,
+        proxy=True,
+        lights=Lights(direction, ambient),
+    )
     (out.images.sum() + out.proxy.sum()).backward()
     assert all(p.grad is not None for p in gen.synthesis.parameters())
 
@@ -380,7 +375,9 @@ def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_t
     proxy = render_proxy_views(gen.synthesize(batch, gen.mapping(z), noise_mode="none"), batch, samples, background)
     assert float(mode_seeking_ratio(proxy, proxy, mask, z, torch.randn(2, 16)).detach()) == 0.0
     # the proxy path alone equals render_field_views' proxy images
-    full = render_field_views(gen, batch, gen.mapping(z), mvp, (16, 16), background, proxy=True, samples=samples, noise_mode="none")
+    full = render_field_views(
+        gen, batch, gen.mapping(z), mvp, (16, 16), background, proxy=True, samples=samples, noise_mode="none"
+    )
     torch.testing.assert_close(proxy, full.proxy)
 
     shapes = [cube_shape(3, seed=0), cube_shape(3, seed=1)]
@@ -388,7 +385,9 @@ def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_t
     torch.testing.assert_close(scene.object_mask, mask)
 
     def proxy_of(z_):
-        return render_proxy_views(gen.synthesize(batch, gen.mapping(z_), noise_mode="none"), batch, samples, background), mask
+        return render_proxy_views(
+            gen.synthesize(batch, gen.mapping(z_), noise_mode="none"), batch, samples, background
+        ), mask
 
     class Zero(torch.nn.Module):  # a discriminator with no opinion: only the diversity term moves the generator
         def forward(self, x):
@@ -398,7 +397,13 @@ def test_the_diversity_term_pushes_two_latents_textures_apart_and_stops_at_its_t
         torch.manual_seed(1)
         with torch.no_grad():
             zs = torch.randn(8, 2, 16)
-            return sum(float(mode_seeking_ratio(proxy_of(a)[0], proxy_of(b)[0], mask, a, b)) for a, b in zip(zs[:4], zs[4:])) / 4
+            return (
+                sum(
+                    float(mode_seeking_ratio(proxy_of(a)[0], proxy_of(b)[0], mask, a, b))
+                    for a, b in zip(zs[:4], zs[4:])
+                )
+                / 4
+            )
 
     loss = GanLoss(GanLossConfig(diversity_weight=1.0, diversity_target=10.0), gen, Zero(), Zero())
     opt = torch.optim.Adam(gen.parameters(), lr=1e-2)
@@ -424,7 +429,6 @@ def test_the_diversity_term_runs_from_its_start_every_interval_scaled_by_it():
     assert GanLoss(GanLossConfig(diversity_weight=0.0), None, None).diversity_gain(0) == 0
     with pytest.raises(ValueError, match="diversity_interval"):
         GanLossConfig(diversity_interval=0)
-
 
 
 def test_gathers_repeat_to_the_bit_with_two_threads():
@@ -454,7 +458,9 @@ def test_gathers_repeat_to_the_bit_with_two_threads():
             out = conv(x, neighbors, w, sample_index, noise_mode="none")
             blended = blend_vertex_features(vertex_feats, triangles, triangle_id, bary)
             ((out * weights[0]).sum() + (blended * weights[1]).sum()).backward()
-            return [x.grad.clone(), w.grad.clone(), vertex_feats.grad.clone()] + [p.grad.clone() for p in conv.parameters() if p.grad is not None]
+            return [x.grad.clone(), w.grad.clone(), vertex_feats.grad.clone()] + [
+                p.grad.clone() for p in conv.parameters() if p.grad is not None
+            ]
 
         first = gradients()
         for _ in range(4):

@@ -71,9 +71,8 @@ class TrainGanConfig:
     checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
     snapshot_every: int = 0  # iterations between kept float16 EMA generators under RUN/snapshots (0: none)
     keep_snapshots: int = 0  # snapshots kept under RUN/snapshots, the newest (0: all)
-    metric_every: int = (
-        0  # iterations between the held-out metric (SWD, diversity) that picks RUN/best.safetensors (0: none)
-    )
+    # iterations between the held-out metric (SWD, diversity) that picks RUN/best.safetensors (0: none)
+    metric_every: int = 0
     metric_photos: int = 16  # photos held out of training for the metric, the last by name (only when metric_every > 0)
     sample_shapes: int = 4  # shapes in a sample grid
     generator: GeneratorConfig = field(default_factory=GeneratorConfig)

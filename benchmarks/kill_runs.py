@@ -57,16 +57,45 @@ from mesh2tex.io.outputs import LOCK_NAME, MANIFEST_NAME, REPLACED_NAME, run_key
 from mesh2tex.synthetic.exemplars import exemplar_image  # noqa: E402
 
 NAMES = ("prepare shapes", "train gan", "train nca", "infer transfer")
-GENERATOR = {"z_dim": 16, "w_dim": 16, "mapping_layers": 2, "encoder_channels": [8, 8, 8], "synthesis_channels": [8, 8, 8],
-             "field_hidden": 16, "aux_latent_dim": 8}
-TINY_GAN = {"sample_every": 2, "checkpoint_every": 2, "log_every": 1, "sample_shapes": 2, "generator": GENERATOR,
-            "discriminator": {"channel_base": 64, "channel_max": 16}, "loss": {"r1_interval": 2, "pl_interval": 2}}
+GENERATOR = {
+    "z_dim": 16,
+    "w_dim": 16,
+    "mapping_layers": 2,
+    "encoder_channels": [8, 8, 8],
+    "synthesis_channels": [8, 8, 8],
+    "field_hidden": 16,
+    "aux_latent_dim": 8,
+}
+DISCRIMINATOR = {"channel_base": 64, "channel_max": 16}
+TINY_GAN = {
+    "sample_every": 2,
+    "checkpoint_every": 2,
+    "log_every": 1,
+    "sample_shapes": 2,
+    "generator": GENERATOR,
+    "discriminator": DISCRIMINATOR,
+    "loss": {"r1_interval": 2, "pl_interval": 2},
+}
 # the checkpoint the transfer starts from: trained once, never killed
-TRANSFER_GAN = {"sample_every": 0, "checkpoint_every": 0, "generator": GENERATOR, "discriminator": {"channel_base": 64, "channel_max": 16}}
+TRANSFER_GAN = {"sample_every": 0, "checkpoint_every": 0, "generator": GENERATOR, "discriminator": DISCRIMINATOR}
 # a checkpoint every iteration and a sample every 5: a kill lands in a write as often as in a step
-TINY_NCA = {"batch": 1, "views": 1, "resolution": 32, "steps_min": 2, "steps_max": 3, "pool": 4, "seed_every": 2, "mesh": "sphere:3",
-            "exemplar_size": 32, "vgg_depth": 1, "max_points": 64, "sample_every": 5, "checkpoint_every": 1, "log_every": 1,
-            "nca": {"channels": 6, "hidden": 16}}
+TINY_NCA = {
+    "batch": 1,
+    "views": 1,
+    "resolution": 32,
+    "steps_min": 2,
+    "steps_max": 3,
+    "pool": 4,
+    "seed_every": 2,
+    "mesh": "sphere:3",
+    "exemplar_size": 32,
+    "vgg_depth": 1,
+    "max_points": 64,
+    "sample_every": 5,
+    "checkpoint_every": 1,
+    "log_every": 1,
+    "nca": {"channels": 6, "hidden": 16},
+}
 GAN_STEP, NCA_STEP = 6, 20  # iterations asked for by each new job
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "MESH2TEX_PROGRESS": "0"}
 
@@ -93,9 +122,33 @@ def make_world(work: Path) -> None:
     query.paste((220, 180, 30, 255), (14, 10, 34, 40))
     query.save(work / "query.png")
     (work / "meshes").mkdir(exist_ok=True)
-    done = subprocess.run(mesh2tex("train", "gan", "--shapes", work / "shapes", "--images", work / "photos", "--out", work / "transfer_gan",
-                                   "--config", work / "transfer_gan.yaml", "--iters", 2, "--batch", 2, "--views", 2, "--resolution", 16,
-                                   "--device", "cpu"), env=ENV, capture_output=True, text=True)
+    done = subprocess.run(
+        mesh2tex(
+            "train",
+            "gan",
+            "--shapes",
+            work / "shapes",
+            "--images",
+            work / "photos",
+            "--out",
+            work / "transfer_gan",
+            "--config",
+            work / "transfer_gan.yaml",
+            "--iters",
+            2,
+            "--batch",
+            2,
+            "--views",
+            2,
+            "--resolution",
+            16,
+            "--device",
+            "cpu",
+        ),
+        env=ENV,
+        capture_output=True,
+        text=True,
+    )
     if done.returncode != 0:
         raise SystemExit(f"the transfer's GAN checkpoint: {done.stderr.strip()}")
 
@@ -103,8 +156,12 @@ def make_world(work: Path) -> None:
 def add_mesh(work: Path, index: int) -> None:
     """One more input mesh for ``prepare shapes``."""
     rng = np.random.default_rng(index)
-    mesh = [trimesh.creation.box(rng.uniform(0.3, 1.0, 3)), trimesh.creation.icosphere(1), trimesh.creation.cylinder(0.5, 1.0, sections=12),
-            trimesh.creation.capsule(0.6, 0.3)][index % 4]
+    mesh = [
+        trimesh.creation.box(rng.uniform(0.3, 1.0, 3)),
+        trimesh.creation.icosphere(1),
+        trimesh.creation.cylinder(0.5, 1.0, sections=12),
+        trimesh.creation.capsule(0.6, 0.3),
+    ][index % 4]
     mesh.export(work / "meshes" / f"m{index:03d}.obj")
 
 
@@ -119,7 +176,10 @@ class Jobs:
             self.next(name)
 
     def out(self, name: str) -> Path:
-        return self.work / {"prepare shapes": "prepared", "train gan": "run", "train nca": "nca", "infer transfer": "transfer"}[name]
+        return (
+            self.work
+            / {"prepare shapes": "prepared", "train gan": "run", "train nca": "nca", "infer transfer": "transfer"}[name]
+        )
 
     def next(self, name: str) -> None:
         """More work for ``name`` (its last job finished)."""
@@ -131,13 +191,40 @@ class Jobs:
             argv = mesh2tex("prepare", "shapes", "--input", work / "meshes", "--out", out, "--faces", 96, "--levels", 2)
         elif name == "train gan":
             self.gan_iters += GAN_STEP  # the first job a new run, later ones continue the finished run
-            argv = mesh2tex("train", "gan", "--shapes", work / "shapes", "--images", work / "photos", "--out", out, "--config", work / "tiny.yaml",
-                            "--iters", self.gan_iters, "--batch", 2, "--views", 2, "--resolution", 16, "--device", "cpu",
-                            *(["--resume"] if self.gan_iters > GAN_STEP else []))
+            resume = ["--resume"] if self.gan_iters > GAN_STEP else []
+            argv = mesh2tex(
+                "train",
+                "gan",
+                "--shapes",
+                work / "shapes",
+                "--images",
+                work / "photos",
+                "--out",
+                out,
+                "--config",
+                work / "tiny.yaml",
+                "--iters",
+                self.gan_iters,
+                *"--batch 2 --views 2 --resolution 16 --device cpu".split(),
+                *resume,
+            )
         elif name == "train nca":
             self.nca_iters += NCA_STEP
-            argv = mesh2tex("train", "nca", "--exemplar", work / "stripes.png", "--out", out, "--config", work / "nca.yaml",
-                            "--iters", self.nca_iters, "--device", "cpu", *(["--resume"] if self.nca_iters > NCA_STEP else []))
+            argv = mesh2tex(
+                "train",
+                "nca",
+                "--exemplar",
+                work / "stripes.png",
+                "--out",
+                out,
+                "--config",
+                work / "nca.yaml",
+                "--iters",
+                self.nca_iters,
+                "--device",
+                "cpu",
+                *(["--resume"] if self.nca_iters > NCA_STEP else []),
+            )
         else:
             self.transfers += 1  # the first into an empty folder, later ones replace the finished result
             argv = self.transfer_argv(overwrite=self.transfers > 1)
@@ -145,9 +232,25 @@ class Jobs:
 
     def transfer_argv(self, overwrite: bool) -> list[str]:
         work = self.work
-        return mesh2tex("infer", "transfer", "--checkpoint", work / "transfer_gan" / "checkpoint.safetensors", "--mesh", work / "shapes" / "box0.npz",
-                        "--image", work / "query.png", "--pose", "30,20", "--no-noc", "--out", self.out("infer transfer"), "--resolution", 64,
-                        "--latent-iters", 4, "--refine-iters", 4, "--device", "cpu", *(["--overwrite"] if overwrite else []))
+        checkpoint, mesh = work / "transfer_gan" / "checkpoint.safetensors", work / "shapes" / "box0.npz"
+        fast = "--resolution 64 --latent-iters 4 --refine-iters 4 --device cpu".split()
+        return mesh2tex(
+            "infer",
+            "transfer",
+            "--checkpoint",
+            checkpoint,
+            "--mesh",
+            mesh,
+            "--image",
+            work / "query.png",
+            "--pose",
+            "30,20",
+            "--no-noc",
+            "--out",
+            self.out("infer transfer"),
+            *fast,
+            *(["--overwrite"] if overwrite else []),
+        )
 
 
 def output_times(folder: Path, since: int) -> tuple[int, int]:
@@ -207,7 +310,7 @@ def run(argv: list[str], out: Path, kill_after: float | None) -> Outcome:
         err.seek(0)
         lines = err.read().strip().splitlines()
     first, last = output_times(out, before)
-    seconds = (lambda t: (t - before) / 1e9 if t else None)
+    seconds = lambda t: (t - before) / 1e9 if t else None
     return Outcome(code, lines[-1] if lines and code is not None else "", before, seconds(first), seconds(last))
 
 
@@ -242,26 +345,37 @@ def audit(jobs: Jobs) -> tuple[dict[str, dict[str, str]], list[str]]:
     for name in NAMES:
         out = jobs.out(name)
         partial, locks = sum(1 for _ in out.rglob(PARTIAL_DIR)), sum(1 for _ in out.rglob(LOCK_NAME))
-        row = {"outputs that load": "", "half-written files left": str(partial), "duplicate or out-of-order metric lines": "-",
-               "locks left": str(locks)}
+        row = {
+            "outputs that load": "",
+            "half-written files left": str(partial),
+            "duplicate or out-of-order metric lines": "-",
+            "locks left": str(locks),
+        }
         wrong += [f"{name}: half-written files left"] * (partial > 0) + [f"{name}: locks left"] * (locks > 0)
         if name == "prepare shapes":
             index = json.loads((out / "index.json").read_text())
             shapes = sum(loads(lambda p=p: PreparedShape.load(p).num_levels == 2) for p in out.glob("*.npz"))
             good, total = shapes + index["ok"], 2 * jobs.meshes
-            row["outputs that load"] = f"{good} of {total} ({shapes} shapes + {index['ok']} index entries ok, {jobs.meshes} meshes)"
+            row["outputs that load"] = (
+                f"{good} of {total} ({shapes} shapes + {index['ok']} index entries ok, {jobs.meshes} meshes)"
+            )
         elif name in ("train gan", "train nca"):
             kind, iters = ("gan", jobs.gan_iters) if name == "train gan" else ("nca", jobs.nca_iters)
             faults, lines, whole = metric_faults(out / "metrics.jsonl", iters)
             row["duplicate or out-of-order metric lines"] = f"{faults} ({lines} lines for {iters} iterations)"
             wrong += [f"{name}: metrics.jsonl does not count 1..{iters} once each"] * (faults > 0 or not whole)
             files = ["checkpoint.safetensors"] + (["model.safetensors"] if kind == "nca" else [])
-            good, total = sum(loads(lambda f=f: load_checkpoint(out / f, kind=kind)[1]["iteration"] == iters) for f in files), len(files)
+            good, total = (
+                sum(loads(lambda f=f: load_checkpoint(out / f, kind=kind)[1]["iteration"] == iters) for f in files),
+                len(files),
+            )
             row["outputs that load"] = f"{good} of {total} ({' and '.join(files)} at iteration {iters})"
         else:
-            good = (loads(lambda: trimesh.load(out / "textured.glb", force="mesh").faces.shape[0] > 0)
-                    + loads(lambda: "seconds" in json.loads((out / "report.json").read_text()))
-                    + loads(lambda: image_loads(out / "comparison.png")))
+            good = (
+                loads(lambda: trimesh.load(out / "textured.glb", force="mesh").faces.shape[0] > 0)
+                + loads(lambda: "seconds" in json.loads((out / "report.json").read_text()))
+                + loads(lambda: image_loads(out / "comparison.png"))
+            )
             total = 3
             row["outputs that load"] = f"{good} of {total} (textured.glb in trimesh, report.json, comparison.png)"
         wrong += [f"{name}: outputs that do not load"] * (good != total)
@@ -290,7 +404,9 @@ def main() -> int:
     failed = dict.fromkeys(NAMES, 0)
     # of its last whole run: seconds to its first and its last output
     first_output, last_output = dict.fromkeys(NAMES, 5.0), dict.fromkeys(NAMES, 7.0)
-    state = dict.fromkeys(NAMES, "new")  # of the current job: new, killed (before its end), late (killed after it), done
+    state = dict.fromkeys(
+        NAMES, "new"
+    )  # of the current job: new, killed (before its end), late (killed after it), done
     rounds = 0
 
     def one_run(name: str, kill_after: float | None) -> None:
@@ -310,8 +426,13 @@ def main() -> int:
             state[name] = "done"
         elif code == 0:
             finished[name] += 1
-            if state[name] in ("new", "done") and outcome.first_output and outcome.last_output:  # a whole job: it times the next kills
-                first_output[name], last_output[name] = outcome.first_output, max(outcome.last_output, outcome.first_output)
+            if (
+                state[name] in ("new", "done") and outcome.first_output and outcome.last_output
+            ):  # a whole job: it times the next kills
+                first_output[name], last_output[name] = (
+                    outcome.first_output,
+                    max(outcome.last_output, outcome.first_output),
+                )
             state[name] = "done"
         else:
             failed[name] += 1
@@ -322,29 +443,47 @@ def main() -> int:
         for name in NAMES:
             if killed[name] < args.kills:
                 # half the kills at any moment up to its last output (in start-up, a step, the transfer's optimisation),
-                # half while it writes (from its first output to its last: checkpoints, samples, shapes, the transfer's files)
+                # half while it writes (from its first output to its last: checkpoints, samples,
+                # shapes, the transfer's files)
                 anywhere = rng.random() < 0.5
-                one_run(name, rng.uniform(0.2, 1.0) * last_output[name] if anywhere
-                        else first_output[name] + rng.uniform(0.0, 1.0) * (last_output[name] - first_output[name]))
+                one_run(
+                    name,
+                    rng.uniform(0.2, 1.0) * last_output[name]
+                    if anywhere
+                    else first_output[name] + rng.uniform(0.0, 1.0) * (last_output[name] - first_output[name]),
+                )
                 rounds += 1
     for name in NAMES:  # once more to the end: a killed job continued, a finished one given more work
         if state[name] == "late":
             one_run(name, None)  # refused (the results kept) or continued
         one_run(name, None)
-    outcome = run(jobs.transfer_argv(overwrite=False), jobs.out("infer transfer"), None)  # a finished transfer is kept without --overwrite
+    outcome = run(
+        jobs.transfer_argv(overwrite=False), jobs.out("infer transfer"), None
+    )  # a finished transfer is kept without --overwrite
     code, line = outcome.code, outcome.line
     result_kept = code == 2 and "already holds" in line
     rows, wrong = audit(jobs)
-    table = {name: {"kills landed": f"{killed[name]} ({in_work[name]} after the round had written an output)",
-                    "kills as it exited, its work done": f"{late[name]} (re-runs told the results are kept: {kept[name]})",
-                    "runs not killed that finished": f"{finished[name]} of {finished[name] + failed[name]}", **rows[name]} for name in NAMES}
+    table = {
+        name: {
+            "kills landed": f"{killed[name]} ({in_work[name]} after the round had written an output)",
+            "kills as it exited, its work done": f"{late[name]} (re-runs told the results are kept: {kept[name]})",
+            "runs not killed that finished": f"{finished[name]} of {finished[name] + failed[name]}",
+            **rows[name],
+        }
+        for name in NAMES
+    }
     for name in NAMES:
         print(f"{name}:")
         for key, value in table[name].items():
             print(f"  {key:40s} {value}")
-    print(f"infer transfer without --overwrite after it finished: {'refused, the result kept' if result_kept else f'exit {code}: {line}'}")
-    print(f"({time.perf_counter() - start:.0f} s; {rounds} rounds; train gan to {jobs.gan_iters} iterations, train nca to {jobs.nca_iters}, "
-          f"{jobs.meshes} meshes prepared, {jobs.transfers} transfers started)")
+    print(
+        "infer transfer without --overwrite after it finished: "
+        f"{'refused, the result kept' if result_kept else f'exit {code}: {line}'}"
+    )
+    print(
+        f"({time.perf_counter() - start:.0f} s; {rounds} rounds; train gan to {jobs.gan_iters} iterations, train nca "
+        f"to {jobs.nca_iters}, {jobs.meshes} meshes prepared, {jobs.transfers} transfers started)"
+    )
     wrong += [f"{name}: {killed[name]} kills landed" for name in NAMES if killed[name] < args.kills]
     wrong += [f"{name}: {failed[name]} runs not killed failed" for name in NAMES if failed[name]]
     wrong += [f"{name}: the last run did not finish" for name in NAMES if state[name] != "done"]

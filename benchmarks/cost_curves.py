@@ -39,12 +39,8 @@ cores), which a busy machine distorts less than the wall clock.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import json
 import os
-import re
-import resource
 import subprocess
 import sys
 import tempfile
@@ -57,14 +53,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))  # bench_gan_step, bench_bake, ... are imported, not copied
-from resident_memory import reset_peak_rss, status_mib  # noqa: E402  (this folder)
-
-MARK = "COST_RESULT "
+from cost_children import CHILDREN, MARK, child_main  # noqa: E402  (this folder)
 
 
 @dataclass
 class Sweep:
     """One swept quantity of a case: the parameters of each size, and what the size counts."""
+
     name: str  # e.g. "quads", "pixels"
     points: list[dict]
     unit: str = ""  # what "size" counts, for the verdict (default: name)
@@ -76,15 +71,21 @@ def sweeps(quick: bool) -> dict[str, list[Sweep]]:
     gan = lambda faces=6144, resolution=128, views=4: {"faces": faces, "resolution": resolution, "views": views}
     out = {
         "prepare": [Sweep("triangles", [{"triangles": t} for t in (10_000, 100_000, 1_000_000)])],
-        "gan_step": [Sweep("quads", [gan(faces=f) for f in (1536, 6144, 24576)]),
-                     Sweep("pixels", [gan(resolution=r) for r in (64, 128, 256)], "pixels per view"),
-                     Sweep("views", [gan(views=v) for v in (4, 8)])],
-        "generate_bake": [Sweep("triangles", [{"triangles": t, "size": 1024} for t in (10_000, 100_000, 1_000_000)]),
-                          Sweep("texels", [{"triangles": 100_000, "size": s} for s in (512, 1024, 2048)])],
+        "gan_step": [
+            Sweep("quads", [gan(faces=f) for f in (1536, 6144, 24576)]),
+            Sweep("pixels", [gan(resolution=r) for r in (64, 128, 256)], "pixels per view"),
+            Sweep("views", [gan(views=v) for v in (4, 8)]),
+        ],
+        "generate_bake": [
+            Sweep("triangles", [{"triangles": t, "size": 1024} for t in (10_000, 100_000, 1_000_000)]),
+            Sweep("texels", [{"triangles": 100_000, "size": s} for s in (512, 1024, 2048)]),
+        ],
         "transfer": [Sweep("pixels", [{"resolution": r} for r in (64, 128, 256)], "pixels per view")],
         "nca_step": [Sweep("cells", [{"subdivisions": s} for s in (16, 32, 64, 128)])],
-        "rasterize": [Sweep("triangles", [{"triangles": t, "size": 512} for t in (10_000, 100_000, 1_000_000)]),
-                      Sweep("pixels", [{"triangles": 100_000, "size": s} for s in (128, 256, 512, 1024)])],
+        "rasterize": [
+            Sweep("triangles", [{"triangles": t, "size": 512} for t in (10_000, 100_000, 1_000_000)]),
+            Sweep("pixels", [{"triangles": 100_000, "size": s} for s in (128, 256, 512, 1024)]),
+        ],
     }
     if quick:
         for case in out.values():
@@ -107,220 +108,76 @@ def verdict(exponent: float, unit: str) -> str:
     """One line naming the growth, e.g. "linear in faces: exponent 1.02"."""
     if not np.isfinite(exponent):
         return f"not fitted in {unit}: fewer than two sizes"
-    kinds = [(0.2, "flat (nearly constant)"), (0.8, "sublinear"), (1.2, "linear"), (1.8, "superlinear"), (2.2, "quadratic")]
+    kinds = [
+        (0.2, "flat (nearly constant)"),
+        (0.8, "sublinear"),
+        (1.2, "linear"),
+        (1.8, "superlinear"),
+        (2.2, "quadratic"),
+    ]
     kind = next((name for bound, name in kinds if exponent < bound), "worse than quadratic")
     return f"{kind} in {unit}: exponent {exponent:.2f}"
 
 
 def table(case: str, sweep: Sweep) -> str:
     """The sweep's rows (size, seconds, peak MB, added MB, cores) and its fitted exponents with their verdicts."""
-    lines = [f"{case} over {sweep.name}", f"  {'size':>10s} {'seconds':>9s} {'peak MB':>8s} {'added MB':>9s} {'cores':>5s}  params"]
+    lines = [
+        f"{case} over {sweep.name}",
+        f"  {'size':>10s} {'seconds':>9s} {'peak MB':>8s} {'added MB':>9s} {'cores':>5s}  params",
+    ]
     for r in sweep.results:
         if r.get("status") != "ok":
             lines.append(f"  {'-':>10s} {'-':>9s} {'-':>8s} {'-':>9s} {'-':>5s}  {r['params']}  {r.get('status')}")
             continue
-        lines.append(f"  {r['size']:10,d} {r['seconds']:9.4f} {r['peak_mb']:8.0f} {r['added_mb']:9.0f} {r.get('cores', float('nan')):5.2f}  "
-                     f"{r['params']}")
+        lines.append(
+            f"  {r['size']:10,d} {r['seconds']:9.4f} {r['peak_mb']:8.0f} {r['added_mb']:9.0f} "
+            f"{r.get('cores', float('nan')):5.2f}  {r['params']}"
+        )
     fit = fit_sweep(sweep)
-    lines.append(f"  time:   {fit['time_verdict']} (CPU seconds, seconds x cores: exponent {fit['cpu_time_exponent']:.2f})")
-    lines.append(f"  memory: {fit['memory_verdict']} (added MB; the whole peak: exponent {fit['peak_memory_exponent']:.2f})")
+    lines.append(
+        f"  time:   {fit['time_verdict']} (CPU seconds, seconds x cores: exponent {fit['cpu_time_exponent']:.2f})"
+    )
+    lines.append(
+        f"  memory: {fit['memory_verdict']} (added MB; the whole peak: exponent {fit['peak_memory_exponent']:.2f})"
+    )
     return "\n".join(lines)
 
 
 def fit_sweep(sweep: Sweep) -> dict:
-    """The exponents of a sweep's measured sizes: time, added memory (floored at 1 MB) and peak memory, with verdicts."""
+    """The exponents of a sweep's measured sizes: time, added memory (floored at 1 MB) and peak memory, with
+    verdicts."""
     ok = [r for r in sweep.results if r.get("status") == "ok"]
     sizes, unit = [r["size"] for r in ok], sweep.unit or sweep.name
     time_exp = fit_exponent(sizes, [r["seconds"] for r in ok])
     memory_exp = fit_exponent(sizes, [max(r["added_mb"], 1.0) for r in ok])
-    return {"time_exponent": time_exp, "added_memory_exponent": memory_exp,
-            "cpu_time_exponent": fit_exponent(sizes, [r["seconds"] * r["cores"] for r in ok]),
-            "peak_memory_exponent": fit_exponent(sizes, [r["peak_mb"] for r in ok]),
-            "time_verdict": verdict(time_exp, unit), "memory_verdict": verdict(memory_exp, unit)}
+    return {
+        "time_exponent": time_exp,
+        "added_memory_exponent": memory_exp,
+        "cpu_time_exponent": fit_exponent(sizes, [r["seconds"] * r["cores"] for r in ok]),
+        "peak_memory_exponent": fit_exponent(sizes, [r["peak_mb"] for r in ok]),
+        "time_verdict": verdict(time_exp, unit),
+        "memory_verdict": verdict(memory_exp, unit),
+    }
 
 
 # ---------------------------------------------------------------------------------- child side
-def _cpu_seconds() -> float:
-    """CPU seconds of this process's threads and of its finished children."""
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
-
-
-class Measured:
-    """A measured section: resident MB before it, its peak (this process or a forked one), and the cores it got
-    (CPU seconds over wall seconds: below the threads asked for when the machine is busy or the work is serial)."""
-
-    def __enter__(self):
-        import gc
-
-        gc.collect()
-        self.before_mb = reset_peak_rss()  # the peak mark restarts from the resident size now
-        self.children_before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        self.start, self.cpu_start = time.perf_counter(), _cpu_seconds()
-        return self
-
-    def __exit__(self, *exc):
-        children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss  # forked workers (QuadriFlow), kB
-        forked = children / 1024 if children > self.children_before else 0.0  # a new, higher peak: one of the section's
-        self.peak_mb = max(status_mib("VmHWM"), forked)
-        self.cores = (_cpu_seconds() - self.cpu_start) / max(time.perf_counter() - self.start, 1e-9)
-        return False
-
-
-def run_quietly(main, argv: list[str]) -> str:
-    """Run a benchmark's ``main`` with ``argv`` as its command line; its standard output as text."""
-    buffer, saved = io.StringIO(), sys.argv
-    sys.argv = argv
-    try:
-        with contextlib.redirect_stdout(buffer):
-            main()
-    finally:
-        sys.argv = saved
-    return buffer.getvalue()
-
-
-def child_prepare(p: dict, threads: int) -> dict:
-    """Seconds of ``prepare shapes`` on one mesh file (load, prepare at 6144 quads and 5 levels, save the .npz)."""
-    from bench_bake import chair_mesh
-
-    from data_prep.shapes import prepare_one
-
-    with tempfile.TemporaryDirectory() as tmp:
-        mesh = chair_mesh(p["triangles"])
-        triangles = len(mesh.faces)
-        mesh.export(f"{tmp}/chair.ply")
-        del mesh
-        with Measured() as memory:
-            start = time.perf_counter()
-            record = prepare_one(f"{tmp}/chair.ply", f"{tmp}/chair.npz", faces=6144, levels=5, seed=0)
-            seconds = time.perf_counter() - start
-    return {"seconds": seconds, "size": triangles, "memory": memory, "status": record["status"],
-            "parts": {"face_counts": record["face_counts"], "reason": record["reason"]}}
-
-
-def child_gan_step(p: dict, threads: int, iters: int = 3) -> dict:
-    """Mean seconds of ``iters`` main-phase ``train gan`` iterations after one warm-up (bench_gan_step's trainer, 2 chairs)."""
-    import bench_gan_step as gan
-
-    from mesh2tex.geometry.prepare import prepare_shape
-    from mesh2tex.synthetic.shapes import generate_shape
-
-    shapes = [prepare_shape(m.vertices, m.faces, face_count=p["faces"], levels=5, seed=0)
-              for m in (generate_shape("chair", np.random.default_rng(i)) for i in range(2))]
-    version = gan.Version("current")
-    args = argparse.Namespace(batch=2, views=p["views"], resolution=p["resolution"], device="cpu")
-    with tempfile.TemporaryDirectory() as tmp:
-        trainer = version.trainer(args, shapes, tmp)
-        with Measured() as memory:
-            version.step(trainer)  # warm-up: iteration 0 runs every lazy regulariser
-            times = []
-            for _ in range(iters):
-                greg = any(phase == "Greg" for phase, _ in trainer.loss.phases(trainer.iteration))
-                times.append((version.step(trainer)[0], greg))
-        main_s = gan.summary(times, trainer.cfg.loss.pl_interval)[0]
-        flops = counted_flops(gan, version, trainer, main_s)
-    quads = int(np.mean([s.face_counts[0] for s in shapes]))
-    size = {"quads": quads, "pixels": p["resolution"] ** 2, "views": p["views"]}
-    count = lambda *modules: sum(t.numel() for m in modules for t in m.parameters())
-    return {"seconds": main_s, "size": size, "memory": memory, "status": "ok",
-            "parts": {"finest quads": quads, "GFLOP main phases": flops[False] / 1e9, "GFLOP with path length": flops[True] / 1e9,
-                      "generator parameters": count(trainer.generator),
-                      "discriminator parameters": count(trainer.d_field, trainer.d_proxy)}}
-
-
-def counted_flops(gan, version, trainer, seconds: float) -> dict[bool, float]:
-    """FLOPs (matmuls and convolutions, forward and backward: ``FlopCounterMode``) of the next main-only iteration
-    and the next one with the path-length term, {has path length: FLOPs}, as ``bench_gan_step.flop_account`` prints them."""
-    text = run_quietly(lambda: gan.flop_account(version, trainer, {False: seconds, True: seconds}), sys.argv)
-    found = {label: float(re.search(label + r": ([\d.]+) GFLOP", text)[1]) * 1e9 for label in ("main phases only", "with path-length reg")}
-    return {False: found["main phases only"], True: found["with path-length reg"]}
-
-
-def child_generate_bake(p: dict, threads: int) -> dict:
-    """Seconds of the user bake (map + colours + write) of the shipped chair's texture onto a chair mesh of
-    ``triangles`` at ``size``^2 texels (``bench_bake.timed_bake``, which also generates the texture)."""
-    from bench_bake import timed_bake
-
-    with Measured() as memory:
-        result = timed_bake(p["triangles"], p["size"])
-    seconds = result["seconds"]
-    return {"seconds": seconds["user bake (map + colours + write)"], "memory": memory, "status": "ok",
-            "size": {"triangles": result["triangles"], "texels": result["texels"]}, "parts": seconds}
-
-
-def child_transfer(p: dict, threads: int, iters: int = 8) -> dict:
-    """Seconds per transfer iteration over both stages (``bench_transfer.py`` with ``iters`` iterations each)."""
-    import bench_transfer
-
-    argv = ["bench_transfer.py", "--resolution", str(p["resolution"]), "--latent-iters", str(iters),
-            "--refine-iters", str(iters), "--threads", str(threads), "--device", "cpu"]
-    with Measured() as memory:
-        text = run_quietly(bench_transfer.main, argv)
-    stages = {m[1]: (int(m[2]), float(m[3])) for m in re.finditer(r"stage (\w+)\s*:\s*(\d+) iterations,\s*([\d.]+) s", text)}
-    total_iters, total_s = sum(n for n, _ in stages.values()), sum(s for _, s in stages.values())
-    return {"seconds": total_s / total_iters, "size": p["resolution"] ** 2, "memory": memory, "status": "ok",
-            "parts": {f"{k} s/iteration": s / n for k, (n, s) in stages.items()}}
-
-
-def child_nca_step(p: dict, threads: int, steps: int = 50) -> dict:
-    """Seconds per automaton step (inference) on a cube-sphere of ``subdivisions`` (``bench_nca_step.py``)."""
-    import bench_nca_step
-
-    argv = ["bench_nca_step.py", "--subdivisions", str(p["subdivisions"]), "--steps", str(steps), "--threads", str(threads)]
-    with Measured() as memory:
-        text = run_quietly(bench_nca_step.main, argv)
-    cells = int(re.search(r"(\d+) cells", text)[1])
-    number = lambda label: float(re.search(label + r"\s+([\d.]+) ms", text)[1]) / 1000
-    return {"seconds": number("step"), "size": cells, "memory": memory, "status": "ok",
-            "parts": {"perceive sparse s": number("perceive sparse"), "perceive edges s": number("perceive edges")}}
-
-
-def child_rasterize(p: dict, threads: int, repeats: int = 5) -> dict:
-    """Seconds of one ``rasterize`` call (minimum of ``repeats`` after a warm-up): one view of a bumpy blob of
-    ``triangles`` at ``size`` px."""
-    import torch
-    from bench_bake import blob_mesh
-
-    from mesh2tex.render import orbit_camera, rasterize, transform_points
-
-    mesh = blob_mesh(p["triangles"])
-    vertices = torch.tensor(np.asarray(mesh.vertices), dtype=torch.float32)
-    faces = torch.tensor(np.asarray(mesh.faces), dtype=torch.int64)
-    pos = transform_points(vertices, orbit_camera(30.0, 25.0, distance=3.2, fov=45.0).mvp)
-    rasterize(pos, faces, (p["size"], p["size"]))  # warm-up: numba's compiled loop is read from its cache
-    times = []
-    with Measured() as memory:
-        for _ in range(repeats):
-            start = time.perf_counter()
-            raster = rasterize(pos, faces, (p["size"], p["size"]))
-            times.append(time.perf_counter() - start)
-    covered = float((raster.face_id >= 0).float().mean())
-    return {"seconds": min(times), "size": {"triangles": len(faces), "pixels": p["size"] ** 2}, "memory": memory,
-            "status": "ok", "parts": {"covered": covered, "median s": float(np.median(times))}}
-
-
-CHILDREN = {"prepare": child_prepare, "gan_step": child_gan_step, "generate_bake": child_generate_bake,
-            "transfer": child_transfer, "nca_step": child_nca_step, "rasterize": child_rasterize}
-
-
-def child_main(case: str, params: dict, threads: int) -> None:
-    """Measure one size of one case and print the result as one marked JSON line."""
-    import torch
-
-    torch.set_num_threads(threads)
-    result = CHILDREN[case](params, threads)
-    memory = result.pop("memory")
-    result.update(peak_mb=memory.peak_mb, added_mb=memory.peak_mb - memory.before_mb, before_mb=memory.before_mb,
-                  cores=memory.cores)
-    print(MARK + json.dumps(result), flush=True)
-
-
 # --------------------------------------------------------------------------------- parent side
 def run_child(case: str, params: dict, threads: int, limit: float) -> dict:
     """One size in a fresh process (under ``timeout``): the child's result, its wall seconds and whole-process peak."""
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), MKL_NUM_THREADS=str(threads))
-    command = ["timeout", "--signal=KILL", str(int(limit)), sys.executable, str(Path(__file__).resolve()),
-               "--child", case, "--params", json.dumps(params), "--threads", str(threads)]
+    command = [
+        "timeout",
+        "--signal=KILL",
+        str(int(limit)),
+        sys.executable,
+        str(Path(__file__).resolve()),
+        "--child",
+        case,
+        "--params",
+        json.dumps(params),
+        "--threads",
+        str(threads),
+    ]
     start = time.perf_counter()
     with tempfile.TemporaryFile("w+") as errors:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors, text=True, cwd=ROOT, env=env)
@@ -330,9 +187,13 @@ def run_child(case: str, params: dict, threads: int, limit: float) -> dict:
         errors.seek(0)
         tail = errors.read()[-2000:]
     wall = time.perf_counter() - start
-    lines = [line[len(MARK):] for line in out.splitlines() if line.startswith(MARK)]
+    lines = [line[len(MARK) :] for line in out.splitlines() if line.startswith(MARK)]
     if process.returncode != 0 or not lines:
-        status_text = f"timed out after {limit:.0f} s" if process.returncode in (124, 137, -9) else f"failed (exit {process.returncode})"
+        status_text = (
+            f"timed out after {limit:.0f} s"
+            if process.returncode in (124, 137, -9)
+            else f"failed (exit {process.returncode})"
+        )
         print(f"    {case} {params}: {status_text}\n{tail}", flush=True)
         return {"params": params, "status": status_text, "wall_s": wall}
     result = json.loads(lines[-1])
@@ -365,7 +226,9 @@ def summarise(cases: dict[str, list[Sweep]]) -> dict:
     for case, case_sweeps in cases.items():
         out[case] = []
         for sweep in case_sweeps:
-            out[case].append({"sweep": sweep.name, "unit": sweep.unit or sweep.name, "results": sweep.results} | fit_sweep(sweep))
+            out[case].append(
+                {"sweep": sweep.name, "unit": sweep.unit or sweep.name, "results": sweep.results} | fit_sweep(sweep)
+            )
     return out
 
 
@@ -404,15 +267,21 @@ def plot(summary: dict, path: str, panel: int = 360) -> None:
                 for px, py in points:
                     shape = draw.ellipse if filled else draw.rectangle
                     shape([px - 3, py - 3, px + 3, py + 3], fill=colour if filled else None, outline=colour)
-            draw.text((x0, y0 + h + 34 + 14 * j), f"{sweep['unit']}: time {sweep['time_exponent']:.2f}, "
-                      f"mem {sweep['added_memory_exponent']:.2f}", fill=colour, font=font)
+            draw.text(
+                (x0, y0 + h + 34 + 14 * j),
+                f"{sweep['unit']}: time {sweep['time_exponent']:.2f}, mem {sweep['added_memory_exponent']:.2f}",
+                fill=colour,
+                font=font,
+            )
         draw.text((x0, y0 + h + 18), "x: size / smallest; y: value / smallest", fill=(90, 90, 90), font=font)
     image.save(path)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--case", action="append", choices=list(CHILDREN), help="a case to run (repeatable; default: all)")
+    parser.add_argument(
+        "--case", action="append", choices=list(CHILDREN), help="a case to run (repeatable; default: all)"
+    )
     parser.add_argument("--threads", type=int, default=2, help="torch (and OpenMP) threads of each child")
     parser.add_argument("--quick", action="store_true", help="the two smallest sizes of each sweep")
     parser.add_argument("--json", help="write every figure here")
@@ -426,7 +295,9 @@ def main() -> None:
         return
     cases = {name: s for name, s in sweeps(args.quick).items() if not args.case or name in args.case}
     load_before, start = os.getloadavg(), time.perf_counter()
-    print(f"{args.threads} thread(s) per child; load average {load_before[0]:.2f} on {os.cpu_count()} cores", flush=True)
+    print(
+        f"{args.threads} thread(s) per child; load average {load_before[0]:.2f} on {os.cpu_count()} cores", flush=True
+    )
     measure(cases, args.threads, args.limit)
     wall, load_after = time.perf_counter() - start, os.getloadavg()
     summary = summarise(cases)
@@ -434,10 +305,25 @@ def main() -> None:
     print(f"{'case':14s} {'sweep':16s} {'time exp':>8s} {'mem exp':>8s}  verdict (time)")
     for case, rows in summary.items():
         for row in rows:
-            print(f"{case:14s} {row['unit']:16s} {row['time_exponent']:8.2f} {row['added_memory_exponent']:8.2f}  {row['time_verdict']}")
+            print(
+                f"{case:14s} {row['unit']:16s} {row['time_exponent']:8.2f} {row['added_memory_exponent']:8.2f}  "
+                f"{row['time_verdict']}"
+            )
     if args.json:
-        Path(args.json).write_text(json.dumps({"threads": args.threads, "quick": args.quick, "wall_s": wall, "load_before": load_before,
-                                               "load_after": load_after, "cases": summary}, indent=1, default=float))
+        Path(args.json).write_text(
+            json.dumps(
+                {
+                    "threads": args.threads,
+                    "quick": args.quick,
+                    "wall_s": wall,
+                    "load_before": load_before,
+                    "load_after": load_after,
+                    "cases": summary,
+                },
+                indent=1,
+                default=float,
+            )
+        )
     if args.plot:
         plot(summary, args.plot)
 

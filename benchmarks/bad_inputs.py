@@ -36,42 +36,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ["MESH2TEX_PROGRESS"] = "0"
 
 from bad_input_cases import BOX_OBJ, Case, cases, write  # noqa: E402  (this folder)
+from tiny_configs import TINY_GAN, TINY_NCA  # noqa: E402  (this folder)
 
-TINY_GAN = {
-    "sample_every": 0,
-    "checkpoint_every": 2,
-    "log_every": 1,
-    "sample_shapes": 2,
-    "generator": {
-        "z_dim": 16,
-        "w_dim": 16,
-        "mapping_layers": 2,
-        "encoder_channels": [8, 8, 8],
-        "synthesis_channels": [8, 8, 8],
-        "field_hidden": 16,
-        "aux_latent_dim": 8,
-    },
-    "discriminator": {"channel_base": 64, "channel_max": 16},
-    "loss": {"r1_interval": 2, "pl_interval": 2},
-}
-TINY_NCA = {
-    "iters": 2,
-    "batch": 1,
-    "views": 1,
-    "resolution": 32,
-    "steps_min": 2,
-    "steps_max": 3,
-    "pool": 4,
-    "seed_every": 2,
-    "mesh": "sphere:3",
-    "exemplar_size": 32,
-    "vgg_depth": 1,
-    "max_points": 64,
-    "sample_every": 0,
-    "checkpoint_every": 1,
-    "log_every": 1,
-    "nca": {"channels": 6, "hidden": 16},
-}
+TINY_NCA_RUN = {**TINY_NCA, "iters": 2}
 USER_FILE = "my_notes.txt"
 
 
@@ -102,7 +69,7 @@ def make_fixtures(work: Path) -> dict[str, Path]:
         rgba[4:12, 4:12] = (200, 40 * i, 30, 255)
         Image.fromarray(rgba).save(fx["photos"] / f"{i}.png")
     (work / "gan.yaml").write_text(yaml.safe_dump(TINY_GAN))
-    (work / "nca.yaml").write_text(yaml.safe_dump(TINY_NCA))
+    (work / "nca.yaml").write_text(yaml.safe_dump(TINY_NCA_RUN))
     Image.fromarray(exemplar_image("stripes", 48)).save(fx["exemplar.png"])
     query = Image.new("RGBA", (48, 48), (0, 0, 0, 0))
     query.paste((220, 180, 30, 255), (14, 10, 34, 40))

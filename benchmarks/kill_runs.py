@@ -56,46 +56,20 @@ from mesh2tex.io.checkpoint import load_checkpoint  # noqa: E402
 from mesh2tex.io.outputs import LOCK_NAME, MANIFEST_NAME, REPLACED_NAME, run_key  # noqa: E402
 from mesh2tex.synthetic.exemplars import exemplar_image  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from tiny_configs import TINY_DISCRIMINATOR, TINY_GAN, TINY_GENERATOR, TINY_NCA  # noqa: E402  (this folder)
+
 NAMES = ("prepare shapes", "train gan", "train nca", "infer transfer")
-GENERATOR = {
-    "z_dim": 16,
-    "w_dim": 16,
-    "mapping_layers": 2,
-    "encoder_channels": [8, 8, 8],
-    "synthesis_channels": [8, 8, 8],
-    "field_hidden": 16,
-    "aux_latent_dim": 8,
-}
-DISCRIMINATOR = {"channel_base": 64, "channel_max": 16}
-TINY_GAN = {
-    "sample_every": 2,
-    "checkpoint_every": 2,
-    "log_every": 1,
-    "sample_shapes": 2,
-    "generator": GENERATOR,
-    "discriminator": DISCRIMINATOR,
-    "loss": {"r1_interval": 2, "pl_interval": 2},
-}
+TINY_GAN_RUN = {**TINY_GAN, "sample_every": 2}
 # the checkpoint the transfer starts from: trained once, never killed
-TRANSFER_GAN = {"sample_every": 0, "checkpoint_every": 0, "generator": GENERATOR, "discriminator": DISCRIMINATOR}
-# a checkpoint every iteration and a sample every 5: a kill lands in a write as often as in a step
-TINY_NCA = {
-    "batch": 1,
-    "views": 1,
-    "resolution": 32,
-    "steps_min": 2,
-    "steps_max": 3,
-    "pool": 4,
-    "seed_every": 2,
-    "mesh": "sphere:3",
-    "exemplar_size": 32,
-    "vgg_depth": 1,
-    "max_points": 64,
-    "sample_every": 5,
-    "checkpoint_every": 1,
-    "log_every": 1,
-    "nca": {"channels": 6, "hidden": 16},
+TRANSFER_GAN = {
+    "sample_every": 0,
+    "checkpoint_every": 0,
+    "generator": TINY_GENERATOR,
+    "discriminator": TINY_DISCRIMINATOR,
 }
+# a checkpoint every iteration and a sample every 5: a kill lands in a write as often as in a step
+TINY_NCA_RUN = {**TINY_NCA, "sample_every": 5}
 GAN_STEP, NCA_STEP = 6, 20  # iterations asked for by each new job
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "MESH2TEX_PROGRESS": "0"}
 
@@ -114,9 +88,9 @@ def make_world(work: Path) -> None:
         rgba = np.zeros((16, 16, 4), np.uint8)
         rgba[4:12, 4:12] = (200, 40 * i, 30, 255)
         Image.fromarray(rgba).save(work / "photos" / f"{i}.png")
-    (work / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN))
+    (work / "tiny.yaml").write_text(yaml.safe_dump(TINY_GAN_RUN))
     (work / "transfer_gan.yaml").write_text(yaml.safe_dump(TRANSFER_GAN))
-    (work / "nca.yaml").write_text(yaml.safe_dump(TINY_NCA))
+    (work / "nca.yaml").write_text(yaml.safe_dump(TINY_NCA_RUN))
     Image.fromarray(exemplar_image("stripes", 48)).save(work / "stripes.png")
     query = Image.new("RGBA", (48, 48), (0, 0, 0, 0))
     query.paste((220, 180, 30, 255), (14, 10, 34, 40))

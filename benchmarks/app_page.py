@@ -23,18 +23,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from figures import CHROMIUM_FLAGS  # this folder
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "app" / "static" / "examples" / "chair.obj"
-BROWSER_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
+# the figures' headless, offline Chromium, its scrollbars as a user sees them
+BROWSER_ARGS = [flag for flag in CHROMIUM_FLAGS if flag != "--hide-scrollbars"]
 
 
 def start_app(folder: Path) -> tuple[subprocess.Popen, str]:

@@ -240,36 +240,27 @@ class _FieldRenders:
 
     def at_photo(self, ws: torch.Tensor) -> torch.Tensor:
         """(1, 3, R, R) the texture of styles ``ws`` at the photo's view, lit by the learnt light when there is one."""
-        view = self.view
-        lights = self.light.lights() if self.light is not None else None
+        return self._render(ws, self.view, self.samples, self.light.lights() if self.light is not None else None)
+
+    def unlit(self, ws: torch.Tensor, at: FramedView, at_samples) -> torch.Tensor:
+        """(1, 3, R, R) albedo of the texture at another view, cropped as that view's object."""
+        return self._render(ws, at, at_samples, None)
+
+    def _render(self, ws: torch.Tensor, view: FramedView, samples, lights) -> torch.Tensor:
+        size = (view.render_size,) * 2
         full = render_field_views(
             self.generator,
             self.batch,
             ws,
             view.mvp.to(self.device),
-            (view.render_size,) * 2,
+            size,
             self.grey,
             encoded=self.encoded,
             noise_mode="none",
-            samples=self.samples,
+            samples=samples,
             lights=lights,
         ).images
         return crop_square(full, view.box, self.resolution)
-
-    def unlit(self, ws: torch.Tensor, at: FramedView, at_samples) -> torch.Tensor:
-        """(1, 3, R, R) albedo of the texture at another view, cropped as that view's object."""
-        full = render_field_views(
-            self.generator,
-            self.batch,
-            ws,
-            at.mvp.to(self.device),
-            (at.render_size,) * 2,
-            self.grey,
-            encoded=self.encoded,
-            noise_mode="none",
-            samples=at_samples,
-        ).images
-        return crop_square(full, at.box, self.resolution)
 
 
 def _stage_loss(loss_of: PhotoLoss, renders: _FieldRenders, styles, use_global: bool, anchors, w_anchor: float):

@@ -13,6 +13,25 @@ import trimesh  # noqa: E402
 import yaml  # noqa: E402
 from PIL import Image  # noqa: E402
 
+# The smallest automaton run the tests train: a 6-channel automaton on a coarse sphere (add its ``iters``).
+TINY_NCA = {
+    "batch": 1,
+    "views": 1,
+    "resolution": 32,
+    "steps_min": 2,
+    "steps_max": 3,
+    "pool": 4,
+    "seed_every": 2,
+    "mesh": "sphere:3",
+    "exemplar_size": 32,
+    "vgg_depth": 1,
+    "max_points": 64,
+    "sample_every": 0,
+    "checkpoint_every": 1,
+    "log_every": 1,
+    "nca": {"channels": 6, "hidden": 16},
+}
+
 # The smallest GAN config the tests train (every network a few channels wide).
 TINY_GAN = {
     "sample_every": 0,

@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 import trimesh
 import yaml
+from conftest import TINY_NCA
 
 pytest.importorskip("fastapi", reason="the app's extra is not installed: pip install -e '.[app]'")
 pytest.importorskip("uvicorn", reason="the app's extra is not installed: pip install -e '.[app]'")
@@ -42,24 +43,7 @@ BROWSER_ARGS = [
     "--disable-sync",
 ]
 # the tiny automaton of tests/test_train_nca.py
-TINY_NCA = {
-    "iters": 4,
-    "batch": 1,
-    "views": 1,
-    "resolution": 32,
-    "steps_min": 2,
-    "steps_max": 3,
-    "pool": 4,
-    "seed_every": 2,
-    "mesh": "sphere:3",
-    "exemplar_size": 32,
-    "vgg_depth": 1,
-    "max_points": 64,
-    "sample_every": 0,
-    "checkpoint_every": 1,
-    "log_every": 1,
-    "nca": {"channels": 6, "hidden": 16},
-}
+TINY_NCA_RUN = {**TINY_NCA, "iters": 4}
 # small jobs: the page's flags, as a user would put them in --config
 CONFIG = {
     "max_mesh_mb": 1,
@@ -238,7 +222,7 @@ def test_an_nca_model_and_an_exemplar_image_texture_the_mesh(server, tmp_path):
     from mesh2tex.synthetic.exemplars import exemplar_image
 
     Image.fromarray(exemplar_image("stripes", 48)).save(tmp_path / "stripes.png")
-    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_NCA))
+    (tmp_path / "tiny.yaml").write_text(yaml.safe_dump(TINY_NCA_RUN))
     assert (
         main(
             [

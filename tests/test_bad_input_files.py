@@ -90,7 +90,7 @@ def test_files_already_in_out_are_kept_without_overwrite(command, existing, ctx,
 
 
 def test_infer_nca_keeps_files_already_in_out(tmp_path, capsys):
-    from test_train_nca import TINY_NCA
+    from conftest import TINY_NCA
 
     from mesh2tex.synthetic.exemplars import exemplar_image
 

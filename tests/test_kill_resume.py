@@ -23,7 +23,7 @@ import time
 
 import pytest
 import yaml
-from conftest import TINY_GAN
+from conftest import TINY_GAN, TINY_NCA
 from PIL import Image
 
 from mesh2tex.cli import main
@@ -33,31 +33,14 @@ from mesh2tex.io.outputs import LOCK_NAME
 from mesh2tex.synthetic.exemplars import exemplar_image
 
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "MESH2TEX_PROGRESS": "0"}
-TINY_NCA = {
-    "iters": 8,
-    "batch": 1,
-    "views": 1,
-    "resolution": 32,
-    "steps_min": 2,
-    "steps_max": 3,
-    "pool": 4,
-    "seed_every": 2,
-    "mesh": "sphere:3",
-    "exemplar_size": 32,
-    "vgg_depth": 1,
-    "max_points": 64,
-    "sample_every": 0,
-    "checkpoint_every": 1,
-    "log_every": 1,
-    "nca": {"channels": 6, "hidden": 16},
-}
+TINY_NCA_RUN = {**TINY_NCA, "iters": 8}
 
 
 @pytest.fixture(scope="module")
 def files(tiny_gan, tmp_path_factory):
     root = tmp_path_factory.mktemp("kill")
     Image.fromarray(exemplar_image("stripes", 48)).save(root / "stripes.png")
-    (root / "nca.yaml").write_text(yaml.safe_dump(TINY_NCA))
+    (root / "nca.yaml").write_text(yaml.safe_dump(TINY_NCA_RUN))
     (root / "gan.yaml").write_text(yaml.safe_dump(TINY_GAN))
     (root / "view.yaml").write_text("width: 4\n")
     query = Image.new("RGBA", (48, 48), (0, 0, 0, 0))

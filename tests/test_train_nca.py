@@ -7,30 +7,14 @@ import pytest
 import torch
 import trimesh
 import yaml
+from conftest import TINY_NCA
 from PIL import Image
 
 from mesh2tex.cli import main
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint
 from mesh2tex.synthetic.exemplars import exemplar_image
 
-TINY_NCA = {
-    "iters": 4,
-    "batch": 1,
-    "views": 1,
-    "resolution": 32,
-    "steps_min": 2,
-    "steps_max": 3,
-    "pool": 4,
-    "seed_every": 2,
-    "mesh": "sphere:3",
-    "exemplar_size": 32,
-    "vgg_depth": 1,
-    "max_points": 64,
-    "sample_every": 0,
-    "checkpoint_every": 1,
-    "log_every": 1,
-    "nca": {"channels": 6, "hidden": 16},
-}
+TINY_NCA_RUN = {**TINY_NCA, "iters": 4}
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +22,7 @@ def nca_files(tmp_path_factory):
     root = tmp_path_factory.mktemp("nca")
     Image.fromarray(exemplar_image("stripes", 48)).save(root / "stripes.png")
     Image.fromarray(exemplar_image("checker", 48)).save(root / "checker.png")
-    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_NCA))
+    (root / "tiny.yaml").write_text(yaml.safe_dump(TINY_NCA_RUN))
     return root
 
 

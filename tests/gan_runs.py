@@ -23,8 +23,11 @@ TINY = {
 }
 
 
-def train(data, out, *extra):
-    args = [
+def train_args(data, out, *extra, batch: int = 2, config=None) -> list[str]:
+    """The words after ``mesh2tex`` of a ``train gan`` run on the tiny set in ``data`` into ``out`` (with
+    ``config`` in place of the tiny set's own)."""
+    tiny = ["--batch", str(batch), *"--views 2 --resolution 16 --device cpu".split()]
+    return [
         "train",
         "gan",
         "--shapes",
@@ -35,17 +38,13 @@ def train(data, out, *extra):
         str(out),
         "--config",
         str(data / "tiny.yaml"),
-        "--batch",
-        "2",
-        "--views",
-        "2",
-        "--resolution",
-        "16",
-        "--device",
-        "cpu",
+        *tiny,
         *extra,
     ]
-    return main(args)
+
+
+def train(data, out, *extra):
+    return main(train_args(data, out, *extra))
 
 
 def metrics(out):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from gan_runs import TINY, make_tiny_data, metrics, train
+from gan_runs import TINY, make_tiny_data, metrics, train, train_args
 from PIL import Image
 
 from mesh2tex.cli import main
@@ -114,30 +114,7 @@ def test_nonfinite_loss_stops_with_a_clear_message(tiny_data, tmp_path, capsys):
     config = tmp_path / "bad.yaml"
     config.write_text(yaml.safe_dump({**TINY, "optim": {"lr_discriminator": 1e30, "lr_generator": 1e30}}))
     out = tmp_path / "bad"
-    code = main(
-        [
-            "train",
-            "gan",
-            "--shapes",
-            str(tiny_data / "shapes"),
-            "--images",
-            str(tiny_data / "photos"),
-            "--out",
-            str(out),
-            "--config",
-            str(config),
-            "--batch",
-            "2",
-            "--views",
-            "2",
-            "--resolution",
-            "16",
-            "--device",
-            "cpu",
-            "--iters",
-            "30",
-        ]
-    )
+    code = main(train_args(tiny_data, out, "--iters", "30", config=config))
     err = capsys.readouterr().err
     assert code == 4 and "non-finite loss" in err and "nonfinite.safetensors" in err
     assert (out / "nonfinite.safetensors").is_file()
@@ -176,26 +153,7 @@ def test_two_process_data_parallel_run(tiny_data, tmp_path):
         "2",
         "-m",
         "mesh2tex",
-        "train",
-        "gan",
-        "--shapes",
-        str(tiny_data / "shapes"),
-        "--images",
-        str(tiny_data / "photos"),
-        "--out",
-        str(out),
-        "--config",
-        str(tiny_data / "tiny.yaml"),
-        "--batch",
-        "1",
-        "--views",
-        "2",
-        "--resolution",
-        "16",
-        "--device",
-        "cpu",
-        "--iters",
-        "2",
+        *train_args(tiny_data, out, "--iters", "2", batch=1),
     ]
     result = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=240)
     assert result.returncode == 0, result.stderr[-3000:]
@@ -238,33 +196,7 @@ def test_snapshots_keep_loadable_float16_generators(tiny_data, tmp_path):
     config = tmp_path / "snap.yaml"
     config.write_text(yaml.safe_dump({**TINY, "snapshot_every": 1}))
     out = tmp_path / "snap"
-    assert (
-        main(
-            [
-                "train",
-                "gan",
-                "--shapes",
-                str(tiny_data / "shapes"),
-                "--images",
-                str(tiny_data / "photos"),
-                "--out",
-                str(out),
-                "--config",
-                str(config),
-                "--batch",
-                "2",
-                "--views",
-                "2",
-                "--resolution",
-                "16",
-                "--device",
-                "cpu",
-                "--iters",
-                "2",
-            ]
-        )
-        == 0
-    )
+    assert main(train_args(tiny_data, out, "--iters", "2", config=config)) == 0
     snaps = sorted((out / "snapshots").glob("iter*.safetensors"))
     assert [p.name for p in snaps] == ["iter0000001.safetensors", "iter0000002.safetensors"]
     model = load_generator(snaps[-1], torch.device("cpu"))

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import torch
 import yaml
-from gan_runs import TINY, make_tiny_data, metrics, train
+from gan_runs import TINY, make_tiny_data, metrics, train, train_args
 
 from mesh2tex.io.checkpoint import load_checkpoint, read_checkpoint_meta
 
@@ -240,26 +240,7 @@ def test_kill_stops_a_run_with_its_checkpoint_saved(tiny_data, tmp_path):
         sys.executable,
         "-m",
         "mesh2tex",
-        "train",
-        "gan",
-        "--shapes",
-        str(tiny_data / "shapes"),
-        "--images",
-        str(tiny_data / "photos"),
-        "--out",
-        str(out),
-        "--config",
-        str(tiny_data / "tiny.yaml"),
-        "--batch",
-        "1",
-        "--views",
-        "2",
-        "--resolution",
-        "16",
-        "--device",
-        "cpu",
-        "--iters",
-        "100000",
+        *train_args(tiny_data, out, "--iters", "100000", batch=1),
     ]
     process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 180

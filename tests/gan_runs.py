@@ -37,7 +37,7 @@ def train_args(data, out, *extra, batch: int = 2, config=None) -> list[str]:
         "--out",
         str(out),
         "--config",
-        str(data / "tiny.yaml"),
+        str(config or data / "tiny.yaml"),
         *tiny,
         *extra,
     ]

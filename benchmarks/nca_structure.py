@@ -2,7 +2,8 @@
 
     OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
         [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
-        [--direct ps sw ...] [--direct-iters 400] [--direct-size 512] [--figure FILE.png [--figure-view 1]]
+        [--direct ps sw ...] [--surface ps ...] [--direct-iters 400] [--direct-size 512]
+        [--figure FILE.png [--figure-view 1]]
 
 For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over
 the unit square) and each loss, an automaton of the default config is trained from scratch on the
@@ -20,7 +21,9 @@ Rows: ``oracle`` (the exemplar's pattern painted per pixel at the exemplar's pix
 colour), then one row per loss (``ot`` is today's default), then with ``--direct`` one row per loss of
 the direct method (``direct LOSS``: ``infer synthesize``'s texels optimised through renders,
 :mod:`mesh2tex.texel_synthesis`, on a new xatlas atlas of each mesh with its defaults but the loss,
-``--direct-iters`` and ``--direct-size``; run on each mesh, since it needs no training).
+``--direct-iters`` and ``--direct-size``; run on each mesh, since it needs no training), and with
+``--surface`` the same through geodesic charts of the surface in place of renders (``surface LOSS``:
+``infer synthesize --method surface``).
 Summary per loss: its SWD over the
 oracle's and over ``ot``'s, on each mesh. One thread; with ``--runs`` the trained models are saved
 there (``<exemplar>_<loss>.safetensors``) and reused when present. With ``--figure`` one picture
@@ -100,14 +103,29 @@ def state_views(model, state, graph, mvp) -> tuple[torch.Tensor, torch.Tensor]:
 
 
 def direct_views(
-    exemplar: torch.Tensor, loss: str, graph, mvp: torch.Tensor, vgg, iters: int, size: int, seed: int
+    exemplar: torch.Tensor,
+    loss: str,
+    graph,
+    mvp: torch.Tensor,
+    vgg,
+    iters: int,
+    size: int,
+    seed: int,
+    method: str = "renders",
 ) -> tuple[tuple[torch.Tensor, torch.Tensor], float]:
     """The direct method's texture on ``graph``'s mesh (a new atlas over its triangles), optimised ``iters``
-    steps with the ``loss``, seen by ``mvp``: ((images (N, 3, H, W) in [0, 1], masks), seconds)."""
+    steps with the ``loss`` through ``method`` (renders or surface charts), seen by ``mvp``: ((images
+    (N, 3, H, W) in [0, 1], masks), seconds)."""
     vertex_index, faces, uv = new_atlas(graph.positions.double().numpy(), graph.triangles.numpy())
     surface = TexelSurface.from_arrays(graph.positions.numpy()[vertex_index], faces, uv)
     cfg = SynthesisConfig(
-        iters=iters, texture_size=size, loss=loss, exemplar_size=SIZE, resolution=RESOLUTION, seed=seed
+        iters=iters,
+        texture_size=size,
+        loss=loss,
+        exemplar_size=SIZE,
+        resolution=RESOLUTION,
+        seed=seed,
+        method=method,
     )
     synthesis = TexelSynthesis(cfg, surface, exemplar, None if loss == "ps" else vgg)
     start = time.perf_counter()
@@ -141,6 +159,9 @@ def main() -> int:
     parser.add_argument(
         "--direct", nargs="*", default=[], help="losses of direct-method rows (infer synthesize), e.g. ps sw"
     )
+    parser.add_argument(
+        "--surface", nargs="*", default=[], help="losses of direct-method rows through geodesic charts, e.g. ps"
+    )
     parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")
     parser.add_argument(
         "--direct-size", type=int, default=SynthesisConfig.texture_size, help="the direct method's texture side"
@@ -163,7 +184,9 @@ def main() -> int:
     if runs_dir is not None:
         runs_dir.mkdir(parents=True, exist_ok=True)
     results: dict = {"iters": args.iters, "seed": args.seed, "meshes": meshes, "exemplars": {}}
-    shown = ["oracle", *args.losses, *(f"direct {loss}" for loss in args.direct)]
+    direct_rows = [(f"direct {loss}", loss, "renders") for loss in args.direct]
+    direct_rows += [(f"surface {loss}", loss, "surface") for loss in args.surface]
+    shown = ["oracle", *args.losses, *(row for row, _, _ in direct_rows)]
     figure_rows: list[tuple[str, list[torch.Tensor]]] = []
     for name in args.exemplars:
         image = exemplar_image(name, SIZE)
@@ -202,11 +225,19 @@ def main() -> int:
                 sets[row] = state_views(model, state, graph, mvp)
             for loss, model in models.items():
                 sets[loss] = state_views(model, grow(model, graph, STEPS, seed=args.seed), graph, mvp)
-            for loss in args.direct:
-                sets[f"direct {loss}"], seconds = direct_views(
-                    target.float() * 2 - 1, loss, graph, mvp, vgg, args.direct_iters, args.direct_size, args.seed
+            for row, loss, method in direct_rows:
+                sets[row], seconds = direct_views(
+                    target.float() * 2 - 1,
+                    loss,
+                    graph,
+                    mvp,
+                    vgg,
+                    args.direct_iters,
+                    args.direct_size,
+                    args.seed,
+                    method,
                 )
-                record["train_seconds"][f"direct {loss} ({mesh})"] = seconds
+                record["train_seconds"][f"{row} ({mesh})"] = seconds
             for row, (images, masks) in sets.items():
                 record["rows"].setdefault(row, {})[mesh] = structure_scores(images, masks, target).as_dict()
             tiles += [sets[row][0][args.figure_view] for row in shown]
@@ -216,7 +247,7 @@ def main() -> int:
             write_figure(
                 Path(args.figure), figure_rows, ["exemplar"] + [f"{m}: {row}" for m in graphs for row in shown]
             )
-        print_exemplar(name, record, list(graphs), args.losses + [f"direct {loss}" for loss in args.direct])
+        print_exemplar(name, record, list(graphs), args.losses + [row for row, _, _ in direct_rows])
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1))
     return 0

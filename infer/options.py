@@ -156,8 +156,15 @@ def synthesize(parser: argparse.ArgumentParser) -> None:
         "--direction-field",
         key="synthesis.direction_field",
         choices=static_value("mesh2tex.texel_synthesis:DIRECTIONS"),
-        help="up: every view upright, so stripes keep one direction relative to the mesh's up; none: views "
+        help="up: every view (or chart) upright, so stripes keep one direction relative to the mesh's up; none: "
         "rolled at random, each region of the surface takes an orientation of its own",
+    )
+    config.add(
+        "--method",
+        key="synthesis.method",
+        choices=static_value("mesh2tex.texel_synthesis:METHODS"),
+        help="how the loss sees the surface: renders (random rendered views) or surface (geodesic charts walked "
+        "on the surface along the direction field: no foreshortening, hidden parts included)",
     )
     config.add(
         "--loss",

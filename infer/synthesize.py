@@ -1,16 +1,17 @@
 """``mesh2tex infer synthesize``: texture the user's mesh after one exemplar image, no trained model.
 
     mesh2tex infer synthesize --exemplar IMG --mesh MESH --out DIR [--texture-size 512] [--iters 400]
-                              [--direction-field up|none] [--loss ps|sw|ot] [--seed 0] [--device auto]
+                              [--direction-field up|none] [--method renders|surface] [--loss ps|sw|ot]
+                              [--seed 0] [--device auto]
                               [--up auto|y|z] [--uv auto|keep|new] [--output-mesh input|prepared] [--overwrite]
 
 The mesh's UV texture (its own UVs when usable, else a new xatlas atlas; ``--uv``) is optimised
 directly, texel by texel through a coarse-to-fine pyramid, so that renders of the textured mesh from
-random views match the exemplar's structure under a weight-free structure loss
-(:mod:`mesh2tex.texel_synthesis`). This is the documented cheaper variant of the paper's
-surface-aware convolutions: the surface is judged through rendered views, not by convolutions on a
-tangent direction field (not built). ``--direction-field up`` keeps every view upright, so stripes
-keep one direction relative to the mesh's up; ``none`` rolls the views at random.
+random views (``--method renders``, the default) or geodesic charts walked on the surface itself
+(``--method surface``, the paper's exponential-map neighbourhoods on a tangent direction field) match
+the exemplar's structure under a weight-free structure loss (:mod:`mesh2tex.texel_synthesis`).
+``--direction-field up`` keeps every view or chart upright, so stripes keep one direction relative to
+the mesh's up; ``none`` rolls them at random.
 
 Writes into DIR: ``textured.glb`` (the user's own mesh, in its own frame and units, with the texture
 in its UVs; opens in Blender), ``textured.ply`` (the same mesh with per-vertex colours),
@@ -54,6 +55,10 @@ from mesh2tex.texturing import note, read_user_mesh, write_baked_mesh
 
 OUTPUTS = ("textured.glb", "textured.ply", "texture.png", "report.json")
 MIN_EXEMPLAR = 8  # an exemplar's shorter side, pixels, at least
+METHOD_NAMES = {
+    "renders": "texels optimised through rendered views",
+    "surface": "texels optimised through geodesic charts of the surface (exponential map on the direction field)",
+}
 
 
 @dataclass
@@ -174,7 +179,7 @@ def run(args) -> int:
         "mesh": args.mesh,
         "config": _plain(cfg),
         "mip_level": synthesis.mip,
-        "method": "texels optimised through rendered views (not the paper's surface convolutions)",
+        "method": METHOD_NAMES[settings.method],
         "seconds": round(time.perf_counter() - started, 2),
         "optimise_seconds": round(optimise_seconds, 2),
         "ms_per_step": round(1000 * optimise_seconds / settings.iters, 2),

@@ -16,17 +16,27 @@ The colour term is the sliced Wasserstein distance of the object's RGB pixels (`
 and without it the texture keeps off-palette speckles (green and cyan among red and cream stripes);
 on the stripes exemplar (400 steps, the same rates) it took the judge's patch distance from 576 to 232.
 
-**What this is, and what it is not.** The paper (surface-aware texture synthesis with pre-trained
-2D CNNs) runs 2D convolutions on the surface itself, oriented by a tangent direction field, so that
-every point of the surface is seen once at its own scale. This module is the cheaper variant the
-issue allows: the surface is seen through *renders*, and the structure loss judges the renders as
-2D images. It needs no surface convolution, but it inherits the camera's orientation: the structure
-losses are orientation-sensitive (the ``ps`` filters are oriented, random VGG filters are not
-rotation-invariant), so a pattern's direction on the surface follows the cameras' up. With
-``direction="up"`` every view is upright (roll zero, up = the mesh's up, y in the working frame), so
-stripes keep one global direction on the surface, across the atlas's seams; with ``"none"`` every
-view is rolled by a random angle, and each region settles on an orientation of its own. The paper's
-convolution variant on a tangent direction field is **not built**.
+**Two ways to see the surface** (``method``). ``renders``: the surface is seen through random
+*rendered views*, and the structure loss judges them as 2D images. It inherits the camera's
+orientation: the structure losses are orientation-sensitive (the ``ps`` filters are oriented, random
+VGG filters are not rotation-invariant), so a pattern's direction on the surface follows the
+cameras' up. With ``direction="up"`` every view is upright (roll zero, up = the mesh's up, y in the
+working frame), so stripes keep one global direction on the surface, across the atlas's seams; with
+``"none"`` every view is rolled by a random angle, and each region settles on an orientation of its
+own. A render foreshortens what it sees at a grazing angle and never sees what other parts hide.
+
+``surface``: the surface is seen through *geodesic charts*, as the paper (surface-aware texture
+synthesis with pre-trained 2D CNNs, Kovacs et al. 2024) samples its convolutions' neighbourhoods by
+the exponential map on a tangent direction field. Each step draws ``charts`` centres uniformly over
+the surface's area; around each, a ``chart_size`` square grid of points one exemplar pixel apart is
+walked out along geodesics in the centre's tangent frame (:mod:`mesh2tex.geometry.geodesic`; the
+frame's up is the mesh's up projected on the tangent plane for ``direction="up"``, a random roll for
+``"none"``), and the texture read at those points is a chart: an image of the surface as it is, with
+no foreshortening, across the atlas's seams, hidden parts included. The charts, side by side with
+masked gutters (:func:`chart_mosaic`), are one image for the structure loss. What differs from the
+paper: its network convolves every texel's own neighbourhood layer by layer (pooling by voxels);
+here the 2D loss runs on charts, whole local images, so a chart's grid is exact at its centre and
+follows the geodesics radially, as a photo of a curved patch would not.
 
 **Scale.** The exemplar's pixels are matched to render pixels: an exemplar pixel covers one pixel of a
 ``resolution``-px view of the whole mesh (the unit ball seen from ``distance`` with ``fov``), as in
@@ -50,12 +60,14 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.config import check_fields
+from mesh2tex.geometry.geodesic import SurfaceWalker, geodesic_charts
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
 from mesh2tex.photos import square_resize
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 from mesh2tex.render.cameras import NCACameraConfig
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
+METHODS = ("renders", "surface")  # how the loss sees the surface: rendered views, or geodesic charts
 SYNTHESIS_LOSSES = ("ps", "sw", "ot")  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
 
 
@@ -74,7 +86,10 @@ class SynthesisConfig:
     lr_end: float = 0.1  # the rate at the last step, as a fraction of lr (a cosine in between): the texels settle
     colour_weight: float = 100.0  # weight of the sliced Wasserstein distance of the RGB pixels (the joint palette)
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
-    direction_field: str = "up"  # up: views upright (stripes keep the mesh's up); none: views rolled at random
+    direction_field: str = "up"  # up: views or charts upright (stripes keep the mesh's up); none: rolled at random
+    method: str = "renders"  # renders: random rendered views; surface: geodesic charts of the surface itself
+    charts: int = 16  # surface method: charts per step
+    chart_size: int = 32  # surface method: a chart's side, in exemplar pixels
     # the random views around the mesh in the unit ball, as train nca's
     camera: NCACameraConfig = field(default_factory=NCACameraConfig)
     seed: int = 0  # seed of the views, the loss's random projections and the initial noise
@@ -97,6 +112,8 @@ class SynthesisConfig:
                 "max_points": 2,
                 "overflow_weight": 0,
                 "colour_weight": 0,
+                "charts": 1,
+                "chart_size": 16,
             },
             between={
                 "vgg_depth": (0, 5),
@@ -110,6 +127,8 @@ class SynthesisConfig:
         )
         if self.loss not in SYNTHESIS_LOSSES or self.loss not in STYLE_LOSSES:
             raise ValueError(f"loss must be one of {', '.join(SYNTHESIS_LOSSES)}, got {self.loss!r}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.direction_field not in DIRECTIONS:
             raise ValueError(f"direction_field must be one of {', '.join(DIRECTIONS)}, got {self.direction_field!r}")
 
@@ -169,7 +188,8 @@ def mip_level(surface: TexelSurface, cfg: SynthesisConfig) -> int:
 def exemplar_tensor(rgb: np.ndarray, size: int) -> torch.Tensor:
     """(H, W, 3) uint8 image -> (1, 3, size, size) float32 in [-1, 1]: its centred square, resized with
     antialiasing, as every photo set is framed (:func:`mesh2tex.photos.square_resize`)."""
-    square = square_resize(torch.from_numpy(np.ascontiguousarray(rgb)).float().permute(2, 0, 1), size)
+    # A copy: an image read from a file can be a read-only array, which torch.from_numpy warns of.
+    square = square_resize(torch.tensor(np.asarray(rgb)).float().permute(2, 0, 1), size)
     return (square[None] / 127.5 - 1).clamp(-1, 1)
 
 
@@ -203,6 +223,48 @@ def render_texture(
     colours = sample_texture(image, interpolate(surface.uv, raster, surface.faces))  # (N, R, R, 3)
     images = torch.where(covered, colours, torch.full_like(colours, background))
     return images.permute(0, 3, 1, 2), covered.permute(0, 3, 1, 2).to(images.dtype)
+
+
+class SurfaceCharts:
+    """Random geodesic charts of a :class:`TexelSurface` (the ``surface`` method, module docstring).
+
+    spacing: the distance between a chart's neighbouring points on the surface (one exemplar pixel);
+    size: a chart's side in points; direction_field: ``up`` (charts upright, u = the mesh's up
+    projected) or ``none`` (each chart rolled by a random angle).
+    """
+
+    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
+        self.walker = SurfaceWalker(surface.positions.cpu().numpy(), surface.faces.cpu().numpy())
+        self.uv = surface.uv.cpu().double().numpy()[surface.faces.cpu().numpy()]  # (T, 3, 2)
+        self.spacing, self.size, self.direction_field = float(spacing), int(size), direction_field
+
+    def draw(self, count: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+        """``count`` charts at centres uniform over the area: UVs (count, G, G, 2) float32 (v up) and
+        masks (count, 1, G, G) float32 (0 where a walk left the surface at a boundary)."""
+        rng = np.random.default_rng(int(torch.randint(2**62, (1,), generator=generator)))
+        face, bary = self.walker.sample(count, rng)
+        roll = rng.random(count) * 2 * math.pi if self.direction_field == "none" else 0.0
+        frames = self.walker.frames(face, roll)
+        faces, barys, valid = geodesic_charts(self.walker, face, bary, frames, self.size, self.spacing)
+        uv = (self.uv[faces] * barys[..., None]).sum(-2)  # (count, G, G, 2)
+        return torch.from_numpy(uv).float(), torch.from_numpy(valid).float()[:, None]
+
+
+def chart_mosaic(images: torch.Tensor, masks: torch.Tensor, gutter: int = 4, background: float = 1.0):
+    """The charts (N, 3, G, G) with masks (N, 1, G, G) side by side on a square grid, ``gutter`` masked
+    pixels between them, as one image (1, 3, H, W) and mask (1, 1, H, W): the structure losses pool
+    their statistics over every chart, and no filter whose support is on the object straddles two."""
+    n, _, g, _ = images.shape
+    columns = math.ceil(math.sqrt(n))
+    rows = math.ceil(n / columns)
+    cell = g + gutter
+    canvas = images.new_full((3, rows * cell - gutter, columns * cell - gutter), background)
+    cover = masks.new_zeros((1, rows * cell - gutter, columns * cell - gutter))
+    for k in range(n):
+        r, c = divmod(k, columns)
+        canvas[:, r * cell : r * cell + g, c * cell : c * cell + g] = images[k]
+        cover[:, r * cell : r * cell + g, c * cell : c * cell + g] = masks[k]
+    return canvas[None], cover[None]
 
 
 class TexelPyramid(torch.nn.Module):
@@ -271,6 +333,10 @@ class TexelSynthesis:
         self.pyramid = TexelPyramid(cfg.texture_size, cfg.levels, mean, generator=self.generator).to(self.device)
         self.optimizer = torch.optim.Adam(self.pyramid.parameters(), lr=cfg.lr)
         self.mip = mip_level(surface, cfg)
+        self.charts = None
+        if cfg.method == "surface":
+            spacing = 1 / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)
+            self.charts = SurfaceCharts(surface, spacing, cfg.chart_size, cfg.direction_field)
         self.iteration = 0
 
     def seen(self, image: torch.Tensor | None = None) -> torch.Tensor:
@@ -280,15 +346,34 @@ class TexelSynthesis:
         pooled = F.avg_pool2d(image[None], 2**self.mip)[0] if self.mip else image
         return pooled + (pooled.clamp(-1, 1) - pooled).detach()
 
-    def loss_of(self, image: torch.Tensor, mvp: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-        """The style loss of the renders of ``image`` (3, S, S) by ``mvp`` (N, 4, 4) against the exemplar."""
+    def views_of(self, image: torch.Tensor, count: int, generator: torch.Generator):
+        """What the loss compares with the exemplar: ``count`` random views of ``image`` (3, S, S) (the
+        renders method), or ``count`` geodesic charts side by side (the surface method). Returns (images
+        (N, 3, H, W) in [-1, 1], masks (N, 1, H, W)) for the structure loss and the same for the colour term."""
+        seen = self.seen(image)
+        if self.charts is None:
+            mvp = view_cameras(self.cfg, count, generator).to(self.device)
+            views = render_texture(self.surface, seen, mvp, self.cfg.resolution)
+            return views, views
+        uv, masks = self.charts.draw(count, generator)
+        uv, masks = uv.to(self.device), masks.to(self.device)
+        colours = sample_texture(seen, uv).permute(0, 3, 1, 2)  # (N, 3, G, G)
+        charts = torch.where(masks > 0.5, colours, torch.ones_like(colours)), masks
+        return chart_mosaic(*charts), charts
+
+    def loss_of(self, image: torch.Tensor, count: int, generator: torch.Generator) -> torch.Tensor:
+        """The style loss of ``count`` views or charts of ``image`` (3, S, S) against the exemplar."""
         cfg = self.cfg
-        images, masks = render_texture(self.surface, self.seen(image), mvp.to(self.device), cfg.resolution)
+        (images, masks), (pixels, pixel_masks) = self.views_of(image, count, generator)
         loss = style_loss(self.vgg, images, masks, self.features, cfg.loss, cfg.max_points, generator)
         if cfg.colour_weight:
-            palette = style_loss(None, images, masks, self.palette, "sw", cfg.max_points, generator)
+            palette = style_loss(None, pixels, pixel_masks, self.palette, "sw", cfg.max_points, generator)
             loss = loss + cfg.colour_weight * palette
         return loss
+
+    def per_step(self) -> int:
+        """Views (renders method) or charts (surface method) drawn per step."""
+        return self.cfg.views if self.charts is None else self.cfg.charts
 
     def learning_rate(self, iteration: int) -> float:
         """lr at ``iteration``: a cosine from ``lr`` down to ``lr * lr_end`` at the last step."""
@@ -299,8 +384,7 @@ class TexelSynthesis:
     def step(self) -> dict[str, float]:
         """One Adam step on random views; returns its losses (style, overflow)."""
         image = self.pyramid()
-        mvp = view_cameras(self.cfg, self.cfg.views, self.generator)
-        style = self.loss_of(image, mvp, self.generator)
+        style = self.loss_of(image, self.per_step(), self.generator)
         overflow = F.relu(image.abs() - 1).square().mean()
         loss = style + self.cfg.overflow_weight * overflow
         self.optimizer.zero_grad(set_to_none=True)
@@ -316,10 +400,11 @@ class TexelSynthesis:
 
     @torch.no_grad()
     def fixed_loss(self, views: int = 4, seed: int = 1) -> float:
-        """The style loss over ``views`` views and projections drawn from ``seed`` (the same at every call):
-        comparable before and after the optimisation."""
+        """The style loss over ``views`` views (or a step's charts) and projections drawn from
+        ``seed`` (the same at every call): comparable before and after the optimisation."""
         generator = torch.Generator().manual_seed(seed)
-        return float(self.loss_of(self.pyramid(), view_cameras(self.cfg, views, generator), generator))
+        count = views if self.charts is None else self.cfg.charts
+        return float(self.loss_of(self.pyramid(), count, generator))
 
     @torch.no_grad()
     def texture(self) -> torch.Tensor:
@@ -352,11 +437,14 @@ def vertex_texture_colours(image: torch.Tensor, uv: np.ndarray, vertex_index: np
 
 __all__ = [
     "DIRECTIONS",
+    "METHODS",
     "SYNTHESIS_LOSSES",
+    "SurfaceCharts",
     "SynthesisConfig",
     "TexelPyramid",
     "TexelSurface",
     "TexelSynthesis",
+    "chart_mosaic",
     "exemplar_tensor",
     "mip_level",
     "pixels_per_unit",

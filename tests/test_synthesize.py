@@ -108,13 +108,16 @@ def test_a_bad_mesh_is_a_one_line_error(inputs, tmp_path, capsys, monkeypatch):
     assert "none.obj" in one_error_line(capsys)
 
 
-def test_the_loss_falls_over_a_short_run():
+@pytest.mark.parametrize("method", ["renders", "surface"])
+def test_the_loss_falls_over_a_short_run(method):
     torch.manual_seed(0)
     ball = trimesh.creation.icosphere(subdivisions=2)
     vertex_index, faces, uv = new_atlas(ball.vertices, ball.faces)
     unit = ball.vertices / np.linalg.norm(ball.vertices, axis=1).max()
     surface = TexelSurface.from_arrays(unit[vertex_index], faces, uv)
-    cfg = SynthesisConfig(iters=30, texture_size=64, levels=4, resolution=64, exemplar_size=48, lr=0.05)
+    cfg = SynthesisConfig(
+        iters=30, texture_size=64, levels=4, resolution=64, exemplar_size=48, lr=0.05, method=method, charts=4
+    )
     synthesis = TexelSynthesis(cfg, surface, exemplar_tensor(exemplar_image("stripes", 48), 48))
     before = synthesis.fixed_loss()
     for _ in range(cfg.iters):
@@ -123,6 +126,15 @@ def test_the_loss_falls_over_a_short_run():
     assert after < 0.8 * before, (before, after)
     image = synthesis.texture()
     assert image.shape == (64, 64, 3) and float(image.abs().max()) <= 1.0
+
+
+def test_the_surface_method_writes_the_same_outputs_and_names_itself(inputs, tmp_path, monkeypatch):
+    monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
+    out = tmp_path / "out"
+    assert main([*command(inputs, out), *TINY, "--method", "surface"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["config"]["synthesis"]["method"] == "surface" and "geodesic charts" in report["method"]
+    assert (out / "textured.glb").is_file() and (out / "view_0.png").is_file()
 
 
 def test_upright_views_keep_the_meshs_up_and_rolled_views_do_not():

@@ -158,6 +158,24 @@ def test_a_run_starts_from_another_runs_checkpoint(tiny_data, tmp_path, capsys):
     assert [r["iteration"] for r in metrics(third)] == [5]
 
 
+def test_a_kept_checkpoint_starts_a_branch_that_equals_the_run_it_came_from(tiny_data, tmp_path, capsys):
+    """``keep_checkpoints: [2]`` keeps the whole state at iteration 2 beside the run's own checkpoint; a run started
+    from it (``--resume FILE``) with the same settings reaches the source run's weights at iteration 4."""
+    config = tmp_path / "keep.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "keep_checkpoints": [2]}))
+    source, branch = tmp_path / "source", tmp_path / "branch"
+    assert train(tiny_data, source, "--iters", "4", "--config", str(config)) == 0
+    kept = source / "checkpoints" / "iter0000002.safetensors"
+    assert sorted(p.name for p in (source / "checkpoints").iterdir()) == [kept.name]
+    assert read_checkpoint_meta(kept)["meta"]["iteration"] == 2
+    assert train(tiny_data, branch, "--iters", "4", "--config", str(config), "--resume", str(kept)) == 0
+    ga, _ = load_checkpoint(source / "checkpoint.safetensors", kind="gan")
+    gb, _ = load_checkpoint(branch / "checkpoint.safetensors", kind="gan")
+    for group in ("generator_ema", "generator", "d_field", "d_proxy"):
+        for name, tensor in ga[group].items():
+            torch.testing.assert_close(tensor, gb[group][name], rtol=1e-5, atol=1e-6)
+
+
 @pytest.fixture(scope="module")
 def refused_sources(tiny_data, tmp_path_factory):
     """Checkpoints a run must not start from: another kind, an inference snapshot, a shipped model, a missing file."""

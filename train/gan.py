@@ -295,6 +295,15 @@ class GanTrainer:
                 old.unlink()
         return path
 
+    def keep_checkpoint(self) -> Path:
+        """Collective: RUN/checkpoints/iterNNNNNNN.safetensors, the whole training state now (as the run's
+        checkpoint), for other runs to start from with ``--resume``."""
+        path = self.run.root / "checkpoints" / f"iter{self.iteration:07d}.safetensors"
+        if self.dist.is_main:
+            path.parent.mkdir(exist_ok=True)
+        self.save(path)
+        return path
+
     def turntable(self, k: int) -> tuple[torch.Tensor, torch.Tensor]:
         """k azimuths around each sample shape: (num_shapes * k, 4, 4) cameras on the device and their
         (num_shapes * k,) azimuths in degrees (CPU)."""
@@ -403,6 +412,7 @@ class GanTrainer:
             measure=runs.Every(cfg.metric_every, self.measure_and_keep, final="always"),
             periodic=[
                 runs.Every(cfg.snapshot_every, self.write_snapshot),
+                runs.At(cfg.keep_checkpoints, self.keep_checkpoint, main_only=False),
                 runs.Every(cfg.sample_every, self.write_samples, final="never"),
             ],
             extra={"world_size": self.dist.world_size},

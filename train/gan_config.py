@@ -71,6 +71,9 @@ class TrainGanConfig:
     checkpoint_every: int = 500  # iterations between checkpoints (0: only at the end)
     snapshot_every: int = 0  # iterations between kept float16 EMA generators under RUN/snapshots (0: none)
     keep_snapshots: int = 0  # snapshots kept under RUN/snapshots, the newest (0: all)
+    # iterations whose whole training state is kept as RUN/checkpoints/iterNNNNNNN.safetensors, for other runs to
+    # start from (--resume FILE): a branch with other settings from there, without training the shared start again
+    keep_checkpoints: list[int] = field(default_factory=list)
     # iterations between the held-out metric (SWD, diversity) that picks RUN/best.safetensors (0: none)
     metric_every: int = 0
     metric_photos: int = 16  # photos held out of training for the metric, the last by name (only when metric_every > 0)
@@ -104,6 +107,8 @@ class TrainGanConfig:
             },
             positive=("ema_halflife_images",),
         )
+        if any(not isinstance(it, int) or it < 1 for it in self.keep_checkpoints):
+            raise ValueError(f"keep_checkpoints must be iterations of at least 1, got {self.keep_checkpoints}")
         r = self.render_settings.resolution  # checks resolution and supersample
         if r < 8 or r & (r - 1):  # the discriminators halve it down to 4 x 4
             raise ValueError(f"resolution must be a power of two >= 8, got {r}")

@@ -11,6 +11,8 @@ A run directory ``RUN/`` holds:
     samples/                    images the trainer writes while it runs
     snapshots/                  train gan only, every snapshot_every iterations: float16 EMA generators
     (keep_snapshots: the newest N)
+    checkpoints/                train gan only, at the keep_checkpoints iterations: the whole training state,
+                                to start other runs from (``--resume RUN/checkpoints/iterNNNNNNN.safetensors``)
 
 A folder that holds a run is continued with ``--resume`` or replaced with ``--overwrite`` (the files
 the replaced run wrote, :data:`REPLACED_BY_OVERWRITE`, are moved aside to ``RUN/.mesh2tex-replaced/<date-time>/``
@@ -68,6 +70,7 @@ __all__ = [
     "CHECKPOINT_NAME",
     "NONFINITE_NAME",
     "Distributed",
+    "At",
     "Every",
     "NonFiniteLoss",
     "RunDirectory",
@@ -101,6 +104,7 @@ REPLACED_BY_OVERWRITE = (
     "best.safetensors",
     "model.safetensors",
     "snapshots/iter*.safetensors",
+    "checkpoints/iter*.safetensors",
     "samples/iter*.png",
     "tensorboard/events.out.tfevents.*",
 )
@@ -351,6 +355,18 @@ class Every:
         return iteration % self.every == 0
 
 
+@dataclasses.dataclass
+class At:
+    """Work done at the given ``iterations`` only: ``action()``; ``main_only`` as :class:`Every`'s."""
+
+    iterations: Sequence[int]
+    action: Callable[[], object]
+    main_only: bool = True
+
+    def due(self, iteration: int, last: int) -> bool:
+        return iteration in self.iterations
+
+
 def training_loop(
     trainer: Trainer,
     run: RunDirectory,
@@ -363,7 +379,7 @@ def training_loop(
     advice: str,
     postfix: Callable[[dict], dict] = lambda logs: {},
     measure: Every | None = None,
-    periodic: Sequence[Every] = (),
+    periodic: Sequence[Every | At] = (),
     main: bool = True,
     extra: dict | None = None,
 ) -> None:

@@ -99,3 +99,21 @@ def test_the_oracle_beats_flat_colour_and_noise(name):
     # Against every orientation of the exemplar (as meshes are judged) the ranking holds too.
     turned = patch_swd(oracle, mask, exemplar)
     assert turned < patch_swd(flat, mask, exemplar) and turned < patch_swd(noise, mask, exemplar)
+
+
+def test_a_masked_reference_gives_only_its_objects_patches():
+    """Against renders with masks (the oracle's, as the structure benchmark compares with them), the patches off
+    the reference's object do not count: its background changed to anything leaves the distance as it was, and
+    the pattern moved scores far closer than its flat colour."""
+    exemplar = _exemplar("checker")
+    yy, xx = torch.meshgrid(torch.arange(128), torch.arange(128), indexing="ij")
+    disc = (((yy - 64) ** 2 + (xx - 64) ** 2) < 50**2).double()[None, None]
+    reference = torch.where(disc > 0.5, exemplar, torch.ones_like(exemplar))
+    other_background = torch.where(disc > 0.5, exemplar, torch.zeros_like(exemplar))
+    moved = torch.roll(exemplar, shifts=(7, 3), dims=(2, 3))
+    flat = exemplar.mean(dim=(2, 3), keepdim=True).expand_as(exemplar)
+    own = patch_swd(moved, disc, reference, turns=False, exemplar_masks=disc)
+    assert own == patch_swd(moved, disc, other_background, turns=False, exemplar_masks=disc)
+    assert own < 0.3 * patch_swd(flat, disc, reference, turns=False, exemplar_masks=disc)
+    # Without the reference's mask its white background counts, and the distance changes.
+    assert patch_swd(moved, disc, reference, turns=False) != own

@@ -192,14 +192,20 @@ def patch_swd(
     seed: int = 0,
     most: int = 4096,
     turns: bool = True,
+    exemplar_masks: torch.Tensor | None = None,
 ) -> float:
     """The patch distance x 1000 (module docstring), averaged over the levels where both sides have at
     least 32 patches; NaN where none has. images (N, 3, H, W) and exemplar (1, 3, h, w) in [0, 1];
     masks (N, 1, H, W) or None. ``most``: patches per side and level at most (random); ``turns``:
     the exemplar in its eight orientations (for renders of meshes), else only as it is (for flat
-    images that keep the exemplar's orientation)."""
+    images that keep the exemplar's orientation). ``exemplar`` may be a set of renders (M, 3, h, w)
+    with ``exemplar_masks`` (M, 1, h, w): the reference's patches are then its object's alone (the
+    renders of the oracle, compared with ``turns=False``)."""
     masks = _check("patch_swd", images, masks).double()
-    check_shape(exemplar, "patch_swd: exemplar", (None, 3, None, None), dtype="float")
+    sizes = check_shape(exemplar, "patch_swd: exemplar", ("M", 3, "h", "w"), dtype="float")
+    check_shape(exemplar_masks, "patch_swd: exemplar_masks", ("M", 1, "h", "w"), sizes=sizes, optional=True)
+    reference_masks = torch.ones_like(exemplar[:, :1]) if exemplar_masks is None else exemplar_masks
+    reference_masks = reference_masks.double()
     generator = torch.Generator().manual_seed(seed)
     images, reference = images.double(), exemplar.double()
     values = []
@@ -207,15 +213,15 @@ def patch_swd(
         if level:
             images, reference = F.avg_pool2d(images, 2), F.avg_pool2d(reference, 2)
             masks = (F.avg_pool2d(masks, 2) > 1 - 1e-6).double()  # a coarse pixel is on the object when all four are
+            reference_masks = (F.avg_pool2d(reference_masks, 2) > 1 - 1e-6).double()
         if min(images.shape[-2:] + reference.shape[-2:]) < patch:
             break
         mine, _ = object_patches(images, masks, patch, stride=1)
+        both = torch.cat([reference, reference_masks], 1)
         turned = (
-            torch.cat([torch.rot90(r, k, (-2, -1)) for r in (reference, reference.flip(-1)) for k in range(4)])
-            if turns
-            else reference
+            torch.cat([torch.rot90(r, k, (-2, -1)) for r in (both, both.flip(-1)) for k in range(4)]) if turns else both
         )
-        theirs, _ = object_patches(turned, torch.ones_like(turned[:, :1]), patch, stride=1)
+        theirs, _ = object_patches(turned[:, :3], turned[:, 3:], patch, stride=1)
         n = min(len(mine), len(theirs), most)
         if n < 32:
             continue

@@ -115,3 +115,9 @@ def test_a_chart_of_horizontal_bands_on_an_upright_side_has_constant_rows():
     assert (bands == bands[:, :1]).all()
     assert len(np.unique(bands[:, 0])) > 4
     assert points[0, 0, 1] > points[-1, 0, 1]  # row 0 is the top
+
+
+def test_a_mesh_without_area_has_no_points_to_sample():
+    flat = SurfaceWalker(np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]]), np.array([[0, 1, 2]]))
+    with pytest.raises(ValueError, match="no triangle of non-zero area"):
+        flat.sample(4, np.random.default_rng(0))

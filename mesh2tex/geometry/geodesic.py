@@ -97,6 +97,8 @@ class SurfaceWalker:
     def sample(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """``count`` points uniform over the surface's area: faces (count,) and barycentrics (count, 3)."""
         weights = np.where(self.usable, self.area, 0.0)
+        if not weights.sum() > 0:
+            raise ValueError("SurfaceWalker.sample: the mesh has no triangle of non-zero area")
         face = rng.choice(len(self.faces), size=count, p=weights / weights.sum())
         s, t = np.sqrt(rng.random(count)), rng.random(count)
         bary = np.stack([1 - s, s * (1 - t), s * t], axis=1)

@@ -93,6 +93,28 @@ class SurfaceWalker:
             np.stack([np.cross(self.normals, v[:, (i + 2) % 3] - v[:, (i + 1) % 3]) for i in range(3)], axis=1)
             / np.maximum(double_area, _EPS)[:, None, None]
         )
+        self.along, self.inward = self._edge_frames()
+
+    def _edge_frames(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per face and edge (opposite corner i), (T, 3, 3) each: the edge's unit direction (corner i+1 to
+        i+2), and the unit direction perpendicular to it into the neighbour across it (0 on a boundary)."""
+        count = len(self.faces)
+        along, inward = np.zeros((count, 3, 3)), np.zeros((count, 3, 3))
+        for edge in range(3):
+            a = self.vertices[:, (edge + 1) % 3]
+            b = self.vertices[:, (edge + 2) % 3]
+            along[:, edge] = (b - a) / np.maximum(np.linalg.norm(b - a, axis=1, keepdims=True), _EPS)
+            neighbour = self.neighbours[:, edge]
+            has = neighbour >= 0
+            # The neighbour's corner off the shared edge: the one whose welded id is neither end's.
+            ends = self.corners[has, (edge + 1) % 3], self.corners[has, (edge + 2) % 3]
+            theirs = self.corners[neighbour[has]]
+            off = ((theirs != ends[0][:, None]) & (theirs != ends[1][:, None])).argmax(1)
+            towards = self.vertices[neighbour[has], off] - a[has]
+            towards -= (towards * along[has, edge]).sum(1, keepdims=True) * along[has, edge]
+            towards /= np.maximum(np.linalg.norm(towards, axis=1, keepdims=True), _EPS)
+            inward[has, edge] = towards
+        return along, inward
 
     def sample(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         """``count`` points uniform over the surface's area: faces (count,) and barycentrics (count, 3)."""
@@ -146,11 +168,12 @@ class SurfaceWalker:
         valid &= np.linalg.norm(position - start, axis=1) >= self.min_chord * length - 1e-9
         return face, self._barycentric(face, position), valid
 
-    def _barycentric(self, face: np.ndarray, position: np.ndarray) -> np.ndarray:
-        """(n, 3) barycentrics of points in the planes of ``face``, clipped to the triangle and renormalised."""
-        v, g = self.vertices[face], self.gradients[face]
+    def _barycentric(self, face: np.ndarray, position: np.ndarray, gradients: np.ndarray | None = None) -> np.ndarray:
+        """(n, 3) barycentrics of points in the planes of ``face``, clipped to the triangle and renormalised
+        (``gradients``: ``self.gradients[face]`` when the caller has them)."""
+        g = self.gradients[face] if gradients is None else gradients
         # lambda_i = grad lambda_i . (p - a corner on the edge opposite i): corners 1, 2, 0.
-        lam = np.stack([((position - v[:, (i + 1) % 3]) * g[:, i]).sum(1) for i in range(3)], axis=1)
+        lam = ((position[:, None, :] - self.vertices[face][:, [1, 2, 0]]) * g).sum(2)
         lam = np.clip(lam, 0.0, None)
         return lam / np.maximum(lam.sum(1, keepdims=True), _EPS)
 
@@ -158,8 +181,9 @@ class SurfaceWalker:
         """Move the ``active`` walks to the end of their length or the next edge (updating the arrays in
         place); returns the walks still going."""
         f, p, d = face[active], position[active], direction[active]
-        lam = self._barycentric(f, p)
-        rate = np.einsum("nij,nj->ni", self.gradients[f], d)  # d(lambda_i)/dt
+        g = self.gradients[f]
+        lam = self._barycentric(f, p, g)
+        rate = np.einsum("nij,nj->ni", g, d)  # d(lambda_i)/dt
         with np.errstate(divide="ignore", invalid="ignore"):
             exit_time = np.where(rate < -1e-15, -lam / rate, np.inf)
         edge = exit_time.argmin(1)
@@ -178,23 +202,14 @@ class SurfaceWalker:
         blocked[~blocked] = ~self.usable[nxt[~blocked]]
         valid[going[blocked]] = False
         going, g_edge, f_old, nxt = going[~blocked], g_edge[~blocked], f_old[~blocked], nxt[~blocked]
-        direction[going] = self._unfold(f_old, g_edge, nxt, direction[going])
+        direction[going] = self._unfold(f_old, g_edge, direction[going])
         face[going] = nxt
         return going
 
-    def _unfold(self, face, edge, neighbour, direction) -> np.ndarray:
+    def _unfold(self, face, edge, direction) -> np.ndarray:
         """The unit directions (n, 3) leaving ``face`` across its edge opposite corner ``edge``, carried onto
-        ``neighbour``: the component along the edge kept, the rest turned into the neighbour's plane."""
-        a = self.vertices[face, (edge + 1) % 3]
-        b = self.vertices[face, (edge + 2) % 3]
-        along = (b - a) / np.maximum(np.linalg.norm(b - a, axis=1, keepdims=True), _EPS)
-        # The neighbour's corner off the shared edge: the one whose welded id is neither end's.
-        ends = self.corners[face, (edge + 1) % 3], self.corners[face, (edge + 2) % 3]
-        theirs = self.corners[neighbour]
-        off = ((theirs != ends[0][:, None]) & (theirs != ends[1][:, None])).argmax(1)
-        inward = self.vertices[neighbour, off] - a
-        inward -= (inward * along).sum(1, keepdims=True) * along
-        inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), _EPS)
+        the neighbour there: the component along the edge kept, the rest turned into the neighbour's plane."""
+        along, inward = self.along[face, edge], self.inward[face, edge]
         tangential = (direction * along).sum(1)
         across = np.sqrt(np.clip(1 - tangential**2, 0.0, None))
         return tangential[:, None] * along + across[:, None] * inward

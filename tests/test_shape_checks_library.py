@@ -413,7 +413,13 @@ METRICS = {
         lambda w: structure.patch_swd(w.images, w.masks, w.images[:1], levels=1, projections=8),
         lambda w: structure.patch_swd(w.images, w.masks, w.images[0], levels=1),
         ValueError,
-        r"patch_swd: exemplar must have shape \[\*, 3, \*, \*\], got \[3, 32, 32\]",
+        r"patch_swd: exemplar must have shape \[M, 3, h, w\], got \[3, 32, 32\]",
+    ),
+    "patch_swd exemplar_masks": (
+        lambda w: structure.patch_swd(w.images, w.masks, w.images, levels=1, projections=8, exemplar_masks=w.masks),
+        lambda w: structure.patch_swd(w.images, w.masks, w.images, levels=1, exemplar_masks=w.masks[..., :8]),
+        ValueError,
+        r"patch_swd: exemplar_masks must have shape \[M, 1, h, w\] \(w = 32 from exemplar\), got \[2, 1, 32, 8\]",
     ),
     "structure_scores masks": (None, lambda w: structure.structure_scores(w.images, w.masks[..., :8]), ValueError, ANY),
     "laplacian_pyramid images": (

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from mesh2tex.geometry.geodesic import SurfaceWalker, edge_neighbours, geodesic_charts, weld_positions
+from mesh2tex.geometry.geodesic import SurfaceWalker, geodesic_charts, weld_positions
+from mesh2tex.geometry.hierarchy import polygon_edge_neighbors
 
 
 def box_walker(split: bool = False) -> SurfaceWalker:
@@ -96,10 +97,13 @@ def test_frames_point_up_the_mesh_and_face_outwards():
 
 
 def test_edge_neighbours_pair_manifold_edges_and_leave_others():
-    """Two triangles sharing an edge see each other across it; a third on the same edge makes it non-manifold."""
+    """Two triangles sharing an edge see each other across it (the walker's columns: the edge opposite each
+    corner); a third on the same edge makes it non-manifold."""
     corners = np.array([[0, 1, 2], [2, 1, 3]])
-    assert edge_neighbours(corners).tolist() == [[1, -1, -1], [-1, -1, 0]]
-    assert (edge_neighbours(np.vstack([corners, [[1, 2, 4]]])) == -1).all()
+    assert polygon_edge_neighbors(corners).tolist() == [[-1, 1, -1], [0, -1, -1]]  # edges (v_i, v_i+1)
+    walker = SurfaceWalker(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]), corners)
+    assert walker.neighbours.tolist() == [[1, -1, -1], [-1, -1, 0]]
+    assert (polygon_edge_neighbors(np.vstack([corners, [[1, 2, 4]]])) == -1).all()
     assert weld_positions(np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 0]])).tolist() == [0, 1, 0]
 
 

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mesh2tex.geometry.hierarchy import polygon_edge_neighbors
+
 _EPS = 1e-12
 
 
@@ -43,28 +45,6 @@ def weld_positions(positions: np.ndarray) -> np.ndarray:
     """(V,) int64: one id per distinct position, so that the copies of a vertex split on a seam share it."""
     _, welded = np.unique(np.asarray(positions, dtype=np.float64), axis=0, return_inverse=True)
     return welded.reshape(-1).astype(np.int64)
-
-
-def edge_neighbours(corners: np.ndarray) -> np.ndarray:
-    """(T, 3) int64: the face across the edge opposite each corner (corners (T, 3) of welded ids), -1 on
-    a boundary or a non-manifold edge (shared by more than two faces)."""
-    count = len(corners)
-    # Edge opposite corner i joins corners i + 1 and i + 2.
-    a = np.concatenate([corners[:, (i + 1) % 3] for i in range(3)])
-    b = np.concatenate([corners[:, (i + 2) % 3] for i in range(3)])
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    slot = np.arange(3 * count)
-    order = np.lexsort((hi, lo))
-    key_lo, key_hi = lo[order], hi[order]
-    same_next = (key_lo[1:] == key_lo[:-1]) & (key_hi[1:] == key_hi[:-1])
-    # Runs of equal edges: a run of exactly two is a manifold edge.
-    starts = np.flatnonzero(np.r_[True, ~same_next])
-    lengths = np.diff(np.r_[starts, len(order)])
-    neighbours = np.full(3 * count, -1, dtype=np.int64)
-    pairs = starts[lengths == 2]
-    first, second = slot[order[pairs]], slot[order[pairs + 1]]
-    neighbours[first], neighbours[second] = second % count, first % count
-    return neighbours.reshape(3, count).T.copy()
 
 
 class SurfaceWalker:
@@ -80,7 +60,8 @@ class SurfaceWalker:
         self.max_crossings = int(max_crossings)
         self.min_chord = float(min_chord)
         self.corners = weld_positions(self.positions)[self.faces]  # (T, 3) welded ids
-        self.neighbours = edge_neighbours(self.corners)
+        # (T, 3): the face across the edge opposite each corner, i.e. edge (i + 1, i + 2); -1 on a boundary
+        self.neighbours = np.roll(polygon_edge_neighbors(self.corners), -1, axis=1)
         v = self.positions[self.faces]  # (T, 3, 3)
         self.vertices = v
         cross = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
@@ -151,9 +132,9 @@ class SurfaceWalker:
         (in the plane of the start face) for their length, on the surface. Returns the faces (n,),
         barycentrics (n, 3) and valid (n,) bool (False where a walk stopped early, its point where it
         stopped, or came back around a thin part)."""
-        face_start = np.asarray(face, dtype=np.int64)
-        face = face_start.copy()
-        position = self.point(face, np.asarray(bary, dtype=np.float64))
+        face = np.array(face, dtype=np.int64)  # a copy: the walk moves it
+        start = self.point(face, np.asarray(bary, dtype=np.float64))
+        position = start.copy()
         length = np.linalg.norm(step, axis=1)
         direction = step / np.maximum(length, _EPS)[:, None]
         remaining = length.copy()
@@ -164,7 +145,6 @@ class SurfaceWalker:
                 break
             active = self._advance(active, face, position, direction, remaining, valid)
         valid[active] = False  # still walking after max_crossings edges
-        start = self.point(np.asarray(face_start), np.asarray(bary, dtype=np.float64))
         valid &= np.linalg.norm(position - start, axis=1) >= self.min_chord * length - 1e-9
         return face, self._barycentric(face, position), valid
 
@@ -236,4 +216,4 @@ def geodesic_charts(
     return faces.reshape(n, size, size), barys.reshape(n, size, size, 3), valid.reshape(n, size, size)
 
 
-__all__ = ["SurfaceWalker", "chart_offsets", "edge_neighbours", "geodesic_charts", "weld_positions"]
+__all__ = ["SurfaceWalker", "chart_offsets", "geodesic_charts", "weld_positions"]

@@ -23,23 +23,30 @@ from mesh2tex.checks import check_array_shape
 def edge_neighbors(quads: np.ndarray) -> np.ndarray:
     """(F, 4) int64: the face across edge ``(v_i, v_{i+1})`` of each quad, -1 on boundary or non-manifold edges."""
     check_array_shape(quads, "edge_neighbors: quads", ("F", 4))
-    quads = np.asarray(quads, dtype=np.int64)
-    f = len(quads)
-    edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    return polygon_edge_neighbors(quads)
+
+
+def polygon_edge_neighbors(faces: np.ndarray) -> np.ndarray:
+    """(F, K) int64: the face across edge ``(v_i, v_{i+1 mod K})`` of each K-gon (quads, triangles), -1 on
+    boundary or non-manifold edges and where a face meets itself."""
+    check_array_shape(faces, "polygon_edge_neighbors: faces", ("F", "K"))
+    faces = np.asarray(faces, dtype=np.int64)
+    f, k = faces.shape
+    edges = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
     _, edge_id, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
     edge_id = edge_id.reshape(-1)
-    slot = np.arange(4 * f)
+    slot = np.arange(k * f)
     order = np.argsort(edge_id, kind="stable")
     sorted_ids = edge_id[order]
     first = np.searchsorted(sorted_ids, sorted_ids)  # first slot of each edge in sorted order
     manifold = counts[edge_id] == 2
     # for a manifold edge the partner is the other of the two slots sharing the edge id
-    partner_sorted = np.where(np.arange(4 * f) == first, np.arange(4 * f) + 1, first)
-    partner = np.empty(4 * f, dtype=np.int64)
-    partner[order] = order[np.clip(partner_sorted, 0, 4 * f - 1)]
-    result = np.where(manifold, partner // 4, -1)
-    result[result == slot // 4] = -1  # a quad folded onto itself is no neighbour
-    return result.reshape(f, 4)
+    partner_sorted = np.where(np.arange(k * f) == first, np.arange(k * f) + 1, first)
+    partner = np.empty(k * f, dtype=np.int64)
+    partner[order] = order[np.clip(partner_sorted, 0, k * f - 1)]
+    result = np.where(manifold, partner // k, -1)
+    result[result == slot // k] = -1  # a face folded onto itself is no neighbour
+    return result.reshape(f, k)
 
 
 def face_neighborhoods(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:

@@ -17,7 +17,10 @@ in pixels (the exemplar's own figures are printed in its header). The exemplar S
 of a curved surface with a flat image, and the oracle (the pattern projected on the surface) does
 not always win it; so beside it, ``vs oracle``: the same patch SWD against the oracle's own renders
 with its pattern moved (:data:`REFERENCE_SHIFT`; same views, ``turns`` off): the ground truth as the
-surface shows it, which the oracle row, its structure in another place, should win.
+surface shows it, which the oracle row, its structure in another place, should win. And ``ps vs
+oracle``: the oriented-band statistics of each render (the ``ps`` loss's, :func:`ps_vs_oracle`) against
+the same moved oracle's render of that view: the judge of rows trained with the ``patch`` loss, whose raw
+patches are too near the SWD's to judge them.
 
 Rows: ``oracle`` (the exemplar's pattern painted per pixel at the exemplar's pixel scale),
 ``vertex oracle`` (the pattern at the vertices, through a linear readout: what the cells can hold),
@@ -54,6 +57,8 @@ from mesh2tex.train import runs  # noqa: E402
 
 from benchmarks.nca_quality import RESOLUTION, STEPS, Judge, colour_model, grow, views_mvp  # noqa: E402
 from mesh2tex.geometry.primitives import load_surface  # noqa: E402
+from mesh2tex.losses.ot_style import needs_vgg  # noqa: E402
+from mesh2tex.losses.structure import band_statistics, statistics_distance  # noqa: E402
 from mesh2tex.metrics.structure import patch_swd, structure_scores  # noqa: E402
 from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.nn.cell_graph import build_cell_graph  # noqa: E402
@@ -139,7 +144,7 @@ def direct_views(
         seed=seed,
         method=method,
     )
-    synthesis = TexelSynthesis(cfg, surface, exemplar, None if loss == "ps" else vgg)
+    synthesis = TexelSynthesis(cfg, surface, exemplar, vgg if needs_vgg(loss) else None)
     start = time.perf_counter()
     for _ in range(iters):
         synthesis.step()
@@ -147,6 +152,21 @@ def direct_views(
     with torch.no_grad():
         images, masks = render_texture(surface, synthesis.texture().permute(2, 0, 1), mvp, RESOLUTION)
     return ((images.double() + 1) / 2, masks.double()), seconds
+
+
+def ps_vs_oracle(
+    images: torch.Tensor, masks: torch.Tensor, reference: torch.Tensor, reference_masks: torch.Tensor
+) -> float:
+    """The mean over the N views of the ``ps`` statistics' distance of a render to the reference's render of
+    the same view; all (N, 3 or 1, H, W) in [0, 1]; NaN where no view has statistics."""
+    values = []
+    with torch.no_grad():
+        for n in range(images.shape[0]):
+            theirs = band_statistics(reference[n : n + 1].float() * 2 - 1, reference_masks[n : n + 1].float())
+            if theirs:
+                mine = band_statistics(images[n : n + 1].float() * 2 - 1, masks[n : n + 1].float())
+                values.append(float(statistics_distance(mine, theirs)))
+    return sum(values) / len(values) if values else math.nan
 
 
 def fmt(value: float, digits: int = 2) -> str:
@@ -254,6 +274,7 @@ def main() -> int:
             for row, (images, masks) in sets.items():
                 scores = structure_scores(images, masks, target).as_dict()
                 scores["oracle_swd"] = patch_swd(images, masks, reference[0], turns=False, exemplar_masks=reference[1])
+                scores["oracle_ps"] = ps_vs_oracle(images, masks, *reference)
                 record["rows"].setdefault(row, {})[mesh] = scores
             tiles += [sets[row][0][args.figure_view] for row in shown]
         results["exemplars"][name] = record
@@ -294,24 +315,28 @@ def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]
         f"{fmt(own['period'], 1)} px, self-SWD {fmt(own['swd'], 0)}; train s: "
         + ", ".join(f"{k} {fmt(v, 0)}" for k, v in record["train_seconds"].items())
     )
-    header = " | ".join(f"{m} SWD | {m} vs oracle | {m} coh | {m} ratio | {m} period" for m in meshes)
+    columns = ("SWD", "vs oracle", "ps vs oracle", "coh", "ratio", "period")
+    header = " | ".join(f"{m} {c}" for m in meshes for c in columns)
     print(f"| row | {header} |")
-    print("|" + " --- |" * (1 + 5 * len(meshes)))
+    print("|" + " --- |" * (1 + 6 * len(meshes)))
     for row, per_mesh in record["rows"].items():
         cells = []
         for m in meshes:
             s = per_mesh[m]
             oracle_relative = fmt(s.get("oracle_swd", math.nan), 0)
-            cells += [fmt(s["swd"], 0), oracle_relative, fmt(s["coherence"]), fmt(s["ratio"]), fmt(s["period"], 1)]
+            cells += [fmt(s["swd"], 0), oracle_relative, fmt(s.get("oracle_ps", math.nan))]
+            cells += [fmt(s["coherence"]), fmt(s["ratio"]), fmt(s["period"], 1)]
         print(f"| {row} | " + " | ".join(cells) + " |")
     for loss in losses:
         parts = []
         for m in meshes:
             swd, rows = record["rows"][loss][m]["swd"], record["rows"]
             relative = rows[loss][m].get("oracle_swd", math.nan) / rows["oracle"][m].get("oracle_swd", math.nan)
+            ps_relative = rows[loss][m].get("oracle_ps", math.nan) / rows["oracle"][m].get("oracle_ps", math.nan)
             parts.append(
                 f"{m}: /oracle {fmt(swd / rows['oracle'][m]['swd'])}, /ot "
-                f"{fmt(swd / rows['ot'][m]['swd']) if 'ot' in rows else '-'}, vs oracle /oracle's {fmt(relative)}"
+                f"{fmt(swd / rows['ot'][m]['swd']) if 'ot' in rows else '-'}, vs oracle /oracle's {fmt(relative)}, "
+                f"ps vs oracle /oracle's {fmt(ps_relative)}"
             )
         print(f"  {loss}: " + "; ".join(parts))
 

@@ -36,6 +36,7 @@ from mesh2tex.io.assets import check_texture_format
 from mesh2tex.io.atomic import write_json
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, load_image, save_png
 from mesh2tex.io.outputs import guard_outputs
+from mesh2tex.losses.ot_style import needs_vgg
 from mesh2tex.metrics.structure import structure_scores
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
@@ -153,7 +154,7 @@ def run(args) -> int:
     if atlas.note:
         note(f"{args.mesh}: a new UV atlas, as {atlas.note}")
     vgg = None
-    if settings.loss != "ps":
+    if needs_vgg(settings.loss):
         from mesh2tex.nn.vgg import load_vgg19
 
         vgg = load_vgg19(cfg.vgg_weights or None, device=device)

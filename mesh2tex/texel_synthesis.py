@@ -3,7 +3,7 @@
 The user's mesh keeps its own UV atlas (or gets a new xatlas one, :func:`mesh2tex.render.bake.mesh_atlas`);
 its UV texture is optimised directly, no network, so that renders of the textured mesh from random
 views match the exemplar's structure under a weight-free structure loss
-(:func:`mesh2tex.losses.ot_style.style_loss`: ``sw``, ``ps`` or ``ot``). Each step::
+(:func:`mesh2tex.losses.ot_style.style_loss`: ``ps``, ``patch``, ``sw`` or ``ot``). Each step::
 
     texture  = sum over levels k of upsample(P_k)             P_k (3, S / 2^k, S / 2^k), level 0 finest
     seen     = avg_pool(texture, 2^m)                          m: the mip level whose texels match render pixels
@@ -61,14 +61,14 @@ import torch.nn.functional as F
 
 from mesh2tex.config import check_fields
 from mesh2tex.geometry.geodesic import SurfaceWalker, geodesic_charts
-from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
+from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
 from mesh2tex.photos import square_resize
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 from mesh2tex.render.cameras import NCACameraConfig
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
 METHODS = ("renders", "surface")  # how the loss sees the surface: rendered views, or geodesic charts
-SYNTHESIS_LOSSES = ("ps", "sw", "ot")  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
+SYNTHESIS_LOSSES = ("ps", "patch", "sw", "ot")  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
 
 
 @dataclass
@@ -79,9 +79,9 @@ class SynthesisConfig:
     views: int = 2  # random views rendered per step
     resolution: int = 128  # render resolution: an exemplar pixel shows at one render pixel
     exemplar_size: int = 128  # the exemplar's centred square is resized to this
-    loss: str = "ps"  # structure loss: ps (oriented-band statistics), sw (sliced Wasserstein on random VGG), ot
+    loss: str = "ps"  # structure loss: ps (oriented-band statistics), patch (raw multi-scale patches), sw, ot
     vgg_depth: int = 4  # VGG19 layers of the sw and ot losses (0: RGB only)
-    max_points: int = 1024  # feature positions per set in the sw and ot losses
+    max_points: int = 1024  # feature positions per set in the sw and ot losses; patches per octave in patch
     lr: float = 0.05  # Adam learning rate of every level, at the start
     lr_end: float = 0.1  # the rate at the last step, as a fraction of lr (a cosine in between): the texels settle
     colour_weight: float = 100.0  # weight of the sliced Wasserstein distance of the RGB pixels (the joint palette)
@@ -320,12 +320,12 @@ class TexelSynthesis:
     ):
         if exemplar.dim() != 4 or exemplar.shape[:2] != (1, 3):
             raise ValueError(f"TexelSynthesis: exemplar must be (1, 3, h, w), got {tuple(exemplar.shape)}")
-        if cfg.loss != "ps" and vgg is None:
+        if needs_vgg(cfg.loss) and vgg is None:
             raise ValueError(f"TexelSynthesis: the {cfg.loss} loss needs a VGG network")
         self.cfg, self.device = cfg, torch.device(device)
         self.surface = TexelSurface(*(t.to(self.device) for t in (surface.positions, surface.faces, surface.uv)))
         self.vgg = vgg
-        depth = 0 if cfg.loss == "ps" else cfg.vgg_depth
+        depth = cfg.vgg_depth if needs_vgg(cfg.loss) else 0
         self.features = ExemplarFeatures.compute(vgg, exemplar.to(self.device), depth)
         self.palette = ExemplarFeatures.compute(None, exemplar.to(self.device), 0)  # the pixels alone
         self.generator = torch.Generator().manual_seed(cfg.seed)

@@ -1,4 +1,5 @@
-"""The structure-aware style losses: sliced Wasserstein ("sw") and oriented-band statistics ("ps")."""
+"""The structure-aware style losses: sliced Wasserstein ("sw"), oriented-band statistics ("ps") and raw
+multi-scale patches ("patch")."""
 
 import pytest
 import torch
@@ -7,7 +8,10 @@ from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
 from mesh2tex.losses.structure import (
     band_statistics,
     exemplar_band_statistics,
+    exemplar_patch_sets,
     oriented_filters,
+    patch_loss,
+    patch_sets,
     ps_loss,
     quantile_resample,
     sliced_wasserstein2,
@@ -34,7 +38,7 @@ def vgg():
 
 
 def test_the_new_kinds_are_registered():
-    assert {"ot", "gram", "sw", "ps"} <= set(STYLE_LOSSES)
+    assert {"ot", "gram", "sw", "ps", "patch"} <= set(STYLE_LOSSES)
 
 
 def test_quantile_resample_keeps_a_set_and_halves_a_doubled_one():
@@ -118,7 +122,66 @@ def test_statistics_distance_compares_shared_groups_only():
     assert float(statistics_distance(a, b)) == 0.0
 
 
-@pytest.mark.parametrize("kind", ["sw", "ps"])
+def test_patch_sets_ignore_the_background_and_hold_only_whole_patches():
+    """Pixels off the object change no patch at any octave, and a patch set holds only patches wholly on it."""
+    image, mask = _image("checker"), _disc()
+    other = image.clone()
+    other[:, :, mask[0, 0] < 0.5] = torch.rand(3, int((mask < 0.5).sum())) * 2 - 1
+    a, b = patch_sets(image, mask), patch_sets(other, mask)
+    assert len(a) == 4 and all(len(x) > 0 for x in a[:3])
+    for x, y in zip(a, b):
+        assert torch.equal(x, y)
+    whole = patch_sets(image)
+    assert [len(x) for x in whole] == [60 * 60, 28 * 28, 12 * 12, 4 * 4]  # every 5 x 5 patch of 64, 32, 16, 8 px
+    assert len(a[0]) < len(whole[0])
+
+
+def test_patch_loss_is_zero_for_the_exemplar_and_sees_corners():
+    """The exemplar itself scores 0 and the same checker moved scores near it; stripes of the same colours and
+    period (no corners), a checker turned 45 degrees, its pixels shuffled and its flat colour score far worse."""
+    checker = _image("checker")
+    sets = exemplar_patch_sets(checker)
+    full = torch.ones(1, 1, 64, 64)
+
+    def loss(image):
+        return float(patch_loss(image, full, sets, generator=torch.Generator().manual_seed(0)))
+
+    assert loss(checker) < 1e-8
+    big = torch.from_numpy(exemplar_image("checker", 128, extent=2.0)).permute(2, 0, 1)[None].float() / 127.5 - 1
+    moved = big[..., 8:72, 4:68]  # the same pattern at the same pixel scale, moved (whole coarsest pixels)
+    rows = (torch.arange(64) // 8 % 2).float()  # bands as wide as the checker's squares (64 px: 4 periods)
+    colours = torch.stack([checker[0, :, 0, 0], checker[0, :, 0, 8]])  # its two colours
+    stripes = colours[rows.long()].t()[:, :, None].expand(3, 64, 64)[None]
+    yy, xx = torch.meshgrid(torch.arange(64), torch.arange(64), indexing="ij")
+    diagonal = colours[(((yy + xx) // 11 + (yy - xx + 64) // 11) % 2)].permute(2, 0, 1)[None]
+    shuffled = checker.flatten(2)[:, :, torch.randperm(64 * 64, generator=torch.Generator().manual_seed(4))]
+    flat = checker.mean(dim=(2, 3), keepdim=True).expand_as(checker)
+    near = loss(moved)
+    for name, image in {
+        "stripes": stripes,
+        "diagonal": diagonal,
+        "shuffled": shuffled.reshape(checker.shape),
+        "flat": flat,
+    }.items():
+        assert loss(image) > 10 * near, name  # measured: 65x to 370x
+
+
+def test_patch_loss_falls_under_gradient_descent():
+    sets = exemplar_patch_sets(_image("checker"))
+    mask = _disc()
+    x = (torch.rand(1, 3, 64, 64, generator=torch.Generator().manual_seed(2)) * 0.2).requires_grad_(True)
+    optimizer = torch.optim.Adam([x], lr=0.05)
+    generator = torch.Generator().manual_seed(0)
+    first = float(patch_loss(x, mask, sets, generator=generator))
+    for _ in range(25):
+        loss = patch_loss(x, mask, sets, max_points=512, generator=generator)
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    assert float(patch_loss(x.detach(), mask, sets, generator=generator)) < 0.5 * first
+
+
+@pytest.mark.parametrize("kind", ["sw", "ps", "patch"])
 def test_style_loss_kinds_flow_to_the_render_and_rank_the_exemplar(vgg, kind):
     exemplar = ExemplarFeatures.compute(vgg, _image("stripes"), depth=2)
     mask = _disc()
@@ -140,7 +203,7 @@ def test_unknown_kind_is_refused(vgg):
 def test_train_nca_config_accepts_the_new_losses():
     from train.nca import TrainNCAConfig
 
-    for kind in ("sw", "ps"):
+    for kind in ("sw", "ps", "patch"):
         assert TrainNCAConfig(style_loss=kind).style_loss == kind
     with pytest.raises(ValueError, match="style_loss"):
         TrainNCAConfig(style_loss="bogus")

@@ -30,7 +30,7 @@ from mesh2tex.errors import UserError
 from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, load_image, save_png
-from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, style_loss
+from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
 from mesh2tex.nn.cell_graph import CellGraph, build_cell_graph
 from mesh2tex.nn.nca import MeshNCA, NCAConfig, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
@@ -59,11 +59,11 @@ class TrainNCAConfig:
     seed_every: int = 4  # every this many iterations a fresh seed replaces the batch's first state
     mesh: str = "sphere"  # the training mesh (see load_surface; "sphere": 32 subdivisions, 6,146 cells)
     exemplar_size: int = 128  # the exemplar is centre-cropped to a square and resized to this
-    # "ot" (relaxed optimal transport + moments), "gram", "sw" (sliced Wasserstein) or "ps" (oriented-band
-    # statistics)
+    # "ot" (relaxed optimal transport + moments), "gram", "sw" (sliced Wasserstein), "ps" (oriented-band
+    # statistics) or "patch" (sliced Wasserstein on raw multi-scale patches)
     style_loss: str = "ot"
-    vgg_depth: int = 4  # VGG19 style layers used (relu1_2 ... relu4_4; 0: RGB only)
-    max_points: int = 1024  # feature positions per set in the OT loss
+    vgg_depth: int = 4  # VGG19 style layers used (relu1_2 ... relu4_4; 0: RGB only); unused by ps and patch
+    max_points: int = 1024  # feature positions per set in the OT and sw losses; patches per octave in patch
     overflow_weight: float = 10.0  # weight of the overflow penalty
     lr: float = 1e-3  # Adam learning rate
     lr_milestones: list[float] = field(default_factory=lambda: [0.5, 0.8])  # fractions of iters where the rate drops
@@ -193,7 +193,8 @@ class NCATrainer:
     ):
         self.cfg, self.run, self.device, self.vgg = cfg, run, device, vgg
         self.graph = graph.to(device)
-        self.exemplar = ExemplarFeatures.compute(vgg, exemplar.to(device), cfg.vgg_depth)
+        depth = cfg.vgg_depth if needs_vgg(cfg.style_loss) else 0
+        self.exemplar = ExemplarFeatures.compute(vgg, exemplar.to(device), depth)
         # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
         runs.seed_everything(cfg.seed)
         self.model = MeshNCA(cfg.nca).to(device)

@@ -28,12 +28,26 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.checks import check_shape, check_type
-from mesh2tex.losses.structure import STRUCTURE_LOSSES, check_point_sets, exemplar_band_statistics, ps_loss, sw_distance
+from mesh2tex.losses.structure import (
+    NETWORK_FREE_LOSSES,
+    STRUCTURE_LOSSES,
+    check_point_sets,
+    exemplar_band_statistics,
+    exemplar_patch_sets,
+    patch_loss,
+    ps_loss,
+    sw_distance,
+)
 from mesh2tex.losses.style import masked_gram
 
-# "ot" and "gram" here; "sw" (sliced Wasserstein on the same features) and "ps" (oriented-band
-# statistics, no network) in :mod:`mesh2tex.losses.structure`.
+# "ot" and "gram" here; "sw" (sliced Wasserstein on the same features), "ps" (oriented-band
+# statistics) and "patch" (raw multi-scale patches; these two need no network) in :mod:`mesh2tex.losses.structure`.
 STYLE_LOSSES = ("ot", "gram") + STRUCTURE_LOSSES
+
+
+def needs_vgg(kind: str) -> bool:
+    """Whether the style loss ``kind`` (one of :data:`STYLE_LOSSES`) reads VGG features."""
+    return kind not in NETWORK_FREE_LOSSES
 
 
 def image_layers(vgg, images: torch.Tensor, depth: int) -> list[torch.Tensor]:
@@ -116,13 +130,19 @@ class ExemplarFeatures:
 
     image: torch.Tensor
     layers: list[torch.Tensor]
-    # the "ps" statistics, made on first use
+    # the "ps" statistics and the "patch" sets, made on first use
     band_stats: dict[str, torch.Tensor] = field(default_factory=dict, repr=False)
+    patches: list[torch.Tensor] = field(default_factory=list, repr=False)
 
     def band_statistics(self) -> dict[str, torch.Tensor]:
         if not self.band_stats:
             self.band_stats.update(exemplar_band_statistics(self.image))
         return self.band_stats
+
+    def patch_sets(self) -> list[torch.Tensor]:
+        if not self.patches:
+            self.patches.extend(exemplar_patch_sets(self.image))
+        return self.patches
 
     @classmethod
     def compute(cls, vgg, image: torch.Tensor, depth: int) -> "ExemplarFeatures":
@@ -145,8 +165,9 @@ def style_loss(
 
     images (N, 3, H, W) in [-1, 1], masks (N, 1, H, W); ``kind`` "ot" (relaxed optimal transport and
     moments), "gram" (squared differences of masked Gram matrices, the project's transfer loss,
-    summed over the layers), "sw" (sliced Wasserstein on the same layers) or "ps" (oriented-band
-    statistics of the pixels; ``vgg`` unused). Differentiable with respect to ``images``.
+    summed over the layers), "sw" (sliced Wasserstein on the same layers), "ps" (oriented-band
+    statistics of the pixels) or "patch" (sliced Wasserstein on raw multi-scale patches, at most
+    ``max_points`` per octave and image); ``vgg`` unused by the last two. Differentiable with respect to ``images``.
     """
     sizes = check_shape(images, "style_loss: images", ("N", 3, "H", "W"), dtype="float")
     check_shape(masks, "style_loss: masks", ("N", 1, "H", "W"), sizes=sizes)
@@ -155,6 +176,8 @@ def style_loss(
         raise ValueError(f"style loss must be one of {STYLE_LOSSES}, got {kind!r}")
     if kind == "ps":
         return ps_loss(images, masks, exemplar.band_statistics())
+    if kind == "patch":
+        return patch_loss(images, masks, exemplar.patch_sets(), max_points, generator)
     depth = len(exemplar.layers) - 1
     layers = image_layers(vgg, images, depth)
     losses = []

@@ -408,15 +408,17 @@ def patch_loss(
     exemplar_sets: list[torch.Tensor],
     max_points: int | None = None,
     generator: torch.Generator | None = None,
+    size: int = PATCH_SIZE,
 ) -> torch.Tensor:
     """Mean over the N images (N, 3, H, W) with masks (N, 1, H, W) of the ``patch`` distance (module
-    docstring) to ``exemplar_sets`` (:func:`exemplar_patch_sets`, one (Q_l, C) per octave); octaves with
-    fewer than 2 render patches count 0. Differentiable with respect to ``images``."""
+    docstring) to ``exemplar_sets`` (:func:`exemplar_patch_sets` with the same ``size``, one (Q_l, 3 size^2)
+    per octave); octaves with fewer than 2 render patches count 0. Differentiable with respect to ``images``."""
     sizes = check_shape(images, "patch_loss: images", ("N", 3, "H", "W"), dtype="float")
     check_shape(masks, "patch_loss: masks", ("N", 1, "H", "W"), sizes=sizes)
     if not exemplar_sets:
         raise ValueError("patch_loss: exemplar_sets is empty (an exemplar smaller than one patch)")
-    size = math.isqrt(exemplar_sets[0].shape[1] // 3)
+    for level, b in enumerate(exemplar_sets):
+        check_shape(b, f"patch_loss: exemplar_sets[{level}]", ("Q", 3 * size * size), dtype="float")
     losses = []
     for n in range(images.shape[0]):
         mine = patch_sets(images[n : n + 1], masks[n : n + 1], len(exemplar_sets), size, max_points, generator)

@@ -16,8 +16,9 @@ exemplar's *flat* mean colour and its pixels *shuffled*:
 - ``swd``: the raw-patch distance to the exemplar (x1000, ``turns`` off: a canvas keeps the
   exemplar's orientation). Too close to the ``patch`` loss to judge it;
 - ``ps``: the distance of the ``ps`` loss's statistics to the exemplar's. Too close to ``ps`` to judge it;
-- ``coh``, ``ratio``, ``period``: orientation coherence and perpendicular-energy ratio in 24 px windows,
-  and the spectral period in px (stripes: coherence 1, ratio 0; checks: ratio near 1).
+- ``coh``, ``ratio``, ``period``, ``reg``: orientation coherence and perpendicular-energy ratio in 24 px
+  windows, the spectral period in px (stripes: coherence 1, ratio 0; checks: ratio near 1) and the
+  regularity (the autocorrelation's strongest repeat: periodic patterns near 1, blotches near 0).
 Each loss row's independent distance is the one it does not train on; seconds per step beside it.
 """
 
@@ -119,15 +120,15 @@ def main() -> int:
         results["exemplars"][name] = {"exemplar": own.as_dict(), "rows": rows, "seconds_per_step": seconds}
         tiles.append([target[0], *(canvases[c][0] for c in columns[1:])])
         print(
-            f"\n{name}: exemplar coherence {own.coherence:.2f}, ratio {own.ratio:.2f}, period {own.period:.1f} px"
-            + "".join(f"; {k} {v:.3f} s/step" for k, v in seconds.items())
+            f"\n{name}: exemplar coherence {own.coherence:.2f}, ratio {own.ratio:.2f}, period {own.period:.1f} px, "
+            f"regularity {own.regularity:.2f}" + "".join(f"; {k} {v:.3f} s/step" for k, v in seconds.items())
         )
-        print("| row | swd | ps | coh | ratio | period |")
-        print("| --- | ---: | ---: | ---: | ---: | ---: |")
+        print("| row | swd | ps | coh | ratio | period | reg |")
+        print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
         for row, s in rows.items():
             print(
                 f"| {row} | {s['swd']:.0f} | {s['ps']:.2f} | {s['coherence']:.2f} | {s['ratio']:.2f} | "
-                f"{s['period']:.1f} |"
+                f"{s['period']:.1f} | {s['regularity']:.2f} |"
             )
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1))

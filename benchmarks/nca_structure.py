@@ -2,7 +2,7 @@
 
     OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
         [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
-        [--direct ps sw ...] [--surface ps ...] [--direct-iters 400] [--direct-size 512]
+        [--direct ps sw ...] [--surface ps ...] [--direct-iters 400] [--direct-size 512] [--charts 16 --chart-size 32]
         [--figure FILE.png [--figure-view 1]]
 
 For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over
@@ -12,8 +12,9 @@ steps from its seed and rendered from 8 fixed views at 128 px (azimuths 0..315, 
 on the sphere and on each ``--meshes`` file (held out: never trained on). Each set of renders is
 judged by :mod:`mesh2tex.metrics.structure`, which shares nothing with the losses: SWD of raw
 Laplacian-pyramid patches against the exemplar (x1000, lower is better), the windows' gradient
-coherence (stripes: 1) and perpendicular energy ratio (checks: near 1), and the spectral period
-in pixels (the exemplar's own figures are printed in its header). The exemplar SWD compares renders
+coherence (stripes: 1) and perpendicular energy ratio (checks: near 1), the spectral period
+in pixels and the regularity (the autocorrelation's strongest repeat: periodic patterns near 1,
+blotches near 0; the exemplar's own figures are printed in its header). The exemplar SWD compares renders
 of a curved surface with a flat image, and the oracle (the pattern projected on the surface) does
 not always win it; so beside it, ``vs oracle``: the same patch SWD against the oracle's own renders
 with its pattern moved (:data:`REFERENCE_SHIFT`; same views, ``turns`` off): the ground truth as the
@@ -129,6 +130,8 @@ def direct_views(
     size: int,
     seed: int,
     method: str = "renders",
+    charts: int = SynthesisConfig.charts,
+    chart_size: int = SynthesisConfig.chart_size,
 ) -> tuple[tuple[torch.Tensor, torch.Tensor], float]:
     """The direct method's texture on ``graph``'s mesh (a new atlas over its triangles), optimised ``iters``
     steps with the ``loss`` through ``method`` (renders or surface charts), seen by ``mvp``: ((images
@@ -143,6 +146,8 @@ def direct_views(
         resolution=RESOLUTION,
         seed=seed,
         method=method,
+        charts=charts,
+        chart_size=chart_size,
     )
     synthesis = TexelSynthesis(cfg, surface, exemplar, vgg if needs_vgg(loss) else None)
     start = time.perf_counter()
@@ -197,6 +202,10 @@ def main() -> int:
     parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")
     parser.add_argument(
         "--direct-size", type=int, default=SynthesisConfig.texture_size, help="the direct method's texture side"
+    )
+    parser.add_argument("--charts", type=int, default=SynthesisConfig.charts, help="the chart rows' charts per step")
+    parser.add_argument(
+        "--chart-size", type=int, default=SynthesisConfig.chart_size, help="the chart rows' chart side in px"
     )
     parser.add_argument("--figure", help="write a picture of every exemplar's rows here (PNG)")
     parser.add_argument(
@@ -268,6 +277,8 @@ def main() -> int:
                     args.direct_size,
                     args.seed,
                     method,
+                    args.charts,
+                    args.chart_size,
                 )
                 record["train_seconds"][f"{row} ({mesh})"] = seconds
             reference = oracle_views(name, graph, mvp, REFERENCE_SHIFT)
@@ -312,20 +323,20 @@ def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]
     own = record["exemplar"]
     print(
         f"\n{name}: exemplar coherence {fmt(own['coherence'])}, ratio {fmt(own['ratio'])}, period "
-        f"{fmt(own['period'], 1)} px, self-SWD {fmt(own['swd'], 0)}; train s: "
+        f"{fmt(own['period'], 1)} px, regularity {fmt(own['regularity'])}, self-SWD {fmt(own['swd'], 0)}; train s: "
         + ", ".join(f"{k} {fmt(v, 0)}" for k, v in record["train_seconds"].items())
     )
-    columns = ("SWD", "vs oracle", "ps vs oracle", "coh", "ratio", "period")
+    columns = ("SWD", "vs oracle", "ps vs oracle", "coh", "ratio", "period", "reg")
     header = " | ".join(f"{m} {c}" for m in meshes for c in columns)
     print(f"| row | {header} |")
-    print("|" + " --- |" * (1 + 6 * len(meshes)))
+    print("|" + " --- |" * (1 + len(columns) * len(meshes)))
     for row, per_mesh in record["rows"].items():
         cells = []
         for m in meshes:
             s = per_mesh[m]
             oracle_relative = fmt(s.get("oracle_swd", math.nan), 0)
             cells += [fmt(s["swd"], 0), oracle_relative, fmt(s.get("oracle_ps", math.nan))]
-            cells += [fmt(s["coherence"]), fmt(s["ratio"]), fmt(s["period"], 1)]
+            cells += [fmt(s["coherence"]), fmt(s["ratio"]), fmt(s["period"], 1), fmt(s.get("regularity", math.nan))]
         print(f"| {row} | " + " | ".join(cells) + " |")
     for loss in losses:
         parts = []

@@ -15,6 +15,10 @@ The colour term is the sliced Wasserstein distance of the object's RGB pixels (`
 ``sw`` without VGG layers): ``ps`` matches each channel's quantiles but not which values go together,
 and without it the texture keeps off-palette speckles (green and cyan among red and cream stripes);
 on the stripes exemplar (400 steps, the same rates) it took the judge's patch distance from 576 to 232.
+The ``patch`` loss matches whole RGB patches, joint colours included, and the colour term drowns it:
+at any weight from 1 up it paints the palette's blotches where without it a checker has corners. Its
+weight is therefore the loss's own unless set (:data:`COLOUR_WEIGHTS`: 100 for ``ps``, ``sw`` and
+``ot``; 0 for ``patch``).
 
 **Two ways to see the surface** (``method``). ``renders``: the surface is seen through random
 *rendered views*, and the structure loss judges them as 2D images. It inherits the camera's
@@ -68,7 +72,14 @@ from mesh2tex.render.cameras import NCACameraConfig
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
 METHODS = ("renders", "surface")  # how the loss sees the surface: rendered views, or geodesic charts
-SYNTHESIS_LOSSES = ("ps", "patch", "sw", "ot")  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
+SYNTHESIS_LOSSES = ("ps", "patch", "sw", "ot")
+# The colour term's weight per loss when the config leaves it unset (the module docstring says why).
+COLOUR_WEIGHTS = {
+    "ps": 100.0,
+    "patch": 0.0,
+    "sw": 100.0,
+    "ot": 100.0,
+}  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
 
 
 @dataclass
@@ -84,7 +95,9 @@ class SynthesisConfig:
     max_points: int = 1024  # feature positions per set in the sw and ot losses; patches per octave in patch
     lr: float = 0.05  # Adam learning rate of every level, at the start
     lr_end: float = 0.1  # the rate at the last step, as a fraction of lr (a cosine in between): the texels settle
-    colour_weight: float = 100.0  # weight of the sliced Wasserstein distance of the RGB pixels (the joint palette)
+    # weight of the sliced Wasserstein distance of the RGB pixels (the joint palette); unset: the loss's own
+    # (COLOUR_WEIGHTS: 100, or 0 for patch)
+    colour_weight: float | None = None
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
     direction_field: str = "up"  # up: views or charts upright (stripes keep the mesh's up); none: rolled at random
     method: str = "renders"  # renders: random rendered views; surface: geodesic charts of the surface itself
@@ -111,7 +124,6 @@ class SynthesisConfig:
                 "exemplar_size": 16,
                 "max_points": 2,
                 "overflow_weight": 0,
-                "colour_weight": 0,
                 "charts": 1,
                 "chart_size": 16,
             },
@@ -127,6 +139,13 @@ class SynthesisConfig:
         )
         if self.loss not in SYNTHESIS_LOSSES or self.loss not in STYLE_LOSSES:
             raise ValueError(f"loss must be one of {', '.join(SYNTHESIS_LOSSES)}, got {self.loss!r}")
+        if self.colour_weight is not None and not self.colour_weight >= 0:
+            raise ValueError(f"colour_weight must be at least 0, got {self.colour_weight}")
+
+    @property
+    def palette_weight(self) -> float:
+        """The colour term's weight: ``colour_weight``, or the loss's own (:data:`COLOUR_WEIGHTS`) when unset."""
+        return COLOUR_WEIGHTS[self.loss] if self.colour_weight is None else float(self.colour_weight)
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.direction_field not in DIRECTIONS:
@@ -366,9 +385,9 @@ class TexelSynthesis:
         cfg = self.cfg
         (images, masks), (pixels, pixel_masks) = self.views_of(image, count, generator)
         loss = style_loss(self.vgg, images, masks, self.features, cfg.loss, cfg.max_points, generator)
-        if cfg.colour_weight:
+        if cfg.palette_weight:
             palette = style_loss(None, pixels, pixel_masks, self.palette, "sw", cfg.max_points, generator)
-            loss = loss + cfg.colour_weight * palette
+            loss = loss + cfg.palette_weight * palette
         return loss
 
     def per_step(self) -> int:
@@ -438,6 +457,7 @@ def vertex_texture_colours(image: torch.Tensor, uv: np.ndarray, vertex_index: np
 __all__ = [
     "DIRECTIONS",
     "METHODS",
+    "COLOUR_WEIGHTS",
     "SYNTHESIS_LOSSES",
     "SurfaceCharts",
     "SynthesisConfig",

@@ -1,4 +1,4 @@
-"""The independent judge of texture structure: orientation coherence and ratio, period, patch distance."""
+"""The independent judge of texture structure: orientation coherence and ratio, period, regularity, patch distance."""
 
 import math
 
@@ -10,6 +10,7 @@ from mesh2tex.metrics.structure import (
     orientation_scores,
     orientation_windows,
     patch_swd,
+    regularity,
     spectrum_period,
     structure_scores,
 )
@@ -117,3 +118,37 @@ def test_a_masked_reference_gives_only_its_objects_patches():
     assert own < 0.3 * patch_swd(flat, disc, reference, turns=False, exemplar_masks=disc)
     # Without the reference's mask its white background counts, and the distance changes.
     assert patch_swd(moved, disc, reference, turns=False) != own
+
+
+def _blotches(seed: int = 0, size: int = 96) -> torch.Tensor:
+    """Two grey levels in random blobs about as large as the checker's squares: isotropic, no repeat."""
+    noise = torch.rand(1, 1, size + 8, size + 8, generator=torch.Generator().manual_seed(seed), dtype=torch.float64)
+    smooth = torch.nn.functional.avg_pool2d(noise, 9, stride=1)
+    return torch.where(smooth > smooth.median(), 0.8, 0.2).expand(1, 3, size, size).clone()
+
+
+def test_regularity_tells_a_repeating_pattern_from_blotches():
+    """Checks and stripes repeat (near 1), even softened; blotches of the same two colours and noise do not
+    (near 0), although the blotches' orientation ratio is as high as the checker's."""
+    soft_checker = torch.nn.functional.avg_pool2d(torch.nn.functional.pad(_checker(), (2, 2, 2, 2), "reflect"), 5, 1)
+    assert regularity(_checker()) > 0.9
+    assert regularity(_stripes(30.0)) > 0.9
+    assert regularity(soft_checker) > 0.8
+    for name in ("checker", "stripes", "bricks", "dots"):
+        assert regularity(_exemplar(name)) > 0.9, name
+    blotches = _blotches()
+    assert regularity(blotches) < 0.3
+    assert regularity(torch.rand(1, 3, 96, 96, generator=torch.Generator().manual_seed(1), dtype=torch.float64)) < 0.2
+    assert structure_scores(blotches).ratio > 0.5  # what the orientation ratio cannot tell
+
+
+def test_regularity_reads_only_the_object_and_is_nan_for_a_flat_colour():
+    checker = _checker()
+    yy, xx = torch.meshgrid(torch.arange(96), torch.arange(96), indexing="ij")
+    mask = (((yy - 48) ** 2 + (xx - 48) ** 2) < 40**2).double()[None, None]
+    other = checker.clone()
+    other[..., mask[0, 0] < 0.5] = torch.rand(
+        int((mask < 0.5).sum()), generator=torch.Generator().manual_seed(2)
+    ).double()
+    assert regularity(checker, mask) == pytest.approx(regularity(other, mask), abs=1e-12)
+    assert math.isnan(regularity(torch.full((1, 3, 32, 32), 0.5, dtype=torch.float64)))

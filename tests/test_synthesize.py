@@ -108,15 +108,23 @@ def test_a_bad_mesh_is_a_one_line_error(inputs, tmp_path, capsys, monkeypatch):
     assert "none.obj" in one_error_line(capsys)
 
 
-@pytest.mark.parametrize("method", ["renders", "surface"])
-def test_the_loss_falls_over_a_short_run(method):
+@pytest.mark.parametrize("method,loss", [("renders", "ps"), ("surface", "ps"), ("renders", "patch")])
+def test_the_loss_falls_over_a_short_run(method, loss):
     torch.manual_seed(0)
     ball = trimesh.creation.icosphere(subdivisions=2)
     vertex_index, faces, uv = new_atlas(ball.vertices, ball.faces)
     unit = ball.vertices / np.linalg.norm(ball.vertices, axis=1).max()
     surface = TexelSurface.from_arrays(unit[vertex_index], faces, uv)
     cfg = SynthesisConfig(
-        iters=30, texture_size=64, levels=4, resolution=64, exemplar_size=48, lr=0.05, method=method, charts=4
+        iters=30,
+        texture_size=64,
+        levels=4,
+        resolution=64,
+        exemplar_size=48,
+        lr=0.05,
+        method=method,
+        charts=4,
+        loss=loss,
     )
     synthesis = TexelSynthesis(cfg, surface, exemplar_tensor(exemplar_image("stripes", 48), 48))
     before = synthesis.fixed_loss()
@@ -164,3 +172,14 @@ def test_the_views_are_set_in_a_camera_section_as_the_automatons_and_old_keys_sa
         config_from_dict(SynthesisConfig, {"distance": 2.5})
     with pytest.raises(InputError, match="elevation_max"):
         config_from_dict(SynthesisConfig, {"camera": {"elevation_min": 10.0, "elevation_max": 0.0}})
+
+
+def test_the_colour_term_weighs_what_the_loss_needs_unless_set():
+    """The patch loss matches joint colours itself and the colour term would drown it: unset, its weight is 0;
+    the other losses keep 100; a weight the user sets is the weight used, and a negative one is refused."""
+    assert SynthesisConfig().palette_weight == 100.0
+    assert SynthesisConfig(loss="patch").palette_weight == 0.0
+    assert SynthesisConfig(loss="patch", colour_weight=5.0).palette_weight == 5.0
+    assert SynthesisConfig(loss="ps", colour_weight=0.0).palette_weight == 0.0
+    with pytest.raises(ValueError, match="colour_weight"):
+        SynthesisConfig(colour_weight=-1.0)

@@ -27,6 +27,17 @@ that a row reads against the exemplar's own figure:
     direction  the energy-weighted mean gradient orientation of the set (radians in [0, pi)),
                for tests and figures.
 
+**Regularity** (``regularity``): how strongly the luminance repeats itself. The autocorrelation of
+    the object's luminance (mean removed, over the pairs of object pixels at each lag, pooled over
+    the set's images; lags whose pairs are fewer than a quarter of the object's pixels are left
+    out), divided by its value at lag 0; beyond its central lobe (from the first ring of lags whose
+    mean falls to 0) out to ``max_lag`` px, its highest value. A repeat of the pattern within
+    ``max_lag`` shows as a second peak: near 1 for a crisp checker or stripes seen flat, lower where
+    a surface foreshortens them; near 0 for blotches or noise, whose autocorrelation falls and stays
+    down (0 where it never falls to 0 within ``max_lag``). Unlike the orientation ratio it does not
+    mistake isotropic blotches for checks, and unlike the patch distance it does not prefer crisp
+    blotches of the right colours to a soft checker.
+
 **Period** (``period``, pixels): the peak of the radially averaged power spectrum of the luminance,
     pooled over ``patch``-px windows wholly on the object (mean removed, Hann window, zero-padded
     to four times the side; each ring's mean power times its radius, the power per unit of radial
@@ -61,7 +72,7 @@ HALF_WIDTH = 1  # bins each side of a direction counted as "that direction" (3 b
 class StructureScores:
     """The judge's figures of one set: ``swd`` (NaN where no exemplar was given), ``coherence``,
     ``ratio`` and ``direction`` (NaN with no textured window), ``period`` (NaN with no patch or
-    no power), ``windows`` (textured orientation windows counted)."""
+    no power), ``windows`` (textured orientation windows counted), ``regularity`` (NaN with no texture)."""
 
     swd: float
     coherence: float
@@ -69,6 +80,7 @@ class StructureScores:
     direction: float
     period: float
     windows: int
+    regularity: float = math.nan
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -182,6 +194,45 @@ def spectrum_period(
     return size / (k + max(-0.5, min(0.5, offset)))
 
 
+def regularity(images: torch.Tensor, masks: torch.Tensor | None = None, max_lag: int = 24) -> float:
+    """The height of the luminance's strongest repeat within ``max_lag`` px (module docstring): in [-1, 1],
+    0 when the autocorrelation never falls to 0, NaN for a flat colour or no object. images (N, 3, H, W) in
+    [0, 1]; masks (N, 1, H, W) or None."""
+    masks = _check("regularity", images, masks)
+    y = luminance(images.double())
+    m = (masks > 0.5).double()
+    h, w = y.shape[-2:]
+    size = (2 * h, 2 * w)  # zero padding: every lag's products are of pixel pairs inside the image
+    products = torch.zeros(size, dtype=torch.float64)
+    pairs = torch.zeros(size, dtype=torch.float64)
+    for n in range(y.shape[0]):
+        count = m[n].sum()
+        if count < 1:
+            continue
+        x = (y[n] - (y[n] * m[n]).sum() / count) * m[n]
+        products += torch.fft.ifft2(torch.fft.fft2(x[0], s=size).abs().square()).real
+        pairs += torch.fft.ifft2(torch.fft.fft2(m[n, 0], s=size).abs().square()).real
+    if pairs[0, 0] < 1 or products[0, 0] / pairs[0, 0] < _FLAT_VARIANCE:
+        return math.nan
+    valid = pairs > 0.25 * pairs[0, 0]
+    correlation = torch.where(valid, products / pairs.clamp_min(1), torch.zeros_like(products))
+    correlation = correlation / correlation[0, 0]
+    dy = torch.fft.fftfreq(size[0], 1 / size[0], dtype=torch.float64)
+    dx = torch.fft.fftfreq(size[1], 1 / size[1], dtype=torch.float64)
+    radius = torch.sqrt(dy[:, None] ** 2 + dx[None, :] ** 2)
+    ring = radius.round().long()
+    lobe_end = None
+    for r in range(1, max_lag + 1):
+        here = (ring == r) & valid
+        if here.any() and float(correlation[here].mean()) <= 0:
+            lobe_end = r
+            break
+    if lobe_end is None:
+        return 0.0
+    beyond = valid & (radius >= lobe_end) & (radius <= max_lag)
+    return float(correlation[beyond].max()) if beyond.any() else 0.0
+
+
 def patch_swd(
     images: torch.Tensor,
     masks: torch.Tensor | None,
@@ -259,6 +310,7 @@ def structure_scores(
         direction=direction,
         period=spectrum_period(images, masks, patch),
         windows=len(histograms),
+        regularity=regularity(images, masks),
     )
 
 
@@ -269,6 +321,7 @@ __all__ = [
     "orientation_scores",
     "patch_swd",
     "orientation_windows",
+    "regularity",
     "spectrum_period",
     "structure_scores",
 ]

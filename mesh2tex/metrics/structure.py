@@ -27,11 +27,14 @@ that a row reads against the exemplar's own figure:
     direction  the energy-weighted mean gradient orientation of the set (radians in [0, pi)),
                for tests and figures.
 
-**Regularity** (``regularity``): how strongly the luminance repeats itself. The autocorrelation of
-    the object's luminance (mean removed, over the pairs of object pixels at each lag, pooled over
-    the set's images; lags whose pairs are fewer than a quarter of the object's pixels are left
-    out), divided by its value at lag 0; beyond its central lobe (from the first ring of lags whose
-    mean falls to 0) out to ``max_lag`` px, its highest value. A repeat of the pattern within
+**Regularity** (``regularity``): how strongly the luminance repeats itself, locally. In each
+    64 px window at least half on the object (stride 32 px), the autocorrelation of the object's
+    luminance (mean removed, over the pairs of object pixels at each lag; lags with fewer than a
+    quarter of the window's pairs are left out), divided by its value at lag 0; beyond its central
+    lobe (from the first ring of lags whose mean falls to 0) out to ``max_lag`` px, its highest
+    value; averaged over the textured windows. Windows, not the whole render: a pattern wrapped on
+    a curved surface turns from place to place, and a whole-image autocorrelation would average
+    its repeats away. A repeat of the pattern within
     ``max_lag`` shows as a second peak: near 1 for a crisp checker or stripes seen flat, lower where
     a surface foreshortens them; near 0 for blotches or noise, whose autocorrelation falls and stays
     down (0 where it never falls to 0 within ``max_lag``). Unlike the orientation ratio it does not
@@ -194,43 +197,47 @@ def spectrum_period(
     return size / (k + max(-0.5, min(0.5, offset)))
 
 
-def regularity(images: torch.Tensor, masks: torch.Tensor | None = None, max_lag: int = 24) -> float:
-    """The height of the luminance's strongest repeat within ``max_lag`` px (module docstring): in [-1, 1],
-    0 when the autocorrelation never falls to 0, NaN for a flat colour or no object. images (N, 3, H, W) in
-    [0, 1]; masks (N, 1, H, W) or None."""
+def regularity(images: torch.Tensor, masks: torch.Tensor | None = None, window: int = 64, max_lag: int = 32) -> float:
+    """The height of the luminance's strongest repeat within ``max_lag`` px (module docstring), averaged over
+    the textured ``window``-px windows (stride half a window) at least half on the object: in [-1, 1], 0 for a
+    window whose autocorrelation never falls to 0; NaN with no such window. images (N, 3, H, W) in [0, 1];
+    masks (N, 1, H, W) or None."""
     masks = _check("regularity", images, masks)
+    if min(images.shape[-2:]) < window:
+        return math.nan
     y = luminance(images.double())
     m = (masks > 0.5).double()
-    h, w = y.shape[-2:]
-    size = (2 * h, 2 * w)  # zero padding: every lag's products are of pixel pairs inside the image
-    products = torch.zeros(size, dtype=torch.float64)
-    pairs = torch.zeros(size, dtype=torch.float64)
-    for n in range(y.shape[0]):
-        count = m[n].sum()
-        if count < 1:
-            continue
-        x = (y[n] - (y[n] * m[n]).sum() / count) * m[n]
-        products += torch.fft.ifft2(torch.fft.fft2(x[0], s=size).abs().square()).real
-        pairs += torch.fft.ifft2(torch.fft.fft2(m[n, 0], s=size).abs().square()).real
-    if pairs[0, 0] < 1 or products[0, 0] / pairs[0, 0] < _FLAT_VARIANCE:
+    stride = window // 2
+    lum = F.unfold(y, window, stride=stride).transpose(1, 2).reshape(-1, window, window)
+    on = F.unfold(m, window, stride=stride).transpose(1, 2).reshape(-1, window, window)
+    count = on.sum((1, 2))
+    keep = count >= 0.5 * window * window
+    lum, on, count = lum[keep], on[keep], count[keep]
+    x = (lum - (lum * on).sum((1, 2), keepdim=True) / count.clamp_min(1)[:, None, None]) * on
+    textured = x.square().sum((1, 2)) / count.clamp_min(1) > _FLAT_VARIANCE
+    x, on = x[textured], on[textured]
+    if len(x) == 0:
         return math.nan
-    valid = pairs > 0.25 * pairs[0, 0]
+    size = (2 * window, 2 * window)  # zero padding: every lag's products are of pixel pairs inside the window
+    products = torch.fft.ifft2(torch.fft.fft2(x, s=size).abs().square()).real  # (M, 2w, 2w)
+    pairs = torch.fft.ifft2(torch.fft.fft2(on, s=size).abs().square()).real
+    valid = pairs > 0.25 * pairs[:, :1, :1]  # lags with at least a quarter of the window's pairs
     correlation = torch.where(valid, products / pairs.clamp_min(1), torch.zeros_like(products))
-    correlation = correlation / correlation[0, 0]
-    dy = torch.fft.fftfreq(size[0], 1 / size[0], dtype=torch.float64)
-    dx = torch.fft.fftfreq(size[1], 1 / size[1], dtype=torch.float64)
-    radius = torch.sqrt(dy[:, None] ** 2 + dx[None, :] ** 2)
+    correlation = correlation / correlation[:, :1, :1]
+    lag = torch.fft.fftfreq(size[0], 1 / size[0], dtype=torch.float64)
+    radius = torch.sqrt(lag[:, None] ** 2 + lag[None, :] ** 2)
     ring = radius.round().long()
-    lobe_end = None
-    for r in range(1, max_lag + 1):
-        here = (ring == r) & valid
-        if here.any() and float(correlation[here].mean()) <= 0:
-            lobe_end = r
-            break
-    if lobe_end is None:
-        return 0.0
-    beyond = valid & (radius >= lobe_end) & (radius <= max_lag)
-    return float(correlation[beyond].max()) if beyond.any() else 0.0
+    scores = []
+    for c, v in zip(correlation, valid):
+        lobe_end = None
+        for r in range(1, max_lag + 1):
+            here = (ring == r) & v
+            if here.any() and float(c[here].mean()) <= 0:
+                lobe_end = r
+                break
+        beyond = v & (radius >= (lobe_end or max_lag + 1)) & (radius <= max_lag)
+        scores.append(float(c[beyond].max()) if beyond.any() else 0.0)
+    return sum(scores) / len(scores)
 
 
 def patch_swd(

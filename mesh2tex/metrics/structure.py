@@ -34,12 +34,13 @@ that a row reads against the exemplar's own figure:
     lobe (from the first ring of lags whose mean falls to 0) out to ``max_lag`` px, its highest
     value; averaged over the textured windows. Windows, not the whole render: a pattern wrapped on
     a curved surface turns from place to place, and a whole-image autocorrelation would average
-    its repeats away. A repeat of the pattern within
-    ``max_lag`` shows as a second peak: near 1 for a crisp checker or stripes seen flat, lower where
-    a surface foreshortens them; near 0 for blotches or noise, whose autocorrelation falls and stays
-    down (0 where it never falls to 0 within ``max_lag``). Unlike the orientation ratio it does not
-    mistake isotropic blotches for checks, and unlike the patch distance it does not prefer crisp
-    blotches of the right colours to a soft checker.
+    its repeats away. A repeat of the pattern within ``max_lag`` (32 px) shows as a second peak:
+    near 1 for a crisp checker or stripes seen flat, lower where a surface foreshortens them; near 0
+    for blotches or noise, whose autocorrelation falls and stays down (0 where it never falls to 0
+    within ``max_lag``). Unlike the orientation ratio it does not mistake isotropic blotches for
+    checks, and unlike the patch distance it does not prefer crisp blotches of the right colours to
+    a soft checker. It is a property, not a distance: a blurred copy of the pattern, or a more
+    uniform one than the oracle's, can score above the oracle.
 
 **Period** (``period``, pixels): the peak of the radially averaged power spectrum of the luminance,
     pooled over ``patch``-px windows wholly on the object (mean removed, Hann window, zero-padded

@@ -159,18 +159,22 @@ def direct_views(
     return ((images.double() + 1) / 2, masks.double()), seconds
 
 
-def ps_vs_oracle(
-    images: torch.Tensor, masks: torch.Tensor, reference: torch.Tensor, reference_masks: torch.Tensor
-) -> float:
-    """The mean over the N views of the ``ps`` statistics' distance of a render to the reference's render of
-    the same view; all (N, 3 or 1, H, W) in [0, 1]; NaN where no view has statistics."""
-    values = []
-    with torch.no_grad():
-        for n in range(images.shape[0]):
-            theirs = band_statistics(reference[n : n + 1].float() * 2 - 1, reference_masks[n : n + 1].float())
-            if theirs:
-                mine = band_statistics(images[n : n + 1].float() * 2 - 1, masks[n : n + 1].float())
-                values.append(float(statistics_distance(mine, theirs)))
+@torch.no_grad()
+def view_statistics(images: torch.Tensor, masks: torch.Tensor) -> list[dict[str, torch.Tensor]]:
+    """The ``ps`` loss's statistics of each of N views, images (N, 3, H, W) in [0, 1] and masks (N, 1, H, W)."""
+    return [band_statistics(images[n : n + 1].float() * 2 - 1, masks[n : n + 1].float()) for n in range(len(images))]
+
+
+@torch.no_grad()
+def ps_vs_oracle(images: torch.Tensor, masks: torch.Tensor, reference: list[dict[str, torch.Tensor]]) -> float:
+    """The mean over the N views (images (N, 3, H, W) in [0, 1], masks (N, 1, H, W)) of the ``ps`` statistics'
+    distance of a render to the reference's statistics of the same view (:func:`view_statistics`); NaN where
+    no reference view has statistics."""
+    values = [
+        float(statistics_distance(mine, theirs))
+        for mine, theirs in zip(view_statistics(images, masks), reference)
+        if theirs
+    ]
     return sum(values) / len(values) if values else math.nan
 
 
@@ -282,10 +286,11 @@ def main() -> int:
                 )
                 record["train_seconds"][f"{row} ({mesh})"] = seconds
             reference = oracle_views(name, graph, mvp, REFERENCE_SHIFT)
+            reference_statistics = view_statistics(*reference)  # once per mesh, for every row
             for row, (images, masks) in sets.items():
                 scores = structure_scores(images, masks, target).as_dict()
                 scores["oracle_swd"] = patch_swd(images, masks, reference[0], turns=False, exemplar_masks=reference[1])
-                scores["oracle_ps"] = ps_vs_oracle(images, masks, *reference)
+                scores["oracle_ps"] = ps_vs_oracle(images, masks, reference_statistics)
                 record["rows"].setdefault(row, {})[mesh] = scores
             tiles += [sets[row][0][args.figure_view] for row in shown]
         results["exemplars"][name] = record

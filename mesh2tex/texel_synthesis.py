@@ -72,14 +72,10 @@ from mesh2tex.render.cameras import NCACameraConfig
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
 METHODS = ("renders", "surface")  # how the loss sees the surface: rendered views, or geodesic charts
-SYNTHESIS_LOSSES = ("ps", "patch", "sw", "ot")
-# The colour term's weight per loss when the config leaves it unset (the module docstring says why).
-COLOUR_WEIGHTS = {
-    "ps": 100.0,
-    "patch": 0.0,
-    "sw": 100.0,
-    "ot": 100.0,
-}  # the losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern
+# The losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern, each with the colour term's weight
+# when the config leaves it unset (the module docstring says why).
+COLOUR_WEIGHTS = {"ps": 100.0, "patch": 0.0, "sw": 100.0, "ot": 100.0}
+SYNTHESIS_LOSSES = tuple(COLOUR_WEIGHTS)
 
 
 @dataclass

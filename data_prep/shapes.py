@@ -21,6 +21,7 @@ import re
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from mesh2tex.errors import InputError, UserError
@@ -195,18 +196,32 @@ def _index_document(settings: dict, shapes: list[dict]) -> dict:
     }
 
 
-def _prepare_all(jobs: list[tuple], workers: int, finish, bar) -> None:
-    """:func:`prepare_one` on every job, in this process or ``workers`` spawned ones; ``finish(record, bar)``
-    as each ends."""
+def _prepare_all(jobs: list[tuple], workers: int, finish, bar, work=None) -> None:
+    """``work`` (:func:`prepare_one` unless given) on every job, in this process or ``workers`` spawned ones;
+    ``finish(record, bar)`` as each ends. A worker killed from outside raises UserError."""
+    work = work or prepare_one
     if workers == 1 or len(jobs) <= 1:
         for job in jobs:
-            finish(prepare_one(*job), bar)
+            finish(work(*job), bar)
         return
     # spawn, not fork: a forked child of a process that already ran pymeshlab's OpenMP code hangs in libgomp
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(prepare_one, *job) for job in jobs]
-        for future in as_completed(futures):
-            finish(future.result(), bar)
+        futures = {pool.submit(work, *job): job[0] for job in jobs}
+        done: set[str] = set()
+        try:
+            for future in as_completed(futures):
+                finish(future.result(), bar)
+                done.add(futures[future])
+        except BrokenProcessPool:
+            # a worker killed from outside (the system out of memory, a signal): the finished shapes
+            # are already in index.json; name the ones in flight so the user knows where to look
+            unfinished = [source for source in futures.values() if source not in done]
+            shown = ", ".join(unfinished[:3]) + (f" and {len(unfinished) - 3} more" if len(unfinished) > 3 else "")
+            raise UserError(
+                f"a worker process was killed while preparing {shown} (often the system running out of "
+                f"memory); {len(done)} finished {'shape is' if len(done) == 1 else 'shapes are'} kept: run the "
+                f"same command again to go on, with fewer --workers or a --max-memory-gb"
+            ) from None
 
 
 def _done_and_todo(paths: list[Path], previous: dict, names: dict, output: Path) -> tuple[dict[str, dict], list[Path]]:

@@ -325,3 +325,33 @@ def test_overwrite_prepares_every_shape_again(tmp_path):
     assert main([*args, "--overwrite"]) == 0
     assert (out / "cube.npz").stat().st_mtime_ns != first and (out / "notes.txt").read_text() == "mine"
     assert json.loads((out / "index.json").read_text())["ok"] == 1
+
+
+def _die_on_second(source: str, *rest):
+    """A stand-in for prepare_one whose worker is killed (as by the system) on the shape named "b"."""
+    import os
+    import time
+
+    if source == "b":
+        time.sleep(0.5)  # let "a" finish first
+        os._exit(9)
+    return {"source": source, "status": "ok"}
+
+
+def test_a_worker_killed_from_outside_is_one_error_naming_the_shape_and_keeps_the_finished_ones():
+    import pytest
+
+    from data_prep.shapes import _prepare_all
+    from mesh2tex.errors import UserError
+
+    finished = []
+
+    class Bar:
+        def update(self, n):
+            pass
+
+    with pytest.raises(UserError) as caught:
+        _prepare_all([("a",), ("b",)], 2, lambda record, bar: finished.append(record["source"]), Bar(), _die_on_second)
+    assert finished == ["a"]
+    message = str(caught.value)
+    assert "preparing b " in message and "killed" in message and "run the same command again" in message

@@ -7,9 +7,10 @@ Meshes (each centred, bbox diagonal 1, seen from distance 1.6 with a 45 degree f
   scan    a noisy, irregular blob like a 3D scan: 103,680 triangles, most under a pixel
   chair   shape 0 of the synthetic world's chairs (mesh2tex.synthetic): panels, rods, bevels
   car     shape 0 of the synthetic world's cars
-Cases: one view at 256 and 512 pixels, eight views at 128 in one call. ``--cameras axis`` looks
-along the axes instead (azimuths 0, 90, 180, 270, elevations 0 and 90): symmetric views that put
-many pixel centres exactly on edges, where coverage is decided by the exact edge test.
+Cases: one view at 256 and 512 pixels, eight views at 128 and sixteen at 256 (the paper's two
+batches of eight) in one call. ``--cameras axis`` looks along the axes instead (azimuths 0, 90,
+180, 270, elevations 0 and 90): symmetric views that put many pixel centres exactly on edges,
+where coverage is decided by the exact edge test.
 
     python benchmarks/bench_rasterize.py [--threads 1] [--repeats 10] [--meshes torus,table]
         [--previous REV] [--busy 1] [--device cpu|cuda] [--case memory] [--cameras axis] [--clock cpu]
@@ -48,10 +49,14 @@ from resident_memory import reset_peak_rss, status_mib  # noqa: E402  (this fold
 from test_rasterize_reference import bevelled_table, normalised, scan_sphere  # noqa: E402  the same meshes
 from test_render_raycast import bumpy_torus, pixel_rays  # noqa: E402
 
-CASES = {"1x256": (1, 256), "1x512": (1, 512), "8x128": (8, 128)}
-CAMERAS = {  # (azimuths, elevations) of up to eight views, degrees
-    "orbit": ([30.0 + 45.0 * i for i in range(8)], [25.0, -10.0, 35.0, 5.0, 50.0, -25.0, 15.0, 30.0]),
-    "axis": ([0.0, 90.0, 180.0, 270.0, 0.0, 90.0, 180.0, 270.0], [0.0, 0.0, 0.0, 0.0, 90.0, 90.0, 0.0, 0.0]),
+# 16x256: the paper's two batches of 8 views at 256 px in one call
+CASES = {"1x256": (1, 256), "1x512": (1, 512), "8x128": (8, 128), "16x256": (16, 256)}
+CAMERAS = {  # (azimuths, elevations) of up to sixteen views, degrees; the first eight as before
+    "orbit": (
+        [30.0 + 45.0 * i for i in range(8)] + [52.5 + 45.0 * i for i in range(8)],
+        [25.0, -10.0, 35.0, 5.0, 50.0, -25.0, 15.0, 30.0] + [-5.0, 20.0, 40.0, -15.0, 10.0, 45.0, -30.0, 0.0],
+    ),
+    "axis": ([0.0, 90.0, 180.0, 270.0, 0.0, 90.0, 180.0, 270.0] * 2, [0.0, 0.0, 0.0, 0.0, 90.0, 90.0, 0.0, 0.0] * 2),
 }
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 

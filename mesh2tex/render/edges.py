@@ -27,8 +27,6 @@ from fractions import Fraction
 
 import torch
 
-from mesh2tex.render.binning import columns
-
 # The band's half-width relative to the plane's largest magnitude over the pixels it is evaluated at:
 # float32 evaluation (two roundings of each coefficient, to float32 and by the scale, and two of the
 # fma steps) errs by under 2^-22 of it.
@@ -198,16 +196,26 @@ class EdgeTest:
     float32 filter leaves in the band.
 
     Args:
-        corners: (4,3,N) clip-space vertices (any float dtype): component (x, y, z, w), corner,
-            (view, triangle).
-        live: (L,) int64 index into N of each set-up.
+        pos: (B,V,4) clip-space vertices (any float dtype); tri: (T,3) int64 vertex indices.
+        live: (L,) int64 (view * T + triangle) of each set-up.
         front: (L,) bool, the set-up's determinant is positive (counter-clockwise in NDC).
         resolution: (H, W).
+
+    The corners of the set-ups it is asked about are gathered from ``pos`` when asked: few pixels
+    need the test, so no per-set-up copy of every corner is kept.
     """
 
-    def __init__(self, corners: torch.Tensor, live: torch.Tensor, front: torch.Tensor, resolution):
-        self.corners, self.live, self.front = corners, live, front
+    def __init__(self, pos: torch.Tensor, tri: torch.Tensor, live: torch.Tensor, front: torch.Tensor, resolution):
+        self.pos, self.tri, self.live, self.front = pos.detach(), tri, live, front
         self.H, self.W = int(resolution[0]), int(resolution[1])
+
+    def corners(self, setup: torch.Tensor) -> torch.Tensor:
+        """(4,3,n) clip-space corners of the set-ups ``setup`` (n,): component, corner, set-up."""
+        pair = self.live.index_select(0, setup)
+        T = self.tri.shape[0]
+        view = torch.div(pair, T, rounding_mode="floor")
+        vertex = self.tri.index_select(0, pair - view * T)  # (n,3)
+        return self.pos[view[:, None], vertex].permute(2, 1, 0)  # (n,3,4) -> (4,3,n)
 
     def inside(self, setup: torch.Tensor, row: torch.Tensor, col: torch.Tensor) -> torch.Tensor:
         """Whether each pixel centre is covered by its triangle, exactly, with the top-left rule.
@@ -219,7 +227,7 @@ class EdgeTest:
             (n,) bool.
         """
         H, W = self.H, self.W
-        c = columns(self.corners, self.live.index_select(0, setup)).double()  # (4,3,n)
+        c = self.corners(setup).double()  # (4,3,n)
         # Edge i joins corners j = i + 1 and k = i + 2: rows of (3,n) tensors, all edges at once.
         xj, yj, wj = (t.roll(-1, 0) for t in (c[0], c[1], c[3]))
         xk, yk, wk = (t.roll(-2, 0) for t in (c[0], c[1], c[3]))

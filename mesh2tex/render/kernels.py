@@ -89,6 +89,30 @@ def _box(x0, x1, x2, y0, y1, y2, H, W):
     return row_lo, col_lo, max(row_hi - row_lo + 1, 0), max(col_hi - col_lo + 1, 0)
 
 
+# NDC magnitude below which a vertex's box bounds are kept as integers (far inside int32 after clamping;
+# a sum of four such values cannot overflow float32, so :func:`_box`'s finiteness test passes).
+_PLAIN_NDC = np.float32(1e15)
+
+
+@_jit
+def _vertex_bounds(x, y, H, W, out):
+    """One vertex's share of :func:`_box`, from its float32 NDC x, y: out (4,) int32 = (first row,
+    last row, first column, last column) it allows, each clamped as the box clamps it; out[0] = -2
+    when the vertex is not plain (NaN, infinite or beyond :data:`_PLAIN_NDC`), for :func:`_box`.
+
+    Exact: every float32 operation of the box's bounds (add, multiply, ceil, floor, the clamps) is
+    monotone, so the bound of the triangle's extreme vertex is the extreme of its vertices' bounds:
+    a triangle's box is (min out[0], max out[1], min out[2], max out[3]) over its corners."""
+    one, half = np.float32(1.0), np.float32(0.5)
+    if not (abs(x) < _PLAIN_NDC and abs(y) < _PLAIN_NDC):
+        out[0] = -2
+        return
+    out[2] = min(max(math.ceil(((x + one) * np.float32(W) - one) * half - _BOX_MARGIN), 0), W)
+    out[3] = min(max(math.floor(((x + one) * np.float32(W) - one) * half + _BOX_MARGIN), -1), W - 1)
+    out[0] = min(max(math.ceil(((one - y) * np.float32(H) - one) * half - _BOX_MARGIN), 0), H)
+    out[1] = min(max(math.floor(((one - y) * np.float32(H) - one) * half + _BOX_MARGIN), -1), H - 1)
+
+
 @_jit
 def _min3(a, b, c):  # NaN-propagating, as torch.minimum
     if a != a or b != b or c != c:
@@ -196,12 +220,12 @@ def _draw(q, rows, cols, base, face, setup, keys, row_stride, id_bits, depth_sca
 
 @_jit
 def _rasterize_views(
-    pos, tri, H, W, cull, keys, view_stride, row_stride, id_bits, depth_scale, live, box, params, front, corners, band
+    pos, tri, H, W, cull, keys, view_stride, row_stride, id_bits, depth_scale, live, box, params, front, band
 ):
     """Boxes, set-up and pixel passes of every (view, triangle) pair: pos (B,V,4), tri (T,3).
 
     Writes the live set-ups (those that draw) to ``live`` (L,) (view * T + triangle), ``box`` (L,2)
-    origin, ``params`` (12,L) float64, ``front`` (L,) and ``corners`` (4,3,L) (pos's dtype); band
+    origin, ``params`` (L,12) float64 and ``front`` (L,); band
     pixels to ``band`` (3, capacity). Returns (L, band count), or (-1, 0) at the first triangle
     crossing the near plane."""
     B, V, T = pos.shape[0], pos.shape[1], tri.shape[0]
@@ -212,20 +236,34 @@ def _rasterize_views(
     # Per vertex of a view, once: float32 NDC x and y, and whether it is in front of the near plane.
     ndc_x, ndc_y = np.empty(V, dtype=np.float32), np.empty(V, dtype=np.float32)
     ahead = np.empty(V, dtype=np.bool_)
+    bounds = np.empty((V, 4), dtype=np.int32)  # _vertex_bounds of each vertex
     n_live, n_band = 0, 0
     for view in range(B):
         for v in range(V):
             x32, y32 = np.float32(pos[view, v, 0]), np.float32(pos[view, v, 1])
             z32, w32 = np.float32(pos[view, v, 2]), np.float32(pos[view, v, 3])
             ndc_x[v], ndc_y[v], ahead[v] = x32 / w32, y32 / w32, z32 + w32 >= 0
+            _vertex_bounds(ndc_x[v], ndc_y[v], H, W, bounds[v])
+        all_ahead = True  # the usual view: no triangle of it needs the test below
+        for v in range(V):
+            all_ahead = all_ahead and ahead[v]
         for face in range(T):
             i0, i1, i2 = tri[face, 0], tri[face, 1], tri[face, 2]
-            n_ahead = np.int64(ahead[i0]) + np.int64(ahead[i1]) + np.int64(ahead[i2])
-            if n_ahead < 3:
-                if n_ahead > 0:
-                    return -1, 0
-                continue
-            row0, col0, rows, cols = _box(ndc_x[i0], ndc_x[i1], ndc_x[i2], ndc_y[i0], ndc_y[i1], ndc_y[i2], H, W)
+            if not all_ahead:
+                n_ahead = np.int64(ahead[i0]) + np.int64(ahead[i1]) + np.int64(ahead[i2])
+                if n_ahead < 3:
+                    if n_ahead > 0:
+                        return -1, 0
+                    continue
+            # Most pairs of a fine mesh cover no pixel centre: rejected from the vertices' integer bounds.
+            b0, b1, b2 = bounds[i0], bounds[i1], bounds[i2]
+            row0 = min(b0[0], b1[0], b2[0])
+            if row0 >= 0:
+                col0 = min(b0[2], b1[2], b2[2])
+                rows = max(max(b0[1], b1[1], b2[1]) - row0 + 1, 0)
+                cols = max(max(b0[3], b1[3], b2[3]) - col0 + 1, 0)
+            else:  # a vertex that is not plain: the float box, with its finiteness test
+                row0, col0, rows, cols = _box(ndc_x[i0], ndc_x[i1], ndc_x[i2], ndc_y[i0], ndc_y[i1], ndc_y[i2], H, W)
             if rows * cols == 0:
                 continue
             size = 0.0
@@ -244,12 +282,9 @@ def _rasterize_views(
             _band_scale(p, size, det, rows, cols, scale)
             base = view * view_stride + row0 * row_stride + col0
             live[n_live], box[n_live, 0], box[n_live, 1], front[n_live] = view * T + face, row0, col0, det > 0
-            for k in range(3):
+            for r in range(3):  # one set-up's planes side by side: a row of (L, 12)
                 for c in range(4):
-                    corners[c, k, n_live] = pos[view, tri[face, k], c]
-            for r in range(3):
-                for c in range(4):
-                    params[r * 4 + c, n_live] = p[r, c]
+                    params[n_live, r * 4 + c] = p[r, c]
             if rows <= _WHOLE and cols <= _WHOLE:
                 _scaled(p, scale, False, 0, 0, q)
                 n_band = _draw(q, rows, cols, base, face, n_live, keys, row_stride, id_bits, depth_scale, band, n_band)
@@ -299,8 +334,8 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
     Returns:
         None when a triangle crosses the near plane (nothing drawn: use the vectorised path), else
         live (L,) int64 (view * T + triangle) of each set-up, row0, col0 (L,) int64 its box origin,
-        params64 (12,L) float64 its planes relative to it, front (L,) bool, corners (4,3,L) its
-        clip-space corners (pos's dtype): component, corner, set-up.
+        params64 (12,L) float64 its planes relative to it (a view of a row-major (L,12) array, set-up
+        last by ``movedim``: :func:`~mesh2tex.render.binning.columns` gathers its rows), front (L,) bool.
     """
     H, W = int(resolution[0]), int(resolution[1])
     positions = pos.detach().contiguous().numpy()
@@ -313,9 +348,10 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
     N = positions.shape[0] * faces.shape[0]
     live = np.empty(N, dtype=np.int64)
     box = np.empty((N, 2), dtype=np.int64)
-    params = np.empty((12, N))
+    # Row-major: a set-up's planes are written together (strided writes to twelve (12, N) rows
+    # cost a third of the loop); returned as a (12, L) view of the rows.
+    params = np.empty((N, 12))
     front = np.empty(N, dtype=np.bool_)
-    corners = np.empty((4, 3, N), dtype=positions.dtype)
     capacity = BAND_CAPACITY
     keys = buffer.keys.numpy()  # shares memory: updated in place
     view_stride = buffer.shape[1] * buffer.row_stride
@@ -337,7 +373,6 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
             box,
             params,
             front,
-            corners,
             band,
         )
         if n_live < 0:
@@ -352,9 +387,8 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
         torch.from_numpy(live[:n_live]),
         box[:, 0],
         box[:, 1],
-        torch.from_numpy(params[:, :n_live]),
+        torch.from_numpy(params[:n_live]).movedim(0, -1),
         torch.from_numpy(front[:n_live]),
-        torch.from_numpy(corners[:, :, :n_live]),
     )
 
 

@@ -433,10 +433,9 @@ def rasterize(
             # ones the vectorised passes write again (a depth test keeps the minimum), so the result is the same
             corners = gather_corners(pos, tri)
             live, row0, col0, params64, front = _draw_vectorised(buffer, corners, T, (H, W), cull_backfaces, max_pairs)
-            edges = EdgeTest(corners, live, front, (H, W))
         else:
-            live, row0, col0, params64, front, corners = drawn
-            edges = EdgeTest(corners, torch.arange(live.numel()), front, (H, W))
+            live, row0, col0, params64, front = drawn
+        edges = EdgeTest(pos, tri, live, front, (H, W))
         # The few pixels the float32 edge values leave undecided (on an edge, or a small fraction
         # of a pixel from one), all at once.
         buffer.settle(edges)

@@ -46,7 +46,7 @@ def rasterize_reference(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_b
         corners = gather_corners(pos, tri.to(device=device, dtype=torch.long))
         setups = _live_setup(corners, (H, W), cull_backfaces)
         live, row0, col0 = setups.live, setups.row0, setups.col0
-        edges = EdgeTest(corners, live, setups.front, (H, W))
+        edges = EdgeTest(pos, tri.to(device=device, dtype=torch.long), live, setups.front, (H, W))
         buffer = DepthBuffer(B, (H, W), (0, 0), T, device)
         keys = buffer.keys.view(B, H, W)
         owner, off_r, off_c, r_rows, r_cols, r_params = _regions(

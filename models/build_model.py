@@ -61,7 +61,8 @@ GAN_CONFIG = {
 # from views half textured by the GAN's snapshot at views_gan_iteration. variety: the world's shapes
 # and materials (prepare synthetic --variety; boxy when absent). pick (or --pick FROM,EVERY): the
 # exported generator is the snapshot, every EVERY iterations from FROM to gan_iters, that closes the
-# most of the gap on a validation world no table reports (VALIDATION), not the last one.
+# most of the gap on a validation world no table reports (VALIDATION), among those whose latents still
+# paint different chairs (PICK_MIN_SPREAD), not the last one.
 RECIPES = {
     "chair": {
         "gan_iters": 8000,
@@ -78,6 +79,10 @@ RECIPES = {
 # shapes measured by a smaller generation protocol (one draw).
 VALIDATION = {"shapes": 24, "views": 4, "query_shapes": 8, "query_views": 1, "seed": 1, "resolution": 128}
 VALIDATION_PROTOCOL = {"views": 4, "latents": 8, "kid_fid": False, "repeats": 1}
+# A snapshot is picked only if its samples vary: the colour spread of its latents (the same protocol)
+# at least this share of the photo set's. Without it the pick can take a generator whose every
+# latent paints the same chair (docs/results/gan.md, "Seed 0 branched at 3,500").
+PICK_MIN_SPREAD = 0.5
 
 
 def recipe_world(recipe: dict) -> dict:
@@ -142,11 +147,13 @@ def prepare_split(world: Path, part: str, folder: Path, commands: list[str]) -> 
 
 def pick_snapshot(
     work: Path, category: str, variety: str, gan_run: Path, gan_iters: int, pick: dict, commands: list[str]
-) -> tuple[Path, dict[int, float]]:
-    """The snapshot of ``gan_run`` that closes the most of the gap on the validation world, and every
-    snapshot's figure ({iteration: gap closed}). Figures are kept in WORK/validation/pick.json with the
-    run they measured and reused for that run only (a work folder copied for another seed measures
-    its own; delete the file to measure again)."""
+) -> tuple[Path, dict[int, dict]]:
+    """The snapshot of ``gan_run`` that closes the most of the gap on the validation world among those
+    whose colour spread is at least :data:`PICK_MIN_SPREAD` of the photo set's (all of them, with a
+    warning, when none is), and every snapshot's figures ({iteration: {"gap": gap closed, "spread":
+    colour spread vs the photo set}}). Figures are kept in WORK/validation/pick.json with the run they
+    measured and reused for that run only (a work folder copied for another seed measures its own;
+    delete the file to measure again)."""
     folder = work / "validation"
     prepare_world(folder / "world", category, VALIDATION, variety, commands)
     prepare_split(folder / "world", "query", folder / "shapes", commands)
@@ -154,6 +161,7 @@ def pick_snapshot(
     kept = json.loads(record.read_text()) if record.is_file() else {}
     run_id = str(gan_run.resolve())
     figures = {int(k): v for k, v in kept.get("figures", {}).items()} if kept.get("gan_run") == run_id else {}
+    figures = {it: f for it, f in figures.items() if isinstance(f, dict)}  # a record without the spread: measured again
     for iteration in range(pick["from"], gan_iters + 1, pick["every"]):
         snapshot = gan_run / "snapshots" / f"iter{iteration:07d}.safetensors"
         if iteration in figures or not snapshot.is_file():
@@ -162,16 +170,27 @@ def pick_snapshot(
         result = run_generation_protocol(
             folder / "world", folder / "shapes", snapshot, GenerationConfig(**VALIDATION_PROTOCOL)
         )
-        figures[iteration] = round(float(result["gap_closed"]), 4)
+        figures[iteration] = {
+            "gap": round(float(result["gap_closed"]), 4),
+            "spread": round(float(result["diversity"]["trained_spread_vs_photo_set"]), 4),
+        }
         record.write_text(json.dumps({"gan_run": run_id, "figures": figures}, indent=1))
     if not figures:
         sys.exit(
             f"build_model: no snapshot of {gan_run} between iterations {pick['from']} and {gan_iters} to pick from"
         )
-    best = max(figures, key=lambda it: figures[it])
+    varied = [it for it, f in figures.items() if f["spread"] >= PICK_MIN_SPREAD]
+    if not varied:
+        print(
+            f"build_model: warning: no snapshot's colour spread reaches {PICK_MIN_SPREAD} of the photo set's; "
+            "picking by the gap alone",
+            flush=True,
+        )
+    best = max(varied or figures, key=lambda it: figures[it]["gap"])
     print(
-        f"\n== picked the snapshot at iteration {best} (validation gap closed {figures[best]}; "
-        + ", ".join(f"{it}: {g}" for it, g in sorted(figures.items()))
+        f"\n== picked the snapshot at iteration {best} (validation gap closed {figures[best]['gap']}, "
+        f"spread {figures[best]['spread']}; "
+        + ", ".join(f"{it}: {f['gap']} / {f['spread']}" for it, f in sorted(figures.items()))
         + ")",
         flush=True,
     )
@@ -326,7 +345,7 @@ def main() -> None:
             commands,
         )
         gan_ckpt = work / "gan" / "checkpoint.safetensors"
-    picked: dict[int, float] = {}
+    picked: dict[int, dict] = {}
     pick = recipe.get("pick")
     if args.pick:
         start_at, every = (int(v) for v in args.pick.split(","))
@@ -429,7 +448,15 @@ def main() -> None:
         "gan_iterations": int(gan_meta["iteration"]),
         "gan_trained_iterations": args.gan_iters,
         **(
-            {"pick": {**pick, "validation_world": VALIDATION, "protocol": VALIDATION_PROTOCOL, "gap_closed": picked}}
+            {
+                "pick": {
+                    **pick,
+                    "validation_world": VALIDATION,
+                    "protocol": VALIDATION_PROTOCOL,
+                    "min_spread": PICK_MIN_SPREAD,
+                    "figures": picked,
+                }
+            }
             if picked
             else {}
         ),
@@ -466,8 +493,9 @@ def main() -> None:
         f"- GAN: {card['gan_iterations']} iterations at {GAN['resolution']} px, {GAN['views']} views per shape, batch "
         "2, "
         + (
-            f"the snapshot picked of {args.gan_iters} by the validation world's gap closed ("
-            + ", ".join(f"{it}: {g}" for it, g in sorted(picked.items()))
+            f"the snapshot picked of {args.gan_iters} by the validation world's gap closed among those whose colour "
+            f"spread reaches {PICK_MIN_SPREAD} of the photo set's (iteration: gap / spread; "
+            + ", ".join(f"{it}: {f['gap']} / {f['spread']}" for it, f in sorted(picked.items()))
             + "), "
             if picked
             else ""

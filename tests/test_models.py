@@ -154,7 +154,10 @@ def test_a_validation_pick_is_reused_only_for_the_run_it_measured(tmp_path, monk
 
     def protocol(world, shapes, snapshot, cfg):
         measured.append(Path(snapshot))
-        return {"gap_closed": 0.5 if "iter0000200" in Path(snapshot).name else 0.1}
+        return {
+            "gap_closed": 0.5 if "iter0000200" in Path(snapshot).name else 0.1,
+            "diversity": {"trained_spread_vs_photo_set": 0.8},
+        }
 
     monkeypatch.setattr(build_model, "prepare_world", lambda *args: None)
     monkeypatch.setattr(build_model, "prepare_split", lambda *args: None)
@@ -176,3 +179,39 @@ def test_a_validation_pick_is_reused_only_for_the_run_it_measured(tmp_path, monk
     assert len(measured) == 6 and all(path.parent.parent == runs[1] for path in measured[3:]), (
         "another run is measured anew"
     )
+
+
+def test_the_pick_passes_over_a_snapshot_whose_latents_all_paint_the_same_chair(tmp_path, monkeypatch, capsys):
+    """A collapsed generator (colour spread under PICK_MIN_SPREAD of the photo set's) is not picked for its
+    gap; when every snapshot is collapsed the best gap is taken with a warning."""
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")
+    build_model = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build_model)
+    floor = build_model.PICK_MIN_SPREAD
+    figures = {100: (0.3, floor + 0.2), 200: (0.6, floor - 0.2), 300: (0.4, floor)}
+
+    def protocol(world, shapes, snapshot, cfg):
+        gap, spread = figures[int(Path(snapshot).stem[4:])]
+        return {"gap_closed": gap, "diversity": {"trained_spread_vs_photo_set": spread}}
+
+    monkeypatch.setattr(build_model, "prepare_world", lambda *args: None)
+    monkeypatch.setattr(build_model, "prepare_split", lambda *args: None)
+    monkeypatch.setattr(build_model, "run_generation_protocol", protocol)
+    (tmp_path / "validation").mkdir()
+    run = tmp_path / "gan"
+    (run / "snapshots").mkdir(parents=True)
+    for iteration in figures:
+        (run / "snapshots" / f"iter{iteration:07d}.safetensors").write_bytes(b"")
+    best, kept = build_model.pick_snapshot(tmp_path, "chair", "real", run, 300, {"from": 100, "every": 100}, [])
+    assert best.name == "iter0000300.safetensors", "the best gap among the varied snapshots, not the collapsed one's"
+    assert kept[200] == {"gap": 0.6, "spread": round(floor - 0.2, 4)}
+    assert "warning" not in capsys.readouterr().out
+
+    figures.update({100: (0.3, 0.0), 300: (0.4, 0.0)})
+    (tmp_path / "validation" / "pick.json").unlink()
+    best, _ = build_model.pick_snapshot(tmp_path, "chair", "real", run, 300, {"from": 100, "every": 100}, [])
+    assert best.name == "iter0000200.safetensors" and "warning" in capsys.readouterr().out

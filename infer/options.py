@@ -170,9 +170,9 @@ def synthesize(parser: argparse.ArgumentParser) -> None:
         "--loss",
         key="synthesis.loss",
         choices=static_value("mesh2tex.texel_synthesis:SYNTHESIS_LOSSES"),
-        help="structure loss: ps (oriented-band statistics, no network), patch (sliced Wasserstein on raw "
-        "multi-scale patches, no network), sw (sliced Wasserstein on random VGG features), ot (relaxed optimal "
-        "transport on them)",
+        help="structure loss: patch (sliced Wasserstein on raw multi-scale patches, no network; draws stripes and "
+        "corners), ps (oriented-band statistics, no network), sw (sliced Wasserstein on random VGG features), ot "
+        "(relaxed optimal transport on them)",
     )
     config.add(
         "--resolution",

@@ -1,7 +1,7 @@
 """``mesh2tex infer synthesize``: texture the user's mesh after one exemplar image, no trained model.
 
     mesh2tex infer synthesize --exemplar IMG --mesh MESH --out DIR [--texture-size 512] [--iters 400]
-                              [--direction-field up|none] [--method renders|surface] [--loss ps|sw|ot]
+                              [--direction-field up|none] [--method renders|surface] [--loss patch|ps|sw|ot]
                               [--seed 0] [--device auto]
                               [--up auto|y|z] [--uv auto|keep|new] [--output-mesh input|prepared] [--overwrite]
 

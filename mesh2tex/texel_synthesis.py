@@ -86,7 +86,9 @@ class SynthesisConfig:
     views: int = 2  # random views rendered per step
     resolution: int = 128  # render resolution: an exemplar pixel shows at one render pixel
     exemplar_size: int = 128  # the exemplar's centred square is resized to this
-    loss: str = "ps"  # structure loss: ps (oriented-band statistics), patch (raw multi-scale patches), sw, ot
+    # structure loss: patch (raw multi-scale patches; draws stripes and corners that ps leaves as blotches,
+    # docs/results/nca.md), ps (oriented-band statistics), sw, ot
+    loss: str = "patch"
     vgg_depth: int = 4  # VGG19 layers of the sw and ot losses (0: RGB only)
     max_points: int = 1024  # feature positions per set in the sw and ot losses; patches per octave in patch
     lr: float = 0.05  # Adam learning rate of every level, at the start
@@ -97,8 +99,10 @@ class SynthesisConfig:
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
     direction_field: str = "up"  # up: views or charts upright (stripes keep the mesh's up); none: rolled at random
     method: str = "renders"  # renders: random rendered views; surface: geodesic charts of the surface itself
-    charts: int = 16  # surface method: charts per step
-    chart_size: int = 32  # surface method: a chart's side, in exemplar pixels
+    # surface method: charts per step and a chart's side in exemplar pixels; a chart holds a few of a
+    # pattern's periods (measured with patch; ps was measured at 16 charts of 32)
+    charts: int = 4
+    chart_size: int = 64
     # the random views around the mesh in the unit ball, as train nca's
     camera: NCACameraConfig = field(default_factory=NCACameraConfig)
     seed: int = 0  # seed of the views, the loss's random projections and the initial noise

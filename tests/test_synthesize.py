@@ -177,8 +177,8 @@ def test_the_views_are_set_in_a_camera_section_as_the_automatons_and_old_keys_sa
 def test_the_colour_term_weighs_what_the_loss_needs_unless_set():
     """The patch loss matches joint colours itself and the colour term would drown it: unset, its weight is 0;
     the other losses keep 100; a weight the user sets is the weight used, and a negative one is refused."""
-    assert SynthesisConfig().palette_weight == 100.0
-    assert SynthesisConfig(loss="patch").palette_weight == 0.0
+    assert SynthesisConfig(loss="ps").palette_weight == 100.0
+    assert SynthesisConfig(loss="patch").palette_weight == SynthesisConfig().palette_weight == 0.0
     assert SynthesisConfig(loss="patch", colour_weight=5.0).palette_weight == 5.0
     assert SynthesisConfig(loss="ps", colour_weight=0.0).palette_weight == 0.0
     with pytest.raises(ValueError, match="colour_weight"):

@@ -91,33 +91,16 @@ def recipe_world(recipe: dict) -> dict:
     return {**world, "variety": recipe["variety"]} if recipe.get("variety", "boxy") != "boxy" else world
 
 
+def cli_flags(**values) -> list[str]:
+    """``["--name", "value", ...]`` of keyword arguments, in their order (underscores become dashes)."""
+    return [item for name, value in values.items() for item in (f"--{name.replace('_', '-')}", str(value))]
+
+
 def prepare_world(folder: Path, category: str, settings: dict, variety: str, commands: list[str]) -> None:
     """`prepare synthetic` into ``folder`` with ``settings`` (WORLD's keys); skipped when present with them."""
-    run(
-        [
-            "prepare",
-            "synthetic",
-            "--out",
-            str(folder),
-            "--category",
-            category,
-            "--shapes",
-            str(settings["shapes"]),
-            "--views",
-            str(settings["views"]),
-            "--query-shapes",
-            str(settings["query_shapes"]),
-            "--query-views",
-            str(settings["query_views"]),
-            "--seed",
-            str(settings["seed"]),
-            "--resolution",
-            str(settings["resolution"]),
-            "--variety",
-            variety,
-        ],
-        commands,
-    )
+    keys = ("shapes", "views", "query_shapes", "query_views", "seed", "resolution")
+    world = cli_flags(out=folder, category=category, **{key: settings[key] for key in keys}, variety=variety)
+    run(["prepare", "synthetic", *world], commands)
 
 
 def prepare_split(world: Path, part: str, folder: Path, commands: list[str]) -> None:
@@ -318,32 +301,18 @@ def main() -> None:
     else:
         gan_yaml = work / "gan.yaml"
         gan_yaml.write_text(yaml.safe_dump(gan_config, sort_keys=False))
-        run(
-            [
-                "train",
-                "gan",
-                "--shapes",
-                str(work / "shapes" / "train"),
-                "--images",
-                str(world),
-                "--out",
-                str(work / "gan"),
-                "--config",
-                str(gan_yaml),
-                "--iters",
-                str(args.gan_iters),
-                "--resolution",
-                str(GAN["resolution"]),
-                "--views",
-                str(GAN["views"]),
-                "--seed",
-                str(gan_settings["seed"]),
-                "--device",
-                args.device,
-                "--resume",
-            ],
-            commands,
+        training = cli_flags(
+            shapes=work / "shapes" / "train",
+            images=world,
+            out=work / "gan",
+            config=gan_yaml,
+            iters=args.gan_iters,
+            resolution=GAN["resolution"],
+            views=GAN["views"],
+            seed=gan_settings["seed"],
+            device=args.device,
         )
+        run(["train", "gan", *training, "--resume"], commands)
         gan_ckpt = work / "gan" / "checkpoint.safetensors"
     picked: dict[int, dict] = {}
     pick = recipe.get("pick")

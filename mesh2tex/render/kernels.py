@@ -114,6 +114,36 @@ def _vertex_bounds(x, y, H, W, out):
 
 
 @_jit
+def _view_vertices(pos, view, H, W, ndc_x, ndc_y, ahead, bounds):
+    """Per vertex of one view of pos (B,V,4): float32 NDC x, y, whether it is in front of the near
+    plane and its :func:`_vertex_bounds`, into the (V,) and (V,4) arrays; returns whether all are in
+    front (the usual view: none of its triangles needs the near-plane test)."""
+    all_ahead = True
+    for v in range(pos.shape[1]):
+        x32, y32 = np.float32(pos[view, v, 0]), np.float32(pos[view, v, 1])
+        z32, w32 = np.float32(pos[view, v, 2]), np.float32(pos[view, v, 3])
+        ndc_x[v], ndc_y[v], ahead[v] = x32 / w32, y32 / w32, z32 + w32 >= 0
+        _vertex_bounds(ndc_x[v], ndc_y[v], H, W, bounds[v])
+        all_ahead = all_ahead and ahead[v]
+    return all_ahead
+
+
+@_jit
+def _triangle_box(i0, i1, i2, bounds, ndc_x, ndc_y, H, W):
+    """The pixel box (row0, col0, rows, cols) of the triangle of vertices i0, i1, i2, as :func:`_box`.
+    Most pairs of a fine mesh cover no pixel centre: they are rejected from the vertices' integer
+    bounds; a vertex that is not plain sends the triangle to the float box and its finiteness test."""
+    b0, b1, b2 = bounds[i0], bounds[i1], bounds[i2]
+    row0 = min(b0[0], b1[0], b2[0])
+    if row0 < 0:
+        return _box(ndc_x[i0], ndc_x[i1], ndc_x[i2], ndc_y[i0], ndc_y[i1], ndc_y[i2], H, W)
+    col0 = min(b0[2], b1[2], b2[2])
+    rows = max(max(b0[1], b1[1], b2[1]) - row0 + 1, 0)
+    cols = max(max(b0[3], b1[3], b2[3]) - col0 + 1, 0)
+    return np.int64(row0), np.int64(col0), np.int64(rows), np.int64(cols)
+
+
+@_jit
 def _min3(a, b, c):  # NaN-propagating, as torch.minimum
     if a != a or b != b or c != c:
         return np.float32(np.nan)
@@ -239,14 +269,7 @@ def _rasterize_views(
     bounds = np.empty((V, 4), dtype=np.int32)  # _vertex_bounds of each vertex
     n_live, n_band = 0, 0
     for view in range(B):
-        for v in range(V):
-            x32, y32 = np.float32(pos[view, v, 0]), np.float32(pos[view, v, 1])
-            z32, w32 = np.float32(pos[view, v, 2]), np.float32(pos[view, v, 3])
-            ndc_x[v], ndc_y[v], ahead[v] = x32 / w32, y32 / w32, z32 + w32 >= 0
-            _vertex_bounds(ndc_x[v], ndc_y[v], H, W, bounds[v])
-        all_ahead = True  # the usual view: no triangle of it needs the test below
-        for v in range(V):
-            all_ahead = all_ahead and ahead[v]
+        all_ahead = _view_vertices(pos, view, H, W, ndc_x, ndc_y, ahead, bounds)
         for face in range(T):
             i0, i1, i2 = tri[face, 0], tri[face, 1], tri[face, 2]
             if not all_ahead:
@@ -255,15 +278,7 @@ def _rasterize_views(
                     if n_ahead > 0:
                         return -1, 0
                     continue
-            # Most pairs of a fine mesh cover no pixel centre: rejected from the vertices' integer bounds.
-            b0, b1, b2 = bounds[i0], bounds[i1], bounds[i2]
-            row0 = min(b0[0], b1[0], b2[0])
-            if row0 >= 0:
-                col0 = min(b0[2], b1[2], b2[2])
-                rows = max(max(b0[1], b1[1], b2[1]) - row0 + 1, 0)
-                cols = max(max(b0[3], b1[3], b2[3]) - col0 + 1, 0)
-            else:  # a vertex that is not plain: the float box, with its finiteness test
-                row0, col0, rows, cols = _box(ndc_x[i0], ndc_x[i1], ndc_x[i2], ndc_y[i0], ndc_y[i1], ndc_y[i2], H, W)
+            row0, col0, rows, cols = _triangle_box(i0, i1, i2, bounds, ndc_x, ndc_y, H, W)
             if rows * cols == 0:
                 continue
             size = 0.0

@@ -172,7 +172,7 @@ def test_patch_loss_falls_under_gradient_descent():
     x = (torch.rand(1, 3, 64, 64, generator=torch.Generator().manual_seed(2)) * 0.2).requires_grad_(True)
     optimizer = torch.optim.Adam([x], lr=0.05)
     generator = torch.Generator().manual_seed(0)
-    first = float(patch_loss(x, mask, sets, generator=generator))
+    first = patch_loss(x, mask, sets, generator=generator).item()
     for _ in range(25):
         loss = patch_loss(x, mask, sets, max_points=512, generator=generator)
         optimizer.zero_grad()

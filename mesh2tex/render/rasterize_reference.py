@@ -43,10 +43,11 @@ def rasterize_reference(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_b
         )
         if T == 0 or B == 0:
             return raster
-        corners = gather_corners(pos, tri.to(device=device, dtype=torch.long))
+        tri = tri.to(device=device, dtype=torch.long)
+        corners = gather_corners(pos, tri)
         setups = _live_setup(corners, (H, W), cull_backfaces)
         live, row0, col0 = setups.live, setups.row0, setups.col0
-        edges = EdgeTest(pos, tri.to(device=device, dtype=torch.long), live, setups.front, (H, W))
+        edges = EdgeTest(pos, tri, live, setups.front, (H, W))
         buffer = DepthBuffer(B, (H, W), (0, 0), T, device)
         keys = buffer.keys.view(B, H, W)
         owner, off_r, off_c, r_rows, r_cols, r_params = _regions(

@@ -107,22 +107,8 @@ def prepare_split(world: Path, part: str, folder: Path, commands: list[str]) -> 
     """Prepare the world's ``part`` shapes (train or query) into ``folder`` with the recipe's hierarchy."""
     split = json.loads((world / "index.json").read_text())["split"]
     names = split["train_shapes"] if part == "train" else split["query_shapes"]
-    argv = [
-        "prepare",
-        "shapes",
-        "--input",
-        *[str(world / "meshes" / f"{n}.obj") for n in names],
-        "--out",
-        str(folder),
-        "--faces",
-        str(SHAPES["faces"]),
-        "--levels",
-        str(SHAPES["levels"]),
-        "--seed",
-        str(SHAPES["seed"]),
-        "--workers",
-        "2",
-    ]
+    inputs = [str(world / "meshes" / f"{n}.obj") for n in names]
+    argv = ["prepare", "shapes", "--input", *inputs, *cli_flags(out=folder, **SHAPES, workers=2)]
     print(f"\n== mesh2tex {' '.join(argv[:2])} ... ({part})", flush=True)
     commands.append("mesh2tex " + " ".join(shlex.quote(a) for a in argv))
     cli(argv)  # a shape that cannot be remeshed fails alone (exit 2); the others are prepared
@@ -172,12 +158,15 @@ def pick_snapshot(
     best = max(varied or figures, key=lambda it: figures[it]["gap"])
     print(
         f"\n== picked the snapshot at iteration {best} (validation gap closed {figures[best]['gap']}, "
-        f"spread {figures[best]['spread']}; "
-        + ", ".join(f"{it}: {f['gap']} / {f['spread']}" for it, f in sorted(figures.items()))
-        + ")",
+        f"spread {figures[best]['spread']}; " + pick_figures(figures) + ")",
         flush=True,
     )
     return gan_run / "snapshots" / f"iter{best:07d}.safetensors", figures
+
+
+def pick_figures(figures: dict[int, dict]) -> str:
+    """``iteration: gap / spread`` of each measured snapshot, in order, for the log and the build log."""
+    return ", ".join(f"{it}: {f['gap']} / {f['spread']}" for it, f in sorted(figures.items()))
 
 
 def recipe_gan_config(recipe: dict) -> dict:
@@ -464,7 +453,7 @@ def main() -> None:
         + (
             f"the snapshot picked of {args.gan_iters} by the validation world's gap closed among those whose colour "
             f"spread reaches {PICK_MIN_SPREAD} of the photo set's (iteration: gap / spread; "
-            + ", ".join(f"{it}: {f['gap']} / {f['spread']}" for it, f in sorted(picked.items()))
+            + pick_figures(picked)
             + "), "
             if picked
             else ""

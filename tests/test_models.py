@@ -11,6 +11,18 @@ from mesh2tex.io.checkpoint import check_training_checkpoint, load_checkpoint
 from mesh2tex.models import MODEL_FILES, export_inference_checkpoint, list_models, load_generator, resolve_checkpoint
 
 
+def load_build_model():
+    """models/build_model.py, a script rather than a package module, loaded as a module."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "models" / "build_model.py"
+    spec = importlib.util.spec_from_file_location("build_model", path)
+    build_model = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build_model)
+    return build_model
+
+
 def test_an_exported_model_is_named_like_a_path_and_gives_the_same_textures(tiny_gan, tmp_path, monkeypatch, capsys):
     models = tmp_path / "models"
     (models / "tiny").mkdir(parents=True)
@@ -113,7 +125,6 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
     """models/build_model.py's recipes load as train gan configs, and each shipped card's iteration
     count, world and training settings are its recipe's (the rebuild command on the card has no
     --gan-iters)."""
-    import importlib.util
     import json
     from pathlib import Path
 
@@ -122,10 +133,8 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
 
     from mesh2tex.config import load_config
 
+    build_model = load_build_model()
     root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")
-    build_model = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(build_model)
     for category, recipe in build_model.RECIPES.items():
         gan_config = build_model.recipe_gan_config(recipe)
         written = tmp_path / f"{category}.yaml"  # as build_model.py hands it to train gan
@@ -143,13 +152,9 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
 def test_a_validation_pick_is_reused_only_for_the_run_it_measured(tmp_path, monkeypatch):
     """build_model.py --pick keeps each snapshot's validation figure in WORK/validation/pick.json; a work
     folder copied for another seed's run measures that run's snapshots instead of taking the first run's."""
-    import importlib.util
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")
-    build_model = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(build_model)
+    build_model = load_build_model()
     measured = []
 
     def protocol(world, shapes, snapshot, cfg):
@@ -184,13 +189,9 @@ def test_a_validation_pick_is_reused_only_for_the_run_it_measured(tmp_path, monk
 def test_the_pick_passes_over_a_snapshot_whose_latents_all_paint_the_same_chair(tmp_path, monkeypatch, capsys):
     """A collapsed generator (colour spread under PICK_MIN_SPREAD of the photo set's) is not picked for its
     gap; when every snapshot is collapsed the best gap is taken with a warning."""
-    import importlib.util
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("build_model", root / "models" / "build_model.py")
-    build_model = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(build_model)
+    build_model = load_build_model()
     floor = build_model.PICK_MIN_SPREAD
     figures = {100: (0.3, floor + 0.2), 200: (0.6, floor - 0.2), 300: (0.4, floor)}
 

@@ -141,15 +141,15 @@ class SynthesisConfig:
             raise ValueError(f"loss must be one of {', '.join(SYNTHESIS_LOSSES)}, got {self.loss!r}")
         if self.colour_weight is not None and not self.colour_weight >= 0:
             raise ValueError(f"colour_weight must be at least 0, got {self.colour_weight}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.direction_field not in DIRECTIONS:
+            raise ValueError(f"direction_field must be one of {', '.join(DIRECTIONS)}, got {self.direction_field!r}")
 
     @property
     def palette_weight(self) -> float:
         """The colour term's weight: ``colour_weight``, or the loss's own (:data:`COLOUR_WEIGHTS`) when unset."""
         return COLOUR_WEIGHTS[self.loss] if self.colour_weight is None else float(self.colour_weight)
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        if self.direction_field not in DIRECTIONS:
-            raise ValueError(f"direction_field must be one of {', '.join(DIRECTIONS)}, got {self.direction_field!r}")
 
 
 @dataclass

@@ -183,3 +183,13 @@ def test_the_colour_term_weighs_what_the_loss_needs_unless_set():
     assert SynthesisConfig(loss="ps", colour_weight=0.0).palette_weight == 0.0
     with pytest.raises(ValueError, match="colour_weight"):
         SynthesisConfig(colour_weight=-1.0)
+
+
+@pytest.mark.parametrize("key, value", [("method", "charts"), ("direction_field", "sideways")])
+def test_an_unknown_method_or_direction_field_in_a_config_is_refused_by_name(key, value):
+    """A config file is not limited by the command line's choices: a misspelt method must not fall back to renders."""
+    from mesh2tex.config import config_from_dict
+    from mesh2tex.errors import InputError
+
+    with pytest.raises((ValueError, InputError), match=key):
+        config_from_dict(SynthesisConfig, {key: value})

@@ -2,7 +2,7 @@
 
     OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
         [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
-        [--direct ps sw ...] [--surface ps ...] [--direct-iters 400] [--direct-size 512] [--charts 16 --chart-size 32]
+        [--direct ps sw ...] [--surface ps ...] [--patches] [--direct-iters 400] [--direct-size 512] [--charts 16 --chart-size 32]
         [--figure FILE.png [--figure-view 1]]
 
 For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over
@@ -31,7 +31,8 @@ the direct method (``direct LOSS``: ``infer synthesize``'s texels optimised thro
 :mod:`mesh2tex.texel_synthesis`, on a new xatlas atlas of each mesh with its defaults but the loss,
 ``--direct-iters`` and ``--direct-size``; run on each mesh, since it needs no training), and with
 ``--surface`` the same through geodesic charts of the surface in place of renders (``surface LOSS``:
-``infer synthesize --method surface``).
+``infer synthesize --method surface``), and with ``--patches`` the ``patch`` loss's patches walked on
+the surface octave by octave (``patches patch``: ``infer synthesize --method patches``).
 Summary per loss: its SWD over the
 oracle's and over ``ot``'s, on each mesh. One thread; with ``--runs`` the trained models are saved
 there (``<exemplar>_<loss>.safetensors``) and reused when present. With ``--figure`` one picture
@@ -203,6 +204,9 @@ def main() -> int:
     parser.add_argument(
         "--surface", nargs="*", default=[], help="losses of direct-method rows through geodesic charts, e.g. ps"
     )
+    parser.add_argument(
+        "--patches", action="store_true", help="a direct-method row of the patch loss's patches walked on the surface"
+    )
     parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")
     parser.add_argument(
         "--direct-size", type=int, default=SynthesisConfig.texture_size, help="the direct method's texture side"
@@ -231,6 +235,7 @@ def main() -> int:
     results: dict = {"iters": args.iters, "seed": args.seed, "meshes": meshes, "exemplars": {}}
     direct_rows = [(f"direct {loss}", loss, "renders") for loss in args.direct]
     direct_rows += [(f"surface {loss}", loss, "surface") for loss in args.surface]
+    direct_rows += [("patches patch", "patch", "patches")] if args.patches else []
     shown = ["oracle", *args.losses, *(row for row, _, _ in direct_rows)]
     figure_rows: list[tuple[str, list[torch.Tensor]]] = []
     for name in args.exemplars:

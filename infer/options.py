@@ -163,8 +163,9 @@ def synthesize(parser: argparse.ArgumentParser) -> None:
         "--method",
         key="synthesis.method",
         choices=static_value("mesh2tex.texel_synthesis:METHODS"),
-        help="how the loss sees the surface: renders (random rendered views) or surface (geodesic charts walked "
-        "on the surface along the direction field: no foreshortening, hidden parts included)",
+        help="how the loss sees the surface: renders (random rendered views), surface (geodesic charts walked "
+        "on the surface along the direction field: no foreshortening, hidden parts included) or patches (with "
+        "--loss patch: the loss's patches walked on the surface at each octave's scale)",
     )
     config.add(
         "--loss",

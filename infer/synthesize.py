@@ -1,14 +1,15 @@
 """``mesh2tex infer synthesize``: texture the user's mesh after one exemplar image, no trained model.
 
     mesh2tex infer synthesize --exemplar IMG --mesh MESH --out DIR [--texture-size 512] [--iters 400]
-                              [--direction-field up|none] [--method renders|surface] [--loss patch|ps|sw|ot]
+                              [--direction-field up|none] [--method renders|surface|patches] [--loss patch|ps|sw|ot]
                               [--seed 0] [--device auto]
                               [--up auto|y|z] [--uv auto|keep|new] [--output-mesh input|prepared] [--overwrite]
 
 The mesh's UV texture (its own UVs when usable, else a new xatlas atlas; ``--uv``) is optimised
 directly, texel by texel through a coarse-to-fine pyramid, so that renders of the textured mesh from
 random views (``--method renders``, the default) or geodesic charts walked on the surface itself
-(``--method surface``, the paper's exponential-map neighbourhoods on a tangent direction field) match
+(``--method surface``, the paper's exponential-map neighbourhoods on a tangent direction field), or the
+``patch`` loss's own patches walked on the surface octave by octave (``--method patches``), match
 the exemplar's structure under a weight-free structure loss (:mod:`mesh2tex.texel_synthesis`).
 ``--direction-field up`` keeps every view or chart upright, so stripes keep one direction relative to
 the mesh's up; ``none`` rolls them at random.
@@ -59,6 +60,7 @@ MIN_EXEMPLAR = 8  # an exemplar's shorter side, pixels, at least
 METHOD_NAMES = {
     "renders": "texels optimised through rendered views",
     "surface": "texels optimised through geodesic charts of the surface (exponential map on the direction field)",
+    "patches": "texels optimised through the patch loss's patches walked on the surface, octave by octave",
 }
 
 

@@ -108,7 +108,9 @@ def test_a_bad_mesh_is_a_one_line_error(inputs, tmp_path, capsys, monkeypatch):
     assert "none.obj" in one_error_line(capsys)
 
 
-@pytest.mark.parametrize("method,loss", [("renders", "ps"), ("surface", "ps"), ("renders", "patch")])
+@pytest.mark.parametrize(
+    "method,loss", [("renders", "ps"), ("surface", "ps"), ("renders", "patch"), ("patches", "patch")]
+)
 def test_the_loss_falls_over_a_short_run(method, loss):
     torch.manual_seed(0)
     ball = trimesh.creation.icosphere(subdivisions=2)
@@ -125,6 +127,7 @@ def test_the_loss_falls_over_a_short_run(method, loss):
         method=method,
         charts=4,
         loss=loss,
+        max_points=256,
     )
     synthesis = TexelSynthesis(cfg, surface, exemplar_tensor(exemplar_image("stripes", 48), 48))
     before = synthesis.fixed_loss()
@@ -193,3 +196,43 @@ def test_an_unknown_method_or_direction_field_in_a_config_is_refused_by_name(key
 
     with pytest.raises((ValueError, InputError), match=key):
         config_from_dict(SynthesisConfig, {key: value})
+
+
+def test_walked_patches_read_a_flat_texture_as_the_patch_loss_reads_the_image():
+    """On a flat square whose UVs are its positions, the patches method's finest patches of a texture are the
+    texture's own patches, upright and flattened as the loss flattens an image's: horizontal stripes read
+    through it are near the exemplar's patches, the same stripes turned a quarter are far."""
+    from mesh2tex.losses.structure import patch_distance
+
+    grid = np.linspace(-0.7, 0.7, 9)
+    x, y = np.meshgrid(grid, grid)
+    positions = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)  # the plane z = 0, facing +z, y up
+    cells = np.arange(81).reshape(9, 9)
+    a, b, c, d = cells[:-1, :-1].ravel(), cells[:-1, 1:].ravel(), cells[1:, 1:].ravel(), cells[1:, :-1].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    surface = TexelSurface.from_arrays(positions, faces, (positions[:, :2] + 0.7) / 1.4)
+    rows = (torch.arange(64) // 4 % 2).float() * 2 - 1  # horizontal stripes 4 texels wide
+    stripes = rows[None, :, None].expand(3, 64, 64).contiguous()
+    # 106 px views put one exemplar pixel on about one texel of this square (no pooling: mip level 0)
+    cfg = SynthesisConfig(texture_size=64, levels=2, resolution=106, exemplar_size=64, method="patches", max_points=512)
+    synthesis = TexelSynthesis(cfg, surface, stripes[None])
+    assert synthesis.mip == 0
+
+    def distance(texture: torch.Tensor) -> float:
+        sets = synthesis.surface_patch_sets(texture, torch.Generator().manual_seed(0))
+        return float(patch_distance(sets[:1], synthesis.features.patch_sets()[:1]))
+
+    assert distance(stripes) < 0.25 * distance(stripes.transpose(1, 2))
+
+
+def test_the_patches_method_asks_for_the_patch_loss(inputs, tmp_path, capsys, monkeypatch):
+    """Only the patch loss has patches to walk: another loss with --method patches is a one-line error, and the
+    patch loss writes the same outputs as the other methods and names the method in the report."""
+    monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
+    assert main([*command(inputs, tmp_path / "ps"), *TINY, "--method", "patches", "--loss", "ps"]) != 0
+    assert "needs loss patch" in one_error_line(capsys)
+    out = tmp_path / "out"
+    assert main([*command(inputs, out), *TINY, "--method", "patches"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["config"]["synthesis"]["method"] == "patches" and "octave by octave" in report["method"]
+    assert (out / "textured.glb").is_file() and (out / "view_0.png").is_file()

@@ -422,14 +422,24 @@ def patch_loss(
     losses = []
     for n in range(images.shape[0]):
         mine = patch_sets(images[n : n + 1], masks[n : n + 1], len(exemplar_sets), size, max_points, generator)
-        total = images.new_zeros(())
-        for a, b in zip(mine, exemplar_sets):
-            if a.shape[0] < 2:
-                continue
-            directions = random_directions(a.shape[1], a.shape[1], generator, a.device, a.dtype)
-            total = total + sliced_wasserstein2(a, b, directions)
-        losses.append(total)
+        losses.append(patch_distance(mine, exemplar_sets, generator))
     return torch.stack(losses).mean()
+
+
+def patch_distance(
+    sets: list[torch.Tensor], exemplar_sets: list[torch.Tensor], generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """The ``patch`` distance of one set of patches per octave, (P_l, 3 size^2) flattened as :func:`patch_sets`
+    flattens them (channel, then row, then column), to the exemplar's (Q_l, 3 size^2): the sum over the
+    octaves of the sliced Wasserstein-2 distance, a fresh set of random directions per octave. Octaves
+    with fewer than 2 patches, or beyond the shorter list, count 0. Differentiable with respect to ``sets``."""
+    total = exemplar_sets[0].new_zeros(())
+    for a, b in zip(sets, exemplar_sets):
+        if a.shape[0] < 2:
+            continue
+        directions = random_directions(a.shape[1], a.shape[1], generator, a.device, a.dtype)
+        total = total + sliced_wasserstein2(a, b, directions)
+    return total
 
 
 __all__ = [
@@ -443,6 +453,7 @@ __all__ = [
     "exemplar_band_statistics",
     "exemplar_patch_sets",
     "oriented_filters",
+    "patch_distance",
     "patch_loss",
     "patch_sets",
     "ps_loss",

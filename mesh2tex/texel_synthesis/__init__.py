@@ -20,7 +20,7 @@ at any weight from 1 up it paints the palette's blotches where without it a chec
 weight is therefore the loss's own unless set (:data:`COLOUR_WEIGHTS`: 100 for ``ps``, ``sw`` and
 ``ot``; 0 for ``patch``).
 
-**Two ways to see the surface** (``method``). ``renders``: the surface is seen through random
+**Three ways to see the surface** (``method``). ``renders``: the surface is seen through random
 *rendered views*, and the structure loss judges them as 2D images. It inherits the camera's
 orientation: the structure losses are orientation-sensitive (the ``ps`` filters are oriented, random
 VGG filters are not rotation-invariant), so a pattern's direction on the surface follows the
@@ -41,6 +41,16 @@ masked gutters (:func:`chart_mosaic`), are one image for the structure loss. Wha
 paper: its network convolves every texel's own neighbourhood layer by layer (pooling by voxels);
 here the 2D loss runs on charts, whole local images, so a chart's grid is exact at its centre and
 follows the geodesics radially, as a photo of a curved patch would not.
+
+``patches`` (the ``patch`` loss only): the loss's own patches are walked out on the surface, octave by
+octave, as the paper's layers sample their neighbourhoods: octave l's ``size`` x ``size`` patches
+(:data:`mesh2tex.losses.structure.PATCH_SIZE`) are grids of geodesic points 2^l exemplar pixels apart
+around ``max_points`` random centres, read from the texture pooled 2^l times more
+(:class:`mesh2tex.texel_synthesis.surface.SurfacePatches`), and each octave's set is compared with
+the exemplar's by the same sliced Wasserstein distance
+(:func:`mesh2tex.losses.structure.patch_distance`). No chart is bent around a curved surface and no
+chart border or render silhouette cuts patches away: a patch is dropped only where a walk leaves an
+open mesh or wraps around a thin part.
 
 **Scale.** The exemplar's pixels are matched to render pixels: an exemplar pixel covers one pixel of a
 ``resolution``-px view of the whole mesh (the unit ball seen from ``distance`` with ``fov``), as in
@@ -64,14 +74,16 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.config import check_fields
-from mesh2tex.geometry.geodesic import SurfaceWalker, geodesic_charts
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
+from mesh2tex.losses.structure import PATCH_SIZE, patch_distance
 from mesh2tex.photos import square_resize
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 from mesh2tex.render.cameras import NCACameraConfig
+from mesh2tex.texel_synthesis.surface import SurfaceCharts, SurfacePatches, TexelSurface, chart_mosaic
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
-METHODS = ("renders", "surface")  # how the loss sees the surface: rendered views, or geodesic charts
+# how the loss sees the surface: rendered views, geodesic charts, or the patch loss's patches walked octave by octave
+METHODS = ("renders", "surface", "patches")
 # The losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern, each with the colour term's weight
 # when the config leaves it unset (the module docstring says why).
 COLOUR_WEIGHTS = {"ps": 100.0, "patch": 0.0, "sw": 100.0, "ot": 100.0}
@@ -143,6 +155,8 @@ class SynthesisConfig:
             raise ValueError(f"colour_weight must be at least 0, got {self.colour_weight}")
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.method == "patches" and self.loss != "patch":
+            raise ValueError(f"method patches walks the patch loss's patches: it needs loss patch, got {self.loss!r}")
         if self.direction_field not in DIRECTIONS:
             raise ValueError(f"direction_field must be one of {', '.join(DIRECTIONS)}, got {self.direction_field!r}")
 
@@ -150,42 +164,6 @@ class SynthesisConfig:
     def palette_weight(self) -> float:
         """The colour term's weight: ``colour_weight``, or the loss's own (:data:`COLOUR_WEIGHTS`) when unset."""
         return COLOUR_WEIGHTS[self.loss] if self.colour_weight is None else float(self.colour_weight)
-
-
-@dataclass
-class TexelSurface:
-    """The mesh the texture lives on: positions (V, 3) float32 in the unit ball (y up), faces (T, 3)
-    int64, uv (V, 2) float32 in [0, 1] (v up); a vertex is split where the atlas has a seam."""
-
-    positions: torch.Tensor
-    faces: torch.Tensor
-    uv: torch.Tensor
-
-    def __post_init__(self):
-        if self.positions.dim() != 2 or self.positions.shape[1] != 3:
-            raise ValueError(f"TexelSurface: positions must be (V, 3), got {tuple(self.positions.shape)}")
-        if self.uv.shape != (self.positions.shape[0], 2):
-            raise ValueError(
-                f"TexelSurface: uv must be (V, 2) with V = {self.positions.shape[0]}, got {tuple(self.uv.shape)}"
-            )
-        if self.faces.dim() != 2 or self.faces.shape[1] != 3 or self.faces.shape[0] == 0:
-            raise ValueError(f"TexelSurface: faces must be (T, 3) with T > 0, got {tuple(self.faces.shape)}")
-
-    @classmethod
-    def from_arrays(cls, positions, faces, uv) -> "TexelSurface":
-        return cls(
-            torch.tensor(np.asarray(positions), dtype=torch.float32),
-            torch.tensor(np.asarray(faces), dtype=torch.long),
-            torch.tensor(np.asarray(uv), dtype=torch.float32),
-        )
-
-    def texel_density(self) -> float:
-        """Texels per unit length of the surface, per texel of texture side: sqrt(UV area / surface area)."""
-        corners, uv = self.positions[self.faces].double(), self.uv[self.faces].double()
-        area = torch.linalg.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).norm(dim=1).sum() / 2
-        e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
-        uv_area = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).abs().sum() / 2
-        return float((uv_area / area.clamp_min(1e-12)).sqrt())
 
 
 def pixels_per_unit(resolution: int, distance: float, fov: float) -> float:
@@ -242,48 +220,6 @@ def render_texture(
     colours = sample_texture(image, interpolate(surface.uv, raster, surface.faces))  # (N, R, R, 3)
     images = torch.where(covered, colours, torch.full_like(colours, background))
     return images.permute(0, 3, 1, 2), covered.permute(0, 3, 1, 2).to(images.dtype)
-
-
-class SurfaceCharts:
-    """Random geodesic charts of a :class:`TexelSurface` (the ``surface`` method, module docstring).
-
-    spacing: the distance between a chart's neighbouring points on the surface (one exemplar pixel);
-    size: a chart's side in points; direction_field: ``up`` (charts upright, u = the mesh's up
-    projected) or ``none`` (each chart rolled by a random angle).
-    """
-
-    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
-        self.walker = SurfaceWalker(surface.positions.cpu().numpy(), surface.faces.cpu().numpy())
-        self.uv = surface.uv.cpu().double().numpy()[surface.faces.cpu().numpy()]  # (T, 3, 2)
-        self.spacing, self.size, self.direction_field = float(spacing), int(size), direction_field
-
-    def draw(self, count: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
-        """``count`` charts at centres uniform over the area: UVs (count, G, G, 2) float32 (v up) and
-        masks (count, 1, G, G) float32 (0 where a walk left the surface at a boundary)."""
-        rng = np.random.default_rng(int(torch.randint(2**62, (1,), generator=generator)))
-        face, bary = self.walker.sample(count, rng)
-        roll = rng.random(count) * 2 * math.pi if self.direction_field == "none" else 0.0
-        frames = self.walker.frames(face, roll)
-        faces, barys, valid = geodesic_charts(self.walker, face, bary, frames, self.size, self.spacing)
-        uv = (self.uv[faces] * barys[..., None]).sum(-2)  # (count, G, G, 2)
-        return torch.from_numpy(uv).float(), torch.from_numpy(valid).float()[:, None]
-
-
-def chart_mosaic(images: torch.Tensor, masks: torch.Tensor, gutter: int = 4, background: float = 1.0):
-    """The charts (N, 3, G, G) with masks (N, 1, G, G) side by side on a square grid, ``gutter`` masked
-    pixels between them, as one image (1, 3, H, W) and mask (1, 1, H, W): the structure losses pool
-    their statistics over every chart, and no filter whose support is on the object straddles two."""
-    n, _, g, _ = images.shape
-    columns = math.ceil(math.sqrt(n))
-    rows = math.ceil(n / columns)
-    cell = g + gutter
-    canvas = images.new_full((3, rows * cell - gutter, columns * cell - gutter), background)
-    cover = masks.new_zeros((1, rows * cell - gutter, columns * cell - gutter))
-    for k in range(n):
-        r, c = divmod(k, columns)
-        canvas[:, r * cell : r * cell + g, c * cell : c * cell + g] = images[k]
-        cover[:, r * cell : r * cell + g, c * cell : c * cell + g] = masks[k]
-    return canvas[None], cover[None]
 
 
 class TexelPyramid(torch.nn.Module):
@@ -352,10 +288,12 @@ class TexelSynthesis:
         self.pyramid = TexelPyramid(cfg.texture_size, cfg.levels, mean, generator=self.generator).to(self.device)
         self.optimizer = torch.optim.Adam(self.pyramid.parameters(), lr=cfg.lr)
         self.mip = mip_level(surface, cfg)
-        self.charts = None
+        self.charts = self.patches = None
+        spacing = 1 / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)  # one exemplar pixel
         if cfg.method == "surface":
-            spacing = 1 / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)
             self.charts = SurfaceCharts(surface, spacing, cfg.chart_size, cfg.direction_field)
+        elif cfg.method == "patches":
+            self.patches = SurfacePatches(surface, spacing, PATCH_SIZE, cfg.direction_field)
         self.iteration = 0
 
     def seen(self, image: torch.Tensor | None = None) -> torch.Tensor:
@@ -380,9 +318,34 @@ class TexelSynthesis:
         charts = torch.where(masks > 0.5, colours, torch.ones_like(colours)), masks
         return chart_mosaic(*charts), charts
 
+    def surface_patch_sets(self, image: torch.Tensor, generator: torch.Generator) -> list[torch.Tensor]:
+        """The patches method's point sets of ``image`` (3, S, S): per octave l of the exemplar's, up to
+        ``max_points`` patches (P_l, 3 PATCH_SIZE^2) walked out on the surface 2^l exemplar pixels apart and
+        read from the texture pooled 2^l times more, flattened as :func:`patch_sets` flattens an image's."""
+        seen, sets = self.seen(image), []
+        for level in range(len(self.features.patch_sets())):
+            pooled = F.avg_pool2d(seen[None], 2**level)[0] if level else seen
+            uv, whole = self.patches.draw(self.cfg.max_points, level, generator)
+            uv = uv[whole].to(self.device)  # (P, s, s, 2)
+            # read as one image of P * s rows: a batch of P would expand the texture, and its gradient, P times
+            colours = sample_texture(pooled, uv.reshape(1, -1, *uv.shape[2:])).reshape(*uv.shape[:3], 3)
+            sets.append(colours.permute(0, 3, 1, 2).reshape(len(colours), -1))
+        return sets
+
     def loss_of(self, image: torch.Tensor, count: int, generator: torch.Generator) -> torch.Tensor:
-        """The style loss of ``count`` views or charts of ``image`` (3, S, S) against the exemplar."""
+        """The style loss of ``count`` views or charts of ``image`` (3, S, S) (or, for the patches method,
+        a step's patches) against the exemplar."""
         cfg = self.cfg
+        if self.patches is not None:
+            sets = self.surface_patch_sets(image, generator)
+            loss = patch_distance(sets, self.features.patch_sets(), generator)
+            if cfg.palette_weight and len(sets[0]) > 1:  # the finest patches' pixels, stacked as one image
+                pixels = sets[0].reshape(-1, 3, PATCH_SIZE, PATCH_SIZE).transpose(0, 1).reshape(1, 3, -1, PATCH_SIZE)
+                palette = style_loss(
+                    None, pixels, torch.ones_like(pixels[:, :1]), self.palette, "sw", cfg.max_points, generator
+                )
+                loss = loss + cfg.palette_weight * palette
+            return loss
         (images, masks), (pixels, pixel_masks) = self.views_of(image, count, generator)
         loss = style_loss(self.vgg, images, masks, self.features, cfg.loss, cfg.max_points, generator)
         if cfg.palette_weight:
@@ -391,7 +354,9 @@ class TexelSynthesis:
         return loss
 
     def per_step(self) -> int:
-        """Views (renders method) or charts (surface method) drawn per step."""
+        """Views (renders method), charts (surface method) or patches per octave (patches method) drawn per step."""
+        if self.patches is not None:
+            return self.cfg.max_points
         return self.cfg.views if self.charts is None else self.cfg.charts
 
     def learning_rate(self, iteration: int) -> float:
@@ -422,7 +387,7 @@ class TexelSynthesis:
         """The style loss over ``views`` views (or a step's charts) and projections drawn from
         ``seed`` (the same at every call): comparable before and after the optimisation."""
         generator = torch.Generator().manual_seed(seed)
-        count = views if self.charts is None else self.cfg.charts
+        count = views if self.charts is None and self.patches is None else self.per_step()
         return float(self.loss_of(self.pyramid(), count, generator))
 
     @torch.no_grad()
@@ -460,6 +425,7 @@ __all__ = [
     "COLOUR_WEIGHTS",
     "SYNTHESIS_LOSSES",
     "SurfaceCharts",
+    "SurfacePatches",
     "SynthesisConfig",
     "TexelPyramid",
     "TexelSurface",

@@ -1,0 +1,140 @@
+"""The surface a texture lives on (:class:`TexelSurface`, a mesh and its UV atlas), and what the direct
+method's loss sees when it looks at the surface itself, not at renders: geodesic
+charts (the ``surface`` method) and the ``patch`` loss's patches walked out octave by octave (the
+``patches`` method). Both read the texture through the atlas's UVs at points reached by geodesic
+walks in tangent frames of a direction field (:mod:`mesh2tex.geometry.geodesic`), so neither has a
+camera's foreshortening or hidden parts, and both cross the atlas's seams.
+
+Conventions: a surface is a :class:`TexelSurface` (positions (V, 3) in the unit ball, faces (T, 3),
+uv (V, 2) v up); UVs returned are (..., 2) float32, v up, for
+:func:`mesh2tex.render.sample_texture`; a grid's row 0 is its top (the frame's u up), as an image's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from mesh2tex.geometry.geodesic import SurfaceWalker, geodesic_charts
+
+
+@dataclass
+class TexelSurface:
+    """The mesh the texture lives on: positions (V, 3) float32 in the unit ball (y up), faces (T, 3)
+    int64, uv (V, 2) float32 in [0, 1] (v up); a vertex is split where the atlas has a seam."""
+
+    positions: torch.Tensor
+    faces: torch.Tensor
+    uv: torch.Tensor
+
+    def __post_init__(self):
+        if self.positions.dim() != 2 or self.positions.shape[1] != 3:
+            raise ValueError(f"TexelSurface: positions must be (V, 3), got {tuple(self.positions.shape)}")
+        if self.uv.shape != (self.positions.shape[0], 2):
+            raise ValueError(
+                f"TexelSurface: uv must be (V, 2) with V = {self.positions.shape[0]}, got {tuple(self.uv.shape)}"
+            )
+        if self.faces.dim() != 2 or self.faces.shape[1] != 3 or self.faces.shape[0] == 0:
+            raise ValueError(f"TexelSurface: faces must be (T, 3) with T > 0, got {tuple(self.faces.shape)}")
+
+    @classmethod
+    def from_arrays(cls, positions, faces, uv) -> "TexelSurface":
+        return cls(
+            torch.tensor(np.asarray(positions), dtype=torch.float32),
+            torch.tensor(np.asarray(faces), dtype=torch.long),
+            torch.tensor(np.asarray(uv), dtype=torch.float32),
+        )
+
+    def texel_density(self) -> float:
+        """Texels per unit length of the surface, per texel of texture side: sqrt(UV area / surface area)."""
+        corners, uv = self.positions[self.faces].double(), self.uv[self.faces].double()
+        area = torch.linalg.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).norm(dim=1).sum() / 2
+        e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+        uv_area = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).abs().sum() / 2
+        return float((uv_area / area.clamp_min(1e-12)).sqrt())
+
+
+class _SurfaceGrids:
+    """Square grids of geodesic points around random centres of a surface, read through its atlas."""
+
+    def __init__(self, surface: TexelSurface, direction_field: str):
+        self.walker = SurfaceWalker(surface.positions.cpu().numpy(), surface.faces.cpu().numpy())
+        self.uv = surface.uv.cpu().double().numpy()[surface.faces.cpu().numpy()]  # (T, 3, 2)
+        self.direction_field = direction_field
+
+    def grids(self, count: int, size: int, spacing: float, generator: torch.Generator):
+        """``count`` grids of ``size`` x ``size`` points ``spacing`` apart at centres uniform over the area:
+        UVs (count, size, size, 2) float32 (v up) and valid (count, size, size) bool (False where a walk
+        left the surface at a boundary or came back around a thin part)."""
+        rng = np.random.default_rng(int(torch.randint(2**62, (1,), generator=generator)))
+        face, bary = self.walker.sample(count, rng)
+        roll = rng.random(count) * 2 * math.pi if self.direction_field == "none" else 0.0
+        frames = self.walker.frames(face, roll)
+        faces, barys, valid = geodesic_charts(self.walker, face, bary, frames, size, spacing)
+        uv = (self.uv[faces] * barys[..., None]).sum(-2)  # (count, size, size, 2)
+        return torch.from_numpy(uv).float(), torch.from_numpy(valid)
+
+
+class SurfaceCharts(_SurfaceGrids):
+    """Random geodesic charts of a :class:`TexelSurface` (the ``surface`` method).
+
+    spacing: the distance between a chart's neighbouring points on the surface (one exemplar pixel);
+    size: a chart's side in points; direction_field: ``up`` (charts upright, u = the mesh's up
+    projected) or ``none`` (each chart rolled by a random angle).
+    """
+
+    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
+        super().__init__(surface, direction_field)
+        self.spacing, self.size = float(spacing), int(size)
+
+    def draw(self, count: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+        """``count`` charts at centres uniform over the area: UVs (count, G, G, 2) float32 (v up) and
+        masks (count, 1, G, G) float32 (0 where a walk left the surface at a boundary)."""
+        uv, valid = self.grids(count, self.size, self.spacing, generator)
+        return uv, valid.float()[:, None]
+
+
+class SurfacePatches(_SurfaceGrids):
+    """The ``patch`` loss's patches walked out on the surface, octave by octave (the ``patches`` method).
+
+    On an image the loss compares, per octave l, the ``size`` x ``size`` patches of the image pooled
+    2^l times (:func:`mesh2tex.losses.structure.patch_sets`). Here octave l's patches are grids of
+    ``size`` x ``size`` geodesic points ``spacing`` x 2^l apart at random centres, read from the texture
+    pooled 2^l times more than the finest octave's: every patch is a texel neighbourhood sampled in its
+    own tangent frame at its layer's scale, as the seed paper's surface-aware convolutions sample
+    theirs layer by layer. A patch is small, so its grid stays near its tangent plane where a whole
+    chart bends away from it; and no render or chart border cuts the patches near it away.
+    """
+
+    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
+        super().__init__(surface, direction_field)
+        self.spacing, self.size = float(spacing), int(size)
+
+    def draw(self, count: int, level: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+        """``count`` patches of octave ``level``: UVs (count, size, size, 2) float32 (v up) and whole
+        (count,) bool (every point of the patch reached)."""
+        uv, valid = self.grids(count, self.size, self.spacing * 2**level, generator)
+        return uv, valid.flatten(1).all(1)
+
+
+def chart_mosaic(images: torch.Tensor, masks: torch.Tensor, gutter: int = 4, background: float = 1.0):
+    """The charts (N, 3, G, G) with masks (N, 1, G, G) side by side on a square grid, ``gutter`` masked
+    pixels between them, as one image (1, 3, H, W) and mask (1, 1, H, W): the structure losses pool
+    their statistics over every chart, and no filter whose support is on the object straddles two."""
+    n, _, g, _ = images.shape
+    columns = math.ceil(math.sqrt(n))
+    rows = math.ceil(n / columns)
+    cell = g + gutter
+    canvas = images.new_full((3, rows * cell - gutter, columns * cell - gutter), background)
+    cover = masks.new_zeros((1, rows * cell - gutter, columns * cell - gutter))
+    for k in range(n):
+        r, c = divmod(k, columns)
+        canvas[:, r * cell : r * cell + g, c * cell : c * cell + g] = images[k]
+        cover[:, r * cell : r * cell + g, c * cell : c * cell + g] = masks[k]
+    return canvas[None], cover[None]
+
+
+__all__ = ["SurfaceCharts", "SurfacePatches", "TexelSurface", "chart_mosaic"]

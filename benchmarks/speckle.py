@@ -1,6 +1,7 @@
 """Speckle: the high-frequency share of rendered textures, the shipped generators' against the world's materials'.
 
     python benchmarks/speckle.py --category chair|car [--variety boxy|real] [--seeds 0-4] [--work DIR]
+                                 [--checkpoint RUN/snapshots/iterN.safetensors]
     python benchmarks/speckle.py --albedo     # the varied world's materials' albedo statistics (docs/synthetic.md)
 
 On the held-out shapes of the shipped model's world (its card's world settings; ``--variety real``:
@@ -16,7 +17,8 @@ the object, pooled over every view.
     oracle              the sampler drawn again, one material per view for each seed (as a generator seed
                         paints one latent per view): how far a perfect generator's row lies from the target
     ground truth        each held-out shape's own material (one draw per shape: with 8 shapes, a noisy sample)
-    generator, seed s   the shipped generator, one latent per view drawn from seed s
+    generator, seed s   the shipped generator (or ``--checkpoint``'s, a candidate trained on the same
+                        world), one latent per view drawn from seed s
     untrained           a freshly initialised generator of the same configuration
     flat mean colour    the world's materials' mean object colour (no power at all: share 0)
 
@@ -117,6 +119,9 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--json", default="", help="also write the rows here")
     parser.add_argument(
+        "--checkpoint", default="", help="a GAN checkpoint in place of the shipped model's generator (same world)"
+    )
+    parser.add_argument(
         "--albedo", action="store_true", help="print the varied world's materials' albedo statistics and stop"
     )
     args = parser.parse_args()
@@ -139,7 +144,7 @@ def main() -> None:
         [spec.shape_name(i) for i in train],
         {spec.shape_name(i): i for i in range(spec.shapes)},
     )
-    model = load_generator(args.category, device)
+    model = load_generator(args.checkpoint or args.category, device)
     generator = model.network
     torch.manual_seed(0)
     untrained = TextureGenerator(generator.cfg).to(device).eval().requires_grad_(False)
@@ -205,7 +210,8 @@ def main() -> None:
     rows = {"world's materials": {s: measure(draws, s, ppu * args.draws) for s in ("L", "lab")}}
     per_seed = {seed: {s: measure(sets[f"seed_{seed}"], s, ppu) for s in ("L", "lab")} for seed in seeds}
     oracle = {seed: {s: measure(sets[f"oracle_{seed}"], s, ppu) for s in ("L", "lab")} for seed in seeds}
-    for label, values_of in (("oracle: the world's materials drawn again", oracle), ("shipped generator", per_seed)):
+    trained = "generator (--checkpoint)" if args.checkpoint else "shipped generator"
+    for label, values_of in (("oracle: the world's materials drawn again", oracle), (trained, per_seed)):
         for space in ("L", "lab"):
             values = [v[space] for v in values_of.values()]
             rows.setdefault(f"{label}, median of seeds", {})[space] = statistics.median(values)

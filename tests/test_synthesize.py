@@ -4,6 +4,7 @@ tiny mesh with tiny sizes (the figures of full-size runs are in docs/results/nca
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -223,6 +224,11 @@ def test_walked_patches_read_a_flat_texture_as_the_patch_loss_reads_the_image():
         return float(patch_distance(sets[:1], synthesis.features.patch_sets()[:1]))
 
     assert distance(stripes) < 0.25 * distance(stripes.transpose(1, 2))
+
+    strip = TexelSurface.from_arrays(positions * [1.0, 0.02, 1.0], faces, (positions[:, :2] + 0.7) / 1.4)
+    narrow = TexelSynthesis(cfg, strip, stripes[None])  # 2 texels wide: no 5 x 5 patch fits at any octave
+    assert [len(s) for s in narrow.surface_patch_sets(stripes, torch.Generator().manual_seed(0))] == [0, 0, 0, 0]
+    assert narrow.fixed_loss() == 0.0 and math.isfinite(narrow.step()["loss"])
 
 
 def test_the_patches_method_asks_for_the_patch_loss(inputs, tmp_path, capsys, monkeypatch):

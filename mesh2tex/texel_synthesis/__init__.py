@@ -329,7 +329,7 @@ class TexelSynthesis:
             uv = uv[whole].to(self.device)  # (P, s, s, 2)
             # read as one image of P * s rows: a batch of P would expand the texture, and its gradient, P times
             colours = sample_texture(pooled, uv.reshape(1, -1, *uv.shape[2:])).reshape(*uv.shape[:3], 3)
-            sets.append(colours.permute(0, 3, 1, 2).reshape(len(colours), -1))
+            sets.append(colours.permute(0, 3, 1, 2).reshape(len(colours), 3 * PATCH_SIZE**2))  # may be empty
         return sets
 
     def loss_of(self, image: torch.Tensor, count: int, generator: torch.Generator) -> torch.Tensor:

@@ -46,7 +46,7 @@ app: .install-stamp
 # every image of the docs with the command that makes it).
 figures: .install-stamp
 	$(VPY) -m mesh2tex prepare synthetic --out $(FIGURES_WORK)/world --category chair --shapes 64 --views 8 \
-	    --query-shapes 8 --query-views 2 --seed 0 --resolution 128
+	    --query-shapes 8 --query-views 2 --seed 0 --resolution 128 --variety real
 	$(VPY) -m mesh2tex prepare shapes --input $(FIGURES_WORK)/world/meshes/chair_0058.obj --out $(FIGURES_WORK)/query \
 	    --faces 1536 --levels 4 --seed 0
 	$(VPY) -m mesh2tex infer generate --checkpoint chair --mesh $(FIGURES_WORK)/query/chair_0058.npz --seeds 0,1,2,3 \

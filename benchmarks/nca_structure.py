@@ -2,7 +2,8 @@
 
     OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
         [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
-        [--direct ps sw ...] [--surface ps ...] [--patches] [--direct-iters 400] [--direct-size 512] [--charts 16 --chart-size 32]
+        [--direct ps sw ...] [--surface ps ...] [--patches] [--direct-iters 400] [--direct-size 512]
+        [--charts 16 --chart-size 32]
         [--figure FILE.png [--figure-view 1]]
 
 For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over

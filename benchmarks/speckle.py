@@ -134,7 +134,8 @@ def main() -> None:
     card = json.loads(
         (Path(__file__).resolve().parents[1] / "mesh2tex" / "models" / args.category / "card.json").read_text()
     )
-    spec = WorldSpec(category=args.category, variety=args.variety, **card["world"])
+    world_settings = {k: v for k, v in card["world"].items() if k != "variety"}  # --variety picks the world
+    spec = WorldSpec(category=args.category, variety=args.variety, **world_settings)
     train, held = spec.split()
     rendered = dataclasses.replace(spec, resolution=args.resolution)
     world = WorldData(

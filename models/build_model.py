@@ -4,14 +4,16 @@
                                  [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters
                                  4000] [--device auto]
                                  [--pick FROM,EVERY]
-                                 [--from-gan CKPT] [--views-gan CKPT]
+                                 [--from-gan CKPT] [--views-gan CKPT] [--keep-mask]
 
 Every stage resumes (re-run the same command after an interruption): the world and the shapes are
 skipped when present, the GAN, pose and NOC runs continue with --resume. ``--gan-iters`` is the total
 (default: the category's recipe in ``RECIPES``), so a larger value continues a finished run.
 ``--from-gan`` takes the GAN (and the iteration count in its metadata) from an existing run instead
 of training one: the run must have been trained with this script's settings (``GAN_CONFIG``,
-``RECIPES``, WORLD, SHAPES below) for the card to be true.
+``RECIPES``, WORLD, SHAPES below) for the card to be true; a recipe's pick then chooses among that
+run's snapshots up to the checkpoint's iteration. ``--keep-mask`` keeps the mask network already in
+``--out`` (it learns from the world alone) with its card record, instead of training one again.
 
 The model folder gets generator.safetensors, pose.safetensors, noc.safetensors, mask.safetensors (float16 inference
 checkpoints, :mod:`mesh2tex.models`), card.json (settings, commands, iterations, hardware, wall
@@ -65,11 +67,14 @@ GAN_CONFIG = {
 # paint different chairs (PICK_MIN_SPREAD), not the last one.
 RECIPES = {
     "chair": {
-        "gan_iters": 8000,
+        "gan_iters": 6000,
         "world_shapes": 64,
-        "gan": {"supersample": 2},
+        "variety": "real",
+        # the rates annealed from 4,000: a run keeps what it holds when the mode-seeking term has settled
+        "gan": {"supersample": 2, "optim": {"lr_field": 0.0012, "lr_decay_start": 4000}},
         "loss": {"diversity_start": 3500},
         "views_gan_iteration": 2500,
+        "pick": {"from": 4000, "every": 500},
     },
     "car": {"gan_iters": 3000, "gan": {}, "loss": {}, "views_gan_iteration": 1500},
 }
@@ -169,6 +174,16 @@ def pick_figures(figures: dict[int, dict]) -> str:
     return ", ".join(f"{it}: {f['gap']} / {f['spread']}" for it, f in sorted(figures.items()))
 
 
+def keep_mask_record(out: Path, mask_iters: int) -> dict:
+    """The card's record of the mask network already in ``out`` (``--keep-mask``): its ``mask_training``
+    entry, checked to be of this script's MASK settings and iteration count."""
+    card = json.loads((out / "card.json").read_text()) if (out / "card.json").is_file() else {}
+    same = card.get("mask") == MASK and card.get("mask_iterations") == mask_iters
+    if not (out / MODEL_FILES["mask"]).is_file() or not same:
+        raise SystemExit(f"build_model: --keep-mask needs {out} to hold a mask network of MASK at {mask_iters} steps")
+    return {"mask_training": card.get("mask_training", {})}
+
+
 def recipe_gan_config(recipe: dict) -> dict:
     """The `train gan --config` contents of a recipe: GAN_CONFIG with its top-level settings and loss."""
     config = {**GAN_CONFIG, **recipe["gan"]}
@@ -252,6 +267,11 @@ def main() -> None:
         "validation world ranks first, not the last one (default: the recipe's pick, if any)",
     )
     parser.add_argument("--device", default="auto")
+    parser.add_argument(
+        "--keep-mask",
+        action="store_true",
+        help="keep --out's mask network and its card record (it learns from the world alone, not from the GAN)",
+    )
     parser.add_argument("--from-gan", help="use this GAN checkpoint instead of training one")
     parser.add_argument("--note", default="", help="a line for the card (e.g. how busy the machine was)")
     parser.add_argument(
@@ -308,10 +328,9 @@ def main() -> None:
     if args.pick:
         start_at, every = (int(v) for v in args.pick.split(","))
         pick = {"from": start_at, "every": every}
-    if pick and not args.from_gan:
-        gan_ckpt, picked = pick_snapshot(
-            work, args.category, args.variety, work / "gan", args.gan_iters, pick, commands
-        )
+    if pick:  # among the snapshots of the run trained here, or of --from-gan's run up to its iteration
+        last = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"] if args.from_gan else args.gan_iters
+        gan_ckpt, picked = pick_snapshot(work, args.category, args.variety, gan_run_dir(gan_ckpt), last, pick, commands)
     snapshot = gan_run_dir(gan_ckpt) / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors"
     if not args.views_gan and snapshot.is_file():  # else the GAN itself (a run shorter than the recipe's iteration)
         args.views_gan = str(snapshot)
@@ -351,40 +370,26 @@ def main() -> None:
             ],
             commands,
         )
+    kept_mask = keep_mask_record(out, args.mask_iters) if args.keep_mask else {}
     mask_yaml = work / "mask.yaml"
     mask_yaml.write_text(yaml.safe_dump(MASK["config"]))
-    run(
-        [
-            "train",
-            "mask",
-            "--shapes",
-            str(work / "shapes" / "train"),
-            "--out",
-            str(work / "mask"),
-            "--config",
-            str(mask_yaml),
-            "--iters",
-            str(args.mask_iters),
-            "--samples",
-            str(MASK["samples"]),
-            "--resolution",
-            str(MASK["resolution"]),
-            "--batch",
-            str(MASK["batch"]),
-            "--category",
-            args.category,
-            "--variety",
-            args.variety,
-            "--seed",
-            str(MASK["seed"]),
-            "--device",
-            args.device,
-            "--resume",
-        ],
-        commands,
-    )
+    if not kept_mask:
+        masking = cli_flags(
+            shapes=work / "shapes" / "train",
+            out=work / "mask",
+            config=mask_yaml,
+            iters=args.mask_iters,
+            samples=MASK["samples"],
+            resolution=MASK["resolution"],
+            batch=MASK["batch"],
+            category=args.category,
+            variety=args.variety,
+            seed=MASK["seed"],
+            device=args.device,
+        )
+        run(["train", "mask", *masking, "--resume"], commands)
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
-    for kind in ("pose", "noc", "mask"):
+    for kind in ("pose", "noc") if kept_mask else ("pose", "noc", "mask"):
         export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])
     gan_meta = read_checkpoint_meta(gan_ckpt)["meta"]
     print("\n== generation protocol on the held-out shapes", flush=True)
@@ -422,6 +427,7 @@ def main() -> None:
         "noc_iterations": args.noc_iters,
         "mask": MASK,
         "mask_iterations": args.mask_iters,
+        **kept_mask,
         "views_gan_iteration": int(read_checkpoint_meta(views_gan)["meta"]["iteration"]),
         "commands": commands,
         "gan_training_seconds": training_seconds(

@@ -123,8 +123,8 @@ def test_the_shipped_models_load(monkeypatch):
 
 def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path):
     """models/build_model.py's recipes load as train gan configs, and each shipped card's iteration
-    count, world and training settings are its recipe's (the rebuild command on the card has no
-    --gan-iters)."""
+    count (the one its validation pick chose, for a recipe that picks), world and training settings are
+    its recipe's (the rebuild command on the card has no --gan-iters)."""
     import json
     from pathlib import Path
 
@@ -142,7 +142,13 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
         cfg = load_config(TrainGanConfig, written)
         assert recipe["views_gan_iteration"] % cfg.snapshot_every == 0  # the views' snapshot is kept
         card = json.loads((root / "mesh2tex" / "models" / category / "card.json").read_text())
-        assert card["gan_iterations"] == recipe["gan_iters"]
+        assert card.get("gan_trained_iterations", card["gan_iterations"]) == recipe["gan_iters"]
+        if recipe.get("pick"):  # the exported generator is the snapshot the validation world ranked first
+            figures = {int(k): v for k, v in card["pick"]["figures"].items()}
+            chosen = [it for it, f in figures.items() if f["spread"] >= card["pick"]["min_spread"]] or list(figures)
+            assert card["gan_iterations"] == max(chosen, key=lambda it: figures[it]["gap"])
+        else:
+            assert card["gan_iterations"] == recipe["gan_iters"]
         assert card["views_gan_iteration"] == recipe["views_gan_iteration"]
         assert card["world"] == build_model.recipe_world(recipe)  # the card's world is the one the recipe prepares
         assert card["gan"]["config"] == gan_config  # and its training settings are the recipe's

@@ -292,6 +292,7 @@ def main() -> None:
     work = Path(args.work)
     out = Path(args.out) if args.out else ROOT / "mesh2tex" / "models" / args.category
     out.mkdir(parents=True, exist_ok=True)
+    kept_mask = keep_mask_record(out, args.mask_iters) if args.keep_mask else {}  # before any training
     commands: list[str] = []
     start = time.perf_counter()
     world = work / "world"
@@ -370,7 +371,6 @@ def main() -> None:
             ],
             commands,
         )
-    kept_mask = keep_mask_record(out, args.mask_iters) if args.keep_mask else {}
     mask_yaml = work / "mask.yaml"
     mask_yaml.write_text(yaml.safe_dump(MASK["config"]))
     if not kept_mask:

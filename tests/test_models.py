@@ -222,3 +222,21 @@ def test_the_pick_passes_over_a_snapshot_whose_latents_all_paint_the_same_chair(
     (tmp_path / "validation" / "pick.json").unlink()
     best, _ = build_model.pick_snapshot(tmp_path, "chair", "real", run, 300, {"from": 100, "every": 100}, [])
     assert best.name == "iter0000200.safetensors" and "warning" in capsys.readouterr().out
+
+
+def test_keep_mask_takes_the_mask_record_of_a_folder_that_has_one_of_the_recipes_settings(tmp_path):
+    """build_model.py --keep-mask: a model folder without a mask network, or with one of other settings, is
+    refused before any training; one of the recipe's settings gives its card's training record to the new card."""
+    import json
+
+    import pytest
+
+    build_model = load_build_model()
+    with pytest.raises(SystemExit, match="--keep-mask needs"):
+        build_model.keep_mask_record(tmp_path, 4000)
+    (tmp_path / build_model.MODEL_FILES["mask"]).write_bytes(b"")
+    record = {"mask": build_model.MASK, "mask_iterations": 4000, "mask_training": {"command": "mesh2tex train mask"}}
+    (tmp_path / "card.json").write_text(json.dumps(record))
+    assert build_model.keep_mask_record(tmp_path, 4000) == {"mask_training": {"command": "mesh2tex train mask"}}
+    with pytest.raises(SystemExit, match="at 2000 steps"):
+        build_model.keep_mask_record(tmp_path, 2000)

@@ -8,7 +8,7 @@ views match the exemplar's structure under a weight-free structure loss
     texture  = sum over levels k of upsample(P_k)             P_k (3, S / 2^k, S / 2^k), level 0 finest
     seen     = avg_pool(texture, 2^m)                          m: the mip level whose texels match render pixels
     views    = render(mesh, seen, K random orbit cameras)      (K, 3, R, R) in [-1, 1], masks (K, 1, R, R)
-    loss     = style_loss(views, masks, exemplar)              the structure loss (``ps`` by default)
+    loss     = style_loss(views, masks, exemplar)              the structure loss (``patch`` by default)
              + colour_weight * SW(RGB pixels of views, of the exemplar) + overflow      Adam on every P_k
 
 The colour term is the sliced Wasserstein distance of the object's RGB pixels (``style_loss`` kind

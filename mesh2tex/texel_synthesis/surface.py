@@ -58,14 +58,16 @@ class TexelSurface:
 
 
 class _SurfaceGrids:
-    """Square grids of geodesic points around random centres of a surface, read through its atlas."""
+    """Square grids of ``size`` x ``size`` geodesic points ``spacing`` apart (at the finest scale) around
+    random centres of a surface, read through its atlas; direction_field: ``up`` (grids upright, u = the
+    mesh's up projected) or ``none`` (each grid rolled by a random angle)."""
 
-    def __init__(self, surface: TexelSurface, direction_field: str):
+    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
         self.walker = SurfaceWalker(surface.positions.cpu().numpy(), surface.faces.cpu().numpy())
         self.uv = surface.uv.cpu().double().numpy()[surface.faces.cpu().numpy()]  # (T, 3, 2)
-        self.direction_field = direction_field
+        self.spacing, self.size, self.direction_field = float(spacing), int(size), direction_field
 
-    def grids(self, count: int, size: int, spacing: float, generator: torch.Generator):
+    def grids(self, count: int, spacing: float, generator: torch.Generator):
         """``count`` grids of ``size`` x ``size`` points ``spacing`` apart at centres uniform over the area:
         UVs (count, size, size, 2) float32 (v up) and valid (count, size, size) bool (False where a walk
         left the surface at a boundary or came back around a thin part)."""
@@ -73,7 +75,7 @@ class _SurfaceGrids:
         face, bary = self.walker.sample(count, rng)
         roll = rng.random(count) * 2 * math.pi if self.direction_field == "none" else 0.0
         frames = self.walker.frames(face, roll)
-        faces, barys, valid = geodesic_charts(self.walker, face, bary, frames, size, spacing)
+        faces, barys, valid = geodesic_charts(self.walker, face, bary, frames, self.size, spacing)
         uv = (self.uv[faces] * barys[..., None]).sum(-2)  # (count, size, size, 2)
         return torch.from_numpy(uv).float(), torch.from_numpy(valid)
 
@@ -82,18 +84,13 @@ class SurfaceCharts(_SurfaceGrids):
     """Random geodesic charts of a :class:`TexelSurface` (the ``surface`` method).
 
     spacing: the distance between a chart's neighbouring points on the surface (one exemplar pixel);
-    size: a chart's side in points; direction_field: ``up`` (charts upright, u = the mesh's up
-    projected) or ``none`` (each chart rolled by a random angle).
+    size: a chart's side in points.
     """
-
-    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
-        super().__init__(surface, direction_field)
-        self.spacing, self.size = float(spacing), int(size)
 
     def draw(self, count: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         """``count`` charts at centres uniform over the area: UVs (count, G, G, 2) float32 (v up) and
         masks (count, 1, G, G) float32 (0 where a walk left the surface at a boundary)."""
-        uv, valid = self.grids(count, self.size, self.spacing, generator)
+        uv, valid = self.grids(count, self.spacing, generator)
         return uv, valid.float()[:, None]
 
 
@@ -109,14 +106,10 @@ class SurfacePatches(_SurfaceGrids):
     chart bends away from it; and no render or chart border cuts the patches near it away.
     """
 
-    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
-        super().__init__(surface, direction_field)
-        self.spacing, self.size = float(spacing), int(size)
-
     def draw(self, count: int, level: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         """``count`` patches of octave ``level``: UVs (count, size, size, 2) float32 (v up) and whole
         (count,) bool (every point of the patch reached)."""
-        uv, valid = self.grids(count, self.size, self.spacing * 2**level, generator)
+        uv, valid = self.grids(count, self.spacing * 2**level, generator)
         return uv, valid.flatten(1).all(1)
 
 

@@ -117,54 +117,15 @@ def room(size: int, rng: np.random.Generator) -> np.ndarray:
     return np.clip(image, 0.0, 1.0)
 
 
-def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float = 0.03) -> list[float]:
-    """Turns about the vertical axis (degrees, 0 included) that map the mesh onto itself: its vertices,
-    turned, lie within ``tolerance`` of the bounding-box diagonal of the unturned ones (99th
-    percentile of the distances, both ways: every part must land on a part). A round stool has
-    several; a chair only 0."""
-    from scipy.spatial import cKDTree
-
-    points = vertices - vertices.mean(axis=0)
-    tree = cKDTree(points)
-    diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
-    angles = np.arange(0.0, 360.0, step)
-    distances = []
-    for degrees in angles:
-        c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
-        turned = points @ np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])
-        distances.append(
-            max(np.percentile(tree.query(turned)[0], 99), np.percentile(cKDTree(turned).query(points)[0], 99))
-        )
-    distances = np.array(distances)
-    close = distances < tolerance * diagonal
-    if close.all():  # round: every azimuth shows the same
-        return [float(a) for a in angles]
-    # A symmetry shows as a run of close turns around it (the tolerance admits a few degrees): keep each run's best.
-    turns, n = [], len(angles)
-    for i in range(n):
-        if close[i] and not close[i - 1]:  # a run starts here (circularly)
-            run = [i]
-            while close[(run[-1] + 1) % n] and len(run) < n:
-                run.append((run[-1] + 1) % n)
-            turns.append(float(angles[min(run, key=lambda j: distances[j])]))
-    return sorted(turns) if turns else [0.0]
-
-
-def symmetric_error(found: float, truth: float, turns: list[float]) -> float:
-    """The azimuth error up to the mesh's own symmetries: the smallest error to any equivalent pose."""
-    from mesh2tex.nn.pose import azimuth_error
-
-    return float(azimuth_error(found, torch.tensor([truth + turn for turn in turns])).min())
-
-
 def main() -> None:
     import cv2
 
     from mesh2tex.evaluation.compare import ScoreSettings, common_mask, render_for_comparison, score_views
     from mesh2tex.evaluation.surfaces import flat_surface, generator_surface, material_surface, photo_mean_colour
+    from mesh2tex.geometry.symmetry import azimuth_symmetries
     from mesh2tex.io.images import save_png
     from mesh2tex.models import MODEL_FILES, is_model_name, load_generator, models_root
-    from mesh2tex.nn.pose import azimuth_error
+    from mesh2tex.nn.pose import azimuth_error, symmetric_azimuth_error
     from mesh2tex.render import RenderSettings
 
     def shipped_file(name: str, kind: str) -> str | None:
@@ -312,7 +273,7 @@ def main() -> None:
                     row["mask_iou"] = float((estimated & true_mask).sum() / max((estimated | true_mask).sum(), 1))
                 row["pose_seconds"] = round(time.perf_counter() - started, 2)
                 row["found"] = [estimate.azimuth, estimate.elevation]
-                row["pose_error"] = symmetric_error(estimate.azimuth, view.azimuth, turns)
+                row["pose_error"] = symmetric_azimuth_error(estimate.azimuth, view.azimuth, turns)
                 row["raw_pose_error"] = float(azimuth_error(estimate.azimuth, view.azimuth))
                 row["symmetries"] = len(turns)
                 row["network_error"] = (

@@ -155,6 +155,13 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
     assert all(
         q["azimuth_error"] == 0 and q["elevation_error"] == 0 for q in result["protocols"]["known_pose"]["queries"]
     )
+    # A found pose is judged up to the photographed shape's own symmetries too, never worse than plainly.
+    for protocol, entry in result["protocols"].items():
+        for q in entry.get("queries", []):
+            if protocol == "known_pose":
+                assert "symmetric_azimuth_error" not in q
+            else:
+                assert q["symmetries"] >= 1 and q["symmetric_azimuth_error"] <= q["azimuth_error"] + 1e-6
     rows = result["protocols"]["known_pose"]["methods"]
     assert (
         "refine" in rows["full"]["per_query"][0]["loss_last"]

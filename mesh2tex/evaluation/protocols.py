@@ -122,6 +122,7 @@ def run_transfer_protocol(protocol: str, run: ProtocolInputs, step=None) -> dict
         )
         setups.append(setup.record)
         judge = QueryJudge(protocol, world, query, setup.target, setup.shape, cfg)
+        setup.judge_pose(judge.turns)
 
         def keep(name: str, rendered, row: dict) -> None:
             row = {"query": query.name, **judge.score(rendered), **row}

@@ -20,8 +20,9 @@ from mesh2tex.evaluation import (
 )
 from mesh2tex.evaluation.world import World, load_query_truth, load_shape_truth, reference_renders
 from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.geometry.symmetry import azimuth_symmetries
 from mesh2tex.nn.batch import collate_shapes
-from mesh2tex.nn.pose import azimuth_error
+from mesh2tex.nn.pose import azimuth_error, symmetric_azimuth_error
 from mesh2tex.transfer import estimate_pose, load_photo, predict_noc, view_at_pose
 
 
@@ -75,6 +76,16 @@ class QuerySetup:
         if network_pose is not None and cfg.transfer.pose_search:
             self.record["network_azimuth_error"] = round(float(azimuth_error(network_pose[0], query.azimuth)), 3)
 
+    def judge_pose(self, turns: list[float]) -> None:
+        """Adds to the record the found pose's azimuth error up to the photographed shape's own symmetries
+        (``turns``, :func:`azimuth_symmetries`: a backless bench found half a turn off is not wrong) and how
+        many turns those are. Nothing with ``known_pose``."""
+        if self.protocol == "known_pose":
+            return
+        self.record["symmetries"] = len(turns)
+        error = symmetric_azimuth_error(self.azimuth, self.query.azimuth, turns)
+        self.record["symmetric_azimuth_error"] = round(error, 3)
+
 
 class QueryJudge:
     """The ground truth of one query and one render function and one score for every method: the photo's
@@ -90,6 +101,8 @@ class QueryJudge:
         except ValueError as error:
             raise InputError(str(error)) from None
         self.views = [self.truth.view] + other_views(self.truth.view, offsets)
+        # the turns of the photographed shape that look the same: what a found pose is judged up to
+        self.turns = [0.0] if protocol == "known_pose" else azimuth_symmetries(self.truth.truth.shape.vertices)
         self.reference = reference_renders(self.truth, self.views, cfg.lighting)
         self.oracle = self.render(self.truth.truth.oracle if self.exact else self.truth.truth.material_on(target_truth))
         self.vertices, self.triangles = shape.vertices[0], shape.triangles(0)

@@ -6,6 +6,7 @@ rows against the fresh photo set, the gap closed and the diversity)."""
 from __future__ import annotations
 
 import math
+import statistics
 
 from mesh2tex.evaluation.compare import METRIC_TITLES, METRICS, metric_direction
 from mesh2tex.evaluation.paired import flat_colour_targets, oracle_check, scored_metrics
@@ -184,22 +185,30 @@ def _protocol_lines(protocol: str, entry: dict, comparisons: dict, s: dict) -> l
 
 
 def _pose_lines(queries: list[dict]) -> list[str]:
-    """The mean pose errors of a protocol whose pose was found (none without queries)."""
+    """The mean pose errors of a protocol whose pose was found (none without queries), and the azimuth
+    error up to the photographed shapes' own symmetries where the run measured it."""
     errors = [q["azimuth_error"] for q in queries]
     if not errors:
         return []
     searched = [q["network_azimuth_error"] for q in queries if "network_azimuth_error" in q]
     how = "Pose network + silhouette search" if searched else "Pose network"
-    return [
-        "",
+    line = (
         f"{how}: mean azimuth error {sum(errors) / len(errors):.1f} deg, "
         f"mean elevation error {sum(q['elevation_error'] for q in queries) / len(errors):.1f} deg"
-        + (
-            f" (the network's bins alone: mean azimuth error {sum(searched) / len(searched):.1f} deg)."
-            if searched
-            else "."
-        ),
-    ]
+    )
+    if searched:
+        line += f" (the network's bins alone: mean azimuth error {sum(searched) / len(searched):.1f} deg)"
+    line += "."
+    symmetric = [q["symmetric_azimuth_error"] for q in queries if "symmetric_azimuth_error" in q]
+    if len(symmetric) == len(errors):
+        turned = sum(q["symmetries"] > 1 for q in queries)
+        line += (
+            f" Up to the shapes' own symmetries ({turned} of {len(errors)} photos show a shape that looks the"
+            f" same turned): mean {sum(symmetric) / len(symmetric):.1f} deg, median"
+            f" {statistics.median(symmetric):.1f} deg, {sum(e <= 15 for e in symmetric)} of {len(symmetric)}"
+            " within 15 deg."
+        )
+    return ["", line]
 
 
 def _flat_colour_lines(methods: dict) -> list[str]:

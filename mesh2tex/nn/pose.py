@@ -207,6 +207,13 @@ def azimuth_error(predicted, target) -> torch.Tensor:
     return torch.minimum(difference, 360.0 - difference)
 
 
+def symmetric_azimuth_error(found: float, truth: float, turns: list[float]) -> float:
+    """The azimuth error (degrees, in [0, 180]) up to the shape's own symmetries: the smallest error to
+    any pose the photo cannot tell from the true one, ``truth`` turned by each of ``turns``
+    (:func:`mesh2tex.geometry.symmetry.azimuth_symmetries`; ``[0.0]``: the plain error)."""
+    return float(azimuth_error(found, torch.tensor([truth + turn for turn in turns], dtype=torch.float64)).min())
+
+
 def pose_accuracy(
     azimuth_logits: torch.Tensor, elevation_logits: torch.Tensor, azimuth, elevation, bins: PoseBins
 ) -> dict[str, float]:

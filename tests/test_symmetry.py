@@ -1,0 +1,61 @@
+"""The turns that leave a shape as it was, and the pose error counted up to them: a bench without a back
+photographed from behind is the same photo, so a pose found half a turn off on it is no error."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from mesh2tex.geometry.symmetry import azimuth_symmetries
+from mesh2tex.nn.pose import symmetric_azimuth_error
+
+
+def boxes(*specs) -> np.ndarray:
+    """The vertices of axis-aligned boxes, each (extents, centre), y up; subdivided so that every part has
+    as many vertices as its size asks."""
+    meshes = []
+    for extents, centre in specs:
+        box = trimesh.creation.box(extents=extents)
+        box.apply_translation(centre)
+        meshes.append(box.subdivide().subdivide())
+    return np.asarray(trimesh.util.concatenate(meshes).vertices)
+
+
+def legs(width: float, depth: float) -> list:
+    return [((0.04, 0.45, 0.04), (x, 0.225, z)) for x in (-width / 2, width / 2) for z in (-depth / 2, depth / 2)]
+
+
+SEAT = ((0.45, 0.05, 0.45), (0.0, 0.47, 0.0))
+
+
+def test_a_square_stool_looks_the_same_every_quarter_turn():
+    assert azimuth_symmetries(boxes(SEAT, *legs(0.4, 0.4))) == [0.0, 90.0, 180.0, 270.0]
+
+
+def test_a_backless_bench_looks_the_same_half_a_turn_round_and_a_chair_with_a_back_never():
+    bench = boxes(((1.4, 0.05, 0.35), (0.0, 0.47, 0.0)), *legs(1.3, 0.3))
+    assert azimuth_symmetries(bench) == [0.0, 180.0]
+    chair = boxes(SEAT, *legs(0.4, 0.4), ((0.45, 0.5, 0.04), (0.0, 0.75, -0.2)))
+    assert azimuth_symmetries(chair) == [0.0]
+
+
+def test_the_turns_are_about_the_axis_the_cameras_orbit_wherever_the_file_puts_the_shape():
+    stool = boxes(SEAT, *legs(0.4, 0.4))
+    # a heavy part on one side moves the vertices' mean off the axis; the bounding box's centre stays on it
+    shifted = stool + np.array([3.0, 1.0, -2.0])
+    assert azimuth_symmetries(shifted) == [0.0, 90.0, 180.0, 270.0]
+
+
+def test_a_round_shape_looks_the_same_at_every_azimuth():
+    cylinder = np.asarray(trimesh.creation.cylinder(radius=0.3, height=0.5, sections=72).vertices)[:, [0, 2, 1]]
+    assert len(azimuth_symmetries(cylinder, step=5.0)) == 72
+
+
+def test_the_symmetric_error_is_the_smallest_error_to_any_equivalent_pose():
+    assert symmetric_azimuth_error(182.0, 0.0, [0.0, 180.0]) == pytest.approx(2.0)
+    assert symmetric_azimuth_error(182.0, 0.0, [0.0]) == pytest.approx(178.0)
+    assert symmetric_azimuth_error(355.0, 95.0, [0.0, 90.0, 180.0, 270.0]) == pytest.approx(10.0)
+
+
+def test_vertices_of_the_wrong_shape_are_refused_by_name():
+    with pytest.raises(ValueError, match="azimuth_symmetries: vertices"):
+        azimuth_symmetries(np.zeros((10, 2)))

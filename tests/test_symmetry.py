@@ -38,11 +38,21 @@ def test_a_backless_bench_looks_the_same_half_a_turn_round_and_a_chair_with_a_ba
     assert azimuth_symmetries(chair) == [0.0]
 
 
-def test_the_turns_are_about_the_axis_the_cameras_orbit_wherever_the_file_puts_the_shape():
+def test_the_turns_are_about_the_shapes_own_axis_wherever_the_file_puts_it():
     stool = boxes(SEAT, *legs(0.4, 0.4))
-    # a heavy part on one side moves the vertices' mean off the axis; the bounding box's centre stays on it
-    shifted = stool + np.array([3.0, 1.0, -2.0])
-    assert azimuth_symmetries(shifted) == [0.0, 90.0, 180.0, 270.0]
+    assert azimuth_symmetries(stool + np.array([3.0, 1.0, -2.0])) == [0.0, 90.0, 180.0, 270.0]
+    # three legs splayed past a round seat: the bounding box's centre is off the axis, the vertices' mean on it
+    assert azimuth_symmetries(three_legged_stool()) == [0.0, 120.0, 240.0]
+
+
+def three_legged_stool() -> np.ndarray:
+    parts = [trimesh.creation.cylinder(radius=0.2, height=0.05, sections=72)]
+    parts[0].apply_translation((0.0, 0.0, 0.47))
+    for angle in np.radians([90.0, 210.0, 330.0]):
+        leg = trimesh.creation.cylinder(radius=0.02, height=0.45, sections=12)
+        leg.apply_translation((0.3 * np.cos(angle), 0.3 * np.sin(angle), 0.225))  # splayed past the seat
+        parts.append(leg.subdivide())
+    return np.asarray(trimesh.util.concatenate(parts).vertices)[:, [0, 2, 1]]  # z up -> y up
 
 
 def test_a_round_shape_looks_the_same_at_every_azimuth():

@@ -14,8 +14,8 @@ from mesh2tex.checks import check_array_shape
 
 
 def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float = 0.03) -> list[float]:
-    """The turns (degrees, 0 first) about the vertical (y) axis through the bounding box's centre, the
-    axis the cameras orbit, that map the shape onto itself.
+    """The turns (degrees, 0 first) about the vertical (y) axis through the vertices' mean that map the
+    shape onto itself.
 
     vertices: (V, 3), y up. A turn counts when the turned vertices lie within ``tolerance`` bounding-box
     diagonals of the unturned ones and the unturned within as much of the turned (the 99th percentile of
@@ -27,7 +27,9 @@ def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float
 
     check_array_shape(vertices, "azimuth_symmetries: vertices", ("V", 3))
     points = np.asarray(vertices, dtype=np.float64)
-    points = points - (points.max(axis=0) + points.min(axis=0)) / 2
+    # A vertex set that a turn maps onto itself has its mean on the turn's axis; the bounding box's centre
+    # need not be (a three-legged stool's box is off its axis)
+    points = points - points.mean(axis=0)
     diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     tree = cKDTree(points)
     angles = np.arange(0.0, 360.0, step)

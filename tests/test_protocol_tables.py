@@ -108,6 +108,25 @@ def test_markdown_marks_the_best_value_and_says_which_way_is_better():
     assert "seen per-part ΔE 0.44 of the flat colour's, lower on 1 of 1 queries" in table
 
 
+def test_the_report_gives_the_pose_error_up_to_the_shapes_symmetries_beside_the_plain_one():
+    """A bench found half a turn round is 180 degrees off plainly and right up to its symmetry: the report
+    says both, so a mean dragged up by symmetric shapes is not read as a pose network that fails."""
+    from mesh2tex.evaluation.report import _pose_lines
+
+    queries = [
+        {"azimuth_error": 179.0, "elevation_error": 2.0, "symmetric_azimuth_error": 1.0, "symmetries": 2},
+        {"azimuth_error": 3.0, "elevation_error": 2.0, "symmetric_azimuth_error": 3.0, "symmetries": 1},
+        {"azimuth_error": 40.0, "elevation_error": 2.0, "symmetric_azimuth_error": 40.0, "symmetries": 1},
+    ]
+    line = _pose_lines(queries)[1]
+    assert "mean azimuth error 74.0 deg" in line
+    assert "(1 of 3 photos show a shape that looks the same turned): mean 14.7 deg, median 3.0 deg" in line
+    assert "2 of 3 within 15 deg" in line
+    # a run from before the symmetric error was measured reads as it did
+    older = [{k: q[k] for k in ("azimuth_error", "elevation_error")} for q in queries]
+    assert "symmetries" not in _pose_lines(older)[1]
+
+
 def test_the_transfer_settings_nest_and_keep_the_protocols_defaults(tmp_path, capsys):
     """``transfer:`` holds every TransferConfig field; keys it leaves out keep the protocol's defaults (2 scales),
     not TransferConfig's; an unknown key, a field the protocol owns and an ablation's switch are one-line errors."""

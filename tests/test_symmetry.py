@@ -66,6 +66,10 @@ def test_the_symmetric_error_is_the_smallest_error_to_any_equivalent_pose():
     assert symmetric_azimuth_error(355.0, 95.0, [0.0, 90.0, 180.0, 270.0]) == pytest.approx(10.0)
 
 
+def test_a_shape_of_one_point_keeps_the_plain_error():
+    assert azimuth_symmetries(np.ones((5, 3))) == [0.0]
+
+
 def test_vertices_of_the_wrong_shape_are_refused_by_name():
     with pytest.raises(ValueError, match="azimuth_symmetries: vertices"):
         azimuth_symmetries(np.zeros((10, 2)))

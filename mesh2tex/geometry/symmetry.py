@@ -49,4 +49,4 @@ def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float
             while close[(run[-1] + 1) % n]:
                 run.append((run[-1] + 1) % n)
             turns.append(float(angles[min(run, key=lambda j: distances[j])]))
-    return sorted(turns)
+    return sorted(turns) or [0.0]  # a degenerate shape (every vertex at one point): the plain error

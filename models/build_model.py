@@ -153,20 +153,26 @@ def pick_snapshot(
         sys.exit(
             f"build_model: no snapshot of {gan_run} between iterations {pick['from']} and {gan_iters} to pick from"
         )
-    varied = [it for it, f in figures.items() if f["spread"] >= PICK_MIN_SPREAD]
-    if not varied:
+    if not any(f["spread"] >= PICK_MIN_SPREAD for f in figures.values()):
         print(
             f"build_model: warning: no snapshot's colour spread reaches {PICK_MIN_SPREAD} of the photo set's; "
             "picking by the gap alone",
             flush=True,
         )
-    best = max(varied or figures, key=lambda it: figures[it]["gap"])
+    best = best_snapshot(figures)
     print(
         f"\n== picked the snapshot at iteration {best} (validation gap closed {figures[best]['gap']}, "
         f"spread {figures[best]['spread']}; " + pick_figures(figures) + ")",
         flush=True,
     )
     return gan_run / "snapshots" / f"iter{best:07d}.safetensors", figures
+
+
+def best_snapshot(figures: dict[int, dict], min_spread: float = PICK_MIN_SPREAD) -> int:
+    """The pick's rule: the iteration of the best validation gap among the snapshots whose colour spread is
+    at least ``min_spread`` of the photo set's, or among all of them when none is."""
+    varied = [it for it, f in figures.items() if f["spread"] >= min_spread]
+    return max(varied or figures, key=lambda it: figures[it]["gap"])
 
 
 def pick_figures(figures: dict[int, dict]) -> str:
@@ -339,38 +345,21 @@ def main() -> None:
     views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
     views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt
     for kind, iters in (("pose", args.pose_iters), ("noc", args.noc_iters)):
-        run(
-            [
-                "train",
-                kind,
-                "--shapes",
-                str(work / "shapes" / "train"),
-                "--out",
-                str(work / kind),
-                "--config",
-                str(views_yaml),
-                "--iters",
-                str(iters),
-                "--samples",
-                str(VIEWS["samples"]),
-                "--resolution",
-                str(VIEWS["resolution"]),
-                "--batch",
-                str(VIEWS["batch"]),
-                "--category",
-                args.category,
-                "--variety",
-                args.variety,
-                "--seed",
-                str(VIEWS["seed"]),
-                "--checkpoint",
-                str(views_gan),
-                "--device",
-                args.device,
-                "--resume",
-            ],
-            commands,
+        viewing = cli_flags(
+            shapes=work / "shapes" / "train",
+            out=work / kind,
+            config=views_yaml,
+            iters=iters,
+            samples=VIEWS["samples"],
+            resolution=VIEWS["resolution"],
+            batch=VIEWS["batch"],
+            category=args.category,
+            variety=args.variety,
+            seed=VIEWS["seed"],
+            checkpoint=views_gan,
+            device=args.device,
         )
+        run(["train", kind, *viewing, "--resume"], commands)
     mask_yaml = work / "mask.yaml"
     mask_yaml.write_text(yaml.safe_dump(MASK["config"]))
     if not kept_mask:

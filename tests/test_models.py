@@ -145,8 +145,7 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
         assert card.get("gan_trained_iterations", card["gan_iterations"]) == recipe["gan_iters"]
         if recipe.get("pick"):  # the exported generator is the snapshot the validation world ranked first
             figures = {int(k): v for k, v in card["pick"]["figures"].items()}
-            chosen = [it for it, f in figures.items() if f["spread"] >= card["pick"]["min_spread"]] or list(figures)
-            assert card["gan_iterations"] == max(chosen, key=lambda it: figures[it]["gap"])
+            assert card["gan_iterations"] == build_model.best_snapshot(figures, card["pick"]["min_spread"])
         else:
             assert card["gan_iterations"] == recipe["gan_iters"]
         assert card["views_gan_iteration"] == recipe["views_gan_iteration"]

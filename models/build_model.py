@@ -180,6 +180,29 @@ def pick_figures(figures: dict[int, dict]) -> str:
     return ", ".join(f"{it}: {f['gap']} / {f['spread']}" for it, f in sorted(figures.items()))
 
 
+def network_training(
+    work: Path, kind: str, config: Path, iters: int, settings: dict, args: argparse.Namespace, **extra
+) -> list[str]:
+    """The ``train pose|noc|mask`` command of a build: on WORK's training shapes into WORK/<kind>, with
+    ``settings`` (VIEWS or MASK: samples, resolution, batch, seed), the build's category, variety and
+    device, and ``extra`` flags (the views' GAN checkpoint); resumed."""
+    flags = cli_flags(
+        shapes=work / "shapes" / "train",
+        out=work / kind,
+        config=config,
+        iters=iters,
+        samples=settings["samples"],
+        resolution=settings["resolution"],
+        batch=settings["batch"],
+        category=args.category,
+        variety=args.variety,
+        seed=settings["seed"],
+        **extra,
+        device=args.device,
+    )
+    return ["train", kind, *flags, "--resume"]
+
+
 def keep_mask_record(out: Path, mask_iters: int) -> dict:
     """The card's record of the mask network already in ``out`` (``--keep-mask``): its ``mask_training``
     entry, checked to be of this script's MASK settings and iteration count."""
@@ -345,38 +368,11 @@ def main() -> None:
     views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
     views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt
     for kind, iters in (("pose", args.pose_iters), ("noc", args.noc_iters)):
-        viewing = cli_flags(
-            shapes=work / "shapes" / "train",
-            out=work / kind,
-            config=views_yaml,
-            iters=iters,
-            samples=VIEWS["samples"],
-            resolution=VIEWS["resolution"],
-            batch=VIEWS["batch"],
-            category=args.category,
-            variety=args.variety,
-            seed=VIEWS["seed"],
-            checkpoint=views_gan,
-            device=args.device,
-        )
-        run(["train", kind, *viewing, "--resume"], commands)
+        run(network_training(work, kind, views_yaml, iters, VIEWS, args, checkpoint=views_gan), commands)
     mask_yaml = work / "mask.yaml"
     mask_yaml.write_text(yaml.safe_dump(MASK["config"]))
     if not kept_mask:
-        masking = cli_flags(
-            shapes=work / "shapes" / "train",
-            out=work / "mask",
-            config=mask_yaml,
-            iters=args.mask_iters,
-            samples=MASK["samples"],
-            resolution=MASK["resolution"],
-            batch=MASK["batch"],
-            category=args.category,
-            variety=args.variety,
-            seed=MASK["seed"],
-            device=args.device,
-        )
-        run(["train", "mask", *masking, "--resume"], commands)
+        run(network_training(work, "mask", mask_yaml, args.mask_iters, MASK, args), commands)
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
     for kind in ("pose", "noc") if kept_mask else ("pose", "noc", "mask"):
         export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from mesh2tex.nn.mask import MaskUNet, mask_iou, mask_loss
-from mesh2tex.synthetic.backdrops import BACKDROP_KINDS, backdrop, place_over_backdrops
+from mesh2tex.synthetic.backdrops import BACKDROP_KINDS, backdrop, foot_shadow, place_over_backdrops, room
 from mesh2tex.transfer.mask import refine_with_grabcut
 
 
@@ -45,6 +45,35 @@ def test_placed_views_keep_the_object_under_their_mask():
     assert inside > 0.8, "the mask sits on the object's pixels"
     again, _ = place_over_backdrops(image.repeat(6, 1, 1, 1), mask.repeat(6, 1, 1, 1), np.random.default_rng(1))
     assert torch.equal(images, again), "the same generator draws the same placements"
+
+
+def test_rooms_are_drawn_only_when_asked_and_stand_the_object_on_a_floor():
+    image, mask = _framed_object()
+    views, masks = image.repeat(6, 1, 1, 1), mask.repeat(6, 1, 1, 1)
+    plain, _ = place_over_backdrops(views, masks, np.random.default_rng(1))
+    no_rooms, _ = place_over_backdrops(views, masks, np.random.default_rng(1), room_share=0.0)
+    assert torch.equal(plain, no_rooms), "room_share 0 draws what the shipped mask networks learnt from"
+    in_rooms, room_masks = place_over_backdrops(views, masks, np.random.default_rng(1), room_share=1.0)
+    assert not torch.equal(in_rooms, plain)
+    assert in_rooms.min() >= -1 and in_rooms.max() <= 1
+    covered = room_masks[:, 0] > 0.5
+    red = (in_rooms[:, 0] > 0.2) & (in_rooms[:, 1] < -0.2)
+    assert (red & covered).sum() / covered.sum() > 0.8, "the mask sits on the object's pixels"
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        scene, horizon = room(rng, 48)
+        assert scene.shape == (48, 48, 3) and scene.dtype == np.float32
+        assert 0.0 <= scene.min() and scene.max() <= 1.0
+        assert 0 < horizon < 48, "wall above, floor below"
+
+
+def test_thefoot_shadow_darkens_the_floor_under_the_object_only():
+    alpha = torch.zeros(1, 1, 64, 64)
+    alpha[..., 10:40, 20:44] = 1  # the object's foot is row 39
+    factor = foot_shadow(alpha, 0.5)[0, 0]
+    assert factor.shape == (64, 64) and factor.min() >= 0.5 and factor.max() <= 1.0
+    assert factor[40, 32] < 0.9, "dark just under the foot"
+    assert factor[5, 32] == 1.0 and factor[39, 2] > 0.99, "untouched above the object and far to its side"
 
 
 def test_the_loss_prefers_the_true_mask_and_iou_reads_it():

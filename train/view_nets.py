@@ -222,7 +222,7 @@ def network_loss(kind: str, net: torch.nn.Module, batch: dict[str, torch.Tensor]
         return pose_loss(azimuth_logits, elevation_logits, batch["azimuth"], batch["elevation"], cfg.bins)
     if kind == "mask":  # the backdrops come from torch's generator: a resumed run draws what it would have
         images, masks = place_over_backdrops(
-            batch["image"], batch["mask"], np.random.default_rng(int(torch.randint(1 << 62, (1,))))
+            batch["image"], batch["mask"], np.random.default_rng(int(torch.randint(1 << 62, (1,)))), cfg.room_share
         )
         return mask_loss(net(images), masks)
     predicted = net(batch["image"], batch["mask"])
@@ -251,7 +251,7 @@ def validate(
             az, el = net(batch["image"])
             figures = pose_accuracy(az, el, batch["azimuth"], batch["elevation"], cfg.bins)
         elif kind == "mask":
-            images, masks = place_over_backdrops(batch["image"], batch["mask"], backdrops)
+            images, masks = place_over_backdrops(batch["image"], batch["mask"], backdrops, cfg.room_share)
             figures = {"mask_iou": mask_iou(net(images), masks)}
         else:
             figures = {"noc_error": noc_error(net(batch["image"], batch["mask"]), batch["noc"], batch["mask"])}

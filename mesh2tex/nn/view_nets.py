@@ -80,6 +80,9 @@ class ViewTrainConfig:
     device: str = "auto"  # auto, cpu or cuda
     log_every: int = 25  # steps between metrics.jsonl records (with validation figures)
     checkpoint_every: int = 250  # steps between checkpoints (0: only at the end)
+    # mask only: the share of training views placed standing on the floor of a drawn room instead of over a
+    # backdrop (mesh2tex.synthetic.backdrops.room); 0 draws what the networks shipped before rooms learnt from
+    room_share: float = 0.0
     data: ViewDataConfig = field(default_factory=ViewDataConfig)
     bins: PoseBins = field(default_factory=PoseBins)  # pose classes (used by 'pose' only)
 
@@ -88,7 +91,7 @@ class ViewTrainConfig:
             self,
             positive=("lr",),
             at_least={"log_every": 1, "checkpoint_every": 0},
-            between={"width": (1, MAX_CHANNELS)},
+            between={"width": (1, MAX_CHANNELS), "room_share": (0.0, 1.0)},
         )
 
 

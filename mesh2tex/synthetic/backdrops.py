@@ -4,6 +4,8 @@ A user's photo shows the object in front of a wall, a floor, furniture, clutter;
 photos have plain, gradient, noise or blurred-photo backgrounds (:func:`mesh2tex.synthetic.world.random_background`).
 :func:`backdrop` draws sharper and busier ones: crops of the world's background photographs at
 full sharpness, and drawn clutter (rectangles, discs, lines, stripes over a wall colour).
+:func:`room` draws the scene most furniture is photographed in: a wall over a floor that recedes to
+the horizon, the object standing on the floor with a shadow at its foot.
 :func:`place_over_backdrops` puts framed renders of an object at a random size and position over
 them, the training input of the mask network (:mod:`mesh2tex.nn.mask`).
 
@@ -36,6 +38,10 @@ def _colour(rng: np.random.Generator, saturation: float = 0.7) -> np.ndarray:
     return np.array(
         colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.0, saturation), rng.uniform(0.1, 1.0)), dtype=np.float32
     )
+
+
+def _hsv(hue: float, saturation: float, value: float) -> np.ndarray:
+    return np.array(colorsys.hsv_to_rgb(hue, saturation, value), dtype=np.float32)
 
 
 def _clutter(rng: np.random.Generator, size: int) -> np.ndarray:
@@ -87,14 +93,93 @@ def backdrop(rng: np.random.Generator, size: int) -> np.ndarray:
     return np.ascontiguousarray(np.clip(crop * gain, 0.0, 1.0))
 
 
+def _hashed(index: np.ndarray, salt: float) -> np.ndarray:
+    """A fixed pseudo-random value in [0, 1) per integer of ``index`` (a board's or a tile's shade)."""
+    return np.modf(np.abs(np.sin(index * 12.9898 + salt) * 43758.5453))[0].astype(np.float32)
+
+
+def room(rng: np.random.Generator, size: int) -> tuple[np.ndarray, int]:
+    """A room: (size, size, 3) float32 in [0, 1] and the row where the floor begins.
+
+    A painted wall lit from above (plain, striped like wallpaper, or with a picture on it) and a
+    skirting board, over a floor seen in perspective: boards running away from the camera or across
+    it, tiles, or carpet, sometimes under a rug, darker towards the horizon. Drawn at twice the size
+    and averaged down, so the far floor's fine lines do not alias."""
+    import cv2
+
+    big = 2 * size
+    horizon = int(big * rng.uniform(0.2, 0.7))
+    rows = np.arange(big, dtype=np.float32)
+    paint = _hsv(rng.uniform(0, 1), rng.uniform(0.0, 0.3), rng.uniform(0.4, 0.97))
+    image = np.empty((big, big, 3), np.float32)
+    image[:] = paint * (0.8 + 0.2 * (1 - rows / big))[:, None, None]
+    if rng.random() < 0.3:  # wallpaper stripes
+        period = float(rng.uniform(0.02, 0.1) * big)
+        image *= (1 + 0.1 * (np.arange(big) % period < period / 2))[None, :, None].astype(np.float32)
+    if rng.random() < 0.4:  # a picture or a window
+        h, w = (int(v) for v in rng.uniform(0.1, 0.4, 2) * big)
+        top, left = int(rng.integers(0, max(1, horizon - h))), int(rng.integers(0, big - w))
+        source = _photo(BACKGROUND_PHOTOS[int(rng.integers(len(BACKGROUND_PHOTOS)))])
+        picture = cv2.resize(source, (w, min(h, horizon - top)), interpolation=cv2.INTER_AREA) / np.float32(255)
+        image[top : top + picture.shape[0], left : left + w] = picture
+    skirting = max(1, int(big * rng.uniform(0.0, 0.04)))
+    image[max(0, horizon - skirting) : horizon] = _colour(rng, saturation=0.3)
+    # the floor: a plane below the camera; row r lies at a depth proportional to 1 / (r - horizon)
+    below = rows[horizon:, None] - horizon + 0.5
+    across = (np.arange(big, dtype=np.float32)[None, :] - big * np.float32(rng.uniform(0.3, 0.7))) / below
+    depth = np.float32(big) / below
+    if rng.random() < 0.6:  # wood, from pale oak to walnut
+        base = _hsv(rng.uniform(0.04, 0.12), rng.uniform(0.25, 0.7), rng.uniform(0.25, 0.85))
+    else:  # stone, linoleum, carpet: muted
+        base = _hsv(rng.uniform(0, 1), rng.uniform(0.0, 0.4), rng.uniform(0.2, 0.9))
+    pattern = str(rng.choice(["boards", "boards_across", "tiles", "carpet"]))
+    unit = float(rng.uniform(0.05, 0.25))
+    if pattern == "carpet":
+        shade = 1 + 0.08 * rng.standard_normal(across.shape).astype(np.float32)
+    else:
+        index = np.floor((depth if pattern == "boards_across" else across) / unit)
+        shade = 0.8 + 0.35 * _hashed(index, float(rng.uniform(0, 100)))
+        if pattern == "tiles":
+            shade = np.where((index + np.floor(depth / unit)) % 2 == 0, shade, 1.2 - 0.3 * shade)
+    floor = base * (shade * (0.75 + 0.25 * np.minimum(below / big * 3, 1)))[..., None]
+    if rng.random() < 0.3:  # a rug
+        near, far = sorted(rng.uniform(0.5, 6.0, 2))
+        half = float(rng.uniform(0.3, 2.0))
+        on_rug = (depth > near) & (depth < far) & (np.abs(across) < half)
+        floor = np.where(on_rug[..., None], _colour(rng) * shade[..., None], floor)
+    image[horizon:] = floor
+    image = cv2.resize(np.clip(image, 0, 1), (size, size), interpolation=cv2.INTER_AREA)
+    return np.ascontiguousarray(image), horizon // 2
+
+
+def foot_shadow(alpha: torch.Tensor, strength: float) -> torch.Tensor:
+    """The soft shadow an object standing on the floor casts at its foot: a blurred ellipse under the
+    lowest tenth of its mask, as a (1, 1, S, S) factor in [1 - strength, 1] to multiply the floor by."""
+    import cv2
+
+    cover = alpha[0, 0].numpy() > 0.5
+    rows, cols = np.nonzero(cover)
+    shadow = np.zeros(cover.shape, np.float32)
+    if len(rows):
+        height = rows.max() - rows.min() + 1
+        foot = rows >= rows.max() - height // 10
+        centre = (int(cols[foot].mean()), int(rows.max()))
+        axes = (max(1, int(0.6 * (cols.max() - cols.min() + 1))), max(1, int(0.06 * height)))
+        cv2.ellipse(shadow, centre, axes, 0, 0, 360, 1.0, -1)
+        shadow = cv2.GaussianBlur(shadow, (0, 0), max(0.5, 0.03 * height))
+    return torch.from_numpy(1 - strength * shadow)[None, None]
+
+
 def place_over_backdrops(
-    images: torch.Tensor, masks: torch.Tensor, rng: np.random.Generator
+    images: torch.Tensor, masks: torch.Tensor, rng: np.random.Generator, room_share: float = 0.0
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Framed views of objects, each shrunk to a random share of the frame (:data:`SCALE_RANGE`), put at
-    a random place over a fresh :func:`backdrop`, with a random exposure and a little sensor noise.
+    a random place over a fresh :func:`backdrop`, with a random exposure and a little sensor noise; a
+    ``room_share`` of them instead stand on the floor of a :func:`room`, with a shadow at their foot.
 
     images [B, 3, R, R] in [-1, 1]; masks [B, 1, R, R] in {0, 1}. Returns the new images (same shape
-    and range) and their masks (coverage >= 1/2 of the shrunk object).
+    and range) and their masks (coverage >= 1/2 of the shrunk object). ``room_share`` 0 draws exactly
+    what it drew before rooms existed.
     """
     batch, _, size, _ = images.shape
     out_images, out_masks = torch.empty_like(images), torch.empty_like(masks)
@@ -103,9 +188,18 @@ def place_over_backdrops(
         top, left = int(rng.integers(0, size - side + 1)), int(rng.integers(0, size - side + 1))
         rgb = F.interpolate((images[b : b + 1] + 1) / 2, size=(side, side), mode="area")
         cover = F.interpolate(masks[b : b + 1].float(), size=(side, side), mode="area")
-        canvas = torch.from_numpy(backdrop(rng, size)).permute(2, 0, 1)[None].to(images)
+        in_room = room_share > 0 and rng.random() < room_share
+        if in_room:  # the object stands on the floor: its box's foot between the horizon and the frame's foot
+            scene, horizon = room(rng, size)
+            foot = int(rng.integers(min(size, max(side, horizon + size // 20)), size + 1))
+            top = foot - side
+        else:
+            scene = backdrop(rng, size)
+        canvas = torch.from_numpy(scene).permute(2, 0, 1)[None].to(images)
         alpha = torch.zeros_like(canvas[:, :1])
         alpha[..., top : top + side, left : left + side] = cover
+        if in_room:
+            canvas = canvas * foot_shadow(alpha, float(rng.uniform(0.2, 0.6))).to(canvas)
         placed = torch.zeros_like(canvas)
         placed[..., top : top + side, left : left + side] = rgb
         photo = placed * alpha + canvas * (1 - alpha)

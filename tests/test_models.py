@@ -132,6 +132,7 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
     from mesh2tex.train.gan_config import TrainGanConfig
 
     from mesh2tex.config import load_config
+    from mesh2tex.nn.view_nets import ViewTrainConfig
 
     build_model = load_build_model()
     root = Path(__file__).resolve().parents[1]
@@ -151,6 +152,10 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
         assert card["views_gan_iteration"] == recipe["views_gan_iteration"]
         assert card["world"] == build_model.recipe_world(recipe)  # the card's world is the one the recipe prepares
         assert card["gan"]["config"] == gan_config  # and its training settings are the recipe's
+        if "mask" in card:  # so are its mask network's
+            assert card["mask"] == build_model.recipe_mask(recipe)
+            mask_config = build_model.recipe_mask(recipe)["config"]
+            assert load_config(ViewTrainConfig, _yaml(tmp_path / f"{category}_mask.yaml", mask_config)).width > 0
     assert build_model.RECIPES["chair"]["loss"]["diversity_start"] == 3500
 
 
@@ -231,11 +236,23 @@ def test_keep_mask_takes_the_mask_record_of_a_folder_that_has_one_of_the_recipes
     import pytest
 
     build_model = load_build_model()
+    settings = build_model.recipe_mask(build_model.RECIPES["chair"])
     with pytest.raises(SystemExit, match="--keep-mask needs"):
-        build_model.keep_mask_record(tmp_path, 4000)
+        build_model.keep_mask_record(tmp_path, 4000, settings)
     (tmp_path / build_model.MODEL_FILES["mask"]).write_bytes(b"")
-    record = {"mask": build_model.MASK, "mask_iterations": 4000, "mask_training": {"command": "mesh2tex train mask"}}
+    record = {"mask": settings, "mask_iterations": 4000, "mask_training": {"command": "mesh2tex train mask"}}
     (tmp_path / "card.json").write_text(json.dumps(record))
-    assert build_model.keep_mask_record(tmp_path, 4000) == {"mask_training": {"command": "mesh2tex train mask"}}
+    assert build_model.keep_mask_record(tmp_path, 4000, settings) == {
+        "mask_training": {"command": "mesh2tex train mask"}
+    }
     with pytest.raises(SystemExit, match="at 2000 steps"):
-        build_model.keep_mask_record(tmp_path, 2000)
+        build_model.keep_mask_record(tmp_path, 2000, settings)
+    with pytest.raises(SystemExit, match="--keep-mask needs"):  # a mask trained without the recipe's rooms
+        build_model.keep_mask_record(tmp_path, 4000, build_model.MASK)
+
+
+def _yaml(path, contents: dict):
+    import yaml
+
+    path.write_text(yaml.safe_dump(contents))
+    return path

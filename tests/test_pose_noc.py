@@ -130,3 +130,34 @@ def test_silhouette_search_finds_the_pose_the_network_gets_backwards(chair):
     assert estimate.network == (300.0, 25.0)
     assert float(azimuth_error(estimate.azimuth, 133.0)) <= 5.0 and abs(estimate.elevation - 22.0) <= 5.0
     assert estimate.silhouette_iou > estimate.network_silhouette_iou + 0.2
+
+
+def test_where_silhouettes_nearly_tie_the_network_bin_decides_and_where_they_differ_the_silhouettes_do():
+    """A long box with a small block on one end looks almost the same turned half round (as a car does):
+    the search keeps to the network's confident bin when the best silhouette there is within
+    ``pose_search_tie`` of the best anywhere, and follows the silhouettes when told to (a negative tie)."""
+    import dataclasses
+
+    import trimesh
+
+    from mesh2tex.geometry.prepare import prepare_shape
+    from mesh2tex.transfer import Photo, PoseBeliefs, TransferConfig, search_pose, view_at_pose
+
+    body = trimesh.creation.box((1.0, 0.3, 0.4))
+    on_one_end = trimesh.transformations.translation_matrix((0.4, 0.2, 0))
+    block = trimesh.creation.box((0.12, 0.12, 0.12), transform=on_one_end)
+    mesh = trimesh.util.concatenate([body, block])
+    shape = prepare_shape(mesh.vertices, mesh.faces, face_count=384, levels=2, seed=0)
+    cfg = TransferConfig(resolution=64)
+    photo = Photo(image=torch.zeros(1, 3, 64, 64), mask=view_at_pose(shape, 40.0, 20.0, 1.7, 40.0, cfg).mask)
+    bins = PoseBins()
+    azimuth = torch.full((bins.azimuth_bins,), 0.01)
+    azimuth[int(bins.azimuth_to_bin(220.0))] = 0.9  # sure of the half turn
+    elevation = torch.full((bins.elevation_bins,), 0.05)
+    elevation[int(bins.elevation_to_bin(20.0))] = 0.8
+    beliefs = PoseBeliefs(bins, azimuth, elevation)
+    silhouettes = search_pose(shape, photo, beliefs, 1.7, 40.0, dataclasses.replace(cfg, pose_search_tie=-1.0))
+    assert float(azimuth_error(silhouettes.azimuth, 40.0)) <= 10.0, "the block tells the ends apart, a little"
+    kept = search_pose(shape, photo, beliefs, 1.7, 40.0, dataclasses.replace(cfg, pose_search_tie=0.2))
+    assert float(azimuth_error(kept.azimuth, 220.0)) <= 15.0, "within the tie, the network's bin decides"
+    assert kept.silhouette_iou >= silhouettes.silhouette_iou - 0.2

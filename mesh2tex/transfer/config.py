@@ -89,6 +89,10 @@ class TransferConfig:
     # azimuth spacing of the silhouette search in degrees (then one finer pass at half of it)
     pose_search_step: float = 10.0
     pose_search_elevations: int = 2  # elevation bins searched: the network's most likely ones
+    # the search keeps to the pose network's most likely azimuth bin when the best silhouette there is within this
+    # much IoU of the best anywhere: a car's outline barely tells its front from its back, the network mostly can
+    # (negative: silhouettes alone decide)
+    pose_search_tie: float = 0.02
     # an estimated mask is made again by GrabCut from the mesh's outline at the found pose, and the pose found
     # again
     mask_refine: bool = True

@@ -119,7 +119,9 @@ def search_pose(
     likely bins); every azimuth ``pose_search_step`` degrees apart is tried with each, then the
     best one's neighbours at half the step in both angles. Silhouettes tell a chair's front from its
     back where the network, trained on few shapes, often does not (docs/style_and_pose.md has figures);
-    on ties the network's more likely bin wins. photo: image (1, 3, R, R), mask (1, 1, R, R).
+    where they barely do (a car seen from the front or the back), the network's most likely azimuth
+    bin is kept: its best pose wins if its IoU is within ``pose_search_tie`` of the best anywhere.
+    photo: image (1, 3, R, R), mask (1, 1, R, R).
     """
     check_photo(photo, "search_pose")
     check_type(beliefs, "search_pose: beliefs", PoseBeliefs)
@@ -127,16 +129,24 @@ def search_pose(
     check_shape(beliefs.elevation, "search_pose: beliefs.elevation", ("E",), dtype="float")
     bins, step = beliefs.bins, float(cfg.pose_search_step)
 
-    def best_of(azimuths: torch.Tensor, elevations: torch.Tensor) -> tuple[float, float, float]:
+    def best_of(azimuths: torch.Tensor, elevations: torch.Tensor, keep_bin: bool = False) -> tuple[float, float, float]:
         iou = silhouette_iou(shape, photo.mask, azimuths, elevations, distance, fov, cfg.margin)
         prior = beliefs.azimuth[bins.azimuth_to_bin(azimuths)] * beliefs.elevation[bins.elevation_to_bin(elevations)]
-        best = int(torch.argmax(iou + 1e-6 * prior))  # the prior only breaks ties
+        score = iou + 1e-6 * prior  # the prior only breaks exact ties
+        best = int(torch.argmax(score))
+        in_bin = bins.azimuth_to_bin(azimuths) == int(beliefs.azimuth.argmax())
+        if keep_bin and in_bin.any():
+            local = int(torch.argmax(torch.where(in_bin, score, torch.tensor(-1.0))))
+            if iou[local] >= iou[best] - cfg.pose_search_tie:
+                best = local
         return float(azimuths[best]), float(elevations[best]), float(iou[best])
 
     order = beliefs.elevation.argsort(descending=True)[: max(1, cfg.pose_search_elevations)]
     elevations = bins.bin_to_elevation(order).float()
     azimuths = torch.arange(0.0, 360.0, step)
-    best_az, best_el, _ = best_of(azimuths.repeat(len(elevations)), elevations.repeat_interleave(len(azimuths)))
+    best_az, best_el, _ = best_of(
+        azimuths.repeat(len(elevations)), elevations.repeat_interleave(len(azimuths)), keep_bin=True
+    )
     offsets = torch.tensor([-0.5, 0.0, 0.5]) * step
     best_az, best_el, best_iou = best_of(
         (best_az + offsets).repeat(3) % 360.0, (best_el + offsets).repeat_interleave(3)

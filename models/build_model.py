@@ -467,11 +467,7 @@ def main() -> None:
         + f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
         f"{card['views_gan_iteration']} and half by the world's procedural materials; mask: {args.mask_iters} steps on "
         f"{MASK['resolution']} px views placed over backdrops"
-        + (
-            f" ({mask_settings['config']['room_share']:.0%} of them in drawn rooms)"
-            if "room_share" in recipe.get("mask", {})
-            else ""
-        )
+        + (f" ({rooms:.0%} of them in drawn rooms)" if (rooms := mask_settings["config"].get("room_share")) else "")
         + "\n"
         f"- Hardware of this build: {card['hardware']}" + (f"; {args.note}" if args.note else "") + "\n"
         f"- Rebuild from nothing: `{rebuild}`\n\n## Commands\n\n```\n"

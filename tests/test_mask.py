@@ -67,7 +67,7 @@ def test_rooms_are_drawn_only_when_asked_and_stand_the_object_on_a_floor():
         assert 0 < horizon < 48, "wall above, floor below"
 
 
-def test_thefoot_shadow_darkens_the_floor_under_the_object_only():
+def test_the_foot_shadow_darkens_the_floor_under_the_object_only():
     alpha = torch.zeros(1, 1, 64, 64)
     alpha[..., 10:40, 20:44] = 1  # the object's foot is row 39
     factor = foot_shadow(alpha, 0.5)[0, 0]

@@ -154,10 +154,11 @@ def room(rng: np.random.Generator, size: int) -> tuple[np.ndarray, int]:
 
 def foot_shadow(alpha: torch.Tensor, strength: float) -> torch.Tensor:
     """The soft shadow an object standing on the floor casts at its foot: a blurred ellipse under the
-    lowest tenth of its mask, as a (1, 1, S, S) factor in [1 - strength, 1] to multiply the floor by."""
+    lowest tenth of its mask alpha (1, 1, S, S), as a (1, 1, S, S) CPU factor in [1 - strength, 1] to
+    multiply the floor by."""
     import cv2
 
-    cover = alpha[0, 0].numpy() > 0.5
+    cover = alpha[0, 0].detach().cpu().numpy() > 0.5  # the views may be on a GPU
     rows, cols = np.nonzero(cover)
     shadow = np.zeros(cover.shape, np.float32)
     if len(rows):

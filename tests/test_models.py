@@ -152,10 +152,13 @@ def test_each_rebuild_recipe_is_a_valid_gan_config_and_matches_its_card(tmp_path
         assert card["views_gan_iteration"] == recipe["views_gan_iteration"]
         assert card["world"] == build_model.recipe_world(recipe)  # the card's world is the one the recipe prepares
         assert card["gan"]["config"] == gan_config  # and its training settings are the recipe's
-        if "mask" in card:  # so are its mask network's
-            assert card["mask"] == build_model.recipe_mask(recipe)
-            mask_config = build_model.recipe_mask(recipe)["config"]
-            assert load_config(ViewTrainConfig, _yaml(tmp_path / f"{category}_mask.yaml", mask_config)).width > 0
+        if "mask" in card:  # so are its mask network's, and they load as a train mask config
+            mask_settings = build_model.recipe_mask(recipe)
+            assert card["mask"] == mask_settings
+            written = tmp_path / f"{category}_mask.yaml"
+            written.write_text(yaml.safe_dump(mask_settings["config"]))
+            loaded = load_config(ViewTrainConfig, written)
+            assert loaded.room_share == mask_settings["config"].get("room_share", 0.0)
     assert build_model.RECIPES["chair"]["loss"]["diversity_start"] == 3500
 
 
@@ -249,10 +252,3 @@ def test_keep_mask_takes_the_mask_record_of_a_folder_that_has_one_of_the_recipes
         build_model.keep_mask_record(tmp_path, 2000, settings)
     with pytest.raises(SystemExit, match="--keep-mask needs"):  # a mask trained without the recipe's rooms
         build_model.keep_mask_record(tmp_path, 4000, build_model.MASK)
-
-
-def _yaml(path, contents: dict):
-    import yaml
-
-    path.write_text(yaml.safe_dump(contents))
-    return path

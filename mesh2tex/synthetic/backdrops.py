@@ -34,14 +34,12 @@ def _photo(name: str) -> np.ndarray:
     return background_photo(name)
 
 
-def _colour(rng: np.random.Generator, saturation: float = 0.7) -> np.ndarray:
-    return np.array(
-        colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.0, saturation), rng.uniform(0.1, 1.0)), dtype=np.float32
-    )
-
-
 def _hsv(hue: float, saturation: float, value: float) -> np.ndarray:
     return np.array(colorsys.hsv_to_rgb(hue, saturation, value), dtype=np.float32)
+
+
+def _colour(rng: np.random.Generator, saturation: float = 0.7) -> np.ndarray:
+    return _hsv(rng.uniform(0, 1), rng.uniform(0.0, saturation), rng.uniform(0.1, 1.0))
 
 
 def _clutter(rng: np.random.Generator, size: int) -> np.ndarray:

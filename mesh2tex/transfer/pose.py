@@ -131,10 +131,11 @@ def search_pose(
 
     def best_of(azimuths: torch.Tensor, elevations: torch.Tensor, keep_bin: bool = False) -> tuple[float, float, float]:
         iou = silhouette_iou(shape, photo.mask, azimuths, elevations, distance, fov, cfg.margin)
-        prior = beliefs.azimuth[bins.azimuth_to_bin(azimuths)] * beliefs.elevation[bins.elevation_to_bin(elevations)]
+        azimuth_bins = bins.azimuth_to_bin(azimuths)
+        prior = beliefs.azimuth[azimuth_bins] * beliefs.elevation[bins.elevation_to_bin(elevations)]
         score = iou + 1e-6 * prior  # the prior only breaks exact ties
         best = int(torch.argmax(score))
-        in_bin = bins.azimuth_to_bin(azimuths) == int(beliefs.azimuth.argmax())
+        in_bin = azimuth_bins == int(beliefs.azimuth.argmax())
         if keep_bin and in_bin.any():
             local = int(torch.argmax(torch.where(in_bin, score, torch.tensor(-1.0))))
             if iou[local] >= iou[best] - cfg.pose_search_tie:

@@ -110,3 +110,39 @@ def test_vertex_indices_out_of_range_are_refused(bad):
     pos = torch.tensor([[0.0, 0.0, 0.5, 1.0], [0.5, 0.0, 0.5, 1.0], [0.0, 0.5, 0.5, 1.0]])
     with pytest.raises(ValueError, match="vertex indices"):
         rasterize(pos, torch.tensor(bad), (8, 8))
+
+
+@pytest.mark.parametrize("far", [3.0e9, 1.0e14, 1.0e20])
+def test_corners_far_outside_the_image_are_clamped_before_their_bounds_become_integers(monkeypatch, far):
+    """The loop rounds and clamps each corner's box bounds in float32 before converting them: a
+    triangle reaching billions of pixels past the image (or past float32's integers) covers what the
+    vectorised passes cover."""
+    corners = [[-far, -0.3, 0.2], [far, -0.2, 0.4], [0.1, far, 0.5], [0.3, 0.4, 0.1], [-0.5, 0.6, 0.3]]
+    pos = torch.tensor([[[x, y, z, 1.0] for x, y, z in corners]])
+    faces = torch.tensor([[0, 1, 2], [0, 3, 4], [1, 3, 4]])
+    compiled, vectorised = both_paths(monkeypatch, pos, faces, (48, 40))
+    assert compiled.mask.any()
+    assert_bitwise(compiled, vectorised)
+
+
+def test_a_set_up_held_from_one_call_is_not_overwritten_by_the_next(meshes):
+    """The loop hands its set-up arrays out again on the next call only when nothing holds a view of
+    them; a caller keeping one call's set-ups sees them unchanged after another call."""
+    vertices, faces = meshes["scan"]
+    camera = orbit_camera(torch.tensor([30.0, 200.0]), torch.tensor([20.0, -15.0]), distance=1.6, fov=45.0)
+    pos = transform_points(vertices, camera.mvp)
+
+    def call(p):
+        buffer = binning.DepthBuffer(p.shape[0], (64, 64), (binning.WHOLE, binning.WHOLE), faces.shape[0], "cpu")
+        return kernels.rasterize_views(p, faces, (64, 64), False, buffer)
+
+    first = call(pos[:1])
+    kept = [t.clone() for t in first]
+    second = call(pos[1:])  # another view: other set-ups
+    assert not torch.equal(first[0], second[0])
+    for held, copy in zip(first, kept):
+        assert torch.equal(held, copy)
+    del first, second
+    again = call(pos[:1])  # nothing held now: the arrays may be reused, the result is the same
+    for result, copy in zip(again, kept):
+        assert torch.equal(result, copy)

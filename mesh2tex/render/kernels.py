@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import math
 import os
+import sys
+import threading
 
 import numpy as np
 import torch
@@ -77,15 +79,21 @@ def available() -> bool:
 def _box(x0, x1, x2, y0, y1, y2, H, W):
     """Pixel box (row0, col0, rows, cols) of one triangle in front of the near plane from the float32
     NDC x, y of its corners, as ``rasterize._pixel_boxes``; rows * cols = 0 when it draws nothing."""
-    one, half = np.float32(1.0), np.float32(0.5)
+    one, half, zero, last = np.float32(1.0), np.float32(0.5), np.float32(0.0), np.float32(-1.0)
     x_min, x_max = _min3(x0, x1, x2), _max3(x0, x1, x2)
     y_min, y_max = _min3(y0, y1, y2), _max3(y0, y1, y2)
     if not math.isfinite(((x_min + x_max) + y_min) + y_max):
         return 0, 0, 0, 0
-    col_lo = min(max(math.ceil(((x_min + one) * np.float32(W) - one) * half - _BOX_MARGIN), 0), W)
-    col_hi = min(max(math.floor(((x_max + one) * np.float32(W) - one) * half + _BOX_MARGIN), -1), W - 1)
-    row_lo = min(max(math.ceil(((one - y_max) * np.float32(H) - one) * half - _BOX_MARGIN), 0), H)
-    row_hi = min(max(math.floor(((one - y_min) * np.float32(H) - one) * half + _BOX_MARGIN), -1), H - 1)
+    # Clamped in float32 before the conversion, as the vectorised passes clamp: a corner far outside
+    # the image (NDC 1e20) is beyond int64's range until it is clamped.
+    col = np.ceil(((x_min + one) * np.float32(W) - one) * half - _BOX_MARGIN)
+    col_lo = np.int64(min(max(col, zero), np.float32(W)))
+    col = np.floor(((x_max + one) * np.float32(W) - one) * half + _BOX_MARGIN)
+    col_hi = np.int64(min(max(col, last), np.float32(W - 1)))
+    row = np.ceil(((one - y_max) * np.float32(H) - one) * half - _BOX_MARGIN)
+    row_lo = np.int64(min(max(row, zero), np.float32(H)))
+    row = np.floor(((one - y_min) * np.float32(H) - one) * half + _BOX_MARGIN)
+    row_hi = np.int64(min(max(row, last), np.float32(H - 1)))
     return row_lo, col_lo, max(row_hi - row_lo + 1, 0), max(col_hi - col_lo + 1, 0)
 
 
@@ -95,22 +103,17 @@ _PLAIN_NDC = np.float32(1e15)
 
 
 @_jit
-def _vertex_bounds(x, y, H, W, out):
-    """One vertex's share of :func:`_box`, from its float32 NDC x, y: out (4,) int32 = (first row,
-    last row, first column, last column) it allows, each clamped as the box clamps it; out[0] = -2
-    when the vertex is not plain (NaN, infinite or beyond :data:`_PLAIN_NDC`), for :func:`_box`.
-
-    Exact: every float32 operation of the box's bounds (add, multiply, ceil, floor, the clamps) is
-    monotone, so the bound of the triangle's extreme vertex is the extreme of its vertices' bounds:
-    a triangle's box is (min out[0], max out[1], min out[2], max out[3]) over its corners."""
-    one, half = np.float32(1.0), np.float32(0.5)
+def _vertex_bounds(x, y, H, W, bounds, v):
+    one, half, zero, last = np.float32(1.0), np.float32(0.5), np.float32(0.0), np.float32(-1.0)
     if not (abs(x) < _PLAIN_NDC and abs(y) < _PLAIN_NDC):
-        out[0] = -2
+        bounds[v, 0] = -2
         return
-    out[2] = min(max(math.ceil(((x + one) * np.float32(W) - one) * half - _BOX_MARGIN), 0), W)
-    out[3] = min(max(math.floor(((x + one) * np.float32(W) - one) * half + _BOX_MARGIN), -1), W - 1)
-    out[0] = min(max(math.ceil(((one - y) * np.float32(H) - one) * half - _BOX_MARGIN), 0), H)
-    out[1] = min(max(math.floor(((one - y) * np.float32(H) - one) * half + _BOX_MARGIN), -1), H - 1)
+    col = ((x + one) * np.float32(W) - one) * half
+    row = ((one - y) * np.float32(H) - one) * half
+    bounds[v, 2] = np.int32(min(max(np.ceil(col - _BOX_MARGIN), zero), np.float32(W)))
+    bounds[v, 3] = np.int32(min(max(np.floor(col + _BOX_MARGIN), last), np.float32(W - 1)))
+    bounds[v, 0] = np.int32(min(max(np.ceil(row - _BOX_MARGIN), zero), np.float32(H)))
+    bounds[v, 1] = np.int32(min(max(np.floor(row + _BOX_MARGIN), last), np.float32(H - 1)))
 
 
 @_jit
@@ -123,7 +126,7 @@ def _view_vertices(pos, view, H, W, ndc_x, ndc_y, ahead, bounds):
         x32, y32 = np.float32(pos[view, v, 0]), np.float32(pos[view, v, 1])
         z32, w32 = np.float32(pos[view, v, 2]), np.float32(pos[view, v, 3])
         ndc_x[v], ndc_y[v], ahead[v] = x32 / w32, y32 / w32, z32 + w32 >= 0
-        _vertex_bounds(ndc_x[v], ndc_y[v], H, W, bounds[v])
+        _vertex_bounds(ndc_x[v], ndc_y[v], H, W, bounds, v)
         all_ahead = all_ahead and ahead[v]
     return all_ahead
 
@@ -133,13 +136,12 @@ def _triangle_box(i0, i1, i2, bounds, ndc_x, ndc_y, H, W):
     """The pixel box (row0, col0, rows, cols) of the triangle of vertices i0, i1, i2, as :func:`_box`.
     Most pairs of a fine mesh cover no pixel centre: they are rejected from the vertices' integer
     bounds; a vertex that is not plain sends the triangle to the float box and its finiteness test."""
-    b0, b1, b2 = bounds[i0], bounds[i1], bounds[i2]
-    row0 = min(b0[0], b1[0], b2[0])
+    row0 = min(bounds[i0, 0], bounds[i1, 0], bounds[i2, 0])
     if row0 < 0:
         return _box(ndc_x[i0], ndc_x[i1], ndc_x[i2], ndc_y[i0], ndc_y[i1], ndc_y[i2], H, W)
-    col0 = min(b0[2], b1[2], b2[2])
-    rows = max(max(b0[1], b1[1], b2[1]) - row0 + 1, 0)
-    cols = max(max(b0[3], b1[3], b2[3]) - col0 + 1, 0)
+    col0 = min(bounds[i0, 2], bounds[i1, 2], bounds[i2, 2])
+    rows = max(max(bounds[i0, 1], bounds[i1, 1], bounds[i2, 1]) - row0 + 1, 0)
+    cols = max(max(bounds[i0, 3], bounds[i1, 3], bounds[i2, 3]) - col0 + 1, 0)
     return np.int64(row0), np.int64(col0), np.int64(rows), np.int64(cols)
 
 
@@ -340,6 +342,35 @@ def _scaled(p, scale, rebase, off_r, off_c, q):
         q[8 + i] *= scale[i]
 
 
+# Per thread, the arrays the loop wrote its set-ups into on that thread's last call (see _setups_scratch).
+_SCRATCH = threading.local()
+# Pairs beyond which a call's arrays are not kept for the next (121 bytes a pair: 2**20 pairs, 127 MB).
+_SCRATCH_PAIRS = 2**20
+
+
+def _setups_scratch(pairs: int):
+    """Arrays for the set-ups of up to ``pairs`` (view, triangle) pairs: live (N,) int64, box (N,2)
+    int64, params (N,12) float64 (row-major: a set-up's planes are written together, strided writes
+    to twelve (12, N) rows cost a third of the loop), front (N,) bool.
+
+    The last call's arrays are handed out again when they are large enough and nothing holds a view
+    of them (the rasterizer drops its views before it returns): fresh pages cost a page fault each,
+    about a tenth of an 8-view call on a 100k-triangle mesh. Calls beyond _SCRATCH_PAIRS pairs get
+    their own arrays, so a large render leaves no large arrays behind."""
+    held = getattr(_SCRATCH, "arrays", None)
+    # getrefcount sees the tuple's reference, the loop variable's and its own argument: 3 means no view
+    if held is not None and held[0].shape[0] >= pairs and all(sys.getrefcount(a) == 3 for a in held):
+        return held
+    arrays = (
+        np.empty(pairs, dtype=np.int64),
+        np.empty((pairs, 2), dtype=np.int64),
+        np.empty((pairs, 12)),
+        np.empty(pairs, dtype=np.bool_),
+    )
+    _SCRATCH.arrays = arrays if pairs <= _SCRATCH_PAIRS else None
+    return arrays
+
+
 def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backfaces: bool, buffer):
     """Draw every (view, triangle) pair into ``buffer`` (a CPU
     :class:`~mesh2tex.render.binning.DepthBuffer`); its band pixels go to ``buffer.undecided``.
@@ -360,13 +391,7 @@ def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backf
         raise ValueError(
             f"rasterize: tri holds vertex indices {faces.min()}..{faces.max()}, pos has {positions.shape[1]} vertices"
         )
-    N = positions.shape[0] * faces.shape[0]
-    live = np.empty(N, dtype=np.int64)
-    box = np.empty((N, 2), dtype=np.int64)
-    # Row-major: a set-up's planes are written together (strided writes to twelve (12, N) rows
-    # cost a third of the loop); returned as a (12, L) view of the rows.
-    params = np.empty((N, 12))
-    front = np.empty(N, dtype=np.bool_)
+    live, box, params, front = _setups_scratch(positions.shape[0] * faces.shape[0])
     capacity = BAND_CAPACITY
     keys = buffer.keys.numpy()  # shares memory: updated in place
     view_stride = buffer.shape[1] * buffer.row_stride

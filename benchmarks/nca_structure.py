@@ -77,12 +77,14 @@ SIZE = 128  # exemplar pixels over the unit square of its pattern
 
 
 def train_model(exemplar: torch.Tensor, loss: str, iters: int, seed: int, graph, vgg, save: Path | None):
-    """An automaton trained ``iters`` iterations of ``train nca``'s loop with the style loss ``loss``."""
+    """An automaton trained ``iters`` iterations of ``train nca``'s loop with the style loss ``loss``
+    (a name of STYLE_LOSSES, or NAME+colourW: with ``colour_weight`` W, e.g. ``patch+colour1``)."""
     timing = save.with_suffix(".json") if save is not None else None
     if save is not None and save.is_file():
         model, _, _ = load_nca(save)
         return model, json.loads(timing.read_text())["train_seconds"] if timing.is_file() else math.nan
-    cfg = TrainNCAConfig(seed=seed, iters=iters, style_loss=loss)
+    name, _, weight = loss.partition("+colour")
+    cfg = TrainNCAConfig(seed=seed, iters=iters, style_loss=name, colour_weight=float(weight or 0))
     with tempfile.TemporaryDirectory() as tmp:
         trainer = NCATrainer(cfg, exemplar, graph, runs.RunDirectory(tmp), torch.device("cpu"), vgg)
         start = time.perf_counter()
@@ -190,7 +192,11 @@ def main() -> int:
         "--exemplars", nargs="+", default=["stripes", "checker", "bricks", "dots", "brick", "grass", "gravel"]
     )
     parser.add_argument(
-        "--losses", nargs="*", default=["ot", "sw", "ps"], help="none: only the oracle and baseline rows"
+        "--losses",
+        nargs="*",
+        default=["ot", "sw", "ps"],
+        help="automaton rows by style loss, NAME+colourW with colour_weight W (patch+colour1); "
+        "none: only the oracle and baseline rows",
     )
     parser.add_argument(
         "--iters", type=int, default=150, help="training iterations per model (train nca's default is 1500)"

@@ -308,3 +308,21 @@ def test_infer_nca_hands_back_the_users_mesh(nca_files, tmp_path):
         json.loads(header[20 : 20 + int.from_bytes(header[12:16], "little")])["nodes"][0]["rotation"]
         == Z_UP_NODE_ROTATION
     )
+
+
+def test_the_palette_term_is_added_to_the_loss_and_logged(nca_files):
+    """``colour_weight`` adds the sliced Wasserstein distance of the renders' pixels to the exemplar's;
+    at 0 (the default) the log has no such term."""
+    (nca_files / "colour.yaml").write_text(yaml.safe_dump({**TINY_NCA_RUN, "colour_weight": 2.0}))
+    out = nca_files / "colour"
+    assert train(nca_files, out, "--config", str(nca_files / "colour.yaml")) == 0
+    lines = [json.loads(l) for l in (out / "metrics.jsonl").read_text().splitlines()]
+    overflow_weight = TINY_NCA_RUN.get("overflow_weight", 10.0)
+    for line in lines:
+        assert line["loss_colour"] > 0
+        expected = line["loss_style"] + 2.0 * line["loss_colour"] + overflow_weight * line["loss_overflow"]
+        assert line["loss"] == pytest.approx(expected, rel=1e-4, abs=1e-5)
+    if not (nca_files / "straight").is_dir():
+        assert train(nca_files, nca_files / "straight") == 0
+    plain = [json.loads(l) for l in (nca_files / "straight" / "metrics.jsonl").read_text().splitlines()]
+    assert all("loss_colour" not in line for line in plain)

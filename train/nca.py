@@ -65,6 +65,9 @@ class TrainNCAConfig:
     vgg_depth: int = 4  # VGG19 style layers used (relu1_2 ... relu4_4; 0: RGB only); unused by ps and patch
     max_points: int = 1024  # feature positions per set in the OT and sw losses; patches per octave in patch
     overflow_weight: float = 10.0  # weight of the overflow penalty
+    # weight of the sliced Wasserstein distance of the rendered pixels' RGB to the exemplar's (the joint
+    # palette), added to the style loss; 0: off (ot and gram match colour moments of their own)
+    colour_weight: float = 0.0
     lr: float = 1e-3  # Adam learning rate
     lr_milestones: list[float] = field(default_factory=lambda: [0.5, 0.8])  # fractions of iters where the rate drops
     lr_gamma: float = 0.3  # the drop
@@ -93,6 +96,7 @@ class TrainNCAConfig:
                 "sample_every": 0,
                 "checkpoint_every": 0,
                 "overflow_weight": 0,
+                "colour_weight": 0,
             },
             between={
                 "vgg_depth": (0, 5),
@@ -195,6 +199,7 @@ class NCATrainer:
         self.graph = graph.to(device)
         depth = cfg.vgg_depth if needs_vgg(cfg.style_loss) else 0
         self.exemplar = ExemplarFeatures.compute(vgg, exemplar.to(device), depth)
+        self.palette = ExemplarFeatures.compute(None, exemplar.to(device), 0) if cfg.colour_weight else None
         # here, not earlier: loading VGG may or may not draw random numbers (it is cached)
         runs.seed_everything(cfg.seed)
         self.model = MeshNCA(cfg.nca).to(device)
@@ -228,10 +233,15 @@ class NCATrainer:
         style = style_loss(
             self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator
         )
+        colour = torch.zeros((), device=self.device)
+        if self.palette is not None:  # drawn only when on, so that the random stream is otherwise unchanged
+            colour = style_loss(None, views.images, views.mask, self.palette, "sw", cfg.max_points, self.generator)
         overflow = overflow_penalty(state, self.model.vertex_colours(state))
-        loss = style + cfg.overflow_weight * overflow
+        loss = style + cfg.colour_weight * colour + cfg.overflow_weight * overflow
         # before any update
-        runs.check_finite({"loss": loss, "loss_style": style, "loss_overflow": overflow}, self.iteration)
+        runs.check_finite(
+            {"loss": loss, "loss_style": style, "loss_colour": colour, "loss_overflow": overflow}, self.iteration
+        )
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         with torch.no_grad():  # per-parameter gradient normalisation (as texture NCAs train)
@@ -245,6 +255,7 @@ class NCATrainer:
             "loss": float(loss.detach()),
             "loss_style": float(style.detach()),
             "loss_overflow": float(overflow.detach()),
+            **({"loss_colour": float(colour.detach())} if self.palette is not None else {}),
             "steps": steps,
             "lr": self.learning_rate(self.iteration - 1),
         }
@@ -376,7 +387,8 @@ def run(args) -> int:
         cfg.nca, parent = load_parent(args.parent)
     vertices, faces = load_surface(cfg.mesh)
     graph = build_cell_graph(vertices, faces, cfg.nca.neighbourhood)
-    vgg = load_vgg19(args.vgg_weights, device=device)
+    # ps and patch need no network: no warning that its weights are missing (its source is still recorded)
+    vgg = load_vgg19(args.vgg_weights, device=device, warn=needs_vgg(cfg.style_loss))
     trainer = NCATrainer(
         cfg, exemplar, graph, run_dir, device, vgg, parent=parent, cell_spacing=mean_edge_length(vertices, faces)
     )

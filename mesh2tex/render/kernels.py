@@ -104,6 +104,15 @@ _PLAIN_NDC = np.float32(1e15)
 
 @_jit
 def _vertex_bounds(x, y, H, W, bounds, v):
+    """One vertex's share of :func:`_box`, from its float32 NDC x, y: bounds[v] (4,) int32 = (first row,
+    last row, first column, last column) it allows, each clamped as the box clamps it; bounds[v, 0] =
+    -2 when the vertex is not plain (NaN, infinite or beyond :data:`_PLAIN_NDC`), for :func:`_box`.
+
+    Exact: every float32 operation of the box's bounds (add, multiply, ceil, floor, the clamps) is
+    monotone, so the bound of the triangle's extreme vertex is the extreme of its vertices' bounds:
+    a triangle's box is (min bounds[:, 0], max [:, 1], min [:, 2], max [:, 3]) over its corners.
+    Rounded and clamped in float32, where the clamps' small integers are exact, then converted: the
+    same integers as math.ceil and floor give, whose conversion to int64 cost 3x the rest of the pass."""
     one, half, zero, last = np.float32(1.0), np.float32(0.5), np.float32(0.0), np.float32(-1.0)
     if not (abs(x) < _PLAIN_NDC and abs(y) < _PLAIN_NDC):
         bounds[v, 0] = -2
@@ -355,11 +364,11 @@ def _setups_scratch(pairs: int):
 
     The last call's arrays are handed out again when they are large enough and nothing holds a view
     of them (the rasterizer drops its views before it returns): fresh pages cost a page fault each,
-    about a tenth of an 8-view call on a 100k-triangle mesh. Calls beyond _SCRATCH_PAIRS pairs get
+    about 2 ms of a 25 ms 8-view call on a 100k-triangle mesh. Calls beyond _SCRATCH_PAIRS pairs get
     their own arrays, so a large render leaves no large arrays behind."""
     held = getattr(_SCRATCH, "arrays", None)
-    # getrefcount sees the tuple's reference, the loop variable's and its own argument: 3 means no view
-    if held is not None and held[0].shape[0] >= pairs and all(sys.getrefcount(a) == 3 for a in held):
+    # A view of an array holds a reference to it: reuse only at the count measured when nothing did.
+    if held is not None and held[0].shape[0] >= pairs and _references(held) == _SCRATCH.unheld:
         return held
     arrays = (
         np.empty(pairs, dtype=np.int64),
@@ -368,7 +377,13 @@ def _setups_scratch(pairs: int):
         np.empty(pairs, dtype=np.bool_),
     )
     _SCRATCH.arrays = arrays if pairs <= _SCRATCH_PAIRS else None
+    _SCRATCH.unheld = _references(arrays)  # measured the same way as the check, whatever the interpreter counts
     return arrays
+
+
+def _references(arrays) -> list[int]:
+    """Each array's reference count, as :func:`_setups_scratch` compares them."""
+    return [sys.getrefcount(array) for array in arrays]
 
 
 def rasterize_views(pos: torch.Tensor, tri: torch.Tensor, resolution, cull_backfaces: bool, buffer):

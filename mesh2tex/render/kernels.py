@@ -57,6 +57,12 @@ BAND_CAPACITY = 4096
 # Compiled lazily, on first call; plain Python (unused) where numba is missing.
 # error_model "numpy": a division by zero gives inf or NaN, as in torch, instead of raising.
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy") if numba is not None else (lambda function: function)
+# The box's small steps, inlined where they are used (the vertex pass runs them for every vertex of every view).
+_jit_inline = (
+    numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+    if numba is not None
+    else (lambda function: function)
+)
 
 if numba is not None:
 
@@ -75,25 +81,44 @@ def available() -> bool:
     return numba is not None and os.environ.get("MESH2TEX_RASTER_KERNEL", "numba") != "torch"
 
 
+@_jit_inline
+def _first_centre(coordinate, size):
+    """The first pixel centre at or after a float32 pixel coordinate (less the box margin), clamped to
+    [0, size]. Rounded and clamped in float32, where the clamps' small integers are exact, then
+    converted: a corner far outside the image (NDC 1e20) is beyond int64's range until it is clamped,
+    and numba's math.ceil on a float32 converts to int64 at 3x the cost of the rest."""
+    return np.int64(min(max(np.ceil(coordinate - _BOX_MARGIN), np.float32(0.0)), np.float32(size)))
+
+
+@_jit_inline
+def _last_centre(coordinate, size):
+    """The last pixel centre at or before a float32 pixel coordinate (plus the box margin), clamped to
+    [-1, size - 1], as :func:`_first_centre`."""
+    return np.int64(min(max(np.floor(coordinate + _BOX_MARGIN), np.float32(-1.0)), np.float32(size - 1)))
+
+
+@_jit_inline
+def _pixel_col(x, W):
+    """Float32 pixel column of NDC x (pixel centres at the integers)."""
+    return ((x + np.float32(1.0)) * np.float32(W) - np.float32(1.0)) * np.float32(0.5)
+
+
+@_jit_inline
+def _pixel_row(y, H):
+    """Float32 pixel row of NDC y (pixel centres at the integers, row 0 at the top)."""
+    return ((np.float32(1.0) - y) * np.float32(H) - np.float32(1.0)) * np.float32(0.5)
+
+
 @_jit
 def _box(x0, x1, x2, y0, y1, y2, H, W):
     """Pixel box (row0, col0, rows, cols) of one triangle in front of the near plane from the float32
     NDC x, y of its corners, as ``rasterize._pixel_boxes``; rows * cols = 0 when it draws nothing."""
-    one, half, zero, last = np.float32(1.0), np.float32(0.5), np.float32(0.0), np.float32(-1.0)
     x_min, x_max = _min3(x0, x1, x2), _max3(x0, x1, x2)
     y_min, y_max = _min3(y0, y1, y2), _max3(y0, y1, y2)
     if not math.isfinite(((x_min + x_max) + y_min) + y_max):
         return 0, 0, 0, 0
-    # Clamped in float32 before the conversion, as the vectorised passes clamp: a corner far outside
-    # the image (NDC 1e20) is beyond int64's range until it is clamped.
-    col = np.ceil(((x_min + one) * np.float32(W) - one) * half - _BOX_MARGIN)
-    col_lo = np.int64(min(max(col, zero), np.float32(W)))
-    col = np.floor(((x_max + one) * np.float32(W) - one) * half + _BOX_MARGIN)
-    col_hi = np.int64(min(max(col, last), np.float32(W - 1)))
-    row = np.ceil(((one - y_max) * np.float32(H) - one) * half - _BOX_MARGIN)
-    row_lo = np.int64(min(max(row, zero), np.float32(H)))
-    row = np.floor(((one - y_min) * np.float32(H) - one) * half + _BOX_MARGIN)
-    row_hi = np.int64(min(max(row, last), np.float32(H - 1)))
+    col_lo, col_hi = _first_centre(_pixel_col(x_min, W), W), _last_centre(_pixel_col(x_max, W), W)
+    row_lo, row_hi = _first_centre(_pixel_row(y_max, H), H), _last_centre(_pixel_row(y_min, H), H)
     return row_lo, col_lo, max(row_hi - row_lo + 1, 0), max(col_hi - col_lo + 1, 0)
 
 
@@ -110,19 +135,13 @@ def _vertex_bounds(x, y, H, W, bounds, v):
 
     Exact: every float32 operation of the box's bounds (add, multiply, ceil, floor, the clamps) is
     monotone, so the bound of the triangle's extreme vertex is the extreme of its vertices' bounds:
-    a triangle's box is (min bounds[:, 0], max [:, 1], min [:, 2], max [:, 3]) over its corners.
-    Rounded and clamped in float32, where the clamps' small integers are exact, then converted: the
-    same integers as math.ceil and floor give, whose conversion to int64 cost 3x the rest of the pass."""
-    one, half, zero, last = np.float32(1.0), np.float32(0.5), np.float32(0.0), np.float32(-1.0)
+    a triangle's box is (min bounds[:, 0], max [:, 1], min [:, 2], max [:, 3]) over its corners."""
     if not (abs(x) < _PLAIN_NDC and abs(y) < _PLAIN_NDC):
         bounds[v, 0] = -2
         return
-    col = ((x + one) * np.float32(W) - one) * half
-    row = ((one - y) * np.float32(H) - one) * half
-    bounds[v, 2] = np.int32(min(max(np.ceil(col - _BOX_MARGIN), zero), np.float32(W)))
-    bounds[v, 3] = np.int32(min(max(np.floor(col + _BOX_MARGIN), last), np.float32(W - 1)))
-    bounds[v, 0] = np.int32(min(max(np.ceil(row - _BOX_MARGIN), zero), np.float32(H)))
-    bounds[v, 1] = np.int32(min(max(np.floor(row + _BOX_MARGIN), last), np.float32(H - 1)))
+    col, row = _pixel_col(x, W), _pixel_row(y, H)
+    bounds[v, 0], bounds[v, 1] = _first_centre(row, H), _last_centre(row, H)
+    bounds[v, 2], bounds[v, 3] = _first_centre(col, W), _last_centre(col, W)
 
 
 @_jit

@@ -123,6 +123,35 @@ def test_train_resume_and_load(kind, shapes_dir, tmp_path):
         load_view_network(run / "checkpoint.safetensors", other)
 
 
+def test_the_rate_settles_by_a_cosine_to_lr_end_at_the_last_step(shapes_dir, tmp_path):
+    """``lr_end`` 0.1: the last step is taken at a tenth of ``lr`` (what the checkpoint's optimiser holds), also by a
+    run resumed with more ``--iters`` (the cosine spans the iterations asked for); ``lr_end`` 1, the default, keeps
+    the rate constant."""
+    from mesh2tex.io.checkpoint import load_training_state
+    from mesh2tex.nn.view_nets import ViewTrainConfig, build_network
+
+    def last_rate(run):
+        net = build_network("mask", ViewTrainConfig(width=8))
+        opt = torch.optim.Adam(net.parameters(), lr=1.0)
+        load_training_state(run / "checkpoint.safetensors", "mask", {"net": net}, {"opt": opt}, torch.device("cpu"))
+        return opt.param_groups[0]["lr"]
+
+    def train(name, lr_end, steps):
+        config = tmp_path / f"{name}.yaml"
+        config.write_text(f"width: 8\nlr: 0.002\nlr_end: {lr_end}\ndata:\n  views_per_material: 4\n")
+        base = ["train", "mask", "--shapes", str(shapes_dir), "--out", str(tmp_path / name), "--config", str(config)]
+        base += ["--samples", "12", "--resolution", "32", "--batch", "4", "--device", "cpu", "--iters", "6"]
+        for count in steps:
+            assert main(base[:-1] + [str(count)] + (["--resume"] if count != steps[0] else [])) == 0
+
+    train("cosine", 0.1, [6])
+    train("halves", 0.1, [3, 6])
+    train("constant", 1.0, [6])
+    assert last_rate(tmp_path / "cosine") == pytest.approx(0.0002)
+    assert last_rate(tmp_path / "halves") == pytest.approx(0.0002)
+    assert last_rate(tmp_path / "constant") == pytest.approx(0.002)
+
+
 # ---------------------------------------------------------------------------- GAN-textured views
 def _tiny_shapes(tiny_gan):
     from mesh2tex.geometry.prepared import load_shapes

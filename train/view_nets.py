@@ -42,6 +42,7 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.mask import mask_iou, mask_loss
 from mesh2tex.nn.noc import noc_error, noc_loss
 from mesh2tex.nn.pose import pose_accuracy, pose_loss
+from mesh2tex.nn.schedule import cosine_rate
 from mesh2tex.nn.view_nets import VIEWS_NAME, ViewDataConfig, ViewTrainConfig, build_network
 from mesh2tex.options import config_overrides
 from mesh2tex.progress import progress_bar
@@ -310,6 +311,8 @@ class ViewTrainer:
         runs.check_finite({"loss": loss}, self.iteration)
         self.opt.zero_grad(set_to_none=True)
         loss.backward()
+        for group in self.opt.param_groups:
+            group["lr"] = cosine_rate(cfg.lr, cfg.lr_end, self.iteration, cfg.iters)
         self.opt.step()
         self.iteration += 1
         return {"loss": round(float(loss.detach()), 6)}

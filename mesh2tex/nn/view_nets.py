@@ -76,6 +76,8 @@ class ViewTrainConfig:
     iters: int = 2000  # optimisation steps
     batch: int = 32  # views per step
     lr: float = 3e-4  # Adam learning rate (paper: 3e-4 for chairs)
+    # the rate at the last step, as a fraction of lr: a cosine over --iters in between (1: constant)
+    lr_end: float = 1.0
     width: int = 32  # channel width of the network's first level
     device: str = "auto"  # auto, cpu or cuda
     log_every: int = 25  # steps between metrics.jsonl records (with validation figures)
@@ -91,7 +93,7 @@ class ViewTrainConfig:
             self,
             positive=("lr",),
             at_least={"log_every": 1, "checkpoint_every": 0},
-            between={"width": (1, MAX_CHANNELS), "room_share": (0.0, 1.0)},
+            between={"width": (1, MAX_CHANNELS), "room_share": (0.0, 1.0), "lr_end": (0.0, 1.0)},
         )
 
 

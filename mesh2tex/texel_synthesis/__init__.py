@@ -76,6 +76,7 @@ import torch.nn.functional as F
 from mesh2tex.config import check_fields
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
 from mesh2tex.losses.structure import PATCH_SIZE, patch_distance
+from mesh2tex.nn.schedule import cosine_rate
 from mesh2tex.photos import square_resize
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 from mesh2tex.render.cameras import NCACameraConfig
@@ -361,9 +362,7 @@ class TexelSynthesis:
 
     def learning_rate(self, iteration: int) -> float:
         """lr at ``iteration``: a cosine from ``lr`` down to ``lr * lr_end`` at the last step."""
-        cfg = self.cfg
-        progress = min(iteration / max(cfg.iters - 1, 1), 1.0)
-        return cfg.lr * (cfg.lr_end + (1 - cfg.lr_end) * 0.5 * (1 + math.cos(math.pi * progress)))
+        return cosine_rate(self.cfg.lr, self.cfg.lr_end, iteration, self.cfg.iters)
 
     def step(self) -> dict[str, float]:
         """One Adam step on random views; returns its losses (style, overflow)."""

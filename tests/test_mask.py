@@ -67,6 +67,24 @@ def test_rooms_are_drawn_only_when_asked_and_stand_the_object_on_a_floor():
         assert 0 < horizon < 48, "wall above, floor below"
 
 
+def test_camouflaged_scenes_take_the_objects_colour_and_only_when_asked():
+    """camouflage_share 1: around the (red) object the scene is red too, so colour alone cannot cut it out;
+    share 0 draws what was drawn before camouflage existed."""
+    image, mask = _framed_object()
+    views, masks = image.repeat(8, 1, 1, 1), mask.repeat(8, 1, 1, 1)
+    plain, plain_masks = place_over_backdrops(views, masks, np.random.default_rng(2), room_share=0.5)
+    unasked, _ = place_over_backdrops(views, masks, np.random.default_rng(2), room_share=0.5, camouflage_share=0.0)
+    assert torch.equal(plain, unasked)
+    hidden, hidden_masks = place_over_backdrops(views, masks, np.random.default_rng(2), 0.5, camouflage_share=1.0)
+    assert hidden.min() >= -1 and hidden.max() <= 1
+
+    def red_around(images, placed):  # the share of the scene's pixels redder than they are green
+        outside = placed[:, 0] < 0.5
+        return float(((images[:, 0] > images[:, 1] + 0.3) & outside).sum() / outside.sum())
+
+    assert red_around(hidden, hidden_masks) > 0.8 > 0.5 > red_around(plain, plain_masks)
+
+
 def test_the_foot_shadow_darkens_the_floor_under_the_object_only():
     alpha = torch.zeros(1, 1, 64, 64)
     alpha[..., 10:40, 20:44] = 1  # the object's foot is row 39

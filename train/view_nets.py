@@ -223,7 +223,11 @@ def network_loss(kind: str, net: torch.nn.Module, batch: dict[str, torch.Tensor]
         return pose_loss(azimuth_logits, elevation_logits, batch["azimuth"], batch["elevation"], cfg.bins)
     if kind == "mask":  # the backdrops come from torch's generator: a resumed run draws what it would have
         images, masks = place_over_backdrops(
-            batch["image"], batch["mask"], np.random.default_rng(int(torch.randint(1 << 62, (1,)))), cfg.room_share
+            batch["image"],
+            batch["mask"],
+            np.random.default_rng(int(torch.randint(1 << 62, (1,)))),
+            cfg.room_share,
+            cfg.camouflage_share,
         )
         return mask_loss(net(images), masks)
     predicted = net(batch["image"], batch["mask"])

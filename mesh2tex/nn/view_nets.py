@@ -85,6 +85,9 @@ class ViewTrainConfig:
     # mask only: the share of training views placed standing on the floor of a drawn room instead of over a
     # backdrop (mesh2tex.synthetic.backdrops.room); 0 draws what the networks shipped before rooms learnt from
     room_share: float = 0.0
+    # mask only: the share of scenes (rooms or backdrops) tinted to the object's mean colour
+    # (mesh2tex.synthetic.backdrops.camouflage); 0 draws what the networks shipped before it learnt from
+    camouflage_share: float = 0.0
     data: ViewDataConfig = field(default_factory=ViewDataConfig)
     bins: PoseBins = field(default_factory=PoseBins)  # pose classes (used by 'pose' only)
 
@@ -93,7 +96,12 @@ class ViewTrainConfig:
             self,
             positive=("lr",),
             at_least={"log_every": 1, "checkpoint_every": 0},
-            between={"width": (1, MAX_CHANNELS), "room_share": (0.0, 1.0), "lr_end": (0.0, 1.0)},
+            between={
+                "width": (1, MAX_CHANNELS),
+                "room_share": (0.0, 1.0),
+                "camouflage_share": (0.0, 1.0),
+                "lr_end": (0.0, 1.0),
+            },
         )
 
 

@@ -169,16 +169,31 @@ def foot_shadow(alpha: torch.Tensor, strength: float) -> torch.Tensor:
     return torch.from_numpy(1 - strength * shadow)[None, None]
 
 
+def camouflage(scene: torch.Tensor, rgb: torch.Tensor, cover: torch.Tensor) -> torch.Tensor:
+    """The scene [1, 3, R, R] in [0, 1] scaled per channel so that its mean colour is the object's (rgb
+    [1, 3, S, S] in [0, 1], its coverage ``cover`` [1, 1, S, S]): the same pattern in the object's colours,
+    as a brown chair base on brown floorboards, where colour alone does not tell object from floor."""
+    weight = cover.sum().clamp_min(1e-6)
+    object_mean = (rgb * cover).sum(dim=(0, 2, 3)) / weight
+    scene_mean = scene.mean(dim=(0, 2, 3)).clamp_min(1e-3)
+    return (scene * (object_mean / scene_mean).view(1, 3, 1, 1)).clamp(0, 1)
+
+
 def place_over_backdrops(
-    images: torch.Tensor, masks: torch.Tensor, rng: np.random.Generator, room_share: float = 0.0
+    images: torch.Tensor,
+    masks: torch.Tensor,
+    rng: np.random.Generator,
+    room_share: float = 0.0,
+    camouflage_share: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Framed views of objects, each shrunk to a random share of the frame (:data:`SCALE_RANGE`), put at
     a random place over a fresh :func:`backdrop`, with a random exposure and a little sensor noise; a
-    ``room_share`` of them instead stand on the floor of a :func:`room`, with a shadow at their foot.
+    ``room_share`` of them instead stand on the floor of a :func:`room`, with a shadow at their foot; a
+    ``camouflage_share`` of the scenes take the object's mean colour (:func:`camouflage`).
 
     images [B, 3, R, R] in [-1, 1]; masks [B, 1, R, R] in {0, 1}. Returns the new images (same shape
-    and range) and their masks (coverage >= 1/2 of the shrunk object). ``room_share`` 0 draws exactly
-    what it drew before rooms existed.
+    and range) and their masks (coverage >= 1/2 of the shrunk object). ``room_share`` and
+    ``camouflage_share`` 0 draw exactly what was drawn before rooms existed.
     """
     batch, _, size, _ = images.shape
     out_images, out_masks = torch.empty_like(images), torch.empty_like(masks)
@@ -195,6 +210,8 @@ def place_over_backdrops(
         else:
             scene = backdrop(rng, size)
         canvas = torch.from_numpy(scene).permute(2, 0, 1)[None].to(images)
+        if camouflage_share > 0 and rng.random() < camouflage_share:
+            canvas = camouflage(canvas, rgb, cover)
         alpha = torch.zeros_like(canvas[:, :1])
         alpha[..., top : top + side, left : left + side] = cover
         if in_room:

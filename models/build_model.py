@@ -2,7 +2,7 @@
 
     python models/build_model.py --category chair|car --work WORK [--gan-iters N] [--out mesh2tex/models/chair]
                                  [--variety boxy|real] [--seed 0] [--pose-iters 1500] [--noc-iters 400] [--mask-iters
-                                 4000] [--device auto]
+                                 N] [--device auto]
                                  [--pick FROM,EVERY]
                                  [--from-gan CKPT] [--views-gan CKPT] [--keep-mask]
 
@@ -64,8 +64,9 @@ GAN_CONFIG = {
 # and materials (prepare synthetic --variety; boxy when absent). pick (or --pick FROM,EVERY): the
 # exported generator is the snapshot, every EVERY iterations from FROM to gan_iters, that closes the
 # most of the gap on a validation world no table reports (VALIDATION), among those whose latents still
-# paint different chairs (PICK_MIN_SPREAD), not the last one. mask: the mask network's config beyond
-# MASK["config"] (room_share: the share of its training views standing in a drawn room).
+# paint different chairs (PICK_MIN_SPREAD), not the last one. mask: the mask network's settings beyond
+# MASK's (config.room_share: the share of its training views standing in a drawn room); mask_iters: its
+# steps (MASK_ITERS when absent; --mask-iters overrides).
 VARIED_WORLD_RECIPE = {
     "gan_iters": 6000,
     "world_shapes": 64,
@@ -78,8 +79,15 @@ VARIED_WORLD_RECIPE = {
 }
 RECIPES = {
     # chairs are photographed in rooms: on the outside chairs' photos in a room the mask's IoU rose from 0.76
-    # to 0.87 and over clutter from 0.69 to 0.76 (docs/results/transfer.md, "A mask network that has seen rooms")
-    "chair": {**VARIED_WORLD_RECIPE, "mask": {"room_share": 0.3}},
+    # to 0.87 and over clutter from 0.69 to 0.76 (docs/results/transfer.md, "A mask network that has seen rooms");
+    # at 128 px with the rate settling by a cosine the thin legs and rods come out sharper (same page, "The mask
+    # network at 128 px, its rate settling"; 28 photos each way): over clutter 0.71 -> 0.75, poses within 15
+    # degrees 0.61 -> 0.71; in a room level (0.88 -> 0.89)
+    "chair": {
+        **VARIED_WORLD_RECIPE,
+        "mask": {"resolution": 128, "config": {"room_share": 0.3, "lr_end": 0.05}},
+        "mask_iters": 6000,
+    },
     # the chair's recipe on the varied car world (docs/results/gan.md, "The same recipe on the varied car world")
     "car": VARIED_WORLD_RECIPE,
 }
@@ -222,8 +230,11 @@ def keep_mask_record(out: Path, mask_iters: int, mask: dict) -> dict:
 
 
 def recipe_mask(recipe: dict) -> dict:
-    """The mask network's training settings of a recipe: MASK with the recipe's ``mask`` config on top."""
-    return {**MASK, "config": {**MASK["config"], **recipe.get("mask", {})}}
+    """The mask network's training settings of a recipe: MASK with the recipe's ``mask`` on top (its
+    ``config`` merged into MASK's, its other keys, such as ``resolution``, in place of MASK's)."""
+    extra = recipe.get("mask", {})
+    top = {key: value for key, value in extra.items() if key != "config"}
+    return {**MASK, **top, "config": {**MASK["config"], **extra.get("config", {})}}
 
 
 def recipe_gan_config(recipe: dict) -> dict:
@@ -240,6 +251,7 @@ VIEWS = {
     "config": {"width": 16, "log_every": 25, "checkpoint_every": 100},
 }
 # The mask network sees whole photos, not object crops: finer views, each placed over a fresh backdrop at every step.
+MASK_ITERS = 4000
 MASK = {
     "samples": 2048,
     "resolution": 96,
@@ -301,7 +313,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=GAN["seed"], help="the GAN's training seed")
     parser.add_argument("--pose-iters", type=int, default=1500)
     parser.add_argument("--noc-iters", type=int, default=400)
-    parser.add_argument("--mask-iters", type=int, default=4000)
+    parser.add_argument("--mask-iters", type=int, help="the mask network's steps (default: the recipe's)")
     parser.add_argument(
         "--pick",
         metavar="FROM,EVERY",
@@ -335,6 +347,8 @@ def main() -> None:
     out = Path(args.out) if args.out else ROOT / "mesh2tex" / "models" / args.category
     out.mkdir(parents=True, exist_ok=True)
     mask_settings = recipe_mask(recipe)
+    if args.mask_iters is None:
+        args.mask_iters = recipe.get("mask_iters", MASK_ITERS)
     kept_mask = keep_mask_record(out, args.mask_iters, mask_settings) if args.keep_mask else {}  # before any training
     commands: list[str] = []
     start = time.perf_counter()
@@ -466,7 +480,7 @@ def main() -> None:
         + (f"{card['gan_training_seconds'] / 3600:.2f} h of training; " if card["gan_training_seconds"] else "")
         + f"pose: {args.pose_iters} steps, NOC: {args.noc_iters} steps, on views half textured by the GAN at iteration "
         f"{card['views_gan_iteration']} and half by the world's procedural materials; mask: {args.mask_iters} steps on "
-        f"{MASK['resolution']} px views placed over backdrops"
+        f"{mask_settings['resolution']} px views placed over backdrops"
         + (f" ({rooms:.0%} of them in drawn rooms)" if (rooms := mask_settings["config"].get("room_share")) else "")
         + "\n"
         f"- Hardware of this build: {card['hardware']}" + (f"; {args.note}" if args.note else "") + "\n"

@@ -81,8 +81,8 @@ RECIPES = {
     # chairs are photographed in rooms: on the outside chairs' photos in a room the mask's IoU rose from 0.76
     # to 0.87 and over clutter from 0.69 to 0.76 (docs/results/transfer.md, "A mask network that has seen rooms");
     # at 128 px with the rate settling by a cosine the thin legs and rods come out sharper (same page, "The mask
-    # network at 128 px, its rate settling"; 28 photos each way): over clutter 0.71 -> 0.75, poses within 15
-    # degrees 0.61 -> 0.71; in a room level (0.88 -> 0.89)
+    # network at 128 px, its rate settling"; 56 photos each way): over clutter 0.75 -> 0.78 and poses within 15
+    # degrees 35 -> 38; in a room 0.89 -> 0.90 and 46 -> 51
     "chair": {
         **VARIED_WORLD_RECIPE,
         "mask": {"resolution": 128, "config": {"room_share": 0.3, "lr_end": 0.05}},

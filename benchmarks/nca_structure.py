@@ -78,13 +78,17 @@ SIZE = 128  # exemplar pixels over the unit square of its pattern
 
 def train_model(exemplar: torch.Tensor, loss: str, iters: int, seed: int, graph, vgg, save: Path | None):
     """An automaton trained ``iters`` iterations of ``train nca``'s loop with the style loss ``loss``
-    (a name of STYLE_LOSSES, or NAME+colourW: with ``colour_weight`` W, e.g. ``patch+colour1``)."""
+    (a name of STYLE_LOSSES; NAME@METHOD: with ``method`` METHOD, e.g. ``patch@patches``; then +colourW:
+    with ``colour_weight`` W, e.g. ``patch@patches+colour1``)."""
     timing = save.with_suffix(".json") if save is not None else None
     if save is not None and save.is_file():
         model, _, _ = load_nca(save)
         return model, json.loads(timing.read_text())["train_seconds"] if timing.is_file() else math.nan
     name, _, weight = loss.partition("+colour")
-    cfg = TrainNCAConfig(seed=seed, iters=iters, style_loss=name, colour_weight=float(weight or 0))
+    name, _, method = name.partition("@")
+    cfg = TrainNCAConfig(
+        seed=seed, iters=iters, style_loss=name, colour_weight=float(weight or 0), method=method or "renders"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         trainer = NCATrainer(cfg, exemplar, graph, runs.RunDirectory(tmp), torch.device("cpu"), vgg)
         start = time.perf_counter()
@@ -195,7 +199,8 @@ def main() -> int:
         "--losses",
         nargs="*",
         default=["ot", "sw", "ps"],
-        help="automaton rows by style loss, NAME+colourW with colour_weight W (patch+colour1); "
+        help="automaton rows by style loss, NAME@METHOD with train nca's method (patch@patches), then +colourW "
+        "with colour_weight W (patch+colour1); "
         "none: only the oracle and baseline rows",
     )
     parser.add_argument(

@@ -326,3 +326,54 @@ def test_the_palette_term_is_added_to_the_loss_and_logged(nca_files):
         assert train(nca_files, nca_files / "straight") == 0
     plain = [json.loads(l) for l in (nca_files / "straight" / "metrics.jsonl").read_text().splitlines()]
     assert all("loss_colour" not in line for line in plain)
+
+
+def test_walked_patches_read_the_cells_colours_as_the_patch_loss_reads_an_image():
+    """On a flat square with a vertex every exemplar pixel, the finest walked patches of vertex colours are the
+    colours' own patches, upright and flattened as the loss flattens an image's: horizontal stripes are near
+    the exemplar's patches, the same stripes turned a quarter far; a uniform colour stays uniform at every
+    octave, and the coarser octaves pool the stripes towards their mean."""
+    from mesh2tex.losses.structure import PATCH_SIZE, exemplar_patch_sets, patch_distance
+    from mesh2tex.texel_synthesis import VertexPatches
+
+    side = 48
+    grid = np.arange(side) - (side - 1) / 2
+    x, y = np.meshgrid(grid, -grid)  # row 0 at the top, y up
+    positions = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1) / side  # one pixel: 1 / side
+    cells = np.arange(side * side).reshape(side, side)
+    a, b, c, d = cells[:-1, :-1].ravel(), cells[:-1, 1:].ravel(), cells[1:, 1:].ravel(), cells[1:, :-1].ravel()
+    faces = np.concatenate([np.stack([a, c, b], 1), np.stack([a, d, c], 1)])  # facing +z
+    patches = VertexPatches(positions, faces, 1 / side, levels=3, size=PATCH_SIZE, bank=256)
+    assert min(patches.whole_patches()) > 0 and patches.pooling[0] is None
+    rows = torch.from_numpy(np.arange(side) // 3 % 2).float() * 2 - 1  # horizontal stripes 3 pixels wide
+    image = rows[None, None, :, None].expand(1, 3, side, side)
+    exemplar = exemplar_patch_sets(image)
+    turned = image.transpose(2, 3)
+
+    def distance(picture: torch.Tensor) -> float:
+        colours = picture[0].permute(1, 2, 0).reshape(-1, 3)  # the vertices in row-major order
+        sets = patches.sets(colours, 128, torch.Generator().manual_seed(0))
+        return float(patch_distance(sets[:1], exemplar[:1], torch.Generator().manual_seed(1)))
+
+    assert distance(image) < 0.25 * distance(turned)
+    uniform = patches.sets(torch.full((side * side, 3), 0.3), 64, torch.Generator().manual_seed(0))
+    assert all(torch.allclose(s, torch.full_like(s, 0.3)) for s in uniform)
+    stripes = patches.sets(image[0].permute(1, 2, 0).reshape(-1, 3), 64, torch.Generator().manual_seed(0))
+    assert stripes[2].abs().mean() < 0.8 * stripes[0].abs().mean()
+
+
+def test_the_patches_method_trains_with_the_patch_loss_only(nca_files, capsys):
+    """``method: patches`` walks the patch loss's patches on the training mesh: with the patch loss (and the
+    palette term) it trains and logs both terms; with another loss it is a one-line error naming the field."""
+    (nca_files / "walked.yaml").write_text(
+        yaml.safe_dump({**TINY_NCA_RUN, "style_loss": "patch", "method": "patches", "colour_weight": 1.0})
+    )
+    out = nca_files / "walked"
+    assert train(nca_files, out, "--config", str(nca_files / "walked.yaml")) == 0
+    lines = [json.loads(l) for l in (out / "metrics.jsonl").read_text().splitlines()]
+    assert lines and all(np.isfinite(line["loss_style"]) and line["loss_colour"] >= 0 for line in lines)
+    assert (out / "model.safetensors").is_file()
+    (nca_files / "walked_ot.yaml").write_text(yaml.safe_dump({**TINY_NCA_RUN, "method": "patches"}))
+    assert train(nca_files, nca_files / "walked_ot", "--config", str(nca_files / "walked_ot.yaml")) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs style_loss patch" in err[0]

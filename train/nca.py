@@ -31,6 +31,7 @@ from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, load_image, save_png
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
+from mesh2tex.losses.structure import PATCH_SIZE, patch_distance
 from mesh2tex.nn.cell_graph import CellGraph, build_cell_graph
 from mesh2tex.nn.nca import MeshNCA, NCAConfig, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
@@ -39,8 +40,11 @@ from mesh2tex.options import config_overrides
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import NCACameraConfig, turntable_angles
 from mesh2tex.synthetic.world import contact_sheet
+from mesh2tex.texel_synthesis import VertexPatches, patch_pixels, pixels_per_unit
 
 KIND = "nca"
+METHODS = ("renders", "patches")  # how the loss sees the colours: rendered views, or patches walked on the mesh
+PATCH_BANK = 8  # the patches method walks this many steps' patches once (VertexPatches), then draws from them
 VIEW_START = 30.0  # azimuth of the first sample view: off the cube-sphere's face centres
 MODEL_NAME = "model.safetensors"  # the trained automaton alone, what infer nca reads
 
@@ -62,6 +66,9 @@ class TrainNCAConfig:
     # "ot" (relaxed optimal transport + moments), "gram", "sw" (sliced Wasserstein), "ps" (oriented-band
     # statistics) or "patch" (sliced Wasserstein on raw multi-scale patches)
     style_loss: str = "ot"
+    # how the loss sees the automaton's colours: renders (random rendered views) or patches (the patch loss's
+    # patches walked on the training mesh octave by octave, as infer synthesize --method patches; patch only)
+    method: str = "renders"
     vgg_depth: int = 4  # VGG19 style layers used (relu1_2 ... relu4_4; 0: RGB only); unused by ps and patch
     max_points: int = 1024  # feature positions per set in the OT and sw losses; patches per octave in patch
     overflow_weight: float = 10.0  # weight of the overflow penalty
@@ -115,6 +122,12 @@ class TrainNCAConfig:
             raise ValueError(f"batch {self.batch} is larger than the pool {self.pool}")
         if self.style_loss not in STYLE_LOSSES:
             raise ValueError(f"style_loss must be one of {STYLE_LOSSES}, got {self.style_loss!r}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.method == "patches" and self.style_loss != "patch":
+            raise ValueError(
+                f"method patches walks the patch loss's patches: it needs style_loss patch, got {self.style_loss!r}"
+            )
 
 
 def parse_steps(text: str | None) -> tuple[int, int] | None:
@@ -212,6 +225,18 @@ class NCATrainer:
         self.cell_spacing = cell_spacing
         self.generator = torch.Generator().manual_seed(cfg.seed)
         self.pool = self.model.seed_state(cfg.pool, self.graph.num_cells, device, generator=self.generator)
+        self.patches = None
+        if cfg.method == "patches":
+            spacing = 1 / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)  # one exemplar pixel
+            self.patches = VertexPatches(
+                graph.positions.cpu().numpy(),
+                graph.triangles.cpu().numpy(),
+                spacing,
+                len(self.exemplar.patch_sets()),
+                PATCH_SIZE,
+                PATCH_BANK * cfg.max_points,
+                seed=cfg.seed,
+            )
         self.iteration = 0
 
     def learning_rate(self, iteration: int) -> float:
@@ -228,14 +253,7 @@ class NCATrainer:
             state[:1] = self.model.seed_state(1, self.graph.num_cells, self.device, generator=self.generator)
         steps = int(torch.randint(cfg.steps_min, cfg.steps_max + 1, (1,), generator=self.generator))
         state = self.model.rollout(state, self.graph, steps)
-        mvp = random_cameras(cfg, cfg.batch * cfg.views, self.generator).to(self.device)
-        views = render_states(self.model, state, self.graph, mvp, cfg.resolution)
-        style = style_loss(
-            self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator
-        )
-        colour = torch.zeros((), device=self.device)
-        if self.palette is not None:  # drawn only when on, so that the random stream is otherwise unchanged
-            colour = style_loss(None, views.images, views.mask, self.palette, "sw", cfg.max_points, self.generator)
+        style, colour = self.losses(state)
         overflow = overflow_penalty(state, self.model.vertex_colours(state))
         loss = style + cfg.colour_weight * colour + cfg.overflow_weight * overflow
         # before any update
@@ -260,6 +278,28 @@ class NCATrainer:
             "lr": self.learning_rate(self.iteration - 1),
         }
         return {k: round(v, 6) for k, v in logs.items()}
+
+    def losses(self, state: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The style loss and the palette term (0 when off) of the states (B, V, C), as ``method`` sees them."""
+        cfg = self.cfg
+        colour = torch.zeros((), device=self.device)
+        if self.patches is not None:
+            styles, colours = [], []
+            for rgb in self.model.vertex_colours(state):  # (V, 3) per state
+                sets = self.patches.sets(rgb, cfg.max_points, self.generator)
+                styles.append(patch_distance(sets, self.exemplar.patch_sets(), self.generator))
+                if self.palette is not None and len(sets[0]) > 1:  # the finest patches' pixels
+                    pixels, ones = patch_pixels(sets[0], PATCH_SIZE)
+                    colours.append(style_loss(None, pixels, ones, self.palette, "sw", cfg.max_points, self.generator))
+            return torch.stack(styles).mean(), torch.stack(colours).mean() if colours else colour
+        mvp = random_cameras(cfg, cfg.batch * cfg.views, self.generator).to(self.device)
+        views = render_states(self.model, state, self.graph, mvp, cfg.resolution)
+        style = style_loss(
+            self.vgg, views.images, views.mask, self.exemplar, cfg.style_loss, cfg.max_points, self.generator
+        )
+        if self.palette is not None:  # drawn only when on, so that the random stream is otherwise unchanged
+            colour = style_loss(None, views.images, views.mask, self.palette, "sw", cfg.max_points, self.generator)
+        return style, colour
 
     # -------------------------------------------------------------------------------- state I/O
     def meta(self) -> dict:

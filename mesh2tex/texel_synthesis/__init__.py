@@ -80,7 +80,14 @@ from mesh2tex.nn.schedule import cosine_rate
 from mesh2tex.photos import square_resize
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
 from mesh2tex.render.cameras import NCACameraConfig
-from mesh2tex.texel_synthesis.surface import SurfaceCharts, SurfacePatches, TexelSurface, chart_mosaic
+from mesh2tex.texel_synthesis.surface import (
+    SurfaceCharts,
+    SurfacePatches,
+    TexelSurface,
+    VertexPatches,
+    chart_mosaic,
+    patch_pixels,
+)
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
 # how the loss sees the surface: rendered views, geodesic charts, or the patch loss's patches walked octave by octave
@@ -341,10 +348,8 @@ class TexelSynthesis:
             sets = self.surface_patch_sets(image, generator)
             loss = patch_distance(sets, self.features.patch_sets(), generator)
             if cfg.palette_weight and len(sets[0]) > 1:  # the finest patches' pixels, stacked as one image
-                pixels = sets[0].reshape(-1, 3, PATCH_SIZE, PATCH_SIZE).transpose(0, 1).reshape(1, 3, -1, PATCH_SIZE)
-                palette = style_loss(
-                    None, pixels, torch.ones_like(pixels[:, :1]), self.palette, "sw", cfg.max_points, generator
-                )
+                pixels, ones = patch_pixels(sets[0], PATCH_SIZE)
+                palette = style_loss(None, pixels, ones, self.palette, "sw", cfg.max_points, generator)
                 loss = loss + cfg.palette_weight * palette
             return loss
         (images, masks), (pixels, pixel_masks) = self.views_of(image, count, generator)
@@ -429,9 +434,11 @@ __all__ = [
     "TexelPyramid",
     "TexelSurface",
     "TexelSynthesis",
+    "VertexPatches",
     "chart_mosaic",
     "exemplar_tensor",
     "mip_level",
+    "patch_pixels",
     "pixels_per_unit",
     "render_texture",
     "texture_coverage",

@@ -57,6 +57,16 @@ class TexelSurface:
         return float((uv_area / area.clamp_min(1e-12)).sqrt())
 
 
+def walk_grids(walker: SurfaceWalker, count: int, size: int, spacing: float, direction_field: str, rng):
+    """``count`` square grids of ``size`` x ``size`` geodesic points ``spacing`` apart around centres uniform
+    over the area, upright (``direction_field`` up: u = the mesh's up projected) or each rolled at random
+    (``none``): faces (count, size, size), barycentrics (count, size, size, 3) and valid (count, size, size)
+    bool (False where a walk left the surface at a boundary or came back around a thin part)."""
+    face, bary = walker.sample(count, rng)
+    roll = rng.random(count) * 2 * math.pi if direction_field == "none" else 0.0
+    return geodesic_charts(walker, face, bary, walker.frames(face, roll), size, spacing)
+
+
 class _SurfaceGrids:
     """Square grids of ``size`` x ``size`` geodesic points ``spacing`` apart (at the finest scale) around
     random centres of a surface, read through its atlas; direction_field: ``up`` (grids upright, u = the
@@ -72,10 +82,7 @@ class _SurfaceGrids:
         UVs (count, size, size, 2) float32 (v up) and valid (count, size, size) bool (False where a walk
         left the surface at a boundary or came back around a thin part)."""
         rng = np.random.default_rng(int(torch.randint(2**62, (1,), generator=generator)))
-        face, bary = self.walker.sample(count, rng)
-        roll = rng.random(count) * 2 * math.pi if self.direction_field == "none" else 0.0
-        frames = self.walker.frames(face, roll)
-        faces, barys, valid = geodesic_charts(self.walker, face, bary, frames, self.size, spacing)
+        faces, barys, valid = walk_grids(self.walker, count, self.size, spacing, self.direction_field, rng)
         uv = (self.uv[faces] * barys[..., None]).sum(-2)  # (count, size, size, 2)
         return torch.from_numpy(uv).float(), torch.from_numpy(valid)
 
@@ -113,6 +120,83 @@ class SurfacePatches(_SurfaceGrids):
         return uv, valid.flatten(1).all(1)
 
 
+class VertexPatches:
+    """The ``patch`` loss's patches walked out octave by octave (as :class:`SurfacePatches`) on a mesh whose
+    colours live on its vertices: an automaton's cells (``train nca --method patches``).
+
+    A point's colour is its triangle's three vertex colours weighted by its barycentrics (what the
+    linear readout draws between cells). Octave l reads the colours pooled over a disc of the area of
+    2^l x 2^l exemplar pixels around each vertex (straight-line distance; no pooling where the disc is
+    smaller than the cells' spacing), as the exemplar's octave is its image pooled 2^l times. The walks
+    depend on the mesh alone, so ``bank`` patches per octave are walked once here and every draw takes
+    a random subset of them (a fresh walk per step would cost more than the automaton's own step).
+
+    positions (V, 3) and faces (T, 3) of the cell mesh (triangles); spacing: one exemplar pixel in the
+    mesh's units; levels: the exemplar's octaves.
+    """
+
+    def __init__(
+        self,
+        positions: np.ndarray,
+        faces: np.ndarray,
+        spacing: float,
+        levels: int,
+        size: int,
+        bank: int,
+        direction_field: str = "up",
+        seed: int = 0,
+    ):
+        from scipy.spatial import cKDTree
+
+        positions, faces = np.asarray(positions, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+        walker, rng = SurfaceWalker(positions, faces), np.random.default_rng(seed)
+        tree, count = cKDTree(positions), len(positions)
+        self.size, self.corners, self.weights, self.pooling = int(size), [], [], []
+        for level in range(levels):
+            step = spacing * 2**level
+            face, bary, valid = walk_grids(walker, bank, self.size, step, direction_field, rng)
+            whole = valid.reshape(bank, -1).all(1)
+            shape = (int(whole.sum()), self.size**2, 3)
+            self.corners.append(torch.from_numpy(faces[face[whole]].reshape(shape)))
+            self.weights.append(torch.from_numpy(bary[whole].reshape(shape)).float())
+            neighbours = tree.query_ball_point(positions, step / math.sqrt(math.pi))  # disc of area step^2
+            rows = np.repeat(np.arange(count), [len(n) for n in neighbours])
+            columns = np.concatenate([np.asarray(n, dtype=np.int64) for n in neighbours])
+            if len(rows) == count:  # every disc holds its own vertex alone
+                self.pooling.append(None)
+                continue
+            share = 1.0 / np.bincount(rows, minlength=count)[rows]
+            indices = torch.from_numpy(np.stack([rows, columns]))
+            self.pooling.append(
+                torch.sparse_coo_tensor(indices, torch.from_numpy(share).float(), (count, count), check_invariants=True)
+            )
+
+    def whole_patches(self) -> list[int]:
+        """Patches of the bank per octave that every walk reached."""
+        return [len(c) for c in self.corners]
+
+    def sets(self, colours: torch.Tensor, count: int, generator: torch.Generator) -> list[torch.Tensor]:
+        """Per octave, ``count`` random patches of the bank (fewer if it holds fewer) read from ``colours``
+        (V, 3), flattened as :func:`mesh2tex.losses.structure.patch_sets` flattens an image's (channel,
+        row, column): (P_l, 3 size^2). Differentiable with respect to ``colours``."""
+        sets = []
+        for bank_corners, bank_weights, pooling in zip(self.corners, self.weights, self.pooling):
+            pooled = colours if pooling is None else torch.sparse.mm(pooling.to(colours.device), colours)
+            pick = torch.randperm(len(bank_corners), generator=generator)[:count]
+            corners = bank_corners[pick].to(colours.device)
+            weights = bank_weights[pick].to(colours.device, colours.dtype)
+            points = (pooled[corners] * weights[..., None]).sum(-2)  # (P, size^2, 3)
+            sets.append(points.transpose(1, 2).reshape(len(points), 3 * self.size**2))
+        return sets
+
+
+def patch_pixels(patches: torch.Tensor, size: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The pixels of one octave's patches (P, 3 size^2), stacked as one image (1, 3, P size, size) with its
+    mask: what the palette term compares with the exemplar's pixels."""
+    pixels = patches.reshape(-1, 3, size, size).transpose(0, 1).reshape(1, 3, -1, size)
+    return pixels, torch.ones_like(pixels[:, :1])
+
+
 def chart_mosaic(images: torch.Tensor, masks: torch.Tensor, gutter: int = 4, background: float = 1.0):
     """The charts (N, 3, G, G) with masks (N, 1, G, G) side by side on a square grid, ``gutter`` masked
     pixels between them, as one image (1, 3, H, W) and mask (1, 1, H, W): the structure losses pool
@@ -130,4 +214,12 @@ def chart_mosaic(images: torch.Tensor, masks: torch.Tensor, gutter: int = 4, bac
     return canvas[None], cover[None]
 
 
-__all__ = ["SurfaceCharts", "SurfacePatches", "TexelSurface", "chart_mosaic"]
+__all__ = [
+    "SurfaceCharts",
+    "SurfacePatches",
+    "TexelSurface",
+    "VertexPatches",
+    "chart_mosaic",
+    "patch_pixels",
+    "walk_grids",
+]

@@ -3,7 +3,7 @@
     OMP_NUM_THREADS=1 python benchmarks/nca_structure.py [--exemplars stripes checker ...] [--losses ot sw ps]
         [--iters 150] [--seed 0] [--meshes CHAIR.npz ...] [--runs DIR] [--out FILE.json]
         [--direct ps sw ...] [--surface ps ...] [--patches] [--direct-iters 400] [--direct-size 512]
-        [--charts 16 --chart-size 32]
+        [--charts 16 --chart-size 32] [--patch-reuse 1]
         [--figure FILE.png [--figure-view 1]]
 
 For each exemplar (a name of :data:`mesh2tex.synthetic.exemplars.EXEMPLARS`, drawn at 128 px over
@@ -140,6 +140,7 @@ def direct_views(
     method: str = "renders",
     charts: int = SynthesisConfig.charts,
     chart_size: int = SynthesisConfig.chart_size,
+    patch_reuse: int = SynthesisConfig.patch_reuse,
 ) -> tuple[tuple[torch.Tensor, torch.Tensor], float]:
     """The direct method's texture on ``graph``'s mesh (a new atlas over its triangles), optimised ``iters``
     steps with the ``loss`` through ``method`` (renders or surface charts), seen by ``mvp``: ((images
@@ -156,6 +157,7 @@ def direct_views(
         method=method,
         charts=charts,
         chart_size=chart_size,
+        patch_reuse=patch_reuse,
     )
     synthesis = TexelSynthesis(cfg, surface, exemplar, vgg if needs_vgg(loss) else None)
     start = time.perf_counter()
@@ -226,6 +228,9 @@ def main() -> int:
     parser.add_argument("--charts", type=int, default=SynthesisConfig.charts, help="the chart rows' charts per step")
     parser.add_argument(
         "--chart-size", type=int, default=SynthesisConfig.chart_size, help="the chart rows' chart side in px"
+    )
+    parser.add_argument(
+        "--patch-reuse", type=int, default=SynthesisConfig.patch_reuse, help="the patches row's synthesis.patch_reuse"
     )
     parser.add_argument("--figure", help="write a picture of every exemplar's rows here (PNG)")
     parser.add_argument(
@@ -300,6 +305,7 @@ def main() -> int:
                     method,
                     args.charts,
                     args.chart_size,
+                    args.patch_reuse,
                 )
                 record["train_seconds"][f"{row} ({mesh})"] = seconds
             reference = oracle_views(name, graph, mvp, REFERENCE_SHIFT)

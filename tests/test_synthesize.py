@@ -242,3 +242,29 @@ def test_the_patches_method_asks_for_the_patch_loss(inputs, tmp_path, capsys, mo
     report = json.loads((out / "report.json").read_text())
     assert report["config"]["synthesis"]["method"] == "patches" and "octave by octave" in report["method"]
     assert (out / "textured.glb").is_file() and (out / "view_0.png").is_file()
+
+
+def test_reused_patches_walk_a_share_afresh_and_keep_the_newest_of_the_last_draw():
+    """``patch_reuse`` R: the first draw walks every patch; each later one walks count / R afresh, ahead of
+    the newest of the previous draw's; R = 1 walks all afresh every time; a fixed measurement walks afresh
+    and leaves the kept patches as they were."""
+    from mesh2tex.texel_synthesis import SurfacePatches
+
+    mesh = stool()
+    positions = mesh.vertices / np.abs(mesh.vertices).max()
+    vertex_index, faces, uv = new_atlas(positions, mesh.faces)
+    surface = TexelSurface.from_arrays(positions[vertex_index], faces, uv)
+    generator = torch.Generator().manual_seed(0)
+    reused = SurfacePatches(surface, 0.02, 5, "up", reuse=4)
+    first, _ = reused.draw(64, 0, generator)
+    second, whole = reused.draw(64, 0, generator)
+    assert second.shape == first.shape and len(whole) == 64
+    assert torch.equal(second[16:], first[:48]) and not torch.equal(second[:16], first[:16])
+    with reused.fresh():
+        reused.draw(64, 0, generator)
+    third, _ = reused.draw(64, 0, generator)
+    assert torch.equal(third[16:], second[:48])
+    plain = SurfacePatches(surface, 0.02, 5, "up")
+    a, _ = plain.draw(64, 0, generator)
+    b, _ = plain.draw(64, 0, generator)
+    assert not torch.equal(a[16:], b[16:])

@@ -123,6 +123,9 @@ class SynthesisConfig:
     # pattern's periods (measured with patch; ps was measured at 16 charts of 32)
     charts: int = 4
     chart_size: int = 64
+    # patches method: each walked patch serves this many steps (the newest 1 / patch_reuse walked afresh each
+    # step; the walks are most of a step's time); 1: every patch fresh
+    patch_reuse: int = 1
     # the random views around the mesh in the unit ball, as train nca's
     camera: NCACameraConfig = field(default_factory=NCACameraConfig)
     seed: int = 0  # seed of the views, the loss's random projections and the initial noise
@@ -146,6 +149,7 @@ class SynthesisConfig:
                 "overflow_weight": 0,
                 "charts": 1,
                 "chart_size": 16,
+                "patch_reuse": 1,
             },
             between={
                 "vgg_depth": (0, 5),
@@ -301,7 +305,7 @@ class TexelSynthesis:
         if cfg.method == "surface":
             self.charts = SurfaceCharts(surface, spacing, cfg.chart_size, cfg.direction_field)
         elif cfg.method == "patches":
-            self.patches = SurfacePatches(surface, spacing, PATCH_SIZE, cfg.direction_field)
+            self.patches = SurfacePatches(surface, spacing, PATCH_SIZE, cfg.direction_field, cfg.patch_reuse)
         self.iteration = 0
 
     def seen(self, image: torch.Tensor | None = None) -> torch.Tensor:
@@ -392,7 +396,10 @@ class TexelSynthesis:
         ``seed`` (the same at every call): comparable before and after the optimisation."""
         generator = torch.Generator().manual_seed(seed)
         count = views if self.charts is None and self.patches is None else self.per_step()
-        return float(self.loss_of(self.pyramid(), count, generator))
+        if self.patches is None:
+            return float(self.loss_of(self.pyramid(), count, generator))
+        with self.patches.fresh():
+            return float(self.loss_of(self.pyramid(), count, generator))
 
     @torch.no_grad()
     def texture(self) -> torch.Tensor:

@@ -12,6 +12,7 @@ uv (V, 2) v up); UVs returned are (..., 2) float32, v up, for
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 
@@ -113,11 +114,35 @@ class SurfacePatches(_SurfaceGrids):
     chart bends away from it; and no render or chart border cuts the patches near it away.
     """
 
+    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str, reuse: int = 1):
+        super().__init__(surface, spacing, size, direction_field)
+        self.reuse = int(reuse)
+        self._recent: dict[int, tuple[torch.Tensor, torch.Tensor]] = {}  # per octave: the last draw's patches
+
     def draw(self, count: int, level: int, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         """``count`` patches of octave ``level``: UVs (count, size, size, 2) float32 (v up) and whole
-        (count,) bool (every point of the patch reached)."""
-        uv, valid = self.grids(count, self.spacing * 2**level, generator)
-        return uv, valid.flatten(1).all(1)
+        (count,) bool (every point of the patch reached). With ``reuse`` R above 1 only count / R of them
+        are walked afresh (all of them at the first draw); the rest are the newest of the previous draw's,
+        so each patch serves R draws and the walks, most of a step's time, cost 1 / R."""
+        recent = self._recent.get(level)
+        fresh = count if recent is None else -(-count // self.reuse)
+        uv, valid = self.grids(fresh, self.spacing * 2**level, generator)
+        uv, whole = uv, valid.flatten(1).all(1)
+        if recent is not None and fresh < count:
+            uv, whole = torch.cat([uv, recent[0]])[:count], torch.cat([whole, recent[1]])[:count]
+        self._recent[level] = uv, whole
+        return uv, whole
+
+    @contextlib.contextmanager
+    def fresh(self):
+        """Within it every draw walks all its patches afresh and the patches kept for reuse stay as they
+        were (a fixed measurement does not disturb the optimisation's draws)."""
+        recent, reuse = self._recent, self.reuse
+        self._recent, self.reuse = {}, 1
+        try:
+            yield self
+        finally:
+            self._recent, self.reuse = recent, reuse
 
 
 class VertexPatches:

@@ -124,8 +124,9 @@ class SynthesisConfig:
     charts: int = 4
     chart_size: int = 64
     # patches method: each walked patch serves this many steps (the newest 1 / patch_reuse walked afresh each
-    # step; the walks are most of a step's time); 1: every patch fresh
-    patch_reuse: int = 1
+    # step; the walks are most of a step's time); 1: every patch fresh. 4 costs what a renders step does and
+    # draws the same structure (docs/results/nca.md)
+    patch_reuse: int = 4
     # the random views around the mesh in the unit ball, as train nca's
     camera: NCACameraConfig = field(default_factory=NCACameraConfig)
     seed: int = 0  # seed of the views, the loss's random projections and the initial noise

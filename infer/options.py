@@ -165,7 +165,8 @@ def synthesize(parser: argparse.ArgumentParser) -> None:
         choices=static_value("mesh2tex.texel_synthesis:METHODS"),
         help="how the loss sees the surface: renders (random rendered views), surface (geodesic charts walked "
         "on the surface along the direction field: no foreshortening, hidden parts included) or patches (with "
-        "--loss patch: the loss's patches walked on the surface at each octave's scale)",
+        "--loss patch: the loss's patches walked on the surface at each octave's scale); default: patches with "
+        "--loss patch, renders with the others",
     )
     config.add(
         "--loss",

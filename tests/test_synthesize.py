@@ -268,3 +268,13 @@ def test_reused_patches_walk_a_share_afresh_and_keep_the_newest_of_the_last_draw
     a, _ = plain.draw(64, 0, generator)
     b, _ = plain.draw(64, 0, generator)
     assert not torch.equal(a[16:], b[16:])
+
+
+def test_the_method_follows_the_loss_unless_set():
+    """Unset, the method is the loss's own: the patch loss walks its patches, the others render views; a
+    method set is kept, and patches with another loss is refused by name."""
+    assert SynthesisConfig().method == "patches"
+    assert SynthesisConfig(loss="ps").method == "renders"
+    assert SynthesisConfig(loss="patch", method="renders").method == "renders"
+    with pytest.raises(ValueError, match="needs loss patch"):
+        SynthesisConfig(loss="ps", method="patches")

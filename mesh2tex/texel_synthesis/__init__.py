@@ -118,7 +118,10 @@ class SynthesisConfig:
     colour_weight: float | None = None
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
     direction_field: str = "up"  # up: views or charts upright (stripes keep the mesh's up); none: rolled at random
-    method: str = "renders"  # renders: random rendered views; surface: geodesic charts of the surface itself
+    # renders: random rendered views; surface: geodesic charts of the surface itself; patches: the patch loss's
+    # patches walked on it. Unset: the loss's own (patches for patch, which draws more of a checker's corners
+    # there at the same cost; renders for the others, which have no patches to walk)
+    method: str | None = None
     # surface method: charts per step and a chart's side in exemplar pixels; a chart holds a few of a
     # pattern's periods (measured with patch; ps was measured at 16 charts of 32)
     charts: int = 4
@@ -166,6 +169,8 @@ class SynthesisConfig:
             raise ValueError(f"loss must be one of {', '.join(SYNTHESIS_LOSSES)}, got {self.loss!r}")
         if self.colour_weight is not None and not self.colour_weight >= 0:
             raise ValueError(f"colour_weight must be at least 0, got {self.colour_weight}")
+        if self.method is None:
+            self.method = "patches" if self.loss == "patch" else "renders"
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.method == "patches" and self.loss != "patch":

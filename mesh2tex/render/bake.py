@@ -18,6 +18,7 @@ The same closest-point map gives the colour at each of the user's vertices (the 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,6 +91,58 @@ class BakedUserMesh:
     surface_distance: np.ndarray
 
 
+class AtlasCrash(RuntimeError):
+    """xatlas died on a mesh (a native crash in its own process), also after the retry."""
+
+
+# The relative size of the shake given to the vertices that xatlas gets when it crashed on a mesh as it is
+# (a perfectly regular subdivided icosphere of 82k faces crashes it; 1e-5 of the diagonal still does, 1e-3 not).
+ATLAS_SHAKE = 1e-3
+
+
+def _parametrize(points: np.ndarray, faces: np.ndarray):
+    import xatlas
+
+    return xatlas.parametrize(points, faces)
+
+
+def _parametrize_apart(points: np.ndarray, faces: np.ndarray):
+    """What the forked process runs: :func:`_parametrize` looked up there (pickled by name, so that this
+    module's function is the one called, whatever it is at the time)."""
+    return _parametrize(points, faces)
+
+
+def parametrize_guarded(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``xatlas.parametrize(points (V, 3) float32, faces (T, 3) uint32)``, run where a native crash of xatlas
+    cannot take this process with it (a forked process, where the platform forks; else here). When it dies,
+    once more with every vertex moved by a random ``ATLAS_SHAKE`` of the bounding-box diagonal (the charts are
+    cut on the shaken copy; the faces and corners stay the caller's); if that dies too, :class:`AtlasCrash`."""
+    import multiprocessing
+    import sys
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    if not sys.platform.startswith("linux"):  # no cheap fork: in this process
+        return _parametrize(points, faces)
+    diagonal = float(np.linalg.norm(points.max(0) - points.min(0))) if len(points) else 0.0
+    shake = np.random.default_rng(0).uniform(-1, 1, points.shape) * ATLAS_SHAKE * diagonal
+    for attempt in (points, (points + shake).astype(np.float32)):
+        # Python 3.12+ warns of forking a process with threads (torch's); the child only runs xatlas
+        with warnings.catch_warnings(), ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as pool:
+            warnings.simplefilter("ignore", DeprecationWarning)
+            try:
+                result = pool.submit(_parametrize_apart, attempt, faces).result()
+            except BrokenProcessPool:
+                continue
+        if attempt is not points:
+            warnings.warn(
+                f"xatlas crashed on the mesh as it is ({len(faces)} triangles); its charts were cut on a copy "
+                f"with every vertex moved by up to {ATLAS_SHAKE:g} of its size (the faces and vertices kept)"
+            )
+        return result
+    raise AtlasCrash(f"xatlas crashed on this mesh ({len(faces)} triangles), also with its vertices shaken")
+
+
 def new_atlas(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """An xatlas atlas over a triangle mesh whose coincident vertices are welded first (an STL file, or
     a mesh split on its old seams, would otherwise become one chart per triangle).
@@ -98,12 +151,10 @@ def new_atlas(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.n
     (one no face uses at uv (0, 0)); faces (T, 3) in the given order and corner order; uv (V', 2)
     float64 in [0, 1], v up).
     """
-    import xatlas
-
     welded, weld = np.unique(np.asarray(vertices, dtype=np.float64), axis=0, return_inverse=True)
     weld = weld.reshape(-1)
     welded_faces = weld[faces]
-    chart_vertex, chart_faces, chart_uv = xatlas.parametrize(welded.astype(np.float32), welded_faces.astype(np.uint32))
+    chart_vertex, chart_faces, chart_uv = parametrize_guarded(welded.astype(np.float32), welded_faces.astype(np.uint32))
     if chart_faces.shape != faces.shape or not np.array_equal(chart_vertex[chart_faces], welded_faces):
         raise RuntimeError("xatlas changed the face order or corners; baking needs them kept")
     # an output vertex per (user vertex, atlas vertex) pair met at a corner: user vertices stay apart
@@ -132,7 +183,10 @@ def mesh_atlas(mesh: UserMesh, mode: str = "auto") -> Atlas:
         note = uv_atlas_problem(mesh.uv, mesh.faces)
     if mode == "keep" or (mode == "auto" and mesh.uv is not None and not note):
         return Atlas(np.arange(len(mesh.vertices)), mesh.faces.copy(), mesh.uv.copy(), "kept")
-    vertex_index, faces, uv = new_atlas(mesh.vertices, mesh.faces)
+    try:
+        vertex_index, faces, uv = new_atlas(mesh.vertices, mesh.faces)
+    except AtlasCrash as error:
+        raise InputError(f"{mesh.path}: {error}; give the mesh UVs of its own (--uv keep) or remesh it") from None
     if mode == "auto" and mesh.uv is None:
         note = "the mesh has no UV coordinates"
     return Atlas(vertex_index, faces, uv, "new", note)

@@ -127,7 +127,7 @@ class SurfacePatches(_SurfaceGrids):
         recent = self._recent.get(level)
         fresh = count if recent is None else -(-count // self.reuse)
         uv, valid = self.grids(fresh, self.spacing * 2**level, generator)
-        uv, whole = uv, valid.flatten(1).all(1)
+        whole = valid.flatten(1).all(1)
         if recent is not None and fresh < count:
             uv, whole = torch.cat([uv, recent[0]])[:count], torch.cat([whole, recent[1]])[:count]
         self._recent[level] = uv, whole

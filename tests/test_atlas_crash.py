@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 import trimesh
+import xatlas
 
 import mesh2tex.render.bake as bake
 from mesh2tex.errors import InputError
@@ -25,7 +26,7 @@ def crash(points, faces):
 
 def test_a_crash_on_the_mesh_as_it_is_is_retried_on_a_shaken_copy_with_a_warning(monkeypatch):
     mesh = trimesh.creation.icosphere(subdivisions=2)
-    original = bake._parametrize
+    original = xatlas.parametrize
     as_given = np.unique(mesh.vertices, axis=0).astype(np.float32)  # what new_atlas hands xatlas
 
     def crash_unless_shaken(points, faces):
@@ -33,7 +34,7 @@ def test_a_crash_on_the_mesh_as_it_is_is_retried_on_a_shaken_copy_with_a_warning
             crash(points, faces)
         return original(points, faces)
 
-    monkeypatch.setattr(bake, "_parametrize", crash_unless_shaken)
+    monkeypatch.setattr(xatlas, "parametrize", crash_unless_shaken)
     with pytest.warns(UserWarning, match="xatlas crashed on the mesh as it is"):
         vertex_index, faces, uv = bake.new_atlas(mesh.vertices, mesh.faces)
     np.testing.assert_array_equal(vertex_index[faces], mesh.faces)  # the user's faces and corners kept
@@ -42,7 +43,7 @@ def test_a_crash_on_the_mesh_as_it_is_is_retried_on_a_shaken_copy_with_a_warning
 
 def test_when_every_try_crashes_the_user_gets_one_line_naming_the_file(monkeypatch):
     mesh = trimesh.creation.icosphere(subdivisions=1)
-    monkeypatch.setattr(bake, "_parametrize", crash)
+    monkeypatch.setattr(xatlas, "parametrize", crash)
     user = UserMesh("chair.obj", mesh.vertices, np.asarray(mesh.faces, dtype=np.int64), None, None)
     with pytest.raises(InputError, match=r"^chair\.obj: xatlas crashed on this mesh .*--uv keep"):
         bake.mesh_atlas(user)

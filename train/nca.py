@@ -31,7 +31,7 @@ from mesh2tex.geometry.primitives import load_surface, mean_edge_length
 from mesh2tex.io.checkpoint import checkpoint_digest, load_checkpoint, save_checkpoint
 from mesh2tex.io.images import colours_to_uint8, images_to_uint8, load_image, save_png
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
-from mesh2tex.losses.structure import PATCH_SIZE, patch_distance
+from mesh2tex.losses.structure import PATCH_SIZE
 from mesh2tex.nn.cell_graph import CellGraph, build_cell_graph
 from mesh2tex.nn.nca import MeshNCA, NCAConfig, overflow_penalty
 from mesh2tex.nn.render_texture import render_states
@@ -40,7 +40,7 @@ from mesh2tex.options import config_overrides
 from mesh2tex.render import orbit_camera
 from mesh2tex.render.cameras import NCACameraConfig, turntable_angles
 from mesh2tex.synthetic.world import contact_sheet
-from mesh2tex.texel_synthesis import VertexPatches, patch_pixels, pixels_per_unit
+from mesh2tex.texel_synthesis import VertexPatches, pixels_per_unit, walked_patch_terms
 
 KIND = "nca"
 METHODS = ("renders", "patches")  # how the loss sees the colours: rendered views, or patches walked on the mesh
@@ -253,8 +253,9 @@ class NCATrainer:
             state[:1] = self.model.seed_state(1, self.graph.num_cells, self.device, generator=self.generator)
         steps = int(torch.randint(cfg.steps_min, cfg.steps_max + 1, (1,), generator=self.generator))
         state = self.model.rollout(state, self.graph, steps)
-        style, colour = self.losses(state)
-        overflow = overflow_penalty(state, self.model.vertex_colours(state))
+        rgb = self.model.vertex_colours(state)  # (B, V, 3): the overflow penalty's, and what walked patches read
+        style, colour = self.losses(state, rgb)
+        overflow = overflow_penalty(state, rgb)
         loss = style + cfg.colour_weight * colour + cfg.overflow_weight * overflow
         # before any update
         runs.check_finite(
@@ -279,18 +280,18 @@ class NCATrainer:
         }
         return {k: round(v, 6) for k, v in logs.items()}
 
-    def losses(self, state: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """The style loss and the palette term (0 when off) of the states (B, V, C), as ``method`` sees them."""
+    def losses(self, state: torch.Tensor, rgb: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The style loss and the palette term (0 when off) of the states (B, V, C), whose cells' colours are
+        ``rgb`` (B, V, 3), as ``method`` sees them."""
         cfg = self.cfg
         colour = torch.zeros((), device=self.device)
         if self.patches is not None:
             styles, colours = [], []
-            for rgb in self.model.vertex_colours(state):  # (V, 3) per state
-                sets = self.patches.sets(rgb, cfg.max_points, self.generator)
-                styles.append(patch_distance(sets, self.exemplar.patch_sets(), self.generator))
-                if self.palette is not None and len(sets[0]) > 1:  # the finest patches' pixels
-                    pixels, ones = patch_pixels(sets[0], PATCH_SIZE)
-                    colours.append(style_loss(None, pixels, ones, self.palette, "sw", cfg.max_points, self.generator))
+            for cells in rgb:  # (V, 3) per state
+                sets = self.patches.sets(cells, cfg.max_points, self.generator)
+                style, palette = walked_patch_terms(sets, self.exemplar, self.palette, cfg.max_points, self.generator)
+                styles.append(style)
+                colours += [] if palette is None else [palette]
             return torch.stack(styles).mean(), torch.stack(colours).mean() if colours else colour
         mvp = random_cameras(cfg, cfg.batch * cfg.views, self.generator).to(self.device)
         views = render_states(self.model, state, self.graph, mvp, cfg.resolution)

@@ -106,12 +106,6 @@ def _parametrize(points: np.ndarray, faces: np.ndarray):
     return xatlas.parametrize(points, faces)
 
 
-def _parametrize_apart(points: np.ndarray, faces: np.ndarray):
-    """What the forked process runs: :func:`_parametrize` looked up there (pickled by name, so that this
-    module's function is the one called, whatever it is at the time)."""
-    return _parametrize(points, faces)
-
-
 def parametrize_guarded(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``xatlas.parametrize(points (V, 3) float32, faces (T, 3) uint32)``, run where a native crash of xatlas
     cannot take this process with it (a forked process, where the platform forks; else here). When it dies,
@@ -131,7 +125,7 @@ def parametrize_guarded(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
         with warnings.catch_warnings(), ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as pool:
             warnings.simplefilter("ignore", DeprecationWarning)
             try:
-                result = pool.submit(_parametrize_apart, attempt, faces).result()
+                result = pool.submit(_parametrize, attempt, faces).result()
             except BrokenProcessPool:
                 continue
         if attempt is not points:

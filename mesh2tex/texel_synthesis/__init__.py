@@ -75,7 +75,7 @@ import torch.nn.functional as F
 
 from mesh2tex.config import check_fields
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
-from mesh2tex.losses.structure import PATCH_SIZE, patch_distance
+from mesh2tex.losses.structure import PATCH_SIZE
 from mesh2tex.nn.schedule import cosine_rate
 from mesh2tex.photos import square_resize
 from mesh2tex.render import interpolate, orbit_camera, rasterize, sample_texture, transform_points, uv_rasterize
@@ -86,7 +86,7 @@ from mesh2tex.texel_synthesis.surface import (
     TexelSurface,
     VertexPatches,
     chart_mosaic,
-    patch_pixels,
+    walked_patch_terms,
 )
 
 DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
@@ -356,12 +356,9 @@ class TexelSynthesis:
         cfg = self.cfg
         if self.patches is not None:
             sets = self.surface_patch_sets(image, generator)
-            loss = patch_distance(sets, self.features.patch_sets(), generator)
-            if cfg.palette_weight and len(sets[0]) > 1:  # the finest patches' pixels, stacked as one image
-                pixels, ones = patch_pixels(sets[0], PATCH_SIZE)
-                palette = style_loss(None, pixels, ones, self.palette, "sw", cfg.max_points, generator)
-                loss = loss + cfg.palette_weight * palette
-            return loss
+            palette_features = self.palette if cfg.palette_weight else None
+            loss, palette = walked_patch_terms(sets, self.features, palette_features, cfg.max_points, generator)
+            return loss if palette is None else loss + cfg.palette_weight * palette
         (images, masks), (pixels, pixel_masks) = self.views_of(image, count, generator)
         loss = style_loss(self.vgg, images, masks, self.features, cfg.loss, cfg.max_points, generator)
         if cfg.palette_weight:
@@ -451,10 +448,10 @@ __all__ = [
     "chart_mosaic",
     "exemplar_tensor",
     "mip_level",
-    "patch_pixels",
     "pixels_per_unit",
     "render_texture",
     "texture_coverage",
     "vertex_texture_colours",
     "view_cameras",
+    "walked_patch_terms",
 ]

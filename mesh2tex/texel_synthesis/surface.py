@@ -20,6 +20,8 @@ import numpy as np
 import torch
 
 from mesh2tex.geometry.geodesic import SurfaceWalker, geodesic_charts
+from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
+from mesh2tex.losses.structure import PATCH_SIZE, patch_distance
 
 
 @dataclass
@@ -215,11 +217,22 @@ class VertexPatches:
         return sets
 
 
-def patch_pixels(patches: torch.Tensor, size: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """The pixels of one octave's patches (P, 3 size^2), stacked as one image (1, 3, P size, size) with its
-    mask: what the palette term compares with the exemplar's pixels."""
-    pixels = patches.reshape(-1, 3, size, size).transpose(0, 1).reshape(1, 3, -1, size)
-    return pixels, torch.ones_like(pixels[:, :1])
+def walked_patch_terms(
+    sets: list[torch.Tensor],
+    exemplar: ExemplarFeatures,
+    palette: ExemplarFeatures | None,
+    max_points: int,
+    generator: torch.Generator,
+) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """The loss terms of one draw of walked patches, (P_l, 3 PATCH_SIZE^2) per octave: the ``patch`` distance
+    to the exemplar's sets, and with ``palette`` (the exemplar's pixels alone) the palette term, the sliced
+    Wasserstein distance of the finest octave's pixels to the exemplar's (None when off or when fewer than 2
+    patches were whole)."""
+    style = patch_distance(sets, exemplar.patch_sets(), generator)
+    if palette is None or len(sets[0]) < 2:
+        return style, None
+    pixels = sets[0].reshape(-1, 3, PATCH_SIZE, PATCH_SIZE).transpose(0, 1).reshape(1, 3, -1, PATCH_SIZE)
+    return style, style_loss(None, pixels, torch.ones_like(pixels[:, :1]), palette, "sw", max_points, generator)
 
 
 def chart_mosaic(images: torch.Tensor, masks: torch.Tensor, gutter: int = 4, background: float = 1.0):
@@ -245,6 +258,6 @@ __all__ = [
     "TexelSurface",
     "VertexPatches",
     "chart_mosaic",
-    "patch_pixels",
     "walk_grids",
+    "walked_patch_terms",
 ]

@@ -4,11 +4,12 @@ texture, against the photo's ground truth and a flat colour.
     python benchmarks/outside_transfer.py --checkpoint chair [--pose-checkpoint P] [--noc-checkpoint N]
         [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
         [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
-        [--first-photo 0] [--no-mask-refine]
+        [--first-photo 0] [--no-mask-refine] [--no-mirror]
 
 ``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
 per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
-(``transfer.mask_refine: false``).
+(``transfer.mask_refine: false``); ``--no-mirror`` leaves the photo unread across the mesh's mirror plane
+(``transfer.w_mirror: 0``).
 
 The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py`` and, for
 chairs, the stool of ``tests/user_assets.py``, each read as a user's file is (turned y-up, prepared
@@ -173,6 +174,9 @@ def main() -> None:
         "--no-mask-refine", action="store_true", help="keep the picked estimate (no GrabCut from the mesh's outline)"
     )
     parser.add_argument(
+        "--no-mirror", action="store_true", help="do not read the photo across the mesh's mirror plane (w_mirror 0)"
+    )
+    parser.add_argument(
         "--first-photo", type=int, default=0, help="skip the first photos of each mesh (a fresh set of cameras)"
     )
     parser.add_argument(
@@ -195,6 +199,7 @@ def main() -> None:
         refine_iters=args.refine_iters,
         use_noc=noc_checkpoint is not None,
         mask_refine=not args.no_mask_refine,
+        w_mirror=0.0 if args.no_mirror else TransferConfig.w_mirror,
     )
     vgg = load_vgg19(None, device=device)
     spec = WorldSpec(category=args.category, variety=args.variety)
@@ -299,6 +304,7 @@ def main() -> None:
                     batch = collate_shapes([shape])
                     fit = check_fit(photo.image, photo.mask, result.render, framed.mask)
                     row["fit_poor"], row["fit_iou"] = fit.poor, fit.silhouette_iou
+                    row["mirror"], row["transfer_seconds"] = result.mirror, round(sum(result.seconds.values()), 1)
                     with torch.no_grad():
                         texture = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none")
                     judged = [view, dataclasses.replace(view, azimuth=(view.azimuth + 180.0) % 360.0)]

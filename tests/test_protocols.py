@@ -150,7 +150,13 @@ def test_every_protocol_and_ablation_is_run_and_tabled(setup, tmp_path, monkeypa
             assert entry["oracle_loses"] == [], f"{protocol}: the oracle loses {entry['oracle_loses']}"
         targets = {q["shape"] for q in entry["queries"]}
         assert targets == ({held_out} if protocol != "other_shape" else {index["split"]["train_shapes"][0]})
-        assert set(result["comparison"][protocol]) == set(BASELINES) | {"no_noc", "no_patches", "no_refine", "paper"}
+        assert set(result["comparison"][protocol]) == set(BASELINES) | {
+            "no_noc",
+            "no_patches",
+            "no_refine",
+            "no_mirror",
+            "paper",
+        }
     # The known pose is the sidecar's; stage 2 ran for the full method and not for no_refine.
     assert all(
         q["azimuth_error"] == 0 and q["elevation_error"] == 0 for q in result["protocols"]["known_pose"]["queries"]

@@ -5,19 +5,24 @@ import numpy as np
 import pytest
 import trimesh
 
-from mesh2tex.geometry.symmetry import azimuth_symmetries
+from mesh2tex.geometry.symmetry import azimuth_symmetries, mirror_axis, mirrored_azimuth
 from mesh2tex.nn.pose import symmetric_azimuth_error
 
 
-def boxes(*specs) -> np.ndarray:
-    """The vertices of axis-aligned boxes, each (extents, centre), y up; subdivided so that every part has
+def box_mesh(*specs) -> trimesh.Trimesh:
+    """Axis-aligned boxes, each (extents, centre), y up, as one mesh; subdivided so that every part has
     as many vertices as its size asks."""
     meshes = []
     for extents, centre in specs:
         box = trimesh.creation.box(extents=extents)
         box.apply_translation(centre)
         meshes.append(box.subdivide().subdivide())
-    return np.asarray(trimesh.util.concatenate(meshes).vertices)
+    return trimesh.util.concatenate(meshes)
+
+
+def boxes(*specs) -> np.ndarray:
+    """The vertices of :func:`box_mesh`."""
+    return np.asarray(box_mesh(*specs).vertices)
 
 
 def legs(width: float, depth: float) -> list:
@@ -73,3 +78,36 @@ def test_a_shape_of_one_point_keeps_the_plain_error():
 def test_vertices_of_the_wrong_shape_are_refused_by_name():
     with pytest.raises(ValueError, match="azimuth_symmetries: vertices"):
         azimuth_symmetries(np.zeros((10, 2)))
+
+
+def test_a_chair_mirrors_across_the_plane_between_its_left_and_right_and_a_one_armed_chair_across_none():
+    back = ((0.45, 0.5, 0.04), (0.0, 0.75, -0.2))
+    chair = box_mesh(SEAT, *legs(0.4, 0.4), back)
+    v, f = np.asarray(chair.vertices), np.asarray(chair.faces)
+    assert mirror_axis(v, f) == 0
+    assert mirror_axis(v[:, [2, 1, 0]], f) == 2  # turned a quarter: the plane is normal to z
+    assert mirror_axis(v + np.array([3.0, 1.0, -2.0]), f) == 0  # wherever the file puts it
+    one_arm = box_mesh(SEAT, *legs(0.4, 0.4), back, ((0.04, 0.25, 0.4), (0.22, 0.6, 0.0)))
+    assert mirror_axis(np.asarray(one_arm.vertices), np.asarray(one_arm.faces)) is None
+    # a symmetric surface meshed finer on one side: its vertices do not mirror, its surface does
+    slab = trimesh.creation.box(extents=(1.0, 0.6, 0.4))
+    for _ in range(3):
+        slab = slab.subdivide(face_index=np.flatnonzero(slab.triangles_center[:, 0] > 0))
+    assert len(slab.vertices) > 50 and (slab.vertices[:, 0] > 0.01).sum() > 5 * (slab.vertices[:, 0] < -0.01).sum()
+    assert mirror_axis(np.asarray(slab.vertices), np.asarray(slab.faces)) in (0, 2)
+
+
+def test_the_mirrored_camera_sits_where_the_plane_reflects_it():
+    import torch
+
+    from mesh2tex.render import orbit_direction
+
+    for axis in (0, 2):
+        for azimuth in (10.0, 75.0, 200.0, 330.0):
+            eye = orbit_direction(torch.tensor([azimuth]), torch.tensor([20.0]))[0]
+            reflected = eye.clone()
+            reflected[axis] *= -1.0
+            mirrored = orbit_direction(torch.tensor([mirrored_azimuth(azimuth, axis)]), torch.tensor([20.0]))[0]
+            assert torch.allclose(mirrored, reflected, atol=1e-6)
+    with pytest.raises(ValueError, match="axis 1"):
+        mirrored_azimuth(10.0, 1)

@@ -248,6 +248,24 @@ def test_the_learnt_light_starts_at_the_prior_and_turns_with_the_camera():
     assert light.ambient.item() == pytest.approx(0.5 * (prior.ambient_min + prior.ambient_max))
 
 
+def test_the_learnt_light_is_mirrored_with_the_camera():
+    """Read across a mirror plane, the photo's light is where the plane reflects it."""
+    import torch
+
+    from mesh2tex.geometry.symmetry import mirrored_azimuth
+    from mesh2tex.transfer.optimise import PhotoLight
+
+    light = PhotoLight(camera_azimuth=30.0)
+    with torch.no_grad():
+        light.azimuth_offset.fill_(0.35)  # radians: the light about 20 degrees off the camera
+    for axis in (0, 2):
+        direction = light.lights().direction[0]
+        reflected = direction.clone()
+        reflected[axis] *= -1.0
+        mirrored = light.lights(mirrored_azimuth(30.0, axis)).direction[0]
+        assert torch.allclose(mirrored.detach(), reflected.detach(), atol=1e-5)
+
+
 def test_the_anchor_covers_only_surfaces_the_photo_does_not_show(tiny_gan):
     """unseen_anchors: at the photo's own pose nothing is left to anchor; around it, the surfaces the
     photo's view does not see are, and the albedo there is the current texture's."""
@@ -271,7 +289,7 @@ def test_the_anchor_covers_only_surfaces_the_photo_does_not_show(tiny_gan):
         calls.append(at.azimuth)
         return torch.full((1, 3, 32, 32), 0.5)
 
-    anchors = unseen_anchors(shape, view, batch, samples, cfg, torch.device("cpu"), albedo, lambda: None)
+    anchors = unseen_anchors(shape, view, batch, [samples], cfg, torch.device("cpu"), albedo, lambda: None)
     azimuths = [round(at.azimuth % 360) for at, _, _, _ in anchors]
     assert 30 not in azimuths, "the photo's own view shows nothing the photo does not"
     assert 210 in azimuths and len(anchors) >= 6  # the far side is anchored
@@ -304,3 +322,33 @@ def test_a_photo_without_a_mask_is_segmented_with_the_meshs_help_and_the_report_
     assert report["pose"]["source"] == "pose network + silhouette search" and report["settings"]["mask_refine"] is True
     plain = transfer_report(setup, tmp_path / "plain", "mask_refine: false\n", *args)
     assert plain["mask_source"] == "estimated (GrabCut)"
+
+
+def test_the_photo_flipped_is_what_the_mirrored_camera_sees_of_a_symmetric_mesh(tiny_gan):
+    """mirror_query: on a mirror-symmetric mesh the mesh's own picture flipped left to right (its outline and
+    its NOC, the NOC's mirrored coordinate turned to 1 - c) matches the view at the mirrored pose."""
+    from mesh2tex.geometry.prepared import PreparedShape
+    from mesh2tex.geometry.symmetry import mirror_axis
+    from mesh2tex.transfer.config import TransferConfig
+    from mesh2tex.transfer.photo import Photo, mirror_query, view_at_pose
+
+    shape = PreparedShape.load(tiny_gan / "shapes" / "box0.npz")
+    axis = mirror_axis(shape.vertices[0], shape.triangles(0))
+    assert axis in (0, 2)
+    cfg = TransferConfig(resolution=32)
+    view = view_at_pose(shape, 30.0, 20.0, 2.5, 40.0, cfg)
+    photo = Photo(image=view.noc.permute(2, 0, 1)[None] * 2 - 1, mask=view.mask)
+    flipped, mirrored, noc = mirror_query(shape, photo, view, view.noc, axis, cfg)
+    assert mirrored.azimuth == pytest.approx(330.0 if axis == 0 else 150.0)
+    both = (flipped.mask > 0.5) & (mirrored.mask > 0.5)
+    either = (flipped.mask > 0.5) | (mirrored.mask > 0.5)
+    assert float(both.sum() / either.sum()) > 0.9
+    inside = both[0, 0]
+    assert float((noc[inside] - mirrored.noc[inside]).abs().mean()) < 0.03
+    unmirrored = view.noc.flip(1)[inside]  # flipped without turning the coordinate: far off on that axis
+    assert float((unmirrored[:, axis] - mirrored.noc[inside][:, axis]).abs().mean()) > 0.1
+
+
+def test_a_symmetric_mesh_is_also_read_across_its_mirror_unless_told_not_to(setup, tmp_path):
+    assert transfer_report(setup, tmp_path / "out", "")["mirror"] in ("x", "z")
+    assert transfer_report(setup, tmp_path / "off", "w_mirror: 0\n")["mirror"] is None

@@ -240,6 +240,7 @@ def _transferred(
         "loss_last": {k: v[-1] for k, v in result.losses.items() if v},
         "seconds": round(sum(result.seconds.values()), 2),
         **({"light": result.light} if result.light is not None else {}),
+        **({"mirror": result.mirror} if result.mirror is not None else {}),
     }
     if cache is not None:
         cache.save(setup.protocol, ablation, setup.query.name, texture, row)

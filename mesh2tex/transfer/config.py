@@ -16,7 +16,8 @@ ABLATIONS = {
     "no_noc": {"use_noc": False},
     "no_patches": {"use_patches": False},
     "no_refine": {"refine": False},
-    "paper": {"w_colour": 0.0, "light": "off", "lr": 1e-2, "refine_lr": 0.0},
+    "no_mirror": {"w_mirror": 0.0},
+    "paper": {"w_colour": 0.0, "light": "off", "lr": 1e-2, "refine_lr": 0.0, "w_mirror": 0.0},
 }
 
 LIGHT_MODES = ("auto", "learn", "off")
@@ -76,6 +77,9 @@ class TransferConfig:
     # views of those surfaces for w_anchor, evenly spaced in azimuth from 30 degrees after the photo's; one per
     # stage-2 iteration, in turn
     anchor_views: int = 6
+    # both stages: weight of the photo read across the mesh's mirror plane, when the mesh has one (a chair's or a
+    # car's left and right): the flipped photo against the render at the mirrored pose (0: off)
+    w_mirror: float = 1.0
     # the photo's light in the renders: learn (a directional light and ambient optimised with the texture, which
     # stays albedo), off (unlit renders), auto (learn when the generator was trained lit)
     light: str = "auto"
@@ -126,6 +130,7 @@ class TransferConfig:
                 "latent_starts": 1,
                 "w_anchor": 0,
                 "anchor_views": 1,
+                "w_mirror": 0,
                 "resolution": 16,
                 "texture_size": 16,
                 "patch_size": 1,

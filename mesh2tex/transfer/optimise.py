@@ -3,6 +3,7 @@ style (Mesh2Tex Equation 2, NOC-guided patch pairs)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -12,6 +13,7 @@ import torch
 from mesh2tex.checks import check_shape
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.geometry.symmetry import mirror_axis
 from mesh2tex.losses.style import (
     global_style_loss,
     lowpass_colour_loss,
@@ -26,7 +28,7 @@ from mesh2tex.progress import progress_bar
 from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction
 from mesh2tex.texturing import mean_latent
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.photo import FramedView, Photo, check_query, check_view, view_at_pose
+from mesh2tex.transfer.photo import FramedView, Photo, check_query, check_view, mirror_query, view_at_pose
 
 
 class PhotoLight(torch.nn.Module):
@@ -51,9 +53,12 @@ class PhotoLight(torch.nn.Module):
         ambient = 0.5 * (prior.ambient_min + prior.ambient_max)
         self.ambient_logit = torch.nn.Parameter(torch.logit(torch.tensor(ambient)))
 
-    def lights(self) -> Lights:
-        """One light (N = 1) for :func:`mesh2tex.nn.render_texture.render_field_views`."""
-        azimuth = torch.rad2deg(self.azimuth_offset) + self.camera_azimuth
+    def lights(self, mirrored_camera: float | None = None) -> Lights:
+        """One light (N = 1) for :func:`mesh2tex.nn.render_texture.render_field_views`; with
+        ``mirrored_camera`` (the azimuth of the camera mirrored across the mesh's mirror plane), the light
+        mirrored with it: on the other side of that camera."""
+        offset = torch.rad2deg(self.azimuth_offset)
+        azimuth = self.camera_azimuth + offset if mirrored_camera is None else mirrored_camera - offset
         elevation = torch.rad2deg(self.elevation).clamp(-89.0, 89.0)
         direction = orbit_direction(azimuth.reshape(1), elevation.reshape(1))
         return Lights(direction, torch.sigmoid(self.ambient_logit).reshape(1))
@@ -142,6 +147,8 @@ class TransferResult:
     losses: dict[str, list[float]] = field(default_factory=dict)  # per stage, one value per iteration
     seconds: dict[str, float] = field(default_factory=dict)  # per stage
     light: dict[str, float] | None = None  # the learnt light (PhotoLight.describe), None when the renders were unlit
+    # the axis ("x" or "z") normal to the mirror plane the photo was also read across (cfg.w_mirror), None when not
+    mirror: str | None = None
 
 
 def learns_light(cfg: TransferConfig, generator_lit: bool) -> bool:
@@ -168,7 +175,9 @@ def transfer_texture(
     pass a copy if the original is needed again. ``photo_noc`` (R,R,3) is needed when
     ``cfg.use_noc`` and ``cfg.use_patches``; photo: image (1,3,R,R), mask (1,1,R,R); view: noc (R,R,3), mask
     (1,1,R,R). ``generator_lit``: trained under the light prior (:func:`mesh2tex.models.TrainedGenerator`), which
-    ``cfg.light`` 'auto' follows. With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose.
+    ``cfg.light`` 'auto' follows. With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose;
+    with ``cfg.w_mirror`` > 0 and a mesh with a mirror plane, both stages add the losses of the photo read across
+    it (:class:`MirrorTerm`).
     """
     check_query(photo, view, photo_noc, "transfer_texture")
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
@@ -177,16 +186,17 @@ def transfer_texture(
     samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
     light = PhotoLight(view.azimuth).to(device) if learns_light(cfg, generator_lit) else None
     renders = _FieldRenders(generator, batch, view, samples, light, cfg.resolution, device)
+    mirror = MirrorTerm.of(shape, photo, view, photo_noc, batch, samples, vgg, cfg, device)
     ws = starting_latent(generator, renders.at_photo, loss_of, cfg, device).requires_grad_(True)
 
     def styles() -> torch.Tensor:
         return ws.expand(1, generator.num_ws, -1)
 
-    result = TransferResult(ws=ws, render=torch.empty(0))
+    result = TransferResult(ws=ws, render=torch.empty(0), mirror="xyz"[mirror.axis] if mirror is not None else None)
     light_params = list(light.parameters()) if light is not None else []
 
     def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float, anchors=()) -> None:
-        loss = _stage_loss(loss_of, renders, styles, use_global, anchors, cfg.w_anchor)
+        loss = _stage_loss(loss_of, renders, styles, use_global, anchors, cfg.w_anchor, mirror, cfg.w_mirror)
         run_stage(stage, params, iters, lr, loss, result, show_progress)
 
     # The light is optimised in both stages: stage 2 changes the colours it has to explain.
@@ -197,7 +207,18 @@ def transfer_texture(
         for p in params:
             p.requires_grad_(True)
         anchors = (
-            unseen_anchors(shape, view, batch, samples, cfg, device, renders.unlit, styles) if cfg.w_anchor > 0 else []
+            unseen_anchors(
+                shape,
+                view,
+                batch,
+                [samples] + ([mirror.samples] if mirror is not None else []),
+                cfg,
+                device,
+                renders.unlit,
+                styles,
+            )
+            if cfg.w_anchor > 0
+            else []
         )
         # Stage 2 uses the patch loss without the global one (paper), plus the colour loss when it is on;
         # without patches it keeps the global loss.
@@ -242,6 +263,11 @@ class _FieldRenders:
         """(1, 3, R, R) the texture of styles ``ws`` at the photo's view, lit by the learnt light when there is one."""
         return self._render(ws, self.view, self.samples, self.light.lights() if self.light is not None else None)
 
+    def at_mirror(self, ws: torch.Tensor, mirror: MirrorTerm) -> torch.Tensor:
+        """(1, 3, R, R) the same at the mirrored pose, lit by the learnt light mirrored with the camera."""
+        lights = self.light.lights(mirror.view.azimuth) if self.light is not None else None
+        return self._render(ws, mirror.view, mirror.samples, lights)
+
     def unlit(self, ws: torch.Tensor, at: FramedView, at_samples) -> torch.Tensor:
         """(1, 3, R, R) albedo of the texture at another view, cropped as that view's object."""
         return self._render(ws, at, at_samples, None)
@@ -263,12 +289,72 @@ class _FieldRenders:
         return crop_square(full, view.box, self.resolution)
 
 
-def _stage_loss(loss_of: PhotoLoss, renders: _FieldRenders, styles, use_global: bool, anchors, w_anchor: float):
-    """loss(step): the photo loss of the render at the photo's view; with ``anchors`` [(view, samples, mask,
-    target colours)], plus ``w_anchor`` times the low-pass colour loss at anchor ``step % len(anchors)``."""
+@dataclass
+class MirrorTerm:
+    """The photo read across the mesh's mirror plane: what a camera mirrored across it sees of a
+    mirror-symmetric object is the photo flipped left to right (:func:`mesh2tex.transfer.photo.mirror_query`).
+    The render at that mirrored pose is held to the flipped photo by the same losses as the photo's, on the
+    pixels whose surface the photo's own view does not show: the side of a chair or a car that the photo
+    shows paints the other, which nothing else holds (the unseen sides, docs/results/transfer.md), and
+    the surfaces both views show are held by the photo alone (a photo from the front or the back,
+    mirrored, shows the same surfaces again and would only weigh them twice). ``axis``: 0 (x) or 2 (z),
+    the plane's normal; ``view``: the mirrored view, its mask those new pixels; ``samples``: the mesh
+    rasterized at the mirrored view (its full render)."""
+
+    axis: int
+    view: FramedView
+    samples: object
+    loss: PhotoLoss
+
+    @classmethod
+    def of(
+        cls,
+        shape: PreparedShape,
+        photo: Photo,
+        view: FramedView,
+        photo_noc,
+        batch,
+        photo_samples,
+        vgg,
+        cfg: TransferConfig,
+        device,
+    ) -> MirrorTerm | None:
+        """The term for this query (``photo_samples``: the mesh rasterized at the photo's view), or None when
+        ``cfg.w_mirror`` is 0, the mesh has no mirror plane (:func:`mesh2tex.geometry.symmetry.mirror_axis`)
+        or the mirrored view shows fewer than 16 pixels of surface the photo does not."""
+        axis = mirror_axis(shape.vertices[0], shape.triangles(0)) if cfg.w_mirror > 0 else None
+        if axis is None:
+            return None
+        flipped, mirrored, noc = mirror_query(shape, photo, view, photo_noc, axis, cfg)
+        samples = rasterize_batch(batch, mirrored.mvp.to(device), (mirrored.render_size, mirrored.render_size))
+        new = unseen_pixels(seen_triangles(batch, [photo_samples], device), mirrored, samples, cfg).to(mirrored.mask)
+        if new.sum() < 16:
+            return None
+        flipped = Photo(image=flipped.image, mask=flipped.mask * new)
+        mirrored = dataclasses.replace(mirrored, mask=mirrored.mask * new)
+        # its own patch pairs: the mirrored view's are drawn apart from the photo's
+        loss = PhotoLoss(flipped, mirrored, noc, vgg, dataclasses.replace(cfg, seed=cfg.seed + 1), device)
+        return cls(axis, mirrored, samples, loss)
+
+
+def _stage_loss(
+    loss_of: PhotoLoss,
+    renders: _FieldRenders,
+    styles,
+    use_global: bool,
+    anchors,
+    w_anchor: float,
+    mirror: MirrorTerm | None = None,
+    w_mirror: float = 0.0,
+):
+    """loss(step): the photo loss of the render at the photo's view; with ``mirror``, plus ``w_mirror`` times
+    its loss at the mirrored view; with ``anchors`` [(view, samples, mask, target colours)], plus
+    ``w_anchor`` times the low-pass colour loss at anchor ``step % len(anchors)``."""
 
     def loss(i: int) -> torch.Tensor:
         total, _ = loss_of(renders.at_photo(styles()), use_global)
+        if mirror is not None:
+            total = total + w_mirror * mirror.loss(renders.at_mirror(styles(), mirror), use_global)[0]
         if anchors:
             at, at_samples, mask, target = anchors[i % len(anchors)]
             unlit = renders.unlit(styles(), at, at_samples)
@@ -333,7 +419,7 @@ def unseen_anchors(
     shape: PreparedShape,
     view: FramedView,
     batch,
-    samples,
+    seen_samples: list,
     cfg: TransferConfig,
     device: torch.device,
     render_unlit,
@@ -341,8 +427,9 @@ def unseen_anchors(
 ) -> list:
     """The surfaces the photo does not show, as stage 1 painted them: for each of ``cfg.anchor_views``
     views around the object (the photo's elevation, azimuths from 30 degrees after the photo's), a tuple
-    (view, its surface samples, mask (1,1,R,R) of the pixels whose triangle the photo's view does not
-    see, albedo (1,3,R,R) of the current texture there). Views that show no such pixel are left out.
+    (view, its surface samples, mask (1,1,R,R) of the pixels whose triangle none of ``seen_samples`` (the
+    photo's view's, and the mirrored view's when the photo is read across a mirror) covers, albedo
+    (1,3,R,R) of the current texture there). Views that show no such pixel are left out.
 
     Stage 2 fits the last synthesis blocks to the photo's side alone and nothing holds the other sides;
     the low-pass colour loss against these renders (``cfg.w_anchor``) keeps them on the generator's
@@ -351,16 +438,29 @@ def unseen_anchors(
     check_view(view, "unseen_anchors")
     if view.distance <= 0:
         raise ValueError("unseen_anchors: the view records no camera distance (build it with view_at_pose)")
-    seen = torch.zeros(batch.triangles().shape[0], dtype=torch.bool, device=device)
-    seen[samples.triangle_id[samples.triangle_id >= 0]] = True
+    seen = seen_triangles(batch, seen_samples, device)
     anchors = []
     for k in range(cfg.anchor_views):
         azimuth = view.azimuth + 30.0 + 360.0 * k / cfg.anchor_views
         at = view_at_pose(shape, azimuth, view.elevation, view.distance, view.fov, cfg)
         at_samples = rasterize_batch(batch, at.mvp.to(device), (at.render_size, at.render_size))
-        ids = at_samples.triangle_id
-        unseen = ((ids >= 0) & ~seen[ids.clamp_min(0)]).float().unsqueeze(1)  # (1,1,S,S)
-        mask = (crop_square(unseen, at.box, cfg.resolution) > 0.5).float()
+        mask = unseen_pixels(seen, at, at_samples, cfg)
         if mask.sum() >= 16:
             anchors.append((at, at_samples, mask, render_unlit(styles(), at, at_samples)))
     return anchors
+
+
+def seen_triangles(batch, seen_samples: list, device: torch.device) -> torch.Tensor:
+    """[T] bool over the batch's triangles: those that cover a pixel of any of ``seen_samples`` (rasterizations)."""
+    seen = torch.zeros(batch.triangles().shape[0], dtype=torch.bool, device=device)
+    for samples in seen_samples:
+        seen[samples.triangle_id[samples.triangle_id >= 0]] = True
+    return seen
+
+
+def unseen_pixels(seen: torch.Tensor, at: FramedView, at_samples, cfg: TransferConfig) -> torch.Tensor:
+    """(1, 1, R, R) float {0, 1}: the pixels of view ``at`` (its crop; ``at_samples`` its full rasterization)
+    whose triangle is not ``seen`` ([T] bool)."""
+    ids = at_samples.triangle_id
+    unseen = ((ids >= 0) & ~seen[ids.clamp_min(0)]).float().unsqueeze(1)  # (1,1,S,S)
+    return (crop_square(unseen, at.box, cfg.resolution) > 0.5).float()

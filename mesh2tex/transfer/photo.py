@@ -13,6 +13,7 @@ import torch
 from mesh2tex.checks import check_array_shape, check_shape, check_type
 from mesh2tex.errors import InputError
 from mesh2tex.geometry.prepared import PreparedShape
+from mesh2tex.geometry.symmetry import mirrored_azimuth
 from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.photos import estimate_mask, largest_region
 from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
@@ -216,3 +217,24 @@ def view_at_pose(
         distance=float(distance),
         fov=float(fov),
     )
+
+
+def mirror_query(
+    shape: PreparedShape, photo: Photo, view: FramedView, photo_noc: torch.Tensor | None, axis: int, cfg: TransferConfig
+) -> tuple[Photo, FramedView, torch.Tensor | None]:
+    """The query read across the mesh's mirror plane (normal to ``axis``, 0: x or 2: z, through the NOC
+    frame's centre; :func:`mesh2tex.geometry.symmetry.mirror_axis`): the photo flipped left to right is
+    what a camera mirrored across that plane would see of a mirror-symmetric object, so the flipped
+    photo, the view at the mirrored pose and the photo's NOC flipped with its ``axis`` coordinate
+    turned to 1 - c (None stays None). photo: image (1,3,R,R), mask (1,1,R,R); view with a recorded
+    camera distance (:func:`view_at_pose`); photo_noc (R,R,3) or None."""
+    check_query(photo, view, photo_noc, "mirror_query")
+    if view.distance <= 0:
+        raise ValueError("mirror_query: the view records no camera distance (build it with view_at_pose)")
+    flipped = Photo(image=photo.image.flip(3), mask=photo.mask.flip(3))
+    mirrored = view_at_pose(shape, mirrored_azimuth(view.azimuth, axis), view.elevation, view.distance, view.fov, cfg)
+    noc = None
+    if photo_noc is not None:
+        noc = photo_noc.flip(1).clone()
+        noc[..., axis] = 1.0 - noc[..., axis]
+    return flipped, mirrored, noc

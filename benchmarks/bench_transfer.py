@@ -124,10 +124,20 @@ def time_previous(revision: str, args, shape, photo, view, photo_noc, weights: d
         ).eval()
         generator.load_state_dict(weights)
         vgg = old.module("mesh2tex.nn.vgg").load_vgg19(None, device=device, warn=False)
+        # The revision's own classes: its checks compare types, and today's Photo is not its Photo.
+        photo_module = old.module("mesh2tex.transfer.photo")
+        photo, view = as_revision_type(photo, photo_module.Photo), as_revision_type(view, photo_module.FramedView)
         result = old.module("mesh2tex.transfer.optimise").transfer_texture(
             generator, shape, photo, view, photo_noc, vgg, cfg, device, show_progress=False
         )
     return sum(result.seconds.values())
+
+
+def as_revision_type(value, kind):
+    """``value`` (a dataclass of today's code) rebuilt as the revision's dataclass ``kind`` of the fields it knows."""
+    import dataclasses
+
+    return kind(**{f.name: getattr(value, f.name) for f in dataclasses.fields(kind) if hasattr(value, f.name)})
 
 
 if __name__ == "__main__":

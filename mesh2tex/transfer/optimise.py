@@ -321,17 +321,19 @@ class MirrorTerm:
     ) -> MirrorTerm | None:
         """The term for this query (``photo_samples``: the mesh rasterized at the photo's view), or None when
         ``cfg.w_mirror`` is 0, the mesh has no mirror plane (:func:`mesh2tex.geometry.symmetry.mirror_axis`)
-        or the mirrored view shows fewer than 16 pixels of surface the photo does not."""
+        or the mirrored view shows fewer than 16 pixels of surface the photo does not (in its render, and
+        in the flipped photo's mask)."""
         axis = mirror_axis(shape.vertices[0], shape.triangles(0)) if cfg.w_mirror > 0 else None
         if axis is None:
             return None
         flipped, mirrored, noc = mirror_query(shape, photo, view, photo_noc, axis, cfg)
         samples = rasterize_batch(batch, mirrored.mvp.to(device), (mirrored.render_size, mirrored.render_size))
         new = unseen_pixels(seen_triangles(batch, [photo_samples], device), mirrored, samples, cfg).to(mirrored.mask)
-        if new.sum() < 16:
-            return None
         flipped = Photo(image=flipped.image, mask=flipped.mask * new)
         mirrored = dataclasses.replace(mirrored, mask=mirrored.mask * new)
+        # both sides of every loss need pixels: an estimated mask that misses the new surfaces leaves none
+        if min(float(flipped.mask.sum()), float(mirrored.mask.sum())) < 16:
+            return None
         # its own patch pairs: the mirrored view's are drawn apart from the photo's
         loss = PhotoLoss(flipped, mirrored, noc, vgg, dataclasses.replace(cfg, seed=cfg.seed + 1), device)
         return cls(axis, mirrored, samples, loss)

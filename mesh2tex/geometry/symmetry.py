@@ -25,8 +25,7 @@ def azimuth_symmetries(vertices: np.ndarray, step: float = 5.0, tolerance: float
     """
     from scipy.spatial import cKDTree
 
-    check_array_shape(vertices, "azimuth_symmetries: vertices", ("V", 3))
-    points = np.asarray(vertices, dtype=np.float64)
+    points = check_vertices(vertices, "azimuth_symmetries")
     # A vertex set that a turn maps onto itself has its mean on the turn's axis; the bounding box's centre
     # need not be (a three-legged stool's box is off its axis)
     points = points - points.mean(axis=0)

@@ -4,12 +4,18 @@ texture, against the photo's ground truth and a flat colour.
     python benchmarks/outside_transfer.py --checkpoint chair [--pose-checkpoint P] [--noc-checkpoint N]
         [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
         [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
-        [--first-photo 0] [--no-mask-refine] [--no-mirror]
+        [--first-photo 0] [--no-mask-refine] [--no-mirror] [--meshes NAME ...]
+        [--light-start search] [--light-fixed] [--light-truth]
 
 ``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
 per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
 (``transfer.mask_refine: false``); ``--no-mirror`` leaves the photo unread across the mesh's mirror plane
-(``transfer.w_mirror: 0``).
+(``transfer.w_mirror: 0``); ``--light-start search`` starts the photo's light where its shading across the
+mesh's folds says (``transfer.light_start``) and ``--light-fixed`` keeps it there (``transfer.light_fixed``); each
+transfer's row gives the light found and its error against the photo's (:func:`light_error`); ``--light-truth``
+holds the photo's own light, relative to the photo's camera, placed relative to the found one (an oracle row).
+``--meshes`` keeps only the named meshes (their indices, hence their materials and cameras, stay those of the full
+run, so the rows compare).
 
 The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py`` and, for
 chairs, the stool of ``tests/user_assets.py``, each read as a user's file is (turned y-up, prepared
@@ -118,6 +124,36 @@ def room(size: int, rng: np.random.Generator) -> np.ndarray:
     return np.clip(image, 0.0, 1.0)
 
 
+def true_light(view):
+    """The photo's light (``view.light``, a world direction, and ``view.ambient``) as a ``LightStart``: its
+    azimuth relative to the photo's camera, so that a transfer at the found pose holds it where the photo shows it."""
+    import math
+
+    from mesh2tex.transfer.light import LightStart
+
+    x, y, z = view.light
+    offset = (math.degrees(math.atan2(x, z)) - view.azimuth + 180.0) % 360.0 - 180.0
+    return LightStart(offset, math.degrees(math.asin(y)), view.ambient)
+
+
+def light_error(found: dict, view, found_azimuth: float) -> float:
+    """Degrees between the learnt light (``PhotoLight.describe``: relative to the found camera) and the photo's
+    (``view.light``, a world direction) taken relative to the true camera: the light as the photo shows it, so a
+    pose found turned by one of the mesh's symmetries does not count against it. Shading is two-sided (it
+    depends on |n . l|), so a light and its opposite are the same light."""
+    import math
+
+    from mesh2tex.render import orbit_direction
+
+    x, y, z = view.light
+    true_offset = math.degrees(math.atan2(x, z)) - view.azimuth
+    true = orbit_direction(torch.tensor([found_azimuth + true_offset]), torch.tensor([math.degrees(math.asin(y))]))
+    learnt = orbit_direction(
+        torch.tensor([found_azimuth + found["azimuth_offset"]]), torch.tensor([min(found["elevation"], 89.0)])
+    )
+    return round(math.degrees(math.acos(float((true @ learnt.t()).abs().clamp(max=1.0)))), 1)
+
+
 def main() -> None:
     import cv2
 
@@ -148,6 +184,7 @@ def main() -> None:
         transfer_texture,
         view_at_pose,
     )
+    from mesh2tex.transfer.config import LIGHT_STARTS
     from mesh2tex.transfer.fit import check_fit
     from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
 
@@ -180,6 +217,12 @@ def main() -> None:
         "--first-photo", type=int, default=0, help="skip the first photos of each mesh (a fresh set of cameras)"
     )
     parser.add_argument(
+        "--light-start", default=TransferConfig.light_start, choices=LIGHT_STARTS, help="where the photo's light starts"
+    )
+    parser.add_argument("--light-fixed", action="store_true", help="the light stays where it starts (not optimised)")
+    parser.add_argument("--light-truth", action="store_true", help="hold the photo's own light (an oracle)")
+    parser.add_argument("--meshes", nargs="+", help="only these meshes (names as the rows print them)")
+    parser.add_argument(
         "--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter"]
     )
     args = parser.parse_args()
@@ -200,6 +243,8 @@ def main() -> None:
         use_noc=noc_checkpoint is not None,
         mask_refine=not args.no_mask_refine,
         w_mirror=0.0 if args.no_mirror else TransferConfig.w_mirror,
+        light_start=args.light_start,
+        light_fixed=args.light_fixed,
     )
     vgg = load_vgg19(None, device=device)
     spec = WorldSpec(category=args.category, variety=args.variety)
@@ -208,6 +253,8 @@ def main() -> None:
     settings = ScoreSettings()
     rows = []
     for index, (name, path) in enumerate(outside_meshes(args.category, folder)):
+        if args.meshes and name not in args.meshes:
+            continue
         shape, _ = load_shape(path, generator, model.face_count(), output_mesh="prepared")
         vertices, faces = shape.vertices[0], shape.triangles(0)
         parts = height_parts(vertices, faces, args.category)
@@ -300,11 +347,15 @@ def main() -> None:
                         device,
                         show_progress=False,
                         generator_lit=model.lit,
+                        known_light=true_light(view) if args.light_truth else None,
                     )
                     batch = collate_shapes([shape])
                     fit = check_fit(photo.image, photo.mask, result.render, framed.mask)
                     row["fit_poor"], row["fit_iou"] = fit.poor, fit.silhouette_iou
                     row["mirror"], row["transfer_seconds"] = result.mirror, round(sum(result.seconds.values()), 1)
+                    if result.light is not None:
+                        row["light"] = result.light
+                        row["light_error"] = light_error(result.light, view, estimate.azimuth)
                     with torch.no_grad():
                         texture = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none")
                     judged = [view, dataclasses.replace(view, azimuth=(view.azimuth + 180.0) % 360.0)]

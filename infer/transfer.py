@@ -24,7 +24,8 @@ Steps:
    colour loss at the pose, not in the paper); stage 2 unfreezes the last two synthesis blocks and
    optimises their weights with ``L_patch + w_colour * L_colour``. Adam, lr 0.05 then 0.01 (the
    paper: 0.01 and the style losses alone). A generator trained lit is rendered under a light
-   optimised with the texture (``light``), so the texture stays albedo. When the mesh is mirror-symmetric
+   optimised with the texture (``light``), so the texture stays albedo; it starts at the light that best
+   explains the photo's shading across the mesh's folds at the pose (``light_start``). When the mesh is mirror-symmetric
    (a chair's or a car's left and right, ``mesh2tex.geometry.symmetry.mirror_axis``), both stages also hold
    the render at the mirrored pose to the photo flipped left to right (``w_mirror``, 0 turns it off): the
    side the photo shows paints the other.
@@ -396,6 +397,8 @@ def run(args) -> int:
         "noc_guidance": bool(cfg.use_noc and cfg.use_patches),
         "method": f"automaton fitted to the photo ({cfg.automaton.iters} iterations)" if args.automaton else "transfer",
         "light": light,  # the photo's light as learnt (degrees from the camera, ambient share), None: unlit renders
+        # where that light started: the photo's shading across the mesh's folds (pairs > 0) or the prior's middle
+        "light_start": getattr(fitted, "light_start", None),
         # the mirror plane the photo was also read across (the axis normal to it), None: not (no plane, or w_mirror 0)
         "mirror": getattr(fitted, "mirror", None),
         "losses": {stage: _loss_record(curve) for stage, curve in losses.items()},

@@ -229,41 +229,17 @@ def test_a_lit_generator_learns_the_photos_light_and_the_colour_loss_joins_both_
     # The tiny GAN was trained under the light prior (the default), so 'auto' learns a light.
     assert report["settings"]["light"] == "auto" and set(report["light"]) == {"azimuth_offset", "elevation", "ambient"}
     assert 0.0 < report["light"]["ambient"] < 1.0
-    assert report["light"] != {"azimuth_offset": 0.0, "elevation": 47.5, "ambient": 0.475}, (
-        "the light moved from the prior's middle"
-    )
-    assert transfer_report(setup, tmp_path / "unlit", "w_colour: 2.0\nlight: 'off'\n")["light"] is None
+    start = report["light_start"]
+    assert set(start) == {"azimuth_offset", "elevation", "ambient", "pairs"}
+    assert report["light"] != {k: start[k] for k in ("azimuth_offset", "elevation", "ambient")}, "the light moved"
+    unlit = transfer_report(setup, tmp_path / "unlit", "w_colour: 2.0\nlight: 'off'\n")
+    assert unlit["light"] is None and unlit["light_start"] is None
 
 
-def test_the_learnt_light_starts_at_the_prior_and_turns_with_the_camera():
-    import torch
-
-    from mesh2tex.render import LightConfig, orbit_direction
-    from mesh2tex.transfer.optimise import PhotoLight
-
-    prior = LightConfig()
-    light = PhotoLight(camera_azimuth=120.0, prior=prior).lights()
-    middle = 0.5 * (prior.elevation_min + prior.elevation_max)
-    assert torch.allclose(light.direction, orbit_direction(torch.tensor([120.0]), torch.tensor([middle])), atol=1e-6)
-    assert light.ambient.item() == pytest.approx(0.5 * (prior.ambient_min + prior.ambient_max))
-
-
-def test_the_learnt_light_is_mirrored_with_the_camera():
-    """Read across a mirror plane, the photo's light is where the plane reflects it."""
-    import torch
-
-    from mesh2tex.geometry.symmetry import mirrored_azimuth
-    from mesh2tex.transfer.optimise import PhotoLight
-
-    light = PhotoLight(camera_azimuth=30.0)
-    with torch.no_grad():
-        light.azimuth_offset.fill_(0.35)  # radians: the light about 20 degrees off the camera
-    for axis in (0, 2):
-        direction = light.lights().direction[0]
-        reflected = direction.clone()
-        reflected[axis] *= -1.0
-        mirrored = light.lights(mirrored_azimuth(30.0, axis)).direction[0]
-        assert torch.allclose(mirrored.detach(), reflected.detach(), atol=1e-5)
+def test_a_fixed_light_stays_where_the_search_starts_it(setup, tmp_path):
+    report = transfer_report(setup, tmp_path / "fixed", "light_start: search\nlight_fixed: true\n")
+    start = report["light_start"]
+    assert report["light"] == pytest.approx({k: start[k] for k in ("azimuth_offset", "elevation", "ambient")}, abs=0.01)
 
 
 def test_the_anchor_covers_only_surfaces_the_photo_does_not_show(tiny_gan):

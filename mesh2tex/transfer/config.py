@@ -21,6 +21,7 @@ ABLATIONS = {
 }
 
 LIGHT_MODES = ("auto", "learn", "off")
+LIGHT_STARTS = ("prior", "search")
 LATENT_SPACES = ("w_plus", "w")
 
 
@@ -83,6 +84,11 @@ class TransferConfig:
     # the photo's light in the renders: learn (a directional light and ambient optimised with the texture, which
     # stays albedo), off (unlit renders), auto (learn when the generator was trained lit)
     light: str = "auto"
+    # where the photo's light starts: prior (the light prior's middle) or search (the light of the prior that best
+    # explains the photo's shading across the mesh's folds at the found pose, mesh2tex.transfer.light.search_light)
+    light_start: str = "prior"
+    # the light stays where it starts instead of being optimised with the texture
+    light_fixed: bool = False
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
     use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
     refine: bool = True  # stage 2 (False: the "w/o surface features" ablation)
@@ -147,6 +153,8 @@ class TransferConfig:
             raise ValueError(f"latent_space {self.latent_space!r}: must be one of {', '.join(LATENT_SPACES)}")
         if self.light not in LIGHT_MODES:
             raise ValueError(f"light {self.light!r}: must be one of {', '.join(LIGHT_MODES)}")
+        if self.light_start not in LIGHT_STARTS:
+            raise ValueError(f"light_start {self.light_start!r}: must be one of {', '.join(LIGHT_STARTS)}")
         if not 0 < self.pose_search_step <= 90 or self.pose_search_elevations < 1:
             raise ValueError(
                 f"pose_search_step {self.pose_search_step}, pose_search_elevations {self.pose_search_elevations}: "

@@ -4,9 +4,8 @@ style (Mesh2Tex Equation 2, NOC-guided patch pairs)."""
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import torch
 
@@ -25,52 +24,11 @@ from mesh2tex.nn.batch import collate_shapes
 from mesh2tex.nn.generator import TextureGenerator
 from mesh2tex.nn.render_texture import rasterize_batch, render_field_views
 from mesh2tex.progress import progress_bar
-from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction
+from mesh2tex.render import crop_square
 from mesh2tex.texturing import mean_latent
 from mesh2tex.transfer.config import TransferConfig
+from mesh2tex.transfer.light import LightStart, PhotoLight, starting_light
 from mesh2tex.transfer.photo import FramedView, Photo, check_query, check_view, mirror_query, view_at_pose
-
-
-class PhotoLight(torch.nn.Module):
-    """The photo's light as the renders learn it: one directional light, placed relative to the camera
-    (an azimuth offset and an elevation) as the light prior places it, and an ambient share.
-
-    It starts at the middle of :class:`mesh2tex.render.LightConfig`'s prior (a key light from the
-    camera's side and above). Optimised beside the texture, it takes up the photo's shading, so the
-    texture stays albedo: lit again by any light (the turntable, a GLB in Blender), it is not shaded twice.
-    """
-
-    def __init__(self, camera_azimuth: float, prior: LightConfig | None = None):
-        super().__init__()
-        prior = prior or LightConfig()
-        self.camera_azimuth = float(camera_azimuth)
-        # Angles in radians (reported in degrees): with the texture's learning rates (0.01-0.05 per
-        # step) a few hundred steps can turn the light anywhere, which degrees would not allow.
-        self.azimuth_offset = torch.nn.Parameter(torch.zeros(()))
-        self.elevation = torch.nn.Parameter(
-            torch.tensor(math.radians(0.5 * (prior.elevation_min + prior.elevation_max)))
-        )
-        ambient = 0.5 * (prior.ambient_min + prior.ambient_max)
-        self.ambient_logit = torch.nn.Parameter(torch.logit(torch.tensor(ambient)))
-
-    def lights(self, mirrored_camera: float | None = None) -> Lights:
-        """One light (N = 1) for :func:`mesh2tex.nn.render_texture.render_field_views`; with
-        ``mirrored_camera`` (the azimuth of the camera mirrored across the mesh's mirror plane), the light
-        mirrored with it: on the other side of that camera."""
-        offset = torch.rad2deg(self.azimuth_offset)
-        azimuth = self.camera_azimuth + offset if mirrored_camera is None else mirrored_camera - offset
-        elevation = torch.rad2deg(self.elevation).clamp(-89.0, 89.0)
-        direction = orbit_direction(azimuth.reshape(1), elevation.reshape(1))
-        return Lights(direction, torch.sigmoid(self.ambient_logit).reshape(1))
-
-    def describe(self) -> dict[str, float]:
-        """The light found, for reports: degrees relative to the camera, the ambient share."""
-        with torch.no_grad():
-            return {
-                "azimuth_offset": round(math.degrees(self.azimuth_offset.item()), 2),
-                "elevation": round(math.degrees(self.elevation.item()), 2),
-                "ambient": round(torch.sigmoid(self.ambient_logit).item(), 4),
-            }
 
 
 class PhotoLoss:
@@ -147,6 +105,8 @@ class TransferResult:
     losses: dict[str, list[float]] = field(default_factory=dict)  # per stage, one value per iteration
     seconds: dict[str, float] = field(default_factory=dict)  # per stage
     light: dict[str, float] | None = None  # the learnt light (PhotoLight.describe), None when the renders were unlit
+    # where the learnt light started (LightStart as a dict: search_light's find, or the prior's middle), None: unlit
+    light_start: dict[str, float] | None = None
     # the axis ("x" or "z") normal to the mirror plane the photo was also read across (cfg.w_mirror), None when not
     mirror: str | None = None
 
@@ -168,23 +128,23 @@ def transfer_texture(
     device: torch.device,
     show_progress: bool = True,
     generator_lit: bool = False,
+    known_light: LightStart | None = None,
 ) -> TransferResult:
     """Optimise the texture of ``shape`` to look like ``photo`` (Equation 2, then refinement).
 
-    ``generator`` is modified in place by stage 2 (its last ``refine_blocks`` synthesis blocks):
-    pass a copy if the original is needed again. ``photo_noc`` (R,R,3) is needed when
-    ``cfg.use_noc`` and ``cfg.use_patches``; photo: image (1,3,R,R), mask (1,1,R,R); view: noc (R,R,3), mask
-    (1,1,R,R). ``generator_lit``: trained under the light prior (:func:`mesh2tex.models.TrainedGenerator`), which
-    ``cfg.light`` 'auto' follows. With ``cfg.w_colour`` > 0 both stages add the low-pass colour loss at the pose;
-    with ``cfg.w_mirror`` > 0 and a mesh with a mirror plane, both stages add the losses of the photo read across
-    it (:class:`MirrorTerm`).
+    Stage 2 modifies ``generator`` in place (its last ``refine_blocks`` synthesis blocks): pass a copy to keep it.
+    photo: image (1,3,R,R), mask (1,1,R,R); view: noc (R,R,3), mask (1,1,R,R); ``photo_noc`` (R,R,3), needed with
+    ``cfg.use_noc`` and ``cfg.use_patches``. ``generator_lit`` (trained under the light prior) is what ``cfg.light``
+    'auto' follows; ``known_light``, the photo's light when known, is held there (the benchmarks' oracle).
+    ``cfg.w_colour`` adds the low-pass colour loss, ``cfg.w_mirror`` the photo across the mirror (:class:`MirrorTerm`).
     """
     check_query(photo, view, photo_noc, "transfer_texture")
     loss_of = PhotoLoss(photo, view, photo_noc, vgg, cfg, device)
     batch = collate_shapes([shape]).to(device)
     generator = generator.to(device).requires_grad_(False)
     samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
-    light = PhotoLight(view.azimuth).to(device) if learns_light(cfg, generator_lit) else None
+    start = known_light or cfg.light_start
+    light = starting_light(photo, view, batch, samples, start) if learns_light(cfg, generator_lit) else None
     renders = _FieldRenders(generator, batch, view, samples, light, cfg.resolution, device)
     mirror = MirrorTerm.of(shape, photo, view, photo_noc, batch, samples, vgg, cfg, device)
     ws = starting_latent(generator, renders.at_photo, loss_of, cfg, device).requires_grad_(True)
@@ -193,7 +153,7 @@ def transfer_texture(
         return ws.expand(1, generator.num_ws, -1)
 
     result = TransferResult(ws=ws, render=torch.empty(0), mirror="xyz"[mirror.axis] if mirror is not None else None)
-    light_params = list(light.parameters()) if light is not None else []
+    light_params = list(light.parameters()) if light is not None and not (cfg.light_fixed or known_light) else []
 
     def optimise(stage: str, params: list[torch.Tensor], iters: int, use_global: bool, lr: float, anchors=()) -> None:
         loss = _stage_loss(loss_of, renders, styles, use_global, anchors, cfg.w_anchor, mirror, cfg.w_mirror)
@@ -235,7 +195,7 @@ def transfer_texture(
     with torch.no_grad():
         result.render = renders.at_photo(styles()).cpu()
     result.ws = styles().detach().clone()
-    result.light = light.describe() if light is not None else None
+    result.light, result.light_start = (light.describe(), asdict(light.start)) if light is not None else (None, None)
     return result
 
 

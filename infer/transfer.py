@@ -24,10 +24,11 @@ Steps:
    colour loss at the pose, not in the paper); stage 2 unfreezes the last two synthesis blocks and
    optimises their weights with ``L_patch + w_colour * L_colour``. Adam, lr 0.05 then 0.01 (the
    paper: 0.01 and the style losses alone). A generator trained lit is rendered under a light
-   optimised with the texture (``light``), so the texture stays albedo; it starts at the light that best
-   explains the photo's shading across the mesh's folds at the pose (``light_start``). When the mesh is mirror-symmetric
-   (a chair's or a car's left and right, ``mesh2tex.geometry.symmetry.mirror_axis``), both stages also hold
-   the render at the mirrored pose to the photo flipped left to right (``w_mirror``, 0 turns it off): the
+   optimised with the texture (``light``), so the texture stays albedo. It starts at the light prior's
+   middle, or with ``light_start: search`` at the light that best explains the photo's shading across the
+   mesh's folds at the pose; ``light_fixed`` holds it there. When the mesh is mirror-symmetric (a chair's
+   or a car's left and right, ``mesh2tex.geometry.symmetry.mirror_axis``), both stages also hold the
+   render at the mirrored pose to the photo flipped left to right (``w_mirror``, 0 turns it off): the
    side the photo shows paints the other.
 5. Outputs in ``DIR``: ``textured.glb`` (the user's own mesh, in its own frame and units, with psi
    baked into its UVs or a new atlas: ``--up``, ``--uv``, ``--output-mesh`` as in ``infer generate``),

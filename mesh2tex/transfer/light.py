@@ -114,10 +114,10 @@ def search_light(
 
     Lambert shading with ambient a multiplies the albedo by s = a + (1 - a)|n . l|; across a fold of one
     material the albedo stays and the log luminance changes by log s_p - log s_q. Every light of the prior
-    (azimuth offsets, elevations ``step`` degrees apart, ambient shares 0.05 apart) is scored by the mean
+    (azimuth offsets, elevations ``step`` degrees apart, ambient shares 0.05 apart) is scored by the median
     absolute difference between that change and the photo's over the fold pairs (:func:`fold_pairs`): the
-    median would do as well, the mean keeps it one pass; pairs across two materials add the same error to
-    every light. photo: image (1, 3, R, R), mask (1, 1, R, R); view: the mesh at the found pose, its crop.
+    median, because pairs across two materials are far off for every light and must not decide.
+    photo: image (1, 3, R, R), mask (1, 1, R, R); view: the mesh at the found pose, its crop.
     """
     prior = prior or LightConfig()
     with torch.no_grad():

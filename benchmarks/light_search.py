@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import tempfile
 from pathlib import Path
@@ -33,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 def main() -> None:
     from outside_generation import height_parts, outside_meshes
-    from outside_transfer import true_light
+    from outside_transfer import light_angle, true_light
 
     from mesh2tex.evaluation.compare import render_for_comparison
     from mesh2tex.evaluation.surfaces import material_surface
@@ -41,7 +40,7 @@ def main() -> None:
     from mesh2tex.models import load_generator
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.render_texture import rasterize_batch
-    from mesh2tex.render import RenderSettings, orbit_direction
+    from mesh2tex.render import RenderSettings
     from mesh2tex.synthetic.world import WorldSpec, sample_material, sample_views
     from mesh2tex.texturing import load_shape
     from mesh2tex.transfer import TransferConfig, locate_object, photo_masks, view_at_pose
@@ -58,14 +57,6 @@ def main() -> None:
     cfg = TransferConfig(resolution=args.resolution)
     spec = WorldSpec(category=args.category, variety="real")
     folder = Path(tempfile.mkdtemp(prefix="light-search-"))
-
-    def angle(start: LightStart, truth: LightStart) -> float:
-        """Degrees between two lights relative to the same camera (shading is two-sided: l and -l alike)."""
-        a, b = (
-            orbit_direction(torch.tensor([s.azimuth_offset]), torch.tensor([float(s.elevation)]))[0]
-            for s in (start, truth)
-        )
-        return round(math.degrees(math.acos(float((a @ b).abs().clamp(max=1.0)))), 1)
 
     rows = []
     for index, (name, path) in enumerate(outside_meshes(args.category, folder)):
@@ -94,8 +85,8 @@ def main() -> None:
                 "pairs": start.pairs,
                 "found": [start.azimuth_offset, start.elevation, start.ambient],
                 "truth": [round(truth.azimuth_offset, 1), round(truth.elevation, 1), truth.ambient],
-                "angle": angle(start, truth),
-                "prior_middle_angle": angle(LightStart.prior_middle(), truth),
+                "angle": light_angle(start, truth),
+                "prior_middle_angle": light_angle(LightStart.prior_middle(), truth),
             }
             rows.append(row)
             print(json.dumps(row), flush=True)

@@ -136,22 +136,28 @@ def true_light(view):
     return LightStart(offset, math.degrees(math.asin(y)), view.ambient)
 
 
-def light_error(found: dict, view, found_azimuth: float) -> float:
-    """Degrees between the learnt light (``PhotoLight.describe``: relative to the found camera) and the photo's
-    (``view.light``, a world direction) taken relative to the true camera: the light as the photo shows it, so a
-    pose found turned by one of the mesh's symmetries does not count against it. Shading is two-sided (it
-    depends on |n . l|), so a light and its opposite are the same light."""
+def light_angle(a, b) -> float:
+    """Degrees between two lights (``LightStart``s) placed relative to the same camera, elevations clamped at 89
+    as ``PhotoLight`` renders them. Shading is two-sided (it depends on |n . l|), so a light and its opposite are
+    the same light."""
     import math
 
     from mesh2tex.render import orbit_direction
 
-    x, y, z = view.light
-    true_offset = math.degrees(math.atan2(x, z)) - view.azimuth
-    true = orbit_direction(torch.tensor([found_azimuth + true_offset]), torch.tensor([math.degrees(math.asin(y))]))
-    learnt = orbit_direction(
-        torch.tensor([found_azimuth + found["azimuth_offset"]]), torch.tensor([min(found["elevation"], 89.0)])
+    a, b = (
+        orbit_direction(torch.tensor([float(s.azimuth_offset)]), torch.tensor([min(float(s.elevation), 89.0)]))[0]
+        for s in (a, b)
     )
-    return round(math.degrees(math.acos(float((true @ learnt.t()).abs().clamp(max=1.0)))), 1)
+    return round(math.degrees(math.acos(float((a @ b).abs().clamp(max=1.0)))), 1)
+
+
+def light_error(found: dict, view) -> float:
+    """Degrees between the learnt light (``PhotoLight.describe``: relative to the found camera) and the photo's
+    (:func:`true_light`: relative to the true camera): the light as the photo shows it, so a pose found turned by
+    one of the mesh's symmetries does not count against it."""
+    from mesh2tex.transfer.light import LightStart
+
+    return light_angle(LightStart(found["azimuth_offset"], found["elevation"], found["ambient"]), true_light(view))
 
 
 def main() -> None:
@@ -355,7 +361,7 @@ def main() -> None:
                     row["mirror"], row["transfer_seconds"] = result.mirror, round(sum(result.seconds.values()), 1)
                     if result.light is not None:
                         row["light"] = result.light
-                        row["light_error"] = light_error(result.light, view, estimate.azimuth)
+                        row["light_error"] = light_error(result.light, view)
                     with torch.no_grad():
                         texture = candidate.synthesize(batch.to(device), result.ws.to(device), noise_mode="none")
                     judged = [view, dataclasses.replace(view, azimuth=(view.azimuth + 180.0) % 360.0)]

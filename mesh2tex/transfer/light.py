@@ -10,6 +10,7 @@ import torch
 
 from mesh2tex.checks import check_shape
 from mesh2tex.render import LightConfig, Lights, crop_square, orbit_direction, quad_normals
+from mesh2tex.transfer.config import LIGHT_STARTS
 from mesh2tex.transfer.photo import FramedView, Photo, check_query
 
 
@@ -148,8 +149,8 @@ def starting_light(photo: Photo, view: FramedView, batch, samples, start: str | 
     started at ``start``: a :class:`LightStart`, or as ``TransferConfig.light_start`` says ('prior', the prior's
     middle; 'search', :func:`search_light`). photo: image (1, 3, R, R), mask (1, 1, R, R)."""
     if isinstance(start, str):
-        if start not in ("prior", "search"):
-            raise ValueError(f"starting_light: start {start!r} must be 'prior', 'search' or a LightStart")
+        if start not in LIGHT_STARTS:
+            raise ValueError(f"starting_light: start {start!r}: a LightStart or one of {', '.join(LIGHT_STARTS)}")
         start = search_light(photo, view, batch, samples) if start == "search" else LightStart.prior_middle()
     return PhotoLight(view.azimuth, start=start).to(samples.triangle_id.device)
 

@@ -5,13 +5,14 @@ texture, against the photo's ground truth and a flat colour.
         [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
         [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
         [--first-photo 0] [--no-mask-refine] [--no-mirror] [--meshes NAME ...]
-        [--light-start search] [--light-fixed] [--light-truth]
+        [--light-start prior] [--no-light-fixed] [--light-truth]
 
 ``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
 per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
 (``transfer.mask_refine: false``); ``--no-mirror`` leaves the photo unread across the mesh's mirror plane
-(``transfer.w_mirror: 0``); ``--light-start search`` starts the photo's light where its shading across the
-mesh's folds says (``transfer.light_start``) and ``--light-fixed`` keeps it there (``transfer.light_fixed``); each
+(``transfer.w_mirror: 0``); the photo's light starts where its shading across the mesh's folds says and stays
+there, as ``infer transfer`` does by default: ``--light-start prior`` starts it at the light prior's middle instead
+(``transfer.light_start``) and ``--no-light-fixed`` optimises it with the texture (``transfer.light_fixed``); each
 transfer's row gives the light found and its error against the photo's (:func:`light_error`); ``--light-truth``
 holds the photo's own light, relative to the photo's camera, placed relative to the found one (an oracle row).
 ``--meshes`` keeps only the named meshes (their indices, hence their materials and cameras, stay those of the full
@@ -225,7 +226,12 @@ def main() -> None:
     parser.add_argument(
         "--light-start", default=TransferConfig.light_start, choices=LIGHT_STARTS, help="where the photo's light starts"
     )
-    parser.add_argument("--light-fixed", action="store_true", help="the light stays where it starts (not optimised)")
+    parser.add_argument(
+        "--light-fixed",
+        action=argparse.BooleanOptionalAction,
+        default=TransferConfig.light_fixed,
+        help="the light stays where it starts (--no-light-fixed: optimised with the texture)",
+    )
     parser.add_argument("--light-truth", action="store_true", help="hold the photo's own light (an oracle)")
     parser.add_argument("--meshes", nargs="+", help="only these meshes (names as the rows print them)")
     parser.add_argument(

@@ -23,10 +23,10 @@ Steps:
    ``w_glob * L_glob + w_patch * L_patch`` (Equation 2) plus ``w_colour * L_colour`` (the low-pass
    colour loss at the pose, not in the paper); stage 2 unfreezes the last two synthesis blocks and
    optimises their weights with ``L_patch + w_colour * L_colour``. Adam, lr 0.05 then 0.01 (the
-   paper: 0.01 and the style losses alone). A generator trained lit is rendered under a light
-   optimised with the texture (``light``), so the texture stays albedo. It starts at the light prior's
-   middle, or with ``light_start: search`` at the light that best explains the photo's shading across the
-   mesh's folds at the pose; ``light_fixed`` holds it there. When the mesh is mirror-symmetric (a chair's
+   paper: 0.01 and the style losses alone). A generator trained lit is rendered under the photo's light
+   (``light``), so the texture stays albedo: the light of the prior that best explains the photo's shading
+   across the mesh's folds at the pose (``light_start: search``; ``prior``: the prior's middle), held there
+   (``light_fixed``; false: optimised with the texture). When the mesh is mirror-symmetric (a chair's
    or a car's left and right, ``mesh2tex.geometry.symmetry.mirror_axis``), both stages also hold the
    render at the mirrored pose to the photo flipped left to right (``w_mirror``, 0 turns it off): the
    side the photo shows paints the other.
@@ -34,8 +34,8 @@ Steps:
    baked into its UVs or a new atlas: ``--up``, ``--uv``, ``--output-mesh`` as in ``infer generate``),
    ``textured.ply`` (the same mesh with vertex colours),
    ``comparison.png`` (photo | render at the pose | photo NOC | rendered NOC), ``turntable_XX.png`` and
-   ``turntable.gif`` (lit by the learnt light, turning with the camera, when one was learnt),
-   ``report.json`` (pose, learnt light, losses per stage, seconds per stage, settings, the fit at the pose).
+   ``turntable.gif`` (lit by the photo's light, turning with the camera, when the renders were lit),
+   ``report.json`` (pose, the photo's light, losses per stage, seconds per stage, settings, the fit at the pose).
 
 ``--automaton``: instead of step 4's optimisation of the GAN's texture, a mesh automaton is grown on the
 mesh and fitted to the photo with the same losses (:mod:`mesh2tex.transfer.automaton`; no GAN in the
@@ -321,7 +321,7 @@ def _fit_texture(
 ) -> tuple:
     """The photo's texture on ``shape``: an automaton fitted to it (``automaton``) or the generator's
     transfer; its stages' seconds added to ``seconds``. (the fit or transfer result, {stage: loss curve},
-    the learnt light or None, the render at the photo's pose (1, 3, R, R))."""
+    the photo's light as used or None, the render at the photo's pose (1, 3, R, R))."""
     if automaton:
         fit = fit_automaton(shape, photo, view, photo_noc, vgg, cfg, cfg.automaton, device)
         seconds["automaton"] = fit.seconds

@@ -225,8 +225,8 @@ def test_style_and_pose_search_settings_are_checked_before_any_work(setup, tmp_p
 
 
 def test_a_lit_generator_learns_the_photos_light_and_the_colour_loss_joins_both_stages(setup, tmp_path):
-    report = transfer_report(setup, tmp_path / "out", "w_colour: 2.0\n")
-    # The tiny GAN was trained under the light prior (the default), so 'auto' learns a light.
+    report = transfer_report(setup, tmp_path / "out", "w_colour: 2.0\nlight_fixed: false\n")
+    # The tiny GAN was trained under the light prior (the default), so 'auto' learns a light; not held, it moves.
     assert report["settings"]["light"] == "auto" and set(report["light"]) == {"azimuth_offset", "elevation", "ambient"}
     assert 0.0 < report["light"]["ambient"] < 1.0
     start = report["light_start"]
@@ -236,8 +236,9 @@ def test_a_lit_generator_learns_the_photos_light_and_the_colour_loss_joins_both_
     assert unlit["light"] is None and unlit["light_start"] is None
 
 
-def test_a_fixed_light_stays_where_the_search_starts_it(setup, tmp_path):
-    report = transfer_report(setup, tmp_path / "fixed", "light_start: search\nlight_fixed: true\n")
+def test_by_default_the_light_stays_where_the_search_starts_it(setup, tmp_path):
+    report = transfer_report(setup, tmp_path / "fixed", "seed: 0\n")
+    assert report["settings"]["light_start"] == "search" and report["settings"]["light_fixed"] is True
     start = report["light_start"]
     assert report["light"] == pytest.approx({k: start[k] for k in ("azimuth_offset", "elevation", "ambient")}, abs=0.01)
 

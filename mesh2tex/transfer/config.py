@@ -81,14 +81,16 @@ class TransferConfig:
     # both stages: weight of the photo read across the mesh's mirror plane, when the mesh has one (a chair's or a
     # car's left and right): the flipped photo against the render at the mirrored pose (0: off)
     w_mirror: float = 1.0
-    # the photo's light in the renders: learn (a directional light and ambient optimised with the texture, which
-    # stays albedo), off (unlit renders), auto (learn when the generator was trained lit)
+    # the photo's light in the renders: learn (a directional light and ambient, found as light_start says and
+    # optimised with the texture unless light_fixed; the texture stays albedo), off (unlit renders), auto (learn
+    # when the generator was trained lit)
     light: str = "auto"
-    # where the photo's light starts: prior (the light prior's middle) or search (the light of the prior that best
-    # explains the photo's shading across the mesh's folds at the found pose, mesh2tex.transfer.light.search_light)
-    light_start: str = "prior"
-    # the light stays where it starts instead of being optimised with the texture
-    light_fixed: bool = False
+    # where the photo's light starts: search (the light of the prior that best explains the photo's shading across
+    # the mesh's folds at the found pose, mesh2tex.transfer.light.search_light) or prior (the light prior's middle)
+    light_start: str = "search"
+    # the light stays where it starts (False: optimised with the texture, which splits the photo's shading between
+    # the two wrongly on chairs: docs/results/transfer.md)
+    light_fixed: bool = True
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
     use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
     refine: bool = True  # stage 2 (False: the "w/o surface features" ablation)

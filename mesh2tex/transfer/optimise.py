@@ -104,8 +104,8 @@ class TransferResult:
     render: torch.Tensor
     losses: dict[str, list[float]] = field(default_factory=dict)  # per stage, one value per iteration
     seconds: dict[str, float] = field(default_factory=dict)  # per stage
-    light: dict[str, float] | None = None  # the learnt light (PhotoLight.describe), None when the renders were unlit
-    # where the learnt light started (LightStart as a dict: search_light's find, or the prior's middle), None: unlit
+    light: dict[str, float] | None = None  # the photo's light as used (PhotoLight.describe), None: unlit renders
+    # where that light started (LightStart as a dict: search_light's find, or the prior's middle), None: unlit
     light_start: dict[str, float] | None = None
     # the axis ("x" or "z") normal to the mirror plane the photo was also read across (cfg.w_mirror), None when not
     mirror: str | None = None
@@ -220,11 +220,11 @@ class _FieldRenders:
         self.grey = torch.zeros(1, 3, device=self.device)
 
     def at_photo(self, ws: torch.Tensor) -> torch.Tensor:
-        """(1, 3, R, R) the texture of styles ``ws`` at the photo's view, lit by the learnt light when there is one."""
+        """(1, 3, R, R) the texture of styles ``ws`` at the photo's view, lit by the photo's light when there is one."""
         return self._render(ws, self.view, self.samples, self.light.lights() if self.light is not None else None)
 
     def at_mirror(self, ws: torch.Tensor, mirror: MirrorTerm) -> torch.Tensor:
-        """(1, 3, R, R) the same at the mirrored pose, lit by the learnt light mirrored with the camera."""
+        """(1, 3, R, R) the same at the mirrored pose, lit by the photo's light mirrored with the camera."""
         lights = self.light.lights(mirror.view.azimuth) if self.light is not None else None
         return self._render(ws, mirror.view, mirror.samples, lights)
 

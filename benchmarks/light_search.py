@@ -10,7 +10,7 @@ the pose is found as ``infer transfer`` finds it (``locate_object``), the photo 
 the fold pairs it used (0: too few, it keeps the prior's middle), the light found (azimuth offset from the
 camera, elevation, ambient), its angle to the photo's light (both relative to their camera: a pose found
 turned by one of the mesh's symmetries does not count against it), and the same angle for the prior's middle
-(the baseline: where the learnt light starts by default). Last line: the medians.
+(the baseline: where the light starts with ``light_start: prior``). Last line: the medians.
 """
 
 from __future__ import annotations
@@ -58,9 +58,11 @@ def main() -> None:
     spec = WorldSpec(category=args.category, variety="real")
     folder = Path(tempfile.mkdtemp(prefix="light-search-"))
 
+    distance, fov = model.camera.distance, model.camera.fov
     rows = []
     for index, (name, path) in enumerate(outside_meshes(args.category, folder)):
         shape, _ = load_shape(path, model.network, model.face_count(), output_mesh="prepared")
+        batch = collate_shapes([shape])
         vertices, faces = shape.vertices[0], shape.triangles(0)
         parts = height_parts(vertices, faces, args.category)
         truth_surface = material_surface(
@@ -72,11 +74,9 @@ def main() -> None:
             file = folder / f"{name}_{k}.png"
             rgba = [(rgb * 255).round().astype(np.uint8), (mask * 255).astype(np.uint8)[..., None]]
             save_png(file, np.concatenate(rgba, 2))
-            distance, fov = model.camera.distance, model.camera.fov
             located = locate_object(photo_masks(file, None), shape, args.checkpoint, None, distance, fov, cfg, device)
             found = located.estimate
             framed = view_at_pose(shape, found.azimuth, found.elevation, distance, fov, cfg)
-            batch = collate_shapes([shape])
             samples = rasterize_batch(batch, framed.mvp, (framed.render_size, framed.render_size))
             start, truth = search_light(located.photo, framed, batch, samples), true_light(view)
             row = {

@@ -144,7 +144,7 @@ def search_light(
     )
 
 
-def starting_light(photo: Photo, view: FramedView, batch, samples, start: str | LightStart = "prior") -> PhotoLight:
+def starting_light(photo: Photo, view: FramedView, batch, samples, start: str | LightStart) -> PhotoLight:
     """The photo's light for a transfer at ``view``, on the device of ``samples`` (the mesh rasterized at ``view``),
     started at ``start``: a :class:`LightStart`, or as ``TransferConfig.light_start`` says ('prior', the prior's
     middle; 'search', :func:`search_light`). photo: image (1, 3, R, R), mask (1, 1, R, R)."""

@@ -5,7 +5,7 @@ texture, against the photo's ground truth and a flat colour.
         [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
         [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
         [--first-photo 0] [--no-mask-refine] [--no-mirror] [--meshes NAME ...]
-        [--light-start prior] [--no-light-fixed] [--light-truth]
+        [--light-start prior] [--no-light-fixed] [--light-ambient A] [--light-truth]
 
 ``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
 per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
@@ -232,6 +232,12 @@ def main() -> None:
         default=TransferConfig.light_fixed,
         help="the light stays where it starts (--no-light-fixed: optimised with the texture)",
     )
+    parser.add_argument(
+        "--light-ambient",
+        type=float,
+        default=TransferConfig.light_ambient,
+        help="the ambient share the light holds (negative: searched with its direction)",
+    )
     parser.add_argument("--light-truth", action="store_true", help="hold the photo's own light (an oracle)")
     parser.add_argument("--meshes", nargs="+", help="only these meshes (names as the rows print them)")
     parser.add_argument(
@@ -257,6 +263,7 @@ def main() -> None:
         w_mirror=0.0 if args.no_mirror else TransferConfig.w_mirror,
         light_start=args.light_start,
         light_fixed=args.light_fixed,
+        light_ambient=args.light_ambient,
     )
     vgg = load_vgg19(None, device=device)
     spec = WorldSpec(category=args.category, variety=args.variety)

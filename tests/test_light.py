@@ -102,3 +102,20 @@ def test_the_learnt_light_is_mirrored_with_the_camera():
         reflected[axis] *= -1.0
         mirrored = light.lights(mirrored_azimuth(30.0, axis)).direction[0]
         assert torch.allclose(mirrored.detach(), reflected.detach(), atol=1e-5)
+
+
+def test_a_held_ambient_share_is_kept_and_the_direction_still_found(ball):
+    """``transfer.light_ambient``: the search holds the ambient share given and looks for the direction only."""
+    grey = lambda p: torch.full((p.face.shape[0], 3), 0.7)  # noqa: E731
+    photo, view, batch, samples = photo_of(ball, (40.0, 20.0), (-50.0, 40.0, 0.4), grey)
+    start = search_light(photo, view, batch, samples, ambient=0.45)
+    assert start.ambient == 0.45
+    assert light_angle(start, -50.0, 40.0) < 15.0, start
+
+
+@pytest.mark.parametrize("ambient", [0.0, 1.0, 1.5])
+def test_an_ambient_share_outside_its_range_is_refused(ambient):
+    from mesh2tex.transfer.config import TransferConfig
+
+    with pytest.raises(ValueError, match="light_ambient"):
+        TransferConfig(light_ambient=ambient)

@@ -91,6 +91,9 @@ class TransferConfig:
     # the light stays where it starts (False: optimised with the texture, which splits the photo's shading between
     # the two wrongly on chairs: docs/results/transfer.md)
     light_fixed: bool = True
+    # the ambient share the light starts at, whatever light_start finds for its direction (negative: found with
+    # the direction by the search, or the prior's middle)
+    light_ambient: float = -1.0
     use_noc: bool = True  # NOC-guided patch pairs (False: random pairs, the "w/o NOC" ablation)
     use_patches: bool = True  # patch style loss (False: the "w/o patch loss" ablation)
     refine: bool = True  # stage 2 (False: the "w/o surface features" ablation)
@@ -157,6 +160,8 @@ class TransferConfig:
             raise ValueError(f"light {self.light!r}: must be one of {', '.join(LIGHT_MODES)}")
         if self.light_start not in LIGHT_STARTS:
             raise ValueError(f"light_start {self.light_start!r}: must be one of {', '.join(LIGHT_STARTS)}")
+        if self.light_ambient >= 1.0 or self.light_ambient == 0.0:
+            raise ValueError(f"light_ambient {self.light_ambient}: must be in (0, 1), or negative for searched")
         if not 0 < self.pose_search_step <= 90 or self.pose_search_elevations < 1:
             raise ValueError(
                 f"pose_search_step {self.pose_search_step}, pose_search_elevations {self.pose_search_elevations}: "

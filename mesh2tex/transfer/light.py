@@ -25,12 +25,13 @@ class LightStart:
     pairs: int = 0
 
     @classmethod
-    def prior_middle(cls, prior: LightConfig | None = None) -> LightStart:
-        """The middle of the light prior: a key light from the camera's side and above."""
+    def prior_middle(cls, prior: LightConfig | None = None, ambient: float | None = None) -> LightStart:
+        """The middle of the light prior: a key light from the camera's side and above (with ``ambient``, that
+        ambient share in place of the prior's middle one)."""
         prior = prior or LightConfig()
-        return cls(
-            0.0, 0.5 * (prior.elevation_min + prior.elevation_max), 0.5 * (prior.ambient_min + prior.ambient_max)
-        )
+        if ambient is None:
+            ambient = 0.5 * (prior.ambient_min + prior.ambient_max)
+        return cls(0.0, 0.5 * (prior.elevation_min + prior.elevation_max), ambient)
 
 
 class PhotoLight(torch.nn.Module):
@@ -108,10 +109,17 @@ def fold_pairs(photo: Photo, view: FramedView, batch, samples) -> tuple[torch.Te
 
 
 def search_light(
-    photo: Photo, view: FramedView, batch, samples, prior: LightConfig | None = None, step: float = 5.0
+    photo: Photo,
+    view: FramedView,
+    batch,
+    samples,
+    prior: LightConfig | None = None,
+    step: float = 5.0,
+    ambient: float | None = None,
 ) -> LightStart:
     """The light of the prior's range that explains the photo's shading best, if the mesh at the found pose
-    shows enough folds (else the prior's middle).
+    shows enough folds (else the prior's middle); with ``ambient``, only its direction is searched and the
+    ambient share is held there.
 
     Lambert shading with ambient a multiplies the albedo by s = a + (1 - a)|n . l|; across a fold of one
     material the albedo stays and the log luminance changes by log s_p - log s_q. Every light of the prior
@@ -124,10 +132,13 @@ def search_light(
     with torch.no_grad():
         observed, normals = fold_pairs(photo, view, batch, samples)
         if observed.numel() < _MIN_PAIRS:
-            return LightStart.prior_middle(prior)
+            return LightStart.prior_middle(prior, ambient)
         offsets = torch.arange(-prior.azimuth_spread, prior.azimuth_spread + 1e-6, step)
         elevations = torch.arange(prior.elevation_min, prior.elevation_max + 1e-6, step)
-        ambients = torch.arange(prior.ambient_min, prior.ambient_max + 1e-6, 0.05)
+        if ambient is None:
+            ambients = torch.arange(prior.ambient_min, prior.ambient_max + 1e-6, 0.05)
+        else:
+            ambients = torch.tensor([float(ambient)])
         grid_az, grid_el = torch.meshgrid(offsets, elevations, indexing="ij")
         directions = orbit_direction(view.azimuth + grid_az.flatten(), grid_el.flatten())  # (L, 3)
         cosines = (normals.float() @ directions.t()).abs()  # (P, 2, L)
@@ -144,14 +155,20 @@ def search_light(
     )
 
 
-def starting_light(photo: Photo, view: FramedView, batch, samples, start: str | LightStart) -> PhotoLight:
+def starting_light(
+    photo: Photo, view: FramedView, batch, samples, start: str | LightStart, ambient: float | None = None
+) -> PhotoLight:
     """The photo's light for a transfer at ``view``, on the device of ``samples`` (the mesh rasterized at ``view``),
     started at ``start``: a :class:`LightStart`, or as ``TransferConfig.light_start`` says ('prior', the prior's
-    middle; 'search', :func:`search_light`). photo: image (1, 3, R, R), mask (1, 1, R, R)."""
+    middle; 'search', :func:`search_light`), with its ambient share at ``ambient`` when given (a named start only:
+    a LightStart is used as it is). photo: image (1, 3, R, R), mask (1, 1, R, R)."""
     if isinstance(start, str):
         if start not in LIGHT_STARTS:
             raise ValueError(f"starting_light: start {start!r}: a LightStart or one of {', '.join(LIGHT_STARTS)}")
-        start = search_light(photo, view, batch, samples) if start == "search" else LightStart.prior_middle()
+        if start == "search":
+            start = search_light(photo, view, batch, samples, ambient=ambient)
+        else:
+            start = LightStart.prior_middle(ambient=ambient)
     return PhotoLight(view.azimuth, start=start).to(samples.triangle_id.device)
 
 

@@ -144,7 +144,8 @@ def transfer_texture(
     generator = generator.to(device).requires_grad_(False)
     samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
     start = known_light or cfg.light_start
-    light = starting_light(photo, view, batch, samples, start) if learns_light(cfg, generator_lit) else None
+    ambient = cfg.light_ambient if cfg.light_ambient > 0 else None
+    light = starting_light(photo, view, batch, samples, start, ambient) if learns_light(cfg, generator_lit) else None
     renders = _FieldRenders(generator, batch, view, samples, light, cfg.resolution, device)
     mirror = MirrorTerm.of(shape, photo, view, photo_noc, batch, samples, vgg, cfg, device)
     ws = starting_latent(generator, renders.at_photo, loss_of, cfg, device).requires_grad_(True)

@@ -62,10 +62,15 @@ RESOLUTION = 128
 STEPS = 60
 
 
-def views_mvp(count: int = 8) -> torch.Tensor:
+def view_angles(count: int = 8) -> tuple[torch.Tensor, torch.Tensor]:
+    """The judged views' azimuths and elevations in degrees, each (count,): evenly round, +-15 in turn."""
     azimuth = torch.arange(count, dtype=torch.float32) * (360.0 / count)
     elevation = torch.tensor([15.0, -15.0]).repeat(count // 2)
-    return orbit_camera(azimuth, elevation, distance=3.2, fov=40.0).mvp
+    return azimuth, elevation
+
+
+def views_mvp(count: int = 8) -> torch.Tensor:
+    return orbit_camera(*view_angles(count), distance=3.2, fov=40.0).mvp
 
 
 def colour_model(rgb: torch.Tensor) -> tuple[MeshNCA, torch.Tensor]:

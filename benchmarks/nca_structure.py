@@ -22,7 +22,12 @@ with its pattern moved (:data:`REFERENCE_SHIFT`; same views, ``turns`` off): the
 surface shows it, which the oracle row, its structure in another place, should win. And ``ps vs
 oracle``: the oriented-band statistics of each render (the ``ps`` loss's, :func:`ps_vs_oracle`) against
 the same moved oracle's render of that view: the judge of rows trained with the ``patch`` loss, whose raw
-patches are too near the SWD's to judge them.
+patches are too near the SWD's to judge them. Both compare directions as well as structure: the oracle's
+pattern is solid (its stripes are the level sets of one 3D direction, so each view shows them at its own
+angle), where ``infer synthesize``'s direction field ``up`` lays the exemplar at one angle to the mesh's up. So
+``vs field`` and ``ps vs field`` are the same two distances against the *field oracle* moved
+(:func:`field_oracle_views`: the exemplar laid in each view's image plane, as the field lays it), and the
+field oracle is a row.
 
 Rows: ``oracle`` (the exemplar's pattern painted per pixel at the exemplar's pixel scale),
 ``vertex oracle`` (the pattern at the vertices, through a linear readout: what the cells can hold),
@@ -58,7 +63,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mesh2tex.train import runs  # noqa: E402
 
-from benchmarks.nca_quality import RESOLUTION, STEPS, Judge, colour_model, grow, views_mvp  # noqa: E402
+from benchmarks.nca_quality import RESOLUTION, STEPS, Judge, colour_model, grow, view_angles, views_mvp  # noqa: E402
 from mesh2tex.geometry.primitives import load_surface  # noqa: E402
 from mesh2tex.losses.ot_style import needs_vgg  # noqa: E402
 from mesh2tex.losses.structure import band_statistics, statistics_distance  # noqa: E402
@@ -67,7 +72,7 @@ from mesh2tex.models import load_nca  # noqa: E402
 from mesh2tex.nn.cell_graph import build_cell_graph  # noqa: E402
 from mesh2tex.nn.render_texture import render_states  # noqa: E402
 from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
-from mesh2tex.render import interpolate, rasterize, transform_points  # noqa: E402
+from mesh2tex.render import interpolate, orbit_direction, rasterize, transform_points  # noqa: E402
 from mesh2tex.render.bake import new_atlas  # noqa: E402
 from mesh2tex.synthetic.exemplars import EXEMPLARS, exemplar_image  # noqa: E402
 from mesh2tex.texel_synthesis import SynthesisConfig, TexelSurface, TexelSynthesis, render_texture  # noqa: E402
@@ -119,6 +124,31 @@ def oracle_views(name: str, graph, mvp: torch.Tensor, shift=(0.0, 0.0, 0.0)) -> 
     rgb = EXEMPLARS[name](pattern, normals[mask].double().numpy())
     images = torch.ones(mvp.shape[0], RESOLUTION, RESOLUTION, 3, dtype=torch.float64)
     images[mask] = torch.from_numpy(rgb)
+    return images.permute(0, 3, 1, 2), mask[:, None].double()
+
+
+@torch.no_grad()
+def field_oracle_views(name: str, graph, mvp: torch.Tensor, shift=(0.0, 0.0, 0.0)) -> tuple[torch.Tensor, torch.Tensor]:
+    """The exemplar laid on the mesh as the direction field ``up`` lays it, at the exemplar's pixel scale (moved by
+    ``shift`` pattern units): in each of the N judged views (:func:`view_angles`, ``mvp`` their matrices) the
+    pattern's x and y are the camera's right and up, so its stripes keep one angle to the mesh's up wherever the
+    surface faces the camera. It is a reference, not a texture: each view projects the pattern afresh. images
+    (N, 3, H, W) in [0, 1] (background 1), masks (N, 1, H, W)."""
+    raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (RESOLUTION, RESOLUTION))
+    points = interpolate(graph.positions, raster, graph.triangles).double()  # (N, H, W, 3)
+    forward = -orbit_direction(*view_angles(mvp.shape[0])).double()  # (N, 3) camera -> origin
+    right = torch.nn.functional.normalize(
+        torch.linalg.cross(forward, torch.tensor([0.0, 1.0, 0.0]).double().expand_as(forward)), dim=-1
+    )
+    up = torch.linalg.cross(right, forward)
+    mask = raster.face_id >= 0
+    images = torch.ones(mvp.shape[0], RESOLUTION, RESOLUTION, 3, dtype=torch.float64)
+    for n in range(mvp.shape[0]):
+        seen = points[n][mask[n]]  # (P, 3)
+        plane = torch.stack([seen @ right[n], seen @ up[n], torch.zeros(len(seen), dtype=seen.dtype)], 1)
+        pattern = plane.numpy() * Judge.pattern_scale(SIZE) + np.asarray(shift)
+        facing = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pattern.shape)  # as exemplar_image draws the square
+        images[n][mask[n]] = torch.from_numpy(EXEMPLARS[name](pattern, facing))
     return images.permute(0, 3, 1, 2), mask[:, None].double()
 
 
@@ -269,7 +299,7 @@ def main() -> int:
                 target.float() * 2 - 1, loss, args.iters, args.seed, graphs["sphere"], vgg, save
             )
         for mesh, graph in graphs.items():
-            sets = {"oracle": oracle_views(name, graph, mvp)}
+            sets = {"oracle": oracle_views(name, graph, mvp), "field oracle": field_oracle_views(name, graph, mvp)}
             vertex_rgb = (
                 torch.from_numpy(
                     EXEMPLARS[name](
@@ -310,10 +340,14 @@ def main() -> int:
                 record["train_seconds"][f"{row} ({mesh})"] = seconds
             reference = oracle_views(name, graph, mvp, REFERENCE_SHIFT)
             reference_statistics = view_statistics(*reference)  # once per mesh, for every row
+            field = field_oracle_views(name, graph, mvp, REFERENCE_SHIFT)
+            field_statistics = view_statistics(*field)
             for row, (images, masks) in sets.items():
                 scores = structure_scores(images, masks, target).as_dict()
                 scores["oracle_swd"] = patch_swd(images, masks, reference[0], turns=False, exemplar_masks=reference[1])
                 scores["oracle_ps"] = ps_vs_oracle(images, masks, reference_statistics)
+                scores["field_swd"] = patch_swd(images, masks, field[0], turns=False, exemplar_masks=field[1])
+                scores["field_ps"] = ps_vs_oracle(images, masks, field_statistics)
                 record["rows"].setdefault(row, {})[mesh] = scores
             tiles += [sets[row][0][args.figure_view] for row in shown]
         results["exemplars"][name] = record
@@ -354,7 +388,7 @@ def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]
         f"{fmt(own['period'], 1)} px, regularity {fmt(own['regularity'])}, self-SWD {fmt(own['swd'], 0)}; train s: "
         + ", ".join(f"{k} {fmt(v, 0)}" for k, v in record["train_seconds"].items())
     )
-    columns = ("SWD", "vs oracle", "ps vs oracle", "coh", "ratio", "period", "reg")
+    columns = ("SWD", "vs oracle", "ps vs oracle", "vs field", "ps vs field", "coh", "ratio", "period", "reg")
     header = " | ".join(f"{m} {c}" for m in meshes for c in columns)
     print(f"| row | {header} |")
     print("|" + " --- |" * (1 + len(columns) * len(meshes)))
@@ -364,6 +398,7 @@ def print_exemplar(name: str, record: dict, meshes: list[str], losses: list[str]
             s = per_mesh[m]
             oracle_relative = fmt(s.get("oracle_swd", math.nan), 0)
             cells += [fmt(s["swd"], 0), oracle_relative, fmt(s.get("oracle_ps", math.nan))]
+            cells += [fmt(s.get("field_swd", math.nan), 0), fmt(s.get("field_ps", math.nan))]
             cells += [fmt(s["coherence"]), fmt(s["ratio"]), fmt(s["period"], 1), fmt(s.get("regularity", math.nan))]
         print(f"| {row} | " + " | ".join(cells) + " |")
     for loss in losses:

@@ -60,17 +60,32 @@ def outside_meshes(category: str, folder: Path) -> list[tuple[str, Path]]:
     return files
 
 
-def height_parts(vertices: np.ndarray, faces: np.ndarray, category: str) -> np.ndarray:
-    """(T,) part ids by height: the upper 40 % of the mesh seat (chair) or body (car), the rest leg or wheel."""
+def height_parts(vertices: np.ndarray, faces: np.ndarray, category: str, car_cues: bool = False) -> np.ndarray:
+    """(T,) part ids by height: the upper 40 % of the mesh seat (chair) or body (car), the rest leg or wheel.
+    ``car_cues`` (cars, y up and the front towards +z): a car's front and back as a photo shows them, the
+    world's car materials' glass and lights on guessed places: the cabin above 62 % of the height (its
+    material is glass on the sides and paint where it faces up), and on the body between 30 and 55 % of the
+    height, faces looking along the length (|n_z| > 0.6) in the outer half of the width, head lights at the
+    front end and tail lights at the back."""
     from mesh2tex.synthetic.solids import PART_ID
 
     centres = vertices[faces].mean(axis=1)
     low, high = vertices[:, 1].min(), vertices[:, 1].max()
-    upper = (
-        centres[:, 1] > low + 0.6 * (high - low) if category == "chair" else centres[:, 1] > low + 0.25 * (high - low)
-    )
-    top, bottom = ("seat", "leg") if category == "chair" else ("body", "wheel")
-    return np.where(upper, PART_ID[top], PART_ID[bottom])
+    share = (centres[:, 1] - low) / (high - low)
+    if category == "chair":
+        return np.where(share > 0.6, PART_ID["seat"], PART_ID["leg"])
+    parts = np.where(share > 0.25, PART_ID["body"], PART_ID["wheel"])
+    if not car_cues:
+        return parts
+    corners = vertices[faces]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    half_width = np.abs(vertices[:, 0]).max()
+    # |n_z|: the faces' winding is the remesher's; which end a face lies on says front or back
+    lamp = (share > 0.3) & (share < 0.55) & (np.abs(centres[:, 0]) > 0.5 * half_width) & (np.abs(normals[:, 2]) > 0.6)
+    parts = np.where(share > 0.62, PART_ID["cabin"], parts)
+    parts = np.where(lamp & (centres[:, 2] > 0), PART_ID["headlight"], parts)
+    return np.where(lamp & (centres[:, 2] < 0), PART_ID["taillight"], parts)
 
 
 @torch.no_grad()

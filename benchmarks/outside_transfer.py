@@ -5,7 +5,7 @@ texture, against the photo's ground truth and a flat colour.
         [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
         [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
         [--first-photo 0] [--no-mask-refine] [--no-mirror] [--meshes NAME ...]
-        [--light-start prior] [--no-light-fixed] [--light-ambient A] [--light-truth]
+        [--light-start prior] [--no-light-fixed] [--light-ambient A] [--light-truth] [--car-cues]
 
 ``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
 per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
@@ -15,8 +15,9 @@ there, as ``infer transfer`` does by default: ``--light-start prior`` starts it 
 (``transfer.light_start``) and ``--no-light-fixed`` optimises it with the texture (``transfer.light_fixed``); each
 transfer's row gives the light found and its error against the photo's (:func:`light_error`); ``--light-truth``
 holds the photo's own light, relative to the photo's camera, placed relative to the found one (an oracle row).
-``--meshes`` keeps only the named meshes (their indices, hence their materials and cameras, stay those of the full
-run, so the rows compare).
+``--car-cues`` paints a car's glass and head and tail lights on guessed places (cars are otherwise painted by
+height alone, body and wheels: ``height_parts``). ``--meshes`` keeps only the named meshes (their indices, hence
+their materials and cameras, stay those of the full run, so the rows compare).
 
 The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py`` and, for
 chairs, the stool of ``tests/user_assets.py``, each read as a user's file is (turned y-up, prepared
@@ -239,6 +240,9 @@ def main() -> None:
         help="the ambient share the light holds (negative: searched with its direction)",
     )
     parser.add_argument("--light-truth", action="store_true", help="hold the photo's own light (an oracle)")
+    parser.add_argument(
+        "--car-cues", action="store_true", help="cars: glass and head and tail lights on guessed places (height_parts)"
+    )
     parser.add_argument("--meshes", nargs="+", help="only these meshes (names as the rows print them)")
     parser.add_argument(
         "--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter"]
@@ -276,7 +280,7 @@ def main() -> None:
             continue
         shape, _ = load_shape(path, generator, model.face_count(), output_mesh="prepared")
         vertices, faces = shape.vertices[0], shape.triangles(0)
-        parts = height_parts(vertices, faces, args.category)
+        parts = height_parts(vertices, faces, args.category, args.car_cues)
         material = sample_material(spec, np.random.default_rng([7, index]))
         truth = material_surface(vertices, faces, parts, material)
         views = sample_views(spec, 1000 + index, args.poses, query=True)

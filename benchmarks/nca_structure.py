@@ -42,7 +42,7 @@ the surface octave by octave (``patches patch``: ``infer synthesize --method pat
 Summary per loss: its SWD over the
 oracle's and over ``ot``'s, on each mesh. One thread; with ``--runs`` the trained models are saved
 there (``<exemplar>_<loss>.safetensors``) and reused when present. With ``--figure`` one picture
-is written: a row per exemplar (the exemplar, then on each mesh the oracle, each loss's automaton
+is written: a row per exemplar (the exemplar, then on each mesh the oracle and the field oracle, each loss's automaton
 and each direct row, seen from ``--figure-view``, one of the 8 judged views).
 """
 
@@ -283,7 +283,7 @@ def main() -> int:
     direct_rows = [(f"direct {loss}", loss, "renders") for loss in args.direct]
     direct_rows += [(f"surface {loss}", loss, "surface") for loss in args.surface]
     direct_rows += [("patches patch", "patch", "patches")] if args.patches else []
-    shown = ["oracle", *args.losses, *(row for row, _, _ in direct_rows)]
+    shown = ["oracle", "field oracle", *args.losses, *(row for row, _, _ in direct_rows)]
     figure_rows: list[tuple[str, list[torch.Tensor]]] = []
     for name in args.exemplars:
         image = exemplar_image(name, SIZE)

@@ -117,6 +117,18 @@ def learns_light(cfg: TransferConfig, generator_lit: bool) -> bool:
     return cfg.light == "learn" or (cfg.light == "auto" and generator_lit)
 
 
+def photo_light(
+    photo: Photo, view: FramedView, batch, samples, cfg: TransferConfig, generator_lit: bool, known: LightStart | None
+) -> PhotoLight | None:
+    """The light a transfer renders under (None: unlit, :func:`learns_light`): started at ``known`` when the
+    photo's light is known, else as ``cfg.light_start`` says, its ambient share at ``cfg.light_ambient`` when
+    that is positive. photo: image (1, 3, R, R), mask (1, 1, R, R); samples: the mesh rasterized at ``view``."""
+    if not learns_light(cfg, generator_lit):
+        return None
+    ambient = cfg.light_ambient if cfg.light_ambient > 0 else None
+    return starting_light(photo, view, batch, samples, known or cfg.light_start, ambient)
+
+
 def transfer_texture(
     generator: TextureGenerator,
     shape: PreparedShape,
@@ -143,9 +155,7 @@ def transfer_texture(
     batch = collate_shapes([shape]).to(device)
     generator = generator.to(device).requires_grad_(False)
     samples = rasterize_batch(batch, view.mvp.to(device), (view.render_size, view.render_size))
-    start = known_light or cfg.light_start
-    ambient = cfg.light_ambient if cfg.light_ambient > 0 else None
-    light = starting_light(photo, view, batch, samples, start, ambient) if learns_light(cfg, generator_lit) else None
+    light = photo_light(photo, view, batch, samples, cfg, generator_lit, known_light)
     renders = _FieldRenders(generator, batch, view, samples, light, cfg.resolution, device)
     mirror = MirrorTerm.of(shape, photo, view, photo_noc, batch, samples, vgg, cfg, device)
     ws = starting_latent(generator, renders.at_photo, loss_of, cfg, device).requires_grad_(True)

@@ -26,7 +26,7 @@ patches are too near the SWD's to judge them. Both compare directions as well as
 pattern is solid (its stripes are the level sets of one 3D direction, so each view shows them at its own
 angle), where ``infer synthesize``'s direction field ``up`` lays the exemplar at one angle to the mesh's up. So
 ``vs field`` and ``ps vs field`` are the same two distances against the *field oracle* moved
-(:func:`field_oracle_views`: the exemplar laid in each view's image plane, as the field lays it), and the
+(:func:`oracle_views` with ``field``: the exemplar laid in each view's image plane, as the field lays it), and the
 field oracle is a row.
 
 Rows: ``oracle`` (the exemplar's pattern painted per pixel at the exemplar's pixel scale),
@@ -113,42 +113,32 @@ REFERENCE_SHIFT = (0.37, 0.61, 0.23)
 
 
 @torch.no_grad()
-def oracle_views(name: str, graph, mvp: torch.Tensor, shift=(0.0, 0.0, 0.0)) -> tuple[torch.Tensor, torch.Tensor]:
+def oracle_views(
+    name: str, graph, mvp: torch.Tensor, shift=(0.0, 0.0, 0.0), field: bool = False
+) -> tuple[torch.Tensor, torch.Tensor]:
     """The exemplar's pattern painted per pixel on the mesh at the exemplar's pixel scale (moved by ``shift``
-    pattern units): images (N, 3, H, W) in [0, 1] (background 1), masks (N, 1, H, W)."""
-    raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (RESOLUTION, RESOLUTION))
-    points = interpolate(graph.positions, raster, graph.triangles)
-    normals = torch.nn.functional.normalize(interpolate(graph.normals, raster, graph.triangles), dim=-1)
-    mask = raster.face_id >= 0
-    pattern = points[mask].double().numpy() * Judge.pattern_scale(SIZE) + np.asarray(shift)
-    rgb = EXEMPLARS[name](pattern, normals[mask].double().numpy())
-    images = torch.ones(mvp.shape[0], RESOLUTION, RESOLUTION, 3, dtype=torch.float64)
-    images[mask] = torch.from_numpy(rgb)
-    return images.permute(0, 3, 1, 2), mask[:, None].double()
+    pattern units): images (N, 3, H, W) in [0, 1] (background 1), masks (N, 1, H, W).
 
-
-@torch.no_grad()
-def field_oracle_views(name: str, graph, mvp: torch.Tensor, shift=(0.0, 0.0, 0.0)) -> tuple[torch.Tensor, torch.Tensor]:
-    """The exemplar laid on the mesh as the direction field ``up`` lays it, at the exemplar's pixel scale (moved by
-    ``shift`` pattern units): in each of the N judged views (:func:`view_angles`, ``mvp`` their matrices) the
-    pattern's x and y are the camera's right and up, so its stripes keep one angle to the mesh's up wherever the
-    surface faces the camera. It is a reference, not a texture: each view projects the pattern afresh. images
-    (N, 3, H, W) in [0, 1] (background 1), masks (N, 1, H, W)."""
+    ``field``: the *field oracle*, the exemplar laid as the direction field ``up`` lays it: in each of the N
+    judged views (:func:`view_angles`, ``mvp`` their matrices) the pattern's x and y are the camera's right and
+    up, so its stripes keep one angle to the mesh's up wherever the surface faces the camera. It is a
+    reference, not a texture: each view projects the pattern afresh."""
     raster = rasterize(transform_points(graph.positions, mvp), graph.triangles, (RESOLUTION, RESOLUTION))
     points = interpolate(graph.positions, raster, graph.triangles).double()  # (N, H, W, 3)
-    forward = -orbit_direction(*view_angles(mvp.shape[0])).double()  # (N, 3) camera -> origin
-    right = torch.nn.functional.normalize(
-        torch.linalg.cross(forward, torch.tensor([0.0, 1.0, 0.0]).double().expand_as(forward)), dim=-1
-    )
-    up = torch.linalg.cross(right, forward)
+    normals = torch.nn.functional.normalize(interpolate(graph.normals, raster, graph.triangles), dim=-1).double()
+    if field:
+        forward = -orbit_direction(*view_angles(mvp.shape[0])).double()  # (N, 3) camera -> origin
+        world_up = torch.tensor([0.0, 1.0, 0.0], dtype=forward.dtype).expand_as(forward)
+        right = torch.nn.functional.normalize(torch.linalg.cross(forward, world_up), dim=-1)
+        up = torch.linalg.cross(right, forward)
+        across, along = (torch.einsum("nhwc,nc->nhw", points, axis) for axis in (right, up))
+        points = torch.stack([across, along, torch.zeros_like(across)], -1)
+        normals = torch.tensor([0.0, 0.0, 1.0], dtype=points.dtype).expand_as(points)  # as exemplar_image's square
     mask = raster.face_id >= 0
+    pattern = points[mask].numpy() * Judge.pattern_scale(SIZE) + np.asarray(shift)
+    rgb = EXEMPLARS[name](pattern, normals[mask].numpy())
     images = torch.ones(mvp.shape[0], RESOLUTION, RESOLUTION, 3, dtype=torch.float64)
-    for n in range(mvp.shape[0]):
-        seen = points[n][mask[n]]  # (P, 3)
-        plane = torch.stack([seen @ right[n], seen @ up[n], torch.zeros(len(seen), dtype=seen.dtype)], 1)
-        pattern = plane.numpy() * Judge.pattern_scale(SIZE) + np.asarray(shift)
-        facing = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pattern.shape)  # as exemplar_image draws the square
-        images[n][mask[n]] = torch.from_numpy(EXEMPLARS[name](pattern, facing))
+    images[mask] = torch.from_numpy(rgb)
     return images.permute(0, 3, 1, 2), mask[:, None].double()
 
 
@@ -299,7 +289,8 @@ def main() -> int:
                 target.float() * 2 - 1, loss, args.iters, args.seed, graphs["sphere"], vgg, save
             )
         for mesh, graph in graphs.items():
-            sets = {"oracle": oracle_views(name, graph, mvp), "field oracle": field_oracle_views(name, graph, mvp)}
+            sets = {"oracle": oracle_views(name, graph, mvp)}
+            sets["field oracle"] = oracle_views(name, graph, mvp, field=True)
             vertex_rgb = (
                 torch.from_numpy(
                     EXEMPLARS[name](
@@ -340,7 +331,7 @@ def main() -> int:
                 record["train_seconds"][f"{row} ({mesh})"] = seconds
             reference = oracle_views(name, graph, mvp, REFERENCE_SHIFT)
             reference_statistics = view_statistics(*reference)  # once per mesh, for every row
-            field = field_oracle_views(name, graph, mvp, REFERENCE_SHIFT)
+            field = oracle_views(name, graph, mvp, REFERENCE_SHIFT, field=True)
             field_statistics = view_statistics(*field)
             for row, (images, masks) in sets.items():
                 scores = structure_scores(images, masks, target).as_dict()

@@ -38,7 +38,8 @@ the direct method (``direct LOSS``: ``infer synthesize``'s texels optimised thro
 ``--direct-iters`` and ``--direct-size``; run on each mesh, since it needs no training), and with
 ``--surface`` the same through geodesic charts of the surface in place of renders (``surface LOSS``:
 ``infer synthesize --method surface``), and with ``--patches`` the ``patch`` loss's patches walked on
-the surface octave by octave (``patches patch``: ``infer synthesize --method patches``).
+the surface octave by octave (``patches patch``: ``infer synthesize --method patches``; with
+``--patch-fields up smooth`` a row per direction field, ``patches smooth`` for ``--direction-field smooth``).
 Summary per loss: its SWD over the
 oracle's and over ``ot``'s, on each mesh. One thread; with ``--runs`` the trained models are saved
 there (``<exemplar>_<loss>.safetensors``) and reused when present. With ``--figure`` one picture
@@ -161,10 +162,11 @@ def direct_views(
     charts: int = SynthesisConfig.charts,
     chart_size: int = SynthesisConfig.chart_size,
     patch_reuse: int = SynthesisConfig.patch_reuse,
+    direction_field: str = "up",
 ) -> tuple[tuple[torch.Tensor, torch.Tensor], float]:
     """The direct method's texture on ``graph``'s mesh (a new atlas over its triangles), optimised ``iters``
-    steps with the ``loss`` through ``method`` (renders or surface charts), seen by ``mvp``: ((images
-    (N, 3, H, W) in [0, 1], masks), seconds)."""
+    steps with the ``loss`` through ``method`` (renders or surface charts) along ``direction_field``, seen by
+    ``mvp``: ((images (N, 3, H, W) in [0, 1], masks), seconds)."""
     vertex_index, faces, uv = new_atlas(graph.positions.double().numpy(), graph.triangles.numpy())
     surface = TexelSurface.from_arrays(graph.positions.numpy()[vertex_index], faces, uv)
     cfg = SynthesisConfig(
@@ -178,6 +180,7 @@ def direct_views(
         charts=charts,
         chart_size=chart_size,
         patch_reuse=patch_reuse,
+        direction_field=direction_field,
     )
     synthesis = TexelSynthesis(cfg, surface, exemplar, vgg if needs_vgg(loss) else None)
     start = time.perf_counter()
@@ -241,6 +244,13 @@ def main() -> int:
     parser.add_argument(
         "--patches", action="store_true", help="a direct-method row of the patch loss's patches walked on the surface"
     )
+    parser.add_argument(
+        "--patch-fields",
+        nargs="+",
+        default=["up"],
+        choices=["up", "smooth", "none"],
+        help="with --patches: one row per direction field (patches patch for up, patches FIELD for the others)",
+    )
     parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")
     parser.add_argument(
         "--direct-size", type=int, default=SynthesisConfig.texture_size, help="the direct method's texture side"
@@ -270,10 +280,11 @@ def main() -> int:
     if runs_dir is not None:
         runs_dir.mkdir(parents=True, exist_ok=True)
     results: dict = {"iters": args.iters, "seed": args.seed, "meshes": meshes, "exemplars": {}}
-    direct_rows = [(f"direct {loss}", loss, "renders") for loss in args.direct]
-    direct_rows += [(f"surface {loss}", loss, "surface") for loss in args.surface]
-    direct_rows += [("patches patch", "patch", "patches")] if args.patches else []
-    shown = ["oracle", "field oracle", *args.losses, *(row for row, _, _ in direct_rows)]
+    direct_rows = [(f"direct {loss}", loss, "renders", "up") for loss in args.direct]
+    direct_rows += [(f"surface {loss}", loss, "surface", "up") for loss in args.surface]
+    for field in args.patch_fields if args.patches else []:
+        direct_rows.append(("patches patch" if field == "up" else f"patches {field}", "patch", "patches", field))
+    shown = ["oracle", "field oracle", *args.losses, *(row[0] for row in direct_rows)]
     figure_rows: list[tuple[str, list[torch.Tensor]]] = []
     for name in args.exemplars:
         image = exemplar_image(name, SIZE)
@@ -313,7 +324,7 @@ def main() -> int:
                 sets[row] = state_views(model, state, graph, mvp)
             for loss, model in models.items():
                 sets[loss] = state_views(model, grow(model, graph, STEPS, seed=args.seed), graph, mvp)
-            for row, loss, method in direct_rows:
+            for row, loss, method, field in direct_rows:
                 sets[row], seconds = direct_views(
                     target.float() * 2 - 1,
                     loss,
@@ -327,6 +338,7 @@ def main() -> int:
                     args.charts,
                     args.chart_size,
                     args.patch_reuse,
+                    field,
                 )
                 record["train_seconds"][f"{row} ({mesh})"] = seconds
             reference = oracle_views(name, graph, mvp, REFERENCE_SHIFT)
@@ -347,7 +359,7 @@ def main() -> int:
             write_figure(
                 Path(args.figure), figure_rows, ["exemplar"] + [f"{m}: {row}" for m in graphs for row in shown]
             )
-        print_exemplar(name, record, list(graphs), args.losses + [row for row, _, _ in direct_rows])
+        print_exemplar(name, record, list(graphs), args.losses + [row[0] for row in direct_rows])
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1))
     return 0

@@ -156,8 +156,17 @@ def synthesize(parser: argparse.ArgumentParser) -> None:
         "--direction-field",
         key="synthesis.direction_field",
         choices=static_value("mesh2tex.texel_synthesis:DIRECTIONS"),
-        help="up: every view (or chart) upright, so stripes keep one direction relative to the mesh's up; none: "
-        "rolled at random, each region of the surface takes an orientation of its own",
+        help="up: every view (or chart) upright, so stripes keep one direction relative to --direction-axis; "
+        "smooth (--method surface or patches): the smoothest field that follows that axis where the surface is "
+        "steep, folded over the edges of faces that look along it (a chair's seat, a car's roof) where up jumps; "
+        "none: rolled at random, each region of the surface takes an orientation of its own",
+    )
+    config.add(
+        "--direction-axis",
+        key="synthesis.direction_axis",
+        choices=static_value("mesh2tex.geometry.direction_field:AXES"),
+        help="the axis the direction field follows (--method surface or patches for x and z): y, the mesh's up, "
+        "or x or z of its working frame (after --up: z is the file's z for y-up files, its -y for z-up ones)",
     )
     config.add(
         "--method",

@@ -1,7 +1,8 @@
 """``mesh2tex infer synthesize``: texture the user's mesh after one exemplar image, no trained model.
 
     mesh2tex infer synthesize --exemplar IMG --mesh MESH --out DIR [--texture-size 512] [--iters 400]
-                              [--direction-field up|none] [--method renders|surface|patches] [--loss patch|ps|sw|ot]
+                              [--direction-field up|smooth|none] [--direction-axis y|x|z]
+                              [--method renders|surface|patches] [--loss patch|ps|sw|ot]
                               [--seed 0] [--device auto]
                               [--up auto|y|z] [--uv auto|keep|new] [--output-mesh input|prepared] [--overwrite]
 
@@ -12,7 +13,9 @@ random views (``--method renders``, the default) or geodesic charts walked on th
 ``patch`` loss's own patches walked on the surface octave by octave (``--method patches``), match
 the exemplar's structure under a weight-free structure loss (:mod:`mesh2tex.texel_synthesis`).
 ``--direction-field up`` keeps every view or chart upright, so stripes keep one direction relative to
-the mesh's up; ``none`` rolls them at random.
+the mesh's up (``--direction-axis``: or its x or z); ``smooth`` (charts and patches) lays them along the
+smoothest field that follows that axis on steep faces (:mod:`mesh2tex.geometry.direction_field`);
+``none`` rolls them at random.
 
 Writes into DIR: ``textured.glb`` (the user's own mesh, in its own frame and units, with the texture
 in its UVs; opens in Blender), ``textured.ply`` (the same mesh with per-vertex colours),

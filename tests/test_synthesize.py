@@ -244,6 +244,22 @@ def test_the_patches_method_asks_for_the_patch_loss(inputs, tmp_path, capsys, mo
     assert (out / "textured.glb").is_file() and (out / "view_0.png").is_file()
 
 
+def test_the_smooth_field_and_another_axis_walk_the_patches_and_are_refused_with_renders(
+    inputs, tmp_path, capsys, monkeypatch
+):
+    """--direction-field smooth and --direction-axis lay the walked patches (the report keeps both); the renders
+    method's views are upright in the mesh's up, so either there is a one-line error naming the method."""
+    monkeypatch.setenv("MESH2TEX_PROGRESS", "0")
+    field = ["--direction-field", "smooth", "--direction-axis", "x"]
+    assert main([*command(inputs, tmp_path / "renders"), *TINY, "--method", "renders", *field]) != 0
+    assert "need method surface or patches" in one_error_line(capsys)
+    out = tmp_path / "out"
+    assert main([*command(inputs, out), *TINY, "--method", "patches", *field]) == 0
+    synthesis = json.loads((out / "report.json").read_text())["config"]["synthesis"]
+    assert (synthesis["direction_field"], synthesis["direction_axis"]) == ("smooth", "x")
+    assert (out / "textured.glb").is_file()
+
+
 def test_reused_patches_walk_a_share_afresh_and_keep_the_newest_of_the_last_draw():
     """``patch_reuse`` R: the first draw walks every patch; each later one walks count / R afresh, ahead of
     the newest of the previous draw's; R = 1 walks all afresh every time; a fixed measurement walks afresh

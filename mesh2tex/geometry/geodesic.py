@@ -23,10 +23,11 @@ the length walked (a walk half way around a tube ends 2 / pi of its length away;
 chart's corner 0.45 away keeps 0.99), so that a chart shows a leg's near side, not its far side
 folded over it.
 
-**The frames.** At a centre on face f with unit normal n, ``u`` is the direction field projected
-onto the tangent plane (the mesh's up, +y, for ``"up"``; x where the up is within 6 degrees of n) and
-``r = u x n``, so that (r, u, n) is right-handed and a chart shows the surface as seen from outside,
-u up. A roll angle turns both about n (a random one per chart for the field ``"none"``).
+**The frames.** At a centre on face f with unit normal n, ``u`` is the direction field's tangent on f
+(:mod:`mesh2tex.geometry.direction_field`: by default the mesh's up, +y, projected onto the plane; x
+where the up is within 6 degrees of n) and ``r = u x n``, so that (r, u, n) is right-handed and a
+chart shows the surface as seen from outside, u up. A roll angle turns both about n (a random one
+per chart for the field ``"none"``).
 
 Conventions: positions (V, 3) float, faces (T, 3) int; barycentric coordinates (n, 3) weight the
 face's corners in order.
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mesh2tex.geometry.direction_field import projected_axis
 from mesh2tex.geometry.hierarchy import polygon_edge_neighbors
 
 _EPS = 1e-12
@@ -107,17 +109,12 @@ class SurfaceWalker:
         bary = np.stack([1 - s, s * (1 - t), s * t], axis=1)
         return face, bary
 
-    def frames(self, face: np.ndarray, roll: np.ndarray | float = 0.0, up=(0.0, 1.0, 0.0)) -> np.ndarray:
-        """(n, 2, 3): the tangent frame (r, u) at points on ``face`` (n,), u the projected ``up`` turned by
-        ``roll`` radians about the face normal, r = u x n."""
+    def frames(self, face: np.ndarray, roll: np.ndarray | float = 0.0, field: np.ndarray | None = None) -> np.ndarray:
+        """(n, 2, 3): the tangent frame (r, u) at points on ``face`` (n,), u the direction ``field`` (T, 3)
+        (unit tangents per face, :mod:`mesh2tex.geometry.direction_field`; the mesh's up projected when
+        None) turned by ``roll`` radians about the face normal, r = u x n."""
         normal = self.normals[face]
-        up = np.broadcast_to(np.asarray(up, dtype=np.float64), normal.shape)
-        tangent = up - (up * normal).sum(1, keepdims=True) * normal
-        steep = np.linalg.norm(tangent, axis=1) < 0.1  # up within ~6 degrees of the normal: use x instead
-        x_axis = np.broadcast_to(np.array([1.0, 0.0, 0.0]), normal.shape)
-        fallback = x_axis - (x_axis * normal).sum(1, keepdims=True) * normal
-        tangent = np.where(steep[:, None], fallback, tangent)
-        u = tangent / np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), _EPS)
+        u = projected_axis(normal, "y") if field is None else np.asarray(field, dtype=np.float64)[face]
         r = np.cross(u, normal)
         roll = np.broadcast_to(np.asarray(roll, dtype=np.float64), face.shape)[:, None]
         cos, sin = np.cos(roll), np.sin(roll)

@@ -34,8 +34,9 @@ synthesis with pre-trained 2D CNNs, Kovacs et al. 2024) samples its convolutions
 the exponential map on a tangent direction field. Each step draws ``charts`` centres uniformly over
 the surface's area; around each, a ``chart_size`` square grid of points one exemplar pixel apart is
 walked out along geodesics in the centre's tangent frame (:mod:`mesh2tex.geometry.geodesic`; the
-frame's up is the mesh's up projected on the tangent plane for ``direction="up"``, a random roll for
-``"none"``), and the texture read at those points is a chart: an image of the surface as it is, with
+frame's up is the direction field's, :mod:`mesh2tex.geometry.direction_field`: the ``direction_axis``
+projected on the tangent plane for ``direction_field="up"``, the smooth field it guides for ``"smooth"``,
+a random roll for ``"none"``), and the texture read at those points is a chart: an image of the surface as it is, with
 no foreshortening, across the atlas's seams, hidden parts included. The charts, side by side with
 masked gutters (:func:`chart_mosaic`), are one image for the structure loss. What differs from the
 paper: its network convolves every texel's own neighbourhood layer by layer (pooling by voxels);
@@ -74,6 +75,7 @@ import torch
 import torch.nn.functional as F
 
 from mesh2tex.config import check_fields
+from mesh2tex.geometry.direction_field import AXES
 from mesh2tex.losses.ot_style import STYLE_LOSSES, ExemplarFeatures, needs_vgg, style_loss
 from mesh2tex.losses.structure import PATCH_SIZE
 from mesh2tex.nn.schedule import cosine_rate
@@ -89,7 +91,9 @@ from mesh2tex.texel_synthesis.surface import (
     walked_patch_terms,
 )
 
-DIRECTIONS = ("up", "none")  # --direction-field: upright views (stripes keep the mesh's up), or randomly rolled ones
+# --direction-field: the axis projected (up), the smooth field it guides (smooth; charts and patches only), or
+# randomly rolled views and grids (none); mesh2tex.geometry.direction_field
+DIRECTIONS = ("up", "smooth", "none")  # FIELDS and none (a literal: the CLI reads it without importing)
 # how the loss sees the surface: rendered views, geodesic charts, or the patch loss's patches walked octave by octave
 METHODS = ("renders", "surface", "patches")
 # The losses of mesh2tex.losses.ot_style.STYLE_LOSSES that see a pattern, each with the colour term's weight
@@ -117,7 +121,10 @@ class SynthesisConfig:
     # (COLOUR_WEIGHTS: 100, or 0 for patch)
     colour_weight: float | None = None
     overflow_weight: float = 10.0  # weight of the penalty on colours outside [-1, 1]
-    direction_field: str = "up"  # up: views or charts upright (stripes keep the mesh's up); none: rolled at random
+    # up: views or charts upright (stripes keep the direction axis); smooth: charts and patches along the smooth
+    # field the axis guides (no jump where the surface looks along the axis); none: rolled at random
+    direction_field: str = "up"
+    direction_axis: str = "y"  # the axis that guides the field: y (the mesh's up), x or z of its working frame
     # renders: random rendered views; surface: geodesic charts of the surface itself; patches: the patch loss's
     # patches walked on it. Unset: the loss's own (patches for patch, which draws more of a checker's corners
     # there at the same cost; renders for the others, which have no patches to walk)
@@ -177,6 +184,13 @@ class SynthesisConfig:
             raise ValueError(f"method patches walks the patch loss's patches: it needs loss patch, got {self.loss!r}")
         if self.direction_field not in DIRECTIONS:
             raise ValueError(f"direction_field must be one of {', '.join(DIRECTIONS)}, got {self.direction_field!r}")
+        if self.direction_axis not in AXES:
+            raise ValueError(f"direction_axis must be one of {', '.join(AXES)}, got {self.direction_axis!r}")
+        if self.method == "renders" and (self.direction_field == "smooth" or self.direction_axis != "y"):
+            raise ValueError(
+                "the renders method's views are upright in the mesh's up: direction_field smooth and "
+                "direction_axis x or z need method surface or patches"
+            )
 
     @property
     def palette_weight(self) -> float:
@@ -309,9 +323,11 @@ class TexelSynthesis:
         self.charts = self.patches = None
         spacing = 1 / pixels_per_unit(cfg.resolution, cfg.camera.distance, cfg.camera.fov)  # one exemplar pixel
         if cfg.method == "surface":
-            self.charts = SurfaceCharts(surface, spacing, cfg.chart_size, cfg.direction_field)
+            self.charts = SurfaceCharts(surface, spacing, cfg.chart_size, cfg.direction_field, cfg.direction_axis)
         elif cfg.method == "patches":
-            self.patches = SurfacePatches(surface, spacing, PATCH_SIZE, cfg.direction_field, cfg.patch_reuse)
+            self.patches = SurfacePatches(
+                surface, spacing, PATCH_SIZE, cfg.direction_field, cfg.patch_reuse, cfg.direction_axis
+            )
         self.iteration = 0
 
     def seen(self, image: torch.Tensor | None = None) -> torch.Tensor:

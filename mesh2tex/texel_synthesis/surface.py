@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from mesh2tex.geometry.direction_field import tangent_field
 from mesh2tex.geometry.geodesic import SurfaceWalker, geodesic_charts
 from mesh2tex.losses.ot_style import ExemplarFeatures, style_loss
 from mesh2tex.losses.structure import PATCH_SIZE, patch_distance
@@ -60,32 +61,40 @@ class TexelSurface:
         return float((uv_area / area.clamp_min(1e-12)).sqrt())
 
 
-def walk_grids(walker: SurfaceWalker, count: int, size: int, spacing: float, direction_field: str, rng):
+def grid_field(walker: SurfaceWalker, direction_field: str, axis: str = "y") -> np.ndarray | None:
+    """The grids' direction: (T, 3) unit tangents per face for the ``up`` and ``smooth`` fields guided by
+    ``axis`` (:func:`mesh2tex.geometry.direction_field.tangent_field`), None for ``none`` (rolled at random)."""
+    return None if direction_field == "none" else tangent_field(walker, direction_field, axis)
+
+
+def walk_grids(walker: SurfaceWalker, count: int, size: int, spacing: float, field: np.ndarray | None, rng):
     """``count`` square grids of ``size`` x ``size`` geodesic points ``spacing`` apart around centres uniform
-    over the area, upright (``direction_field`` up: u = the mesh's up projected) or each rolled at random
-    (``none``): faces (count, size, size), barycentrics (count, size, size, 3) and valid (count, size, size)
-    bool (False where a walk left the surface at a boundary or came back around a thin part)."""
+    over the area, their u along ``field`` (T, 3) (:func:`grid_field`) or, where it is None, the mesh's up
+    rolled by a random angle per grid: faces (count, size, size), barycentrics (count, size, size, 3) and
+    valid (count, size, size) bool (False where a walk left the surface at a boundary or came back around
+    a thin part)."""
     face, bary = walker.sample(count, rng)
-    roll = rng.random(count) * 2 * math.pi if direction_field == "none" else 0.0
-    return geodesic_charts(walker, face, bary, walker.frames(face, roll), size, spacing)
+    roll = rng.random(count) * 2 * math.pi if field is None else 0.0
+    return geodesic_charts(walker, face, bary, walker.frames(face, roll, field), size, spacing)
 
 
 class _SurfaceGrids:
     """Square grids of ``size`` x ``size`` geodesic points ``spacing`` apart (at the finest scale) around
-    random centres of a surface, read through its atlas; direction_field: ``up`` (grids upright, u = the
-    mesh's up projected) or ``none`` (each grid rolled by a random angle)."""
+    random centres of a surface, read through its atlas; direction_field: ``up`` (u = ``axis`` projected),
+    ``smooth`` (the smooth field guided by ``axis``) or ``none`` (each grid rolled by a random angle)."""
 
-    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str):
+    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str, axis: str = "y"):
         self.walker = SurfaceWalker(surface.positions.cpu().numpy(), surface.faces.cpu().numpy())
+        self.field = grid_field(self.walker, direction_field, axis)
         self.uv = surface.uv.cpu().double().numpy()[surface.faces.cpu().numpy()]  # (T, 3, 2)
-        self.spacing, self.size, self.direction_field = float(spacing), int(size), direction_field
+        self.spacing, self.size = float(spacing), int(size)
 
     def grids(self, count: int, spacing: float, generator: torch.Generator):
         """``count`` grids of ``size`` x ``size`` points ``spacing`` apart at centres uniform over the area:
         UVs (count, size, size, 2) float32 (v up) and valid (count, size, size) bool (False where a walk
         left the surface at a boundary or came back around a thin part)."""
         rng = np.random.default_rng(int(torch.randint(2**62, (1,), generator=generator)))
-        faces, barys, valid = walk_grids(self.walker, count, self.size, spacing, self.direction_field, rng)
+        faces, barys, valid = walk_grids(self.walker, count, self.size, spacing, self.field, rng)
         uv = (self.uv[faces] * barys[..., None]).sum(-2)  # (count, size, size, 2)
         return torch.from_numpy(uv).float(), torch.from_numpy(valid)
 
@@ -116,8 +125,10 @@ class SurfacePatches(_SurfaceGrids):
     chart bends away from it; and no render or chart border cuts the patches near it away.
     """
 
-    def __init__(self, surface: TexelSurface, spacing: float, size: int, direction_field: str, reuse: int = 1):
-        super().__init__(surface, spacing, size, direction_field)
+    def __init__(
+        self, surface: TexelSurface, spacing: float, size: int, direction_field: str, reuse: int = 1, axis: str = "y"
+    ):
+        super().__init__(surface, spacing, size, direction_field, axis)
         self.reuse = int(reuse)
         self._recent: dict[int, tuple[torch.Tensor, torch.Tensor]] = {}  # per octave: the last draw's patches
 
@@ -177,11 +188,12 @@ class VertexPatches:
 
         positions, faces = np.asarray(positions, dtype=np.float64), np.asarray(faces, dtype=np.int64)
         walker, rng = SurfaceWalker(positions, faces), np.random.default_rng(seed)
+        field = grid_field(walker, direction_field)
         tree, count = cKDTree(positions), len(positions)
         self.size, self.corners, self.weights, self.pooling = int(size), [], [], []
         for level in range(levels):
             step = spacing * 2**level
-            face, bary, valid = walk_grids(walker, bank, self.size, step, direction_field, rng)
+            face, bary, valid = walk_grids(walker, bank, self.size, step, field, rng)
             whole = valid.reshape(bank, -1).all(1)
             shape = (int(whole.sum()), self.size**2, 3)
             self.corners.append(torch.from_numpy(faces[face[whole]].reshape(shape)))

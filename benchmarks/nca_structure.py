@@ -366,10 +366,11 @@ def main() -> int:
 
 
 def write_figure(path: Path, rows: list[tuple[str, list[torch.Tensor]]], columns: list[str]) -> None:
-    """A grid of tiles ((3, H, W) in [0, 1]), one row per exemplar, the ``columns`` named above them."""
+    """A grid of square tiles ((3, S, S) in [0, 1], all one size), one row per exemplar, the ``columns`` named
+    above them."""
     from PIL import Image, ImageDraw
 
-    side, label = RESOLUTION, 14
+    side, label = rows[0][1][0].shape[-1], 14
     image = Image.new("RGB", (side * len(columns), label + (side + label) * len(rows)), "white")
     draw = ImageDraw.Draw(image)
     for c, title in enumerate(columns):

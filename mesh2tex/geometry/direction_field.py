@@ -21,8 +21,10 @@ working frame (``axis``: y, the mesh's up, by default; x or z):
   Dirichlet energy of a piecewise-constant field) and lam = 1 / (REACH L)^2 for the mesh's bounding-box
   diagonal L, so the field leaves the axis over about a twentieth of the object. Where the axis is
   undefined the field is filled in from the steep faces around: on a chair's seat, the back's and
-  the front's up folded over their edges (a stripe running down the back goes on across the seat
-  and down the front), with the singularities a closed surface must have (on a sphere, two).
+  the front's up folded over their edges near them (a stripe running down the back goes on over the
+  edge) and the sides' folded in near the sides, turning round a singular point in the middle; a
+  closed surface must have such points (on a sphere, two). A straight field on the seat (``up``'s
+  fallback) has none there but jumps at the seat's edges (docs/results/nca.md measures both).
   A linear solve (the normal equations, a sparse Hermitian system); then z_f is normalised. An edge
   whose two faces are wound against each other, or a part with no steep face, takes no smoothing
   from across it / keeps the ``up`` field's fallback (a small alignment everywhere keeps the system

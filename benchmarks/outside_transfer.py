@@ -6,6 +6,7 @@ texture, against the photo's ground truth and a flat colour.
         [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
         [--first-photo 0] [--no-mask-refine] [--no-mirror] [--meshes NAME ...]
         [--light-start prior] [--no-light-fixed] [--light-ambient A] [--light-truth] [--car-cues]
+        [--noc-halfturn]
 
 ``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
 per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
@@ -16,8 +17,9 @@ there, as ``infer transfer`` does by default: ``--light-start prior`` starts it 
 transfer's row gives the light found and its error against the photo's (:func:`light_error`); ``--light-truth``
 holds the photo's own light, relative to the photo's camera, placed relative to the found one (an oracle row).
 ``--car-cues`` paints a car's glass and head and tail lights on guessed places (cars are otherwise painted by
-height alone, body and wheels: ``height_parts``). ``--meshes`` keeps only the named meshes (their indices, hence
-their materials and cameras, stay those of the full run, so the rows compare).
+height alone, body and wheels: ``height_parts``). ``--noc-halfturn`` judges each photo's true and found pose
+against their half turns by the NOC network's map (``noc_halfturn.py``). ``--meshes`` keeps only the named
+meshes (their indices, hence their materials and cameras, stay those of the full run, so the rows compare).
 
 The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py`` and, for
 chairs, the stool of ``tests/user_assets.py``, each read as a user's file is (turned y-up, prepared
@@ -177,6 +179,7 @@ def main() -> None:
         path = models_root() / name / MODEL_FILES[kind]
         return str(path) if path.is_file() else None
 
+    from noc_halfturn import halfturn_errors, print_halfturn
     from outside_generation import height_parts, outside_meshes
 
     from mesh2tex.nn.batch import collate_shapes
@@ -242,6 +245,9 @@ def main() -> None:
     parser.add_argument("--light-truth", action="store_true", help="hold the photo's own light (an oracle)")
     parser.add_argument(
         "--car-cues", action="store_true", help="cars: glass and head and tail lights on guessed places (height_parts)"
+    )
+    parser.add_argument(
+        "--noc-halfturn", action="store_true", help="judge each pose and its half turn by the NOC network"
     )
     parser.add_argument("--meshes", nargs="+", help="only these meshes (names as the rows print them)")
     parser.add_argument(
@@ -354,6 +360,9 @@ def main() -> None:
                 row["network_error"] = (
                     float(azimuth_error(estimate.network[0], view.azimuth)) if estimate.network else None
                 )
+                if args.noc_halfturn and noc_checkpoint:
+                    camera = (distance, fov, cfg, device)
+                    row.update(halfturn_errors(noc_checkpoint, photo, shape, estimate, view.azimuth, *camera))
                 if k - args.first_photo < args.transfers:
                     photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
                     framed = view_at_pose(shape, estimate.azimuth, estimate.elevation, distance, fov, cfg)
@@ -456,6 +465,7 @@ def main() -> None:
             f"{mean('fit_poor'):8.2f} {mean('transfer seen'):13.2f} {mean('flat seen'):9.2f} "
             f"{mean('transfer unseen'):15.2f} {mean('flat unseen'):11.2f} {mean('oracle seen'):11.2f}"
         )
+    print_halfturn(rows, args.variants)
     if args.out:
         Path(args.out).write_text(json.dumps(rows, indent=1))
 

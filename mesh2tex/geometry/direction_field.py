@@ -26,9 +26,8 @@ working frame (``axis``: y, the mesh's up, by default; x or z):
   closed surface must have such points (on a sphere, two). A straight field on the seat (``up``'s
   fallback) has none there but jumps at the seat's edges (docs/results/nca.md measures both).
   A linear solve (the normal equations, a sparse Hermitian system); then z_f is normalised. An edge
-  whose two faces are wound against each other, or a part with no steep face, takes no smoothing
-  from across it / keeps the ``up`` field's fallback (a small alignment everywhere keeps the system
-  regular).
+  whose two faces are wound against each other takes no smoothing across it; a part with no steep
+  face keeps the ``up`` field's fallback (a small alignment everywhere keeps the system regular).
 
 Conventions: a field is (T, 3) float64, unit and in each face's plane (zero rows on degenerate faces).
 """

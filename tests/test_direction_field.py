@@ -95,3 +95,11 @@ def test_an_unknown_field_or_axis_is_refused_by_name():
         tangent_field(walker, "sideways")
     with pytest.raises(ValueError, match="direction axis"):
         tangent_field(walker, "up", axis="w")
+
+
+def test_the_command_lines_choices_are_the_fields_and_none():
+    """DIRECTIONS is a literal so the CLI reads it without importing torch; it must follow FIELDS."""
+    from mesh2tex.geometry.direction_field import FIELDS
+    from mesh2tex.texel_synthesis import DIRECTIONS
+
+    assert DIRECTIONS == (*FIELDS, "none")

@@ -31,7 +31,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.nca_structure import write_figure  # noqa: E402
-from mesh2tex.geometry.direction_field import FIELDS, field_turns, tangent_field  # noqa: E402
+from mesh2tex.geometry.direction_field import AXES, FIELDS, field_turns, tangent_field  # noqa: E402
 from mesh2tex.geometry.geodesic import SurfaceWalker  # noqa: E402
 from mesh2tex.geometry.primitives import load_surface  # noqa: E402
 from mesh2tex.render import orbit_camera  # noqa: E402
@@ -81,7 +81,7 @@ def synthesised_views(positions, faces, field: str, args) -> torch.Tensor:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--meshes", nargs="+", default=["sphere"], help="sphere, a prepared shape or a mesh file")
-    parser.add_argument("--axis", default="y", choices=["x", "y", "z"], help="the axis that guides the fields")
+    parser.add_argument("--axis", default="y", choices=AXES, help="the axis that guides the fields")
     parser.add_argument("--figure", help="write the synthesised views here (PNG)")
     parser.add_argument("--exemplar", default="stripes")
     parser.add_argument("--iters", type=int, default=SynthesisConfig.iters)
@@ -91,6 +91,8 @@ def main() -> int:
     args = parser.parse_args()
     torch.set_num_threads(1)
     rows = []
+    exemplar = torch.from_numpy(exemplar_image(args.exemplar, RESOLUTION)).permute(2, 0, 1) / 255  # the first tile
+    columns = ["exemplar"] + [f"azimuth {a:.0f}" for a in AZIMUTHS]
     print("| mesh | faces | field | seconds | edges turning > 30 deg | median turn (deg) |")
     print("| --- | ---: | --- | ---: | ---: | ---: |")
     for spec in args.meshes:
@@ -110,8 +112,6 @@ def main() -> int:
             )
             if args.figure:
                 rows.append((f"{name}: {field}", list(synthesised_views(positions, faces, field, args))))
-                exemplar = torch.from_numpy(exemplar_image(args.exemplar, RESOLUTION)).permute(2, 0, 1) / 255
-                columns = ["exemplar"] + [f"azimuth {a:.0f}" for a in AZIMUTHS]
                 write_figure(Path(args.figure), [(title, [exemplar, *views]) for title, views in rows], columns)
     return 0
 

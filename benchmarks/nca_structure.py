@@ -76,7 +76,13 @@ from mesh2tex.nn.vgg import load_vgg19  # noqa: E402
 from mesh2tex.render import interpolate, orbit_direction, rasterize, transform_points  # noqa: E402
 from mesh2tex.render.bake import new_atlas  # noqa: E402
 from mesh2tex.synthetic.exemplars import EXEMPLARS, exemplar_image  # noqa: E402
-from mesh2tex.texel_synthesis import SynthesisConfig, TexelSurface, TexelSynthesis, render_texture  # noqa: E402
+from mesh2tex.texel_synthesis import (  # noqa: E402
+    DIRECTIONS,
+    SynthesisConfig,
+    TexelSurface,
+    TexelSynthesis,
+    render_texture,
+)
 from train.nca import NCATrainer, TrainNCAConfig  # noqa: E402
 
 SIZE = 128  # exemplar pixels over the unit square of its pattern
@@ -248,7 +254,7 @@ def main() -> int:
         "--patch-fields",
         nargs="+",
         default=["up"],
-        choices=["up", "smooth", "none"],
+        choices=DIRECTIONS,
         help="with --patches: one row per direction field (patches patch for up, patches FIELD for the others)",
     )
     parser.add_argument("--direct-iters", type=int, default=SynthesisConfig.iters, help="the direct method's steps")

@@ -5,7 +5,8 @@ turns across the mesh's edges, what it costs, and (``--figure``) what a pattern 
         [--exemplar stripes] [--iters 400] [--size 512] [--seed 0] [--elevation 45]
 
 Per mesh (read as the automaton's benchmarks read it: :func:`mesh2tex.geometry.primitives.load_surface`,
-its faces split into triangles) and field (``up``, ``smooth``; :mod:`mesh2tex.geometry.direction_field`):
+its quads split as everywhere, :func:`mesh2tex.geometry.prepared.quads_to_triangles`) and field (``up``,
+``smooth``; :mod:`mesh2tex.geometry.direction_field`):
 the seconds to compute it (one thread), and across every interior edge the angle between the
 neighbour's direction and this face's carried over the edge (:func:`field_turns`): the share of edges
 turning by more than 30 degrees (jumps and singular points) and the median (how fast it turns where it
@@ -33,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.nca_structure import write_figure  # noqa: E402
 from mesh2tex.geometry.direction_field import AXES, FIELDS, field_turns, tangent_field  # noqa: E402
 from mesh2tex.geometry.geodesic import SurfaceWalker  # noqa: E402
+from mesh2tex.geometry.prepared import quads_to_triangles  # noqa: E402
 from mesh2tex.geometry.primitives import load_surface  # noqa: E402
 from mesh2tex.render import orbit_camera  # noqa: E402
 from mesh2tex.render.bake import new_atlas  # noqa: E402
@@ -47,12 +49,6 @@ from mesh2tex.texel_synthesis import (  # noqa: E402
 
 RESOLUTION = 192  # the figure's tiles
 AZIMUTHS = (30.0, 120.0, 210.0, 300.0)  # the figure's views
-
-
-def triangles(faces: np.ndarray) -> np.ndarray:
-    """(T, 3): quads (F, 4) split along their first diagonal; triangles as they are."""
-    faces = np.asarray(faces, dtype=np.int64)
-    return faces if faces.shape[1] == 3 else np.concatenate([faces[:, [0, 1, 2]], faces[:, [0, 2, 3]]])
 
 
 def synthesised_views(positions, faces, field: str, args) -> torch.Tensor:
@@ -97,7 +93,11 @@ def main() -> int:
     print("| --- | ---: | --- | ---: | ---: | ---: |")
     for spec in args.meshes:
         positions, faces = load_surface(spec)
-        positions, faces = np.asarray(positions, dtype=np.float64), triangles(faces)
+        faces = np.asarray(faces, dtype=np.int64)
+        positions, faces = (
+            np.asarray(positions, dtype=np.float64),
+            faces if faces.shape[1] == 3 else quads_to_triangles(faces),
+        )
         walker = SurfaceWalker(positions, faces)
         name = Path(spec).stem
         for field in FIELDS:

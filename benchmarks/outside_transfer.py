@@ -31,6 +31,9 @@ world's query cameras and lights (random azimuth, elevation in the world's range
   alpha        a PNG whose alpha channel is the object's mask (the mask is given)
   room         a JPEG (quality 90) of the object in front of a wall over a plank floor, drawn by this
                script (:func:`room`); the mask is estimated as below
+  far          a JPEG of the object at the same size at a random place in a room twice the photo's side
+               (:func:`far_photo`): a quarter of the photo's area; its mask is estimated as over clutter
+               (no transfer is scored on it)
   clutter      a JPEG (quality 90) of the object over a sharp crop of a photograph that neither the
                world nor the mask network's training uses (scikit-image's astronaut, chelsea,
                camera, coins, clock, page); the mask is estimated as ``infer transfer`` estimates
@@ -78,54 +81,11 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT))
 
-# Photographs the world and the mask network's training never show (mesh2tex.synthetic.backdrops uses others).
 SOURCE_LABELS = {
     "estimated (mask network, GrabCut edges)": "network_grabcut",
     "estimated (mask network)": "network",
     "estimated (GrabCut)": "grabcut",
 }
-BACKDROPS = ("astronaut", "chelsea", "camera", "coins", "clock", "page")
-
-
-def backdrop(index: int, size: int, rng: np.random.Generator) -> np.ndarray:
-    """(size, size, 3) float32 in [0, 1]: a sharp crop of one of scikit-image's photographs."""
-    import cv2
-
-    from mesh2tex.synthetic.world import background_photo
-
-    image = background_photo(BACKDROPS[index % len(BACKDROPS)])
-    h, w = image.shape[:2]
-    side = int(min(h, w) * rng.uniform(0.5, 0.9))
-    y, x = int(rng.integers(0, h - side + 1)), int(rng.integers(0, w - side + 1))
-    crop = cv2.resize(
-        np.ascontiguousarray(image[y : y + side, x : x + side]), (size, size), interpolation=cv2.INTER_AREA
-    )
-    return crop.astype(np.float32) / 255.0
-
-
-def room(size: int, rng: np.random.Generator) -> np.ndarray:
-    """(size, size, 3) float32 in [0, 1]: a wall (a muted colour, lit from above) over a floor of planks
-    (each its own shade, with grain), the horizon at 45-75 % of the height; drawn here, not by the
-    training code's backdrops."""
-    import colorsys
-
-    rows = np.arange(size, dtype=np.float32)[:, None, None]
-    horizon = int(size * rng.uniform(0.45, 0.75))
-    wall = np.array(
-        colorsys.hsv_to_rgb(rng.uniform(0, 1), rng.uniform(0.05, 0.35), rng.uniform(0.55, 0.95)), np.float32
-    )
-    image = np.broadcast_to(wall * (0.85 + 0.15 * (1 - rows / size)), (size, size, 3)).copy()
-    wood = np.array(
-        colorsys.hsv_to_rgb(rng.uniform(0.05, 0.11), rng.uniform(0.3, 0.7), rng.uniform(0.25, 0.7)), np.float32
-    )
-    plank = max(3, int(size * rng.uniform(0.03, 0.08)))
-    for top in range(horizon, size, plank):
-        shade = float(rng.uniform(0.8, 1.15))
-        grain = 1 + 0.06 * np.sin(np.arange(size) * rng.uniform(0.2, 0.6) + rng.uniform(0, 6))[None, :, None]
-        image[top : top + plank] = np.clip(wood * shade * grain, 0, 1)
-        image[top : top + 1] *= 0.7  # the gap between planks
-    image[horizon - 2 : horizon] *= 0.6  # the skirting's shadow
-    return np.clip(image, 0.0, 1.0)
 
 
 def true_light(view):
@@ -181,6 +141,7 @@ def main() -> None:
 
     from noc_halfturn import halfturn_errors, print_halfturn
     from outside_generation import height_parts, outside_meshes
+    from outside_photos import backdrop, far_photo, room, write_jpeg
 
     from mesh2tex.nn.batch import collate_shapes
     from mesh2tex.nn.vgg import load_vgg19
@@ -197,7 +158,7 @@ def main() -> None:
     )
     from mesh2tex.transfer.config import LIGHT_STARTS
     from mesh2tex.transfer.fit import check_fit
-    from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
+    from mesh2tex.transfer.mask import DEFAULT_MASK_PASSES, MASK_PASSES, network_probability, refine_with_grabcut
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--checkpoint", default="chair")
@@ -249,11 +210,19 @@ def main() -> None:
     parser.add_argument(
         "--noc-halfturn", action="store_true", help="judge each pose and its half turn by the NOC network"
     )
+    parser.add_argument(
+        "--mask-passes",
+        nargs="*",
+        default=list(DEFAULT_MASK_PASSES),
+        choices=MASK_PASSES,
+        help="the mask network's passes over each photo (none given: one prediction of the whole photo)",
+    )
     parser.add_argument("--meshes", nargs="+", help="only these meshes (names as the rows print them)")
     parser.add_argument(
-        "--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter"]
+        "--variants", nargs="+", default=["alpha", "room", "clutter"], choices=["alpha", "room", "clutter", "far"]
     )
     args = parser.parse_args()
+    passes = tuple(args.mask_passes)
     device = torch.device("cpu")
     pose_checkpoint = args.pose_checkpoint or (args.checkpoint if is_model_name(args.checkpoint) else None)
     noc_checkpoint = args.noc_checkpoint or (args.checkpoint if is_model_name(args.checkpoint) else None)
@@ -314,14 +283,16 @@ def main() -> None:
             ):
                 over = rgb * coverage + backdrop_rgb * (1 - coverage)
                 photos[variant] = (folder / f"{stem}_{variant}.jpg", over)
-                cv2.imwrite(
-                    str(photos[variant][0]),
-                    cv2.cvtColor((over * 255).round().astype(np.uint8), cv2.COLOR_RGB2BGR),
-                    [cv2.IMWRITE_JPEG_QUALITY, 90],
-                )
+                write_jpeg(photos[variant][0], over)
+            truths = dict.fromkeys(photos, true_mask)
+            if "far" in args.variants:
+                over, truths["far"] = far_photo(rgb, coverage, np.random.default_rng([13, index, k]))
+                photos["far"] = (folder / f"{stem}_far.jpg", over)
+                write_jpeg(photos["far"][0], over)
             for variant, (file, over) in photos.items():
                 if variant not in args.variants:
                     continue
+                true_mask = truths[variant]
                 row = {
                     "mesh": name,
                     "photo": k,
@@ -333,7 +304,7 @@ def main() -> None:
                     as_read = cv2.cvtColor(cv2.imread(str(file)), cv2.COLOR_BGR2RGB)
                     candidates = {"grabcut": estimate_mask(as_read)}
                     if mask_checkpoint:
-                        probability = network_probability(mask_checkpoint, as_read)
+                        probability = network_probability(mask_checkpoint, as_read, passes=passes)
                         candidates["network"] = probability >= 0.5
                         candidates["network_grabcut"] = refine_with_grabcut(as_read, probability)
                     for label, estimate in candidates.items():
@@ -342,7 +313,7 @@ def main() -> None:
                     row["mask_iou"] = 1.0
                 # As infer transfer does: the mesh's outline picks among the mask estimates, then (unless
                 # --no-mask-refine) GrabCut from that outline makes the mask again and the pose is found again.
-                masked = photo_masks(file, None, mask_checkpoint=mask_checkpoint)
+                masked = photo_masks(file, None, mask_checkpoint=mask_checkpoint, mask_passes=passes)
                 started = time.perf_counter()
                 located = locate_object(masked, shape, pose_checkpoint, None, distance, fov, cfg, device)
                 photo, estimate = located.photo, located.estimate
@@ -363,7 +334,7 @@ def main() -> None:
                 if args.noc_halfturn and noc_checkpoint:
                     camera = (distance, fov, cfg, device)
                     row.update(halfturn_errors(noc_checkpoint, photo, shape, estimate, view.azimuth, *camera))
-                if k - args.first_photo < args.transfers:
+                if k - args.first_photo < args.transfers and variant != "far":  # far: no framed reference
                     photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
                     framed = view_at_pose(shape, estimate.azimuth, estimate.elevation, distance, fov, cfg)
                     torch.manual_seed(0)
@@ -435,7 +406,7 @@ def main() -> None:
         f"\n{len({r['mesh'] for r in rows})} {args.category} meshes from outside the world, {args.poses} photos each; "
         f"checkpoint {args.checkpoint}, pose {pose_checkpoint}, NOC {noc_checkpoint}"
     )
-    for variant in [v for v in ("room", "clutter") if v in args.variants]:
+    for variant in [v for v in ("room", "clutter", "far") if v in args.variants]:
         chosen = [r for r in rows if r["variant"] == variant]
         print(
             f"mask IoU, {variant}: "

@@ -211,3 +211,65 @@ def test_the_meshs_outline_at_the_pose_mends_an_estimated_mask():
         torch.device("cpu"),
     )
     assert np.array_equal(kept.mask, estimate) and kept.mask_source == "alpha channel"
+
+
+class _RedNet(torch.nn.Module):
+    """A stand-in mask network: the object is what is red (a pixel's own colour decides, at any scale)."""
+
+    def forward(self, images):
+        return 8.0 * (images[:, :1] - images[:, 1:2]) - 4.0
+
+
+def _red_square(side: int, top: int, left: int, size: int) -> np.ndarray:
+    rgb = np.full((side, side, 3), 90, np.uint8)
+    rgb[top : top + size, left : left + size] = (230, 30, 30)
+    return rgb
+
+
+@pytest.fixture
+def red_net(monkeypatch):
+    import types
+
+    import mesh2tex.models
+
+    cfg = types.SimpleNamespace(data=types.SimpleNamespace(resolution=64))
+    monkeypatch.setattr(mesh2tex.models, "load_view_network", lambda checkpoint, kind, device: (_RedNet(), cfg))
+
+
+def test_the_flip_pass_reads_a_mirrored_photo_as_its_mirror():
+    """With the flip pass the network's estimate does not depend on which way the photo faces."""
+    from mesh2tex.transfer.mask import network_probability
+
+    rng = np.random.default_rng(0)
+    rgb = (rng.uniform(0, 1, (96, 96, 3)) * 255).astype(np.uint8)
+    rgb[20:80, 10:50] = (180, 60, 40)
+    probability = network_probability("chair", rgb, passes=("flip",))
+    mirrored = network_probability("chair", np.ascontiguousarray(rgb[:, ::-1]), passes=("flip",))
+    np.testing.assert_allclose(mirrored, probability[:, ::-1], atol=1e-5)
+    with pytest.raises(ValueError, match="unknown passes"):
+        network_probability("chair", rgb, passes=("blur",))
+
+
+def test_the_zoom_pass_looks_again_at_a_small_object_and_only_there(red_net):
+    """A small object in a large photo is seen again at the network's full side: its edges come out sharper,
+    and nothing outside the zoomed square changes; an object that fills the photo is left as it was."""
+    from mesh2tex.transfer.mask import network_probability
+
+    rgb = _red_square(320, 101, 57, 27)
+    truth = np.zeros((320, 320), bool)
+    truth[101:128, 57:84] = True
+    once = network_probability("net", rgb, passes=())
+    zoomed = network_probability("net", rgb, passes=("zoom",))
+
+    def iou(p):
+        return ((p >= 0.5) & truth).sum() / ((p >= 0.5) | truth).sum()
+
+    assert iou(zoomed) > iou(once)
+    assert np.abs(zoomed - once)[truth].max() > 0.01
+    far = np.ones((320, 320), bool)
+    far[80:150, 35:105] = False  # well outside the zoomed square
+    np.testing.assert_array_equal(zoomed[far], once[far])
+    filling = _red_square(96, 8, 8, 80)
+    np.testing.assert_array_equal(
+        network_probability("net", filling, passes=("zoom",)), network_probability("net", filling, passes=())
+    )

@@ -18,7 +18,7 @@ from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.photos import estimate_mask, largest_region
 from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig
-from mesh2tex.transfer.mask import network_probability, refine_with_grabcut
+from mesh2tex.transfer.mask import DEFAULT_MASK_PASSES, network_probability, refine_with_grabcut
 
 
 @dataclass
@@ -102,7 +102,10 @@ class MaskedPhoto:
 
 
 def photo_masks(
-    image_path: str | Path, mask_path: str | Path | None, mask_checkpoint: str | Path | None = None
+    image_path: str | Path,
+    mask_path: str | Path | None,
+    mask_checkpoint: str | Path | None = None,
+    mask_passes: tuple[str, ...] = DEFAULT_MASK_PASSES,
 ) -> MaskedPhoto:
     """The photo and its masks: the ``mask_path`` file or the alpha channel when there is one; else the
     estimates, the mask network's with GrabCut edges, the network's alone and GrabCut's alone (GrabCut's
@@ -125,7 +128,7 @@ def photo_masks(
     elif alpha is not None and (alpha < 128).any():
         masks = [(alpha >= 128, "alpha channel")]
     elif mask_checkpoint is not None:
-        probability, given = network_probability(mask_checkpoint, rgb), False
+        probability, given = network_probability(mask_checkpoint, rgb, passes=mask_passes), False
         masks = [
             (refine_with_grabcut(rgb, probability), "estimated (mask network, GrabCut edges)"),
             (largest_region(probability >= 0.5), "estimated (mask network)"),

@@ -115,9 +115,10 @@ def test_a_chart_of_horizontal_bands_on_an_upright_side_has_constant_rows():
     faces, barys, valid = geodesic_charts(walker, face, bary, walker.frames(face), 16, 0.05)
     assert valid.all()
     points = (walker.vertices[faces] * barys[..., None]).sum(-2)[0]  # (16, 16, 3)
-    bands = np.floor(points[..., 1] * 8)
-    assert (bands == bands[:, :1]).all()
-    assert len(np.unique(bands[:, 0])) > 4
+    # level to rounding: rows here lie on the bands' edges (y = 3/8), where floor(8 y) alone would flip
+    np.testing.assert_allclose(points[..., 1], points[:, :1, 1].repeat(16, axis=1), atol=1e-9)
+    bands = np.floor(points[:, 0, 1] * 8 + 1e-6)
+    assert len(np.unique(bands)) > 4
     assert points[0, 0, 1] > points[-1, 0, 1]  # row 0 is the top
 
 

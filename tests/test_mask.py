@@ -228,12 +228,16 @@ def _red_square(side: int, top: int, left: int, size: int) -> np.ndarray:
 
 @pytest.fixture
 def red_net(monkeypatch):
+    """Installs the stand-in as every mask network, at the input side it is called with."""
     import types
 
     import mesh2tex.models
 
-    cfg = types.SimpleNamespace(data=types.SimpleNamespace(resolution=64))
-    monkeypatch.setattr(mesh2tex.models, "load_view_network", lambda checkpoint, kind, device: (_RedNet(), cfg))
+    def install(side: int) -> None:
+        cfg = types.SimpleNamespace(data=types.SimpleNamespace(resolution=side))
+        monkeypatch.setattr(mesh2tex.models, "load_view_network", lambda checkpoint, kind, device: (_RedNet(), cfg))
+
+    return install
 
 
 def test_the_flip_pass_reads_a_mirrored_photo_as_its_mirror():
@@ -252,9 +256,11 @@ def test_the_flip_pass_reads_a_mirrored_photo_as_its_mirror():
 
 def test_the_zoom_pass_looks_again_at_a_small_object_and_only_there(red_net):
     """A small object in a large photo is seen again at the network's full side: its edges come out sharper,
-    and nothing outside the zoomed square changes; an object that fills the photo is left as it was."""
+    and nothing outside the zoomed square changes; an object that fills the photo, or whose square the network
+    already saw at full detail, is left as it was."""
     from mesh2tex.transfer.mask import network_probability
 
+    red_net(24)
     rgb = _red_square(320, 101, 57, 27)
     truth = np.zeros((320, 320), bool)
     truth[101:128, 57:84] = True
@@ -272,4 +278,8 @@ def test_the_zoom_pass_looks_again_at_a_small_object_and_only_there(red_net):
     filling = _red_square(96, 8, 8, 80)
     np.testing.assert_array_equal(
         network_probability("net", filling, passes=("zoom",)), network_probability("net", filling, passes=())
+    )
+    red_net(64)  # the object's square (about 32 px) is smaller than the network's side
+    np.testing.assert_array_equal(
+        network_probability("net", rgb, passes=("zoom",)), network_probability("net", rgb, passes=())
     )

@@ -82,7 +82,8 @@ def network_probability(
     size = cfg.data.resolution
     probability = _square_probability(net, image, size, "flip" in passes)
     box = _zoom_box(probability) if "zoom" in passes else None
-    if box is not None and box[2] <= ZOOM_BELOW * side:
+    # a square the network's side or smaller was already seen at full detail: a second look would add none
+    if box is not None and size < box[2] <= ZOOM_BELOW * side:
         z_top, z_left, z_side = box
         pad = (max(0, -z_left), max(0, z_left + z_side - side), max(0, -z_top), max(0, z_top + z_side - side))
         padded = F.pad(image, pad, mode="replicate")

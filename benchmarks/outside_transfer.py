@@ -3,13 +3,15 @@ texture, against the photo's ground truth and a flat colour.
 
     python benchmarks/outside_transfer.py --checkpoint chair [--pose-checkpoint P] [--noc-checkpoint N]
         [--category chair] [--poses 4] [--transfers 1] [--latent-iters 60] [--refine-iters 120]
-        [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter]
+        [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter far]
         [--first-photo 0] [--no-mask-refine] [--no-mirror] [--meshes NAME ...]
         [--light-start prior] [--no-light-fixed] [--light-ambient A] [--light-truth] [--car-cues]
-        [--noc-halfturn]
+        [--noc-halfturn] [--mask-passes zoom flip]
 
-``--first-photo K`` skips each mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras
-per mesh, beside the default run's two); ``--no-mask-refine`` keeps the picked mask estimate as it is
+``--mask-passes`` names the mask network's looks at each photo (:data:`mesh2tex.transfer.mask.MASK_PASSES`; given
+with no name, one look at the whole photo; default ``infer transfer``'s). ``--first-photo K`` skips each
+mesh's first K photos (``--poses 4 --first-photo 2``: two fresh cameras per mesh, beside the default run's
+two); ``--no-mask-refine`` keeps the picked mask estimate as it is
 (``transfer.mask_refine: false``); ``--no-mirror`` leaves the photo unread across the mesh's mirror plane
 (``transfer.w_mirror: 0``); the photo's light starts where its shading across the mesh's folds says and stays
 there, as ``infer transfer`` does by default: ``--light-start prior`` starts it at the light prior's middle instead
@@ -46,7 +48,7 @@ Columns, per variant:
                (:func:`mesh2tex.transfer.locate_object`: the estimate whose found pose's silhouette
                matches it best, then GrabCut from the mesh's outline at that pose unless
                ``--no-mask-refine``), and each estimate alone (GrabCut, the network, the network with
-               GrabCut edges; room, clutter)
+               GrabCut edges; room, clutter, far)
   pose error   the azimuth error (degrees, circular) of ``--pose auto`` (the pose network and the
                search ``infer transfer`` runs), median and share within 15 degrees, up to the mesh's
                own symmetries (a round stool with four legs looks the same turned by 90 degrees,

@@ -1,5 +1,6 @@
-"""The object's mask of a photo that comes without one: the mask network's estimate, its edges refined
-by GrabCut (:func:`mesh2tex.photos.estimate_mask` is GrabCut alone, for when no network is at hand)."""
+"""The object's mask of a photo that comes without one: the mask network's estimate (a second look at a
+far object's square, :data:`MASK_PASSES`), its edges refined by GrabCut (:func:`mesh2tex.photos.estimate_mask`
+is GrabCut alone, for when no network is at hand)."""
 
 from __future__ import annotations
 

@@ -110,7 +110,8 @@ def photo_masks(
     """The photo and its masks: the ``mask_path`` file or the alpha channel when there is one; else the
     estimates, the mask network's with GrabCut edges, the network's alone and GrabCut's alone (GrabCut's
     alone without a network). The mesh picks among them (:func:`mesh2tex.transfer.pose.locate_object`):
-    no estimate is right on every photo."""
+    no estimate is right on every photo. ``mask_passes``: the network's looks at the photo
+    (:func:`mesh2tex.transfer.mask.network_probability`)."""
     rgb, alpha = load_image(image_path)
     if min(rgb.shape[:2]) < MIN_PHOTO_SIDE:
         raise InputError(

@@ -27,22 +27,19 @@ SIDE = 192  # the figure's tiles
 
 def cut(image: np.ndarray, box: tuple[int, int, int]) -> torch.Tensor:
     """(3, SIDE, SIDE) in [0, 1]: ``image`` (H, W, 3) or (H, W) in [0, 1] cut to the square ``box`` (top, left,
-    side; white beyond the photo) and resized."""
-    import cv2
+    side; white beyond the photo) and resized (:func:`mesh2tex.render.crop_square`)."""
+    from mesh2tex.render import crop_square
 
-    top, left, side = box
-    h, w = image.shape[:2]
     image = image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
-    square = np.ones((side, side, 3), np.float32)
-    r0, c0, r1, c1 = max(0, top), max(0, left), min(h, top + side), min(w, left + side)
-    square[r0 - top : r1 - top, c0 - left : c1 - left] = image[r0:r1, c0:c1]
-    return torch.from_numpy(cv2.resize(square, (SIDE, SIDE), interpolation=cv2.INTER_AREA)).permute(2, 0, 1)
+    tensor = torch.from_numpy(np.ascontiguousarray(image, dtype=np.float32)).permute(2, 0, 1)[None]
+    return crop_square(tensor, box, SIDE, fill=1.0)[0].clamp(0, 1)
 
 
 def main() -> int:
     import cv2
 
     from mesh2tex.models import MODEL_FILES, is_model_name, models_root
+    from mesh2tex.render import object_box
     from mesh2tex.transfer.mask import MASK_PASSES, network_probability
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -59,16 +56,13 @@ def main() -> int:
         rgb = cv2.cvtColor(cv2.imread(path), cv2.COLOR_BGR2RGB)
         once = network_probability(checkpoint, rgb, passes=())
         again = network_probability(checkpoint, rgb, passes=tuple(args.passes))
-        rows_, cols_ = np.nonzero(once >= 0.5)
-        if len(rows_) == 0:
+        if not (once >= 0.5).any():
             print(f"{path}: the first look finds nothing; left out")
             continue
-        r0, r1, c0, c1 = rows_.min(), rows_.max() + 1, cols_.min(), cols_.max() + 1
-        side = int(max(r1 - r0, c1 - c0) * 1.5)
-        box = ((r0 + r1 - side) // 2, (c0 + c1 - side) // 2, side)
+        box = object_box(once >= 0.5, 0.25)  # the first look's square, grown by half
         tiles = [cut(rgb.astype(np.float32) / 255, box), cut(once, box), cut(again, box)]
         rows.append((Path(path).stem, tiles))
-        print(f"{path}: the object's first-look box {r1 - r0} x {c1 - c0} px of {rgb.shape[0]} x {rgb.shape[1]}")
+        print(f"{path}: the first look's square grown by half, {box[2]} px of {rgb.shape[0]} x {rgb.shape[1]}")
     write_figure(Path(args.out), rows, ["photo", "one look", "+".join(args.passes)])
     print(f"wrote {args.out}")
     return 0

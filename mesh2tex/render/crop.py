@@ -34,16 +34,18 @@ def object_box(mask: np.ndarray, margin: float) -> tuple[int, int, int]:
     return int(round((top + bottom - side) / 2)), int(round((left + right - side) / 2)), side
 
 
-def crop_square(images: torch.Tensor, box: tuple[int, int, int], size: int, fill: float = 0.0) -> torch.Tensor:
+def crop_square(
+    images: torch.Tensor, box: tuple[int, int, int], size: int, fill: float = 0.0, repeat_edges: bool = False
+) -> torch.Tensor:
     """images (N,C,H,W) float -> (N,C,size,size): the square ``box`` (top, left, side) (padded with
-    ``fill`` outside), resized. Differentiable."""
+    ``fill`` outside, or with the edge pixels repeated for ``repeat_edges``), resized. Differentiable."""
     check_shape(images, "crop_square: images", (None, None, "H", "W"), dtype="float")
     if len(box) != 3:
         raise ValueError(f"crop_square: box must be (top, left, side), got {box!r}")
     top, left, side = box
     h, w = images.shape[-2:]
     pad = (max(0, -left), max(0, left + side - w), max(0, -top), max(0, top + side - h))
-    padded = F.pad(images, pad, value=fill)
+    padded = F.pad(images, pad, mode="replicate") if repeat_edges else F.pad(images, pad, value=fill)
     crop = padded[..., top + pad[2] : top + pad[2] + side, left + pad[0] : left + pad[0] + side]
     mode = "area" if side > size else "bilinear"
     return F.interpolate(crop, size=(size, size), mode=mode, **({} if mode == "area" else {"align_corners": False}))

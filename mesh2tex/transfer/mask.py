@@ -12,6 +12,7 @@ import torch.nn.functional as F
 
 from mesh2tex.checks import check_array_shape
 from mesh2tex.photos import grabcut_scale, largest_region
+from mesh2tex.render import crop_square
 
 SURE = 0.9  # network probabilities above this (below 1 - this) are fixed as object (background) for GrabCut
 # The mesh's outline as a prior: a band this share of the object's square wide on each side of it is left to GrabCut
@@ -31,11 +32,9 @@ ZOOM_MARGIN = 0.1  # the zoom pass's square: the object's box grown by this shar
 ZOOM_BELOW = 0.6
 
 
-def _square_probability(net, image: torch.Tensor, size: int, flip: bool) -> torch.Tensor:
-    """image [1, 3, S, S] in [-1, 1] -> [S, S] probability, the network run at ``size``; with ``flip`` the
-    mean with its run on the mirrored image."""
-    side = image.shape[-1]
-    small = F.interpolate(image, size=(size, size), mode="area")
+def _square_probability(net, small: torch.Tensor, side: int, flip: bool) -> torch.Tensor:
+    """small [1, 3, N, N] in [-1, 1], a square at the network's side -> [side, side] probability, the
+    prediction resized; with ``flip`` the mean with its run on the mirrored square."""
     logits = net(torch.cat([small, small.flip(-1)]) if flip else small).float().cpu()
     probability = torch.sigmoid(F.interpolate(logits, size=(side, side), mode="bilinear", align_corners=False))
     if flip:
@@ -81,15 +80,13 @@ def network_probability(
     image = torch.from_numpy(np.array(rgb, dtype=np.uint8)).permute(2, 0, 1)[None].float() / 127.5 - 1.0
     image = F.pad(image, (left, side - w - left, top, side - h - top), mode="replicate").to(device)
     size = cfg.data.resolution
-    probability = _square_probability(net, image, size, "flip" in passes)
+    flip = "flip" in passes
+    probability = _square_probability(net, F.interpolate(image, size=(size, size), mode="area"), side, flip)
     box = _zoom_box(probability) if "zoom" in passes else None
     # a square the network's side or smaller was already seen at full detail: a second look would add none
     if box is not None and size < box[2] <= ZOOM_BELOW * side:
         z_top, z_left, z_side = box
-        pad = (max(0, -z_left), max(0, z_left + z_side - side), max(0, -z_top), max(0, z_top + z_side - side))
-        padded = F.pad(image, pad, mode="replicate")
-        crop = padded[..., z_top + pad[2] : z_top + pad[2] + z_side, z_left + pad[0] : z_left + pad[0] + z_side]
-        zoomed = _square_probability(net, crop, size, "flip" in passes)
+        zoomed = _square_probability(net, crop_square(image, box, size, repeat_edges=True), z_side, flip)
         # the crop's pixels that lie on the square
         r0, c0 = max(0, z_top), max(0, z_left)
         r1, c1 = min(side, z_top + z_side), min(side, z_left + z_side)

@@ -6,7 +6,7 @@ texture, against the photo's ground truth and a flat colour.
         [--resolution 64] [--photo-size 256] [--out FILE.json] [--variants alpha room clutter far]
         [--first-photo 0] [--no-mask-refine] [--no-mirror] [--meshes NAME ...]
         [--light-start prior] [--no-light-fixed] [--light-ambient A] [--light-truth] [--car-cues]
-        [--noc-halfturn] [--mask-passes zoom flip]
+        [--noc-halfturn] [--crease-halfturn] [--pose-halfturn-tie T] [--mask-passes zoom flip]
 
 ``--mask-passes`` names the mask network's looks at each photo (:data:`mesh2tex.transfer.mask.MASK_PASSES`; given
 with no name, one look at the whole photo; default ``infer transfer``'s). ``--first-photo K`` skips each
@@ -20,8 +20,10 @@ transfer's row gives the light found and its error against the photo's (:func:`l
 holds the photo's own light, relative to the photo's camera, placed relative to the found one (an oracle row).
 ``--car-cues`` paints a car's glass and head and tail lights on guessed places (cars are otherwise painted by
 height alone, body and wheels: ``height_parts``). ``--noc-halfturn`` judges each photo's true and found pose
-against their half turns by the NOC network's map (``noc_halfturn.py``). ``--meshes`` keeps only the named
-meshes (their indices, hence their materials and cameras, stay those of the full run, so the rows compare).
+against their half turns by the NOC network's map, ``--crease-halfturn`` the true pose against its half turn
+by the mesh's creases (``halfturn.py``); ``--pose-halfturn-tie -1`` turns the search's crease check off.
+``--meshes`` keeps only the named meshes (their indices, hence their materials and cameras, stay those of the
+full run, so the rows compare).
 
 The meshes: the hand-modelled chairs (or cars) of ``benchmarks/world_reference_shapes.py`` and, for
 chairs, the stool of ``tests/user_assets.py``, each read as a user's file is (turned y-up, prepared
@@ -141,7 +143,7 @@ def main() -> None:
         path = models_root() / name / MODEL_FILES[kind]
         return str(path) if path.is_file() else None
 
-    from noc_halfturn import halfturn_errors, print_halfturn
+    from halfturn import crease_halfturn, halfturn_errors, print_halfturn
     from outside_generation import height_parts, outside_meshes
     from outside_photos import backdrop, far_photo, room, write_jpeg
 
@@ -213,6 +215,15 @@ def main() -> None:
         "--noc-halfturn", action="store_true", help="judge each pose and its half turn by the NOC network"
     )
     parser.add_argument(
+        "--crease-halfturn", action="store_true", help="judge each true pose and its half turn by the mesh's creases"
+    )
+    parser.add_argument(
+        "--pose-halfturn-tie",
+        type=float,
+        default=TransferConfig.pose_halfturn_tie,
+        help="weigh the found pose's half turn by the creases within this IoU (negative: never)",
+    )
+    parser.add_argument(
         "--mask-passes",
         nargs="*",
         default=list(DEFAULT_MASK_PASSES),
@@ -245,6 +256,7 @@ def main() -> None:
         light_start=args.light_start,
         light_fixed=args.light_fixed,
         light_ambient=args.light_ambient,
+        pose_halfturn_tie=args.pose_halfturn_tie,
     )
     vgg = load_vgg19(None, device=device)
     spec = WorldSpec(category=args.category, variety=args.variety)
@@ -336,6 +348,9 @@ def main() -> None:
                 if args.noc_halfturn and noc_checkpoint:
                     camera = (distance, fov, cfg, device)
                     row.update(halfturn_errors(noc_checkpoint, photo, shape, estimate, view.azimuth, *camera))
+                if args.crease_halfturn:
+                    row.update(crease_halfturn(photo, shape, view.azimuth, view.elevation, distance, fov, cfg))
+                row["turned"], row["creases"] = estimate.turned, estimate.creases
                 if k - args.first_photo < args.transfers and variant != "far":  # far: no framed reference
                     photo_noc = predict_noc(noc_checkpoint, photo, device) if noc_checkpoint else None
                     framed = view_at_pose(shape, estimate.azimuth, estimate.elevation, distance, fov, cfg)

@@ -2,6 +2,7 @@
 
     python benchmarks/view_nets_on_world.py --world WORLD --pose-checkpoint P [--noc-checkpoint N]
                                             [--shapes DIR ...] [--show-misses DEG] [--resolution 64] [--queries-only]
+                                            [--pose-halfturn-tie T]
 
 Every photo of the world with a known camera (``images/`` of the training shapes and ``queries/`` of
 the held-out shapes; their poses are in ``index.json``) goes through exactly the path of
@@ -80,11 +81,17 @@ def main() -> None:
         metavar="DEG",
         help="with --shapes: list each photo the search puts more than DEG degrees off, with both poses and IoUs",
     )
+    parser.add_argument(
+        "--pose-halfturn-tie",
+        type=float,
+        default=TransferConfig.pose_halfturn_tie,
+        help="with --shapes: the search weighs the half turn by the creases within this IoU (negative: never)",
+    )
     args = parser.parse_args()
 
     world = Path(args.world)
     index = json.loads((world / "index.json").read_text())
-    cfg = TransferConfig(resolution=args.resolution)
+    cfg = TransferConfig(resolution=args.resolution, pose_halfturn_tie=args.pose_halfturn_tie)
     device = torch.device("cpu")
     sets = {"queries (held-out shapes)": index["queries"]}
     if not args.queries_only:

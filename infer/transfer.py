@@ -300,6 +300,9 @@ def pose_record(estimate: PoseEstimate, source: str, distance: float, fov: float
                 "network": list(estimate.network),
                 "silhouette_iou": estimate.silhouette_iou,
                 "network_silhouette_iou": estimate.network_silhouette_iou,
+                # the crease agreement at the pose the silhouettes found and at its half turn (None: not weighed)
+                "creases": list(estimate.creases) if estimate.creases else None,
+                "turned": estimate.turned,
             }
             if searched
             else {}

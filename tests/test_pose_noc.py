@@ -132,6 +132,18 @@ def test_silhouette_search_finds_the_pose_the_network_gets_backwards(chair):
     assert estimate.silhouette_iou > estimate.network_silhouette_iou + 0.2
 
 
+def sure_network(azimuth_deg: float, elevation_deg: float):
+    """The pose network's beliefs, 0.9 on the azimuth bin of ``azimuth_deg`` and 0.8 on the elevation bin."""
+    from mesh2tex.transfer import PoseBeliefs
+
+    bins = PoseBins()
+    azimuth = torch.full((bins.azimuth_bins,), 0.01)
+    azimuth[int(bins.azimuth_to_bin(azimuth_deg))] = 0.9
+    elevation = torch.full((bins.elevation_bins,), 0.05)
+    elevation[int(bins.elevation_to_bin(elevation_deg))] = 0.8
+    return PoseBeliefs(bins, azimuth, elevation)
+
+
 def test_where_silhouettes_nearly_tie_the_network_bin_decides_and_where_they_differ_the_silhouettes_do():
     """A long box with a small block on one end looks almost the same turned half round (as a car does):
     the search keeps to the network's confident bin when the best silhouette there is within
@@ -141,7 +153,7 @@ def test_where_silhouettes_nearly_tie_the_network_bin_decides_and_where_they_dif
     import trimesh
 
     from mesh2tex.geometry.prepare import prepare_shape
-    from mesh2tex.transfer import Photo, PoseBeliefs, TransferConfig, search_pose, view_at_pose
+    from mesh2tex.transfer import Photo, TransferConfig, search_pose, view_at_pose
 
     body = trimesh.creation.box((1.0, 0.3, 0.4))
     on_one_end = trimesh.transformations.translation_matrix((0.4, 0.2, 0))
@@ -150,14 +162,47 @@ def test_where_silhouettes_nearly_tie_the_network_bin_decides_and_where_they_dif
     shape = prepare_shape(mesh.vertices, mesh.faces, face_count=384, levels=2, seed=0)
     cfg = TransferConfig(resolution=64)
     photo = Photo(image=torch.zeros(1, 3, 64, 64), mask=view_at_pose(shape, 40.0, 20.0, 1.7, 40.0, cfg).mask)
-    bins = PoseBins()
-    azimuth = torch.full((bins.azimuth_bins,), 0.01)
-    azimuth[int(bins.azimuth_to_bin(220.0))] = 0.9  # sure of the half turn
-    elevation = torch.full((bins.elevation_bins,), 0.05)
-    elevation[int(bins.elevation_to_bin(20.0))] = 0.8
-    beliefs = PoseBeliefs(bins, azimuth, elevation)
+    beliefs = sure_network(220.0, 20.0)  # sure of the half turn
     silhouettes = search_pose(shape, photo, beliefs, 1.7, 40.0, dataclasses.replace(cfg, pose_search_tie=-1.0))
     assert float(azimuth_error(silhouettes.azimuth, 40.0)) <= 10.0, "the block tells the ends apart, a little"
     kept = search_pose(shape, photo, beliefs, 1.7, 40.0, dataclasses.replace(cfg, pose_search_tie=0.2))
     assert float(azimuth_error(kept.azimuth, 220.0)) <= 15.0, "within the tie, the network's bin decides"
     assert kept.silhouette_iou >= silhouettes.silhouette_iou - 0.2
+
+
+def test_where_the_outline_cannot_tell_the_ends_apart_the_creases_turn_the_pose_round():
+    """A long box with a groove across its top near one end has nearly the same outline turned half round (as
+    a car does) but its shading creases differ: a network sure of the half turn is overruled by the creases
+    (``pose_halfturn_tie``), and is not where the check is off or the photo shows no shading."""
+    import dataclasses
+
+    import numpy as np
+    import trimesh
+
+    from mesh2tex.geometry.prepare import prepare_shape
+    from mesh2tex.transfer import Photo, TransferConfig, normals_at_pose, search_pose
+
+    box = trimesh.creation.box((1.0, 0.3, 0.4))
+    vertices, faces = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=0.02)
+    top = np.isclose(vertices[:, 1], 0.15)
+    vertices[top, 1] -= 0.06 * np.clip(1 - np.abs(vertices[top, 0] - 0.25) / 0.12, 0, None)
+    shape = prepare_shape(vertices, faces, face_count=384, levels=2, seed=0)
+    cfg = TransferConfig(resolution=64, pose_search_tie=0.2)
+    # The "photo": the mesh lit from above at azimuth 40, seen from farther than the search's camera.
+    normals, mask = normals_at_pose(shape, 40.0, 20.0, 2.0, 40.0, cfg)
+    light = torch.nn.functional.normalize(torch.tensor([0.3, 0.8, 0.5]), dim=0)
+    shade = (normals * light[None, :, None, None]).sum(1, keepdim=True).clamp(min=0) * 0.8 + 0.2
+    image = torch.where(mask > 0.5, shade * 2 - 1, torch.ones_like(shade)).expand(1, 3, 64, 64).contiguous()
+    beliefs = sure_network(220.0, 20.0)  # sure of the half turn
+
+    turned = search_pose(shape, Photo(image=image, mask=mask), beliefs, 1.7, 40.0, cfg)
+    assert float(azimuth_error(turned.azimuth, 40.0)) <= 5.0 and turned.turned
+    assert turned.creases[1] > turned.creases[0] + 0.1
+    assert "turned half round" in turned.source
+    unchecked = search_pose(
+        shape, Photo(image=image, mask=mask), beliefs, 1.7, 40.0, dataclasses.replace(cfg, pose_halfturn_tie=-1.0)
+    )
+    assert float(azimuth_error(unchecked.azimuth, 220.0)) <= 5.0
+    assert unchecked.creases is None and not unchecked.turned
+    flat = search_pose(shape, Photo(image=torch.zeros_like(image), mask=mask), beliefs, 1.7, 40.0, cfg)
+    assert float(azimuth_error(flat.azimuth, 220.0)) <= 5.0 and flat.creases == (0.0, 0.0) and not flat.turned

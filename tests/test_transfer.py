@@ -143,8 +143,10 @@ def test_pose_auto_searches_silhouettes_unless_told_not_to(setup, tmp_path):
     ]
     assert main(transfer_args(setup, tmp_path / "search", *auto)) == 0
     pose = json.loads((tmp_path / "search" / "report.json").read_text())["pose"]
-    assert pose["source"] == "pose network + silhouette search" and len(pose["network"]) == 2
-    assert 0.0 <= pose["network_silhouette_iou"] <= pose["silhouette_iou"] <= 1.0
+    assert pose["source"].startswith("pose network + silhouette search") and len(pose["network"]) == 2
+    # a half turn the creases chose may trade up to pose_halfturn_tie of the silhouette's IoU
+    tie = 0.05 if pose["turned"] else 0.0
+    assert 0.0 <= pose["network_silhouette_iou"] <= pose["silhouette_iou"] + tie <= 1.0 + tie
     assert main(transfer_args(setup, tmp_path / "plain", *auto, "--no-pose-search")) == 0
     pose = json.loads((tmp_path / "plain" / "report.json").read_text())["pose"]
     assert pose["source"] == "pose network" and "network" not in pose

@@ -2,12 +2,12 @@
 
 ``config``: :class:`TransferConfig` and its checks; ``photo``: the photo cropped around its object
 (:func:`load_photo`; :func:`photo_masks` and :func:`frame_photo` when the mask is estimated) and the mesh seen at a
-pose, cropped alike (:func:`view_at_pose`); ``pose``: the pose network's beliefs and the silhouette search
-(:func:`estimate_pose`; :func:`pick_by_outline` picks among mask estimates; :func:`locate_object` finds the mask and
-the pose together), the NOC network (:func:`predict_noc`); ``optimise``: :func:`transfer_texture` and the losses
-against the photo (:class:`PhotoLoss`); ``automaton``: a mesh automaton fitted to the photo with those losses, no GAN
-(:func:`fit_automaton`). The command ``mesh2tex infer transfer``
-(``infer/transfer.py``) reads the files and writes the results.
+pose, cropped alike (:func:`view_at_pose`, :func:`normals_at_pose`); ``pose``: the pose network's beliefs and the
+silhouette search with its half-turn check (:func:`estimate_pose`, :func:`crease_agreement`; :func:`pick_by_outline`
+picks among mask estimates; :func:`locate_object` finds the mask and the pose together), the NOC network
+(:func:`predict_noc`); ``optimise``: :func:`transfer_texture` and the losses against the photo (:class:`PhotoLoss`);
+``automaton``: a mesh automaton fitted to the photo with those losses, no GAN (:func:`fit_automaton`). The command
+``mesh2tex infer transfer`` (``infer/transfer.py``) reads the files and writes the results.
 """
 
 from mesh2tex.transfer.automaton import AutomatonFit, AutomatonFitConfig, fit_automaton
@@ -19,6 +19,7 @@ from mesh2tex.transfer.photo import (
     Photo,
     frame_photo,
     load_photo,
+    normals_at_pose,
     photo_candidates,
     photo_masks,
     view_at_pose,
@@ -27,6 +28,7 @@ from mesh2tex.transfer.pose import (
     Located,
     PoseBeliefs,
     PoseEstimate,
+    crease_agreement,
     estimate_pose,
     locate_object,
     pick_by_outline,
@@ -51,11 +53,13 @@ __all__ = [
     "TransferConfig",
     "TransferResult",
     "check_style_sizes",
+    "crease_agreement",
     "estimate_pose",
     "fit_automaton",
     "frame_photo",
     "load_photo",
     "locate_object",
+    "normals_at_pose",
     "photo_candidates",
     "photo_masks",
     "pick_by_outline",

@@ -108,6 +108,11 @@ class TransferConfig:
     # much IoU of the best anywhere: a car's outline barely tells its front from its back, the network mostly can
     # (negative: silhouettes alone decide)
     pose_search_tie: float = 0.02
+    # then the found pose's half turn, where its best silhouette is within this much IoU of the found one's, wins
+    # if the creases the mesh's faces draw there agree better with the photo's edges (:func:`mesh2tex.transfer.pose.
+    # crease_agreement`): a car's outline barely tells its front from its back, its windscreen and bonnet do
+    # (negative: no such check)
+    pose_halfturn_tie: float = 0.05
     # an estimated mask is made again by GrabCut from the mesh's outline at the found pose, and the pose found
     # again
     mask_refine: bool = True

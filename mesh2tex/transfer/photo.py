@@ -16,7 +16,16 @@ from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.geometry.symmetry import mirrored_azimuth
 from mesh2tex.io.images import load_image, load_mask
 from mesh2tex.photos import estimate_mask, largest_region
-from mesh2tex.render import crop_mask, crop_square, interpolate, object_box, orbit_camera, rasterize, transform_points
+from mesh2tex.render import (
+    crop_mask,
+    crop_square,
+    interpolate,
+    object_box,
+    orbit_camera,
+    rasterize,
+    render_normals,
+    transform_points,
+)
 from mesh2tex.transfer.config import TransferConfig
 from mesh2tex.transfer.mask import DEFAULT_MASK_PASSES, network_probability, refine_with_grabcut
 
@@ -191,14 +200,12 @@ def silhouette_in_photo(
     return full
 
 
-@torch.no_grad()
-def view_at_pose(
+def _framed_raster(
     shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig
-) -> FramedView:
-    """Rasterize the finest level of ``shape`` at the pose (degrees; ``distance``, ``fov`` of the orbit
-    camera) at ``cfg.render_oversample`` times R = ``cfg.resolution``, find the object's square crop
-    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`FramedView` (noc (R,R,3), mask
-    (1,1,R,R))."""
+):
+    """The finest level of ``shape`` rasterized at the pose at ``cfg.render_oversample`` times R and the square
+    crop around it (``cfg.margin``, as the photo's): (camera, raster, vertices (V,3), triangles (T,3), render
+    side, box (top, left, side), covered (S,S) bool)."""
     size = int(round(cfg.resolution * cfg.render_oversample))
     camera = orbit_camera(torch.tensor([azimuth]), torch.tensor([elevation]), distance=distance, fov=fov)
     vertices = torch.as_tensor(shape.vertices[0], dtype=torch.float32)
@@ -207,7 +214,20 @@ def view_at_pose(
     covered = (raster.face_id[0] >= 0).numpy()
     if covered.sum() < 16:
         raise InputError(f"the mesh is not visible at azimuth {azimuth}, elevation {elevation} (distance {distance})")
-    box = object_box(covered, cfg.margin)
+    return camera, raster, vertices, triangles, size, object_box(covered, cfg.margin), covered
+
+
+@torch.no_grad()
+def view_at_pose(
+    shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig
+) -> FramedView:
+    """Rasterize the finest level of ``shape`` at the pose (degrees; ``distance``, ``fov`` of the orbit
+    camera) at ``cfg.render_oversample`` times R = ``cfg.resolution``, find the object's square crop
+    (``cfg.margin``, as the photo's) and render its NOC map there: a :class:`FramedView` (noc (R,R,3), mask
+    (1,1,R,R))."""
+    camera, raster, vertices, triangles, size, box, covered = _framed_raster(
+        shape, azimuth, elevation, distance, fov, cfg
+    )
     noc = interpolate(torch.as_tensor(shape.noc, dtype=torch.float32), raster, triangles)  # (1,S,S,3)
     noc = crop_square(noc.permute(0, 3, 1, 2), box, cfg.resolution)[0].permute(1, 2, 0)
     return FramedView(
@@ -221,6 +241,17 @@ def view_at_pose(
         distance=float(distance),
         fov=float(fov),
     )
+
+
+@torch.no_grad()
+def normals_at_pose(
+    shape: PreparedShape, azimuth: float, elevation: float, distance: float, fov: float, cfg: TransferConfig
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The finest level's flat face normals at the pose, framed as :func:`view_at_pose` frames its view:
+    (normals (1,3,R,R), world-space unit vectors, 0 off the mesh; mask (1,1,R,R))."""
+    _, raster, vertices, triangles, _, box, covered = _framed_raster(shape, azimuth, elevation, distance, fov, cfg)
+    normals = render_normals(vertices, triangles, raster, smooth=False)  # (1,S,S,3)
+    return crop_square(normals.permute(0, 3, 1, 2), box, cfg.resolution), crop_mask(covered, box, cfg.resolution)
 
 
 def mirror_query(

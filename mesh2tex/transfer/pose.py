@@ -17,7 +17,14 @@ from mesh2tex.nn.pose import PoseBins
 from mesh2tex.render import crop_mask, object_box, orbit_camera, rasterize, transform_points
 from mesh2tex.transfer.config import TransferConfig
 from mesh2tex.transfer.mask import refine_with_outline
-from mesh2tex.transfer.photo import MaskedPhoto, Photo, check_photo, frame_photo, silhouette_in_photo
+from mesh2tex.transfer.photo import (
+    MaskedPhoto,
+    Photo,
+    check_photo,
+    frame_photo,
+    normals_at_pose,
+    silhouette_in_photo,
+)
 
 
 @torch.no_grad()
@@ -108,6 +115,64 @@ class PoseEstimate:
     network: tuple[float, float] | None = None
     silhouette_iou: float | None = None  # of the chosen pose
     network_silhouette_iou: float | None = None  # of the network's own pose
+    # where the half turn was weighed (:func:`search_pose`): the crease agreement at the pose the silhouettes
+    # found and at its half turn, and whether the half turn won
+    creases: tuple[float, float] | None = None
+    turned: bool = False
+
+
+# crease_agreement compares at most this many pixels a side: a crease a pixel wide at 128 px moves off its
+# match with a few degrees of pose, and the search's grid is 5 degrees (docs/results/transfer.md)
+CREASE_SIDE = 64
+
+
+def crease_agreement(photo: Photo, normals: torch.Tensor, mask: torch.Tensor) -> float:
+    """How well the creases the mesh's faces draw at a pose line up with the photo's edges: the correlation
+    of the photo's grey gradient magnitude with the face-normal map's, on the pixels both cover (each mask
+    eroded by two pixels, so the outline, which a pose and its half turn nearly share, does not count), at
+    :data:`CREASE_SIDE` pixels a side at most.
+
+    photo: image (1, 3, R, R), mask (1, 1, R, R); normals (1, 3, R, R) and mask (1, 1, R, R) of the mesh framed
+    alike (:func:`mesh2tex.transfer.photo.normals_at_pose`). Shading changes where faces turn, whatever the
+    light and the paint, so a car's windscreen, bonnet and boot draw edges that its outline does not show: on
+    32 photos of cars made apart from the world the true pose scored above its half turn on 29 at R = 64 and
+    31 at R = 128 (docs/results/transfer.md). Returns a value in [-1, 1] (0 when nothing is left to compare)."""
+    sizes = check_photo(photo, "crease_agreement")
+    check_shape(normals, "crease_agreement: normals", (1, 3, "R", "R"), sizes=sizes, dtype="float")
+    check_shape(mask, "crease_agreement: mask", (1, 1, "R", "R"), sizes=sizes)
+    from kornia.filters import sobel
+
+    side = min(int(photo.image.shape[-1]), CREASE_SIDE)
+    grey, normals = (F.interpolate(x.float(), size=(side, side), mode="area") for x in (photo.image, normals))
+    both = F.interpolate(photo.mask.float() * mask.float(), size=(side, side), mode="area") > 0.5
+    photo_edges, mesh_edges = sobel(grey.mean(1, keepdim=True))[0, 0], sobel(normals).sum(1)[0]
+    inner = -F.max_pool2d(-both.float(), 5, stride=1, padding=2)[0, 0] > 0.5
+    if int(inner.sum()) < 16:
+        return 0.0
+    a, b = photo_edges[inner], mesh_edges[inner]
+    a, b = a - a.mean(), b - b.mean()
+    scale = float(a.norm() * b.norm())
+    return float((a * b).sum()) / scale if scale > 0 else 0.0
+
+
+def creases_near(
+    shape: PreparedShape,
+    photo: Photo,
+    azimuth: float,
+    elevation: float,
+    spread: float,
+    distance: float,
+    fov: float,
+    cfg: TransferConfig,
+) -> float:
+    """The best :func:`crease_agreement` of the photo (image (1, 3, R, R), mask (1, 1, R, R)) with the mesh at
+    the pose and at the 8 poses ``spread`` degrees from it in azimuth, elevation or both: creases are thin, and
+    a pose the search found is a few degrees off."""
+    return max(
+        crease_agreement(photo, *normals_at_pose(shape, (azimuth + d_az) % 360.0, elevation + d_el, distance, fov, cfg))
+        for d_az in (-spread, 0.0, spread)
+        for d_el in (-spread, 0.0, spread)
+    )
 
 
 def search_pose(
@@ -120,7 +185,10 @@ def search_pose(
     best one's neighbours at half the step in both angles. Silhouettes tell a chair's front from its
     back where the network, trained on few shapes, often does not (docs/style_and_pose.md has figures);
     where they barely do (a car seen from the front or the back), the network's most likely azimuth
-    bin is kept: its best pose wins if its IoU is within ``pose_search_tie`` of the best anywhere.
+    bin is kept: its best pose wins if its IoU is within ``pose_search_tie`` of the best anywhere. Then the
+    pose's half turn (searched alike about it) wins where its IoU is within ``pose_halfturn_tie`` of the found
+    one's and the mesh's creases there agree better with the photo's edges (:func:`creases_near`, half a
+    step about each: the fine pass's grid).
     photo: image (1, 3, R, R), mask (1, 1, R, R).
     """
     check_photo(photo, "search_pose")
@@ -152,15 +220,26 @@ def search_pose(
     best_az, best_el, best_iou = best_of(
         (best_az + offsets).repeat(3) % 360.0, (best_el + offsets).repeat_interleave(3)
     )
+    creases, turned = None, False
+    if cfg.pose_halfturn_tie >= 0:
+        turn_az, turn_el, turn_iou = best_of(
+            (best_az + 180.0 + offsets).repeat(3) % 360.0, (best_el + offsets).repeat_interleave(3)
+        )
+        if turn_iou >= best_iou - cfg.pose_halfturn_tie:
+            creases = tuple(
+                round(creases_near(shape, photo, az, el, 0.5 * step, distance, fov, cfg), 4)
+                for az, el in ((best_az, best_el), (turn_az, turn_el))
+            )
+            if creases[1] > creases[0]:
+                best_az, best_el, best_iou, turned = turn_az, turn_el, turn_iou, True
     network = beliefs.most_likely()
     network_iou = float(
         silhouette_iou(
             shape, photo.mask, torch.tensor([network[0]]), torch.tensor([network[1]]), distance, fov, cfg.margin
         )[0]
     )
-    return PoseEstimate(
-        best_az, best_el, "pose network + silhouette search", network, round(best_iou, 4), round(network_iou, 4)
-    )
+    source = "pose network + silhouette search" + (", turned half round by the creases" if turned else "")
+    return PoseEstimate(best_az, best_el, source, network, round(best_iou, 4), round(network_iou, 4), creases, turned)
 
 
 def estimate_pose(

@@ -1,6 +1,8 @@
-"""Does the NOC network tell an object's front from its back where the silhouettes do not? For
-``outside_transfer.py --noc-halfturn``: the NOC network's map of the photo against the mesh's NOC rendered
-at a pose and at that pose turned half round (the same elevation), at the true pose and at the found one.
+"""Do the NOC network or the mesh's creases tell an object's front from its back where the silhouettes do
+not? For ``outside_transfer.py --noc-halfturn``: the NOC network's map of the photo against the mesh's NOC
+rendered at a pose and at that pose turned half round (the same elevation), at the true pose and at the found
+one. For ``--crease-halfturn``: the crease agreement (:func:`mesh2tex.transfer.crease_agreement`, which the
+pose search weighs) at the true pose and at its half turn.
 
 A pose found half a turn round (a car's front for its back) matches the photo's silhouette nearly as well
 as the right one; if the NOC network's map matched the right pose's NOC better, it could judge between the
@@ -13,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mesh2tex.transfer import predict_noc, view_at_pose
+from mesh2tex.transfer import crease_agreement, normals_at_pose, predict_noc, view_at_pose
 
 
 def halfturn_errors(noc_checkpoint, photo, shape, found, true_azimuth: float, distance, fov, cfg, device) -> dict:
@@ -35,6 +37,17 @@ def halfturn_errors(noc_checkpoint, photo, shape, found, true_azimuth: float, di
     }
 
 
+def crease_halfturn(photo, shape, true_azimuth: float, elevation: float, distance, fov, cfg) -> dict:
+    """The crease agreement of ``photo`` with the mesh at the true azimuth and at it turned by 180 degrees,
+    both at ``elevation``."""
+    return {
+        f"creases_true{turn}": crease_agreement(
+            photo, *normals_at_pose(shape, (true_azimuth + add) % 360.0, elevation, distance, fov, cfg)
+        )
+        for turn, add in (("", 0.0), ("_turned", 180.0))
+    }
+
+
 def print_halfturn(rows: list[dict], variants: list[str]) -> None:
     """The summary of the module docstring, one line per variant (a pose more than 150 degrees off, up to
     the mesh's symmetries, counts as found half a turn round; one within 30 degrees as found right)."""
@@ -53,3 +66,17 @@ def print_halfturn(rows: list[dict], variants: list[str]) -> None:
             f"(median gap {gap:.3f}); found half a turn round {len(off)}, the NOC map would turn back {back}; "
             f"found right {len(right)}, it would turn round {wrong}"
         )
+    for variant in variants:
+        chosen = [r for r in rows if r["variant"] == variant and "creases_true" in r]
+        if chosen:
+            truth = sum(r["creases_true"] > r["creases_true_turned"] for r in chosen)
+            print(f"creases, {variant}: the true pose above its half turn on {truth} of {len(chosen)}")
+    for variant in variants:
+        chosen = [r for r in rows if r["variant"] == variant and "turned" in r]
+        if chosen:
+            turned = [r for r in chosen if r["turned"]]
+            print(
+                f"half turns, {variant}: found half a turn round {sum(r['pose_error'] > 150 for r in chosen)} of "
+                f"{len(chosen)}; the search's creases turned {len(turned)} poses, "
+                f"{sum(r['pose_error'] <= 30 for r in turned)} of them to within 30 degrees"
+            )

@@ -12,7 +12,7 @@ import torch.nn.functional as F
 
 from mesh2tex.checks import check_array_shape
 from mesh2tex.photos import grabcut_scale, largest_region
-from mesh2tex.render import crop_square
+from mesh2tex.render import crop_square, object_box
 
 SURE = 0.9  # network probabilities above this (below 1 - this) are fixed as object (background) for GrabCut
 # The mesh's outline as a prior: a band this share of the object's square wide on each side of it is left to GrabCut
@@ -40,17 +40,6 @@ def _square_probability(net, small: torch.Tensor, side: int, flip: bool) -> torc
     if flip:
         probability = 0.5 * (probability[:1] + probability[1:].flip(-1))
     return probability[0, 0]
-
-
-def _zoom_box(probability: torch.Tensor) -> tuple[int, int, int] | None:
-    """(top, left, side) of the square around the pixels above 0.5 of ``probability`` [S, S], grown by
-    :data:`ZOOM_MARGIN`; None when nothing is found."""
-    rows, cols = torch.nonzero(probability >= 0.5, as_tuple=True)
-    if rows.numel() < 16:
-        return None
-    r0, r1, c0, c1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
-    side = int(round(max(r1 - r0, c1 - c0) * (1 + 2 * ZOOM_MARGIN)))
-    return (r0 + r1 - side) // 2, (c0 + c1 - side) // 2, side
 
 
 @torch.no_grad()
@@ -82,7 +71,8 @@ def network_probability(
     size = cfg.data.resolution
     flip = "flip" in passes
     probability = _square_probability(net, F.interpolate(image, size=(size, size), mode="area"), side, flip)
-    box = _zoom_box(probability) if "zoom" in passes else None
+    found = (probability >= 0.5).numpy()
+    box = object_box(found, ZOOM_MARGIN) if "zoom" in passes and found.sum() >= 16 else None
     # a square the network's side or smaller was already seen at full detail: a second look would add none
     if box is not None and size < box[2] <= ZOOM_BELOW * side:
         z_top, z_left, z_side = box

@@ -135,8 +135,9 @@ def crease_agreement(photo: Photo, normals: torch.Tensor, mask: torch.Tensor) ->
     photo: image (1, 3, R, R), mask (1, 1, R, R); normals (1, 3, R, R) and mask (1, 1, R, R) of the mesh framed
     alike (:func:`mesh2tex.transfer.photo.normals_at_pose`). Shading changes where faces turn, whatever the
     light and the paint, so a car's windscreen, bonnet and boot draw edges that its outline does not show: on
-    32 photos of cars made apart from the world the true pose scored above its half turn on 29 at R = 64 and
-    31 at R = 128 (docs/results/transfer.md). Returns a value in [-1, 1] (0 when nothing is left to compare)."""
+    32 shaded photos of four cars made apart from the world the true pose scored above its half turn on 31
+    (``benchmarks/crease_halfturn.py``, docs/results/transfer.md). Returns a value in [-1, 1] (0 when nothing
+    is left to compare)."""
     sizes = check_photo(photo, "crease_agreement")
     check_shape(normals, "crease_agreement: normals", (1, 3, "R", "R"), sizes=sizes, dtype="float")
     check_shape(mask, "crease_agreement: mask", (1, 1, "R", "R"), sizes=sizes)

@@ -8,7 +8,8 @@ A pose found half a turn round (a car's front for its back) matches the photo's 
 as the right one; if the NOC network's map matched the right pose's NOC better, it could judge between the
 two. The summary counts, per variant: the photos whose true pose the NOC map matches better than its half
 turn; of the poses found half a turn round, those the NOC map would turn back; of the poses found right,
-those it would turn round wrongly.
+those it would turn round wrongly. Then the photos whose true pose the creases score above its half turn,
+and for every run the poses found half a turn round and those the search's own crease check turned.
 """
 
 from __future__ import annotations

@@ -53,7 +53,7 @@ RULES = {
 def main() -> None:
     import cv2
     from outside_generation import outside_meshes
-    from outside_photos import room
+    from outside_photos import far_photo
 
     from mesh2tex.geometry.symmetry import azimuth_symmetries
     from mesh2tex.models import MODEL_FILES, load_generator, models_root
@@ -86,12 +86,9 @@ def main() -> None:
             alpha = cv2.imread(str(folder / f"{name}_{k}.png"), cv2.IMREAD_UNCHANGED)[..., 3] >= 128
             for variant in args.variants:
                 truth = alpha
-                if variant == "far":  # where outside_photos.far_photo put the object, from the same draws
-                    size, rng = alpha.shape[0], np.random.default_rng([13, index, k])
-                    room(2 * size, rng)
-                    top, left = (int(v) for v in rng.integers(0, size + 1, 2))
-                    truth = np.zeros((2 * size, 2 * size), dtype=bool)
-                    truth[top : top + size, left : left + size] = alpha
+                if variant == "far":  # where outside_transfer.py's far photo put the object: the same draws
+                    coverage = alpha[..., None].astype(np.float32)
+                    _, truth = far_photo(np.zeros_like(coverage), coverage, np.random.default_rng([13, index, k]))
                 masked = photo_masks(folder / f"{name}_{k}_{variant}.jpg", None, mask_checkpoint=mask_checkpoint)
                 masks = [mask for mask, _ in masked.masks]
                 estimates = []

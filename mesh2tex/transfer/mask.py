@@ -71,8 +71,10 @@ def network_probability(
     size = cfg.data.resolution
     flip = "flip" in passes
     probability = _square_probability(net, F.interpolate(image, size=(size, size), mode="area"), side, flip)
-    found = (probability >= 0.5).numpy()
-    box = object_box(found, ZOOM_MARGIN) if "zoom" in passes and found.sum() >= 16 else None
+    box = None
+    if "zoom" in passes:
+        found = (probability >= 0.5).numpy()
+        box = object_box(found, ZOOM_MARGIN) if found.sum() >= 16 else None
     # a square the network's side or smaller was already seen at full detail: a second look would add none
     if box is not None and size < box[2] <= ZOOM_BELOW * side:
         z_top, z_left, z_side = box

@@ -21,11 +21,12 @@ $(VPY):
 install: .install-stamp
 
 # How many processes share the test suite (pytest-xdist): each test runs on one torch thread, so one per core.
+# Each file's tests stay in one process, in order: some use what an earlier test of their file trained.
 TEST_WORKERS ?= 2
 
 # The linter (ruff.toml), the docs site in strict mode (a broken link or anchor fails), then the test suite.
 test: .install-stamp lint docs
-	$(VPY) -m pytest -q -n $(TEST_WORKERS)
+	$(VPY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 lint: .install-stamp
 	$(VPY) -m ruff check .

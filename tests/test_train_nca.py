@@ -26,6 +26,15 @@ def nca_files(tmp_path_factory):
     return root
 
 
+@pytest.fixture(scope="module")
+def straight(nca_files):
+    """A run of the tiny config trained without a stop, in nca_files/straight: the model the other tests
+    graft, infer and compare against (trained here, so any test can run alone or first)."""
+    out = nca_files / "straight"
+    assert train(nca_files, out) == 0
+    return out
+
+
 def train(root, out, *extra):
     return main(
         [
@@ -44,10 +53,9 @@ def train(root, out, *extra):
     )
 
 
-def test_an_interrupted_run_resumes_exactly(nca_files, monkeypatch):
+def test_an_interrupted_run_resumes_exactly(nca_files, straight, monkeypatch):
     import mesh2tex.train.nca as stage
 
-    assert train(nca_files, nca_files / "straight") == 0
     step = stage.NCATrainer.step
 
     def interrupted(self):
@@ -60,24 +68,24 @@ def test_an_interrupted_run_resumes_exactly(nca_files, monkeypatch):
     monkeypatch.setattr(stage.NCATrainer, "step", step)
     assert load_checkpoint(nca_files / "split" / "checkpoint.safetensors", kind="nca")[1]["iteration"] == 2
     assert train(nca_files, nca_files / "split", "--resume") == 0
-    a, meta_a = load_checkpoint(nca_files / "straight" / "checkpoint.safetensors", kind="nca")
+    a, meta_a = load_checkpoint(straight / "checkpoint.safetensors", kind="nca")
     b, meta_b = load_checkpoint(nca_files / "split" / "checkpoint.safetensors", kind="nca")
     assert meta_a["iteration"] == meta_b["iteration"] == 4
     for name in a["model"]:
         assert torch.allclose(a["model"][name], b["model"][name], atol=1e-6), name
     assert torch.allclose(a["pool"]["states"], b["pool"]["states"], atol=1e-6)
-    assert (nca_files / "straight" / "model.safetensors").stat().st_size < 200_000
-    lines = [json.loads(l) for l in (nca_files / "straight" / "metrics.jsonl").read_text().splitlines()]
+    assert (straight / "model.safetensors").stat().st_size < 200_000
+    lines = [json.loads(l) for l in (straight / "metrics.jsonl").read_text().splitlines()]
     assert [l["iteration"] for l in lines] == [1, 2, 3, 4]
 
 
-def test_a_second_run_into_the_same_folder_is_refused(nca_files, capsys):
-    assert train(nca_files, nca_files / "straight") != 0
+def test_a_second_run_into_the_same_folder_is_refused(nca_files, straight, capsys):
+    assert train(nca_files, straight) != 0
     assert "--resume" in capsys.readouterr().err
 
 
-def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, capsys):
-    parent = nca_files / "straight" / "model.safetensors"
+def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, straight, capsys):
+    parent = straight / "model.safetensors"
     assert (
         main(
             [
@@ -150,8 +158,8 @@ def test_child_keeps_the_lineage_and_infer_grafts_it(nca_files, capsys):
     assert np.isfinite(report["style_loss"])
 
 
-def test_infer_refuses_to_replace_outputs_and_names_bad_input(nca_files, capsys):
-    model = str(nca_files / "straight" / "model.safetensors")
+def test_infer_refuses_to_replace_outputs_and_names_bad_input(nca_files, straight, capsys):
+    model = str(straight / "model.safetensors")
     out = nca_files / "once"
     args = [
         "infer",
@@ -215,13 +223,13 @@ def test_a_run_starts_from_another_runs_checkpoint(nca_files, capsys):
     assert not (nca_files / "from_model").exists()
 
 
-def test_infer_matches_the_training_cell_spacing_and_old_models_run_as_is(nca_files, capsys):
+def test_infer_matches_the_training_cell_spacing_and_old_models_run_as_is(nca_files, straight, capsys):
     """A coarse mesh is split until its edges come nearest the training sphere's (sphere:1 against sphere:3:
     2.4x, one split leaves 1.2x, two 0.6x); a model saved without the training spacing still loads and
     runs on the mesh as it is."""
     from mesh2tex.io.checkpoint import save_checkpoint
 
-    model = nca_files / "straight" / "model.safetensors"
+    model = straight / "model.safetensors"
     groups, meta = load_checkpoint(model, kind="nca")
     assert meta["cell_spacing"] > 0
     old = nca_files / "old_model.safetensors"
@@ -257,7 +265,7 @@ def test_infer_matches_the_training_cell_spacing_and_old_models_run_as_is(nca_fi
         assert ("records no training cell spacing" in line) == (checkpoint == old)
 
 
-def test_infer_nca_hands_back_the_users_mesh(nca_files, tmp_path):
+def test_infer_nca_hands_back_the_users_mesh(nca_files, straight, tmp_path):
     """Grown on a z-up STL stool (scaled by 40), the automaton's texture comes back on the stool itself:
     its vertices and triangles, the GLB's node standing it up, the PLY in the file's own frame."""
     from user_assets import user_files
@@ -273,7 +281,7 @@ def test_infer_nca_hands_back_the_users_mesh(nca_files, tmp_path):
                 "infer",
                 "nca",
                 "--checkpoint",
-                str(nca_files / "straight" / "model.safetensors"),
+                str(straight / "model.safetensors"),
                 "--mesh",
                 str(stl),
                 "--out",
@@ -310,7 +318,7 @@ def test_infer_nca_hands_back_the_users_mesh(nca_files, tmp_path):
     )
 
 
-def test_the_palette_term_is_added_to_the_loss_and_logged(nca_files):
+def test_the_palette_term_is_added_to_the_loss_and_logged(nca_files, straight):
     """``colour_weight`` adds the sliced Wasserstein distance of the renders' pixels to the exemplar's;
     at 0 (the default) the log has no such term."""
     (nca_files / "colour.yaml").write_text(yaml.safe_dump({**TINY_NCA_RUN, "colour_weight": 2.0}))
@@ -322,9 +330,7 @@ def test_the_palette_term_is_added_to_the_loss_and_logged(nca_files):
         assert line["loss_colour"] > 0
         expected = line["loss_style"] + 2.0 * line["loss_colour"] + overflow_weight * line["loss_overflow"]
         assert line["loss"] == pytest.approx(expected, rel=1e-4, abs=1e-5)
-    if not (nca_files / "straight").is_dir():
-        assert train(nca_files, nca_files / "straight") == 0
-    plain = [json.loads(l) for l in (nca_files / "straight" / "metrics.jsonl").read_text().splitlines()]
+    plain = [json.loads(l) for l in (straight / "metrics.jsonl").read_text().splitlines()]
     assert all("loss_colour" not in line for line in plain)
 
 

@@ -6,7 +6,9 @@
                                  [--pick FROM,EVERY]
                                  [--from-gan CKPT] [--views-gan CKPT] [--keep-mask]
 
-Every stage resumes (re-run the same command after an interruption): the world and the shapes are
+The mask network learns from the world alone, so it trains in a process of its own beside the GAN, the pick
+and the view networks (half the cores each; its output in WORK/mask.log). Every stage resumes (re-run the same
+command after an interruption): the world and the shapes are
 skipped when present, the GAN, pose and NOC runs continue with --resume. ``--gan-iters`` is the total
 (default: the category's recipe in ``RECIPES``), so a larger value continues a finished run.
 ``--from-gan`` takes the GAN (and the iteration count in its metadata) from an existing run instead
@@ -29,6 +31,7 @@ import json
 import os
 import platform
 import shlex
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -43,6 +46,7 @@ from mesh2tex.evaluation.generation import GenerationConfig, run_generation_prot
 from mesh2tex.evaluation.report import generation_markdown  # noqa: E402
 from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 from mesh2tex.models import MODEL_FILES, export_inference_checkpoint  # noqa: E402
+from mesh2tex.runtime import THREAD_VARIABLES  # noqa: E402
 
 WORLD = {"shapes": 32, "views": 8, "query_shapes": 8, "query_views": 2, "seed": 0, "resolution": 128}
 SHAPES = {"faces": 1536, "levels": 4, "seed": 0}
@@ -270,6 +274,40 @@ def run(argv: list[str], log: list[str]) -> None:
         sys.exit(f"build_model: stage failed (exit {code}): {line}")
 
 
+def split_threads(environ=os.environ, cpu_count: int | None = None) -> tuple[dict, dict]:
+    """The thread settings of the build's two processes while the mask network trains beside the rest: (the
+    build's own environment overrides, the mask process's), half the cores each (at least one), or none
+    where the user set the threads (:data:`mesh2tex.runtime.THREAD_VARIABLES`), which both then take."""
+    if any(environ.get(name, "").isdigit() for name in THREAD_VARIABLES):
+        return {}, {}
+    cores = cpu_count or os.cpu_count() or 1
+    mask = max(1, cores // 2)
+    return {"MESH2TEX_THREADS": str(max(1, cores - mask))}, {"MESH2TEX_THREADS": str(mask)}
+
+
+def start_mask_training(argv: list[str], log: Path, threads: dict, commands: list[str]) -> subprocess.Popen:
+    """``mesh2tex train mask`` in a process of its own: the mask network learns from the world alone, so it
+    trains beside the GAN and the view networks, and on a machine of two cores the build takes the longer
+    of the two instead of their sum. ``threads``: its environment overrides (:func:`split_threads`); its
+    output goes to ``log``."""
+    line = "mesh2tex " + " ".join(shlex.quote(a) for a in argv)
+    print(f"\n== {line}  (beside the rest; its output in {log})", flush=True)
+    commands.append(line)
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
+    env = {**os.environ, **threads, "PYTHONPATH": path}
+    with open(log, "ab") as handle:
+        return subprocess.Popen(
+            [sys.executable, "-m", "mesh2tex", *argv], env=env, stdout=handle, stderr=subprocess.STDOUT
+        )
+
+
+def finish_mask_training(process: subprocess.Popen, log: Path) -> None:
+    """Wait for :func:`start_mask_training`'s process; its failure stops the build, naming its output."""
+    code = process.wait()
+    if code != 0:
+        sys.exit(f"build_model: the mask network's training failed (exit {code}); its output: {log}")
+
+
 def gan_run_dir(checkpoint: Path) -> Path:
     """The run directory of a GAN checkpoint or snapshot (RUN/checkpoint.safetensors,
     RUN/snapshots/iter*.safetensors)."""
@@ -297,6 +335,57 @@ def training_seconds(run_dir: Path, until: int) -> float | None:
             total += (record["iteration"] - last) / record["iters_per_second"]
         last = record["iteration"]
     return round(total, 1)
+
+
+def train_gan_and_views(
+    args: argparse.Namespace, recipe: dict, gan_config: dict, gan_settings: dict, work: Path, commands: list[str]
+) -> tuple[Path, dict[int, dict], dict | None, Path]:
+    """The build's GAN (trained, or ``--from-gan``'s), the recipe's pick among its snapshots, and the pose
+    and NOC networks on views it textures: (the GAN checkpoint to export, the pick's figures per
+    iteration, the pick's settings, the views' GAN checkpoint)."""
+    world = work / "world"
+    if args.from_gan:
+        gan_ckpt = Path(args.from_gan)
+        run_dir = gan_run_dir(gan_ckpt)
+        it = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"]
+        commands.append(
+            f"mesh2tex train gan --shapes {work / 'shapes' / 'train'} --images {world} --out {run_dir} "
+            f"--config {run_dir / 'config.yaml'} --resolution {GAN['resolution']} --views {GAN['views']} "
+            f"--seed {gan_settings['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it"
+        )
+    else:
+        gan_yaml = work / "gan.yaml"
+        gan_yaml.write_text(yaml.safe_dump(gan_config, sort_keys=False))
+        training = cli_flags(
+            shapes=work / "shapes" / "train",
+            images=world,
+            out=work / "gan",
+            config=gan_yaml,
+            iters=args.gan_iters,
+            resolution=GAN["resolution"],
+            views=GAN["views"],
+            seed=gan_settings["seed"],
+            device=args.device,
+        )
+        run(["train", "gan", *training, "--resume"], commands)
+        gan_ckpt = work / "gan" / "checkpoint.safetensors"
+    picked: dict[int, dict] = {}
+    pick = recipe.get("pick")
+    if args.pick:
+        start_at, every = (int(v) for v in args.pick.split(","))
+        pick = {"from": start_at, "every": every}
+    if pick:  # among the snapshots of the run trained here, or of --from-gan's run up to its iteration
+        last = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"] if args.from_gan else args.gan_iters
+        gan_ckpt, picked = pick_snapshot(work, args.category, args.variety, gan_run_dir(gan_ckpt), last, pick, commands)
+    snapshot = gan_run_dir(gan_ckpt) / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors"
+    if not args.views_gan and snapshot.is_file():  # else the GAN itself (a run shorter than the recipe's iteration)
+        args.views_gan = str(snapshot)
+    views_yaml = work / "views.yaml"
+    views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
+    views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt
+    for kind, iters in (("pose", args.pose_iters), ("noc", args.noc_iters)):
+        run(network_training(work, kind, views_yaml, iters, VIEWS, args, checkpoint=views_gan), commands)
+    return gan_ckpt, picked, pick, views_gan
 
 
 def main() -> None:
@@ -356,51 +445,23 @@ def main() -> None:
     prepare_world(world, args.category, world_settings, args.variety, commands)
     for part in ("train", "query"):
         prepare_split(world, part, work / "shapes" / part, commands)
-    if args.from_gan:
-        gan_ckpt = Path(args.from_gan)
-        run_dir = gan_run_dir(gan_ckpt)
-        it = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"]
-        commands.append(
-            f"mesh2tex train gan --shapes {work / 'shapes' / 'train'} --images {world} --out {run_dir} "
-            f"--config {run_dir / 'config.yaml'} --resolution {GAN['resolution']} --views {GAN['views']} "
-            f"--seed {gan_settings['seed']}  # stopped at iteration {it}; {gan_ckpt.name} taken from it"
-        )
-    else:
-        gan_yaml = work / "gan.yaml"
-        gan_yaml.write_text(yaml.safe_dump(gan_config, sort_keys=False))
-        training = cli_flags(
-            shapes=work / "shapes" / "train",
-            images=world,
-            out=work / "gan",
-            config=gan_yaml,
-            iters=args.gan_iters,
-            resolution=GAN["resolution"],
-            views=GAN["views"],
-            seed=gan_settings["seed"],
-            device=args.device,
-        )
-        run(["train", "gan", *training, "--resume"], commands)
-        gan_ckpt = work / "gan" / "checkpoint.safetensors"
-    picked: dict[int, dict] = {}
-    pick = recipe.get("pick")
-    if args.pick:
-        start_at, every = (int(v) for v in args.pick.split(","))
-        pick = {"from": start_at, "every": every}
-    if pick:  # among the snapshots of the run trained here, or of --from-gan's run up to its iteration
-        last = read_checkpoint_meta(gan_ckpt)["meta"]["iteration"] if args.from_gan else args.gan_iters
-        gan_ckpt, picked = pick_snapshot(work, args.category, args.variety, gan_run_dir(gan_ckpt), last, pick, commands)
-    snapshot = gan_run_dir(gan_ckpt) / "snapshots" / f"iter{recipe['views_gan_iteration']:07d}.safetensors"
-    if not args.views_gan and snapshot.is_file():  # else the GAN itself (a run shorter than the recipe's iteration)
-        args.views_gan = str(snapshot)
-    views_yaml = work / "views.yaml"
-    views_yaml.write_text(yaml.safe_dump(VIEWS["config"]))
-    views_gan = Path(args.views_gan) if args.views_gan else gan_ckpt
-    for kind, iters in (("pose", args.pose_iters), ("noc", args.noc_iters)):
-        run(network_training(work, kind, views_yaml, iters, VIEWS, args, checkpoint=views_gan), commands)
     mask_yaml = work / "mask.yaml"
     mask_yaml.write_text(yaml.safe_dump(mask_settings["config"]))
+    own_threads, mask_threads = split_threads()
+    masking = None
     if not kept_mask:
-        run(network_training(work, "mask", mask_yaml, args.mask_iters, mask_settings, args), commands)
+        mask_argv = network_training(work, "mask", mask_yaml, args.mask_iters, mask_settings, args)
+        masking = start_mask_training(mask_argv, work / "mask.log", mask_threads, commands)
+        os.environ.update(own_threads)
+    try:
+        gan_ckpt, picked, pick, views_gan = train_gan_and_views(args, recipe, gan_config, gan_settings, work, commands)
+        if masking is not None:
+            finish_mask_training(masking, work / "mask.log")
+    finally:
+        if masking is not None and masking.poll() is None:  # the build stopped: stop the mask's training too
+            masking.terminate()
+        for name in own_threads:
+            os.environ.pop(name, None)
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
     for kind in ("pose", "noc") if kept_mask else ("pose", "noc", "mask"):
         export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])

@@ -6,7 +6,14 @@ import pytest
 import torch
 
 from mesh2tex.nn.mask import MaskUNet, mask_iou, mask_loss
-from mesh2tex.synthetic.backdrops import BACKDROP_KINDS, backdrop, foot_shadow, place_over_backdrops, room
+from mesh2tex.synthetic.backdrops import (
+    BACKDROP_KINDS,
+    backdrop,
+    foot_shadow,
+    place_over_backdrops,
+    room,
+    shaded_blob,
+)
 from mesh2tex.transfer.mask import refine_with_grabcut
 
 
@@ -67,14 +74,20 @@ def test_rooms_are_drawn_only_when_asked_and_stand_the_object_on_a_floor():
         assert 0 < horizon < 48, "wall above, floor below"
 
 
-def test_camouflaged_scenes_take_the_objects_colour_and_only_when_asked():
-    """camouflage_share 1: around the (red) object the scene is red too, so colour alone cannot cut it out;
-    share 0 draws what was drawn before camouflage existed."""
+@pytest.mark.parametrize("share", ["camouflage_share", "distractor_share"])
+def test_a_scene_option_at_zero_draws_what_was_drawn_before_it_existed(share):
+    image, mask = _framed_object()
+    views, masks = image.repeat(8, 1, 1, 1), mask.repeat(8, 1, 1, 1)
+    plain, _ = place_over_backdrops(views, masks, np.random.default_rng(2), room_share=0.5)
+    unasked, _ = place_over_backdrops(views, masks, np.random.default_rng(2), room_share=0.5, **{share: 0.0})
+    assert torch.equal(plain, unasked)
+
+
+def test_camouflaged_scenes_take_the_objects_colour():
+    """camouflage_share 1: around the (red) object the scene is red too, so colour alone cannot cut it out."""
     image, mask = _framed_object()
     views, masks = image.repeat(8, 1, 1, 1), mask.repeat(8, 1, 1, 1)
     plain, plain_masks = place_over_backdrops(views, masks, np.random.default_rng(2), room_share=0.5)
-    unasked, _ = place_over_backdrops(views, masks, np.random.default_rng(2), room_share=0.5, camouflage_share=0.0)
-    assert torch.equal(plain, unasked)
     hidden, hidden_masks = place_over_backdrops(views, masks, np.random.default_rng(2), 0.5, camouflage_share=1.0)
     assert hidden.min() >= -1 and hidden.max() <= 1
 
@@ -83,6 +96,24 @@ def test_camouflaged_scenes_take_the_objects_colour_and_only_when_asked():
         return float(((images[:, 0] > images[:, 1] + 0.3) & outside).sum() / outside.sum())
 
     assert red_around(hidden, hidden_masks) > 0.8 > 0.5 > red_around(plain, plain_masks)
+
+
+def test_distractors_are_things_behind_the_object_never_in_its_mask():
+    """distractor_share 1: every scene shows other things, never over the object and never in its mask."""
+    image, mask = _framed_object()
+    views, masks = image.repeat(6, 1, 1, 1), mask.repeat(6, 1, 1, 1)
+    plain, _ = place_over_backdrops(views, masks, np.random.default_rng(3), room_share=0.5)
+    busy, busy_masks = place_over_backdrops(views, masks, np.random.default_rng(3), 0.5, distractor_share=1.0)
+    assert busy.min() >= -1 and busy.max() <= 1 and not torch.equal(busy, plain)
+    covered = busy_masks[:, 0] > 0.5
+    red = (busy[:, 0] > 0.2) & (busy[:, 1] < -0.2)
+    assert (red & covered).sum() / covered.sum() > 0.8, "the object stays in front, under its mask"
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        colours, cover = shaded_blob(rng, 64)
+        assert colours.shape == (64, 64, 3) and cover.shape == (64, 64)
+        assert 0 <= colours.min() and colours.max() <= 1 and 0 <= cover.min() and cover.max() <= 1
+        assert (cover > 0.5).sum() > 8, "a thing of some size"
 
 
 def test_the_foot_shadow_darkens_the_floor_under_the_object_only():

@@ -252,3 +252,25 @@ def test_keep_mask_takes_the_mask_record_of_a_folder_that_has_one_of_the_recipes
         build_model.keep_mask_record(tmp_path, 2000, settings)
     with pytest.raises(SystemExit, match="--keep-mask needs"):  # a mask trained without the recipe's rooms
         build_model.keep_mask_record(tmp_path, 4000, build_model.MASK)
+
+
+def test_the_mask_network_trains_beside_the_build_on_half_the_cores_and_its_failure_stops_the_build(tmp_path):
+    """build_model.py starts `train mask` in a process of its own (it needs only the world): half the cores each
+    unless the user set the threads; a failed mask training stops the build with the path of its output, which
+    holds the command's own one-line error."""
+    import pytest
+
+    build_model = load_build_model()
+    assert build_model.split_threads({}, cpu_count=2) == ({"MESH2TEX_THREADS": "1"}, {"MESH2TEX_THREADS": "1"})
+    assert build_model.split_threads({}, cpu_count=16) == ({"MESH2TEX_THREADS": "8"}, {"MESH2TEX_THREADS": "8"})
+    assert build_model.split_threads({}, cpu_count=1) == ({"MESH2TEX_THREADS": "1"}, {"MESH2TEX_THREADS": "1"})
+    assert build_model.split_threads({"OMP_NUM_THREADS": "3"}, cpu_count=16) == ({}, {})
+    commands: list[str] = []
+    log = tmp_path / "mask.log"
+    argv = ["train", "mask", "--shapes", str(tmp_path / "missing"), "--out", str(tmp_path / "mask"), "--iters", "1"]
+    process = build_model.start_mask_training(argv, log, {"MESH2TEX_THREADS": "1"}, commands)
+    assert commands == ["mesh2tex " + " ".join(argv)]
+    with pytest.raises(SystemExit, match="mask network's training failed") as stopped:
+        build_model.finish_mask_training(process, log)
+    assert str(log) in str(stopped.value)
+    assert "missing" in log.read_text(), "the mask command's own error, naming the folder"

@@ -228,6 +228,7 @@ def network_loss(kind: str, net: torch.nn.Module, batch: dict[str, torch.Tensor]
             np.random.default_rng(int(torch.randint(1 << 62, (1,)))),
             cfg.room_share,
             cfg.camouflage_share,
+            cfg.distractor_share,
         )
         return mask_loss(net(images), masks)
     predicted = net(batch["image"], batch["mask"])

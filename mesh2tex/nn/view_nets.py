@@ -88,6 +88,9 @@ class ViewTrainConfig:
     # mask only: the share of scenes (rooms or backdrops) tinted to the object's mean colour
     # (mesh2tex.synthetic.backdrops.camouflage); 0 draws what the networks shipped before it learnt from
     camouflage_share: float = 0.0
+    # mask only: the share of scenes with other rounded things drawn behind the object
+    # (mesh2tex.synthetic.backdrops.add_distractors); 0 draws what the networks shipped before it learnt from
+    distractor_share: float = 0.0
     data: ViewDataConfig = field(default_factory=ViewDataConfig)
     bins: PoseBins = field(default_factory=PoseBins)  # pose classes (used by 'pose' only)
 
@@ -100,6 +103,7 @@ class ViewTrainConfig:
                 "width": (1, MAX_CHANNELS),
                 "room_share": (0.0, 1.0),
                 "camouflage_share": (0.0, 1.0),
+                "distractor_share": (0.0, 1.0),
                 "lr_end": (0.0, 1.0),
             },
         )

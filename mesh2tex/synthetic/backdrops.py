@@ -179,21 +179,67 @@ def camouflage(scene: torch.Tensor, rgb: torch.Tensor, cover: torch.Tensor) -> t
     return (scene * (object_mean / scene_mean).view(1, 3, 1, 1)).clamp(0, 1)
 
 
+def shaded_blob(rng: np.random.Generator, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """A rounded thing that is not the object: a smooth star-shaped outline (a disc's radius waved by a few
+    low harmonics, stretched and turned) filled with a colour or a crop of a backdrop, shaded as a dome
+    under a light from the front (a head, a vase, a cushion, a ball). Returns its (size, size, 3) float32
+    colours in [0, 1] and its (size, size) float32 coverage in [0, 1] (edges a pixel soft)."""
+    import cv2
+
+    angles = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    radius = np.ones_like(angles)
+    for k in range(2, 6):
+        radius += rng.uniform(0, 0.25 / k) * np.cos(k * angles + rng.uniform(0, 2 * np.pi))
+    scale = size * rng.uniform(0.08, 0.35) * np.exp(rng.uniform(-0.5, 0.5) * np.array([1.0, -1.0]))
+    turn = rng.uniform(0, np.pi)
+    x, y = radius * np.cos(angles) * scale[0], radius * np.sin(angles) * scale[1]
+    centre = rng.uniform(0, size, 2)
+    points = np.stack([x * np.cos(turn) - y * np.sin(turn), x * np.sin(turn) + y * np.cos(turn)], 1) + centre
+    inside = np.zeros((size, size), np.uint8)
+    cv2.fillPoly(inside, [np.round(points).astype(np.int32)], 1)
+    # the dome: height from the distance to the outline, its slope the shading's normal
+    distance = cv2.distanceTransform(inside, cv2.DIST_L2, 3)
+    reach = max(float(distance.max()), 1.0)
+    height = reach * np.sqrt(1 - (1 - np.minimum(distance / reach, 1)) ** 2)
+    gy, gx = np.gradient(height)
+    normal = np.stack([-gx, -gy, np.ones_like(gx)], -1)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    light = np.array([rng.uniform(-0.7, 0.7), rng.uniform(-0.9, 0.2), 1.0])
+    light /= np.linalg.norm(light)
+    ambient = rng.uniform(0.2, 0.5)
+    shade = (ambient + (1 - ambient) * np.clip(normal @ light, 0, 1)).astype(np.float32)
+    albedo = backdrop(rng, size) if rng.random() < 0.5 else np.broadcast_to(_colour(rng), (size, size, 3))
+    cover = cv2.GaussianBlur(inside.astype(np.float32), (0, 0), 0.7)
+    return np.clip(albedo * shade[..., None] * np.float32(1.2), 0, 1).astype(np.float32), cover
+
+
+def add_distractors(scene: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``scene`` (S, S, 3) float32 in [0, 1] with one to four :func:`shaded_blob` things drawn over it, behind
+    where the object will stand: a photo's other things, which the object's mask must leave out."""
+    size = scene.shape[0]
+    for _ in range(int(rng.integers(1, 5))):
+        colours, cover = shaded_blob(rng, size)
+        scene = colours * cover[..., None] + scene * (1 - cover[..., None])
+    return np.ascontiguousarray(scene, dtype=np.float32)
+
+
 def place_over_backdrops(
     images: torch.Tensor,
     masks: torch.Tensor,
     rng: np.random.Generator,
     room_share: float = 0.0,
     camouflage_share: float = 0.0,
+    distractor_share: float = 0.0,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Framed views of objects, each shrunk to a random share of the frame (:data:`SCALE_RANGE`), put at
     a random place over a fresh :func:`backdrop`, with a random exposure and a little sensor noise; a
     ``room_share`` of them instead stand on the floor of a :func:`room`, with a shadow at their foot; a
-    ``camouflage_share`` of the scenes take the object's mean colour (:func:`camouflage`).
+    ``camouflage_share`` of the scenes take the object's mean colour (:func:`camouflage`); a ``distractor_share``
+    of them show other rounded things behind the object (:func:`add_distractors`).
 
     images [B, 3, R, R] in [-1, 1]; masks [B, 1, R, R] in {0, 1}. Returns the new images (same shape
-    and range) and their masks (coverage >= 1/2 of the shrunk object). ``room_share`` and
-    ``camouflage_share`` 0 draw exactly what was drawn before rooms existed.
+    and range) and their masks (coverage >= 1/2 of the shrunk object). ``room_share``, ``camouflage_share``
+    and ``distractor_share`` 0 draw exactly what was drawn before rooms existed.
     """
     batch, _, size, _ = images.shape
     out_images, out_masks = torch.empty_like(images), torch.empty_like(masks)
@@ -209,6 +255,8 @@ def place_over_backdrops(
             top = foot - side
         else:
             scene = backdrop(rng, size)
+        if distractor_share > 0 and rng.random() < distractor_share:
+            scene = add_distractors(scene, rng)
         canvas = torch.from_numpy(scene).permute(2, 0, 1)[None].to(images)
         if camouflage_share > 0 and rng.random() < camouflage_share:
             canvas = camouflage(canvas, rgb, cover)

@@ -36,6 +36,7 @@ import sys
 import time
 from pathlib import Path
 
+import torch
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -274,15 +275,16 @@ def run(argv: list[str], log: list[str]) -> None:
         sys.exit(f"build_model: stage failed (exit {code}): {line}")
 
 
-def split_threads(environ=os.environ, cpu_count: int | None = None) -> tuple[dict, dict]:
-    """The thread settings of the build's two processes while the mask network trains beside the rest: (the
-    build's own environment overrides, the mask process's), half the cores each (at least one), or none
-    where the user set the threads (:data:`mesh2tex.runtime.THREAD_VARIABLES`), which both then take."""
+def split_threads(environ=os.environ, cpu_count: int | None = None) -> tuple[int | None, dict]:
+    """How the build's two processes share the cores while the mask network trains beside the rest: (torch
+    threads for the build's own stages, the mask process's environment overrides), half the cores each (at
+    least one); (None, {}) where the user set the threads (:data:`mesh2tex.runtime.THREAD_VARIABLES`), which
+    both processes then take."""
     if any(environ.get(name, "").isdigit() for name in THREAD_VARIABLES):
-        return {}, {}
+        return None, {}
     cores = cpu_count or os.cpu_count() or 1
     mask = max(1, cores // 2)
-    return {"MESH2TEX_THREADS": str(max(1, cores - mask))}, {"MESH2TEX_THREADS": str(mask)}
+    return max(1, cores - mask), {"MESH2TEX_THREADS": str(mask)}
 
 
 def start_mask_training(argv: list[str], log: Path, threads: dict, commands: list[str]) -> subprocess.Popen:
@@ -448,11 +450,12 @@ def main() -> None:
     mask_yaml = work / "mask.yaml"
     mask_yaml.write_text(yaml.safe_dump(mask_settings["config"]))
     own_threads, mask_threads = split_threads()
-    masking = None
+    threads_before, masking = torch.get_num_threads(), None
     if not kept_mask:
         mask_argv = network_training(work, "mask", mask_yaml, args.mask_iters, mask_settings, args)
         masking = start_mask_training(mask_argv, work / "mask.log", mask_threads, commands)
-        os.environ.update(own_threads)
+        if own_threads:  # the stages below run in this process (mesh2tex.cli.main leaves torch's threads alone)
+            torch.set_num_threads(own_threads)
     try:
         gan_ckpt, picked, pick, views_gan = train_gan_and_views(args, recipe, gan_config, gan_settings, work, commands)
         if masking is not None:
@@ -460,8 +463,7 @@ def main() -> None:
     finally:
         if masking is not None and masking.poll() is None:  # the build stopped: stop the mask's training too
             masking.terminate()
-        for name in own_threads:
-            os.environ.pop(name, None)
+        torch.set_num_threads(threads_before)
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
     for kind in ("pose", "noc") if kept_mask else ("pose", "noc", "mask"):
         export_inference_checkpoint(work / kind / "checkpoint.safetensors", kind, out / MODEL_FILES[kind])

@@ -261,10 +261,10 @@ def test_the_mask_network_trains_beside_the_build_on_half_the_cores_and_its_fail
     import pytest
 
     build_model = load_build_model()
-    assert build_model.split_threads({}, cpu_count=2) == ({"MESH2TEX_THREADS": "1"}, {"MESH2TEX_THREADS": "1"})
-    assert build_model.split_threads({}, cpu_count=16) == ({"MESH2TEX_THREADS": "8"}, {"MESH2TEX_THREADS": "8"})
-    assert build_model.split_threads({}, cpu_count=1) == ({"MESH2TEX_THREADS": "1"}, {"MESH2TEX_THREADS": "1"})
-    assert build_model.split_threads({"OMP_NUM_THREADS": "3"}, cpu_count=16) == ({}, {})
+    assert build_model.split_threads({}, cpu_count=2) == (1, {"MESH2TEX_THREADS": "1"})
+    assert build_model.split_threads({}, cpu_count=16) == (8, {"MESH2TEX_THREADS": "8"})
+    assert build_model.split_threads({}, cpu_count=1) == (1, {"MESH2TEX_THREADS": "1"})
+    assert build_model.split_threads({"OMP_NUM_THREADS": "3"}, cpu_count=16) == (None, {})
     commands: list[str] = []
     log = tmp_path / "mask.log"
     argv = ["train", "mask", "--shapes", str(tmp_path / "missing"), "--out", str(tmp_path / "mask"), "--iters", "1"]

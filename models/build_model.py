@@ -31,6 +31,7 @@ import json
 import os
 import platform
 import shlex
+import signal
 import subprocess
 import sys
 import time
@@ -425,6 +426,8 @@ def main() -> None:
         "(default: the model's own run, its snapshot at the recipe's views_gan_iteration)",
     )
     args = parser.parse_args()
+    # `kill PID` stops the build as Ctrl-C does, through the finally below that stops the mask's process too
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     recipe = RECIPES[args.category]
     args.variety = args.variety or recipe.get("variety", "boxy")
     gan_config = recipe_gan_config(recipe)
@@ -462,7 +465,8 @@ def main() -> None:
             finish_mask_training(masking, work / "mask.log")
     finally:
         if masking is not None and masking.poll() is None:  # the build stopped: stop the mask's training too
-            masking.terminate()
+            masking.terminate()  # it saves its checkpoint, as on Ctrl-C, and the same command resumes it
+            masking.wait()
         torch.set_num_threads(threads_before)
     export_inference_checkpoint(gan_ckpt, "gan", out / MODEL_FILES["gan"])
     for kind in ("pose", "noc") if kept_mask else ("pose", "noc", "mask"):

@@ -272,6 +272,8 @@ def run(argv: list[str], log: list[str]) -> None:
     print(f"\n== {line}", flush=True)
     log.append(line)
     code = cli(argv)
+    if code == 130:  # mesh2tex's exit on Ctrl-C or kill, its checkpoint saved
+        sys.exit(f"build_model: stopped during: {line}; the same build_model command resumes")
     if code != 0:
         sys.exit(f"build_model: stage failed (exit {code}): {line}")
 

@@ -17,6 +17,8 @@ from mesh2tex.cli import main as cli
 from mesh2tex.runtime import THREAD_VARIABLES
 
 ROOT = Path(__file__).resolve().parents[1]
+# A mask training that ends within this many seconds of its start has failed on its input or finished before.
+MASK_STARTUP_SECONDS = 20
 
 
 def cli_flags(**values) -> list[str]:
@@ -51,16 +53,23 @@ def start_mask_training(argv: list[str], log: Path, threads: dict, commands: lis
     """``mesh2tex train mask`` in a process of its own: the mask network learns from the world alone, so it
     trains beside the GAN and the view networks, and on a machine of two cores the build takes the longer
     of the two instead of their sum. ``threads``: its environment overrides (:func:`split_threads`); its
-    output goes to ``log``."""
+    output goes to ``log``. A training that fails as it starts (a bad folder, a run in use) stops the build
+    here, not after the GAN's hours."""
     line = "mesh2tex " + " ".join(shlex.quote(a) for a in argv)
     print(f"\n== {line}  (beside the rest; its output in {log})", flush=True)
     commands.append(line)
     path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
     env = {**os.environ, **threads, "PYTHONPATH": path}
     with open(log, "ab") as handle:
-        return subprocess.Popen(
+        process = subprocess.Popen(
             [sys.executable, "-m", "mesh2tex", *argv], env=env, stdout=handle, stderr=subprocess.STDOUT
         )
+    try:
+        process.wait(timeout=MASK_STARTUP_SECONDS)
+    except subprocess.TimeoutExpired:
+        return process  # training
+    finish_mask_training(process, log)  # it has ended already: done (a resumed build) or failed
+    return process
 
 
 def finish_mask_training(process: subprocess.Popen, log: Path) -> None:

@@ -256,8 +256,8 @@ def test_keep_mask_takes_the_mask_record_of_a_folder_that_has_one_of_the_recipes
 
 def test_the_mask_network_trains_beside_the_build_on_half_the_cores_and_its_failure_stops_the_build(tmp_path):
     """build_model.py starts `train mask` in a process of its own (it needs only the world): half the cores each
-    unless the user set the threads; a failed mask training stops the build with the path of its output, which
-    holds the command's own one-line error."""
+    unless the user set the threads; a mask training that fails as it starts stops the build at once with the path
+    of its output, which holds the command's own one-line error."""
     import pytest
 
     build_model = load_build_model()
@@ -268,9 +268,8 @@ def test_the_mask_network_trains_beside_the_build_on_half_the_cores_and_its_fail
     commands: list[str] = []
     log = tmp_path / "mask.log"
     argv = ["train", "mask", "--shapes", str(tmp_path / "missing"), "--out", str(tmp_path / "mask"), "--iters", "1"]
-    process = build_model.start_mask_training(argv, log, {"MESH2TEX_THREADS": "1"}, commands)
-    assert commands == ["mesh2tex " + " ".join(argv)]
     with pytest.raises(SystemExit, match="mask network's training failed") as stopped:
-        build_model.finish_mask_training(process, log)
-    assert str(log) in str(stopped.value)
+        build_model.start_mask_training(argv, log, {"MESH2TEX_THREADS": "1"}, commands)
+    assert commands == ["mesh2tex " + " ".join(argv)]
+    assert str(log) in str(stopped.value), "at once, not after the GAN"
     assert "missing" in log.read_text(), "the mask command's own error, naming the folder"

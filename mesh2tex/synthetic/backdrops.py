@@ -204,12 +204,13 @@ def shaded_blob(rng: np.random.Generator, size: int) -> tuple[np.ndarray, np.nda
     gy, gx = np.gradient(height)
     normal = np.stack([-gx, -gy, np.ones_like(gx)], -1)
     normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
-    light = np.array([rng.uniform(-0.7, 0.7), rng.uniform(-0.9, 0.2), 1.0])
+    light = np.array([rng.uniform(-0.7, 0.7), rng.uniform(-0.9, 0.2), 1.0])  # image rows grow down: mostly from above
     light /= np.linalg.norm(light)
     ambient = rng.uniform(0.2, 0.5)
     shade = (ambient + (1 - ambient) * np.clip(normal @ light, 0, 1)).astype(np.float32)
     albedo = backdrop(rng, size) if rng.random() < 0.5 else np.broadcast_to(_colour(rng), (size, size, 3))
     cover = cv2.GaussianBlur(inside.astype(np.float32), (0, 0), 0.7)
+    # x 1.2: a lit face as bright as the albedo's own colour, not only its shadowed shades
     return np.clip(albedo * shade[..., None] * np.float32(1.2), 0, 1).astype(np.float32), cover
 
 

@@ -30,7 +30,6 @@ import argparse
 import json
 import os
 import platform
-import shlex
 import signal
 import sys
 import time
@@ -49,6 +48,7 @@ from mesh2tex.io.checkpoint import read_checkpoint_meta  # noqa: E402
 from mesh2tex.models import MODEL_FILES, export_inference_checkpoint  # noqa: E402
 from models.stages import (  # noqa: E402
     cli_flags,
+    command_line,
     finish_mask_training,
     gan_run_dir,
     run,
@@ -136,7 +136,7 @@ def prepare_split(world: Path, part: str, folder: Path, commands: list[str]) -> 
     inputs = [str(world / "meshes" / f"{n}.obj") for n in names]
     argv = ["prepare", "shapes", "--input", *inputs, *cli_flags(out=folder, **SHAPES, workers=2)]
     print(f"\n== mesh2tex {' '.join(argv[:2])} ... ({part})", flush=True)
-    commands.append("mesh2tex " + " ".join(shlex.quote(a) for a in argv))
+    commands.append(command_line(argv))
     cli(argv)  # a shape that cannot be remeshed fails alone (exit 2); the others are prepared
 
 

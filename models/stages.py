@@ -26,8 +26,13 @@ def cli_flags(**values) -> list[str]:
     return [item for name, value in values.items() for item in (f"--{name.replace('_', '-')}", str(value))]
 
 
+def command_line(argv: list[str]) -> str:
+    """The ``mesh2tex`` command line of ``argv``, as a shell takes it (for the log and the card)."""
+    return "mesh2tex " + " ".join(shlex.quote(a) for a in argv)
+
+
 def run(argv: list[str], log: list[str]) -> None:
-    line = "mesh2tex " + " ".join(shlex.quote(a) for a in argv)
+    line = command_line(argv)
     print(f"\n== {line}", flush=True)
     log.append(line)
     code = cli(argv)
@@ -55,7 +60,7 @@ def start_mask_training(argv: list[str], log: Path, threads: dict, commands: lis
     of the two instead of their sum. ``threads``: its environment overrides (:func:`split_threads`); its
     output goes to ``log``. A training that fails as it starts (a bad folder, a run in use) stops the build
     here, not after the GAN's hours."""
-    line = "mesh2tex " + " ".join(shlex.quote(a) for a in argv)
+    line = command_line(argv)
     print(f"\n== {line}  (beside the rest; its output in {log})", flush=True)
     commands.append(line)
     path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)

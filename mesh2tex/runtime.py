@@ -49,6 +49,16 @@ def busy_cores_now(interval: float = 0.2, stat_path: str = "/proc/stat") -> floa
     return (1.0 - (idle_after - idle_before) / (total_after - total_before)) * cores
 
 
+def user_threads(environ=os.environ) -> int | None:
+    """The threads the user asked for: the first of :data:`THREAD_VARIABLES` set to a whole number of at least 1,
+    else None."""
+    for name in THREAD_VARIABLES:
+        value = environ.get(name, "")
+        if value.isdigit() and int(value) >= 1:
+            return int(value)
+    return None
+
+
 def choose_threads(cpu_count: int | None = None, load: float | None = None, environ=os.environ) -> int:
     """Threads for torch's CPU pool: the user's ``MESH2TEX_THREADS`` or ``OMP_NUM_THREADS`` when set,
     else the cores that other work leaves idle (at least 1): the busy cores of the last minute's load
@@ -61,10 +71,9 @@ def choose_threads(cpu_count: int | None = None, load: float | None = None, envi
     ended. Right after ``make install``, on an otherwise idle 2-core machine, it gave ``make demo``
     one thread, and its GAN 0.89 s per iteration instead of 0.65 with two.
     """
-    for name in THREAD_VARIABLES:
-        value = environ.get(name, "")
-        if value.isdigit() and int(value) >= 1:
-            return int(value)
+    chosen = user_threads(environ)
+    if chosen is not None:
+        return chosen
     cpu_count = cpu_count or os.cpu_count() or 1
     if load is None:
         try:

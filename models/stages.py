@@ -14,7 +14,7 @@ from pathlib import Path
 import yaml
 
 from mesh2tex.cli import main as cli
-from mesh2tex.runtime import THREAD_VARIABLES
+from mesh2tex.runtime import user_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 # A mask training that ends within this many seconds of its start has failed on its input or finished before.
@@ -45,9 +45,9 @@ def run(argv: list[str], log: list[str]) -> None:
 def split_threads(environ=os.environ, cpu_count: int | None = None) -> tuple[int | None, dict]:
     """How the build's two processes share the cores while the mask network trains beside the rest: (torch
     threads for the build's own stages, the mask process's environment overrides), half the cores each (at
-    least one); (None, {}) where the user set the threads (:data:`mesh2tex.runtime.THREAD_VARIABLES`), which
+    least one); (None, {}) where the user set the threads (:func:`mesh2tex.runtime.user_threads`), which
     both processes then take."""
-    if any(environ.get(name, "").isdigit() for name in THREAD_VARIABLES):
+    if user_threads(environ) is not None:
         return None, {}
     cores = cpu_count or os.cpu_count() or 1
     mask = max(1, cores // 2)

@@ -1,5 +1,5 @@
 """The runtime a command runs in: device selection, memory, data-parallel processes, seeding, RNG
-state and the exponential moving average of weights.
+state, the exponential moving average of weights and how a stop request reaches a training loop.
 
 Every stage (training, inference, evaluation) picks its device with :func:`select_device` and seeds
 with :func:`seed_everything`; the trainers keep RNG states in their checkpoints
@@ -12,6 +12,9 @@ import copy
 import os
 import random
 import resource
+import signal
+import sys
+import threading
 import time
 from typing import Any
 
@@ -193,6 +196,46 @@ class Distributed:
     def close(self) -> None:
         if self.enabled and dist.is_initialized():
             dist.destroy_process_group()
+
+
+# ------------------------------------------------------------------------------------ stop requests
+class StopAfterStep:
+    """Ctrl-C and ``kill`` (SIGINT, SIGTERM) held while a training loop runs (a context manager).
+
+    The first signal asks the loop to stop once the step in progress is done (``requested`` turns
+    true; the loop raises KeyboardInterrupt between steps), so the checkpoint saved on the way out is
+    the state after a whole step and a resumed run repeats the uninterrupted one exactly: a step cut
+    short leaves one optimizer stepped and not the other and the random streams drawn part way. A
+    second signal stops at once, as a plain Ctrl-C does. Only signals whose handler is a Python
+    function are taken (Ctrl-C's, and SIGTERM where a command made ``kill`` an interrupt); ignored or
+    default ones, and loops outside the main thread, are left alone.
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self, announce: bool = True):
+        self.announce = announce  # one line on the first signal (the main process of a distributed run)
+        self.requested = False
+        self._previous: dict[int, Any] = {}
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        if self.announce:
+            print("\nmesh2tex: stopping after this step, its checkpoint saved (again to stop at once)", file=sys.stderr)
+
+    def __enter__(self) -> "StopAfterStep":
+        if threading.current_thread() is threading.main_thread():
+            for signum in self.SIGNALS:
+                if callable(signal.getsignal(signum)):
+                    self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
 
 
 # ------------------------------------------------------------------------------------ random state

@@ -4,6 +4,7 @@ a resume, runs started from another run's checkpoint, what it refuses to start f
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -14,6 +15,8 @@ import yaml
 from gan_runs import TINY, make_tiny_data, metrics, train, train_args
 
 from mesh2tex.io.checkpoint import load_checkpoint, read_checkpoint_meta
+from mesh2tex.losses.gan import GanLoss
+from mesh2tex.models.store import D_FIELD, GENERATOR_EMA
 
 
 @pytest.fixture(scope="module")
@@ -270,3 +273,40 @@ def test_kill_stops_a_run_with_its_checkpoint_saved(tiny_data, tmp_path):
     assert "interrupted; re-run the same command to resume" in stderr
     _, meta = load_checkpoint(out / "checkpoint.safetensors")
     assert meta["iteration"] >= 3 and meta["iteration"] >= metrics(out)[-1]["iteration"]
+
+
+def test_ctrl_c_mid_step_stops_after_it_and_the_run_resumes_as_uninterrupted(tiny_data, tmp_path, monkeypatch, capsys):
+    """Ctrl-C (or kill) arriving after the generator's update of step 3 and before the discriminator's stops
+    the run once step 3 is done: its checkpoint is the state after three whole steps, so the re-run command
+    repeats the uninterrupted run to the last digit (a step cut short would leave D one update behind G)."""
+    full, part = tmp_path / "full", tmp_path / "part"
+    assert train(tiny_data, full, "--iters", "5") == 0
+
+    accumulate = GanLoss.accumulate_gradients
+    d_steps = []
+
+    def interrupting(self, phase, *args, **kwargs):
+        if phase == "Dmain":
+            d_steps.append(phase)
+            if len(d_steps) == 3:  # step 3: G stepped, D still to come
+                os.kill(os.getpid(), signal.SIGINT)
+        return accumulate(self, phase, *args, **kwargs)
+
+    monkeypatch.setattr(GanLoss, "accumulate_gradients", interrupting)
+    assert train(tiny_data, part, "--iters", "5") == 130
+    assert "stopping after this step" in capsys.readouterr().err
+    assert read_checkpoint_meta(part / "checkpoint.safetensors")["meta"]["iteration"] == 3
+    assert [r["iteration"] for r in metrics(part)] == [1, 2, 3]
+    monkeypatch.setattr(GanLoss, "accumulate_gradients", accumulate)
+    assert train(tiny_data, part, "--iters", "5", "--resume") == 0
+    a, b = metrics(full), metrics(part)
+    assert [r["iteration"] for r in b] == [1, 2, 3, 4, 5]
+    for ra, rb in zip(a, b):
+        for key in ra:
+            if key.startswith(("loss_", "score_")):
+                assert ra[key] == rb[key], (ra["iteration"], key)
+    ga, _ = load_checkpoint(full / "checkpoint.safetensors")
+    gb, _ = load_checkpoint(part / "checkpoint.safetensors")
+    for group in (GENERATOR_EMA, D_FIELD):
+        for name, tensor in ga[group].items():
+            torch.testing.assert_close(tensor, gb[group][name], rtol=0, atol=0)

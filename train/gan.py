@@ -416,6 +416,7 @@ class GanTrainer:
                 runs.Every(cfg.sample_every, self.write_samples, final="never"),
             ],
             extra={"world_size": self.dist.world_size},
+            stop_together=lambda requested: self.dist.any(requested, self.device),
         )
         if main:
             self.write_samples()

@@ -56,6 +56,7 @@ from mesh2tex.io.outputs import continues_own_run, guard_outputs, move_aside
 from mesh2tex.progress import JsonLines, progress_bar
 from mesh2tex.runtime import (
     Distributed,
+    StopAfterStep,
     ema_beta,
     ema_update,
     make_ema,
@@ -367,6 +368,21 @@ class At:
         return iteration in self.iterations
 
 
+def _guarded_step(trainer: Trainer, run: RunDirectory, advice: str) -> dict[str, float]:
+    """``trainer.step()``; a non-finite loss saves the state to ``RUN/nonfinite.safetensors`` and stops
+    with one error line naming the last good checkpoint and ``advice``, exit status 4."""
+    try:
+        return trainer.step()
+    except NonFiniteLoss as error:
+        trainer.save(run.nonfinite_path)
+        kept = f"; the last good checkpoint is {run.checkpoint_path}" if run.has_checkpoint() else ""
+        raise UserError(
+            f"{run.root}: training stopped, non-finite loss ({error}); state saved to {run.nonfinite_path}{kept}. "
+            f"{advice}",
+            exit_code=4,
+        ) from None
+
+
 def training_loop(
     trainer: Trainer,
     run: RunDirectory,
@@ -382,6 +398,7 @@ def training_loop(
     periodic: Sequence[Every | At] = (),
     main: bool = True,
     extra: dict | None = None,
+    stop_together: Callable[[bool], bool] = lambda requested: requested,
 ) -> None:
     """Run ``trainer`` from its iteration to ``iters``, as every trainer does:
 
@@ -392,47 +409,45 @@ def training_loop(
       ``measure`` when due (its dict merged in; a due measure always writes a line), iterations per
       second of the training steps since the last line, peak memory, the torch thread count (it changes
       float sums, so a long run's trajectory) and ``extra``;
-    * the checkpoint every ``checkpoint_every`` iterations (and at the end, and on Ctrl-C before the
-      interrupt goes on), and the ``periodic`` work (snapshots, samples) when due.
+    * the checkpoint every ``checkpoint_every`` iterations (and at the end, and on Ctrl-C or ``kill``
+      before the interrupt goes on), and the ``periodic`` work (snapshots, samples) when due;
+    * Ctrl-C or ``kill`` stops the loop once the step in progress and its logging are done
+      (:class:`mesh2tex.runtime.StopAfterStep`; a second one at once), so that the saved checkpoint
+      resumes exactly; ``stop_together(requested)`` is true when any process was asked (a distributed
+      run stops all its processes after the same step).
     """
     bar = progress_bar(total=iters, initial=trainer.iteration, desc=desc) if main else None
     throughput = Throughput(trainer.iteration, device)
     try:
-        while trainer.iteration < iters:
-            try:
-                logs = trainer.step()
-            except NonFiniteLoss as error:
-                trainer.save(run.nonfinite_path)
-                kept = f"; the last good checkpoint is {run.checkpoint_path}" if run.has_checkpoint() else ""
-                raise UserError(
-                    f"{run.root}: training stopped, non-finite loss ({error}); state saved to "
-                    f"{run.nonfinite_path}{kept}. "
-                    f"{advice}",
-                    exit_code=4,
-                ) from None
-            it = trainer.iteration
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(postfix(logs))
-            measured = main and measure is not None and measure.due(it, iters)
-            if main and (it % log_every == 0 or it == iters or measured):
-                speed = throughput.fields(it)  # before measuring: the measure counts towards the next interval
-                figures = measure.action() if measured else {}
-                run.log(
-                    {
-                        "iteration": it,
-                        **logs,
-                        **figures,
-                        **speed,
-                        "torch_threads": torch.get_num_threads(),
-                        **(extra or {}),
-                    }
-                )
-            if checkpoint_every and it % checkpoint_every == 0 and it < iters:
-                trainer.save(run.checkpoint_path)
-            for work in periodic:
-                if (main or not work.main_only) and work.due(it, iters):
-                    work.action()
+        with StopAfterStep(announce=main) as stop:
+            while trainer.iteration < iters:
+                logs = _guarded_step(trainer, run, advice)
+                it = trainer.iteration
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(postfix(logs))
+                measured = main and measure is not None and measure.due(it, iters)
+                if main and (it % log_every == 0 or it == iters or measured):
+                    speed = throughput.fields(it)  # before measuring: the measure counts towards the next interval
+                    figures = measure.action() if measured else {}
+                    run.log(
+                        {
+                            "iteration": it,
+                            **logs,
+                            **figures,
+                            **speed,
+                            "torch_threads": torch.get_num_threads(),
+                            **(extra or {}),
+                        }
+                    )
+                if checkpoint_every and it % checkpoint_every == 0 and it < iters:
+                    trainer.save(run.checkpoint_path)
+                for work in periodic:
+                    if (main or not work.main_only) and work.due(it, iters):
+                        work.action()
+                # between steps: the state is whole, so the checkpoint saved below resumes exactly
+                if stop_together(stop.requested):
+                    raise KeyboardInterrupt
     except KeyboardInterrupt:
         trainer.save(run.checkpoint_path)
         raise

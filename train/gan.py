@@ -158,7 +158,7 @@ class GanTrainer:
         """Collective: every process contributes its RNG state; the main process writes."""
         rng_states = self.dist.gather_objects(runs.rng_to_state())
         if self.dist.is_main:
-            meta = {**self.model_meta(), "best": self.best}
+            meta = {**self.model_meta(), "best": self.best, "latest": self.latest}
             runs.save_training_state(
                 path,
                 KIND,
@@ -189,9 +189,10 @@ class GanTrainer:
         self.loss.load_state_dict(groups[GAN_LOSS])
         self.ada.load_state_dict(groups[GAN_LOSS])
         self.iteration = int(meta["iteration"])
-        self.best = (
-            meta.get("best") if path == self.run.checkpoint_path else None
-        )  # another run's best is not in this one's folder
+        own = path == self.run.checkpoint_path
+        self.best = meta.get("best") if own else None  # another run's best is not in this one's folder
+        # the lazy terms' last values, logged until they run again: the resumed lines read as the uninterrupted
+        self.latest = dict(meta.get("latest", {})) if own else {}
         states = meta["rng"]
         if len(states) == self.dist.world_size:
             runs.rng_from_state(states[self.dist.rank])
@@ -202,7 +203,7 @@ class GanTrainer:
                 file=sys.stderr,
             )
             runs.seed_everything(self.cfg.seed + 7919 * self.iteration + 1000003 * self.dist.rank)
-        if self.dist.is_main and path == self.run.checkpoint_path:
+        if self.dist.is_main and own:
             self.run.metrics.truncate_after("iteration", self.iteration)
 
     # ---------------------------------------------------------------------------------- steps

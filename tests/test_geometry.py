@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 import trimesh
@@ -14,6 +16,7 @@ from mesh2tex.geometry.mesh_io import load_mesh
 from mesh2tex.geometry.prepare import prepare_shape
 from mesh2tex.geometry.prepared import PreparedShape
 from mesh2tex.geometry.quadremesh import quadriflow, triangles_to_quads
+from mesh2tex.geometry.quadriflow import _run_forked
 
 
 def box_chair() -> trimesh.Trimesh:
@@ -190,6 +193,20 @@ def test_quadriflow_wrapper_reaches_the_target():
     v, q = quadriflow(sphere.vertices, sphere.faces, 200, seed=0)
     assert q.shape[1] == 4 and 100 <= len(q) <= 300
     assert q.max() < len(v)
+
+
+def _prints_and_adds_one(x: int) -> int:
+    os.write(1, b"wrong init 198 207!\n")  # as QuadriFlow's C code prints, past Python's streams
+    os.write(2, b"Fail!!!!!!! 3\n")
+    return x + 1
+
+
+def test_quadriflow_s_own_debugging_lines_do_not_reach_the_user(capfd):
+    """`prepare shapes` printed QuadriFlow's "wrong init 198 207!" among its own lines; the forked child
+    that runs the library now keeps its prints, and its result still comes back."""
+    assert _run_forked(_prints_and_adds_one, (1,), timeout=60) == 2
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
 
 
 def test_normalize_and_clean_repair_duplicates_and_degenerate_faces():

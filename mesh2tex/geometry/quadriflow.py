@@ -91,6 +91,11 @@ def _run_forked(function, args: tuple, timeout: float | None, memory_gb: float |
     if pid == 0:  # child: never returns into the caller's code
         os.close(read_fd)
         try:
+            # the C library prints debugging lines of its own ("wrong init 198 207!"); what the caller needs, an
+            # error's message included, comes back through the pipe, and a crash is named by the parent
+            quiet = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(quiet, 1)
+            os.dup2(quiet, 2)
             try:
                 if memory_gb is not None:
                     import resource
